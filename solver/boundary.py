@@ -1,0 +1,78 @@
+"""Boundary rows of the step's difference equations (DESIGN.md, "boundary").
+
+Each end has six conditions, one per degree of freedom, in body-frame components:
+translation i = 1, 2, 3 prescribes the velocity v_i or the internal force f_i, rotation
+i prescribes the angular velocity ω_i or the internal moment q_i = B_ii κ_i. They are
+imposed at the new time level, unweighted, as in WHOI Cable (numerics-notes §1.2).
+
+Sign convention: f(s) and q(s) are the force and moment that the part of the rod beyond
+s (larger arclength) exerts on the part before it; so f3 > 0 is tension at either end,
+the load applied *to* the end s = L is +f(L), and the load applied to the end s = 0 is
+−f(0).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .banded import NV
+
+__all__ = ["BoundaryRows"]
+
+_GROUPS = ("translation", "rotation")
+
+
+class BoundaryRows:
+    """The 12 boundary rows in force at time t.
+
+    Parameters
+    ----------
+    case : solver.case.Case
+    props : RodProperties
+    t : float, s
+    n : int, number of unknowns 12(N+1)
+
+    Attributes
+    ----------
+    rows, cols : (12,) int, matrix positions (rows 0-5 for s = 0, n-6..n-1 for s = L)
+    coef : (12,) float, the Jacobian entries (1, or the stiffness for a moment)
+    values : (12,) float, prescribed values (m/s, rad/s, N, N m)
+    kinematic : (12,) bool
+    key : hashable description of which kind of condition holds on each DOF
+    """
+
+    def __init__(self, case, props, t: float, n: int):
+        n_last = props.s.size - 1
+        rows, cols, coef, vals, kin = [], [], [], [], []
+        for e, (end, node, row0) in enumerate(
+            (("start", 0, 0), ("end", n_last, n - 6))
+        ):
+            ec = getattr(case.boundary, end)
+            for g, group in enumerate(_GROUPS):
+                for i in range(3):
+                    cond = ec.active(group, i, t)
+                    kinematic = bool(cond.kinematic)
+                    if group == "translation":
+                        idx = (0 if kinematic else 6) + i
+                        c = 1.0
+                    else:
+                        idx = (3 if kinematic else 9) + i
+                        c = 1.0 if kinematic else float(props.stiffness[node, i])
+                    rows.append(row0 + 3 * g + i)
+                    cols.append(NV * node + idx)
+                    coef.append(c)
+                    vals.append(float(cond.value_at(t)))
+                    kin.append(kinematic)
+        self.rows = np.array(rows)
+        self.cols = np.array(cols)
+        self.coef = np.array(coef)
+        self.values = np.array(vals)
+        self.kinematic = np.array(kin)
+        self.key = tuple(self.cols.tolist())
+
+    def residual(self, Y: np.ndarray, R: np.ndarray) -> None:
+        """Write the 12 boundary residuals coef·Y − value into R (n,) in place."""
+        R[self.rows] = self.coef * Y.reshape(-1)[self.cols] - self.values
+
+    def jacobian_entries(self):
+        """(rows, cols, values) of the boundary rows' Jacobian entries."""
+        return self.rows, self.cols, self.coef

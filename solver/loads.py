@@ -1,0 +1,93 @@
+"""Distributed loads per unit length in the body frame (the B of seed eq. 4), each
+assembled only when the case has it.
+
+* Morison drag in still fluid (numerics-notes §2.3, WHOI Cable conventions):
+  ``B_d = -½ ρ_f D C_dn |v_n| v_n - ½ ρ_f π D C_dt |v_t| v_t`` with v_t = (v·a3) a3 and
+  v_n = v - v_t (body frame, a3 = (0, 0, 1)). The added mass is not a load here: it is
+  part of the translational mass matrix (see :mod:`solver.properties`).
+* Gravity with buoyancy: ``B_g = (ρ - ρ_f) A Rᵀ g`` (ρ_f = 0 without fluid).
+* Time-windowed distributed forces given in the global frame: ``B = Rᵀ F(t)`` on
+  ``start <= t < end`` and, optionally, on an arclength window ``s0 <= s <= s1``.
+
+Orientation-dependent loads are evaluated with the orientation at the new time level
+inside Newton; their derivative with respect to ω^{n+1} is ``(Δt_ω)[B]×`` where
+``R^{n+1} = R̂ exp(Δt_ω (ω^n + ω^{n+1}))`` (first order in the rotation increment).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["LoadModel"]
+
+
+class LoadModel:
+    """The case's distributed loads on the grid.
+
+    Parameters
+    ----------
+    case : solver.case.Case
+    props : solver.properties.RodProperties
+    """
+
+    def __init__(self, case, props):
+        self.props = props
+        fl = case.fluid
+        self.has_drag = fl is not None and (fl.drag_coefficient_normal > 0
+                                            or fl.drag_coefficient_tangential > 0)
+        if fl is not None:
+            self.cdn = 0.5 * fl.density * props.diameter * fl.drag_coefficient_normal
+            self.cdt = 0.5 * fl.density * np.pi * props.diameter * fl.drag_coefficient_tangential
+            rho_f = fl.density
+        else:
+            rho_f = 0.0
+        # net weight per length (N/m per m/s^2), global-frame forces and windows
+        self.gravity = None
+        if case.gravity is not None and np.any(np.asarray(case.gravity, float) != 0):
+            rho = np.asarray(case.rod.evaluate("density", props.s), float)
+            net = (rho - rho_f) * props.area
+            self.gravity = net[:, None] * np.asarray(case.gravity, float)[None, :]
+        self.forces = []
+        for df in case.distributed_forces:
+            val = np.asarray(df.value, float)
+            if not np.any(val != 0):
+                continue
+            mask = np.ones_like(props.s, dtype=bool)
+            s_range = getattr(df, "s_range", None)
+            if s_range is not None:
+                s0, s1 = s_range
+                mask = (props.s >= s0 - 1e-12) & (props.s <= s1 + 1e-12)
+            end = df.end if df.end is not None else np.inf
+            self.forces.append((float(df.start), float(end), mask.astype(float), val))
+        self.has_global = self.gravity is not None or bool(self.forces)
+
+    def global_force(self, t: float):
+        """Global-frame distributed force (N+1, 3) N/m at time t, or None if zero."""
+        out = None
+        if self.gravity is not None:
+            out = self.gravity.copy()
+        for start, end, mask, val in self.forces:
+            if start <= t < end:
+                contrib = mask[:, None] * val[None, :]
+                out = contrib if out is None else out + contrib
+        return out
+
+    def drag(self, v: np.ndarray, want_jacobian: bool):
+        """Morison drag (N+1, 3) N/m for body-frame velocities v (N+1, 3) m/s.
+
+        Returns (B, dB/dv (N+1, 3, 3) or None).
+        """
+        vn = v[:, :2]
+        vt = v[:, 2]
+        speed_n = np.sqrt(vn[:, 0] ** 2 + vn[:, 1] ** 2)
+        b = np.empty_like(v)
+        b[:, :2] = -(self.cdn * speed_n)[:, None] * vn
+        b[:, 2] = -self.cdt * np.abs(vt) * vt
+        if not want_jacobian:
+            return b, None
+        jac = np.zeros(v.shape + (3,))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            inv = np.where(speed_n > 0, 1.0 / np.where(speed_n > 0, speed_n, 1.0), 0.0)
+        outer = vn[:, :, None] * vn[:, None, :] * inv[:, None, None]
+        jac[:, :2, :2] = -self.cdn[:, None, None] * (outer + speed_n[:, None, None] * np.eye(2))
+        jac[:, 2, 2] = -2.0 * self.cdt * np.abs(vt)
+        return b, jac
