@@ -1,0 +1,1026 @@
+"""The case spec, schema_version 1: hockle's input contract (DESIGN.md, "Case spec").
+
+A case file (YAML or JSON, SI units throughout) describes one simulation of a twisted
+elastic rod: its material and geometry, the surrounding fluid, loads, the initial
+configuration, six boundary conditions at each end, self-contact, numerics and output.
+This module turns such a file into a validated, immutable-by-convention :class:`Case`
+that the solver, the CLI and the REST service all read.
+
+Usage::
+
+    from solver.case import Case, CaseError
+    case = Case.from_file("cases/goyal-writhing.yaml")   # raises CaseError
+    case = Case.from_text(text, fmt="json")               # raises CaseError
+    case = Case.model_validate(mapping)                   # raises pydantic.ValidationError
+    case.canonical_json(); case.spec_hash()
+
+Conventions (also in ``docs/case-spec.md``):
+
+* every quantity is SI: m, s, kg, N, Pa, rad (the contact ``aperture`` is in degrees);
+* boundary conditions are components in the body frame (a1, a2, a3) of the rod end;
+  distributed forces and gravity are components in the global frame;
+* a boundary condition with ``until: T`` is in force while ``t <= T``; the next one in the
+  list takes over after ``T``;
+* a table ``{t, value}`` or profile ``{s, value}`` is piecewise linear and held constant
+  outside its range.
+
+Every refusal names the field by its path, formatted like ``rod.diameter.value[2]`` or
+``boundary.end.translation[2][0].until`` (see :func:`format_loc`).
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import numbers
+import re
+from pathlib import Path
+from typing import Annotated, Any, Literal, Optional, Union
+
+import numpy as np
+import yaml
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    ValidationError,
+    WrapValidator,
+    field_validator,
+    model_serializer,
+    model_validator,
+)
+from pydantic_core import PydanticCustomError
+
+__all__ = [
+    "SCHEMA_VERSION",
+    "OUTPUT_FIELDS",
+    "DEFAULT_OUTPUT_FIELDS",
+    "MATERIAL_PROPERTIES",
+    "TRANSLATION_KEYS",
+    "ROTATION_KEYS",
+    "CaseError",
+    "format_loc",
+    "format_validation_errors",
+    "parse_text",
+    "Profile",
+    "Table",
+    "Rod",
+    "Fluid",
+    "DistributedForce",
+    "Initial",
+    "Condition",
+    "EndCondition",
+    "Boundary",
+    "Contact",
+    "Newton",
+    "Numerics",
+    "Output",
+    "Case",
+]
+
+SCHEMA_VERSION = 1
+
+#: Names accepted in ``output.fields``, in canonical order.
+OUTPUT_FIELDS: tuple[str, ...] = (
+    "v",
+    "omega",
+    "f",
+    "kappa",
+    "moment",
+    "position",
+    "orientation",
+    "energies",
+    "topology",
+    "contact",
+)
+DEFAULT_OUTPUT_FIELDS: tuple[str, ...] = (
+    "v",
+    "omega",
+    "f",
+    "kappa",
+    "position",
+    "energies",
+    "topology",
+)
+#: Rod properties that may be a number or a :class:`Profile`.
+MATERIAL_PROPERTIES: tuple[str, ...] = ("youngs_modulus", "shear_modulus", "density", "diameter")
+#: Condition keys allowed in a ``translation`` item and in a ``rotation`` item.
+TRANSLATION_KEYS: tuple[str, ...] = ("velocity", "force")
+ROTATION_KEYS: tuple[str, ...] = ("angular_velocity", "moment")
+_CONDITION_KEYS = TRANSLATION_KEYS + ROTATION_KEYS
+_KINEMATIC_KEYS = frozenset({"velocity", "angular_velocity"})
+
+#: Relative slack when comparing a time with a condition's ``until``.
+UNTIL_RTOL = 1e-12
+#: Relative tolerance with which ``numerics.ds`` must divide ``rod.length``.
+DS_RTOL = 1e-9
+#: Largest |cos| allowed between ``initial.tangent`` and ``initial.normal``.
+ORTHOGONALITY_TOL = 1e-9
+
+_MODEL_CONFIG = ConfigDict(extra="forbid", allow_inf_nan=False, validate_default=True)
+
+
+# --------------------------------------------------------------------------- errors
+
+
+def format_loc(loc: tuple | list) -> str:
+    """Format a pydantic error location as a field path.
+
+    ``("boundary", "end", "translation", 2, 0, "until")`` becomes
+    ``"boundary.end.translation[2][0].until"``; an empty location (the document itself)
+    becomes ``""``.
+    """
+    out = ""
+    for part in loc:
+        if isinstance(part, int) and not isinstance(part, bool):
+            out += f"[{part}]"
+        else:
+            out += f".{part}" if out else str(part)
+    return out
+
+
+_MSG_PREFIXES = ("Value error, ", "Assertion failed, ")
+
+
+def format_validation_errors(exc: ValidationError) -> list[dict]:
+    """Turn a :class:`pydantic.ValidationError` into ``[{"loc", "msg", "type"}, ...]``.
+
+    ``loc`` is a path string (:func:`format_loc`), ``msg`` a human-readable reason and
+    ``type`` pydantic's (or this module's) machine-readable error type. The REST service
+    reuses this for its 422 problem details; the CLI prints it. Input values are left out
+    on purpose (they can be large arrays). Accepts any object with pydantic's
+    ``errors()`` method.
+    """
+    result = []
+    for err in exc.errors(include_url=False):
+        msg = str(err.get("msg", ""))
+        for prefix in _MSG_PREFIXES:
+            if msg.startswith(prefix):
+                msg = msg[len(prefix):]
+        etype = str(err.get("type", "value_error"))
+        if etype == "extra_forbidden":
+            msg = "unknown field (not part of case spec schema v1)"
+        result.append({"loc": format_loc(err.get("loc", ())), "msg": msg, "type": etype})
+    return result
+
+
+class CaseError(ValueError):
+    """An invalid case spec, or one that could not be read or parsed.
+
+    ``errors`` is a list of ``{"loc": str, "msg": str, "type": str}`` dicts; ``loc`` is a
+    field path such as ``rod.diameter.value[2]`` (``""`` for the document as a whole).
+    ``str(error)`` is a readable multi-line message, one ``path: reason`` line per error.
+    Raised by :meth:`Case.from_file` and :meth:`Case.from_text`.
+    """
+
+    def __init__(self, errors: list[dict], source: Optional[str] = None):
+        self.errors: list[dict] = [
+            {"loc": str(e.get("loc", "")), "msg": str(e.get("msg", "")), "type": str(e.get("type", "value_error"))}
+            for e in errors
+        ]
+        self.source = source
+        super().__init__(self._render())
+
+    @classmethod
+    def from_validation_error(cls, exc: ValidationError, source: Optional[str] = None) -> "CaseError":
+        """Wrap a pydantic validation error, keeping every error's field path."""
+        return cls(format_validation_errors(exc), source)
+
+    def _render(self) -> str:
+        where = f" ({self.source})" if self.source else ""
+        n = len(self.errors)
+        head = f"invalid case spec{where}: {n} error{'s' if n != 1 else ''}"
+        lines = [f"  {e['loc'] or '(case)'}: {e['msg']}".replace("\n", "\n    ") for e in self.errors]
+        return "\n".join([head, *lines])
+
+    def __str__(self) -> str:
+        return self._render()
+
+
+def _doc_error(msg: str, etype: str, source: Optional[str]) -> CaseError:
+    """A CaseError about the document as a whole (location ``""``)."""
+    return CaseError([{"loc": "", "msg": msg, "type": etype}], source)
+
+
+def _err(loc: tuple, etype: str, msg: str, value: Any = None) -> dict:
+    """One line error for :func:`_raise`. ``msg`` is used literally (no templating)."""
+    return {"type": PydanticCustomError(etype, msg.replace("{", "(").replace("}", ")")), "loc": loc, "input": value}
+
+
+def _raise(title: str, errors: list[dict]) -> None:
+    """Raise a ValidationError carrying ``errors`` with their own locations.
+
+    Raised inside a validator, pydantic keeps each error's location and prefixes the
+    location of the model being validated, so nested paths come out right.
+    """
+    if errors:
+        raise ValidationError.from_exception_data(title, errors)
+
+
+# --------------------------------------------------------------------------- scalars
+
+
+def _check_number(value: Any) -> Any:
+    """Refuse strings and booleans where a number is expected (pydantic would coerce)."""
+    if isinstance(value, (str, bytes, bool)):
+        raise PydanticCustomError("float_type", "Input should be a number, not {kind}", {"kind": type(value).__name__})
+    return value
+
+
+def _check_integer(value: Any) -> Any:
+    """Refuse strings and booleans where an integer is expected."""
+    if isinstance(value, (str, bytes, bool)):
+        raise PydanticCustomError("int_type", "Input should be an integer, not {kind}", {"kind": type(value).__name__})
+    return value
+
+
+Finite = Annotated[float, BeforeValidator(_check_number), Field(allow_inf_nan=False)]
+Integer = Annotated[int, BeforeValidator(_check_integer)]
+Vector3 = Annotated[list[Finite], Field(min_length=3, max_length=3)]
+
+
+def _as_float(value: Any) -> float:
+    """A finite float from a real number; raises the pydantic error types otherwise."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise PydanticCustomError("float_type", "Input should be a number or a table/profile mapping")
+    value = float(value)
+    if not math.isfinite(value):
+        raise PydanticCustomError("finite_number", "Input should be a finite number")
+    return value
+
+
+# --------------------------------------------------------------------------- tables
+
+
+def _check_increasing(values: list[float], name: str, noun: str) -> list[dict]:
+    errors = []
+    for k in range(1, len(values)):
+        if not values[k] > values[k - 1]:
+            errors.append(
+                _err(
+                    (name, k),
+                    "not_increasing",
+                    f"{noun} must be strictly increasing: {name}[{k}] = {values[k]!r} "
+                    f"is not > {name}[{k - 1}] = {values[k - 1]!r}",
+                    values[k],
+                )
+            )
+    return errors
+
+
+class Profile(BaseModel):
+    """A rod property along the arclength: piecewise linear in ``s``, held constant outside.
+
+    ``s`` (m) must have at least 2 points, be strictly increasing and lie within
+    ``[0, rod.length]`` (checked by :class:`Rod`); ``value`` (the property's SI unit) has
+    the same number of points. Errors: ``not_increasing`` at ``s[k]``,
+    ``length_mismatch`` at ``value``.
+    """
+
+    model_config = _MODEL_CONFIG
+
+    s: list[Finite] = Field(..., min_length=2, description="Arclength stations, m; strictly increasing, within [0, rod.length].")
+    value: list[Finite] = Field(
+        ..., min_length=2, description="Property value at each station, in the property's SI unit (Pa, kg/m^3 or m)."
+    )
+
+    @model_validator(mode="after")
+    def _check(self) -> "Profile":
+        errors = _check_increasing(self.s, "s", "profile arclengths")
+        if len(self.value) != len(self.s):
+            errors.append(
+                _err(("value",), "length_mismatch", f"has {len(self.value)} points but s has {len(self.s)}", self.value)
+            )
+        _raise("Profile", errors)
+        return self
+
+    def evaluate(self, s: Any) -> np.ndarray:
+        """The profile at arclengths ``s`` (m): linear interpolation, ends held."""
+        return np.asarray(np.interp(np.asarray(s, dtype=float), self.s, self.value), dtype=float)
+
+
+class Table(BaseModel):
+    """A boundary value in time: piecewise linear in ``t``, held constant outside.
+
+    ``t`` (s) has at least 2 points and is strictly increasing; ``value`` (the
+    condition's SI unit: m/s, N, rad/s or N m) has the same number of points. Errors:
+    ``not_increasing`` at ``t[k]``, ``length_mismatch`` at ``value``.
+    """
+
+    model_config = _MODEL_CONFIG
+
+    t: list[Finite] = Field(..., min_length=2, description="Times, s; strictly increasing.")
+    value: list[Finite] = Field(
+        ..., min_length=2, description="Value at each time, in the condition's SI unit (m/s, N, rad/s or N m)."
+    )
+
+    @model_validator(mode="after")
+    def _check(self) -> "Table":
+        errors = _check_increasing(self.t, "t", "table times")
+        if len(self.value) != len(self.t):
+            errors.append(
+                _err(("value",), "length_mismatch", f"has {len(self.value)} points but t has {len(self.t)}", self.value)
+            )
+        _raise("Table", errors)
+        return self
+
+    def value_at(self, t: float) -> float:
+        """The table at time ``t`` (s): linear interpolation, ends held."""
+        return float(np.interp(float(t), self.t, self.value))
+
+
+def _material(value: Any, handler: Any) -> Union[float, Profile]:
+    """A positive finite number, or a :class:`Profile` whose values are all > 0."""
+    if isinstance(value, (dict, Profile)):
+        profile = Profile.model_validate(value)
+        _raise(
+            "Profile",
+            [_err(("value", k), "greater_than", "must be > 0", v) for k, v in enumerate(profile.value) if not v > 0],
+        )
+        return profile
+    number = _as_float(value)
+    if not number > 0:
+        raise PydanticCustomError("greater_than", "must be > 0")
+    return number
+
+
+def _number_or_table(value: Any, handler: Any) -> Union[float, Table]:
+    """A finite number, or a :class:`Table`."""
+    if isinstance(value, (dict, Table)):
+        return Table.model_validate(value)
+    return _as_float(value)
+
+
+Material = Annotated[Union[Annotated[float, Field(gt=0)], Profile], WrapValidator(_material)]
+NumberOrTable = Annotated[Union[float, Table], WrapValidator(_number_or_table)]
+
+
+# --------------------------------------------------------------------------- rod, fluid, loads
+
+
+class Rod(BaseModel):
+    """The rod: length and (possibly arclength-dependent) material and section.
+
+    Each of ``youngs_modulus``, ``shear_modulus``, ``density`` and ``diameter`` is a
+    positive number or a :class:`Profile` with all values > 0 and all stations within
+    ``[0, length]``. Errors name the path, e.g. ``rod.diameter.value[2]: must be > 0``
+    or ``rod.density.s[3]: must be within [0, length]``.
+    """
+
+    model_config = _MODEL_CONFIG
+
+    length: Finite = Field(..., gt=0, description="Unstretched length L of the rod, m; > 0.")
+    youngs_modulus: Material = Field(..., description="Young's modulus E, Pa; > 0; a number or a profile in s (m).")
+    shear_modulus: Material = Field(..., description="Shear modulus G, Pa; > 0; a number or a profile in s (m).")
+    density: Material = Field(..., description="Mass density of the rod material, kg/m^3; > 0; a number or a profile in s (m).")
+    diameter: Material = Field(
+        ..., description="Diameter of the circular cross-section, m; > 0; a number or a profile in s (m)."
+    )
+
+    @model_validator(mode="after")
+    def _check_stations(self) -> "Rod":
+        errors = []
+        for name in MATERIAL_PROPERTIES:
+            prop = getattr(self, name)
+            if isinstance(prop, Profile):
+                for k, s in enumerate(prop.s):
+                    if not (0.0 <= s <= self.length):
+                        errors.append(
+                            _err((name, "s", k), "out_of_range", f"must be within [0, length] = [0, {self.length!r}] m", s)
+                        )
+        _raise("Rod", errors)
+        return self
+
+    def evaluate(self, name: str, s: Any) -> np.ndarray:
+        """Property ``name`` (one of :data:`MATERIAL_PROPERTIES`) at arclengths ``s`` (m).
+
+        Returns a float array shaped like ``s``, in the property's SI unit. A number is
+        broadcast; a profile is interpolated linearly and held constant outside its
+        stations. Raises ``ValueError`` for an unknown name.
+        """
+        if name not in MATERIAL_PROPERTIES:
+            raise ValueError(f"unknown rod property {name!r}; expected one of {', '.join(MATERIAL_PROPERTIES)}")
+        prop = getattr(self, name)
+        s_arr = np.asarray(s, dtype=float)
+        if isinstance(prop, Profile):
+            return prop.evaluate(s_arr)
+        return np.full(s_arr.shape, float(prop))
+
+
+class Fluid(BaseModel):
+    """The surrounding fluid (Morison-type added mass and drag). Omit for vacuum."""
+
+    model_config = _MODEL_CONFIG
+
+    density: Finite = Field(..., gt=0, description="Fluid density, kg/m^3; > 0.")
+    added_mass_coefficient: Finite = Field(
+        1.0, ge=0, description="Added-mass coefficient C_a (dimensionless, normal motion); >= 0."
+    )
+    drag_coefficient_normal: Finite = Field(1.0, ge=0, description="Normal drag coefficient C_dn (dimensionless); >= 0.")
+    drag_coefficient_tangential: Finite = Field(
+        0.0, ge=0, description="Tangential drag coefficient C_dt (dimensionless); >= 0."
+    )
+
+
+class DistributedForce(BaseModel):
+    """A uniform force per unit length, global frame, applied for ``start <= t < end``.
+
+    ``value`` is N/m in the global frame; ``start``/``end`` are times in s (``end`` None:
+    until the end of the run; ``end`` must be > ``start``); ``s_range`` optionally limits
+    it to arclengths ``[s0, s1]`` in m (``s0 < s1``, both within ``[0, rod.length]``,
+    checked by :class:`Case`).
+    """
+
+    model_config = _MODEL_CONFIG
+
+    value: Vector3 = Field(..., description="Force per unit length, N/m, global-frame components [x, y, z].")
+    start: Finite = Field(0.0, ge=0, description="Time the force is switched on, s; >= 0.")
+    end: Optional[Finite] = Field(
+        None, description="Time the force is switched off (exclusive), s; > start; null: never switched off."
+    )
+    s_range: Optional[Annotated[list[Finite], Field(min_length=2, max_length=2)]] = Field(
+        None, description="Arclength interval [s0, s1] the force acts on, m; s0 < s1 within [0, rod.length]; null: whole rod."
+    )
+
+    @model_validator(mode="after")
+    def _check(self) -> "DistributedForce":
+        errors = []
+        if self.end is not None and not self.end > self.start:
+            errors.append(_err(("end",), "greater_than", f"must be > start = {self.start!r} s", self.end))
+        if self.s_range is not None and not self.s_range[1] > self.s_range[0]:
+            s0, s1 = self.s_range
+            errors.append(_err(("s_range", 1), "greater_than", f"must be > s_range[0] = {s0!r} m", s1))
+        _raise("DistributedForce", errors)
+        return self
+
+    def is_active(self, t: float) -> bool:
+        """Whether the force acts at time ``t`` (s): ``start <= t < end``."""
+        return self.start <= t and (self.end is None or t < self.end)
+
+
+def _unit(v: list[float]) -> list[float]:
+    """``v`` scaled to unit length; idempotent (a unit vector is returned unchanged)."""
+    norm = math.hypot(*v)
+    if abs(norm - 1.0) <= 1e-15:
+        return [float(x) for x in v]
+    return [x / norm for x in v]
+
+
+class Initial(BaseModel):
+    """The initial configuration: a straight, stress-free rod with its start at the origin.
+
+    ``tangent`` is the global direction of a3 along the rod, ``normal`` that of a1.
+    Both must be non-zero and, once normalised, orthogonal within |cos| <= 1e-9. After
+    validation both are unit vectors (plain lists of floats) and ``normal`` is exactly
+    orthogonal to ``tangent`` (projected, to round-off). ``binormal`` gives a2.
+    """
+
+    model_config = _MODEL_CONFIG
+
+    tangent: Vector3 = Field(
+        default_factory=lambda: [0.0, 0.0, 1.0],
+        description="Global direction of the body axis a3 (dimensionless, normalised by the model).",
+    )
+    normal: Vector3 = Field(
+        default_factory=lambda: [1.0, 0.0, 0.0],
+        description="Global direction of the body axis a1 (dimensionless, normalised by the model); orthogonal to tangent.",
+    )
+
+    @model_validator(mode="after")
+    def _normalise(self) -> "Initial":
+        errors = []
+        for name in ("tangent", "normal"):
+            if math.hypot(*getattr(self, name)) == 0.0:
+                errors.append(_err((name,), "zero_vector", "must be a non-zero vector", getattr(self, name)))
+        _raise("Initial", errors)
+        t = _unit(self.tangent)
+        n = _unit(self.normal)
+        cos = sum(a * b for a, b in zip(t, n))
+        if abs(cos) > ORTHOGONALITY_TOL:
+            _raise(
+                "Initial",
+                [
+                    _err(
+                        ("normal",),
+                        "not_orthogonal",
+                        f"must be orthogonal to initial.tangent (|cos| = {abs(cos):.3g} > 1e-9)",
+                        self.normal,
+                    )
+                ],
+            )
+        if abs(cos) > 1e-14:
+            n = _unit([b - cos * a for a, b in zip(t, n)])
+        self.tangent = t
+        self.normal = n
+        return self
+
+    @property
+    def binormal(self) -> list[float]:
+        """a2 = a3 x a1 (global components, unit vector)."""
+        t, n = self.tangent, self.normal
+        return [t[1] * n[2] - t[2] * n[1], t[2] * n[0] - t[0] * n[2], t[0] * n[1] - t[1] * n[0]]
+
+
+# --------------------------------------------------------------------------- boundary conditions
+
+
+class Condition(BaseModel):
+    """One boundary condition on one degree of freedom of one rod end.
+
+    Exactly one of ``velocity`` (m/s) / ``force`` (N) for a translation item, or
+    ``angular_velocity`` (rad/s) / ``moment`` (N m) for a rotation item; components are
+    in the body frame of that end. The value is a number or a :class:`Table` in time.
+    ``until`` (s, > 0) makes the condition hold while ``t <= until``; it is required on
+    every item of a list but the last, and forbidden on the last (see
+    :class:`EndCondition`). Errors: ``two_conditions`` ("two conditions for one DOF"),
+    ``missing_condition``; the group check happens in :class:`EndCondition`.
+    """
+
+    model_config = _MODEL_CONFIG
+
+    velocity: Optional[NumberOrTable] = Field(None, description="Prescribed velocity component, m/s, body frame (translation only).")
+    force: Optional[NumberOrTable] = Field(None, description="Applied force component, N, body frame (translation only).")
+    angular_velocity: Optional[NumberOrTable] = Field(
+        None, description="Prescribed angular velocity component, rad/s, body frame (rotation only)."
+    )
+    moment: Optional[NumberOrTable] = Field(None, description="Applied moment component, N m, body frame (rotation only).")
+    until: Optional[Finite] = Field(None, gt=0, description="Last time this condition is in force (t <= until), s; > 0.")
+
+    @model_validator(mode="after")
+    def _exactly_one(self) -> "Condition":
+        given = [k for k in _CONDITION_KEYS if getattr(self, k) is not None]
+        if len(given) > 1:
+            raise PydanticCustomError(
+                "two_conditions",
+                "two conditions for one DOF ({given}); give exactly one of velocity/force (translation) "
+                "or angular_velocity/moment (rotation) per item, and use a list with until to switch",
+                {"given": ", ".join(given)},
+            )
+        if not given:
+            raise PydanticCustomError(
+                "missing_condition",
+                "no condition given; give one of velocity/force (translation) or angular_velocity/moment (rotation)",
+            )
+        return self
+
+    @model_serializer(mode="wrap")
+    def _drop_absent(self, handler: Any) -> dict:
+        return {k: v for k, v in handler(self).items() if v is not None}
+
+    @property
+    def kind(self) -> str:
+        """The key given: ``velocity``, ``force``, ``angular_velocity`` or ``moment``."""
+        for key in _CONDITION_KEYS:
+            if getattr(self, key) is not None:
+                return key
+        raise AssertionError("a validated Condition has exactly one key")
+
+    @property
+    def value(self) -> Union[float, Table]:
+        """The number or :class:`Table` given for :attr:`kind`."""
+        return getattr(self, self.kind)
+
+    @property
+    def kinematic(self) -> bool:
+        """True for ``velocity``/``angular_velocity``, False for ``force``/``moment``."""
+        return self.kind in _KINEMATIC_KEYS
+
+    def value_at(self, t: float) -> float:
+        """The value at time ``t`` (s), SI unit of :attr:`kind`; a table is held at its ends."""
+        value = self.value
+        if isinstance(value, Table):
+            return value.value_at(t)
+        return float(value)
+
+
+def _as_condition_list(value: Any) -> Any:
+    """A single condition mapping becomes a one-item list (the canonical form)."""
+    if isinstance(value, (dict, Condition)):
+        return [value]
+    return value
+
+
+DOFConditions = Annotated[list[Condition], BeforeValidator(_as_condition_list), Field(min_length=1)]
+
+
+class EndCondition(BaseModel):
+    """The six conditions at one rod end: ``translation`` and ``rotation``, 3 items each.
+
+    Item ``i`` is the body-frame component ``i + 1`` (a1, a2, a3). An item is a single
+    condition mapping or a list of them switching in time with ``until``; it is stored
+    as a list (a single mapping becomes a one-item list). Rules, each refused with the
+    item's path: translation items take ``velocity``/``force`` and rotation items
+    ``angular_velocity``/``moment`` (``wrong_group``); every list item but the last has
+    ``until`` (``until_required``), strictly increasing (``not_increasing``); the last has
+    none (``no_condition_after``: "boundary DOF has no condition after t=...").
+    """
+
+    model_config = _MODEL_CONFIG
+
+    translation: Annotated[list[DOFConditions], Field(min_length=3, max_length=3)] = Field(
+        ..., description="Conditions on the 3 body-frame translation DOFs: velocity (m/s) or force (N)."
+    )
+    rotation: Annotated[list[DOFConditions], Field(min_length=3, max_length=3)] = Field(
+        ..., description="Conditions on the 3 body-frame rotation DOFs: angular_velocity (rad/s) or moment (N m)."
+    )
+
+    @model_validator(mode="after")
+    def _check(self) -> "EndCondition":
+        errors = []
+        for group, allowed in (("translation", TRANSLATION_KEYS), ("rotation", ROTATION_KEYS)):
+            for i, conditions in enumerate(getattr(self, group)):
+                for j, cond in enumerate(conditions):
+                    if cond.kind not in allowed:
+                        errors.append(
+                            _err(
+                                (group, i, j, cond.kind),
+                                "wrong_group",
+                                f"{cond.kind} is not allowed in a {group} item; allowed keys: {', '.join(allowed)}",
+                                cond.value if not isinstance(cond.value, Table) else None,
+                            )
+                        )
+                last = len(conditions) - 1
+                previous = None
+                for j, cond in enumerate(conditions):
+                    if j < last and cond.until is None:
+                        errors.append(
+                            _err((group, i, j, "until"), "until_required",
+                                 "until (s) is required on every condition of a list but the last", None)
+                        )
+                    if j == last and cond.until is not None:
+                        errors.append(
+                            _err((group, i, j, "until"), "no_condition_after",
+                                 f"boundary DOF has no condition after t={cond.until!r} s: "
+                                 "the last condition of a DOF must not have until", cond.until)
+                        )
+                    if cond.until is not None:
+                        if previous is not None and not cond.until > previous:
+                            errors.append(
+                                _err((group, i, j, "until"), "not_increasing",
+                                     f"until must increase along the list: {cond.until!r} is not > {previous!r} s", cond.until)
+                            )
+                        previous = cond.until
+        _raise("EndCondition", errors)
+        return self
+
+    def active(self, group: str, i: int, t: float) -> Condition:
+        """The condition in force on DOF ``i`` (0, 1, 2) of ``group`` at time ``t`` (s).
+
+        ``group`` is ``"translation"`` or ``"rotation"``. Returns the first condition of
+        the list whose ``until`` is None or satisfies ``t <= until * (1 + 1e-12)``.
+        Raises ``ValueError`` for an unknown group and ``IndexError`` for ``i`` outside 0..2.
+        """
+        if group not in ("translation", "rotation"):
+            raise ValueError(f"unknown group {group!r}; expected 'translation' or 'rotation'")
+        if not 0 <= i <= 2:
+            raise IndexError(f"DOF index {i} outside 0..2")
+        conditions = getattr(self, group)[i]
+        for cond in conditions:
+            if cond.until is None or t <= cond.until * (1.0 + UNTIL_RTOL):
+                return cond
+        return conditions[-1]  # unreachable for a validated spec: the last has no until
+
+
+class Boundary(BaseModel):
+    """Boundary conditions at both ends: ``start`` (s = 0) and ``end`` (s = L)."""
+
+    model_config = _MODEL_CONFIG
+
+    start: EndCondition = Field(..., description="Conditions at s = 0 (body-frame components).")
+    end: EndCondition = Field(..., description="Conditions at s = L (body-frame components).")
+
+
+# --------------------------------------------------------------------------- contact, numerics, output
+
+
+class Contact(BaseModel):
+    """Self-contact: pair search parameters and the penalty/damping law. Omit for none.
+
+    The repulsive force per unit length is ``rho*A*k1/gap**k2`` plus damping set by
+    ``k3`` and ``k4`` (see the solver's contact module for the exact law).
+    """
+
+    model_config = _MODEL_CONFIG
+
+    aperture: Finite = Field(
+        ..., gt=0, le=180, description="Search cone aperture, degrees (the only non-SI field); in (0, 180]."
+    )
+    tolerance: Finite = Field(..., gt=0, description="Centreline distance below which pairs are tested, m; > 0.")
+    k1: Finite = Field(..., ge=0, description="Repulsion stiffness, m^(1+k2)/s^2 (rho*A*k1/gap^k2 is N/m); >= 0.")
+    k2: Finite = Field(..., gt=0, description="Repulsion exponent on the surface gap (dimensionless); > 0.")
+    k3: Finite = Field(..., ge=0, description="Contact damping coefficient (SI, per the solver's contact law); >= 0.")
+    k4: Finite = Field(..., ge=0, description="Contact damping exponent (dimensionless); >= 0.")
+    exclusion: Optional[Finite] = Field(
+        None, ge=0, description="Minimum arclength separation of a contact pair, m; >= 0; null: 2 x the largest diameter."
+    )
+
+
+class Newton(BaseModel):
+    """Newton iteration controls for each implicit time step."""
+
+    model_config = _MODEL_CONFIG
+
+    tolerance: Finite = Field(1e-9, gt=0, description="Convergence tolerance on the scaled residual norm (dimensionless); > 0.")
+    max_iterations: Integer = Field(25, ge=1, description="Iterations before a step counts as not converged; >= 1.")
+
+
+class Numerics(BaseModel):
+    """Discretisation, time integration and step control.
+
+    Give ``ds`` or ``n_segments`` (or both, agreeing). :class:`Case` checks them against
+    the rod length and fills in both (``ds = length / n_segments`` exactly), so after a
+    case validates ``ds`` and ``n_segments`` are never None.
+    """
+
+    model_config = _MODEL_CONFIG
+
+    ds: Optional[Finite] = Field(None, gt=0, description="Segment length, m; > 0; must divide rod.length (1e-9 relative).")
+    n_segments: Optional[Integer] = Field(None, ge=1, description="Number of segments (grid points - 1); >= 1.")
+    dt: Finite = Field(..., gt=0, description="Time step, s; > 0.")
+    t_end: Finite = Field(..., gt=0, description="End time of the run, s; > 0.")
+    rho_inf: Finite = Field(
+        0.5, ge=0, le=1, description="Spectral radius at infinite frequency of the generalized-alpha scheme, in [0, 1]."
+    )
+    newton: Newton = Field(default_factory=Newton, description="Newton iteration controls.")
+    max_dt_cuts: Integer = Field(6, ge=0, description="Times a non-converging step may be retried with a smaller dt; >= 0.")
+    dt_cut_factor: Finite = Field(4.0, gt=1, description="Divisor applied to dt at each cut (dimensionless); > 1.")
+    wall_clock_budget: Optional[Finite] = Field(
+        None, gt=0, description="Wall-clock limit for the run, s; > 0; null: none."
+    )
+
+    @model_validator(mode="after")
+    def _one_of(self) -> "Numerics":
+        if self.ds is None and self.n_segments is None:
+            _raise("Numerics", [_err(("ds",), "missing", "give numerics.ds (m) or numerics.n_segments", None)])
+        return self
+
+
+def _check_output_field(value: Any, handler: Any) -> str:
+    if not isinstance(value, str) or value not in OUTPUT_FIELDS:
+        raise PydanticCustomError(
+            "unknown_output_field",
+            "unknown output field {name}; allowed: {allowed}",
+            {"name": repr(value), "allowed": ", ".join(OUTPUT_FIELDS)},
+        )
+    return value
+
+
+OutputField = Annotated[
+    Literal["v", "omega", "f", "kappa", "moment", "position", "orientation", "energies", "topology", "contact"],
+    WrapValidator(_check_output_field),
+]
+
+
+class Output(BaseModel):
+    """What the result dataset keeps.
+
+    ``fields`` are unique names from :data:`OUTPUT_FIELDS`; they are stored in canonical
+    order (so the same set gives the same spec hash). An unknown name is refused with the
+    list of allowed ones; a repeated one with ``duplicate``.
+    """
+
+    model_config = _MODEL_CONFIG
+
+    every: Integer = Field(1, ge=1, description="Keep every n-th accepted time step (the first and last are always kept); >= 1.")
+    fields: list[OutputField] = Field(
+        default_factory=lambda: list(DEFAULT_OUTPUT_FIELDS),
+        description="Variables to store: any of v, omega, f, kappa, moment, position, orientation, energies, topology, contact.",
+    )
+
+    @field_validator("fields", mode="after")
+    @classmethod
+    def _unique(cls, fields: list[str]) -> list[str]:
+        seen: set[str] = set()
+        errors = []
+        for k, name in enumerate(fields):
+            if name in seen:
+                errors.append(_err((k,), "duplicate", f"output field {name!r} is listed twice", name))
+            seen.add(name)
+        _raise("Output", errors)
+        return [name for name in OUTPUT_FIELDS if name in seen]
+
+
+# --------------------------------------------------------------------------- parsing
+
+
+_YAML_FLOAT = re.compile(
+    r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+    |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+    |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
+    |[-+]?\.(?:inf|Inf|INF)
+    |\.(?:nan|NaN|NAN))$""",
+    re.X,
+)
+
+
+class _YamlLoader(yaml.SafeLoader):
+    """SafeLoader that reads ``1e-3`` as a float (YAML 1.2) and refuses duplicate keys."""
+
+    def construct_mapping(self, node: Any, deep: bool = False) -> dict:
+        if isinstance(node, yaml.MappingNode):
+            self.flatten_mapping(node)
+            seen = set()
+            for key_node, _ in node.value:
+                key = self.construct_object(key_node, deep=deep)
+                try:
+                    duplicate = key in seen
+                    seen.add(key)
+                except TypeError:
+                    continue
+                if duplicate:
+                    raise yaml.constructor.ConstructorError(
+                        "while constructing a mapping", node.start_mark, f"found duplicate key {key!r}", key_node.start_mark
+                    )
+        return super().construct_mapping(node, deep=deep)
+
+
+_YamlLoader.yaml_implicit_resolvers = {
+    first: [(tag, rx) for tag, rx in resolvers if tag != "tag:yaml.org,2002:float"]
+    for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()
+}
+_YamlLoader.add_implicit_resolver("tag:yaml.org,2002:float", _YAML_FLOAT, list("-+0123456789."))
+
+
+def _json_object(pairs: list[tuple[str, Any]]) -> dict:
+    out: dict = {}
+    for key, value in pairs:
+        if key in out:
+            raise ValueError(f"duplicate key {key!r}")
+        out[key] = value
+    return out
+
+
+def parse_text(text: Union[str, bytes], fmt: str = "yaml", source: Optional[str] = None) -> Any:
+    """Parse case-spec text (not yet validated) into Python objects.
+
+    ``fmt`` is ``"yaml"``/``"yml"`` or ``"json"`` (a leading dot is ignored). YAML follows
+    YAML 1.2 for numbers (``1e-3`` and ``1.25e7`` are floats, which PyYAML's default
+    YAML 1.1 rules read as strings); duplicate keys are refused in both formats. Bytes
+    must be UTF-8. Raises :class:`CaseError` (``yaml_syntax``, ``json_syntax``,
+    ``encoding_error``, ``unknown_format``); ``source`` only labels the message.
+    """
+    fmt = fmt.lower().lstrip(".")
+    if isinstance(text, bytes):
+        try:
+            text = text.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise _doc_error(f"not UTF-8 text: {exc}", "encoding_error", source) from exc
+    if fmt in ("yaml", "yml"):
+        try:
+            return yaml.load(text, Loader=_YamlLoader)  # noqa: S506 - a SafeLoader subclass
+        except yaml.YAMLError as exc:
+            raise _doc_error(f"YAML syntax error: {exc}", "yaml_syntax", source) from exc
+    if fmt == "json":
+        try:
+            return json.loads(text, object_pairs_hook=_json_object)
+        except ValueError as exc:
+            raise _doc_error(f"JSON syntax error: {exc}", "json_syntax", source) from exc
+    raise _doc_error(f"unknown format {fmt!r}; expected yaml, yml or json", "unknown_format", source)
+
+
+# --------------------------------------------------------------------------- the case
+
+
+class Case(BaseModel):
+    """A complete, validated simulation case (schema_version 1).
+
+    Construct with :meth:`from_file`, :meth:`from_text` (both raise :class:`CaseError`)
+    or ``Case.model_validate(mapping)`` (raises ``pydantic.ValidationError``; format it
+    with :func:`format_validation_errors`). Beyond the per-model rules this checks that
+    ``numerics.ds`` divides ``rod.length`` (1e-9 relative) or agrees with
+    ``numerics.n_segments``, fills in both, and that every ``distributed_forces[i].s_range``
+    lies within ``[0, rod.length]``.
+
+    Identity: :meth:`canonical_json` (sorted keys, no whitespace, defaults filled) and
+    :meth:`spec_hash` (its sha256); re-validating the canonical JSON gives an equal case
+    with the same hash.
+    """
+
+    model_config = _MODEL_CONFIG
+
+    schema_version: Literal[1] = Field(..., description="Case spec schema version; this module reads 1.")
+    name: str = Field(..., min_length=1, description="Free-text name of the case.")
+    rod: Rod = Field(..., description="Rod length (m), material (Pa, kg/m^3) and diameter (m).")
+    fluid: Optional[Fluid] = Field(None, description="Surrounding fluid; null: vacuum, no fluid terms.")
+    gravity: Optional[Vector3] = Field(None, description="Gravitational acceleration, m/s^2, global frame; null: none.")
+    distributed_forces: list[DistributedForce] = Field(
+        default_factory=list, description="Uniform forces per unit length, N/m, global frame, each on [start, end) s."
+    )
+    initial: Initial = Field(default_factory=Initial, description="Initial straight configuration (global directions).")
+    boundary: Boundary = Field(..., description="Boundary conditions at s = 0 and s = L, body-frame components.")
+    contact: Optional[Contact] = Field(None, description="Self-contact parameters; null: no self-contact search.")
+    numerics: Numerics = Field(..., description="Grid (m), time step (s) and solver controls.")
+    output: Output = Field(default_factory=Output, description="Stored variables and output stride.")
+
+    @field_validator("schema_version", mode="wrap")
+    @classmethod
+    def _version(cls, value: Any, handler: Any) -> int:
+        if isinstance(value, bool) or value != SCHEMA_VERSION:
+            raise PydanticCustomError(
+                "unsupported_schema_version",
+                "unsupported schema_version {v}; this hockle reads schema_version 1",
+                {"v": repr(value)},
+            )
+        return SCHEMA_VERSION
+
+    @model_validator(mode="after")
+    def _cross_checks(self) -> "Case":
+        errors = []
+        length = self.rod.length
+        for k, force in enumerate(self.distributed_forces):
+            if force.s_range is not None:
+                for j, s in enumerate(force.s_range):
+                    if not 0.0 <= s <= length:
+                        errors.append(
+                            _err(("distributed_forces", k, "s_range", j), "out_of_range",
+                                 f"must be within [0, rod.length] = [0, {length!r}] m", s)
+                        )
+        numerics = self.numerics
+        n_segments = numerics.n_segments
+        if numerics.ds is not None:
+            ratio = length / numerics.ds
+            nearest = round(ratio)
+            if n_segments is not None:
+                if abs(ratio - n_segments) > DS_RTOL * n_segments:
+                    errors.append(
+                        _err(("numerics", "n_segments"), "inconsistent",
+                             f"n_segments = {n_segments} disagrees with ds = {numerics.ds!r} m "
+                             f"(rod.length / ds = {ratio:.10g}); give only one of them", n_segments)
+                    )
+            elif nearest < 1 or abs(ratio - nearest) > DS_RTOL * ratio:
+                errors.append(
+                    _err(("numerics", "ds"), "ds_not_dividing",
+                         f"ds = {numerics.ds!r} m does not divide rod.length = {length!r} m "
+                         f"(length / ds = {ratio:.10g}, not a whole number); give numerics.n_segments instead "
+                         f"(e.g. n_segments: {max(nearest, 1)}) or a ds that divides the length", numerics.ds)
+                )
+            else:
+                n_segments = nearest
+        _raise("Case", errors)
+        self.numerics = numerics.model_copy(update={"n_segments": n_segments, "ds": length / n_segments})
+        return self
+
+    # ----------------------------------------------------------------- loading
+
+    @classmethod
+    def from_text(cls, text: Union[str, bytes], fmt: str = "yaml", source: Optional[str] = None) -> "Case":
+        """Parse and validate a case spec given as text.
+
+        ``fmt`` is ``"yaml"`` (or ``"yml"``) or ``"json"``; ``source`` only labels error
+        messages. Raises :class:`CaseError` for a syntax error, a document that is not a
+        mapping, an unknown format or any validation error (with field paths).
+        """
+        data = parse_text(text, fmt, source)
+        if not isinstance(data, dict):
+            raise _doc_error(f"a case spec must be a mapping of fields, got {type(data).__name__}", "dict_type", source)
+        try:
+            return cls.model_validate(data)
+        except ValidationError as exc:
+            raise CaseError.from_validation_error(exc, source) from None
+
+    @classmethod
+    def from_file(cls, path: Union[str, Path]) -> "Case":
+        """Read and validate a case file; the format follows the suffix.
+
+        ``.yaml``/``.yml`` are YAML, ``.json`` JSON. Raises :class:`CaseError` for an
+        unknown suffix, a missing or unreadable file, a syntax error or any validation
+        error (with field paths).
+        """
+        path = Path(path)
+        suffix = path.suffix.lower()
+        if suffix not in (".yaml", ".yml", ".json"):
+            raise _doc_error(
+                f"unknown case file suffix {path.suffix!r}; expected .yaml, .yml or .json", "unknown_format", str(path)
+            )
+        try:
+            raw = path.read_bytes()
+        except FileNotFoundError:
+            raise _doc_error(f"no such file: {path}", "file_not_found", str(path)) from None
+        except OSError as exc:
+            raise _doc_error(f"cannot read {path}: {exc.strerror or exc}", "file_unreadable", str(path)) from None
+        return cls.from_text(raw, suffix, source=str(path))
+
+    # ----------------------------------------------------------------- identity and size
+
+    def canonical_json(self) -> str:
+        """The case as canonical JSON: defaults filled in, sorted keys, no whitespace.
+
+        Boundary items are written as lists, output fields in canonical order, numerics
+        with both ``ds`` and ``n_segments``; initial directions normalised.
+        """
+        return json.dumps(self.model_dump(mode="json"), sort_keys=True, separators=(",", ":"), allow_nan=False)
+
+    def spec_hash(self) -> str:
+        """sha256 hex digest of :meth:`canonical_json` (UTF-8): the case's identity."""
+        return hashlib.sha256(self.canonical_json().encode("utf-8")).hexdigest()
+
+    @property
+    def grid_points(self) -> int:
+        """Number of grid points along the rod, ``numerics.n_segments + 1``."""
+        return int(self.numerics.n_segments) + 1
+
+    @property
+    def n_steps(self) -> int:
+        """Number of time steps at the nominal dt, ``ceil(t_end / dt - 1e-9)``."""
+        return int(math.ceil(self.numerics.t_end / self.numerics.dt - 1e-9))
