@@ -337,6 +337,11 @@ class RodSystem:
         Returns (Y, F_nodes, iterations, residual_norm, converged, pose). The scaled
         residual norm is max_i |R_i| r_i with r_i the row scale of the last factorisation.
         """
+        # a trial step that blows up is an expected event (the caller cuts Δt): no warnings
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            return self._newton(Y_guess)
+
+    def _newton(self, Y_guess):
         Y = Y_guess.copy()
         res_prev = np.inf
         refactor = not self.factor_valid
