@@ -1,0 +1,128 @@
+"""FastAPI application factory: ``create_app(settings)``.
+
+``uvicorn --factory service.app:create_app`` or ``hockle serve``. The API validates cases, keeps
+the job registry and serves results; it never runs a solve: jobs go to the Celery queue.
+"""
+from __future__ import annotations
+
+import logging
+import threading
+from contextlib import asynccontextmanager
+from dataclasses import dataclass
+
+from fastapi import FastAPI, Request
+from fastapi.openapi.utils import get_openapi
+
+from .problems import install_handlers
+from .queue import Enqueuer
+from .registry import Registry
+from .settings import Settings, get_settings
+from .store import ResultStore
+
+log = logging.getLogger("hockle.api")
+
+API_DESCRIPTION = """\
+Simulation service for the dynamics of twisted elastic rods (hockle).
+
+Submit a case (`POST /v1/jobs`, the case spec schema v1 as JSON or YAML), poll its status,
+dismiss it, and query its time histories. Errors are RFC 9457 problem details
+(`application/problem+json`) whose `errors` list names each bad field by its path.
+"""
+
+
+@dataclass
+class Services:
+    settings: Settings
+    registry: Registry
+    store: ResultStore
+    enqueuer: Enqueuer
+
+
+def services(request: Request) -> Services:
+    return request.app.state.services
+
+
+def create_app(settings: Settings | None = None, *, enqueuer: Enqueuer | None = None) -> FastAPI:
+    settings = settings or get_settings()
+    settings.data_dir.mkdir(parents=True, exist_ok=True)
+    registry = Registry(settings.registry_url)
+    registry.create_schema()
+    store = ResultStore(settings.results_dir)
+    store.ensure()
+    svc = Services(settings, registry, store, enqueuer or Enqueuer(settings))
+    stop = threading.Event()
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI):
+        thread = threading.Thread(target=_reaper, args=(svc, stop), name="hockle-reaper",
+                                  daemon=True)
+        thread.start()
+        try:
+            yield
+        finally:
+            stop.set()
+            thread.join(timeout=5)
+            svc.enqueuer.close()
+            registry.dispose()
+
+    app = FastAPI(
+        title="hockle",
+        version=_version(),
+        description=API_DESCRIPTION,
+        lifespan=lifespan,
+        docs_url="/docs",
+        openapi_url="/openapi.json",
+    )
+    app.state.services = svc
+    install_handlers(app)
+
+    from .routers import health, jobs, results
+
+    app.include_router(jobs.router, prefix="/v1")
+    app.include_router(results.router, prefix="/v1")
+    app.include_router(health.router, prefix="/v1")
+    app.openapi = lambda: _openapi(app)  # type: ignore[method-assign]
+    return app
+
+
+def _reaper(svc: Services, stop: threading.Event) -> None:
+    """Fail jobs killed at their hard time limit (also done by every worker's heartbeat)."""
+    while not stop.wait(svc.settings.heartbeat_interval):
+        try:
+            for job_id in svc.registry.reap(grace=svc.settings.reaper_grace):
+                log.warning("reaper: job %s passed its hard time limit: failed/timeout", job_id)
+        except Exception:  # noqa: BLE001 - registry briefly down: next sweep
+            log.warning("reaper sweep failed", exc_info=True)
+
+
+def _version() -> str:
+    import solver
+
+    return solver.__version__
+
+
+def _openapi(app: FastAPI) -> dict:
+    """The generated schema plus the case spec as the request body of POST /v1/jobs."""
+    if app.openapi_schema:
+        return app.openapi_schema
+    schema = get_openapi(title=app.title, version=app.version, description=app.description,
+                         routes=app.routes)
+    from solver.case import Case
+
+    case_schema = Case.model_json_schema(ref_template="#/components/schemas/{model}")
+    components = schema.setdefault("components", {}).setdefault("schemas", {})
+    for name, sub in case_schema.pop("$defs", {}).items():
+        components.setdefault(name, sub)
+    components["Case"] = case_schema
+    post = schema["paths"]["/v1/jobs"]["post"]
+    post["requestBody"] = {
+        "required": True,
+        "description": "The case spec, schema_version 1 (JSON, or YAML with Content-Type "
+        "application/yaml).",
+        "content": {
+            "application/json": {"schema": {"$ref": "#/components/schemas/Case"}},
+            "application/yaml": {"schema": {"$ref": "#/components/schemas/Case"}},
+        },
+    }
+    app.openapi_schema = schema
+    return schema

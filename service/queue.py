@@ -1,0 +1,87 @@
+"""Celery configuration shared by the API (which only enqueues, by task name) and the workers.
+
+The API never imports the worker's task code nor the solver's numerics: it sends
+``hockle.run_job(job_id)`` to the queue. The job registry, not Celery, is the truth about a job:
+no result backend is configured and Celery task states never reach a client.
+"""
+from __future__ import annotations
+
+import threading
+
+from celery import Celery
+
+from .settings import Settings
+
+__all__ = ["TASK_NAME", "make_celery", "Enqueuer"]
+
+TASK_NAME = "hockle.run_job"
+
+
+def make_celery(settings: Settings, main: str = "hockle") -> Celery:
+    app = Celery(main, broker=settings.celery_broker_url)
+    transport_options: dict = {}
+    if settings.celery_broker_url.startswith(("redis://", "rediss://", "sentinel://")):
+        transport_options = {
+            # longer than any hard time limit: a running job is never handed to a second worker
+            # while the first still works on it; a job whose worker died comes back after it
+            "visibility_timeout": settings.visibility_timeout,
+            "unacked_restore_interval": settings.unacked_restore_interval,
+            "unacked_restore_throttle": 1,
+            "socket_timeout": 30,
+            "socket_connect_timeout": 5,
+            "health_check_interval": 10,
+        }
+    elif settings.celery_broker_url.startswith("sqla+"):
+        # handed to sqlalchemy.create_engine by kombu: wait for SQLite's lock, never fail at once
+        transport_options = {"connect_args": {"timeout": 30}}
+    app.conf.update(
+        task_default_queue=settings.queue,
+        task_routes={TASK_NAME: {"queue": settings.queue}},
+        task_serializer="json",
+        accept_content=["json"],
+        task_ignore_result=True,
+        result_backend=None,
+        # a job is acknowledged after it ran; if its worker process dies it is redelivered
+        task_acks_late=True,
+        task_reject_on_worker_lost=True,
+        worker_prefetch_multiplier=1,
+        worker_cancel_long_running_tasks_on_connection_loss=False,
+        broker_transport_options=transport_options,
+        broker_connection_retry_on_startup=True,
+        broker_connection_max_retries=None,
+        worker_hijack_root_logger=False,
+        worker_send_task_events=False,
+        task_send_sent_event=False,
+        enable_utc=True,
+    )
+    return app
+
+
+class Enqueuer:
+    """Sends jobs to the queue with their own time limits (thread-safe)."""
+
+    def __init__(self, settings: Settings, app: Celery | None = None):
+        self.settings = settings
+        self.app = app or make_celery(settings)
+        self._lock = threading.Lock()
+
+    def enqueue(self, job_id: str, *, time_limit: float, soft_time_limit: float) -> None:
+        with self._lock:
+            self.app.send_task(
+                TASK_NAME,
+                args=[job_id],
+                task_id=job_id,
+                queue=self.settings.queue,
+                time_limit=time_limit,
+                soft_time_limit=soft_time_limit,
+                retry=True,
+                retry_policy={"max_retries": 3, "interval_start": 0.2, "interval_step": 0.5},
+            )
+
+    def ping(self) -> None:
+        """Raise when the broker cannot be reached."""
+        with self.app.connection_for_write() as conn:
+            conn.ensure_connection(max_retries=1, timeout=3)
+
+    def close(self) -> None:
+        self.app.close()

@@ -1,0 +1,586 @@
+"""The job registry: the durable source of truth for job records (SQLAlchemy 2).
+
+SQLite by default, PostgreSQL when ``HOCKLE_DATABASE_URL`` says so. The API writes a record and
+commits it *before* the job is enqueued; workers move it through the states with conditional
+``UPDATE`` statements, so that two deliveries of one job cannot both bring it to a terminal state.
+
+States (OGC API - Processes): ``accepted -> running -> successful | failed | dismissed``, and
+``accepted -> dismissed``. A delivery that finds the job terminal does nothing.
+"""
+from __future__ import annotations
+
+import base64
+import datetime as dt
+import json
+import time
+import uuid
+from dataclasses import dataclass
+from typing import Any, Iterable
+
+from sqlalchemy import (
+    Boolean,
+    DateTime,
+    Float,
+    Integer,
+    String,
+    Text,
+    and_,
+    create_engine,
+    event,
+    func,
+    or_,
+    select,
+    text,
+    update,
+)
+from sqlalchemy.engine import Engine
+from sqlalchemy.exc import IntegrityError, OperationalError, ProgrammingError
+from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column, sessionmaker
+
+__all__ = [
+    "ACTIVE_STATES",
+    "TERMINAL_STATES",
+    "REASONS",
+    "Job",
+    "JobEvent",
+    "WorkerBeat",
+    "Registry",
+    "IdempotencyConflict",
+    "utcnow",
+]
+
+ACCEPTED, RUNNING, SUCCESSFUL, FAILED, DISMISSED = (
+    "accepted",
+    "running",
+    "successful",
+    "failed",
+    "dismissed",
+)
+STATES = (ACCEPTED, RUNNING, SUCCESSFUL, FAILED, DISMISSED)
+ACTIVE_STATES = (ACCEPTED, RUNNING)
+TERMINAL_STATES = (SUCCESSFUL, FAILED, DISMISSED)
+REASONS = ("solver_diverged", "nonfinite_state", "timeout", "cancelled_by_user", "internal_error")
+
+
+def utcnow() -> dt.datetime:
+    """Naive UTC (both SQLite and PostgreSQL columns are ``timestamp without time zone``)."""
+    return dt.datetime.now(dt.timezone.utc).replace(tzinfo=None)
+
+
+class Base(DeclarativeBase):
+    pass
+
+
+class Job(Base):
+    __tablename__ = "hockle_jobs"
+
+    id: Mapped[str] = mapped_column(String(36), primary_key=True)
+    name: Mapped[str | None] = mapped_column(String(200))
+    state: Mapped[str] = mapped_column(String(16), index=True)
+    reason: Mapped[str | None] = mapped_column(String(32))
+    message: Mapped[str | None] = mapped_column(Text)
+
+    spec_json: Mapped[str] = mapped_column(Text)
+    spec_hash: Mapped[str] = mapped_column(String(64), index=True)
+    solver_version: Mapped[str] = mapped_column(String(32))
+    grid_points: Mapped[int] = mapped_column(Integer)
+    n_steps: Mapped[int] = mapped_column(Integer)
+    t_end: Mapped[float] = mapped_column(Float)
+
+    idempotency_key: Mapped[str | None] = mapped_column(String(200), unique=True)
+    request_fingerprint: Mapped[str | None] = mapped_column(String(64))
+
+    created_at: Mapped[dt.datetime] = mapped_column(DateTime, index=True)
+    updated_at: Mapped[dt.datetime] = mapped_column(DateTime)
+    started_at: Mapped[dt.datetime | None] = mapped_column(DateTime)
+    finished_at: Mapped[dt.datetime | None] = mapped_column(DateTime)
+    deadline_at: Mapped[dt.datetime | None] = mapped_column(DateTime, index=True)
+
+    progress: Mapped[float] = mapped_column(Float, default=0.0)
+    sim_time: Mapped[float] = mapped_column(Float, default=0.0)
+    step: Mapped[int] = mapped_column(Integer, default=0)
+    wall_time: Mapped[float | None] = mapped_column(Float)
+    eta_seconds: Mapped[float | None] = mapped_column(Float)
+    failed_time: Mapped[float | None] = mapped_column(Float)
+    failed_step: Mapped[int | None] = mapped_column(Integer)
+
+    worker: Mapped[str | None] = mapped_column(String(200))
+    attempts: Mapped[int] = mapped_column(Integer, default=0)
+    cancel_requested: Mapped[bool] = mapped_column(Boolean, default=False)
+
+    time_limit: Mapped[float] = mapped_column(Float)
+    soft_time_limit: Mapped[float] = mapped_column(Float)
+    wall_clock_budget: Mapped[float] = mapped_column(Float)
+
+    result_path: Mapped[str | None] = mapped_column(Text)
+    result_partial: Mapped[bool] = mapped_column(Boolean, default=False)
+
+
+class JobEvent(Base):
+    """Append-only history of a job: submitted, started, solve_finished, finished, ..."""
+
+    __tablename__ = "hockle_job_events"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    job_id: Mapped[str] = mapped_column(String(36), index=True)
+    at: Mapped[dt.datetime] = mapped_column(DateTime)
+    kind: Mapped[str] = mapped_column(String(32))
+    attempt: Mapped[int | None] = mapped_column(Integer)
+    worker: Mapped[str | None] = mapped_column(String(200))
+    detail: Mapped[str | None] = mapped_column(Text)
+
+
+class WorkerBeat(Base):
+    __tablename__ = "hockle_workers"
+
+    name: Mapped[str] = mapped_column(String(200), primary_key=True)
+    last_seen: Mapped[dt.datetime] = mapped_column(DateTime)
+    current_job: Mapped[str | None] = mapped_column(String(36))
+
+
+class IdempotencyConflict(Exception):
+    """The Idempotency-Key was used before with a different request."""
+
+    def __init__(self, job_id: str):
+        super().__init__(job_id)
+        self.job_id = job_id
+
+
+@dataclass
+class Page:
+    jobs: list[Job]
+    next_token: str | None
+
+
+def _encode_token(job: Job) -> str:
+    raw = f"{job.created_at.isoformat()}|{job.id}".encode()
+    return base64.urlsafe_b64encode(raw).decode().rstrip("=")
+
+
+def decode_page_token(token: str) -> tuple[dt.datetime, str]:
+    """Raises ValueError for a token this server did not make."""
+    try:
+        raw = base64.urlsafe_b64decode(token + "=" * (-len(token) % 4)).decode()
+        when, job_id = raw.split("|", 1)
+        return dt.datetime.fromisoformat(when), job_id
+    except Exception as exc:  # noqa: BLE001 - any malformed token is the same client error
+        raise ValueError("page_token is not one this server issued") from exc
+
+
+class Registry:
+    """Data access to the registry; one per process (holds the connection pool)."""
+
+    def __init__(self, url: str, *, echo: bool = False):
+        self.url = url
+        kwargs: dict[str, Any] = {"echo": echo, "pool_pre_ping": True}
+        if url.startswith("sqlite"):
+            kwargs["connect_args"] = {"check_same_thread": False, "timeout": 30}
+        self.engine: Engine = create_engine(url, **kwargs)
+        if url.startswith("sqlite"):
+            event.listen(self.engine, "connect", _sqlite_pragmas)
+        self.sessions = sessionmaker(self.engine, expire_on_commit=False)
+
+    # --- schema --------------------------------------------------------------------------------
+    def create_schema(self) -> None:
+        """Create the tables if missing; safe when several processes start at once."""
+        for attempt in range(5):
+            try:
+                Base.metadata.create_all(self.engine)
+                return
+            except (IntegrityError, ProgrammingError, OperationalError):
+                # two processes racing on CREATE TABLE: the loser retries and finds them made
+                if attempt == 4:
+                    raise
+                time.sleep(0.2 * (attempt + 1))
+
+    def ping(self) -> None:
+        with self.engine.connect() as conn:
+            conn.execute(text("SELECT 1"))
+
+    def dispose(self) -> None:
+        self.engine.dispose()
+
+    # --- creation ------------------------------------------------------------------------------
+    def create_job(
+        self,
+        *,
+        spec_json: str,
+        spec_hash: str,
+        solver_version: str,
+        name: str | None,
+        grid_points: int,
+        n_steps: int,
+        t_end: float,
+        limits: tuple[float, float, float],
+        idempotency_key: str | None = None,
+        request_fingerprint: str | None = None,
+    ) -> tuple[Job, bool]:
+        """Insert an accepted job and commit it. Returns (job, created).
+
+        With an ``idempotency_key`` already used: the earlier job when the fingerprint matches
+        (created False), else :class:`IdempotencyConflict`.
+        """
+        if idempotency_key is not None:
+            earlier = self.by_idempotency_key(idempotency_key)
+            if earlier is not None:
+                return self._replay(earlier, request_fingerprint), False
+        now = utcnow()
+        job = Job(
+            id=str(uuid.uuid4()),
+            name=name,
+            state=ACCEPTED,
+            spec_json=spec_json,
+            spec_hash=spec_hash,
+            solver_version=solver_version,
+            grid_points=grid_points,
+            n_steps=n_steps,
+            t_end=t_end,
+            idempotency_key=idempotency_key,
+            request_fingerprint=request_fingerprint,
+            created_at=now,
+            updated_at=now,
+            progress=0.0,
+            sim_time=0.0,
+            step=0,
+            attempts=0,
+            cancel_requested=False,
+            time_limit=limits[0],
+            soft_time_limit=limits[1],
+            wall_clock_budget=limits[2],
+            result_partial=False,
+        )
+        try:
+            with self.sessions.begin() as session:
+                session.add(job)
+                session.add(JobEvent(job_id=job.id, at=now, kind="submitted"))
+        except IntegrityError:
+            # a concurrent request with the same key won the race
+            earlier = self.by_idempotency_key(idempotency_key) if idempotency_key else None
+            if earlier is None:
+                raise
+            return self._replay(earlier, request_fingerprint), False
+        return job, True
+
+    @staticmethod
+    def _replay(earlier: Job, fingerprint: str | None) -> Job:
+        if earlier.request_fingerprint != fingerprint:
+            raise IdempotencyConflict(earlier.id)
+        return earlier
+
+    def by_idempotency_key(self, key: str) -> Job | None:
+        with self.sessions() as session:
+            return session.scalars(select(Job).where(Job.idempotency_key == key)).first()
+
+    def find_successful(self, spec_hash: str, solver_version: str) -> Job | None:
+        """The latest successful job with this spec hash and solver version and a result file."""
+        with self.sessions() as session:
+            return session.scalars(
+                select(Job)
+                .where(
+                    Job.spec_hash == spec_hash,
+                    Job.solver_version == solver_version,
+                    Job.state == SUCCESSFUL,
+                    Job.result_path.is_not(None),
+                )
+                .order_by(Job.finished_at.desc())
+                .limit(1)
+            ).first()
+
+    # --- reading -------------------------------------------------------------------------------
+    def get(self, job_id: str) -> Job | None:
+        with self.sessions() as session:
+            return session.get(Job, job_id)
+
+    def events(self, job_id: str | None = None) -> list[JobEvent]:
+        with self.sessions() as session:
+            query = select(JobEvent).order_by(JobEvent.id)
+            if job_id is not None:
+                query = query.where(JobEvent.job_id == job_id)
+            return list(session.scalars(query))
+
+    def cancel_requested(self, job_id: str) -> bool:
+        with self.engine.connect() as conn:
+            row = conn.execute(
+                select(Job.cancel_requested, Job.state).where(Job.id == job_id)
+            ).first()
+        return row is None or bool(row[0]) or row[1] == DISMISSED
+
+    def list(
+        self,
+        *,
+        states: Iterable[str] | None = None,
+        created_after: dt.datetime | None = None,
+        created_before: dt.datetime | None = None,
+        page_size: int = 50,
+        page_token: str | None = None,
+    ) -> Page:
+        """Newest first; keyset pagination on (created_at, id)."""
+        query = select(Job).order_by(Job.created_at.desc(), Job.id.desc()).limit(page_size + 1)
+        states = list(states or [])
+        if states:
+            query = query.where(Job.state.in_(states))
+        if created_after is not None:
+            query = query.where(Job.created_at >= created_after)
+        if created_before is not None:
+            query = query.where(Job.created_at < created_before)
+        if page_token:
+            when, job_id = decode_page_token(page_token)
+            query = query.where(
+                or_(Job.created_at < when, and_(Job.created_at == when, Job.id < job_id))
+            )
+        with self.sessions() as session:
+            jobs = list(session.scalars(query))
+        token = _encode_token(jobs[page_size - 1]) if len(jobs) > page_size else None
+        return Page(jobs[:page_size], token)
+
+    def counts(self) -> dict[str, int]:
+        with self.sessions() as session:
+            rows = session.execute(select(Job.state, func.count()).group_by(Job.state)).all()
+        return {state: n for state, n in rows}
+
+    # --- transitions (API side) ----------------------------------------------------------------
+    def dismiss(self, job_id: str) -> Job | None:
+        """Dismiss: an accepted job becomes dismissed at once; a running one gets its cancel flag.
+
+        Returns the job after the change (None when unknown).
+        """
+        now = utcnow()
+        with self.sessions.begin() as session:
+            done = session.execute(
+                update(Job)
+                .where(Job.id == job_id, Job.state == ACCEPTED)
+                .values(
+                    state=DISMISSED,
+                    reason="cancelled_by_user",
+                    message="dismissed before it started",
+                    cancel_requested=True,
+                    finished_at=now,
+                    updated_at=now,
+                )
+            ).rowcount
+            if done:
+                session.add(JobEvent(job_id=job_id, at=now, kind="dismissed"))
+            else:
+                flagged = session.execute(
+                    update(Job)
+                    .where(Job.id == job_id, Job.state == RUNNING, Job.cancel_requested.is_(False))
+                    .values(cancel_requested=True, updated_at=now)
+                ).rowcount
+                if flagged:
+                    session.add(JobEvent(job_id=job_id, at=now, kind="cancel_requested"))
+        return self.get(job_id)
+
+    def mark_enqueue_failed(self, job_id: str, message: str) -> None:
+        now = utcnow()
+        with self.sessions.begin() as session:
+            session.execute(
+                update(Job)
+                .where(Job.id == job_id, Job.state == ACCEPTED)
+                .values(
+                    state=FAILED,
+                    reason="internal_error",
+                    message=message,
+                    finished_at=now,
+                    updated_at=now,
+                )
+            )
+            session.add(JobEvent(job_id=job_id, at=now, kind="enqueue_failed", detail=message))
+
+    # --- transitions (worker side) -------------------------------------------------------------
+    def claim(self, job_id: str, worker: str) -> int | None:
+        """accepted/running -> running for this delivery; returns the attempt number.
+
+        None when the job is unknown, terminal, or dismissed while queued (it never starts).
+        A job found ``running`` is a redelivery after its worker died: the new attempt takes over.
+        """
+        now = utcnow()
+        with self.sessions.begin() as session:
+            job = session.get(Job, job_id, with_for_update=True)
+            if job is None or job.state not in ACTIVE_STATES:
+                return None
+            if job.cancel_requested:
+                job.state = DISMISSED
+                job.reason = "cancelled_by_user"
+                job.message = job.message or "dismissed before it started"
+                job.finished_at = now
+                job.updated_at = now
+                session.add(JobEvent(job_id=job_id, at=now, kind="dismissed", worker=worker))
+                return None
+            job.attempts = (job.attempts or 0) + 1
+            job.state = RUNNING
+            job.worker = worker
+            job.started_at = now
+            job.updated_at = now
+            job.deadline_at = now + dt.timedelta(seconds=job.time_limit)
+            job.progress = 0.0
+            job.sim_time = 0.0
+            job.step = 0
+            job.eta_seconds = None
+            attempt = job.attempts
+            session.add(
+                JobEvent(job_id=job_id, at=now, kind="started", attempt=attempt, worker=worker)
+            )
+        return attempt
+
+    def record_progress(
+        self,
+        job_id: str,
+        attempt: int,
+        *,
+        progress: float,
+        sim_time: float,
+        step: int,
+        wall_time: float,
+        eta_seconds: float | None,
+    ) -> None:
+        now = utcnow()
+        with self.sessions.begin() as session:
+            session.execute(
+                update(Job)
+                .where(Job.id == job_id, Job.state == RUNNING, Job.attempts == attempt)
+                .values(
+                    progress=progress,
+                    sim_time=sim_time,
+                    step=step,
+                    wall_time=wall_time,
+                    eta_seconds=eta_seconds,
+                    updated_at=now,
+                )
+            )
+
+    def add_event(
+        self, job_id: str, kind: str, *, attempt: int | None = None, worker: str | None = None,
+        detail: Any = None,
+    ) -> None:
+        with self.sessions.begin() as session:
+            session.add(
+                JobEvent(
+                    job_id=job_id,
+                    at=utcnow(),
+                    kind=kind,
+                    attempt=attempt,
+                    worker=worker,
+                    detail=None if detail is None else json.dumps(detail),
+                )
+            )
+
+    def finish(
+        self,
+        job_id: str,
+        attempt: int,
+        *,
+        state: str,
+        reason: str | None = None,
+        message: str | None = None,
+        result_path: str | None = None,
+        result_partial: bool = False,
+        progress: float | None = None,
+        sim_time: float | None = None,
+        step: int | None = None,
+        wall_time: float | None = None,
+        failed_time: float | None = None,
+        failed_step: int | None = None,
+        worker: str | None = None,
+    ) -> bool:
+        """running -> terminal, only for the attempt that holds the job. True if it did."""
+        assert state in TERMINAL_STATES
+        now = utcnow()
+        values: dict[str, Any] = dict(
+            state=state,
+            reason=reason,
+            message=message,
+            result_path=result_path,
+            result_partial=result_partial,
+            finished_at=now,
+            updated_at=now,
+            eta_seconds=0.0 if state == SUCCESSFUL else None,
+            failed_time=failed_time,
+            failed_step=failed_step,
+        )
+        for key, value in (
+            ("progress", progress),
+            ("sim_time", sim_time),
+            ("step", step),
+            ("wall_time", wall_time),
+        ):
+            if value is not None:
+                values[key] = value
+        with self.sessions.begin() as session:
+            done = session.execute(
+                update(Job)
+                .where(Job.id == job_id, Job.state == RUNNING, Job.attempts == attempt)
+                .values(**values)
+            ).rowcount
+            session.add(
+                JobEvent(
+                    job_id=job_id,
+                    at=now,
+                    kind="finished" if done else "finish_refused",
+                    attempt=attempt,
+                    worker=worker,
+                    detail=json.dumps({"state": state, "reason": reason}),
+                )
+            )
+        return bool(done)
+
+    def reap(self, now: dt.datetime | None = None, grace: float = 30.0) -> list[str]:
+        """Fail running jobs whose hard time limit (plus ``grace``) has passed: reason timeout.
+
+        Celery kills a task at its hard limit without running any of its code; this is what
+        brings such a job to a terminal state. Returns the ids it failed.
+        """
+        now = now or utcnow()
+        cutoff = now - dt.timedelta(seconds=grace)
+        with self.sessions.begin() as session:
+            ids = list(
+                session.scalars(
+                    select(Job.id).where(Job.state == RUNNING, Job.deadline_at < cutoff)
+                )
+            )
+            reaped = []
+            for job_id in ids:
+                done = session.execute(
+                    update(Job)
+                    .where(Job.id == job_id, Job.state == RUNNING, Job.deadline_at < cutoff)
+                    .values(
+                        state=FAILED,
+                        reason="timeout",
+                        message="killed at the hard time limit; no result was written",
+                        finished_at=now,
+                        updated_at=now,
+                        eta_seconds=None,
+                    )
+                ).rowcount
+                if done:
+                    reaped.append(job_id)
+                    session.add(JobEvent(job_id=job_id, at=now, kind="reaped"))
+        return reaped
+
+    # --- workers -------------------------------------------------------------------------------
+    def heartbeat(self, name: str, current_job: str | None = None, *, clear: bool = False) -> None:
+        now = utcnow()
+        with self.sessions.begin() as session:
+            beat = session.get(WorkerBeat, name)
+            if beat is None:
+                session.add(WorkerBeat(name=name, last_seen=now, current_job=current_job))
+            else:
+                beat.last_seen = now
+                if current_job is not None or clear:
+                    beat.current_job = current_job
+
+    def workers_seen(self, window: float) -> list[WorkerBeat]:
+        since = utcnow() - dt.timedelta(seconds=window)
+        with self.sessions() as session:
+            return list(
+                session.scalars(
+                    select(WorkerBeat).where(WorkerBeat.last_seen >= since).order_by(WorkerBeat.name)
+                )
+            )
+
+
+def _sqlite_pragmas(dbapi_connection, _record) -> None:
+    cursor = dbapi_connection.cursor()
+    cursor.execute("PRAGMA journal_mode=WAL")
+    cursor.execute("PRAGMA synchronous=NORMAL")
+    cursor.execute("PRAGMA busy_timeout=30000")
+    cursor.close()

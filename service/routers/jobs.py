@@ -1,0 +1,260 @@
+"""/v1/jobs: submit, list, status, dismiss, spec."""
+from __future__ import annotations
+
+import datetime as dt
+import hashlib
+from typing import Annotated
+
+from fastapi import APIRouter, Depends, Header, Query, Request, Response
+from fastapi.concurrency import run_in_threadpool
+
+from ..app import Services, services
+from ..problems import ProblemError, problem_responses
+from ..registry import (
+    RUNNING,
+    STATES,
+    TERMINAL_STATES,
+    IdempotencyConflict,
+    Job,
+    utcnow,
+)
+from ..schemas import JobError, JobLinks, JobList, JobStatus
+from ..validation import parse_body, validate_case
+
+router = APIRouter(tags=["jobs"])
+
+
+def _iso(value: dt.datetime | None) -> dt.datetime | None:
+    return None if value is None else value.replace(tzinfo=dt.timezone.utc)
+
+
+def job_status(job: Job, store_exists) -> JobStatus:
+    base = f"/v1/jobs/{job.id}"
+    eta = job.eta_seconds
+    if job.state == RUNNING and eta is not None:
+        eta = max(0.0, eta - (utcnow() - job.updated_at).total_seconds())
+    error = None
+    if job.state in ("failed", "dismissed"):
+        error = JobError(reason=job.reason, message=job.message, time=job.failed_time,
+                         step=job.failed_step)
+    return JobStatus(
+        id=job.id,
+        name=job.name,
+        state=job.state,
+        reason=job.reason,
+        message=job.message,
+        progress=round(min(max(job.progress or 0.0, 0.0), 100.0), 3),
+        sim_time=job.sim_time or 0.0,
+        t_end=job.t_end,
+        step=job.step or 0,
+        n_steps=job.n_steps,
+        grid_points=job.grid_points,
+        eta_seconds=eta,
+        wall_time=job.wall_time,
+        created=_iso(job.created_at),
+        started=_iso(job.started_at),
+        finished=_iso(job.finished_at),
+        updated=_iso(job.updated_at),
+        worker=job.worker,
+        attempts=job.attempts or 0,
+        cancel_requested=bool(job.cancel_requested),
+        spec_hash=job.spec_hash,
+        solver_version=job.solver_version,
+        time_limit=job.time_limit,
+        result_available=bool(job.result_path) and store_exists(job.result_path),
+        result_partial=bool(job.result_partial),
+        error=error,
+        links=JobLinks(self=base, spec=f"{base}/spec", results=f"{base}/results",
+                       variables=f"{base}/results/variables", summary=f"{base}/summary"),
+    )
+
+
+def _exists(path: str) -> bool:
+    import os
+
+    return os.path.exists(path)
+
+
+def get_job_or_404(svc: Services, job_id: str) -> Job:
+    job = svc.registry.get(job_id)
+    if job is None:
+        raise ProblemError(404, "job-not-found", "Job not found", f"no job with id {job_id}")
+    return job
+
+
+def _submit(svc: Services, body: bytes, content_type: str | None, idempotency_key: str | None,
+            fresh: bool) -> tuple[Job, int]:
+    import solver
+
+    case = validate_case(parse_body(body, content_type), svc.settings.max_case_size)
+    canonical = case.canonical_json()
+    spec_hash = case.spec_hash()
+    version = solver.__version__
+    fingerprint = hashlib.sha256(f"{canonical}|fresh={fresh}".encode()).hexdigest()
+    if idempotency_key is not None:
+        if not 1 <= len(idempotency_key) <= 200:
+            raise ProblemError(422, "invalid-request", "Invalid request",
+                               errors=[{"loc": "header.Idempotency-Key",
+                                        "msg": "must be 1 to 200 characters", "type": "string"}])
+        earlier = svc.registry.by_idempotency_key(idempotency_key)
+        if earlier is not None:
+            if earlier.request_fingerprint != fingerprint:
+                raise _reuse_problem(earlier.id)
+            return earlier, 200
+    if not fresh:
+        cached = svc.registry.find_successful(spec_hash, version)
+        if cached is not None and _exists(cached.result_path):
+            return cached, 200
+    hard, soft, budget = svc.settings.time_limits(case.grid_points, case.n_steps)
+    try:
+        job, created = svc.registry.create_job(
+            spec_json=canonical,
+            spec_hash=spec_hash,
+            solver_version=version,
+            name=case.name,
+            grid_points=case.grid_points,
+            n_steps=case.n_steps,
+            t_end=float(case.numerics.t_end),
+            limits=(hard, soft, budget),
+            idempotency_key=idempotency_key,
+            request_fingerprint=fingerprint,
+        )
+    except IdempotencyConflict as exc:
+        raise _reuse_problem(exc.job_id) from None
+    if not created:
+        return job, 200
+    # the record is committed: only now may a worker see the job
+    try:
+        svc.enqueuer.enqueue(job.id, time_limit=hard, soft_time_limit=soft)
+    except Exception as exc:  # noqa: BLE001 - broker down: the job must not stay "accepted"
+        svc.registry.mark_enqueue_failed(job.id, f"could not enqueue: {type(exc).__name__}")
+        raise ProblemError(503, "broker-unavailable", "Queue unavailable",
+                           "the job was recorded but could not be queued; submit it again later",
+                           headers={"Retry-After": "10"}) from None
+    return job, 201
+
+
+def _reuse_problem(job_id: str) -> ProblemError:
+    return ProblemError(
+        422, "idempotency-key-reused", "Idempotency-Key reused",
+        f"this Idempotency-Key was used for job {job_id} with a different request",
+        errors=[{"loc": "header.Idempotency-Key",
+                 "msg": "already used with a different case spec; use a new key",
+                 "type": "idempotency_key_reused"}],
+    )
+
+
+@router.post(
+    "/jobs",
+    operation_id="submit_job",
+    summary="Submit a case",
+    status_code=201,
+    response_model=JobStatus,
+    responses={
+        200: {"model": JobStatus, "description": "Replay of an Idempotency-Key, or an identical "
+              "spec answered from an earlier successful job"},
+        **problem_responses(400, 413, 415, 422, 503),
+    },
+)
+async def submit_job(
+    request: Request,
+    response: Response,
+    svc: Annotated[Services, Depends(services)],
+    idempotency_key: Annotated[str | None, Header(
+        description="Makes retries safe: the same key and body give the same job.")] = None,
+    fresh: Annotated[bool, Query(
+        description="Run even if an identical spec already succeeded with this solver version.")]
+    = False,
+) -> JobStatus:
+    """Validate the case and queue it; answers at once (201), never runs a solve itself."""
+    body = await request.body()
+    job, status = await run_in_threadpool(
+        _submit, svc, body, request.headers.get("content-type"), idempotency_key, fresh
+    )
+    response.status_code = status
+    response.headers["Location"] = f"/v1/jobs/{job.id}"
+    return job_status(job, _exists)
+
+
+@router.get("/jobs", operation_id="list_jobs", summary="List jobs", response_model=JobList,
+            responses=problem_responses(422))
+def list_jobs(
+    request: Request,
+    svc: Annotated[Services, Depends(services)],
+    status: Annotated[list[str] | None, Query(
+        description="Keep these states (repeat, or comma-separated).")] = None,
+    created_after: Annotated[dt.datetime | None, Query(description="Created at or after.")] = None,
+    created_before: Annotated[dt.datetime | None, Query(description="Created before.")] = None,
+    page_size: Annotated[int, Query(ge=1, le=500)] = 50,
+    page_token: Annotated[str | None, Query(description="From next_page_token.")] = None,
+) -> JobList:
+    """Newest first, keyset-paginated."""
+    states = [s.strip() for item in (status or []) for s in item.split(",") if s.strip()]
+    bad = [s for s in states if s not in STATES]
+    if bad:
+        raise ProblemError(422, "invalid-request", "Invalid request", errors=[
+            {"loc": "query.status", "msg": f"unknown state {s!r}; allowed: {', '.join(STATES)}",
+             "type": "enum"} for s in bad])
+    try:
+        page = svc.registry.list(states=states, created_after=_naive(created_after),
+                                 created_before=_naive(created_before), page_size=page_size,
+                                 page_token=page_token)
+    except ValueError as exc:
+        raise ProblemError(422, "invalid-request", "Invalid request", errors=[
+            {"loc": "query.page_token", "msg": str(exc), "type": "value_error"}]) from None
+    nxt = None
+    if page.next_token:
+        nxt = str(request.url.include_query_params(page_token=page.next_token))
+    return JobList(jobs=[job_status(j, _exists) for j in page.jobs],
+                   next_page_token=page.next_token, next=nxt)
+
+
+def _naive(value: dt.datetime | None) -> dt.datetime | None:
+    if value is None or value.tzinfo is None:
+        return value
+    return value.astimezone(dt.timezone.utc).replace(tzinfo=None)
+
+
+@router.get("/jobs/{job_id}", operation_id="get_job", summary="Job status",
+            response_model=JobStatus, responses=problem_responses(404))
+def get_job(job_id: str, svc: Annotated[Services, Depends(services)]) -> JobStatus:
+    """State, progress 0-100, simulated time, step, ETA, timestamps, worker, error."""
+    return job_status(get_job_or_404(svc, job_id), _exists)
+
+
+@router.delete(
+    "/jobs/{job_id}",
+    operation_id="dismiss_job",
+    summary="Dismiss a job",
+    response_model=JobStatus,
+    responses={202: {"model": JobStatus, "description": "Running: it stops within one step"},
+               **problem_responses(404, 409)},
+)
+def dismiss_job(job_id: str, response: Response,
+                svc: Annotated[Services, Depends(services)]) -> JobStatus:
+    """A queued job never starts (200, dismissed); a running one stops within one time step
+    and keeps its partial result (202 now, dismissed soon)."""
+    job = get_job_or_404(svc, job_id)
+    if job.state in TERMINAL_STATES and job.state != "dismissed":
+        raise ProblemError(409, "job-finished", "Job already finished",
+                           f"job {job_id} is {job.state}; only accepted or running jobs can be "
+                           "dismissed")
+    job = svc.registry.dismiss(job_id) or job
+    if job.state == RUNNING:
+        response.status_code = 202
+    elif job.state in TERMINAL_STATES and job.state != "dismissed":
+        raise ProblemError(409, "job-finished", "Job already finished",
+                           f"job {job_id} finished ({job.state}) before it could be dismissed")
+    return job_status(job, _exists)
+
+
+@router.get("/jobs/{job_id}/spec", operation_id="get_job_spec", summary="Canonical case spec",
+            responses=problem_responses(404))
+def get_job_spec(job_id: str, svc: Annotated[Services, Depends(services)]) -> Response:
+    """The case spec as the service validated it: canonical JSON, defaults filled in."""
+    job = get_job_or_404(svc, job_id)
+    return Response(job.spec_json, media_type="application/json",
+                    headers={"ETag": f'"{job.spec_hash}"'})
+
+
+__all__ = ["router", "job_status", "get_job_or_404"]

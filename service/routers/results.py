@@ -1,0 +1,273 @@
+"""/v1/jobs/{id}/results, .../results/variables[/{name}], /v1/jobs/{id}/summary."""
+from __future__ import annotations
+
+import hashlib
+import os
+from contextlib import contextmanager
+from typing import Annotated, Any, Iterator
+
+import numpy as np
+from fastapi import APIRouter, Depends, Query, Request, Response
+from fastapi.responses import FileResponse
+
+from ..app import Services, services
+from ..problems import ProblemError, problem_responses
+from ..registry import Job
+from ..schemas import Series, Summary, VariableInfo, VariableList, VariableSlice
+from .jobs import get_job_or_404
+
+router = APIRouter(tags=["results"])
+
+NETCDF_MEDIA_TYPE = "application/x-netcdf"
+SUMMARY_NAMES = ("work_in", "power_in", "twist", "writhe", "linking_number", "contact_count",
+                 "min_surface_gap")
+SLICE_DIMS = ("time", "s", "component", "xyz", "quaternion", "step")
+
+
+def _result_path(svc: Services, job: Job) -> str:
+    path = job.result_path
+    if not path or not os.path.exists(path):
+        raise ProblemError(404, "result-not-ready", "Result not ready",
+                           f"job {job.id} is {job.state} and has no result file"
+                           + (" yet" if job.state in ("accepted", "running") else ""))
+    return path
+
+
+def _etag(path: str) -> str:
+    st = os.stat(path)
+    raw = f"{os.path.basename(path)}:{st.st_size}:{st.st_mtime_ns}".encode()
+    return '"' + hashlib.sha256(raw).hexdigest()[:32] + '"'
+
+
+def _not_modified(request: Request, etag: str) -> bool:
+    header = request.headers.get("if-none-match")
+    if not header:
+        return False
+    tags = [t.strip() for t in header.split(",")]
+    return "*" in tags or etag in tags or f"W/{etag}" in tags
+
+
+@contextmanager
+def _open(path: str) -> Iterator[Any]:
+    import xarray as xr
+
+    with xr.open_dataset(path, engine="netcdf4", cache=False) as ds:
+        yield ds
+
+
+@router.get(
+    "/jobs/{job_id}/results",
+    operation_id="download_results",
+    summary="The NetCDF result file",
+    response_class=FileResponse,
+    responses={200: {"content": {NETCDF_MEDIA_TYPE: {}}, "description": "NetCDF4 dataset"},
+               304: {"description": "Not modified (If-None-Match)"},
+               **problem_responses(404)},
+)
+def download_results(job_id: str, request: Request,
+                     svc: Annotated[Services, Depends(services)]) -> Response:
+    """The job's dataset (partial for failed or dismissed jobs), with Content-Length and ETag."""
+    job = get_job_or_404(svc, job_id)
+    path = _result_path(svc, job)
+    etag = _etag(path)
+    if _not_modified(request, etag):
+        return Response(status_code=304, headers={"ETag": etag})
+    return FileResponse(path, media_type=NETCDF_MEDIA_TYPE, filename=f"{job.id}.nc",
+                        headers={"ETag": etag, "Cache-Control": "private, max-age=0"})
+
+
+@router.get("/jobs/{job_id}/results/variables", operation_id="list_result_variables",
+            summary="Variables of the result", response_model=VariableList,
+            responses=problem_responses(404))
+def list_result_variables(job_id: str, svc: Annotated[Services, Depends(services)]) -> VariableList:
+    """Each variable and coordinate with its dims, shape, units and long name."""
+    job = get_job_or_404(svc, job_id)
+    path = _result_path(svc, job)
+    with _open(path) as ds:
+        items = [_info(name, ds[name], coordinate=True) for name in ds.coords]
+        items += [_info(name, ds[name], coordinate=False) for name in ds.data_vars]
+        dims = {str(k): int(v) for k, v in ds.sizes.items()}
+    return VariableList(job_id=job.id, dims=dims, variables=items)
+
+
+def _info(name, var, coordinate: bool) -> VariableInfo:
+    return VariableInfo(
+        name=str(name),
+        dims=[str(d) for d in var.dims],
+        shape=[int(n) for n in var.shape],
+        dtype=str(var.dtype),
+        units=_attr(var, "units"),
+        long_name=_attr(var, "long_name"),
+        coordinate=coordinate,
+    )
+
+
+def _attr(var, key) -> str | None:
+    value = var.attrs.get(key)
+    if value is None and key == "units":
+        value = var.encoding.get("units")
+    return None if value is None else str(value)
+
+
+_SELECTOR_HELP = ("a value (nearest for time and s), a range 'a:b' (inclusive, either end may be "
+                  "left out) or a list 'a,b,c'")
+
+
+@router.get(
+    "/jobs/{job_id}/results/variables/{name}",
+    operation_id="get_result_variable",
+    summary="A server-side slice of one variable",
+    response_model=VariableSlice,
+    responses=problem_responses(404, 422),
+)
+def get_result_variable(
+    job_id: str,
+    name: str,
+    svc: Annotated[Services, Depends(services)],
+    time: Annotated[str | None, Query(description=f"Time, s: {_SELECTOR_HELP}.")] = None,
+    s: Annotated[str | None, Query(description=f"Arclength, m: {_SELECTOR_HELP}.")] = None,
+    component: Annotated[str | None, Query(description="Body-frame component 1, 2, 3 (or '1,3', "
+                                                       "'1:2').")] = None,
+    xyz: Annotated[str | None, Query(description="Global axis x, y, z.")] = None,
+    quaternion: Annotated[str | None, Query(description="Quaternion part w, x, y, z.")] = None,
+    step: Annotated[str | None, Query(description="Solver step number (step diagnostics).")] = None,
+) -> VariableSlice:
+    """Select by coordinate labels; refuses (422) a slice larger than HOCKLE_MAX_SLICE_VALUES."""
+    job = get_job_or_404(svc, job_id)
+    path = _result_path(svc, job)
+    query = {"time": time, "s": s, "component": component, "xyz": xyz,
+             "quaternion": quaternion, "step": step}
+    query = {k: v for k, v in query.items() if v is not None}
+    with _open(path) as ds:
+        if name not in ds.variables:
+            raise ProblemError(404, "variable-not-found", "Variable not found",
+                               f"the result of job {job.id} has no variable {name!r}; see "
+                               f"/v1/jobs/{job.id}/results/variables")
+        var = ds[name]
+        errors = []
+        selected: dict[str, Any] = {}
+        for dim, raw in query.items():
+            if dim not in var.dims:
+                errors.append({"loc": f"query.{dim}", "type": "dimension_absent",
+                               "msg": f"{name} has no dimension {dim!r}; its dimensions are "
+                                      f"({', '.join(map(str, var.dims))})"})
+                continue
+            try:
+                var, where = _select(var, dim, raw)
+            except ValueError as exc:
+                errors.append({"loc": f"query.{dim}", "type": "value_error",
+                               "msg": f"{exc}; give {_SELECTOR_HELP}"})
+                continue
+            if where is not None:
+                selected[dim] = where
+        if errors:
+            raise ProblemError(422, "invalid-slice", "Invalid slice",
+                               "the slice parameters do not fit this variable", errors=errors)
+        size = int(var.size)
+        cap = svc.settings.max_slice_values
+        if size > cap:
+            msg = (f"the slice has {size} values ({' x '.join(f'{d}={n}' for d, n in var.sizes.items())}),"
+                   f" more than this service serves as JSON ({cap}); narrow it with "
+                   f"{', '.join(f'{d}=' for d in var.dims)} or download the NetCDF file")
+            raise ProblemError(422, "slice-too-large", "Slice too large", msg, errors=[
+                {"loc": f"query.{d}", "msg": msg, "type": "slice_too_large"} for d in var.dims])
+        values = var.values
+        coords = {str(d): _jsonable(var[d].values) for d in var.dims if d in var.coords}
+        return VariableSlice(
+            job_id=job.id,
+            name=name,
+            dims=[str(d) for d in var.dims],
+            shape=[int(n) for n in var.shape],
+            units=_attr(var, "units"),
+            long_name=_attr(var, "long_name"),
+            coords=coords,
+            selected=selected,
+            data=_jsonable(values),
+        )
+
+
+def _select(var, dim: str, raw: str):
+    """Apply one selector; returns (selected var, scalar label or None)."""
+    index = var.indexes.get(dim) if dim in var.coords else None
+    kind = "int"
+    if index is not None:
+        kind = {"f": "float", "i": "int", "u": "int"}.get(index.dtype.kind, "str")
+    convert = {"float": float, "int": int, "str": str}[kind]
+
+    def conv(text: str):
+        text = text.strip()
+        try:
+            return convert(text)
+        except ValueError:
+            raise ValueError(f"{text!r} is not a {kind} label") from None
+
+    raw = raw.strip()
+    if index is None:  # a dim without coordinate: positions
+        if ":" in raw or "," in raw:
+            raise ValueError(f"{dim} has no coordinate; give one position")
+        return var.isel({dim: conv(raw)}), int(raw)
+    if ":" in raw:
+        lo, _, hi = raw.partition(":")
+        sl = slice(conv(lo) if lo.strip() else None, conv(hi) if hi.strip() else None)
+        return var.sel({dim: sl}), None
+    if "," in raw:
+        labels = [conv(x) for x in raw.split(",") if x.strip()]
+        try:
+            if kind == "float":
+                return var.sel({dim: labels}, method="nearest"), None
+            return var.sel({dim: labels}), None
+        except KeyError:
+            raise ValueError(f"not all of {labels} are {dim} labels; labels: "
+                             f"{_label_hint(index)}") from None
+    label = conv(raw)
+    try:
+        out = var.sel({dim: label}, method="nearest") if kind == "float" else var.sel({dim: label})
+    except KeyError:
+        raise ValueError(f"{label!r} is not a {dim} label; labels: {_label_hint(index)}") from None
+    return out, _jsonable(out[dim].values)
+
+
+def _label_hint(index) -> str:
+    values = list(index.values)
+    if len(values) <= 8:
+        return ", ".join(map(str, values))
+    return f"{values[0]} ... {values[-1]} ({len(values)} values)"
+
+
+def _jsonable(values) -> Any:
+    arr = np.asarray(values)
+    if arr.dtype.kind == "f":
+        obj = arr.astype(object)
+        obj[~np.isfinite(arr)] = None
+        return obj.tolist()
+    if arr.dtype.kind in "US":
+        return arr.astype(str).tolist()
+    return arr.tolist()
+
+
+@router.get("/jobs/{job_id}/summary", operation_id="get_summary",
+            summary="Scalar time series for dashboards", response_model=Summary,
+            responses={304: {"description": "Not modified (If-None-Match)"},
+                       **problem_responses(404)})
+def get_summary(job_id: str, request: Request, response: Response,
+                svc: Annotated[Services, Depends(services)]) -> Summary | Response:
+    """Energies, twist, writhe, linking number and contact count over time."""
+    job = get_job_or_404(svc, job_id)
+    path = _result_path(svc, job)
+    etag = _etag(path)
+    if _not_modified(request, etag):
+        return Response(status_code=304, headers={"ETag": etag})
+    with _open(path) as ds:
+        series = {}
+        for name in ds.data_vars:
+            var = ds[name]
+            if var.dims != ("time",):
+                continue
+            if not (str(name).startswith("energy_") or name in SUMMARY_NAMES):
+                continue
+            series[str(name)] = Series(units=_attr(var, "units"), long_name=_attr(var, "long_name"),
+                                       values=_jsonable(var.values))
+        time = _jsonable(ds["time"].values) if "time" in ds.coords else []
+    response.headers["ETag"] = etag
+    return Summary(job_id=job.id, state=job.state, partial=bool(job.result_partial), time=time,
+                   series=series)

@@ -1,0 +1,175 @@
+"""Settings of the service, its workers and its client, from ``HOCKLE_`` environment variables.
+
+Every field below is one environment variable: ``HOCKLE_<FIELD NAME IN CAPITALS>``. The table in
+``docs/service.md`` lists them all with their defaults; ``tests/service/test_deploy.py`` checks that
+the table, ``docker-compose.yml`` and ``deploy/`` name only variables that exist here.
+
+With nothing set, the service runs *embedded*: a SQLite registry and a SQLite-backed Celery broker
+(kombu's SQLAlchemy transport) under ``HOCKLE_DATA_DIR``, so no server has to be installed.
+"""
+from __future__ import annotations
+
+import os
+from functools import lru_cache
+from pathlib import Path
+
+from pydantic import Field, model_validator
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+__all__ = ["Settings", "get_settings"]
+
+
+class Settings(BaseSettings):
+    model_config = SettingsConfigDict(env_prefix="HOCKLE_", extra="ignore")
+
+    # --- where things live -------------------------------------------------------------------
+    data_dir: Path = Field(
+        Path("hockle-data"),
+        description="Directory for the embedded SQLite registry and broker files (made absolute).",
+    )
+    database_url: str | None = Field(
+        None,
+        description="SQLAlchemy URL of the job registry; default sqlite:///<data_dir>/registry.db. "
+        "postgresql:// URLs use the psycopg 3 driver.",
+    )
+    broker_url: str | None = Field(
+        None,
+        description="Celery broker URL (redis://host:6379/0). Unset: embedded SQLite broker and a "
+        "local worker started by `hockle serve`.",
+    )
+    results_dir: Path | None = Field(
+        None,
+        description="Result store: one NetCDF file per job id; default <data_dir>/results. A shared "
+        "(ReadWriteMany) volume when workers run on several machines.",
+    )
+    queue: str = Field("hockle", description="Celery queue the jobs go to.")
+
+    # --- HTTP ----------------------------------------------------------------------------------
+    host: str = Field("127.0.0.1", description="Address `hockle serve` binds.")
+    port: int = Field(8000, description="Port `hockle serve` binds.")
+    public_url: str | None = Field(
+        None, description="Base URL the client and `hockle submit` use; default http://<host>:<port>."
+    )
+
+    # --- limits --------------------------------------------------------------------------------
+    max_case_size: int = Field(
+        20_000_000,
+        gt=0,
+        description="Largest accepted case: grid points x time steps.",
+    )
+    max_slice_values: int = Field(
+        1_000_000, gt=0, description="Largest variable slice served as JSON (number of values)."
+    )
+
+    # --- worker --------------------------------------------------------------------------------
+    embedded_worker: bool = Field(
+        True, description="`hockle serve` without a broker URL also starts a local worker process."
+    )
+    worker_concurrency: int = Field(1, ge=1, description="Solver processes per `hockle worker`.")
+    blas_threads: int = Field(1, ge=1, description="BLAS/OpenMP threads per worker process.")
+    progress_interval: float = Field(
+        1.0, ge=0, description="Least seconds between two progress writes to the registry."
+    )
+    cancel_check_interval: float = Field(
+        0.0,
+        ge=0,
+        description="Least seconds between two reads of the cancel flag; 0 reads it before every "
+        "time step.",
+    )
+    heartbeat_interval: float = Field(
+        10.0, gt=0, description="Seconds between worker heartbeats (and reaper sweeps)."
+    )
+    worker_seen_window: float = Field(
+        60.0, gt=0, description="A worker whose last heartbeat is older than this is not listed."
+    )
+
+    # --- time limits (seconds) -----------------------------------------------------------------
+    time_limit_base: float = Field(60.0, gt=0, description="Hard time limit of the smallest job.")
+    time_limit_per_unit: float = Field(
+        2.0e-4,
+        ge=0,
+        description="Hard time limit added per grid point x time step.",
+    )
+    time_limit_max: float = Field(6 * 3600.0, gt=0, description="Cap of the hard time limit.")
+    soft_limit_fraction: float = Field(
+        0.95, gt=0, lt=1, description="Soft time limit as a fraction of the hard one."
+    )
+    budget_fraction: float = Field(
+        0.9,
+        gt=0,
+        lt=1,
+        description="Solver wall-clock budget as a fraction of the soft limit: the solver stops "
+        "cleanly (partial dataset kept, reason timeout) before Celery has to interrupt it.",
+    )
+    reaper_grace: float = Field(
+        30.0, ge=0, description="Seconds past a job's hard limit before the reaper fails it."
+    )
+    visibility_timeout: float | None = Field(
+        None,
+        description="Redis visibility timeout: an unacknowledged job is redelivered after this long "
+        "(a worker died). Default time_limit_max + 600; must exceed time_limit_max.",
+    )
+    unacked_restore_interval: float = Field(
+        10.0, gt=0, description="Seconds between a worker's sweeps for redeliverable jobs (Redis)."
+    )
+
+    log_level: str = Field("INFO", description="Log level of the API and the workers.")
+
+    @model_validator(mode="after")
+    def _derive(self) -> "Settings":
+        self.data_dir = Path(os.path.abspath(os.path.expanduser(self.data_dir)))
+        if self.results_dir is None:
+            self.results_dir = self.data_dir / "results"
+        self.results_dir = Path(os.path.abspath(os.path.expanduser(self.results_dir)))
+        if self.visibility_timeout is None:
+            self.visibility_timeout = self.time_limit_max + 600.0
+        if self.visibility_timeout <= self.time_limit_max:
+            raise ValueError(
+                "HOCKLE_VISIBILITY_TIMEOUT must exceed HOCKLE_TIME_LIMIT_MAX, or a job still "
+                "running would be delivered to a second worker"
+            )
+        return self
+
+    # --- derived -------------------------------------------------------------------------------
+    @property
+    def embedded(self) -> bool:
+        """True when no broker URL is configured (SQLite broker, local worker)."""
+        return not self.broker_url
+
+    @property
+    def registry_url(self) -> str:
+        url = self.database_url or f"sqlite:///{self.data_dir / 'registry.db'}"
+        if url.startswith("postgresql://") or url.startswith("postgres://"):
+            url = "postgresql+psycopg://" + url.split("://", 1)[1]
+        return url
+
+    @property
+    def celery_broker_url(self) -> str:
+        return self.broker_url or f"sqla+sqlite:///{self.data_dir / 'broker.db'}"
+
+    @property
+    def base_url(self) -> str:
+        if self.public_url:
+            return self.public_url.rstrip("/")
+        host = "127.0.0.1" if self.host in ("0.0.0.0", "::") else self.host
+        return f"http://{host}:{self.port}"
+
+    def time_limits(self, grid_points: int, n_steps: int) -> tuple[float, float, float]:
+        """(hard, soft, solver budget) in seconds for a case of this size."""
+        hard = min(self.time_limit_max, self.time_limit_base + self.time_limit_per_unit * grid_points * n_steps)
+        soft = hard * self.soft_limit_fraction
+        return hard, soft, soft * self.budget_fraction
+
+    def child_env(self) -> dict[str, str]:
+        """Environment that makes a child process resolve the same settings."""
+        env = {}
+        for name, value in self.model_dump().items():
+            if value is None:
+                continue
+            env[f"HOCKLE_{name.upper()}"] = str(value)
+        return env
+
+
+@lru_cache(maxsize=1)
+def get_settings() -> Settings:
+    return Settings()

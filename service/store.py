@@ -1,0 +1,51 @@
+"""The result store: a directory of NetCDF files keyed by job id.
+
+Workers write ``<id>.nc.tmp-<host>-<pid>`` and rename it to ``<id>.nc`` (``os.replace`` is atomic
+on one file system), so a reader never sees a half-written file. When workers run on several
+machines the directory is a shared (ReadWriteMany) volume mounted at the same path everywhere.
+"""
+from __future__ import annotations
+
+import os
+import re
+import socket
+import tempfile
+from pathlib import Path
+
+__all__ = ["ResultStore"]
+
+_ID = re.compile(r"^[0-9a-f]{8}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{12}$")
+
+
+class ResultStore:
+    def __init__(self, root: str | os.PathLike):
+        self.root = Path(root)
+
+    def ensure(self) -> None:
+        self.root.mkdir(parents=True, exist_ok=True)
+
+    def path_for(self, job_id: str) -> Path:
+        if not _ID.match(job_id):
+            raise ValueError(f"not a job id: {job_id!r}")
+        return self.root / f"{job_id}.nc"
+
+    def write_dataset(self, job_id: str, ds) -> Path:
+        """Write an xarray.Dataset as NetCDF4 under a temporary name, then rename it."""
+        self.ensure()
+        final = self.path_for(job_id)
+        tmp = final.with_name(f"{final.name}.tmp-{socket.gethostname()}-{os.getpid()}")
+        try:
+            ds.to_netcdf(tmp, engine="netcdf4")
+            with open(tmp, "rb") as fh:
+                os.fsync(fh.fileno())
+            os.replace(tmp, final)
+        finally:
+            if tmp.exists():
+                tmp.unlink()
+        return final
+
+    def check_writable(self) -> None:
+        """Raise OSError when files cannot be created in the store."""
+        self.ensure()
+        with tempfile.NamedTemporaryFile(dir=self.root, prefix=".health-"):
+            pass

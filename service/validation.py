@@ -1,0 +1,115 @@
+"""Reading and validating a submitted case: the same pydantic ``Case`` the CLI uses.
+
+Every refusal is a :class:`~service.problems.ProblemError` whose ``errors`` name each bad field by
+its path (``rod.youngs_modulus``) and say what is allowed; unknown fields list the allowed ones.
+"""
+from __future__ import annotations
+
+import json
+import types
+import typing
+from typing import Any, Union
+
+from pydantic import BaseModel, ValidationError
+
+from .problems import ProblemError
+
+MAX_BODY_BYTES = 4 * 1024 * 1024
+YAML_TYPES = ("application/yaml", "application/x-yaml", "text/yaml", "text/x-yaml")
+
+
+def parse_body(body: bytes, content_type: str | None) -> Any:
+    """JSON (default) or YAML (by Content-Type) to Python data; 400/413/415 problems."""
+    if len(body) > MAX_BODY_BYTES:
+        raise ProblemError(413, "body-too-large", "Request body too large",
+                           f"a case spec may be at most {MAX_BODY_BYTES} bytes")
+    media = (content_type or "application/json").split(";")[0].strip().lower()
+    if not body.strip():
+        raise ProblemError(422, "invalid-case", "Invalid case spec", "the request body is empty",
+                           errors=[{"loc": "", "msg": "a case spec (JSON object) is required",
+                                    "type": "missing"}])
+    if media in YAML_TYPES:
+        from solver.case import CaseError, parse_text
+
+        try:
+            return parse_text(body, "yaml", "request body")
+        except CaseError as exc:
+            raise ProblemError(400, "malformed-body", "Malformed request body",
+                               "the body is not valid YAML", errors=list(exc.errors)) from None
+    if media not in ("application/json", "text/json") and not media.endswith("+json"):
+        raise ProblemError(415, "unsupported-media-type", "Unsupported media type",
+                           f"send the case as application/json or application/yaml, not {media}")
+    try:
+        return json.loads(body)
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ProblemError(400, "malformed-body", "Malformed request body",
+                           f"the body is not valid JSON: {exc}") from None
+
+
+def validate_case(data: Any, max_case_size: int):
+    """Return the validated ``Case`` or raise a 422 problem listing every bad field."""
+    from solver.case import Case, format_validation_errors
+
+    if not isinstance(data, dict):
+        raise ProblemError(422, "invalid-case", "Invalid case spec",
+                           "a case spec must be a JSON object",
+                           errors=[{"loc": "", "msg": f"must be an object (mapping of fields), "
+                                    f"got {type(data).__name__}", "type": "dict_type"}])
+    try:
+        case = Case.model_validate(data)
+    except ValidationError as exc:
+        errors = format_validation_errors(exc)
+        for raw, err in zip(exc.errors(include_url=False), errors):
+            if err["type"] == "extra_forbidden":
+                allowed = allowed_fields(Case, raw.get("loc", ())[:-1])
+                if allowed:
+                    err["msg"] = f"{err['msg']}; allowed here: {', '.join(allowed)}"
+        raise ProblemError(422, "invalid-case", "Invalid case spec",
+                           f"{len(errors)} field(s) of the case spec are not valid",
+                           errors=errors) from None
+    size = case.grid_points * case.n_steps
+    if size > max_case_size:
+        msg = (f"case too large: {case.grid_points} grid points x {case.n_steps} time steps = "
+               f"{size} exceeds this service's limit of {max_case_size}; lower numerics.n_segments "
+               f"(or raise numerics.ds), or numerics.t_end / numerics.dt")
+        raise ProblemError(422, "case-too-large", "Case too large", msg, errors=[
+            {"loc": "numerics.n_segments", "msg": msg, "type": "case_too_large"},
+            {"loc": "numerics.t_end", "msg": msg, "type": "case_too_large"},
+        ])
+    return case
+
+
+def allowed_fields(model: type[BaseModel], loc: tuple) -> list[str]:
+    """Field names of the model(s) found at ``loc`` inside ``model`` (best effort)."""
+    candidates: list[type[BaseModel]] = [model]
+    for part in loc:
+        if isinstance(part, int):
+            continue
+        following: list[type[BaseModel]] = []
+        for cand in candidates:
+            field = cand.model_fields.get(part)
+            if field is not None:
+                following.extend(_models_in(field.annotation))
+        if following:
+            candidates = following
+        # an unmatched part is a union tag (e.g. 'function-wrap[...]'): stay on the candidates
+    names: list[str] = []
+    for cand in candidates:
+        for name in cand.model_fields:
+            if name not in names:
+                names.append(name)
+    return names
+
+
+def _models_in(annotation: Any) -> list[type[BaseModel]]:
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return [annotation]
+    origin = typing.get_origin(annotation)
+    if origin is typing.Annotated:
+        return _models_in(typing.get_args(annotation)[0])
+    if origin in (Union, types.UnionType, list, tuple, typing.Union):
+        found: list[type[BaseModel]] = []
+        for arg in typing.get_args(annotation):
+            found.extend(_models_in(arg))
+        return found
+    return []

@@ -1,0 +1,53 @@
+"""Command line of a worker process, shared by ``hockle worker`` and ``python -m worker``."""
+from __future__ import annotations
+
+import argparse
+import os
+import socket
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--concurrency", "-c", type=int, default=None,
+        help="solver processes in this worker (default HOCKLE_WORKER_CONCURRENCY, 1)",
+    )
+    parser.add_argument(
+        "--hostname", "-n", default=None,
+        help="node name, unique per worker (default hockle-<pid>@<host>)",
+    )
+    parser.add_argument("--loglevel", "-l", default=None, help="log level (default HOCKLE_LOG_LEVEL)")
+
+
+def celery_argv(args: argparse.Namespace) -> list[str]:
+    from service.settings import get_settings
+
+    settings = get_settings()
+    concurrency = args.concurrency or settings.worker_concurrency
+    hostname = args.hostname or f"hockle-{os.getpid()}@{socket.gethostname()}"
+    return [
+        "worker",
+        "--pool=prefork",
+        f"--concurrency={concurrency}",
+        f"--queues={settings.queue}",
+        f"--hostname={hostname}",
+        f"--loglevel={args.loglevel or settings.log_level}",
+        "--without-gossip",
+        "--without-mingle",
+        "--prefetch-multiplier=1",
+    ]
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.concurrency:
+        os.environ["HOCKLE_WORKER_CONCURRENCY"] = str(args.concurrency)
+    argv = celery_argv(args)
+    from worker.app import app  # pins BLAS threads before numpy is imported
+
+    app.worker_main(argv=argv)
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m worker", description=__doc__)
+    add_arguments(parser)
+    return run(parser.parse_args(argv))

@@ -1,0 +1,331 @@
+"""The task that runs one job, and the worker's heartbeat and reaper.
+
+``hockle.run_job(job_id)`` is thin: it claims the job in the registry, runs the case with
+:func:`solver.simulate`, writes progress at most every ``HOCKLE_PROGRESS_INTERVAL`` seconds, writes
+the dataset (partial ones too) to the result store under a temporary name and renames it, and
+brings the job to its terminal state. Deterministic failures (a case that does not validate, a
+diverged solve) are final: the task never retries.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+import threading
+import time
+from dataclasses import dataclass, field
+
+from celery.exceptions import SoftTimeLimitExceeded
+from celery.signals import worker_process_init, worker_ready, worker_shutdown
+
+from service.queue import TASK_NAME
+from service.registry import DISMISSED, FAILED, SUCCESSFUL, Registry
+from service.settings import Settings, get_settings
+from service.store import ResultStore
+from worker.app import app
+
+log = logging.getLogger("hockle.worker")
+
+_DIVERGENCE_REASONS = ("solver_diverged", "nonfinite_state")
+
+
+class _ProcessState:
+    """Registry and store of this process, made after fork (never shared with the parent)."""
+
+    def __init__(self) -> None:
+        self.pid: int | None = None
+        self.registry: Registry | None = None
+        self.store: ResultStore | None = None
+
+    def get(self, settings: Settings) -> tuple[Registry, ResultStore]:
+        if self.pid != os.getpid() or self.registry is None:
+            self.registry = Registry(settings.registry_url)
+            self.store = ResultStore(settings.results_dir)
+            self.pid = os.getpid()
+        return self.registry, self.store  # type: ignore[return-value]
+
+
+_process = _ProcessState()
+
+
+@dataclass
+class JobRun:
+    """One attempt at one job inside a worker process."""
+
+    job_id: str
+    attempt: int
+    worker: str
+    registry: Registry
+    store: ResultStore
+    settings: Settings
+    budget: float
+    t_end: float
+    started: float = field(default_factory=time.monotonic)
+    last_write: float = -math.inf
+    last_check: float = -math.inf
+    last_info: object | None = None
+
+    # --- callbacks handed to the solver --------------------------------------------------------
+    def progress(self, info) -> None:
+        self.last_info = info
+        now = time.monotonic()
+        if now - self.last_write < self.settings.progress_interval:
+            return
+        self.last_write = now
+        self._write_progress(info)
+
+    def _write_progress(self, info) -> None:
+        fraction = float(min(max(info.fraction, 0.0), 1.0))
+        wall = float(info.wall_time)
+        eta = wall * (1.0 - fraction) / fraction if fraction > 0 else None
+        try:
+            self.registry.record_progress(
+                self.job_id,
+                self.attempt,
+                progress=100.0 * fraction,
+                sim_time=float(info.t),
+                step=int(info.step),
+                wall_time=wall,
+                eta_seconds=eta,
+            )
+        except Exception:  # noqa: BLE001 - a lost progress write must not kill the solve
+            log.warning("progress write for %s failed", self.job_id, exc_info=True)
+
+    def should_stop(self):
+        now = time.monotonic()
+        if now - self.started > self.budget:
+            return "timeout"
+        if now - self.last_check >= self.settings.cancel_check_interval:
+            self.last_check = now
+            try:
+                if self.registry.cancel_requested(self.job_id):
+                    return "cancelled_by_user"
+            except Exception:  # noqa: BLE001 - registry briefly unreachable: keep solving
+                log.warning("cancel check for %s failed", self.job_id, exc_info=True)
+        return False
+
+    # --- outcome -------------------------------------------------------------------------------
+    def _position(self) -> dict:
+        info = self.last_info
+        if info is None:
+            return {"wall_time": time.monotonic() - self.started}
+        return {
+            "progress": 100.0 * float(min(max(info.fraction, 0.0), 1.0)),
+            "sim_time": float(info.t),
+            "step": int(info.step),
+            "wall_time": time.monotonic() - self.started,
+        }
+
+    def save(self, ds) -> str | None:
+        if ds is None:
+            return None
+        ds.attrs["hockle_job_id"] = self.job_id
+        ds.attrs["hockle_attempt"] = int(self.attempt)
+        ds.attrs["hockle_worker"] = self.worker
+        return str(self.store.write_dataset(self.job_id, ds))
+
+    def finish(self, **kwargs) -> bool:
+        done = self.registry.finish(self.job_id, self.attempt, worker=self.worker, **kwargs)
+        if not done:
+            log.warning("job %s attempt %s: finish refused (taken over or reaped)", self.job_id,
+                        self.attempt)
+        return done
+
+
+def run_job(job_id: str, worker: str, settings: Settings | None = None) -> str:
+    """Run one job to a terminal state; returns what happened (for logs and tests)."""
+    settings = settings or get_settings()
+    registry, store = _process.get(settings)
+    attempt = registry.claim(job_id, worker)
+    if attempt is None:
+        job = registry.get(job_id)
+        state = job.state if job else "unknown"
+        log.info("job %s not run: %s", job_id, state)
+        return f"skipped:{state}"
+    job = registry.get(job_id)
+    assert job is not None
+    registry.heartbeat(worker, job_id)
+    run = JobRun(
+        job_id=job_id,
+        attempt=attempt,
+        worker=worker,
+        registry=registry,
+        store=store,
+        settings=settings,
+        budget=job.wall_clock_budget,
+        t_end=job.t_end,
+    )
+    try:
+        from solver.case import Case
+
+        case = Case.model_validate(json.loads(job.spec_json))
+        case = _with_budget(case, job.wall_clock_budget)
+    except Exception as exc:  # noqa: BLE001 - a stored case that no longer validates is final
+        log.exception("job %s: stored case does not validate", job_id)
+        run.finish(state=FAILED, reason="internal_error",
+                   message=f"the stored case does not validate with this solver: {exc}")
+        return "failed:internal_error"
+    try:
+        return _solve(run, case)
+    finally:
+        try:
+            registry.heartbeat(worker, None, clear=True)
+        except Exception:  # noqa: BLE001
+            log.warning("heartbeat after %s failed", job_id, exc_info=True)
+
+
+def _with_budget(case, budget: float):
+    """Hand the wall-clock budget to the solver, which checks it itself (reason ``timeout``)."""
+    numerics = case.numerics
+    current = getattr(numerics, "wall_clock_budget", None)
+    if current is not None and current <= budget:
+        return case
+    if "wall_clock_budget" not in type(numerics).model_fields:
+        return case
+    return case.model_copy(update={"numerics": numerics.model_copy(update={"wall_clock_budget": budget})})
+
+
+def _solve(run: JobRun, case) -> str:
+    # the submodule, not the package: `solver.simulate` is also the name of the module
+    from solver.simulate import SolverDivergence, simulate
+
+    try:
+        ds = simulate(case, progress=run.progress, should_stop=run.should_stop)
+    except SolverDivergence as exc:
+        run.registry.add_event(run.job_id, "solve_finished", attempt=run.attempt, worker=run.worker,
+                               detail={"status": "failed"})
+        path = _save_quietly(run, getattr(exc, "partial", None))
+        reason = getattr(exc, "reason", None)
+        run.finish(
+            state=FAILED,
+            reason=reason if reason in _DIVERGENCE_REASONS else "solver_diverged",
+            message=str(exc),
+            failed_time=_float_or_none(getattr(exc, "t", None)),
+            failed_step=_int_or_none(getattr(exc, "step", None)),
+            result_path=path,
+            result_partial=path is not None,
+            **run._position(),
+        )
+        return f"failed:{reason}"
+    except SoftTimeLimitExceeded:
+        run.finish(state=FAILED, reason="timeout",
+                   message=f"soft time limit of {run.registry.get(run.job_id).soft_time_limit:.0f} s "
+                           "reached; no result was written",
+                   **run._position())
+        return "failed:timeout"
+    except Exception as exc:  # noqa: BLE001 - unexpected: recorded, logged, never retried
+        log.exception("job %s: solver raised", run.job_id)
+        run.finish(state=FAILED, reason="internal_error",
+                   message=f"the solver raised {type(exc).__name__}: {exc}", **run._position())
+        return "failed:internal_error"
+
+    status = ds.attrs.get("hockle_status", "completed")
+    run.registry.add_event(run.job_id, "solve_finished", attempt=run.attempt, worker=run.worker,
+                           detail={"status": status})
+    if run.last_info is not None:
+        run._write_progress(run.last_info)
+    try:
+        path = run.save(ds)
+    except Exception as exc:  # noqa: BLE001
+        log.exception("job %s: writing the dataset failed", run.job_id)
+        run.finish(state=FAILED, reason="internal_error",
+                   message=f"writing the result failed: {type(exc).__name__}: {exc}",
+                   **run._position())
+        return "failed:internal_error"
+    if status == "stopped":
+        stop = str(ds.attrs.get("hockle_stop_reason", "stopped"))
+        if stop == "cancelled_by_user":
+            run.finish(state=DISMISSED, reason="cancelled_by_user",
+                       message="dismissed while running; the partial result is kept",
+                       result_path=path, result_partial=True, **run._position())
+            return "dismissed"
+        message = (f"wall-clock budget of {run.budget:.0f} s reached; the partial result is kept"
+                   if stop == "timeout" else f"the solver stopped: {stop}")
+        run.finish(state=FAILED, reason="timeout" if stop == "timeout" else "internal_error",
+                   message=message, result_path=path, result_partial=True, **run._position())
+        return f"failed:{stop}"
+    if status != "completed":
+        run.finish(state=FAILED, reason="internal_error",
+                   message=f"the solver returned a dataset with status {status!r}",
+                   result_path=path, result_partial=True, **run._position())
+        return "failed:internal_error"
+    position = run._position()
+    position["progress"] = 100.0
+    run.finish(state=SUCCESSFUL, result_path=path, **position)
+    return "successful"
+
+
+def _save_quietly(run: JobRun, ds) -> str | None:
+    try:
+        return run.save(ds)
+    except Exception:  # noqa: BLE001 - the failure we report is the solver's
+        log.exception("job %s: writing the partial dataset failed", run.job_id)
+        return None
+
+
+def _float_or_none(value):
+    try:
+        return None if value is None else float(value)
+    except (TypeError, ValueError):
+        return None
+
+
+def _int_or_none(value):
+    try:
+        return None if value is None else int(value)
+    except (TypeError, ValueError):
+        return None
+
+
+@app.task(
+    name=TASK_NAME,
+    bind=True,
+    acks_late=True,
+    reject_on_worker_lost=True,
+    max_retries=0,
+    ignore_result=True,
+)
+def run_job_task(self, job_id: str) -> str:
+    return run_job(job_id, self.request.hostname or f"pid-{os.getpid()}")
+
+
+# --- worker process life -----------------------------------------------------------------------
+_heartbeat_stop = threading.Event()
+_main_registry: list[Registry] = []
+
+
+@worker_process_init.connect
+def _pool_process_init(**_kwargs) -> None:
+    """In each forked pool process: drop connections inherited from the parent, pin BLAS."""
+    for registry in _main_registry:
+        registry.engine.dispose(close=False)
+    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ[var] = str(get_settings().blas_threads)
+
+
+@worker_ready.connect
+def _start_heartbeat(sender=None, **_kwargs) -> None:
+    settings = get_settings()
+    registry = Registry(settings.registry_url)
+    registry.create_schema()
+    _main_registry.append(registry)
+    name = getattr(sender, "hostname", None) or f"pid-{os.getpid()}"
+
+    def beat() -> None:
+        while not _heartbeat_stop.is_set():
+            try:
+                registry.heartbeat(name)
+                reaped = registry.reap(grace=settings.reaper_grace)
+                for job_id in reaped:
+                    log.warning("reaper: job %s passed its hard time limit: failed/timeout", job_id)
+            except Exception:  # noqa: BLE001 - registry down: try again next beat
+                log.warning("heartbeat failed", exc_info=True)
+            _heartbeat_stop.wait(settings.heartbeat_interval)
+
+    threading.Thread(target=beat, name="hockle-heartbeat", daemon=True).start()
+
+
+@worker_shutdown.connect
+def _stop_heartbeat(**_kwargs) -> None:
+    _heartbeat_stop.set()
