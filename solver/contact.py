@@ -190,7 +190,7 @@ class SelfContact:
         Object (or dict) with ``aperture`` (deg, in (0, 180]), ``tolerance`` (m, centreline
         distance below which pairs are tested; must exceed max diameter), ``k1``
         (m^(1+k2)/s², ≥ 0), ``k2`` (≥ 0), ``k3`` (m^(1−k4)·s^(k4−1), ≥ 0), ``k4`` (≥ 0) and
-        ``exclusion`` (None or m > 0: minimum arclength separation of a pair; default
+        ``exclusion`` (None or m ≥ 0: minimum arclength separation of a pair; default
         2 × max diameter).  Typically ``case.contact``.
     s : (N,) float, m
         Node arclengths, strictly increasing.
@@ -248,7 +248,7 @@ class SelfContact:
         self.k2 = num("k2", lo=0.0)
         self.k3 = num("k3", lo=0.0)
         self.k4 = num("k4", lo=0.0)
-        excl = num("exclusion", lo=0.0, lo_open=True, optional=True)
+        excl = num("exclusion", lo=0.0, optional=True)
         self.exclusion = EXCLUSION_DIAMETERS * float(diameter.max()) if excl is None else excl
         if self.tolerance <= float(diameter.max()):
             raise ValueError(

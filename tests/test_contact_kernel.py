@@ -442,6 +442,9 @@ def test_invalid_construction_and_inputs():
     with pytest.raises(ValueError):
         make(spec(k2=-1.0), s)
     with pytest.raises(ValueError):
+        make(spec(exclusion=-0.01), s)
+    assert make(spec(exclusion=0.0), s).exclusion == 0.0  # as the case spec allows
+    with pytest.raises(ValueError):
         SelfContact(spec(), s, np.full(9, DIAM), np.full(10, 1.0))
     with pytest.raises(ValueError):
         SelfContact(spec(), s[::-1], np.full(10, DIAM), np.full(10, 1.0))
