@@ -936,6 +936,16 @@ class Case(BaseModel):
                             _err(("distributed_forces", k, "s_range", j), "out_of_range",
                                  f"must be within [0, rod.length] = [0, {length!r}] m", s)
                         )
+        if self.contact is not None:
+            d = self.rod.diameter
+            d_max = max(d.value) if isinstance(d, Profile) else float(d)
+            if self.contact.tolerance <= d_max:
+                errors.append(
+                    _err(("contact", "tolerance"), "out_of_range",
+                         f"must exceed the largest rod diameter ({d_max!r} m): pairs are "
+                         "tested only below this centreline distance, so touching pairs "
+                         "(distance = diameter) would be missed", self.contact.tolerance)
+                )
         numerics = self.numerics
         n_segments = numerics.n_segments
         if numerics.ds is not None:

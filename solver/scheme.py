@@ -32,6 +32,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.sparse import csc_matrix
+from scipy.sparse.linalg import splu
 
 from .banded import BandFactorError, BandLayout, NV
 from .kinematics import quat_exp, quat_multiply, quat_to_matrix, right_jacobian, skew
@@ -139,16 +141,25 @@ class RodSystem:
         # buffers
         n1 = self.n_nodes
         self._dF = np.zeros((n1, NV, NV))
+        self.pairs = None
+        self._sparse_lu = None
+        self.last_contact = None
+        c = np.arange(self.n_cells)[:, None, None]
+        self._cell_rows_full = np.broadcast_to(
+            6 + NV * c + np.arange(NV)[None, :, None], (self.n_cells, NV, 2 * NV)).ravel()
+        self._cell_cols_full = np.broadcast_to(
+            NV * c + np.arange(2 * NV)[None, None, :], (self.n_cells, NV, 2 * NV)).ravel()
         self._blocks = np.empty((self.n_cells, NV, 2 * NV))
 
     # ------------------------------------------------------------------ per step setup
     def begin_step(self, dt, params: StepParameters, t_new, Y_old, Ydot_old, F_old,
-                   bc, q_old=None, r_old=None, v_old_global=None):
+                   bc, q_old=None, r_old=None, v_old_global=None, pairs=None):
         """Freeze the old-level data of a step n -> n+1 of size dt (s) ending at t_new.
 
         Y_old, Ydot_old, F_old: (N+1, 12); bc: a BoundaryRows for t_new; q_old (N+1, 4) and
         r_old (N+1, 3) the old pose (needed for orientation-dependent loads and contact);
-        v_old_global (N+1, 3) old global velocities (contact, position update).
+        v_old_global (N+1, 3) old global velocities (contact, position update);
+        pairs: the contact pairs held fixed during this step's Newton iterations, or None.
         """
         p = self.p
         am, af, g = params.alpha_m, params.alpha_f, params.gamma
@@ -162,8 +173,9 @@ class RodSystem:
         self._flux_const = af * self._flux(Y_old)
         self.q_old, self.r_old, self.v_old_global = q_old, r_old, v_old_global
         self._glob_force = self.loads.global_force(t_new) if self.loads.has_global else None
+        self.pairs = pairs if (pairs is not None and len(pairs.i) > 0) else None
         key = (dt, params, bc.key)
-        if key != self.factor_key:
+        if key != self.factor_key or self.pairs is not None or self._sparse_lu is not None:
             self.factor_valid = False
         self.factor_key = key
 
@@ -202,13 +214,15 @@ class RodSystem:
             r = self.r_old + 0.5 * self.dt * (self.v_old_global + vg)
         return q, R, r, theta
 
-    def node_terms(self, Y, want_jacobian, pose=None, glob_force=None):
+    def node_terms(self, Y, want_jacobian, pose=None, glob_force=None, extra=None):
         """F(Y) per node (N+1, 12) and, if asked, its Jacobian (N+1, 12, 12).
 
         pose: (R (N+1, 3, 3), θ (N+1, 3), c) for orientation-dependent loads: R the
         new-level rotation R^n exp(θ) and c = ∂θ/∂ω^{n+1} = ½Δt; None when the case has
         none. The load B = Rᵀ F_global then has ∂B/∂ω^{n+1} = c [B]× J_r(θ).
         glob_force: (N+1, 3) global-frame distributed force (N/m) or None.
+        extra: (B (N+1, 3), dB/dv (N+1, 3, 3)) an additional body-frame load and its
+        node-local velocity Jacobian (self-contact), or None.
         """
         p = self.p
         v, w, f, k = Y[:, V:V + 3], Y[:, W:W + 3], Y[:, F:F + 3], Y[:, K:K + 3]
@@ -235,6 +249,8 @@ class RodSystem:
             R = pose[0]
             b_rot = np.einsum("nji,nj->ni", R, glob_force)
             Fv[:, E3:E3 + 3] += b_rot
+        if extra is not None:
+            Fv[:, E3:E3 + 3] += extra[0]
         if not want_jacobian:
             return Fv, None
         d = self._dF
@@ -254,6 +270,8 @@ class RodSystem:
         _add_skew(d, E3, V, w, rscale=p.mass_t, sign=-1.0)
         if dB_dv is not None:
             d[:, E3:E3 + 3, V:V + 3] += dB_dv
+        if extra is not None and extra[1] is not None:
+            d[:, E3:E3 + 3, V:V + 3] += extra[1]
         if b_rot is not None:
             d[:, E3:E3 + 3, W:W + 3] += pose[2] * (skew(b_rot) @ right_jacobian(pose[1]))
         # E4: κ×Bκ − ω×Iω + a3×f
@@ -279,7 +297,11 @@ class RodSystem:
         if self.needs_pose:
             pose = self.pose_new(Y)
             pose_arg = (pose[1], pose[3], 0.5 * self.dt)
-        Fn, dF = self.node_terms(Y, want_jacobian, pose_arg, self._glob_force)
+        extra = None
+        self._offband = None
+        if self.pairs is not None:
+            extra = self._contact_terms(Y, pose, want_jacobian)
+        Fn, dF = self.node_terms(Y, want_jacobian, pose_arg, self._glob_force, extra)
         Z = 0.5 * self.cm * self._apply_M(Y) + 0.5 * (1.0 - af) * Fn + self._zconst
         flux = (1.0 - af) * self._flux(Y) + self._flux_const
         R = np.empty(self.n)
@@ -306,6 +328,62 @@ class RodSystem:
                 blocks[:, E4 + idx, off + K + idx] += sgn * qf * p.stiffness[nodes]
         return R, Fn, blocks, pose
 
+    def _contact_terms(self, Y, pose, want_jacobian):
+        """Self-contact load at the new level (body frame, N/m) and its Jacobian.
+
+        The pair force depends on r_i − r_j and ṙ_i − ṙ_j at the new level, with
+        r^{n+1} = r^n + ½Δt(ṙ^n + R^{n+1} v^{n+1}) and ṙ^{n+1} = R^{n+1} v^{n+1}, so
+        ∂F_p/∂v_i = (½Δt G_r + G_v) R_i =: H_p R_i (the rotation's dependence on ω is left
+        out of the Jacobian). Node-local blocks go into the band; the blocks coupling i
+        and j are kept in ``self._offband`` for the sparse factorisation.
+        Returns (B (N+1, 3), dB/dv (N+1, 3, 3) or None).
+        """
+        q, R, r, theta = pose
+        vg = np.einsum("nij,nj->ni", R, Y[:, V:V + 3])
+        if not (np.all(np.isfinite(r)) and np.all(np.isfinite(vg))):
+            # a diverging iterate: make the residual non-finite so that Δt is cut
+            return np.full((self.n_nodes, 3), np.nan), None
+        ev = self.contact.evaluate(self.pairs, r, vg)
+        self.last_contact = ev
+        n1 = self.n_nodes
+        force = np.zeros((n1, 3))
+        np.add.at(force, ev.i, ev.wi[:, None] * ev.force)
+        np.add.at(force, ev.j, -ev.wj[:, None] * ev.force)
+        body = np.einsum("nji,nj->ni", R, force)
+        if not want_jacobian:
+            return body, None
+        H = 0.5 * self.dt * ev.d_force_d_dr + ev.d_force_d_dv          # (P, 3, 3)
+        Ri, Rj = R[ev.i], R[ev.j]
+        RiT_H = np.einsum("pki,pkl->pil", Ri, H)                        # R_iᵀ H
+        RjT_H = np.einsum("pki,pkl->pil", Rj, H)
+        diag = np.zeros((n1, 3, 3))
+        np.add.at(diag, ev.i, ev.wi[:, None, None] * (RiT_H @ Ri))
+        np.add.at(diag, ev.j, ev.wj[:, None, None] * (RjT_H @ Rj))
+        off_ij = -ev.wi[:, None, None] * (RiT_H @ Rj)                   # ∂B_i/∂v_j
+        off_ji = -ev.wj[:, None, None] * (RjT_H @ Ri)                   # ∂B_j/∂v_i
+        self._offband = (np.concatenate([ev.i, ev.j]), np.concatenate([ev.j, ev.i]),
+                         np.concatenate([off_ij, off_ji]))
+        return body, diag
+
+    def _offband_entries(self):
+        """(rows, cols, values) of the contact coupling between distant nodes.
+
+        Node a's load enters the cells on both sides of it with weight ½(1−αf).
+        """
+        a, b, blocks = self._offband
+        w = 0.5 * (1.0 - self.params.alpha_f)
+        rows, cols, vals = [], [], []
+        r3 = np.arange(3)
+        for side in (-1, 0):
+            cell = a + side
+            ok = (cell >= 0) & (cell < self.n_cells)
+            rr = 6 + NV * cell[ok][:, None, None] + E3 + r3[None, :, None]
+            cc = NV * b[ok][:, None, None] + V + r3[None, None, :]
+            rows.append(np.broadcast_to(rr, (ok.sum(), 3, 3)).ravel())
+            cols.append(np.broadcast_to(cc, (ok.sum(), 3, 3)).ravel())
+            vals.append((w * blocks[ok]).ravel())
+        return np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+
     def column_scale(self, Y):
         """Scale of each unknown (n,): max(|Y| of its kind over the grid, its floor)."""
         mags = np.abs(Y).reshape(-1, 4, 3).max(axis=(0, 2))
@@ -325,9 +403,24 @@ class RodSystem:
         rs[bc_rows] = bc_rowsum
         rs = 1.0 / np.where(rs > 0, rs, 1.0)
         scaled = blocks * (rs[self.layout.cell_rows][:, :, None] * s24[None, None, :])
-        self.layout.factor(scaled, bc_rows, bc_cols, bc_vals * rs[bc_rows] * s12[bc_cols % NV])
+        col_scale = np.tile(s12, self.n_nodes)
+        bc_scaled = bc_vals * rs[bc_rows] * s12[bc_cols % NV]
+        if self._offband is None:
+            self._sparse_lu = None
+            self.layout.factor(scaled, bc_rows, bc_cols, bc_scaled)
+        else:
+            # contact couples distant nodes: sparse LU while pairs are active
+            o_rows, o_cols, o_vals = self._offband_entries()
+            data = np.concatenate([scaled.ravel(), bc_scaled, o_vals * rs[o_rows] * col_scale[o_cols]])
+            rows = np.concatenate([self._cell_rows_full, bc_rows, o_rows])
+            cols = np.concatenate([self._cell_cols_full, bc_cols, o_cols])
+            mat = csc_matrix((data, (rows, cols)), shape=(self.n, self.n))
+            try:
+                self._sparse_lu = splu(mat, permc_spec="COLAMD")
+            except RuntimeError as exc:  # "Factor is exactly singular"
+                raise BandFactorError(str(exc)) from exc
         self._row_scale = rs
-        self._col_scale = np.tile(s12, self.n_nodes)
+        self._col_scale = col_scale
         self.factor_valid = True
         self.factorizations += 1
 
@@ -372,6 +465,10 @@ class RodSystem:
                     return Y, Fn, it, np.inf, False, pose
                 res = float(np.max(np.abs(R) * self._row_scale))
             res_prev = res
-            delta = self.layout.solve(-R * self._row_scale) * self._col_scale
+            rhs = -R * self._row_scale
+            if self._sparse_lu is not None:
+                delta = self._sparse_lu.solve(rhs) * self._col_scale
+            else:
+                delta = self.layout.solve(rhs) * self._col_scale
             Y = Y + delta.reshape(Y.shape)
         return Y, Fn, self.max_iterations, res, False, pose

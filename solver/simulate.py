@@ -119,6 +119,7 @@ class RodRun:
         self.power = end_power(self.Y, props) + distributed_power(self.Y, self.body_force, props)
         self.bc = BoundaryRows(case, props, 0.0, self.system.n)
         self.first_step = True
+        self.level_hint = 0
         self.last_iterations = 0
         self.last_residual = 0.0
         self.last_dt = num.dt
@@ -142,15 +143,42 @@ class RodRun:
         switched = bc.key != self.bc.key
         use_be = (self.rho_inf < 1.0 and self.first_step) or switched
         params = BACKWARD_EULER if use_be else self.params
-        sysm.begin_step(h, params, t_new, self.Y, self.Ydot, self.F_old, bc,
-                        q_old=self.q, r_old=self.r, v_old_global=self.v_global)
         if self.Y_prev is not None and self.h_prev:
             guess = self.Y + (h / self.h_prev) * (self.Y - self.Y_prev)
         else:
             guess = self.Y
-        Y, Fn, its, res, ok, pose = sysm.solve_step(guess)
-        if not ok:
-            return False, its, res, not np.isfinite(res)
+        pairs = None
+        if self.contact is not None:
+            # pairs from the predicted positions, held fixed during Newton
+            pairs = self._find_pairs(self.r + h * self.v_global, quat_to_matrix(self.q))
+        its_total = 0
+        for _attempt in range(3):
+            sysm.begin_step(h, params, t_new, self.Y, self.Ydot, self.F_old, bc,
+                            q_old=self.q, r_old=self.r, v_old_global=self.v_global,
+                            pairs=pairs)
+            Y, Fn, its, res, ok, pose = sysm.solve_step(guess)
+            its_total += its
+            if not ok:
+                return False, its_total, res, not np.isfinite(res)
+            if self.contact is None:
+                break
+            # the pairs at the new positions must be among those the step used
+            new_pairs = self._find_pairs(pose[2], pose[1])
+            merged = self._merge_pairs(pairs, new_pairs)
+            if merged is pairs:
+                break
+            pairs, guess = merged, Y
+        its = its_total
+        if self.contact is not None:
+            ev = None
+            if pairs is not None and len(pairs.i):
+                vg = np.einsum("nij,nj->ni", pose[1], Y[:, 0:3])
+                ev = self.contact.evaluate(pairs, pose[2], vg)
+            if ev is not None and ev.min_gap < 0.0:
+                # the surfaces interpenetrate: reject, the caller cuts Δt
+                return False, its, res, False
+            contact_count = 0 if ev is None else int(ev.count)
+            min_gap = math.inf if ev is None else float(ev.min_gap)
         # accept ------------------------------------------------------------------
         g = params.gamma
         Ydot = (Y - self.Y) / (g * h) - ((1.0 - g) / g) * self.Ydot
@@ -159,12 +187,18 @@ class RodRun:
         theta = 0.5 * h * (self.Y[:, 3:6] + Y[:, 3:6])
         q_t = quat_multiply(self.q_time, quat_exp(theta))
         nrm = np.linalg.norm(q_t, axis=1)
-        self.quat_norm_error = max(self.quat_norm_error, float(np.max(np.abs(nrm - 1.0))))
         q_t /= nrm[:, None]
         R_t = quat_to_matrix(q_t)
         vg_t = np.einsum("nij,nj->ni", R_t, Y[:, 0:3])
-        self.r_time = self.r_time + 0.5 * h * (self.v_global_time + vg_t)
-        self.q_time, self.v_global_time = q_t, vg_t
+        r_t = self.r_time + 0.5 * h * (self.v_global_time + vg_t)
+        space = None
+        if self.contact is not None:
+            space = space_route(q_t[0], r_t[0], Y[:, 9:12], props.ds)
+            if not self._contact_step_ok(space[1], pose[2]):
+                return False, its, res, False
+            self.contact_count, self.min_gap = contact_count, min_gap
+        self.quat_norm_error = max(self.quat_norm_error, float(np.max(np.abs(nrm - 1.0))))
+        self.r_time, self.q_time, self.v_global_time = r_t, q_t, vg_t
         self.phi += 0.5 * h * (self.Y[[0, -1], 5] + Y[[0, -1], 5])
         # power and work put in (trapezoid in time)
         glob = sysm._glob_force
@@ -177,10 +211,70 @@ class RodRun:
         self.t = t_new
         self.bc = bc
         self.first_step = False
-        if sysm.needs_pose:
+        if space is not None:
+            self.q, self.r = space
+            self.v_global = np.einsum("nij,nj->ni", quat_to_matrix(self.q), self.Y[:, 0:3])
+        elif sysm.needs_pose:
             self.update_space_route()
         self.last_iterations, self.last_residual = its, res
         return True, its, res, False
+
+    def _contact_step_ok(self, r_space, r_newton) -> bool:
+        """Step control where self-contact is possible (docs/contact.md).
+
+        A step is refused (and Δt cut) when, with contact possible at the new positions,
+        (a) some node moved further than δ = ½(tolerance − max D) (or D/4 if the
+        tolerance leaves no margin), so that no pair can cross the tolerance shell and
+        tunnel through in one step; (b) the positions Newton used for the contact forces
+        (time route) differ from the shape integrated from κ (space route) by more than
+        δ/2; or (c) the surfaces of the space-route shape interpenetrate.
+        """
+        c = self.contact
+        tangents = np.diff(r_space, axis=0)
+        tangents = np.vstack([tangents, tangents[-1:]])
+        if not c.may_touch(r_space, tangents):
+            return True
+        dmax = float(np.max(self.props.diameter))
+        delta = 0.5 * (c.tolerance - dmax)
+        if delta <= 0.0:
+            delta = 0.25 * dmax
+        moved = float(np.max(np.linalg.norm(r_space - self.r, axis=1)))
+        if moved > delta:
+            return False
+        if float(np.max(np.linalg.norm(r_space - r_newton, axis=1))) > 0.5 * delta:
+            return False
+        pairs = c.find_pairs(r_space, tangents)
+        if len(pairs.i):
+            gaps = pairs.distance - 0.5 * (self.props.diameter[pairs.i]
+                                           + self.props.diameter[pairs.j])
+            if float(np.min(gaps)) < 0.0:
+                return False
+        return True
+
+    def _find_pairs(self, positions, R):
+        """Contact pairs at the given positions (N+1, 3) and rotations (N+1, 3, 3), or
+        None when no pair is possible (the O(N) test skips the k-d tree)."""
+        tangents = R[:, :, 2]
+        if not self.contact.may_touch(positions, tangents):
+            return None
+        pairs = self.contact.find_pairs(positions, tangents)
+        return pairs if len(pairs.i) else None
+
+    @staticmethod
+    def _merge_pairs(used, found):
+        """``used`` itself if every pair of ``found`` is in it, else the union."""
+        if found is None:
+            return used
+        if used is None:
+            return found
+        n = 1 + int(max(used.i.max(), used.j.max(), found.i.max(), found.j.max()))
+        key_used = set((used.i * n + used.j).tolist())
+        key_found = (found.i * n + found.j).tolist()
+        if all(k in key_used for k in key_found):
+            return used
+        keep = np.array([k not in key_used for k in key_found])
+        return type(found).concatenate(used, found, keep) if hasattr(type(found), "concatenate") \
+            else _concat_pairs(used, found, keep)
 
     def update_space_route(self):
         """Recompute pose along the rod from κ, anchored at node 0's time-route pose."""
@@ -190,20 +284,29 @@ class RodRun:
 
     def advance(self, t_target: float):
         """Advance to t_target (s), cutting Δt on failure. Returns (iterations, residual)
-        of the last substep; raises SolverDivergence (without partial) when all cuts
-        fail."""
+        of the nominal step; raises SolverDivergence (without partial) when all cuts
+        fail.
+
+        Δt levels: h = (t_target − t)/factor^level. A nominal step starts one level below
+        the level the previous one needed (so Δt grows back gradually after an event), and
+        substeps at the current level until t_target is reached.
+        """
         num = self.case.numerics
         h_full = t_target - self.t
-        level = 0
-        h = h_full
+        level = max(0, self.level_hint - 1)
         total_its = 0
+        failed = False
         while self.t < t_target - 1e-12 * max(1.0, abs(t_target)):
+            h = h_full / num.dt_cut_factor**level
             h_try = min(h, t_target - self.t)
+            if t_target - self.t - h_try < 1e-9 * h:
+                h_try = t_target - self.t
             ok, its, res, nonfinite = self.try_step(h_try)
             total_its += its
             if ok:
                 self.last_dt = h_try
                 continue
+            failed = True
             if level >= num.max_dt_cuts:
                 reason = "nonfinite_state" if nonfinite else "solver_diverged"
                 raise SolverDivergence(
@@ -212,7 +315,7 @@ class RodRun:
                     f"{'non-finite state' if nonfinite else 'Newton did not converge'})",
                     t=self.t, step=None, residual=res, reason=reason)
             level += 1
-            h = h_full / num.dt_cut_factor**level
+        self.level_hint = level if failed else max(0, level)
         return total_its, self.last_residual
 
     # -------------------------------------------------------------------------------
@@ -257,6 +360,20 @@ class RodRun:
         out["position_route_difference"] = float(np.max(np.linalg.norm(self.r_time - self.r, axis=1)))
         out["quaternion_norm_error"] = self.quat_norm_error
         return out
+
+
+def _concat_pairs(used, found, keep):
+    """Union of two pair sets (same class), taking the pairs of ``found`` flagged keep."""
+    import dataclasses
+
+    fields = {}
+    for fld in dataclasses.fields(used):
+        a, b = getattr(used, fld.name), getattr(found, fld.name)
+        if isinstance(a, np.ndarray) and a.shape[:1] == used.i.shape:
+            fields[fld.name] = np.concatenate([a, b[keep]])
+        else:
+            fields[fld.name] = a
+    return type(used)(**fields)
 
 
 def simulate(case, progress=None, should_stop=None):

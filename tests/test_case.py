@@ -726,3 +726,13 @@ def test_json_schema_generates():
     assert schema["additionalProperties"] is False
     assert "Rod" in schema["$defs"] and "Condition" in schema["$defs"]
     assert Case.model_json_schema(mode="serialization")["$defs"]["Rod"]["properties"]["diameter"]
+
+
+def test_contact_tolerance_must_exceed_the_largest_diameter():
+    from rodcases import make_case
+
+    with pytest.raises(pydantic.ValidationError) as info:
+        make_case(diameter=0.02, contact={"aperture": 90.0, "tolerance": 0.02, "k1": 1e-7,
+                                          "k2": 3.0, "k3": 1e-6, "k4": 1.0})
+    errors = format_validation_errors(info.value)
+    assert any(e["loc"] == "contact.tolerance" and "diameter" in e["msg"] for e in errors)
