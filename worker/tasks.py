@@ -142,6 +142,8 @@ def run_job(job_id: str, worker: str, settings: Settings | None = None) -> str:
         job = registry.get(job_id)
         state = job.state if job else "unknown"
         log.info("job %s not run: %s", job_id, state)
+        if job is not None:
+            registry.add_event(job_id, "skipped", worker=worker, detail={"state": state})
         return f"skipped:{state}"
     job = registry.get(job_id)
     assert job is not None

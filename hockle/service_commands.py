@@ -1,0 +1,119 @@
+"""The service's subcommands of ``hockle``: ``serve``, ``worker`` and ``submit``.
+
+``hockle.cli`` calls :func:`register` with its argparse subparsers; each subcommand sets a
+``func`` default that takes the parsed arguments and returns the exit code.
+
+    hockle serve [--host H] [--port P] [--workers N] [--no-worker]
+    hockle worker [--concurrency N] [--hostname NAME] [--loglevel L]
+    hockle submit CASE [--url URL] [--wait] [-o OUT.nc] [--idempotency-key K] [--fresh]
+
+``submit`` exit codes: 0 accepted (or, with --wait, successful); 1 failed; 2 invalid case or
+other refusal; 3 dismissed; 4 service unreachable.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+
+__all__ = ["register", "serve", "worker", "submit"]
+
+
+def register(subparsers) -> None:
+    """Add ``serve``, ``worker`` and ``submit`` to an argparse subparsers object."""
+    from service import serve as serve_module
+    from worker import cli as worker_cli
+
+    p = subparsers.add_parser(
+        "serve", help="run the REST API (and a local worker when no broker is configured)",
+        description="Run the REST API. With no HOCKLE_BROKER_URL the service is embedded: SQLite "
+                    "registry and broker under HOCKLE_DATA_DIR and a local worker process.",
+    )
+    serve_module.add_arguments(p)
+    p.set_defaults(func=serve)
+
+    p = subparsers.add_parser(
+        "worker", help="run a worker that takes jobs from the queue",
+        description="Run a Celery worker (prefork pool) that runs queued jobs with the solver.",
+    )
+    worker_cli.add_arguments(p)
+    p.set_defaults(func=worker)
+
+    p = subparsers.add_parser(
+        "submit", help="submit a case to a running service",
+        description="Submit a case file to a hockle service; with --wait, follow its progress.",
+    )
+    p.add_argument("case", help="case file (.yaml, .yml or .json)")
+    p.add_argument("--url", default=None,
+                   help="service base URL (default HOCKLE_PUBLIC_URL or http://HOST:PORT)")
+    p.add_argument("--wait", action="store_true", help="wait for the job, printing progress")
+    p.add_argument("-o", "--output", default=None,
+                   help="with --wait: save the NetCDF result here (partial results too)")
+    p.add_argument("--idempotency-key", default=None, help="makes a retried submit safe")
+    p.add_argument("--fresh", action="store_true",
+                   help="run even if an identical case already succeeded")
+    p.add_argument("--timeout", type=float, default=None, help="with --wait: give up after S s")
+    p.add_argument("--poll", type=float, default=1.0, help="seconds between status polls")
+    p.set_defaults(func=submit)
+
+
+def serve(args: argparse.Namespace) -> int:
+    from service.serve import run
+
+    return run(args)
+
+
+def worker(args: argparse.Namespace) -> int:
+    from worker.cli import run
+
+    return run(args)
+
+
+def submit(args: argparse.Namespace) -> int:
+    import httpx
+
+    from service.client import HockleAPIError, HockleClient
+
+    out = sys.stdout
+    try:
+        with HockleClient(args.url) as client:
+            job = client.submit(args.case, idempotency_key=args.idempotency_key, fresh=args.fresh)
+            print(f"job {job.id} {job.state} ({client.base_url}/v1/jobs/{job.id})", file=out)
+            if not args.wait:
+                return 0
+            last = [None]
+
+            def show(status) -> None:
+                line = (f"{status.state:<10} {status.progress:6.1f}%  t = {status.sim_time:.4g} / "
+                        f"{status.t_end:.4g} s  step {status.step}")
+                if status.eta_seconds is not None and status.state == "running":
+                    line += f"  eta {status.eta_seconds:.0f} s"
+                if line != last[0]:
+                    print(line, file=sys.stderr)
+                    last[0] = line
+
+            job = client.wait(job.id, timeout=args.timeout, poll_interval=args.poll,
+                              on_progress=show)
+            if job.error is not None:
+                where = ""
+                if job.error.time is not None:
+                    where = f" at t = {job.error.time:.6g} s, step {job.error.step}"
+                print(f"job {job.id} {job.state} ({job.reason}){where}: {job.message}", file=out)
+            else:
+                print(f"job {job.id} {job.state}", file=out)
+            if args.output and job.result_available:
+                client.download(job.id, args.output)
+                print(f"wrote {args.output}" + (" (partial)" if job.result_partial else ""),
+                      file=out)
+            return {"successful": 0, "failed": 1, "dismissed": 3}[job.state]
+    except HockleAPIError as exc:
+        print(f"hockle submit: refused: {exc}", file=sys.stderr)
+        return 2
+    except TimeoutError as exc:  # (an OSError: first)
+        print(f"hockle submit: {exc}", file=sys.stderr)
+        return 1
+    except httpx.TransportError as exc:
+        print(f"hockle submit: cannot reach the service: {exc}", file=sys.stderr)
+        return 4
+    except (OSError, ValueError) as exc:
+        print(f"hockle submit: {exc}", file=sys.stderr)
+        return 2

@@ -1,0 +1,206 @@
+"""Typed Python client of the hockle service (httpx).
+
+    from service.client import HockleClient
+    with HockleClient("http://127.0.0.1:8000") as client:
+        job = client.submit("cases/goyal-writhing.yaml")
+        job = client.wait(job.id, on_progress=lambda j: print(j.state, j.progress))
+        ds = client.dataset(job.id)              # xarray.Dataset
+        kappa3 = client.variable(job.id, "kappa", time="0:1", component=3)
+
+Every non-2xx answer raises :class:`HockleAPIError` carrying the problem details.
+"""
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import time
+from pathlib import Path
+from typing import Any, Callable, Iterator, Mapping
+
+import httpx
+
+from .schemas import Health, JobList, JobStatus, Summary, VariableList, VariableSlice
+
+__all__ = ["HockleClient", "HockleAPIError", "case_payload"]
+
+TERMINAL = ("successful", "failed", "dismissed")
+
+
+class HockleAPIError(RuntimeError):
+    """An error answer of the service; ``problem`` is its RFC 9457 body (a dict)."""
+
+    def __init__(self, status: int, problem: dict[str, Any]):
+        self.status = status
+        self.problem = problem
+        detail = problem.get("detail") or problem.get("title") or f"HTTP {status}"
+        lines = [f"{status}: {detail}"]
+        for err in problem.get("errors") or []:
+            lines.append(f"  {err.get('loc') or '(document)'}: {err.get('msg')}")
+        super().__init__("\n".join(lines))
+
+    @property
+    def errors(self) -> list[dict[str, Any]]:
+        return list(self.problem.get("errors") or [])
+
+
+def case_payload(case: str | os.PathLike | Mapping[str, Any] | Any) -> tuple[bytes, str]:
+    """(body, content type) for a case: a path (.yaml/.yml/.json), a mapping or a ``Case``.
+
+    Files are sent as they are (YAML as ``application/yaml``): the server parses them with the
+    same reader as ``hockle run``.
+    """
+    if isinstance(case, Mapping):
+        return json.dumps(dict(case)).encode(), "application/json"
+    if hasattr(case, "canonical_json"):
+        return case.canonical_json().encode(), "application/json"
+    path = Path(case)
+    suffix = path.suffix.lower()
+    if suffix not in (".yaml", ".yml", ".json"):
+        raise ValueError(f"{path}: a case file ends in .yaml, .yml or .json")
+    return path.read_bytes(), "application/json" if suffix == ".json" else "application/yaml"
+
+
+class HockleClient:
+    def __init__(self, base_url: str | None = None, *, timeout: float = 30.0,
+                 transport: httpx.BaseTransport | None = None, headers: dict | None = None):
+        if base_url is None:
+            from .settings import get_settings
+
+            base_url = get_settings().base_url
+        self.base_url = base_url.rstrip("/")
+        self._http = httpx.Client(base_url=self.base_url, timeout=timeout, transport=transport,
+                                  headers=headers)
+
+    def __enter__(self) -> "HockleClient":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        self._http.close()
+
+    # --- plumbing ------------------------------------------------------------------------------
+    def _request(self, method: str, url: str, **kwargs) -> httpx.Response:
+        response = self._http.request(method, url, **kwargs)
+        if response.status_code >= 400:
+            try:
+                problem = response.json()
+            except ValueError:
+                problem = {"title": response.reason_phrase, "detail": response.text[:500]}
+            raise HockleAPIError(response.status_code, problem)
+        return response
+
+    # --- jobs ----------------------------------------------------------------------------------
+    def submit(self, case, *, idempotency_key: str | None = None, fresh: bool = False) -> JobStatus:
+        """Submit a case (path, mapping or ``Case``); returns the job's status."""
+        body, content_type = case_payload(case)
+        headers = {"Content-Type": content_type}
+        if idempotency_key:
+            headers["Idempotency-Key"] = idempotency_key
+        params = {"fresh": "true"} if fresh else {}
+        response = self._request("POST", "/v1/jobs", content=body, headers=headers, params=params)
+        return JobStatus.model_validate(response.json())
+
+    def get(self, job_id: str) -> JobStatus:
+        return JobStatus.model_validate(self._request("GET", f"/v1/jobs/{job_id}").json())
+
+    def list(self, *, status: str | list[str] | None = None, page_size: int = 50,
+             page_token: str | None = None) -> JobList:
+        params: dict[str, Any] = {"page_size": page_size}
+        if status:
+            params["status"] = status if isinstance(status, str) else ",".join(status)
+        if page_token:
+            params["page_token"] = page_token
+        return JobList.model_validate(self._request("GET", "/v1/jobs", params=params).json())
+
+    def iter_jobs(self, **kwargs) -> Iterator[JobStatus]:
+        token = None
+        while True:
+            page = self.list(page_token=token, **kwargs)
+            yield from page.jobs
+            token = page.next_page_token
+            if not token:
+                return
+
+    def dismiss(self, job_id: str) -> JobStatus:
+        return JobStatus.model_validate(self._request("DELETE", f"/v1/jobs/{job_id}").json())
+
+    def spec(self, job_id: str) -> dict[str, Any]:
+        return self._request("GET", f"/v1/jobs/{job_id}/spec").json()
+
+    def wait(self, job_id: str, *, timeout: float | None = None, poll_interval: float = 0.5,
+             on_progress: Callable[[JobStatus], None] | None = None) -> JobStatus:
+        """Poll until the job is terminal; calls ``on_progress`` with each status."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while True:
+            job = self.get(job_id)
+            if on_progress is not None:
+                on_progress(job)
+            if job.state in TERMINAL:
+                return job
+            if deadline is not None and time.monotonic() > deadline:
+                raise TimeoutError(f"job {job_id} is still {job.state} after {timeout} s")
+            time.sleep(poll_interval)
+
+    # --- results -------------------------------------------------------------------------------
+    def download(self, job_id: str, path: str | os.PathLike) -> Path:
+        """Save the NetCDF result to ``path`` (written to a temporary name, then renamed)."""
+        path = Path(path)
+        tmp = path.with_name(path.name + ".part")
+        with self._http.stream("GET", f"/v1/jobs/{job_id}/results") as response:
+            if response.status_code >= 400:
+                response.read()
+                raise HockleAPIError(response.status_code, _problem(response))
+            with open(tmp, "wb") as fh:
+                for chunk in response.iter_bytes():
+                    fh.write(chunk)
+        os.replace(tmp, path)
+        return path
+
+    def dataset(self, job_id: str):
+        """The result as an in-memory ``xarray.Dataset``."""
+        import xarray as xr
+
+        with tempfile.TemporaryDirectory(prefix="hockle-") as tmp:
+            path = self.download(job_id, Path(tmp) / f"{job_id}.nc")
+            with xr.open_dataset(path, engine="netcdf4") as ds:
+                return ds.load()
+
+    def variables(self, job_id: str) -> VariableList:
+        return VariableList.model_validate(
+            self._request("GET", f"/v1/jobs/{job_id}/results/variables").json())
+
+    def variable(self, job_id: str, name: str, **selectors: Any) -> VariableSlice:
+        """A server-side slice: ``time="0:1"``, ``s=0.5``, ``component=3`` (see the API)."""
+        params = {k: _selector(v) for k, v in selectors.items() if v is not None}
+        return VariableSlice.model_validate(
+            self._request("GET", f"/v1/jobs/{job_id}/results/variables/{name}",
+                          params=params).json())
+
+    def summary(self, job_id: str) -> Summary:
+        return Summary.model_validate(self._request("GET", f"/v1/jobs/{job_id}/summary").json())
+
+    def health(self) -> Health:
+        response = self._http.get("/v1/health")
+        if response.status_code not in (200, 503):
+            raise HockleAPIError(response.status_code, _problem(response))
+        return Health.model_validate(response.json())
+
+
+def _selector(value: Any) -> str:
+    if isinstance(value, slice):
+        lo = "" if value.start is None else value.start
+        hi = "" if value.stop is None else value.stop
+        return f"{lo}:{hi}"
+    if isinstance(value, (list, tuple)):
+        return ",".join(str(v) for v in value)
+    return str(value)
+
+
+def _problem(response: httpx.Response) -> dict[str, Any]:
+    try:
+        return response.json()
+    except ValueError:
+        return {"title": response.reason_phrase, "detail": response.text[:500]}

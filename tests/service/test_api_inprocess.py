@@ -1,0 +1,254 @@
+"""The API in-process (SQLite registry, in-memory broker) and the worker task run in-process with
+the real solver: a 422 problem for every class of bad input, slices, size caps, stop semantics.
+"""
+from __future__ import annotations
+
+import json
+
+import pytest
+from fastapi.testclient import TestClient
+
+from service.app import create_app
+from service.registry import Registry
+from service.settings import Settings
+from svc_support import long_case, tiny_case
+
+PROBLEM = "application/problem+json"
+
+
+@pytest.fixture(scope="module")
+def settings(tmp_path_factory):
+    root = tmp_path_factory.mktemp("inproc")
+    return Settings(data_dir=root, broker_url="memory://", max_slice_values=40,
+                    max_case_size=2_000_000, progress_interval=0.0)
+
+
+@pytest.fixture(scope="module")
+def client(settings):
+    with TestClient(create_app(settings)) as c:
+        yield c
+
+
+def _run(settings, job_id):
+    """Run the queued job with the worker's task code in this process (real solver)."""
+    from worker.tasks import run_job
+
+    return run_job(job_id, "inproc@test", settings)
+
+
+def _bad(**edits):
+    case = tiny_case("bad")
+    for path, value in edits.items():
+        node = case
+        keys = path.split("__")
+        for key in keys[:-1]:
+            node = node[int(key)] if key.isdigit() else node[key]
+        last = keys[-1]
+        if last.isdigit():
+            node[int(last)] = value
+        else:
+            node[last] = value
+    return case
+
+
+BAD_INPUTS = {
+    "wrong type": (_bad(rod__length="one metre"), ["rod.length"]),
+    "wrong type nested": (_bad(numerics__n_segments=[8]), ["numerics.n_segments"]),
+    "unknown field": ({**tiny_case(), "colour": "red"}, ["colour"]),
+    "unknown nested field": (_bad(rod__colour="red"), ["rod.colour"]),
+    "non-positive length": (_bad(rod__length=0), ["rod.length"]),
+    "non-positive moduli": (_bad(rod__youngs_modulus=-1.0, rod__shear_modulus=0),
+                            ["rod.youngs_modulus", "rod.shear_modulus"]),
+    "non-positive density": (_bad(rod__density=-1500), ["rod.density"]),
+    "non-positive diameter": (_bad(rod__diameter=0.0), ["rod.diameter"]),
+    "rho_inf above 1": (_bad(numerics__rho_inf=1.5), ["numerics.rho_inf"]),
+    "rho_inf below 0": (_bad(numerics__rho_inf=-0.1), ["numerics.rho_inf"]),
+    "table times not increasing": (
+        _bad(boundary__start__rotation__2={"angular_velocity": {"t": [0, 2, 1], "value": [0, 1, 1]}}),
+        ["boundary.start.rotation[2][0].angular_velocity.t[2]"]),
+    "DOF given two conditions": (
+        _bad(boundary__end__translation__0={"velocity": 0, "force": 0}),
+        ["boundary.end.translation[0][0]"]),
+    "DOF given no condition": (
+        _bad(boundary__start__rotation__1={}), ["boundary.start.rotation[1][0]"]),
+    "end missing a DOF": (
+        _bad(boundary__start__translation=[{"velocity": 0}, {"velocity": 0}]),
+        ["boundary.start.translation"]),
+    "case too large": (_bad(numerics__n_segments=1000, numerics__t_end=50.0),
+                       ["numerics.n_segments", "numerics.t_end"]),
+    "not an object": ([1, 2, 3], [""]),
+}
+
+
+@pytest.mark.parametrize("label", list(BAD_INPUTS))
+def test_each_class_of_bad_input_is_a_422_problem(client, label):
+    case, locs = BAD_INPUTS[label]
+    response = client.post("/v1/jobs", json=case)
+    assert response.status_code == 422, response.text
+    assert response.headers["content-type"] == PROBLEM
+    body = response.json()
+    assert body["status"] == 422 and body["title"] and body["type"].startswith("urn:hockle:")
+    assert body["instance"] == "/v1/jobs"
+    assert [e["loc"] for e in body["errors"]] == locs
+    for err in body["errors"]:
+        assert err["msg"] and err["type"]
+    assert "Traceback" not in response.text
+    if label.startswith("unknown"):
+        assert "allowed here:" in body["errors"][0]["msg"]
+    if label == "case too large":
+        assert "1001 grid points x 5000 time steps" in body["errors"][0]["msg"]
+        assert "limit of 2000000" in body["errors"][0]["msg"]
+
+
+def test_nothing_was_recorded_for_bad_input(client, settings):
+    client.post("/v1/jobs", json=_bad(rod__length=-1))
+    registry = Registry(settings.registry_url)
+    try:
+        assert all(json.loads(j.spec_json)["name"] != "bad" for j in registry.list(page_size=500).jobs)
+    finally:
+        registry.dispose()
+
+
+def test_malformed_and_unsupported_bodies(client):
+    response = client.post("/v1/jobs", content=b"{not json", headers={"content-type": "application/json"})
+    assert response.status_code == 400 and response.headers["content-type"] == PROBLEM
+    response = client.post("/v1/jobs", content=b"<case/>", headers={"content-type": "application/xml"})
+    assert response.status_code == 415
+    response = client.post("/v1/jobs", content=b"", headers={"content-type": "application/json"})
+    assert response.status_code == 422
+    import yaml
+
+    response = client.post("/v1/jobs", content=yaml.safe_dump(tiny_case("as-yaml")).encode(),
+                           headers={"content-type": "application/yaml"})
+    assert response.status_code == 201, response.text
+    assert response.json()["name"] == "as-yaml"
+
+
+def test_query_errors_are_problems(client):
+    response = client.get("/v1/jobs", params={"status": "sleeping"})
+    assert response.status_code == 422 and response.json()["errors"][0]["loc"] == "query.status"
+    response = client.get("/v1/jobs", params={"page_token": "garbage!"})
+    assert response.status_code == 422
+    response = client.get("/v1/jobs", params={"page_size": 0})
+    assert response.status_code == 422 and response.headers["content-type"] == PROBLEM
+    assert client.get("/v1/nowhere").headers["content-type"] == PROBLEM
+
+
+def test_keyset_pagination_and_filters(client):
+    ids = [client.post("/v1/jobs", json=tiny_case(f"page-{i}")).json()["id"] for i in range(5)]
+    seen, token = [], None
+    while True:
+        params = {"page_size": 2, "status": "accepted"}
+        if token:
+            params["page_token"] = token
+        page = client.get("/v1/jobs", params=params).json()
+        seen += [j["id"] for j in page["jobs"]]
+        token = page["next_page_token"]
+        if not token:
+            break
+    assert len(seen) == len(set(seen))
+    assert [i for i in seen if i in ids] == list(reversed(ids))  # newest first, none twice
+
+
+def test_results_slices_and_caps_with_the_real_solver(client, settings):
+    job = client.post("/v1/jobs", json=tiny_case("slices")).json()
+    assert client.get(f"/v1/jobs/{job['id']}/results").json()["type"] == \
+        "urn:hockle:problem:result-not-ready"
+    assert _run(settings, job["id"]) == "successful"
+    status = client.get(f"/v1/jobs/{job['id']}").json()
+    assert status["state"] == "successful" and status["progress"] == 100.0
+
+    base = f"/v1/jobs/{job['id']}/results/variables"
+    ok = client.get(f"{base}/kappa", params={"time": "0.05", "component": "1,3"})
+    assert ok.status_code == 200 and ok.json()["shape"] == [9, 2]
+    # over the cap (40 values here): refused with a problem naming the dims to narrow
+    big = client.get(f"{base}/kappa")
+    assert big.status_code == 422 and big.json()["type"] == "urn:hockle:problem:slice-too-large"
+    assert {e["loc"] for e in big.json()["errors"]} == {"query.time", "query.s", "query.component"}
+    absent = client.get(f"{base}/energy_total", params={"s": "0.5"})
+    assert absent.status_code == 422 and absent.json()["errors"][0]["loc"] == "query.s"
+    bad = client.get(f"{base}/kappa", params={"time": "soon", "component": "3"})
+    assert bad.status_code == 422 and bad.json()["errors"][0]["loc"] == "query.time"
+    label = client.get(f"{base}/kappa", params={"time": "0", "component": "7"})
+    assert label.status_code == 422 and label.json()["errors"][0]["loc"] == "query.component"
+    assert client.get(f"{base}/nonexistent").status_code == 404
+    series = client.get(f"{base}/energy_total").json()
+    assert series["dims"] == ["time"] and len(series["data"]) == 6
+
+
+def test_dismissed_while_running_stops_at_the_next_step(client, settings, monkeypatch):
+    """The cancel flag is read before every step: dismissed after step 3, the run ends at 3."""
+    from worker import tasks
+
+    job = client.post("/v1/jobs", json=tiny_case("stop-at-3", t_end=0.2)).json()
+    original = tasks.JobRun.progress
+
+    def progress(self, info):
+        original(self, info)
+        if info.step == 3:
+            assert client.delete(f"/v1/jobs/{self.job_id}").status_code == 202
+
+    monkeypatch.setattr(tasks.JobRun, "progress", progress)
+    assert _run(settings, job["id"]) == "dismissed"
+    status = client.get(f"/v1/jobs/{job['id']}").json()
+    assert status["state"] == "dismissed" and status["reason"] == "cancelled_by_user"
+    assert status["step"] == 3 and status["result_partial"]
+    summary = client.get(f"/v1/jobs/{job['id']}/summary").json()
+    assert summary["time"][-1] == pytest.approx(0.03)
+
+
+def test_wall_clock_budget_stops_with_timeout_and_keeps_partial(client, settings):
+    registry = Registry(settings.registry_url)
+    try:
+        job = client.post("/v1/jobs", json=long_case("budget", t_end=30.0)).json()
+        with registry.sessions.begin() as session:
+            from service.registry import Job
+
+            session.get(Job, job["id"]).wall_clock_budget = 0.5
+        assert _run(settings, job["id"]).startswith("failed:timeout")
+        status = client.get(f"/v1/jobs/{job['id']}").json()
+        assert status["state"] == "failed" and status["reason"] == "timeout"
+        assert status["result_partial"] and 0 < status["progress"] < 100
+    finally:
+        registry.dispose()
+
+
+def test_divergence_is_failed_with_where_it_stopped(client, settings):
+    # a huge spin with one Newton iteration and no dt cuts cannot converge
+    case = tiny_case("diverges", dt=0.5, t_end=5.0)
+    case["boundary"]["start"]["rotation"][2] = {"angular_velocity": 1.0e4}
+    case["numerics"]["newton"] = {"max_iterations": 1, "tolerance": 1e-14}
+    case["numerics"]["max_dt_cuts"] = 0
+    job = client.post("/v1/jobs", json=case).json()
+    assert job["state"] == "accepted", job
+    outcome = _run(settings, job["id"])
+    status = client.get(f"/v1/jobs/{job['id']}").json()
+    assert outcome.startswith("failed:"), outcome
+    assert status["state"] == "failed"
+    assert status["reason"] in ("solver_diverged", "nonfinite_state")
+    assert status["error"]["message"] and status["error"]["time"] is not None
+    assert status["error"]["step"] is not None
+
+
+def test_redelivery_of_a_finished_job_does_nothing(client, settings):
+    job = client.post("/v1/jobs", json=tiny_case("twice")).json()
+    assert _run(settings, job["id"]) == "successful"
+    assert _run(settings, job["id"]) == "skipped:successful"
+    registry = Registry(settings.registry_url)
+    try:
+        kinds = [e.kind for e in registry.events(job["id"])]
+    finally:
+        registry.dispose()
+    assert kinds.count("started") == 1 and kinds.count("solve_finished") == 1
+
+
+def test_openapi_has_readable_operation_ids_and_the_case_schema(client):
+    schema = client.get("/openapi.json").json()
+    ops = {op["operationId"] for path in schema["paths"].values() for op in path.values()}
+    assert {"submit_job", "list_jobs", "get_job", "dismiss_job", "get_job_spec",
+            "download_results", "list_result_variables", "get_result_variable", "get_summary",
+            "get_health"} <= ops
+    body = schema["paths"]["/v1/jobs"]["post"]["requestBody"]["content"]["application/json"]
+    assert body["schema"]["$ref"] == "#/components/schemas/Case"
+    assert "rod" in schema["components"]["schemas"]["Case"]["properties"]
+    assert client.get("/docs").status_code == 200

@@ -1,0 +1,292 @@
+"""End to end, distributed mode: real redis-server, PostgreSQL registry, API and Celery worker
+processes. Submit, poll, download, slice; dismiss; kill a worker mid-job; restart Redis and API.
+"""
+from __future__ import annotations
+
+import argparse
+import io
+import signal
+from contextlib import redirect_stdout
+
+import pytest
+import xarray as xr
+
+from svc_support import Stack, long_case, make_stack, registry_for, tiny_case, wait_until
+
+pytestmark = pytest.mark.service
+
+TERMINAL = ("successful", "failed", "dismissed")
+
+
+@pytest.fixture(scope="module")
+def stack(tmp_path_factory, redis_server, pg_url):
+    stack = make_stack(tmp_path_factory, "pg-stack", {
+        "HOCKLE_DATABASE_URL": pg_url,
+        "HOCKLE_BROKER_URL": redis_server.url,
+        # short limits so that a job whose worker died comes back within seconds
+        "HOCKLE_TIME_LIMIT_MAX": "15",
+        "HOCKLE_VISIBILITY_TIMEOUT": "18",
+        "HOCKLE_UNACKED_RESTORE_INTERVAL": "1",
+    })
+    stack.redis = redis_server
+    try:
+        stack.start_api()
+        stack.start_worker("w1", wait=False)
+        stack.start_worker("w2", wait=False)
+        for name in ("w1", "w2"):
+            wait_until(lambda: stack._ready(name), 60, 0.2, f"worker {name}")
+        yield stack
+    finally:
+        stack.close()
+
+
+def test_submit_poll_download_slice(stack: Stack, tmp_path):
+    response = stack.submit(tiny_case("e2e-pg"))
+    assert response.status_code == 201, response.text
+    job = response.json()
+    assert response.headers["location"] == f"/v1/jobs/{job['id']}"
+    assert job["state"] in ("accepted", "running")
+    assert job["grid_points"] == 9 and job["n_steps"] == 5
+
+    done = stack.wait_state(job["id"], TERMINAL, 60)
+    assert done["state"] == "successful", done
+    assert done["progress"] == 100.0 and done["step"] == 5
+    assert abs(done["sim_time"] - 0.05) < 1e-9
+    assert done["started"] and done["finished"] and done["worker"].endswith("@test")
+    assert done["result_available"] and not done["result_partial"]
+
+    # the NetCDF file, with Content-Length and ETag, opens with xarray
+    response = stack.http.get(f"/v1/jobs/{job['id']}/results")
+    assert response.status_code == 200
+    assert response.headers["content-type"] == "application/x-netcdf"
+    assert int(response.headers["content-length"]) == len(response.content)
+    etag = response.headers["etag"]
+    path = tmp_path / "out.nc"
+    path.write_bytes(response.content)
+    with xr.open_dataset(path, engine="netcdf4") as ds:
+        assert ds.attrs["hockle_status"] == "completed"
+        assert ds.attrs["hockle_job_id"] == job["id"]
+        assert ds.sizes["time"] == 6 and ds.sizes["s"] == 9
+        kappa = ds["kappa"].load()
+    again = stack.http.get(f"/v1/jobs/{job['id']}/results", headers={"If-None-Match": etag})
+    assert again.status_code == 304
+
+    variables = stack.http.get(f"/v1/jobs/{job['id']}/results/variables").json()
+    by_name = {v["name"]: v for v in variables["variables"]}
+    assert by_name["kappa"]["dims"] == ["time", "s", "component"]
+    assert by_name["kappa"]["units"] and by_name["kappa"]["long_name"]
+
+    # a slice: kappa_3 along the rod at t = 0.02 s, equal to the file's values
+    sl = stack.http.get(f"/v1/jobs/{job['id']}/results/variables/kappa",
+                        params={"time": "0.02", "component": "3"})
+    assert sl.status_code == 200, sl.text
+    body = sl.json()
+    assert body["dims"] == ["s"] and body["shape"] == [9]
+    assert body["selected"] == {"time": 0.02, "component": 3}
+    expected = kappa.sel(time=0.02, method="nearest").sel(component=3).values.tolist()
+    assert body["data"] == pytest.approx(expected)
+    ranged = stack.http.get(f"/v1/jobs/{job['id']}/results/variables/position",
+                            params={"time": "0.01:0.03", "s": "0.5", "xyz": "x,z"}).json()
+    assert ranged["dims"] == ["time", "xyz"] and ranged["shape"] == [3, 2]
+
+    summary = stack.http.get(f"/v1/jobs/{job['id']}/summary").json()
+    assert summary["time"] == pytest.approx([0.0, 0.01, 0.02, 0.03, 0.04, 0.05])
+    for name in ("energy_total", "energy_kinetic", "twist", "writhe", "linking_number"):
+        assert len(summary["series"][name]["values"]) == 6
+    assert summary["series"]["energy_total"]["units"] == "J"
+
+    spec = stack.http.get(f"/v1/jobs/{job['id']}/spec").json()
+    assert spec["name"] == "e2e-pg" and spec["numerics"]["n_segments"] == 8
+
+    listing = stack.http.get("/v1/jobs", params={"status": "successful", "page_size": 1}).json()
+    assert len(listing["jobs"]) == 1 and listing["jobs"][0]["state"] == "successful"
+
+
+def test_unknown_job_is_404_whatever_celery_thinks(stack: Stack):
+    missing = "00000000-0000-4000-8000-000000000000"
+    for url in (f"/v1/jobs/{missing}", f"/v1/jobs/{missing}/results", f"/v1/jobs/{missing}/summary"):
+        response = stack.http.get(url)
+        assert response.status_code == 404
+        assert response.headers["content-type"] == "application/problem+json"
+        assert response.json()["type"] == "urn:hockle:problem:job-not-found"
+    assert stack.http.delete(f"/v1/jobs/{missing}").status_code == 404
+
+
+def test_idempotency_and_identical_spec(stack: Stack):
+    case = tiny_case("idem")
+    first = stack.submit(case, headers={"Idempotency-Key": "key-idem-1"})
+    assert first.status_code == 201
+    retry = stack.submit(case, headers={"Idempotency-Key": "key-idem-1"})
+    assert retry.status_code == 200 and retry.json()["id"] == first.json()["id"]
+    other = tiny_case("idem-other")
+    conflict = stack.submit(other, headers={"Idempotency-Key": "key-idem-1"})
+    assert conflict.status_code == 422
+    assert conflict.json()["errors"][0]["loc"] == "header.Idempotency-Key"
+
+    done = stack.wait_state(first.json()["id"], TERMINAL, 60)
+    assert done["state"] == "successful"
+    # an identical spec (same canonical hash and solver version) is answered from that job
+    cached = stack.submit(case)
+    assert cached.status_code == 200 and cached.json()["id"] == first.json()["id"]
+    # unless the client asks for a fresh run
+    # a finished job cannot be dismissed
+    finished = stack.http.delete(f"/v1/jobs/{first.json()['id']}")
+    assert finished.status_code == 409
+    assert finished.json()["type"] == "urn:hockle:problem:job-finished"
+    fresh = stack.submit(case, params={"fresh": "true"})
+    assert fresh.status_code == 201 and fresh.json()["id"] != first.json()["id"]
+    assert stack.wait_state(fresh.json()["id"], TERMINAL, 60)["state"] == "successful"
+
+
+def _wait_running(stack: Stack, job_id: str, timeout: float = 60) -> dict:
+    def running():
+        job = stack.job(job_id)
+        assert job["state"] in ("accepted", "running"), job
+        return job if job["state"] == "running" and job["step"] > 0 else None
+
+    return wait_until(running, timeout, 0.1, f"job {job_id} to run")
+
+
+def test_dismiss_queued_and_running(stack: Stack):
+    # occupy both workers, then queue a third job behind them
+    long_ids = [stack.submit(long_case(f"long-{i}")).json()["id"] for i in range(2)]
+    for job_id in long_ids:
+        _wait_running(stack, job_id)
+    queued = stack.submit(tiny_case("queued-then-dismissed")).json()
+    assert queued["state"] == "accepted"
+
+    response = stack.http.delete(f"/v1/jobs/{queued['id']}")
+    assert response.status_code == 200
+    assert response.json()["state"] == "dismissed"
+    assert response.json()["reason"] == "cancelled_by_user"
+
+    for job_id in long_ids:
+        response = stack.http.delete(f"/v1/jobs/{job_id}")
+        assert response.status_code == 202, response.text
+        assert response.json()["cancel_requested"] is True
+    for job_id in long_ids:
+        job = stack.wait_state(job_id, TERMINAL, 30)
+        assert job["state"] == "dismissed" and job["reason"] == "cancelled_by_user", job
+        assert 0 < job["progress"] < 100
+        # the partial dataset is kept and served
+        assert job["result_available"] and job["result_partial"]
+        response = stack.http.get(f"/v1/jobs/{job_id}/results")
+        assert response.status_code == 200
+        summary = stack.http.get(f"/v1/jobs/{job_id}/summary").json()
+        assert summary["partial"] is True and 0 < summary["time"][-1] < 20.0
+
+    # the stop came within one time step of the request: the solver read the flag every step
+    registry = registry_for(stack)
+    try:
+        for job_id in long_ids:
+            events = {e.kind: e for e in registry.events(job_id)}
+            assert events["cancel_requested"].at < events["finished"].at
+            # request -> stopped, partial dataset written and recorded: well under a second
+            # of wall time here (a step of this case takes a few ms)
+            assert (events["finished"].at - events["cancel_requested"].at).total_seconds() < 3
+        # the dismissed queued job was delivered to a worker and never started
+        wait_until(lambda: "skipped" in [e.kind for e in registry.events(queued["id"])], 30, 0.2,
+                   "the dismissed job's delivery")
+        kinds = [e.kind for e in registry.events(queued["id"])]
+        assert "started" not in kinds
+        job = stack.job(queued["id"])
+        assert job["attempts"] == 0 and job["started"] is None and job["state"] == "dismissed"
+    finally:
+        registry.dispose()
+    # dismissing a dismissed job again is harmless
+    assert stack.http.delete(f"/v1/jobs/{long_ids[0]}").status_code == 200
+
+
+def test_worker_killed_mid_job_another_worker_finishes(stack: Stack):
+    job_id = stack.submit(long_case("killed-worker", t_end=16.0)).json()["id"]
+    job = _wait_running(stack, job_id)
+    victim = job["worker"].split("@")[0]
+    survivor = "w2" if victim == "w1" else "w1"
+    # SIGKILL the whole worker node (main process and its pool process)
+    stack.stop_worker(victim, sig=signal.SIGKILL)
+    done = stack.wait_state(job_id, TERMINAL, 60)
+    assert done["state"] == "successful", done
+    assert done["attempts"] == 2
+    assert done["worker"] == f"{survivor}@test"
+    registry = registry_for(stack)
+    try:
+        events = registry.events(job_id)
+        assert [e.kind for e in events].count("finished") == 1
+        assert [e.worker for e in events if e.kind == "started"] == [f"{victim}@test",
+                                                                     f"{survivor}@test"]
+    finally:
+        registry.dispose()
+    stack.start_worker(victim)  # back to two workers for the next tests
+
+
+def test_restart_redis_and_api_keeps_jobs_and_results(stack: Stack):
+    first = stack.submit(tiny_case("before-restart")).json()
+    done = stack.wait_state(first["id"], TERMINAL, 60)
+    assert done["state"] == "successful"
+    before = stack.http.get(f"/v1/jobs/{first['id']}/results")
+    listing_before = stack.http.get("/v1/jobs", params={"page_size": 500}).json()["jobs"]
+
+    stack.stop_api()
+    stack.redis.restart()
+    stack.start_api()
+
+    after = stack.job(first["id"])
+    for key in ("state", "created", "finished", "spec_hash", "worker", "progress"):
+        assert after[key] == done[key]
+    results = stack.http.get(f"/v1/jobs/{first['id']}/results")
+    assert results.status_code == 200
+    assert results.content == before.content and results.headers["etag"] == before.headers["etag"]
+    listing_after = stack.http.get("/v1/jobs", params={"page_size": 500}).json()["jobs"]
+    assert [j["id"] for j in listing_after] == [j["id"] for j in listing_before]
+
+    # the workers reconnected to the restarted Redis: a new job runs
+    second = stack.submit(tiny_case("after-restart")).json()
+    assert stack.wait_state(second["id"], TERMINAL, 90)["state"] == "successful"
+    health = stack.http.get("/v1/health").json()
+    assert health["broker"]["ok"] and health["registry"]["ok"] and health["mode"] == "distributed"
+    assert {w["name"] for w in health["workers"]} >= {"w1@test", "w2@test"}
+
+
+def test_hockle_submit_wait(stack: Stack, tmp_path):
+    import json
+
+    from hockle.service_commands import register
+
+    case_path = tmp_path / "case.json"
+    case_path.write_text(json.dumps(tiny_case("from-cli")))
+    parser = argparse.ArgumentParser()
+    register(parser.add_subparsers())
+    out = tmp_path / "cli.nc"
+    args = parser.parse_args(["submit", str(case_path), "--url", stack.url, "--wait",
+                              "--poll", "0.2", "-o", str(out)])
+    buffer = io.StringIO()
+    with redirect_stdout(buffer):
+        code = args.func(args)
+    assert code == 0, buffer.getvalue()
+    assert "successful" in buffer.getvalue()
+    with xr.open_dataset(out, engine="netcdf4") as ds:
+        assert ds.attrs["title"] == "from-cli"
+
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({**tiny_case("bad"), "colour": "red"}))
+    args = parser.parse_args(["submit", str(bad), "--url", stack.url])
+    assert args.func(args) == 2
+
+
+def test_python_client(stack: Stack):
+    from service.client import HockleAPIError, HockleClient
+
+    seen = []
+    with HockleClient(stack.url) as client:
+        job = client.submit(tiny_case("client"), fresh=True)
+        job = client.wait(job.id, poll_interval=0.1, on_progress=lambda j: seen.append(j.state))
+        assert job.state == "successful" and seen[-1] == "successful"
+        ds = client.dataset(job.id)
+        assert isinstance(ds, xr.Dataset) and ds.attrs["hockle_job_id"] == job.id
+        sl = client.variable(job.id, "omega", time=0.05, component=3)
+        assert sl.dims == ["s"]
+        assert client.summary(job.id).series["energy_total"].units == "J"
+        with pytest.raises(HockleAPIError) as err:
+            client.submit({**tiny_case("bad"), "rod": {"length": -1}})
+        assert err.value.status == 422
+        assert any(e["loc"] == "rod.length" for e in err.value.errors)
