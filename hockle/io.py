@@ -1,0 +1,66 @@
+"""File I/O for result datasets (the solver package itself does none)."""
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import xarray as xr
+
+__all__ = ["write_netcdf", "open_result"]
+
+
+def _fsync_path(path: Path, directory: bool = False) -> None:
+    flags = os.O_RDONLY | (getattr(os, "O_DIRECTORY", 0) if directory else 0)
+    try:
+        fd = os.open(path, flags)
+    except OSError:
+        if directory:  # not every platform can open a directory; best effort
+            return
+        raise
+    try:
+        os.fsync(fd)
+    except OSError:
+        if not directory:
+            raise
+    finally:
+        os.close(fd)
+
+
+def write_netcdf(ds: xr.Dataset, path: str | os.PathLike[str]) -> Path:
+    """Write ``ds`` to ``path`` as NetCDF4, atomically.
+
+    The dataset is written to a temporary file in the destination directory, flushed to
+    disk (``fsync``), then moved over ``path`` with :func:`os.replace`, so a reader sees
+    either the old file or the complete new one, never a partial write. The per-variable
+    ``encoding`` (float64, zlib level 4 for (time, s, ...) variables) is honoured. The
+    parent directory is created when missing. On failure the temporary file is removed
+    and ``path`` is left untouched.
+
+    Returns the destination as a :class:`~pathlib.Path`.
+    """
+    dest = Path(path)
+    parent = dest.parent if str(dest.parent) else Path(".")
+    parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp", dir=parent)
+    os.close(fd)
+    tmp = Path(tmp_name)
+    try:
+        ds.to_netcdf(tmp, mode="w", format="NETCDF4", engine="netcdf4")
+        # mkstemp creates 0600; give the result the permissions a plain create would.
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        _fsync_path(tmp)
+        os.replace(tmp, dest)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    _fsync_path(parent, directory=True)
+    return dest
+
+
+def open_result(path: str | os.PathLike[str]) -> xr.Dataset:
+    """Open a result file fully into memory and close it (safe to replace afterwards)."""
+    with xr.open_dataset(path, engine="netcdf4") as ds:
+        return ds.load()

@@ -1,0 +1,332 @@
+"""Tests for solver.results.build_dataset and hockle.io.write_netcdf (the result dataset
+of DESIGN.md, "Result dataset", and docs/interfaces.md, "solver.results")."""
+from __future__ import annotations
+
+import datetime as dt
+import json
+import os
+import stat
+
+import numpy as np
+import pytest
+import xarray as xr
+
+import solver
+from hockle.io import open_result, write_netcdf
+from solver.case import Case
+from solver.results import build_dataset
+
+T, N, K = 6, 9, 11
+
+TINY = {
+    "schema_version": 1,
+    "name": "results-test",
+    "rod": {
+        "length": 1.0,
+        "youngs_modulus": 1.25e7,
+        "shear_modulus": 5.0e6,
+        "density": 1500.0,
+        "diameter": 0.02,
+    },
+    "boundary": {
+        "start": {
+            "translation": [{"velocity": 0}, {"velocity": 0}, {"velocity": 0}],
+            "rotation": [
+                {"angular_velocity": 0},
+                {"angular_velocity": 0},
+                {"angular_velocity": 1.0},
+            ],
+        },
+        "end": {
+            "translation": [{"velocity": 0}, {"velocity": 0}, {"force": 0}],
+            "rotation": [{"angular_velocity": 0}] * 3,
+        },
+    },
+    "numerics": {"n_segments": N - 1, "dt": 0.01, "t_end": 0.05},
+}
+
+# The contract, written out independently of the module's own table:
+# name -> (dims, units)
+EXPECTED = {
+    "v": (("time", "s", "component"), "m s-1"),
+    "omega": (("time", "s", "component"), "rad s-1"),
+    "f": (("time", "s", "component"), "N"),
+    "kappa": (("time", "s", "component"), "rad m-1"),
+    "moment": (("time", "s", "component"), "N m"),
+    "position": (("time", "s", "xyz"), "m"),
+    "orientation": (("time", "s", "quaternion"), "1"),
+    "energy_bending": (("time",), "J"),
+    "energy_torsion": (("time",), "J"),
+    "energy_kinetic": (("time",), "J"),
+    "energy_kinetic_fluid": (("time",), "J"),
+    "energy_total": (("time",), "J"),
+    "work_in": (("time",), "J"),
+    "power_in": (("time",), "W"),
+    "twist": (("time",), "1"),
+    "writhe": (("time",), "1"),
+    "linking_number": (("time",), "1"),
+    "topology_error": (("time",), "1"),
+    "contact_count": (("time",), "1"),
+    "min_surface_gap": (("time",), "m"),
+    "newton_iterations": (("time",), "1"),
+    "residual_norm": (("time",), "1"),
+    "dt": (("time",), "s"),
+    "position_route_difference": (("time",), "m"),
+    "quaternion_norm_error": (("time",), "1"),
+}
+EXPECTED_DIAG = {
+    "step_time": "s",
+    "step_dt": "s",
+    "step_newton_iterations": "1",
+    "step_residual_norm": "1",
+}
+SIZES = {"time": T, "s": N, "component": 3, "xyz": 3, "quaternion": 4}
+
+
+@pytest.fixture(scope="module")
+def case():
+    return Case.model_validate(TINY)
+
+
+def synthetic(seed: int = 0):
+    rng = np.random.default_rng(seed)
+    fields = {}
+    for name, (dims, _) in EXPECTED.items():
+        fields[name] = rng.standard_normal(tuple(SIZES[d] for d in dims))
+    fields["contact_count"] = rng.integers(0, 5, T)
+    fields["newton_iterations"] = rng.integers(1, 6, T)
+    diagnostics = {
+        "step_time": np.linspace(0.01, 0.05, K),
+        "step_dt": np.full(K, 0.01),
+        "step_newton_iterations": rng.integers(1, 6, K),
+        "step_residual_norm": rng.random(K) * 1e-10,
+    }
+    s = np.linspace(0.0, 1.0, N)
+    times = np.linspace(0.0, 0.05, T)
+    return s, times, fields, diagnostics
+
+
+@pytest.fixture()
+def full(case):
+    s, times, fields, diagnostics = synthetic()
+    ds = build_dataset(case, s, times, fields, diagnostics, "completed", "all done")
+    return ds, s, times, fields, diagnostics
+
+
+def test_dimensions_coordinates_and_variable_shapes(full):
+    ds, s, times, fields, diagnostics = full
+    assert dict(ds.sizes) == {**SIZES, "step": K}
+    np.testing.assert_array_equal(ds["time"].values, times)
+    np.testing.assert_array_equal(ds["s"].values, s)
+    assert list(ds["component"].values) == [1, 2, 3]
+    assert list(ds["xyz"].values) == ["x", "y", "z"]
+    assert list(ds["quaternion"].values) == ["w", "x", "y", "z"]
+    assert list(ds["step"].values) == list(range(1, K + 1))
+    assert ds["time"].attrs["units"] == "s" and ds["s"].attrs["units"] == "m"
+    for name, (dims, _) in EXPECTED.items():
+        assert ds[name].dims == dims, name
+        np.testing.assert_array_equal(ds[name].values, fields[name])
+    for name in EXPECTED_DIAG:
+        assert ds[name].dims == ("step",), name
+        np.testing.assert_array_equal(ds[name].values, diagnostics[name])
+    # step_time is the coordinate-like time axis of the step dimension
+    assert "step_time" in ds.coords
+
+
+def test_every_variable_has_units_and_long_name(full):
+    ds = full[0]
+    names = set(ds.data_vars) | set(ds.coords)
+    assert set(EXPECTED) | set(EXPECTED_DIAG) <= names
+    for name in ds.data_vars:
+        attrs = ds[name].attrs
+        assert attrs.get("long_name"), name
+        expected = EXPECTED[name][1] if name in EXPECTED else EXPECTED_DIAG[name]
+        assert attrs.get("units") == expected, name
+    for name in ds.coords:
+        assert ds[name].attrs.get("long_name"), name
+        if ds[name].dtype.kind in "iuf":
+            assert "units" in ds[name].attrs, name
+    assert ds["step_time"].attrs["units"] == "s"
+
+
+def test_no_invented_standard_names(full):
+    ds = full[0]
+    # None of these quantities has a CF standard name (and "time" here is elapsed
+    # simulation time in "s", not a CF time coordinate with "since").
+    for name in list(ds.data_vars) + list(ds.coords):
+        assert "standard_name" not in ds[name].attrs, name
+
+
+def test_global_attributes(full, case):
+    ds = full[0]
+    a = ds.attrs
+    assert a["Conventions"] == "CF-1.12 ACDD-1.3"
+    assert a["title"] == "results-test"
+    assert a["summary"]
+    assert a["source"] == f"hockle {solver.__version__}"
+    assert "created by hockle" in a["history"]
+    stamp = a["history"].split()[0]
+    assert dt.datetime.fromisoformat(stamp).tzinfo is not None
+    assert dt.datetime.fromisoformat(a["date_created"]).tzinfo is not None
+    assert "Goyal" in a["references"] and "Perkins" in a["references"]
+    assert "Writhing dynamics of cables with self-contact" in a["references"]
+    assert a["case"] == case.canonical_json()
+    assert a["case_hash"] == case.spec_hash()
+    # the file alone reproduces its run: the spec round-trips to the same hash
+    assert Case.model_validate(json.loads(a["case"])).spec_hash() == case.spec_hash()
+    assert a["hockle_status"] == "completed"
+    assert a["hockle_message"] == "all done"
+
+
+def test_extra_attributes_and_status_values(case):
+    s, times, fields, _ = synthetic()
+    ds = build_dataset(
+        case, s, times, fields, {}, "stopped", "budget", attrs={"hockle_stop_reason": "timeout"}
+    )
+    assert ds.attrs["hockle_status"] == "stopped"
+    assert ds.attrs["hockle_stop_reason"] == "timeout"
+    with pytest.raises(ValueError, match="status"):
+        build_dataset(case, s, times, fields, {}, "done")
+    with pytest.raises(ValueError, match="attribute"):
+        build_dataset(case, s, times, fields, {}, "failed", attrs={"flag": True})
+
+
+def test_variables_only_for_fields_present(case):
+    s, times, fields, _ = synthetic()
+    chosen = {k: fields[k] for k in ("kappa", "energy_total", "writhe")}
+    ds = build_dataset(case, s, times, chosen, {}, "completed")
+    assert set(ds.data_vars) == {"kappa", "energy_total", "writhe"}
+    assert "step" not in ds.dims and "step_time" not in ds.variables
+    # the dimension coordinates are there even when no variable uses them
+    assert ds.sizes["xyz"] == 3 and ds.sizes["quaternion"] == 4
+
+
+def test_encoding_float64_and_compression_for_time_s_variables(full):
+    ds = full[0]
+    for name, var in ds.data_vars.items():
+        enc = var.encoding
+        if var.dims[:2] == ("time", "s"):
+            assert enc["dtype"] == "float64" and enc["zlib"] is True, name
+            assert enc["complevel"] == 4, name
+        else:
+            assert not enc.get("zlib"), name
+        if name in ("contact_count", "newton_iterations", "step_newton_iterations"):
+            assert var.dtype == np.int32, name
+        else:
+            assert var.dtype == np.float64, name
+
+
+def test_integer_counts_with_missing_values_stay_float(case):
+    s, times, fields, _ = synthetic()
+    its = np.arange(T, dtype=float)
+    its[0] = np.nan
+    ds = build_dataset(case, s, times, {"newton_iterations": its}, {}, "completed")
+    assert ds["newton_iterations"].dtype == np.float64
+    assert np.isnan(ds["newton_iterations"].values[0])
+
+
+@pytest.mark.parametrize(
+    "mutate, match",
+    [
+        (lambda f, d: f.update(v=np.zeros((T, N, 4))), "v: expected shape"),
+        (lambda f, d: f.update(energy_total=np.zeros(T + 1)), "energy_total"),
+        (lambda f, d: f.update(energy_gravity=np.zeros(T)), "unknown field"),
+        (lambda f, d: d.update(step_dt=np.zeros(K + 1)), "diagnostics"),
+        (lambda f, d: d.update(step_bogus=np.zeros(K)), "unknown diagnostic"),
+        (lambda f, d: f.update(twist=np.array(["a"] * T)), "real numbers"),
+    ],
+)
+def test_inconsistent_input_is_refused(case, mutate, match):
+    s, times, fields, diagnostics = synthetic()
+    mutate(fields, diagnostics)
+    with pytest.raises(ValueError, match=match):
+        build_dataset(case, s, times, fields, diagnostics, "completed")
+
+
+def test_empty_run_builds(case):
+    # a run that failed before its first output still yields a valid dataset
+    s = np.linspace(0, 1, N)
+    ds = build_dataset(
+        case,
+        s,
+        np.zeros(0),
+        {"energy_total": np.zeros(0), "position": np.zeros((0, N, 3))},
+        {k: np.zeros(0) for k in EXPECTED_DIAG},
+        "failed",
+        "diverged at once",
+    )
+    assert ds.sizes["time"] == 0 and ds.sizes["step"] == 0
+
+
+def test_netcdf_round_trip(full, tmp_path):
+    ds = full[0]
+    path = tmp_path / "sub" / "result.nc"
+    assert write_netcdf(ds, path) == path
+    # atomic: only the destination is left behind, no temporary file
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["result.nc", "sub"]
+    back = open_result(path)
+    for name in list(ds.data_vars) + list(ds.coords):
+        assert back[name].dims == ds[name].dims, name
+        assert back[name].dtype == ds[name].dtype, name  # time stays float seconds
+        np.testing.assert_array_equal(back[name].values, ds[name].values)
+        for key, value in ds[name].attrs.items():
+            assert back[name].attrs[key] == value, (name, key)
+    assert back.attrs == ds.attrs
+    enc = back["v"].encoding
+    assert enc["zlib"] is True and enc["complevel"] == 4
+    assert not back["energy_total"].encoding.get("zlib")
+    # readable with the plain netCDF4 library as well, with CF attributes
+    import netCDF4
+
+    with netCDF4.Dataset(path) as nc:
+        assert nc.Conventions == "CF-1.12 ACDD-1.3"
+        assert nc["v"].units == "m s-1"
+        assert nc["v"].filters()["zlib"] is True
+
+
+def test_write_replaces_existing_file_and_sets_plain_permissions(full, case, tmp_path):
+    path = tmp_path / "result.nc"
+    write_netcdf(full[0], path)
+    s, times, fields, _ = synthetic(seed=1)
+    second = build_dataset(case, s, times, {"twist": fields["twist"]}, {}, "stopped")
+    old_umask = os.umask(0o022)
+    try:
+        write_netcdf(second, path)
+    finally:
+        os.umask(old_umask)
+    back = open_result(path)
+    assert set(back.data_vars) == {"twist"} and back.attrs["hockle_status"] == "stopped"
+    mode = stat.S_IMODE(path.stat().st_mode)
+    assert mode == 0o644  # not mkstemp's 0600: other services read the result store
+    assert [p.name for p in tmp_path.iterdir()] == ["result.nc"]
+
+
+def test_failed_write_keeps_old_file_and_leaves_no_temp(full, tmp_path):
+    path = tmp_path / "result.nc"
+    write_netcdf(full[0], path)
+    before = path.read_bytes()
+    bad = full[0].copy()
+    bad.attrs["not_serialisable"] = {"a": 1}  # netCDF attributes cannot be dicts
+    with pytest.raises((TypeError, ValueError)):
+        write_netcdf(bad, path)
+    assert path.read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["result.nc"]
+
+
+def test_round_trip_of_a_real_run(case, tmp_path):
+    """The dataset simulate() builds through build_dataset writes and reads back."""
+    from solver import simulate
+
+    spec = json.loads(case.canonical_json())
+    spec["output"]["fields"] = ["v", "position", "orientation", "energies", "topology"]
+    ds = simulate(Case.model_validate(spec))
+    path = write_netcdf(ds, tmp_path / "run.nc")
+    back = open_result(path)
+    assert back.attrs["hockle_status"] == "completed"
+    assert {"v", "position", "orientation", "energy_total", "twist", "writhe"} <= set(
+        back.data_vars
+    )
+    assert back.sizes["time"] == 6 and back.sizes["s"] == N
+    for name in back.data_vars:
+        assert back[name].attrs.get("units") is not None, name
+        assert back[name].attrs.get("long_name"), name
