@@ -175,6 +175,9 @@ class Registry:
         kwargs: dict[str, Any] = {"echo": echo, "pool_pre_ping": True}
         if url.startswith("sqlite"):
             kwargs["connect_args"] = {"check_same_thread": False, "timeout": 30}
+        else:
+            # the API serves requests from a thread pool: enough connections for it
+            kwargs.update(pool_size=10, max_overflow=20, pool_timeout=30)
         self.engine: Engine = create_engine(url, **kwargs)
         if url.startswith("sqlite"):
             event.listen(self.engine, "connect", _sqlite_pragmas)

@@ -1,6 +1,7 @@
 """/v1/jobs: submit, list, status, dismiss, spec."""
 from __future__ import annotations
 
+import asyncio
 import datetime as dt
 import hashlib
 from typing import Annotated
@@ -22,6 +23,9 @@ from ..schemas import JobError, JobLinks, JobList, JobStatus
 from ..validation import parse_body, validate_case
 
 router = APIRouter(tags=["jobs"])
+
+# submissions validated and recorded at once; more wait (asynchronously) for a slot
+SUBMIT_CONCURRENCY = 4
 
 
 def _iso(value: dt.datetime | None) -> dt.datetime | None:
@@ -144,6 +148,13 @@ def _reuse_problem(job_id: str) -> ProblemError:
     )
 
 
+def _submit_slots(request: Request) -> asyncio.Semaphore:
+    state = request.app.state
+    if getattr(state, "submit_slots", None) is None:
+        state.submit_slots = asyncio.Semaphore(SUBMIT_CONCURRENCY)
+    return state.submit_slots
+
+
 @router.post(
     "/jobs",
     operation_id="submit_job",
@@ -168,9 +179,11 @@ async def submit_job(
 ) -> JobStatus:
     """Validate the case and queue it; answers at once (201), never runs a solve itself."""
     body = await request.body()
-    job, status = await run_in_threadpool(
-        _submit, svc, body, request.headers.get("content-type"), idempotency_key, fresh
-    )
+    # a burst of submissions waits here, not in the thread pool that status polls need
+    async with _submit_slots(request):
+        job, status = await run_in_threadpool(
+            _submit, svc, body, request.headers.get("content-type"), idempotency_key, fresh
+        )
     response.status_code = status
     response.headers["Location"] = f"/v1/jobs/{job.id}"
     return job_status(job, _exists)

@@ -1,0 +1,219 @@
+"""Keep docker-compose.yml, deploy/Dockerfile and deploy/k8s honest: no Docker engine runs here,
+so parse them and check every command, port, variable and volume against what the code reads."""
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import re
+import shlex
+from pathlib import Path
+from urllib.parse import urlparse
+
+import pytest
+import yaml
+
+from service.settings import Settings
+from svc_support import REPO
+
+COMPOSE = REPO / "docker-compose.yml"
+DOCKERFILE = REPO / "deploy" / "Dockerfile"
+K8S = REPO / "deploy" / "k8s"
+FIELDS = {f"HOCKLE_{name.upper()}" for name in Settings.model_fields}
+
+
+def _compose() -> dict:
+    return yaml.safe_load(COMPOSE.read_text())
+
+
+def _k8s() -> list[dict]:
+    docs = []
+    for path in sorted(K8S.glob("*.yaml")):
+        docs += [d for d in yaml.safe_load_all(path.read_text()) if d]
+    return docs
+
+
+def _by_kind(kind: str) -> dict[str, dict]:
+    return {d["metadata"]["name"]: d for d in _k8s() if d["kind"] == kind}
+
+
+def _dockerfile_env() -> dict[str, str]:
+    text = DOCKERFILE.read_text().replace("\\\n", " ")
+    env = {}
+    for line in text.splitlines():
+        if line.startswith("ENV "):
+            for key, value in re.findall(r"(\w+)=(\S+)", line):
+                env[key] = value
+    return env
+
+
+def _settings_from(env: dict[str, str]) -> Settings:
+    kwargs = {k[len("HOCKLE_"):].lower(): v for k, v in env.items() if k.startswith("HOCKLE_")}
+    return Settings(**kwargs)
+
+
+def _check_command(command: list[str]) -> None:
+    """A command of ours must be `python -m service|worker ARGS` whose ARGS the CLI accepts."""
+    assert command[:2] == ["python", "-m"], command
+    module, args = command[2], command[3:]
+    assert module in ("service", "worker"), command
+    assert importlib.util.find_spec(f"{module}.__main__") is not None
+    parser = argparse.ArgumentParser(exit_on_error=False)
+    if module == "service":
+        from service.serve import add_arguments
+    else:
+        from worker.cli import add_arguments
+    add_arguments(parser)
+    parser.parse_args(args)
+
+
+def _variables_in(text: str) -> set[str]:
+    return set(re.findall(r"\bHOCKLE_[A-Z_]+\b", text))
+
+
+@pytest.mark.parametrize("path", [COMPOSE, DOCKERFILE, *sorted(K8S.glob("*.yaml")),
+                                  REPO / "docs" / "service.md", REPO / "docs" / "README-service.md"],
+                         ids=lambda p: p.name)
+def test_every_hockle_variable_named_is_a_setting(path: Path):
+    unknown = _variables_in(path.read_text()) - FIELDS
+    assert not unknown, f"{path.name} names variables the code never reads: {unknown}"
+
+
+def test_docs_table_lists_every_setting_with_its_default():
+    text = (REPO / "docs" / "service.md").read_text()
+    rows = {m.group(1): m.group(2) for m in re.finditer(r"^\| `(HOCKLE_[A-Z_]+)` \| ([^|]*) \|",
+                                                        text, re.M)}
+    assert set(rows) == FIELDS
+    for name, field in Settings.model_fields.items():
+        if field.default is not None and not isinstance(field.default, Path):
+            assert str(field.default) in rows[f"HOCKLE_{name.upper()}"], name
+
+
+def test_compose_services_commands_ports_volumes():
+    compose = _compose()
+    services = compose["services"]
+    assert {"redis", "postgres", "api", "worker", "flower"} <= set(services)
+    for name in ("redis", "postgres", "api", "worker"):
+        assert "healthcheck" in services[name], name
+
+    redis_cmd = services["redis"]["command"]
+    assert redis_cmd[0] == "redis-server"
+    assert redis_cmd[redis_cmd.index("--appendonly") + 1] == "yes"
+    assert redis_cmd[redis_cmd.index("--maxmemory-policy") + 1] == "noeviction"
+
+    api, worker = services["api"], services["worker"]
+    _check_command(api["command"])
+    _check_command(worker["command"])
+    assert api["command"][2] == "service" and worker["command"][2] == "worker"
+    for svc in (api, worker):
+        assert svc["build"]["dockerfile"] == "deploy/Dockerfile"
+        assert (REPO / svc["build"]["context"] / svc["build"]["dockerfile"]).exists()
+    assert worker["deploy"]["replicas"] >= 2
+
+    api_env = {**_dockerfile_env(), **{k: str(v) for k, v in api["environment"].items()}}
+    worker_env = {**_dockerfile_env(), **{k: str(v) for k, v in worker["environment"].items()}}
+    api_settings, worker_settings = _settings_from(api_env), _settings_from(worker_env)
+    # the port the API binds is the one published and probed
+    published = api["ports"][0].split(":")
+    assert int(published[-1]) == api_settings.port
+    assert f"127.0.0.1:{api_settings.port}/v1/health" in " ".join(api["healthcheck"]["test"])
+    assert api_settings.host == "0.0.0.0"
+    # API and workers agree on broker, registry, queue and result store
+    for attr in ("broker_url", "registry_url", "queue", "results_dir"):
+        assert getattr(api_settings, attr) == getattr(worker_settings, attr), attr
+    assert not api_settings.embedded
+    broker = urlparse(api_settings.broker_url)
+    assert broker.scheme == "redis" and broker.hostname in services and broker.port == 6379
+    db = urlparse(api_settings.database_url)
+    pg_env = services["postgres"]["environment"]
+    assert db.hostname in services and db.username == pg_env["POSTGRES_USER"]
+    assert db.path.lstrip("/") == pg_env["POSTGRES_DB"]
+    # the result volume is mounted where both read HOCKLE_RESULTS_DIR, and declared
+    for svc, settings in ((api, api_settings), (worker, worker_settings)):
+        mounts = dict(m.split(":")[::-1] for m in svc["volumes"])
+        assert mounts[str(settings.results_dir)] == "results"
+    for svc in services.values():
+        for mount in svc.get("volumes", []):
+            assert mount.split(":")[0] in compose["volumes"], mount
+
+    flower = services["flower"]
+    assert flower["profiles"] == ["monitoring"]
+    cmd = " ".join(flower["command"])
+    assert "--basic-auth=" in cmd and "flower" in flower["command"]
+    assert f"--broker={api_settings.broker_url}" in cmd
+    assert "flower" in DOCKERFILE.read_text()  # the image it runs has flower installed
+
+
+def test_dockerfile_copies_the_packages_and_exposes_the_port():
+    text = DOCKERFILE.read_text()
+    env = _dockerfile_env()
+    settings = _settings_from(env)
+    assert f"EXPOSE {settings.port}" in text
+    import tomllib
+
+    # pyproject's readme is needed by any build of the distribution, not only this image
+    readme = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["readme"]
+    for line in text.splitlines():
+        if line.startswith("COPY "):
+            for source in shlex.split(line)[1:-1]:
+                assert (REPO / source).exists() or source == readme, source
+    for package in ("solver", "worker", "service", "hockle"):
+        assert f"COPY {package} ./{package}" in text
+    cmd = re.search(r'^CMD (\[.*\])', text, re.M).group(1)
+    _check_command(yaml.safe_load(cmd))
+    assert f"127.0.0.1:{settings.port}/v1/health" in text
+
+
+def test_kubernetes_manifests():
+    config = _by_kind("ConfigMap")["hockle-config"]["data"]
+    secret_env = {"HOCKLE_DATABASE_URL": "postgresql://u:p@db:5432/hockle"}
+    settings = _settings_from({**config, **secret_env})
+    deployments = _by_kind("Deployment")
+    api, worker = deployments["hockle-api"], deployments["hockle-worker"]
+    assert worker["spec"]["replicas"] >= 2
+
+    pvc = _by_kind("PersistentVolumeClaim")["hockle-results"]
+    assert "ReadWriteMany" in pvc["spec"]["accessModes"]
+
+    for dep in (api, worker):
+        pod = dep["spec"]["template"]["spec"]
+        (container,) = pod["containers"]
+        _check_command(container["command"] + container.get("args", []))
+        assert container["resources"]["requests"]["cpu"] and container["resources"]["requests"]["memory"]
+        assert {"configMapRef": {"name": "hockle-config"}} in container["envFrom"]
+        names = {e["name"] for e in container.get("env", [])}
+        assert "HOCKLE_DATABASE_URL" in names
+        volumes = {v["name"]: v for v in pod["volumes"]}
+        mounts = {m["mountPath"]: m["name"] for m in container["volumeMounts"]}
+        results = mounts[str(settings.results_dir)]
+        assert volumes[results]["persistentVolumeClaim"]["claimName"] == "hockle-results"
+        labels = dep["spec"]["template"]["metadata"]["labels"]
+        assert dep["spec"]["selector"]["matchLabels"].items() <= labels.items()
+
+    (container,) = api["spec"]["template"]["spec"]["containers"]
+    ports = {p["name"]: p["containerPort"] for p in container["ports"]}
+    assert ports["http"] == settings.port
+    for probe in ("readinessProbe", "livenessProbe"):
+        get = container[probe]["httpGet"]
+        assert get["path"].split("?")[0] == "/v1/health"
+        assert get["port"] in ("http", settings.port)
+    service = _by_kind("Service")["hockle-api"]
+    assert service["spec"]["ports"][0]["targetPort"] in ("http", settings.port)
+    assert service["spec"]["selector"].items() <= \
+        api["spec"]["template"]["metadata"]["labels"].items()
+
+    broker = urlparse(settings.broker_url)
+    redis_service = _by_kind("Service")[broker.hostname]
+    assert redis_service["spec"]["ports"][0]["port"] == broker.port
+    redis = _by_kind("StatefulSet")["hockle-redis"]["spec"]["template"]["spec"]["containers"][0]
+    assert "noeviction" in redis["args"] and "--appendonly" in redis["args"]
+    assert settings.visibility_timeout > settings.time_limit_max
+
+    kustomization = yaml.safe_load((K8S / "kustomization.yaml").read_text())
+    listed = set(kustomization["resources"])
+    assert listed == {p.name for p in K8S.glob("*.yaml")} - {"kustomization.yaml"}
+
+
+def test_health_route_exists_in_the_app():
+    from service.routers.health import router
+
+    assert "/health" in {r.path for r in router.routes}
