@@ -1,0 +1,370 @@
+"""The ``hockle`` command: run, validate and plot cases; serve, worker and submit.
+
+Exit status
+-----------
+0    success
+1    an internal error, a file that could not be written, or nothing to plot
+2    bad usage or an invalid case (each error printed as ``path: reason``), or a result
+     file that cannot be read
+3    the solver diverged (``SolverDivergence``); the partial results are written
+4    the run stopped before t_end for another reason (e.g. its wall-clock budget);
+     the partial results are written
+130  interrupted by Ctrl-C; the run stops at the next step and the partial results are
+     written (a second Ctrl-C aborts without writing)
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import math
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+EXIT_OK = 0
+EXIT_ERROR = 1
+EXIT_INVALID = 2
+EXIT_DIVERGED = 3
+EXIT_STOPPED = 4
+EXIT_INTERRUPTED = 130
+
+SERVICE_COMMANDS = ("serve", "worker", "submit")
+USER_STOP_REASON = "cancelled_by_user"
+
+
+def _err(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
+def _print_case_errors(exc: Any, source: str) -> None:
+    errors = list(getattr(exc, "errors", None) or [])
+    n = len(errors)
+    _err(f"hockle: invalid case {source} ({n} error{'s' if n != 1 else ''}):")
+    for error in errors:
+        loc = error.get("loc") or "(case)"
+        msg = str(error.get("msg", "")).replace("\n", " ")
+        _err(f"{loc}: {msg}")
+    if not errors:
+        _err(str(exc))
+
+
+def _load_case(path: str) -> Any:
+    """The validated Case, or None after printing its errors."""
+    from solver.case import Case, CaseError
+
+    try:
+        return Case.from_file(path)
+    except CaseError as exc:
+        _print_case_errors(exc, path)
+        return None
+
+
+def _n_steps(case: Any) -> int:
+    num = case.numerics
+    return max(1, int(math.ceil(num.t_end / num.dt - 1e-9)))
+
+
+# --------------------------------------------------------------------------- validate
+
+
+def cmd_validate(args: argparse.Namespace) -> int:
+    case = _load_case(args.case)
+    if case is None:
+        return EXIT_INVALID
+    num = case.numerics
+    print(
+        f"ok: {case.name}: {num.n_segments + 1} grid points (ds {num.ds:g} m), "
+        f"{_n_steps(case)} steps (dt {num.dt:g} s, t_end {num.t_end:g} s), "
+        f"spec hash {case.spec_hash()[:12]}"
+    )
+    return EXIT_OK
+
+
+# --------------------------------------------------------------------------- run
+
+
+class _StopOnInterrupt:
+    """SIGINT handler: the first Ctrl-C asks the solver to stop before its next step
+    (through ``should_stop``); a second one raises KeyboardInterrupt at once."""
+
+    def __init__(self) -> None:
+        self.requested = False
+        self._previous: Any = None
+        self._installed = False
+
+    def __enter__(self) -> "_StopOnInterrupt":
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGINT, self._handle)
+            self._installed = True
+        return self
+
+    def __exit__(self, *exc_info: Any) -> None:
+        if self._installed:
+            signal.signal(signal.SIGINT, self._previous)
+
+    def _handle(self, signum: int, frame: Any) -> None:
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+        _err("hockle: interrupt: stopping after the current step (Ctrl-C again to abort)")
+
+    def should_stop(self) -> str | bool:
+        return USER_STOP_REASON if self.requested else False
+
+
+class _ProgressBar:
+    """A rich progress bar on stderr driven by ``solver.Progress`` reports."""
+
+    def __init__(self, name: str, t_end: float, enabled: bool) -> None:
+        self.enabled = enabled
+        self._bar = None
+        self._task = None
+        if not enabled:
+            return
+        from rich.console import Console
+        from rich.progress import (
+            BarColumn,
+            Progress,
+            TextColumn,
+            TimeElapsedColumn,
+            TimeRemainingColumn,
+        )
+
+        self._bar = Progress(
+            TextColumn("[bold]{task.description}"),
+            BarColumn(),
+            TextColumn("t {task.completed:.4g}/{task.total:.4g} s"),
+            TextColumn("step {task.fields[step]}"),
+            TextColumn("Δt {task.fields[dt]:.3g} s"),
+            TextColumn("Newton {task.fields[newton]}"),
+            TimeElapsedColumn(),
+            TextColumn("ETA"),
+            TimeRemainingColumn(),
+            console=Console(stderr=True),
+            transient=False,
+        )
+        self._task = self._bar.add_task(name, total=t_end, step=0, dt=float("nan"), newton="-")
+
+    def __enter__(self) -> "_ProgressBar":
+        if self._bar is not None:
+            self._bar.start()
+        return self
+
+    def __exit__(self, *exc_info: Any) -> None:
+        if self._bar is not None:
+            self._bar.stop()
+
+    def update(self, info: Any) -> None:
+        if self._bar is not None:
+            self._bar.update(
+                self._task,
+                completed=info.t,
+                step=info.step,
+                dt=info.dt,
+                newton=info.newton_iterations,
+            )
+
+
+def _write(ds: Any, out: Path) -> bool:
+    from hockle.io import write_netcdf
+
+    try:
+        write_netcdf(ds, out)
+    except OSError as exc:
+        _err(f"hockle: cannot write {out}: {exc}")
+        return False
+    return True
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    case = _load_case(args.case)
+    if case is None:
+        return EXIT_INVALID
+    out = Path(args.output) if args.output else Path(Path(args.case).stem + ".nc")
+
+    from solver.simulate import SolverDivergence, simulate
+
+    wall0 = time.perf_counter()
+    # The handler stays in place while the result is written, so a Ctrl-C then does not
+    # tear the write apart (write_netcdf is atomic in any case).
+    with _StopOnInterrupt() as interrupt:
+        if not args.quiet:
+            _err(
+                f"hockle: running {case.name}: {case.numerics.n_segments + 1} grid points, "
+                f"{_n_steps(case)} steps to t_end {case.numerics.t_end:g} s -> {out}"
+            )
+        try:
+            with _ProgressBar(case.name, case.numerics.t_end, enabled=not args.quiet) as bar:
+                ds = simulate(case, progress=bar.update, should_stop=interrupt.should_stop)
+        except SolverDivergence as exc:
+            wall = time.perf_counter() - wall0
+            reason = str(exc).replace("\n", " ")
+            partial = exc.partial
+            written = partial is not None and _write(partial, out)
+            where = f"partial results in {out}" if written else "no results written"
+            _err(
+                f"hockle: solver failed ({exc.reason}) at t = {exc.t:.6g} s after "
+                f"{exc.step} steps: {reason}; {where}"
+            )
+            print(f"failed after {wall:.1f} s wall time" + (f": wrote {out}" if written else ""))
+            return EXIT_DIVERGED
+        except KeyboardInterrupt:
+            _err("hockle: aborted; no results written")
+            return EXIT_INTERRUPTED
+        wall = time.perf_counter() - wall0
+        if not _write(ds, out):
+            return EXIT_ERROR
+
+    status = ds.attrs.get("hockle_status", "completed")
+    t_last = float(ds["time"].values[-1]) if ds.sizes.get("time", 0) else float("nan")
+    print(
+        f"{status}: t = {t_last:g} of {case.numerics.t_end:g} s in {wall:.1f} s wall time: "
+        f"wrote {out}"
+    )
+    if status == "completed":
+        return EXIT_OK
+    reason = ds.attrs.get("hockle_stop_reason", "stopped")
+    message = ds.attrs.get("hockle_message") or reason
+    _err(f"hockle: run stopped before t_end ({message}); partial results in {out}")
+    return EXIT_INTERRUPTED if reason == USER_STOP_REASON else EXIT_STOPPED
+
+
+# --------------------------------------------------------------------------- plot
+
+
+def cmd_plot(args: argparse.Namespace) -> int:
+    from hockle.io import open_result
+
+    path = Path(args.result)
+    try:
+        ds = open_result(path)
+    except (OSError, ValueError) as exc:
+        _err(f"hockle: cannot read {path}: {exc}")
+        return EXIT_INVALID
+    out_dir = Path(args.output_dir) if args.output_dir else path.with_name(f"{path.stem}_plots")
+
+    from hockle.plots import plot_all
+
+    paths = plot_all(ds, out_dir, times=args.times, stem=path.stem, on_skip=_err)
+    for p in paths:
+        print(p)
+    if not paths:
+        _err(f"hockle: nothing to plot in {path}")
+        return EXIT_ERROR
+    return EXIT_OK
+
+
+# --------------------------------------------------------------------------- parser
+
+
+def _version() -> str:
+    try:
+        from solver import __version__
+
+        return __version__
+    except ImportError:  # pragma: no cover - a broken install
+        return "unknown"
+
+
+def _register_service_commands(sub: Any) -> str | None:
+    """Add serve/worker/submit from :mod:`hockle.service_commands`.
+
+    Returns None, or why they are unavailable; then placeholders that only explain this
+    are added, so run/validate/plot keep working without the service dependencies.
+    """
+    reason = None
+    try:
+        module = importlib.import_module("hockle.service_commands")
+        module.register(sub)
+    except Exception as exc:  # any failure there must not break run/validate/plot
+        reason = f"cannot load hockle.service_commands ({type(exc).__name__}: {exc})"
+    for name in SERVICE_COMMANDS:
+        if name not in sub.choices:
+            if reason is None:
+                reason = f"hockle.service_commands did not add '{name}'"
+            sub.add_parser(name, help="(unavailable here: run it to see why)", add_help=False)
+    return reason
+
+
+def build_parser() -> tuple[argparse.ArgumentParser, str | None]:
+    """The argument parser, and why the service commands are unavailable (or None)."""
+    parser = argparse.ArgumentParser(
+        prog="hockle",
+        description="Dynamics of twisted elastic rods with self-contact "
+        "(Goyal, Perkins & Lee).",
+        epilog=__doc__.split("Exit status", 1)[1].join(["Exit status", ""]),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--version", action="version", version=f"hockle {_version()}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+
+    p = sub.add_parser("validate", help="check a case file and summarise it")
+    p.add_argument("case", metavar="CASE", help="case spec, .yaml/.yml or .json")
+    p.set_defaults(func=cmd_validate)
+
+    p = sub.add_parser(
+        "run",
+        help="run a case in-process and write its NetCDF result",
+        description="Run a case in this process with a progress bar and write the result "
+        "dataset atomically. On solver failure, stop (Ctrl-C) or an exceeded wall-clock "
+        "budget the partial results are written and the exit status is non-zero.",
+    )
+    p.add_argument("case", metavar="CASE", help="case spec, .yaml/.yml or .json")
+    p.add_argument(
+        "-o", "--output", metavar="OUT.nc", help="result file (default: <case stem>.nc here)"
+    )
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser(
+        "plot",
+        help="draw shape snapshots, energies and Tw/Wr/Lk as PNG files",
+        description="Draw the seed paper's figures from a result file: centreline "
+        "snapshots with orthogonal views (Fig. 6), energies (Fig. 7) and twist, writhe "
+        "and linking number (Fig. 8).",
+    )
+    p.add_argument("result", metavar="OUT.nc", help="result file written by hockle run")
+    p.add_argument(
+        "-o", "--output-dir", metavar="DIR", help="where to write (default: <stem>_plots/ "
+        "next to the file)"
+    )
+    p.add_argument(
+        "--times", nargs="+", type=float, metavar="T",
+        help="snapshot times in s (default: 5 spread over the run)",
+    )
+    p.set_defaults(func=cmd_plot)
+
+    reason = _register_service_commands(sub)
+    return parser, reason
+
+
+def _first_command(argv: list[str]) -> str | None:
+    for token in argv:
+        if not token.startswith("-"):
+            return token
+    return None
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser, service_problem = build_parser()
+    command = _first_command(argv)
+    if service_problem and command in SERVICE_COMMANDS:
+        _err(f"hockle {command} is unavailable: {service_problem}")
+        return EXIT_ERROR
+    args = parser.parse_args(argv)
+    func: Callable[[argparse.Namespace], Any] | None = getattr(args, "func", None) or getattr(
+        args, "handler", None
+    )
+    if func is None:
+        parser.print_help(sys.stderr)
+        return EXIT_INVALID
+    result = func(args)
+    return EXIT_OK if result is None else int(result)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,349 @@
+"""Tests for the ``hockle`` command: validate, run, plot (DESIGN.md, "Command line")."""
+from __future__ import annotations
+
+import copy
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+import yaml
+
+from hockle.cli import main
+from hockle.io import open_result, write_netcdf
+from solver.case import Case
+from solver.results import build_dataset
+
+REPO = Path(__file__).resolve().parents[1]
+
+# The tiny case of the brief: a straight rod twisted at its start end.
+TINY = {
+    "schema_version": 1,
+    "name": "tiny",
+    "rod": {
+        "length": 1.0,
+        "youngs_modulus": 1.25e7,
+        "shear_modulus": 5.0e6,
+        "density": 1500.0,
+        "diameter": 0.02,
+    },
+    "boundary": {
+        "start": {
+            "translation": [{"velocity": 0}, {"velocity": 0}, {"velocity": 0}],
+            "rotation": [
+                {"angular_velocity": 0},
+                {"angular_velocity": 0},
+                {"angular_velocity": 1.0},
+            ],
+        },
+        "end": {
+            "translation": [{"velocity": 0}, {"velocity": 0}, {"force": 0}],
+            "rotation": [{"angular_velocity": 0}] * 3,
+        },
+    },
+    "numerics": {"n_segments": 8, "dt": 0.01, "t_end": 0.05},
+    "output": {
+        "fields": ["v", "omega", "f", "kappa", "position", "orientation", "energies", "topology"]
+    },
+}
+
+
+def write_case(path: Path, spec: dict) -> Path:
+    path.write_text(yaml.safe_dump(spec, sort_keys=False))
+    return path
+
+
+@pytest.fixture()
+def tiny(tmp_path) -> Path:
+    return write_case(tmp_path / "tiny.yaml", TINY)
+
+
+# --------------------------------------------------------------------------- validate
+
+
+def test_validate_good_case(tiny, capsys):
+    assert main(["validate", str(tiny)]) == 0
+    out = capsys.readouterr().out
+    digest = Case.from_file(tiny).spec_hash()
+    assert "tiny" in out and "9 grid points" in out and "5 steps" in out
+    assert digest[:12] in out
+    assert len(out.strip().splitlines()) == 1
+
+
+def test_validate_bad_case_names_fields(tmp_path, capsys):
+    spec = copy.deepcopy(TINY)
+    spec["rod"]["diameter"] = -0.02
+    spec["numerics"]["colour"] = "blue"
+    bad = write_case(tmp_path / "bad.yaml", spec)
+    assert main(["validate", str(bad)]) == 2
+    captured = capsys.readouterr()
+    err = captured.err
+    lines = err.strip().splitlines()
+    assert any(line.startswith("rod.diameter: ") for line in lines), err
+    assert any(line.startswith("numerics.colour: ") for line in lines), err
+    assert "Traceback" not in err + captured.out
+
+
+def test_validate_missing_file(tmp_path, capsys):
+    assert main(["validate", str(tmp_path / "nope.yaml")]) == 2
+    assert "nope.yaml" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------- plot
+
+
+def synthetic_result(tmp_path: Path, fields=("position", "energies", "topology")) -> Path:
+    """A helix that winds up over time, written as a result file."""
+    case = Case.model_validate(TINY)
+    n_t, n = 12, 41
+    s = np.linspace(0.0, 1.0, n)
+    times = np.linspace(0.0, 1.1, n_t)
+    data = {}
+    if "position" in fields:
+        pos = np.zeros((n_t, n, 3))
+        for k, t in enumerate(times):
+            amp = 0.1 * t
+            pos[k, :, 0] = amp * np.cos(2 * np.pi * s)
+            pos[k, :, 1] = amp * np.sin(2 * np.pi * s)
+            pos[k, :, 2] = s * (1 - 0.2 * t)
+        data["position"] = pos
+    if "energies" in fields:
+        data.update(
+            energy_bending=times**2,
+            energy_torsion=np.exp(-times),
+            energy_kinetic=0.1 * times,
+            energy_total=times**2 + np.exp(-times) + 0.1 * times,
+        )
+    if "topology" in fields:
+        data.update(
+            twist=4 - times,
+            writhe=times,
+            linking_number=np.full(n_t, 4.0),
+            topology_error=np.full(n_t, 1e-9),
+        )
+    ds = build_dataset(case, s, times, data, {}, "completed")
+    return write_netcdf(ds, tmp_path / "synthetic.nc")
+
+
+def assert_png(path: Path) -> None:
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n", path
+    assert len(data) > 5000, path
+
+
+def test_plot_writes_the_three_figures_next_to_the_file(tmp_path, capsys):
+    nc = synthetic_result(tmp_path)
+    assert main(["plot", str(nc)]) == 0
+    out_dir = tmp_path / "synthetic_plots"
+    names = sorted(p.name for p in out_dir.iterdir())
+    assert names == [
+        "synthetic_energies.png",
+        "synthetic_snapshots.png",
+        "synthetic_topology.png",
+    ]
+    for p in out_dir.iterdir():
+        assert_png(p)
+    printed = capsys.readouterr().out.split()
+    assert sorted(Path(p).name for p in printed) == names
+
+
+def test_plot_chosen_times_into_a_directory(tmp_path, capsys):
+    nc = synthetic_result(tmp_path)
+    out_dir = tmp_path / "figs"
+    assert main(["plot", str(nc), "-o", str(out_dir), "--times", "0.2", "0.9", "50"]) == 0
+    assert_png(out_dir / "synthetic_snapshots.png")
+    assert "t = 50 s is outside" in capsys.readouterr().err
+
+
+def test_snapshot_times_choice(tmp_path):
+    from hockle.plots import snapshot_times
+
+    ds = open_result(synthetic_result(tmp_path))
+    stored = ds["time"].values
+    default = snapshot_times(ds)
+    assert 4 <= len(default) <= 6
+    assert default[0] == stored[0] and default[-1] == stored[-1]
+    assert snapshot_times(ds, [0.31, 0.29]) == [pytest.approx(0.3)]
+
+
+def test_plot_skips_figures_without_their_variables(tmp_path, capsys):
+    nc = synthetic_result(tmp_path, fields=("energies",))
+    assert main(["plot", str(nc)]) == 0
+    err = capsys.readouterr().err
+    assert "snapshots (Fig. 6) skipped" in err and "topology (Fig. 8) skipped" in err
+    assert [p.name for p in (tmp_path / "synthetic_plots").iterdir()] == [
+        "synthetic_energies.png"
+    ]
+
+
+def test_plot_nothing_to_draw_and_unreadable_file(tmp_path, capsys):
+    nc = synthetic_result(tmp_path, fields=())
+    assert main(["plot", str(nc)]) == 1
+    assert "nothing to plot" in capsys.readouterr().err
+    junk = tmp_path / "junk.nc"
+    junk.write_text("not a netcdf file")
+    assert main(["plot", str(junk)]) == 2
+    assert "cannot read" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------- run
+
+
+def test_run_tiny_case_end_to_end(tiny, tmp_path, capsys):
+    out = tmp_path / "results" / "tiny.nc"
+    assert main(["run", str(tiny), "-o", str(out)]) == 0
+    captured = capsys.readouterr()
+    assert str(out) in captured.out and "wall time" in captured.out
+    ds = open_result(out)
+    assert ds.attrs["hockle_status"] == "completed"
+    assert ds.attrs["case_hash"] == Case.from_file(tiny).spec_hash()
+    assert float(ds["time"].values[-1]) == pytest.approx(0.05)
+    assert ds.sizes["s"] == 9
+    requested = {
+        "v", "omega", "f", "kappa", "position", "orientation",
+        "energy_bending", "energy_torsion", "energy_kinetic", "energy_total",
+        "twist", "writhe", "linking_number",
+    }
+    assert requested <= set(ds.data_vars)
+    assert "moment" not in ds.data_vars  # not requested
+    # the prescribed twist shows: the start end turned 1 rad/s for 0.05 s against the
+    # fixed far end of a rod that stays straight (Wr = 0), so Tw = -0.05 rad / 2 pi
+    assert float(ds["twist"].values[-1]) == pytest.approx(-0.05 / (2 * np.pi), rel=1e-6)
+    assert np.all(np.abs(ds["writhe"].values) < 1e-9)
+    assert [p.name for p in out.parent.iterdir()] == ["tiny.nc"]  # no temp file left
+
+
+def test_run_default_output_name_and_plot_of_it(tiny, tmp_path, monkeypatch, capsys):
+    workdir = tmp_path / "work"
+    workdir.mkdir()
+    monkeypatch.chdir(workdir)
+    assert main(["run", str(tiny), "--quiet"]) == 0
+    assert (workdir / "tiny.nc").exists()
+    assert main(["plot", "tiny.nc"]) == 0
+    for name in ("tiny_snapshots.png", "tiny_energies.png", "tiny_topology.png"):
+        assert_png(workdir / "tiny_plots" / name)
+
+
+def test_run_invalid_case(tmp_path, capsys):
+    spec = copy.deepcopy(TINY)
+    spec["numerics"]["dt"] = -1.0
+    bad = write_case(tmp_path / "bad.yaml", spec)
+    assert main(["run", str(bad), "-o", str(tmp_path / "bad.nc")]) == 2
+    assert any(line.startswith("numerics.dt: ") for line in capsys.readouterr().err.splitlines())
+    assert not (tmp_path / "bad.nc").exists()
+
+
+def test_run_out_of_wall_clock_budget_writes_partial_file(tmp_path, capsys):
+    spec = copy.deepcopy(TINY)
+    spec["numerics"]["wall_clock_budget"] = 1e-6  # s: spent before the first step ends
+    case = write_case(tmp_path / "budget.yaml", spec)
+    out = tmp_path / "budget.nc"
+    assert main(["run", str(case), "-o", str(out), "--quiet"]) == 4
+    assert "partial results" in capsys.readouterr().err
+    ds = open_result(out)
+    assert ds.attrs["hockle_status"] == "stopped"
+    assert ds.attrs["hockle_stop_reason"] == "timeout"
+    assert float(ds["time"].values[-1]) < 0.05
+
+
+def test_run_divergence_writes_partial_file(tmp_path, capsys):
+    # An absurd case: a free cantilever under 1 MN/m, Δt = 0.5 s with one cut allowed
+    # and four Newton iterations per attempt; the first step cannot converge.
+    spec = copy.deepcopy(TINY)
+    spec["name"] = "absurd"
+    spec["distributed_forces"] = [{"value": [1.0e6, 0.0, 0.0], "start": 0.0, "end": 1.0}]
+    spec["boundary"]["end"] = {
+        "translation": [{"force": 0}] * 3,
+        "rotation": [{"moment": 0}] * 3,
+    }
+    spec["numerics"] = {
+        "n_segments": 8,
+        "dt": 0.5,
+        "t_end": 2.0,
+        "max_dt_cuts": 1,
+        "newton": {"max_iterations": 4},
+    }
+    spec["output"] = {"fields": ["position", "energies"]}
+    case = write_case(tmp_path / "absurd.yaml", spec)
+    out = tmp_path / "absurd.nc"
+    assert main(["run", str(case), "-o", str(out), "--quiet"]) == 3
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "solver failed" in err[0] and str(out) in err[0]
+    ds = open_result(out)
+    assert ds.attrs["hockle_status"] == "failed"
+    assert "position" in ds.data_vars and ds.sizes["time"] >= 1
+
+
+def _env() -> dict:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = str(REPO) + os.pathsep + env.get("PYTHONPATH", "")
+    return env
+
+
+def test_ctrl_c_stops_cleanly_and_writes_partial_file(tmp_path):
+    spec = copy.deepcopy(TINY)
+    spec["numerics"]["t_end"] = 1000.0  # 100 000 steps: far longer than the test waits
+    spec["output"] = {"every": 50, "fields": ["position", "energies"]}
+    case = write_case(tmp_path / "long.yaml", spec)
+    out = tmp_path / "long.nc"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hockle", "run", str(case), "-o", str(out)],
+        cwd=tmp_path,
+        env=_env(),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        first = proc.stderr.readline()  # printed once the interrupt handler is in place
+        assert "running" in first, first
+        time.sleep(1.0)
+        proc.send_signal(signal.SIGINT)
+        stdout, stderr = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 130, stderr
+    assert "Traceback" not in stderr
+    ds = open_result(out)
+    assert ds.attrs["hockle_status"] == "stopped"
+    assert ds.attrs["hockle_stop_reason"] == "cancelled_by_user"
+    assert 0 < float(ds["time"].values[-1]) < 1000.0
+
+
+# --------------------------------------------------------------------------- entry points
+
+
+def test_python_dash_m_hockle(tiny):
+    proc = subprocess.run(
+        [sys.executable, "-m", "hockle", "validate", str(tiny)],
+        cwd=tiny.parent,
+        env=_env(),
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith("ok: tiny")
+
+
+def test_help_lists_all_commands(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["--help"])
+    assert info.value.code == 0
+    out = capsys.readouterr().out
+    for command in ("run", "validate", "plot", "serve", "worker", "submit"):
+        assert f"    {command}" in out
+
+
+def test_service_commands_fail_soft_when_their_module_cannot_load(tiny, monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "hockle.service_commands", None)  # import fails
+    assert main(["serve"]) == 1
+    assert "hockle serve is unavailable" in capsys.readouterr().err
+    assert main(["validate", str(tiny)]) == 0
