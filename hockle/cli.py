@@ -116,12 +116,17 @@ class _StopOnInterrupt:
 
 
 class _ProgressBar:
-    """A rich progress bar on stderr driven by ``solver.Progress`` reports."""
+    """Progress on stderr driven by ``solver.Progress`` reports: a rich bar on a
+    terminal; otherwise (a log file, a pipe) a plain line every 10 % or 30 s."""
+
+    LINE_EVERY_S = 30.0
 
     def __init__(self, name: str, t_end: float, enabled: bool) -> None:
         self.enabled = enabled
         self._bar = None
         self._task = None
+        self._plain = False
+        self._last_line = (-1.0, 0.0)  # (fraction decile, wall time) of the last line
         if not enabled:
             return
         from rich.console import Console
@@ -133,6 +138,10 @@ class _ProgressBar:
             TimeRemainingColumn,
         )
 
+        console = Console(stderr=True)
+        if not console.is_terminal:
+            self._plain = True
+            return
         self._bar = Progress(
             TextColumn("[bold]{task.description}"),
             BarColumn(),
@@ -143,8 +152,7 @@ class _ProgressBar:
             TimeElapsedColumn(),
             TextColumn("ETA"),
             TimeRemainingColumn(),
-            console=Console(stderr=True),
-            transient=False,
+            console=console,
         )
         self._task = self._bar.add_task(name, total=t_end, step=0, dt=float("nan"), newton="-")
 
@@ -166,6 +174,24 @@ class _ProgressBar:
                 dt=info.dt,
                 newton=info.newton_iterations,
             )
+        elif self._plain:
+            decile = math.floor(10 * info.fraction + 1e-9)
+            last_decile, last_wall = self._last_line
+            if decile > last_decile or info.wall_time - last_wall >= self.LINE_EVERY_S:
+                self._last_line = (decile, info.wall_time)
+                _err(_progress_line(info))
+
+
+def _progress_line(info: Any) -> str:
+    if 0 < info.fraction < 1:
+        eta = f"{info.wall_time * (1 - info.fraction) / info.fraction:.0f} s"
+    else:
+        eta = "-" if info.fraction <= 0 else "0 s"
+    return (
+        f"t {info.t:.4g}/{info.t_end:.4g} s ({100 * info.fraction:.0f} %), step {info.step}, "
+        f"Δt {info.dt:.3g} s, Newton {info.newton_iterations}, "
+        f"wall {info.wall_time:.0f} s, ETA {eta}"
+    )
 
 
 def _write(ds: Any, out: Path) -> bool:

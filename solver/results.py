@@ -276,7 +276,7 @@ def build_dataset(
 
     coords: dict[str, xr.Variable] = {
         "time": xr.Variable(
-            "time", times, {"units": "s", "long_name": "simulation time", "axis": "T"}
+            "time", times, {"units": "s", "long_name": "simulation time (elapsed from the start of the run)"}
         ),
         "s": xr.Variable(
             "s",

@@ -199,6 +199,10 @@ def test_run_tiny_case_end_to_end(tiny, tmp_path, capsys):
     assert main(["run", str(tiny), "-o", str(out)]) == 0
     captured = capsys.readouterr()
     assert str(out) in captured.out and "wall time" in captured.out
+    # not a terminal: plain progress lines instead of a bar, the last one at 100 %
+    progress = [line for line in captured.err.splitlines() if line.startswith("t ")]
+    assert progress and "t 0.05/0.05 s (100 %), step 5" in progress[-1]
+    assert "Newton" in progress[-1] and "ETA" in progress[-1]
     ds = open_result(out)
     assert ds.attrs["hockle_status"] == "completed"
     assert ds.attrs["case_hash"] == Case.from_file(tiny).spec_hash()
