@@ -54,6 +54,7 @@ def create_app(settings: Settings | None = None, *, enqueuer: Enqueuer | None = 
 
     @asynccontextmanager
     async def lifespan(app: FastAPI):
+        _warm_up(svc)
         thread = threading.Thread(target=_reaper, args=(svc, stop), name="hockle-reaper",
                                   daemon=True)
         thread.start()
@@ -83,6 +84,18 @@ def create_app(settings: Settings | None = None, *, enqueuer: Enqueuer | None = 
     app.include_router(health.router, prefix="/v1")
     app.openapi = lambda: _openapi(app)  # type: ignore[method-assign]
     return app
+
+
+def _warm_up(svc: Services) -> None:
+    """Import the case model and connect to the broker before the first request needs them,
+    so that a burst of first submissions does not stall every request on the import lock."""
+    from solver.case import Case
+
+    Case.model_json_schema()
+    try:
+        svc.enqueuer.ping()
+    except Exception:  # noqa: BLE001 - reported by /v1/health; submissions answer 503
+        log.warning("broker not reachable at start-up", exc_info=True)
 
 
 def _reaper(svc: Services, stop: threading.Event) -> None:

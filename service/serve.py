@@ -49,6 +49,8 @@ def run(args: argparse.Namespace) -> int:
     if settings.embedded and settings.embedded_worker and not args.no_worker and concurrency > 0:
         env = dict(os.environ)
         env.update(settings.child_env())
+        if "HOCKLE_WORKER_NICE" not in os.environ:
+            env["HOCKLE_WORKER_NICE"] = "10"  # the API on this machine stays responsive
         cmd = [sys.executable, "-m", "worker", "--concurrency", str(concurrency),
                "--hostname", f"embedded-{os.getpid()}@%h"]
         log.info("embedded mode: starting a local worker: %s", " ".join(cmd))
@@ -60,7 +62,8 @@ def run(args: argparse.Namespace) -> int:
 
         app = create_app(settings)
         uvicorn.run(app, host=settings.host, port=settings.port,
-                    log_level=settings.log_level.lower(), access_log=False)
+                    log_level=settings.log_level.lower(), access_log=False,
+                    timeout_keep_alive=30)
     finally:
         if worker is not None and worker.poll() is None:
             worker.send_signal(signal.SIGTERM)  # warm shutdown: a running job is requeued

@@ -67,6 +67,11 @@ class Settings(BaseSettings):
     )
     worker_concurrency: int = Field(1, ge=1, description="Solver processes per `hockle worker`.")
     blas_threads: int = Field(1, ge=1, description="BLAS/OpenMP threads per worker process.")
+    worker_nice: int = Field(
+        0, ge=0, le=19,
+        description="Niceness added to worker processes, so that an API on the same machine "
+        "stays responsive while they solve (`hockle serve` embedded uses 10 unless set).",
+    )
     progress_interval: float = Field(
         1.0, ge=0, description="Least seconds between two progress writes to the registry."
     )

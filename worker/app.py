@@ -24,6 +24,10 @@ BLAS_THREAD_VARIABLES = (
 for _var in BLAS_THREAD_VARIABLES:
     os.environ[_var] = str(settings.blas_threads)
 
+if settings.worker_nice:
+    # lower the CPU priority of this process (and of the pool processes forked from it)
+    os.nice(settings.worker_nice)
+
 from service.queue import make_celery  # noqa: E402
 
 app = make_celery(settings, main="worker")
