@@ -138,11 +138,11 @@ def test_idempotency_and_identical_spec(stack: Stack):
     assert stack.wait_state(fresh.json()["id"], TERMINAL, 60)["state"] == "successful"
 
 
-def _wait_running(stack: Stack, job_id: str, timeout: float = 60) -> dict:
+def _wait_running(stack: Stack, job_id: str, timeout: float = 60, min_step: int = 1) -> dict:
     def running():
         job = stack.job(job_id)
         assert job["state"] in ("accepted", "running"), job
-        return job if job["state"] == "running" and job["step"] > 0 else None
+        return job if job["state"] == "running" and job["step"] >= min_step else None
 
     return wait_until(running, timeout, 0.1, f"job {job_id} to run")
 
@@ -151,7 +151,7 @@ def test_dismiss_queued_and_running(stack: Stack):
     # occupy both workers, then queue a third job behind them
     long_ids = [stack.submit(long_case(f"long-{i}")).json()["id"] for i in range(2)]
     for job_id in long_ids:
-        _wait_running(stack, job_id)
+        _wait_running(stack, job_id, min_step=50)  # past a few output steps (every 10)
     queued = stack.submit(tiny_case("queued-then-dismissed")).json()
     assert queued["state"] == "accepted"
 
