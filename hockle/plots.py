@@ -239,7 +239,11 @@ def plot_topology(
     else:
         ax, ax_err = fig.add_subplot(), None
     marker = "o" if t.size < 3 else None
-    labels = {"twist": "Tw (twist)", "writhe": "Wr (writhe)", "linking_number": "Lk (linking number)"}
+    labels = {
+        "twist": "Tw (twist)",
+        "writhe": "Wr (writhe)",
+        "linking_number": "Lk (linking number)",
+    }
     colors = {"twist": "C0", "writhe": "C1", "linking_number": "k"}
     for name in present:
         ax.plot(t, ds[name].values, color=colors[name], label=labels[name], marker=marker, ms=3)

@@ -48,7 +48,9 @@ _BODY = ("time", "s", "component")
 # Shapes: ("time",) is (T,); ("time", "s", X) is (T, N, len(X)).
 FIELD_VARIABLES: dict[str, tuple[tuple[str, ...], str, str, str | None]] = {
     "v": (_BODY, "m s-1", "velocity of the centreline, body-frame components", None),
-    "omega": (_BODY, "rad s-1", "angular velocity of the cross-section, body-frame components", None),
+    "omega": (
+        _BODY, "rad s-1", "angular velocity of the cross-section, body-frame components", None
+    ),
     "f": (_BODY, "N", "internal force resultant, body-frame components", None),
     "kappa": (
         _BODY,
@@ -276,7 +278,9 @@ def build_dataset(
 
     coords: dict[str, xr.Variable] = {
         "time": xr.Variable(
-            "time", times, {"units": "s", "long_name": "simulation time (elapsed from the start of the run)"}
+            "time",
+            times,
+            {"units": "s", "long_name": "simulation time (elapsed from the start of the run)"},
         ),
         "s": xr.Variable(
             "s",
