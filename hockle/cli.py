@@ -211,7 +211,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         return EXIT_INVALID
     out = Path(args.output) if args.output else Path(Path(args.case).stem + ".nc")
 
-    from solver.simulate import SolverDivergence, simulate
+    from solver.simulation import SolverDivergence, simulate
 
     wall0 = time.perf_counter()
     # The handler stays in place while the result is written, so a Ctrl-C then does not

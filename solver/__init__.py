@@ -14,9 +14,9 @@ __version__ = "0.1.0"
 _LAZY = {
     "Case": ("solver.case", "Case"),
     "CaseError": ("solver.case", "CaseError"),
-    "simulate": ("solver.simulate", "simulate"),
-    "SolverDivergence": ("solver.simulate", "SolverDivergence"),
-    "Progress": ("solver.simulate", "Progress"),
+    "simulate": ("solver.simulation", "simulate"),
+    "SolverDivergence": ("solver.simulation", "SolverDivergence"),
+    "Progress": ("solver.simulation", "Progress"),
 }
 
 __all__ = sorted(_LAZY) + ["__version__"]

@@ -47,8 +47,6 @@ class BandLayout:
         # Fortran-ordered band array (what dgbtrf wants, so no copy is made); its
         # transpose is C-contiguous, and flat_index addresses that flat view.
         self._ab = np.zeros((self.ldab, self.n), order="F")
-        self._flat = self._ab.T.reshape(-1)
-        assert np.shares_memory(self._flat, self._ab)
         self.lu = None
         self.piv = None
 
@@ -66,9 +64,12 @@ class BandLayout:
         bc_rows, bc_cols, bc_vals: (12,) the boundary-condition entries.
         Raises BandFactorError on an exactly singular matrix.
         """
+        if not self._ab.flags.f_contiguous:  # e.g. after unpickling
+            self._ab = np.asfortranarray(self._ab)
         self._ab.fill(0.0)
-        self._flat[self.cell_flat] = cell_blocks.ravel()
-        self._flat[self.flat_index(bc_rows, bc_cols)] = bc_vals
+        flat = self._ab.T.reshape(-1)    # a view (taken here, so copies of self stay valid)
+        flat[self.cell_flat] = cell_blocks.ravel()
+        flat[self.flat_index(bc_rows, bc_cols)] = bc_vals
         lu, piv, info = lapack.dgbtrf(self._ab, KL, KU, overwrite_ab=1)
         if info > 0:
             raise BandFactorError(f"singular Jacobian (zero pivot at unknown {info - 1})")

@@ -32,8 +32,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import csc_matrix
-from scipy.sparse.linalg import splu
+from scipy.sparse import csr_matrix
+from scipy.sparse.linalg import LinearOperator, gmres
 
 from .banded import BandFactorError, BandLayout, NV
 from .kinematics import quat_exp, quat_multiply, quat_to_matrix, right_jacobian, skew
@@ -142,13 +142,9 @@ class RodSystem:
         n1 = self.n_nodes
         self._dF = np.zeros((n1, NV, NV))
         self.pairs = None
-        self._sparse_lu = None
+        self._coupled = None
+        self.gmres_failures = 0
         self.last_contact = None
-        c = np.arange(self.n_cells)[:, None, None]
-        self._cell_rows_full = np.broadcast_to(
-            6 + NV * c + np.arange(NV)[None, :, None], (self.n_cells, NV, 2 * NV)).ravel()
-        self._cell_cols_full = np.broadcast_to(
-            NV * c + np.arange(2 * NV)[None, None, :], (self.n_cells, NV, 2 * NV)).ravel()
         self._blocks = np.empty((self.n_cells, NV, 2 * NV))
 
     # ------------------------------------------------------------------ per step setup
@@ -174,8 +170,13 @@ class RodSystem:
         self.q_old, self.r_old, self.v_old_global = q_old, r_old, v_old_global
         self._glob_force = self.loads.global_force(t_new) if self.loads.has_global else None
         self.pairs = pairs if (pairs is not None and len(pairs.i) > 0) else None
+        if self.pairs is not None:
+            self._pair_radii = 0.5 * (self.p.diameter[self.pairs.i]
+                                      + self.p.diameter[self.pairs.j])
+            margin = self.contact.tolerance - float(np.max(self.p.diameter))
+            self._trust_radius = 0.5 * max(margin, 0.25 * float(np.max(self.p.diameter)))
         key = (dt, params, bc.key)
-        if key != self.factor_key or self.pairs is not None or self._sparse_lu is not None:
+        if key != self.factor_key or (self.pairs is None) != (self._coupled is None):
             self.factor_valid = False
         self.factor_key = key
 
@@ -249,7 +250,7 @@ class RodSystem:
             R = pose[0]
             b_rot = np.einsum("nji,nj->ni", R, glob_force)
             Fv[:, E3:E3 + 3] += b_rot
-        if extra is not None:
+        if extra is not None and extra[0] is not None:
             Fv[:, E3:E3 + 3] += extra[0]
         if not want_jacobian:
             return Fv, None
@@ -298,10 +299,13 @@ class RodSystem:
             pose = self.pose_new(Y)
             pose_arg = (pose[1], pose[3], 0.5 * self.dt)
         extra = None
+        glob = self._glob_force
         self._offband = None
         if self.pairs is not None:
-            extra = self._contact_terms(Y, pose, want_jacobian)
-        Fn, dF = self.node_terms(Y, want_jacobian, pose_arg, self._glob_force, extra)
+            contact_global, diag = self._contact_terms(Y, pose, want_jacobian)
+            glob = contact_global if glob is None else glob + contact_global
+            extra = (None, diag)
+        Fn, dF = self.node_terms(Y, want_jacobian, pose_arg, glob, extra)
         Z = 0.5 * self.cm * self._apply_M(Y) + 0.5 * (1.0 - af) * Fn + self._zconst
         flux = (1.0 - af) * self._flux(Y) + self._flux_const
         R = np.empty(self.n)
@@ -329,14 +333,15 @@ class RodSystem:
         return R, Fn, blocks, pose
 
     def _contact_terms(self, Y, pose, want_jacobian):
-        """Self-contact load at the new level (body frame, N/m) and its Jacobian.
+        """Self-contact load at the new level (global frame, N/m) and its Jacobian.
 
         The pair force depends on r_i − r_j and ṙ_i − ṙ_j at the new level, with
         r^{n+1} = r^n + ½Δt(ṙ^n + R^{n+1} v^{n+1}) and ṙ^{n+1} = R^{n+1} v^{n+1}, so
         ∂F_p/∂v_i = (½Δt G_r + G_v) R_i =: H_p R_i (the rotation's dependence on ω is left
-        out of the Jacobian). Node-local blocks go into the band; the blocks coupling i
-        and j are kept in ``self._offband`` for the sparse factorisation.
-        Returns (B (N+1, 3), dB/dv (N+1, 3, 3) or None).
+        out here: the body-frame load Rᵀ F is differentiated in ω with the other global
+        loads in :meth:`node_terms`). Node-local blocks go into the band; the blocks
+        coupling i and j are kept in ``self._offband`` for the coupled solve.
+        Returns (F (N+1, 3) global, ∂(RᵀF)/∂v (N+1, 3, 3) body frame, or None).
         """
         q, R, r, theta = pose
         vg = np.einsum("nij,nj->ni", R, Y[:, V:V + 3])
@@ -349,9 +354,8 @@ class RodSystem:
         force = np.zeros((n1, 3))
         np.add.at(force, ev.i, ev.wi[:, None] * ev.force)
         np.add.at(force, ev.j, -ev.wj[:, None] * ev.force)
-        body = np.einsum("nji,nj->ni", R, force)
         if not want_jacobian:
-            return body, None
+            return force, None
         H = 0.5 * self.dt * ev.d_force_d_dr + ev.d_force_d_dv          # (P, 3, 3)
         Ri, Rj = R[ev.i], R[ev.j]
         RiT_H = np.einsum("pki,pkl->pil", Ri, H)                        # R_iᵀ H
@@ -363,7 +367,7 @@ class RodSystem:
         off_ji = -ev.wj[:, None, None] * (RjT_H @ Ri)                   # ∂B_j/∂v_i
         self._offband = (np.concatenate([ev.i, ev.j]), np.concatenate([ev.j, ev.i]),
                          np.concatenate([off_ij, off_ji]))
-        return body, diag
+        return force, diag
 
     def _offband_entries(self):
         """(rows, cols, values) of the contact coupling between distant nodes.
@@ -383,6 +387,29 @@ class RodSystem:
             cols.append(np.broadcast_to(cc, (ok.sum(), 3, 3)).ravel())
             vals.append((w * blocks[ok]).ravel())
         return np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+
+    def _coupled_matvec(self, x):
+        """Scaled Jacobian (band cells + boundary rows + distant contact coupling) times x."""
+        blocks, bc_rows, bc_cols, bc_vals, off = self._coupled
+        X = x.reshape(self.n_nodes, NV)
+        out = np.empty(self.n)
+        pairs = np.concatenate([X[:-1], X[1:]], axis=1)
+        out[6:6 + NV * self.n_cells] = np.einsum("cij,cj->ci", blocks, pairs).ravel()
+        out[bc_rows] = bc_vals * x[bc_cols]
+        out += off @ x
+        return out
+
+    def _coupled_solve(self, rhs):
+        """Solve the contact-coupled (scaled) system by GMRES, preconditioned by the band
+        LU. The coupling is a low-rank change of the band matrix, so GMRES needs few
+        iterations; the tolerance is tight enough to keep Newton's convergence."""
+        n = self.n
+        A = LinearOperator((n, n), matvec=self._coupled_matvec, dtype=float)
+        M = LinearOperator((n, n), matvec=self.layout.solve, dtype=float)
+        x0 = self.layout.solve(rhs)
+        x, info = gmres(A, rhs, x0=x0, M=M, rtol=1e-10, atol=0.0, restart=60, maxiter=4)
+        self.gmres_failures += int(info != 0)
+        return x
 
     def column_scale(self, Y):
         """Scale of each unknown (n,): max(|Y| of its kind over the grid, its floor)."""
@@ -405,20 +432,17 @@ class RodSystem:
         scaled = blocks * (rs[self.layout.cell_rows][:, :, None] * s24[None, None, :])
         col_scale = np.tile(s12, self.n_nodes)
         bc_scaled = bc_vals * rs[bc_rows] * s12[bc_cols % NV]
+        # the band part (with the node-local contact blocks) is always LU-factorised;
+        # contact coupling between distant nodes, when present, is kept as a sparse
+        # matrix and the correction is solved by GMRES preconditioned with the band LU.
+        self.layout.factor(scaled, bc_rows, bc_cols, bc_scaled)
         if self._offband is None:
-            self._sparse_lu = None
-            self.layout.factor(scaled, bc_rows, bc_cols, bc_scaled)
+            self._coupled = None
         else:
-            # contact couples distant nodes: sparse LU while pairs are active
             o_rows, o_cols, o_vals = self._offband_entries()
-            data = np.concatenate([scaled.ravel(), bc_scaled, o_vals * rs[o_rows] * col_scale[o_cols]])
-            rows = np.concatenate([self._cell_rows_full, bc_rows, o_rows])
-            cols = np.concatenate([self._cell_cols_full, bc_cols, o_cols])
-            mat = csc_matrix((data, (rows, cols)), shape=(self.n, self.n))
-            try:
-                self._sparse_lu = splu(mat, permc_spec="COLAMD")
-            except RuntimeError as exc:  # "Factor is exactly singular"
-                raise BandFactorError(str(exc)) from exc
+            off = csr_matrix((o_vals * rs[o_rows] * col_scale[o_cols], (o_rows, o_cols)),
+                             shape=(self.n, self.n))
+            self._coupled = (scaled.copy(), bc_rows, bc_cols, bc_scaled, off)
         self._row_scale = rs
         self._col_scale = col_scale
         self.factor_valid = True
@@ -466,9 +490,70 @@ class RodSystem:
                 res = float(np.max(np.abs(R) * self._row_scale))
             res_prev = res
             rhs = -R * self._row_scale
-            if self._sparse_lu is not None:
-                delta = self._sparse_lu.solve(rhs) * self._col_scale
+            if self._coupled is not None:
+                delta = self._coupled_solve(rhs) * self._col_scale
             else:
                 delta = self.layout.solve(rhs) * self._col_scale
-            Y = Y + delta.reshape(Y.shape)
+            delta = delta.reshape(Y.shape)
+            if self.pairs is not None:
+                delta = self._limit_gap_step(Y, delta)
+                delta = self._line_search(Y, delta, R)
+            Y = Y + delta
         return Y, Fn, self.max_iterations, res, False, pose
+
+    def _line_search(self, Y, delta, R0):
+        """Backtracking on the row-scaled residual 2-norm (contact steps only): halve the
+        correction, at most 4 times, until the residual decreases (Armijo, c = 1e-4)."""
+        f0 = float(np.linalg.norm(R0 * self._row_scale))
+        alpha = 1.0
+        for _ in range(4):
+            R1 = self.residual(Y + alpha * delta, want_jacobian=False)[0]
+            f1 = float(np.linalg.norm(R1 * self._row_scale))
+            if np.isfinite(f1) and f1 <= (1.0 - 1e-4 * alpha) * f0:
+                break
+            alpha *= 0.5
+        return alpha * delta
+
+    def _pair_positions(self, Y):
+        """New-level positions (2P, 3) m of the step's pair nodes (i then j) at iterate Y."""
+        pr = self.pairs
+        idx = np.concatenate([pr.i, pr.j])
+        theta = 0.5 * self.dt * (self.Y_old[idx, W:W + 3] + Y[idx, W:W + 3])
+        R = quat_to_matrix(quat_multiply(self.q_old[idx], quat_exp(theta)))
+        vg = np.einsum("nij,nj->ni", R, Y[idx, V:V + 3])
+        return self.r_old[idx] + 0.5 * self.dt * (self.v_old_global[idx] + vg)
+
+    def pair_gaps(self, Y):
+        """Surface gaps (P,) m of the step's contact pairs at the iterate Y (new level)."""
+        pr = self.pairs
+        r = self._pair_positions(Y)
+        p = pr.i.size
+        d = np.linalg.norm(r[:p] - r[p:], axis=1)
+        return d - 0.5 * (self.p.diameter[pr.i] + self.p.diameter[pr.j])
+
+    def _limit_gap_step(self, Y, delta):
+        """Safeguards of a Newton correction while contact pairs are active.
+
+        (1) Fraction to the boundary for the k1/gap^k2 barrier: no pair may close to less
+        than 30 % of its current gap; (2) trust region: no pair node may move by more
+        than half the contact margin (tolerance − D) in one iteration, so an iterate
+        cannot leave the neighbourhood in which the pairs were found. The correction is
+        halved (at most 10 times) until both hold.
+        """
+        r0 = self._pair_positions(Y)
+        p = self.pairs.i.size
+        g0 = np.linalg.norm(r0[:p] - r0[p:], axis=1) - self._pair_radii
+        if not (np.all(np.isfinite(r0)) and np.all(np.isfinite(g0))):
+            return delta
+        # a closing gap keeps 30 % of itself; a penetrating pair may not double its depth
+        floor = np.where(g0 > 0.0, 0.3 * g0, 2.0 * g0)
+        alpha = 1.0
+        for _ in range(10):
+            r1 = self._pair_positions(Y + alpha * delta)
+            g1 = np.linalg.norm(r1[:p] - r1[p:], axis=1) - self._pair_radii
+            step = np.max(np.linalg.norm(r1 - r0, axis=1)) if r1.size else 0.0
+            if (np.all(np.isfinite(g1)) and np.all(g1 >= floor)
+                    and step <= self._trust_radius):
+                break
+            alpha *= 0.5
+        return alpha * delta

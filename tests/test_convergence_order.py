@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from rodcases import free_end, make_case, smooth_pulse_table
-from solver.simulate import simulate
+from solver.simulation import simulate
 
 FLUID = {"density": 1000.0, "added_mass_coefficient": 1.0,
          "drag_coefficient_normal": 1.0, "drag_coefficient_tangential": 0.05}

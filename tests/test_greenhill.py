@@ -27,7 +27,7 @@ import pytest
 from scipy.optimize import brentq
 
 from solver.case import Case
-from solver.simulate import simulate
+from solver.simulation import simulate
 
 E, G, RHO, RHO_F = 1.25e7, 5.0e6, 1500.0, 1000.0
 L, D = 1.0, 0.01

@@ -314,7 +314,7 @@ def test_failed_write_keeps_old_file_and_leaves_no_temp(full, tmp_path):
 
 def test_round_trip_of_a_real_run(case, tmp_path):
     """The dataset simulate() builds through build_dataset writes and reads back."""
-    from solver.simulate import simulate
+    from solver.simulation import simulate
 
     spec = json.loads(case.canonical_json())
     spec["output"]["fields"] = ["v", "position", "orientation", "energies", "topology"]

@@ -32,7 +32,7 @@ from scipy.optimize import least_squares
 from solver.boundary import BoundaryRows
 from solver.case import Case
 from solver.scheme import alpha_parameters
-from solver.simulate import RodRun, simulate
+from solver.simulation import RodRun, simulate
 
 E, G, RHO, RHO_F = 1.25e7, 5.0e6, 1500.0, 1000.0
 L = 1.0

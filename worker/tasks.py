@@ -1,7 +1,7 @@
 """The task that runs one job, and the worker's heartbeat and reaper.
 
 ``hockle.run_job(job_id)`` is thin: it claims the job in the registry, runs the case with
-:func:`solver.simulate`, writes progress at most every ``HOCKLE_PROGRESS_INTERVAL`` seconds, writes
+:func:`solver.simulation`, writes progress at most every ``HOCKLE_PROGRESS_INTERVAL`` seconds, writes
 the dataset (partial ones too) to the result store under a temporary name and renames it, and
 brings the job to its terminal state. Deterministic failures (a case that does not validate, a
 diverged solve) are final: the task never retries.
@@ -189,8 +189,8 @@ def _with_budget(case, budget: float):
 
 
 def _solve(run: JobRun, case) -> str:
-    # the submodule, not the package: `solver.simulate` is also the name of the module
-    from solver.simulate import SolverDivergence, simulate
+    # the submodule, not the package: `solver.simulation` is also the name of the module
+    from solver.simulation import SolverDivergence, simulate
 
     try:
         ds = simulate(case, progress=run.progress, should_stop=run.should_stop)

@@ -156,6 +156,11 @@ class RodRun:
             sysm.begin_step(h, params, t_new, self.Y, self.Ydot, self.F_old, bc,
                             q_old=self.q, r_old=self.r, v_old_global=self.v_global,
                             pairs=pairs)
+            if sysm.pairs is not None and guess is not self.Y:
+                # an extrapolated predictor must not close any gap by more than 70 %
+                g_old, g_new = sysm.pair_gaps(self.Y), sysm.pair_gaps(guess)
+                if not np.all(g_new >= 0.3 * np.maximum(g_old, 0.0)):
+                    guess = self.Y
             Y, Fn, its, res, ok, pose = sysm.solve_step(guess)
             its_total += its
             if not ok:
