@@ -22,6 +22,7 @@ import numpy as np
 import xarray as xr
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import NullFormatter
 
 __all__ = [
     "plot_all",
@@ -260,6 +261,7 @@ def plot_topology(
         ax_err.plot(t, positive, color="C4", marker=marker, ms=3)
         if np.any(np.isfinite(positive)):
             ax_err.set_yscale("log")
+            ax_err.yaxis.set_minor_formatter(NullFormatter())
         ax_err.set_ylabel("|Tw + Wr - Lk|")
         ax_err.set_xlabel("time (s)")
         ax_err.grid(alpha=0.3)
