@@ -143,6 +143,7 @@ class RodSystem:
         self._dF = np.zeros((n1, NV, NV))
         self.pairs = None
         self._coupled = None
+        self.last_failure = None
         self.gmres_failures = 0
         self.last_contact = None
         self._blocks = np.empty((self.n_cells, NV, 2 * NV))
@@ -459,6 +460,7 @@ class RodSystem:
             return self._newton(Y_guess)
 
     def _newton(self, Y_guess):
+        self.last_failure = None
         Y = Y_guess.copy()
         res_prev = np.inf
         refactor = not self.factor_valid
@@ -473,6 +475,7 @@ class RodSystem:
                 try:
                     self.factor(Y, blocks)
                 except BandFactorError:
+                    self.last_failure = "singular"
                     return Y, Fn, it, np.inf, False, pose
                 refactor = False
             res = float(np.max(np.abs(R) * self._row_scale))
@@ -486,6 +489,7 @@ class RodSystem:
                 try:
                     self.factor(Y, blocks)
                 except BandFactorError:
+                    self.last_failure = "singular"
                     return Y, Fn, it, np.inf, False, pose
                 res = float(np.max(np.abs(R) * self._row_scale))
             res_prev = res

@@ -109,6 +109,7 @@ class RodRun:
         self.v_global = np.zeros((n1, 3))
         self.v_global_time = np.zeros((n1, 3))
         self.phi = np.zeros(2)                            # end rotations about a3, rad
+        self.phidot = np.zeros(2)                         # their rates, rad/s
         self.work_in = 0.0
         self.quat_norm_error = 0.0
         glob = self.loads.global_force(0.0) if self.loads.has_global else None
@@ -204,7 +205,13 @@ class RodRun:
             self.contact_count, self.min_gap = contact_count, min_gap
         self.quat_norm_error = max(self.quat_norm_error, float(np.max(np.abs(nrm - 1.0))))
         self.r_time, self.q_time, self.v_global_time = r_t, q_t, vg_t
-        self.phi += 0.5 * h * (self.Y[[0, -1], 5] + Y[[0, -1], 5])
+        # end rotations about a3 with the scheme's own generalized-α relation (the one
+        # κ obeys through E1), so Lk and the discrete twist advance consistently
+        am, af = params.alpha_m, params.alpha_f
+        rate = (1.0 - af) * Y[[0, -1], 5] + af * self.Y[[0, -1], 5]
+        phidot = (rate - am * self.phidot) / (1.0 - am)
+        self.phi = self.phi + h * ((1.0 - g) * self.phidot + g * phidot)
+        self.phidot = phidot
         # power and work put in (trapezoid in time)
         glob = sysm._glob_force
         body = self._body_force(glob, None if pose is None else (pose[1],))
@@ -313,11 +320,15 @@ class RodRun:
                 continue
             failed = True
             if level >= num.max_dt_cuts:
-                reason = "nonfinite_state" if nonfinite else "solver_diverged"
+                singular = self.system.last_failure == "singular"
+                reason = "nonfinite_state" if (nonfinite and not singular) else "solver_diverged"
+                why = ("singular Jacobian: the boundary conditions leave a force or moment "
+                       "undetermined (e.g. a straight inextensible rod held axially at both "
+                       "ends)" if singular else
+                       "non-finite state" if nonfinite else "Newton did not converge")
                 raise SolverDivergence(
                     f"time step from t = {self.t:.6g} s did not converge after {level} "
-                    f"Δt cuts (Δt = {h_try:.3g} s, scaled residual {res:.3g}, "
-                    f"{'non-finite state' if nonfinite else 'Newton did not converge'})",
+                    f"Δt cuts (Δt = {h_try:.3g} s, scaled residual {res:.3g}, {why})",
                     t=self.t, step=None, residual=res, reason=reason)
             level += 1
         self.level_hint = level if failed else max(0, level)
