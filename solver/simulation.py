@@ -46,6 +46,7 @@ class Progress:
     residual_norm: float
     wall_time: float
     fraction: float
+    contact_count: int = 0
 
 
 class SolverDivergence(RuntimeError):
@@ -479,5 +480,6 @@ def _simulate(case, progress, should_stop):
             progress(Progress(t=run.t, t_end=num.t_end, step=step, dt=run.last_dt,
                               newton_iterations=its, residual_norm=res,
                               wall_time=_time.perf_counter() - wall0,
-                              fraction=min(1.0, run.t / num.t_end)))
+                              fraction=min(1.0, run.t / num.t_end),
+                              contact_count=run.contact_count))
     return finish("completed", f"completed {n_steps} steps to t = {run.t:.6g} s")
