@@ -18,6 +18,7 @@ import time as _time
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from .boundary import BoundaryRows
 from .energies import distributed_power, end_power, energies
@@ -235,31 +236,49 @@ class RodRun:
     def _contact_step_ok(self, r_space, r_newton) -> bool:
         """Step control where self-contact is possible (docs/contact.md).
 
-        A step is refused (and Δt cut) when, with contact possible at the new positions,
-        (a) some node moved further than δ = ½(tolerance − max D) (or D/4 if the
-        tolerance leaves no margin), so that no pair can cross the tolerance shell and
-        tunnel through in one step; (b) the positions Newton used for the contact forces
-        (time route) differ from the shape integrated from κ (space route) by more than
-        δ/2; or (c) the surfaces of the space-route shape interpenetrate.
+        A step is refused (and Δt cut) when (a) two non-neighbouring nodes may have passed
+        through each other within the step: with their relative position moving linearly
+        from its old to its new value, the closest approach falls below half the sum of
+        their radii (a swept test on the pairs a k-d tree finds within the largest
+        relative motion); (b) the positions Newton used for the contact forces (time
+        route) differ from the shape integrated from κ (space route) by more than
+        δ/2, δ = ½(tolerance − max D); or (c) the surfaces of the space-route shape
+        interpenetrate.
         """
         c = self.contact
+        props = self.props
         tangents = np.diff(r_space, axis=0)
         tangents = np.vstack([tangents, tangents[-1:]])
-        if not c.may_touch(r_space, tangents):
+        if not c.may_touch(r_space, tangents) and not c.may_touch(self.r, tangents):
             return True
-        dmax = float(np.max(self.props.diameter))
+        dmax = float(np.max(props.diameter))
         delta = 0.5 * (c.tolerance - dmax)
         if delta <= 0.0:
             delta = 0.25 * dmax
-        moved = float(np.max(np.linalg.norm(r_space - self.r, axis=1)))
-        if moved > delta:
-            return False
         if float(np.max(np.linalg.norm(r_space - r_newton, axis=1))) > 0.5 * delta:
             return False
+        # (a) swept test
+        disp = r_space - self.r
+        reach = dmax + 2.0 * float(np.max(np.linalg.norm(disp, axis=1)))
+        cand = cKDTree(r_space).query_pairs(r=reach, output_type="ndarray")
+        if cand.size:
+            a, b = cand[:, 0], cand[:, 1]
+            far = np.abs(props.s[a] - props.s[b]) > c.exclusion
+            a, b = a[far], b[far]
+            if a.size:
+                x0 = self.r[a] - self.r[b]
+                dx = disp[a] - disp[b]
+                dd = np.einsum("ij,ij->i", dx, dx)
+                tmin = np.clip(-np.einsum("ij,ij->i", x0, dx) / np.where(dd > 0, dd, 1.0),
+                               0.0, 1.0)
+                closest = np.linalg.norm(x0 + tmin[:, None] * dx, axis=1)
+                radii = 0.5 * (props.diameter[a] + props.diameter[b])
+                if np.any(closest < 0.5 * radii):
+                    return False
+        # (c) no interpenetration of the new shape
         pairs = c.find_pairs(r_space, tangents)
         if len(pairs.i):
-            gaps = pairs.distance - 0.5 * (self.props.diameter[pairs.i]
-                                           + self.props.diameter[pairs.j])
+            gaps = pairs.distance - 0.5 * (props.diameter[pairs.i] + props.diameter[pairs.j])
             if float(np.min(gaps)) < 0.0:
                 return False
         return True
