@@ -145,7 +145,6 @@ class RodSystem:
         self.last_failure = None
         self.gmres_failures = 0
         self.gmres_iterations = 0
-        self.last_contact = None
         self._blocks = np.empty((self.n_cells, NV, 2 * NV))
 
     # ------------------------------------------------------------------ per step setup
@@ -352,7 +351,6 @@ class RodSystem:
             # a diverging iterate: make the residual non-finite so that Δt is cut
             return np.full((self.n_nodes, 3), np.nan), None
         ev = self.contact.evaluate(self.pairs, r, vg)
-        self.last_contact = ev
         n1 = self.n_nodes
         force = np.zeros((n1, 3))
         np.add.at(force, ev.i, ev.wi[:, None] * ev.force)

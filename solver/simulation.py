@@ -305,8 +305,7 @@ class RodRun:
         if all(k in key_used for k in key_found):
             return used
         keep = np.array([k not in key_used for k in key_found])
-        return type(found).concatenate(used, found, keep) if hasattr(type(found), "concatenate") \
-            else _concat_pairs(used, found, keep)
+        return _concat_pairs(used, found, keep)
 
     def update_space_route(self):
         """Recompute pose along the rod from κ, anchored at node 0's time-route pose."""
