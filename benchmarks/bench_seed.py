@@ -83,7 +83,7 @@ def main() -> None:
     for key, val in TIMERS.items():
         print(f"  share in {key.replace('_', ' ')}: {val / wall * 100:.1f} % ({val:.2f} s)")
     ev = events(ds)
-    print("  events:", json.dumps({k: round(v, 4) for k, v in ev.items()}))
+    print("  events:", json.dumps({k: float(f"{v:.4g}") for k, v in ev.items()}))
     if args.out:
         from hockle.io import write_netcdf
 
