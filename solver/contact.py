@@ -207,7 +207,9 @@ class SelfContact:
     Attributes
     ----------
     weights : (N,) nodal quadrature weights Δs (m).
-    exclusion, tolerance, gap_floor (m); sin_half_aperture.
+    exclusion, tolerance, gap_floor (m); sin_half_aperture; separation_cut (m): pairs
+    need |s_i − s_j| > separation_cut (the exclusion plus 1e-9 of a mean cell, so that
+    rounding in s never decides); min_separation (m): the smallest such node separation.
     """
 
     def __init__(self, spec, s, diameter, rho_a):
@@ -262,6 +264,20 @@ class SelfContact:
         self.n_nodes = s.size
         self.weights = nodal_weights(s)
         self.gap_floor = GAP_FLOOR_FRACTION * float(diameter.mean())
+        # smallest node separation in arclength that passes the exclusion (m); inf if none
+        # pairs must be further apart than the exclusion by more than rounding (1e-9 of a
+        # mean cell): a separation equal to the exclusion is excluded whatever the last
+        # bit of s, so the same pair never qualifies at one node and not at another.
+        # s_sep uses the same test as find_pairs, s_j − s_i > separation_cut.
+        self.separation_cut = self.exclusion + 1e-9 * (s[-1] - s[0]) / (s.size - 1)
+        partner = np.searchsorted(s, s + self.separation_cut, side="right")
+        node = np.arange(s.size)
+        cand = np.concatenate([partner - 1, partner])
+        own = np.concatenate([node, node])
+        valid = (cand > own) & (cand < s.size)
+        sep = s[cand[valid]] - s[own[valid]]
+        sep = sep[sep > self.separation_cut]
+        self.min_separation = float(sep.min()) if sep.size else float("inf")
         # sin(θ/2); θ = 180° gives exactly 1 (all space)
         self.sin_half_aperture = 1.0 if self.aperture >= 180.0 else float(
             np.sin(np.radians(self.aperture) / 2.0))
@@ -283,8 +299,11 @@ class SelfContact:
 
         Let e be the normalised mean tangent and c = min_k (r_{k+1} − r_k)·e / (s_{k+1} − s_k)
         over the chords of the node polyline.  For j > i, summing the chords gives
-        (r_j − r_i)·e ≥ c (s_j − s_i), hence |r_j − r_i| ≥ c |s_j − s_i| > c·exclusion for
-        every pair that passes the exclusion.  If c·exclusion ≥ tolerance no pair has
+        (r_j − r_i)·e ≥ c (s_j − s_i), hence |r_j − r_i| ≥ c |s_j − s_i| ≥ c·s_sep for
+        every pair that passes the exclusion, where s_sep is the smallest arclength
+        separation of two grid nodes that exceeds the exclusion (on a uniform grid the
+        next multiple of Δs: with the seed's exclusion = tolerance, the bound with the
+        exclusion itself could never rule a pair out).  If c·s_sep ≥ tolerance no pair has
         d < tolerance and the answer is False.  The bound uses the actual chords, so it is
         exact for the discrete positions whatever the tangents (used only for e).
 
@@ -304,7 +323,7 @@ class SelfContact:
             return True
         e = e / norm
         c = float(np.min((np.diff(r, axis=0) @ e) / np.diff(self.s)))
-        return not (c > 0.0 and c * self.exclusion >= self.tolerance)
+        return not (c > 0.0 and c * self.min_separation >= self.tolerance)
 
     # ------------------------------------------------------------------ find_pairs
 
@@ -340,7 +359,7 @@ class SelfContact:
         if cand.size == 0:
             return empty
         a, b = cand[:, 0].astype(np.intp), cand[:, 1].astype(np.intp)
-        keep = np.abs(self.s[a] - self.s[b]) > self.exclusion
+        keep = np.abs(self.s[a] - self.s[b]) > self.separation_cut
         a, b = a[keep], b[keep]
         if a.size == 0:
             return empty

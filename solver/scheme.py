@@ -501,6 +501,8 @@ class RodSystem:
         refactor = not self.factor_valid
         res = np.inf
         pose = None
+        tiny = 0
+        history = []
         for it in range(self.max_iterations + 1):
             R, Fn, blocks, pose = self.residual(Y, want_jacobian=refactor)
             if not np.all(np.isfinite(R)):
@@ -518,6 +520,12 @@ class RodSystem:
                 return Y, Fn, it, res, True, pose
             if it == self.max_iterations:
                 break
+            history.append(res)
+            if self.pairs is not None and it >= 6 and res > 0.5 * history[-5]:
+                # contact step: less than a halving in four iterations (typically the
+                # trust region holding every correction back at a Δt that is too large)
+                self.last_failure = "stalled"
+                return Y, Fn, it, res, False, pose
             if not fresh and res > 0.25 * res_prev:
                 # the reused factor converges slowly: refactor at this iterate
                 R, Fn, blocks, pose = self.residual(Y, want_jacobian=True)
@@ -530,13 +538,32 @@ class RodSystem:
             res_prev = res
             rhs = -R * self._row_scale
             if self._coupled is not None:
+                failures = self.gmres_failures
                 delta = self._coupled_solve(rhs) * self._col_scale
+                if self.gmres_failures > failures:
+                    # the contact coupling is too strong for the band preconditioner at
+                    # this Δt: the correction is unreliable and the iteration would only
+                    # stall (measured: 25 iterations x 40 GMRES iterations per failed
+                    # attempt). Fail now; the caller cuts Δt.
+                    self.last_failure = "gmres"
+                    return Y, Fn, it + 1, res, False, pose
             else:
                 delta = self.layout.solve(rhs) * self._col_scale
             delta = delta.reshape(Y.shape)
             if self.pairs is not None:
-                delta = self._limit_gap_step(Y, delta)
+                delta, alpha = self._limit_gap_step(Y, delta)
+                # corrections cut to 1/64 or less three times in a row: the iterate
+                # sits against the barrier or the trust region and Newton stalls
+                tiny = tiny + 1 if alpha <= 1.0 / 64.0 else 0
+                if tiny >= 3:
+                    self.last_failure = "stalled"
+                    return Y, Fn, it + 1, res, False, pose
                 delta = self._line_search(Y, delta, R)
+                # the barrier k1/gap^k2 changes the Jacobian much between iterates: a
+                # frozen (chord) Jacobian converges only linearly, so contact steps use
+                # full Newton (measured on the seed example: 11-20 iterations per
+                # accepted step with the chord, see docs/contact.md)
+                refactor = True
             Y = Y + delta
         return Y, Fn, self.max_iterations, res, False, pose
 
@@ -577,13 +604,13 @@ class RodSystem:
         than 30 % of its current gap; (2) trust region: no pair node may move by more
         than half the contact margin (tolerance − D) in one iteration, so an iterate
         cannot leave the neighbourhood in which the pairs were found. The correction is
-        halved (at most 10 times) until both hold.
+        halved (at most 10 times) until both hold. Returns (limited correction, factor).
         """
         r0 = self._pair_positions(Y)
         p = self.pairs.i.size
         g0 = np.linalg.norm(r0[:p] - r0[p:], axis=1) - self._pair_radii
         if not (np.all(np.isfinite(r0)) and np.all(np.isfinite(g0))):
-            return delta
+            return delta, 1.0
         # a closing gap keeps 30 % of itself; a penetrating pair may not double its depth
         floor = np.where(g0 > 0.0, 0.3 * g0, 2.0 * g0)
         alpha = 1.0
@@ -595,4 +622,4 @@ class RodSystem:
                     and step <= self._trust_radius):
                 break
             alpha *= 0.5
-        return alpha * delta
+        return alpha * delta, alpha

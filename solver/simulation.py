@@ -77,6 +77,8 @@ class RodRun:
     case : solver.case.Case (validated)
     """
 
+    GROW_AFTER = 3   # accepted substeps at one Δt level before Δt is allowed to grow
+
     def __init__(self, case):
         self.case = case
         num = case.numerics
@@ -263,7 +265,7 @@ class RodRun:
         cand = cKDTree(r_space).query_pairs(r=reach, output_type="ndarray")
         if cand.size:
             a, b = cand[:, 0], cand[:, 1]
-            far = np.abs(props.s[a] - props.s[b]) > c.exclusion
+            far = np.abs(props.s[a] - props.s[b]) > c.separation_cut
             a, b = a[far], b[far]
             if a.size:
                 x0 = self.r[a] - self.r[b]
@@ -320,14 +322,21 @@ class RodRun:
 
         Δt levels: h = (t_target − t)/factor^level. A nominal step starts one level below
         the level the previous one needed (so Δt grows back gradually after an event), and
-        substeps at the current level until t_target is reached.
+        substeps at the current level until t_target is reached; after
+        ``GROW_AFTER`` consecutive accepted substeps the level drops by one (Δt grows by
+        the factor) within the nominal step as well, so one brief event does not leave
+        the rest of the step at the smallest Δt.
         """
         num = self.case.numerics
         h_full = t_target - self.t
         level = max(0, self.level_hint - 1)
         total_its = 0
         failed = False
+        accepted = 0
         while self.t < t_target - 1e-12 * max(1.0, abs(t_target)):
+            if accepted >= self.GROW_AFTER and level > 0:
+                level -= 1
+                accepted = 0
             h = h_full / num.dt_cut_factor**level
             h_try = min(h, t_target - self.t)
             if t_target - self.t - h_try < 1e-9 * h:
@@ -336,7 +345,9 @@ class RodRun:
             total_its += its
             if ok:
                 self.last_dt = h_try
+                accepted += 1
                 continue
+            accepted = 0
             failed = True
             if level >= num.max_dt_cuts:
                 singular = self.system.last_failure == "singular"
