@@ -24,6 +24,7 @@ import solver.topology as topology_mod  # noqa: E402
 from solver import Case, SolverDivergence, simulate  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "benchmarks" / "results"
 TIMERS = {"contact_search": 0.0, "writhe": 0.0}
 
 
@@ -37,7 +38,119 @@ def timed(owner, name, key):
         finally:
             TIMERS[key] += time.perf_counter() - t0
 
+    wrapper.__wrapped__ = fn
     setattr(owner, name, wrapper)
+
+
+def run(t_end: float = 45.0, out: str | None = None) -> dict:
+    """Run the seed example to t_end (s) with the timers installed; return the figures."""
+    TIMERS.update(contact_search=0.0, writhe=0.0)
+    timed(contact_mod.SelfContact, "find_pairs", "contact_search")
+    timed(contact_mod.SelfContact, "may_touch", "contact_search")
+    timed(topology_mod, "writhe", "writhe")
+    try:
+        spec = Case.from_file(ROOT / "cases" / "goyal-writhing.yaml").model_dump(mode="json")
+        spec["numerics"]["t_end"] = t_end
+        case = Case.model_validate(spec)
+        steps = []
+        last = [0.0]
+
+        def progress(p):
+            steps.append((p.wall_time - last[0], p.contact_count > 0))
+            last[0] = p.wall_time
+
+        t0 = time.perf_counter()
+        message = "completed"
+        try:
+            ds = simulate(case, progress=progress)
+        except SolverDivergence as exc:
+            message = f"solver diverged: {exc}"
+            ds = exc.partial
+        wall = time.perf_counter() - t0
+    finally:
+        for owner, name in ((contact_mod.SelfContact, "find_pairs"),
+                            (contact_mod.SelfContact, "may_touch"), (topology_mod, "writhe")):
+            fn = getattr(owner, name)
+            setattr(owner, name, getattr(fn, "__wrapped__", fn))
+    with_c = [w for w, c in steps if c]
+    without = [w for w, c in steps if not c]
+    res = {"n_segments": case.numerics.n_segments, "dt": case.numerics.dt,
+           "t_reached": float(ds.time[-1]), "message": message, "wall_s": wall,
+           "nominal_steps": len(steps),
+           "newton_iterations": int(ds.step_newton_iterations.sum()),
+           "min_dt": float(ds.step_dt.min()),
+           "ms_per_step_without_contact": statistics.median(without) * 1e3 if without else None,
+           "steps_without_contact": len(without),
+           "ms_per_step_with_contact_median": statistics.median(with_c) * 1e3 if with_c else None,
+           "ms_per_step_with_contact_mean": statistics.mean(with_c) * 1e3 if with_c else None,
+           "steps_with_contact": len(with_c), "s_in_contact_steps": sum(with_c),
+           "share_contact_search": TIMERS["contact_search"] / wall,
+           "share_writhe": TIMERS["writhe"] / wall,
+           "events": {k: float(f"{v:.4g}") for k, v in events(ds).items()}}
+    if out:
+        from hockle.io import write_netcdf
+
+        write_netcdf(ds, out)
+    return res
+
+
+def report(res: dict) -> None:
+    print(f"== seed example, {res['n_segments']} segments, Δt = {res['dt']} s, "
+          f"to {res['t_reached']:.1f} s ({res['message']})")
+    print(f"  wall time: {res['wall_s']:.1f} s  (bar 120 s: {res['wall_s'] / 120:.2f} of it; "
+          f"goal 20 s: {res['wall_s'] / 20:.2f} of it)")
+    print(f"  nominal steps: {res['nominal_steps']}; Newton iterations: "
+          f"{res['newton_iterations']}; smallest Δt: {res['min_dt']:.3g} s")
+    if res["steps_without_contact"]:
+        print(f"  time per step without contact: median "
+              f"{res['ms_per_step_without_contact']:.1f} ms ({res['steps_without_contact']} steps)")
+    if res["steps_with_contact"]:
+        print(f"  time per step with active contact: median "
+              f"{res['ms_per_step_with_contact_median']:.0f} ms, mean "
+              f"{res['ms_per_step_with_contact_mean']:.0f} ms ({res['steps_with_contact']} "
+              f"steps, {res['s_in_contact_steps']:.1f} s in all)")
+    print(f"  share in contact search: {res['share_contact_search'] * 100:.1f} %; "
+          f"in writhe: {res['share_writhe'] * 100:.1f} %")
+    print("  events:", json.dumps(res["events"]))
+
+
+def section(figdir: Path, quick: bool = False) -> str:
+    """Run the seed example (quick: to 12 s, before buckling) and return its section."""
+    res = run(12.0 if quick else 45.0)
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    (RESULTS / "bench_seed.json").write_text(json.dumps(res, indent=1))
+    report(res)
+    ev = res["events"]
+    rows = [("wall time", f"{res['wall_s']:.1f} s (bar 120 s: {res['wall_s'] / 120:.2f}x; "
+             f"goal 20 s: {res['wall_s'] / 20:.2f}x)"),
+            ("simulated", f"0 to {res['t_reached']:.1f} s, {res['message']}"),
+            ("nominal steps / Newton iterations", f"{res['nominal_steps']} / "
+             f"{res['newton_iterations']}"),
+            ("smallest Δt", f"{res['min_dt']:.3g} s")]
+    if res["steps_without_contact"]:
+        rows.append(("time per step without contact (median)",
+                     f"{res['ms_per_step_without_contact']:.1f} ms "
+                     f"({res['steps_without_contact']} steps)"))
+    if res["steps_with_contact"]:
+        rows.append(("time per step with active contact (median / mean)",
+                     f"{res['ms_per_step_with_contact_median']:.0f} / "
+                     f"{res['ms_per_step_with_contact_mean']:.0f} ms "
+                     f"({res['steps_with_contact']} steps, {res['s_in_contact_steps']:.0f} s)"))
+    rows += [("share in contact search", f"{res['share_contact_search'] * 100:.1f} %"),
+             ("share in writhe", f"{res['share_writhe'] * 100:.1f} %")]
+    for key, val in ev.items():
+        rows.append((f"event: {key.replace('_', ' ')}", f"{val:g}"))
+    lines = ["## The seed example at its resolution",
+             "",
+             f"`cases/goyal-writhing.yaml`, {res['n_segments']} segments, Δt = {res['dt']} s, "
+             "with self-contact, topology and every field at every step, one run. Written "
+             "by `benchmarks/bench_seed.py`; the comparison with the paper is in "
+             "[seed-example.md](seed-example.md).",
+             "",
+             "| quantity | value |", "|---|---|"]
+    lines += [f"| {a} | {b} |" for a, b in rows]
+    lines.append("")
+    return "\n".join(lines)
 
 
 def main() -> None:
@@ -45,49 +158,11 @@ def main() -> None:
     ap.add_argument("--t-end", type=float, default=45.0)
     ap.add_argument("--out", default=None, help="also write the dataset (NetCDF)")
     args = ap.parse_args()
-    timed(contact_mod.SelfContact, "find_pairs", "contact_search")
-    timed(contact_mod.SelfContact, "may_touch", "contact_search")
-    timed(topology_mod, "writhe", "writhe")
-    spec = Case.from_file(ROOT / "cases" / "goyal-writhing.yaml").model_dump(mode="json")
-    spec["numerics"]["t_end"] = args.t_end
-    case = Case.model_validate(spec)
-    steps = []
-    last = [0.0]
-
-    def progress(p):
-        steps.append((p.wall_time - last[0], p.contact_count > 0))
-        last[0] = p.wall_time
-
-    t0 = time.perf_counter()
-    try:
-        ds = simulate(case, progress=progress)
-    except SolverDivergence as exc:
-        print("solver diverged:", exc)
-        ds = exc.partial
-    wall = time.perf_counter() - t0
-    with_c = [w for w, c in steps if c]
-    without = [w for w, c in steps if not c]
-    print(f"== seed example, {case.numerics.n_segments} segments, Δt = {case.numerics.dt} s, "
-          f"to {float(ds.time[-1]):.1f} s")
-    print(f"  wall time: {wall:.1f} s  (bar 120 s: {wall / 120:.2f} of it; goal 20 s: "
-          f"{wall / 20:.2f} of it)")
-    print(f"  nominal steps: {len(steps)}; Newton iterations: "
-          f"{int(ds.step_newton_iterations.sum())}; smallest Δt: {float(ds.step_dt.min()):.3g} s")
-    if without:
-        print(f"  time per step without contact: median {statistics.median(without) * 1e3:.1f} ms "
-              f"({len(without)} steps)")
-    if with_c:
-        print(f"  time per step with active contact: median {statistics.median(with_c) * 1e3:.0f} ms, "
-              f"mean {statistics.mean(with_c) * 1e3:.0f} ms ({len(with_c)} steps, "
-              f"{sum(with_c):.1f} s in all)")
-    for key, val in TIMERS.items():
-        print(f"  share in {key.replace('_', ' ')}: {val / wall * 100:.1f} % ({val:.2f} s)")
-    ev = events(ds)
-    print("  events:", json.dumps({k: float(f"{v:.4g}") for k, v in ev.items()}))
+    res = run(args.t_end, args.out)
+    report(res)
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    (RESULTS / "bench_seed.json").write_text(json.dumps(res, indent=1))
     if args.out:
-        from hockle.io import write_netcdf
-
-        write_netcdf(ds, args.out)
         print("  dataset:", args.out)
 
 
