@@ -983,10 +983,12 @@ def reading(res: dict) -> list[str]:
         out += [f"* **Greenhill.** At Δt = {dt_max:g} s (σΔt = "
                 f"{gh['oracle']['sigma_1_s'] * dt_max:.2f}), n = {n_max}, σ_h/σ − 1 is {parts}: "
                 "the numerical dissipation that damps oscillations for ρ∞ < 1 *amplifies* a "
-                "growing mode (the amplification factor of a real positive eigenvalue exceeds "
-                "e^{σΔt}, as for backward Euler), so an instability grows too fast and a "
-                "buckling event comes early unless Δt resolves the growth; at ρ∞ = 1 the "
-                "error is the trapezoid's small (σΔt)²/12. Cheapest below 1 % / 0.1 % per "
+                "growing mode at moderate σΔt (its amplification factor exceeds e^{σΔt}, as "
+                "backward Euler's 1/(1 − σΔt) does for σΔt < 1), so an instability grows too "
+                "fast and a buckling event comes early unless Δt resolves the growth; at "
+                "ρ∞ = 1 the error is the trapezoid's small (σΔt)²/12. (For σΔt ≫ 1 the same "
+                "factor drops below one and the instability is suppressed instead: "
+                "`docs/numerics.md` §6.) Cheapest below 1 % / 0.1 % per "
                 "ρ∞: " + "; ".join(f"ρ∞ = {r:g}: " + " / ".join(
                     _short(gh["cheapest"][str(t)][str(r)]) for t in THRESHOLDS)
                     for r in RHO_INFS) + "."
