@@ -1026,10 +1026,10 @@ def render_section(res, names):
              "`solver.topology` for Tw, Wr and Lk: PyElastica's Tw is the twist of its "
              "material frame about the centreline tangent (d1 projected normal to each "
              "segment, parallel transport between segments), which closes Lk = Tw + Wr; its "
-             "own κ3 (twist about d3) differs from it by the shear (column 'Tw about d3' "
-             "below). Events: buckling when the centreline is 1 cm off the axis, first "
-             "self-contact when the surface gap (cubic spline through the nodes, parts more "
-             "than πD apart in arclength) falls below 5 mm, both interpolated between "
+             "own κ3 (twist about d3) differs from it by the shear ('Tw about d3' in the "
+             "topology checks below). Events: buckling when the centreline is 1 cm off the "
+             "axis, first self-contact when the surface gap (cubic spline through the nodes, "
+             "parts more than πD apart in arclength) falls below 5 mm, both interpolated between "
              "outputs every 0.02 s.")
     L.append("")
     # timing overview
@@ -1124,6 +1124,7 @@ def render_section(res, names):
             ratios[level] = {"ratio": ratio, "bound": not (a and b), "text": cell}
             L.append(f"| {100 * level:g} % | {fa} | {fb} | {cell} |")
         res["matched_ratios"] = {str(k): v for k, v in ratios.items()}
+        L.append("")
         same = []
         for r in hk["settings"]:
             p = [q for q in _pe_runs(res, "setting") if q["n"] == r["n"]]
