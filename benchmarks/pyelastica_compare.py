@@ -895,6 +895,7 @@ def make_figures(res, figdir):
     if pg:
         ax[0].loglog([r["n"] for r in pg], [abs(r["ratio"] - 1) for r in pg], "s--",
                      label="PyElastica")
+    ax[0].set_xticks([r["n"] for r in g], [str(r["n"]) for r in g])
     ax[0].set_xlabel("N (segments = elements)")
     ax[0].set_ylabel("|φ_cr / φ_cr,Greenhill − 1|")
     ax[0].set_title("Greenhill buckling twist")
