@@ -116,12 +116,11 @@ def main() -> None:
     sys.path.insert(0, str(HERE))
     FIGDIR.mkdir(parents=True, exist_ok=True)
     RESULTS.mkdir(parents=True, exist_ok=True)
-    keep = previous_sections()
     texts, timings = {}, {}
     t_all = time.perf_counter()
     for name, module, what in SECTIONS:
         if (only and name not in only) or name in skip:
-            texts[name] = keep.get(name, f"## {what}\n\n(not run yet)\n")
+            texts[name] = None          # filled from the page as it is when we write
             continue
         print(f"==> {name}: {what}", flush=True)
         t0 = time.perf_counter()
@@ -130,6 +129,12 @@ def main() -> None:
         timings[name] = time.perf_counter() - t0
         print(f"<== {name}: {timings[name]:.0f} s", flush=True)
     total = time.perf_counter() - t_all
+    # sections not run keep their text from the page as it is now (another invocation
+    # with other sections may have written it meanwhile)
+    keep = previous_sections()
+    for name, _, what in SECTIONS:
+        if texts[name] is None:
+            texts[name] = keep.get(name, f"## {what}\n\n(not run yet)\n")
     stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     head = ["# Benchmarks: accuracy against cost, stability, what each feature costs, "
             "and PyElastica side by side",
