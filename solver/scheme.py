@@ -297,7 +297,10 @@ class RodSystem:
         af = self.params.alpha_f
         pose = None
         pose_arg = None
-        if self.needs_pose:
+        # the new-level pose is needed inside Newton only by global-frame loads and by
+        # active contact pairs; with contact configured but no pair in this step it is
+        # computed once after convergence (RodRun.try_step), not at every iterate
+        if self.loads.has_global or self.pairs is not None:
             pose = self.pose_new(Y)
             pose_arg = (pose[1], pose[3], 0.5 * self.dt)
         extra = None

@@ -172,6 +172,8 @@ class RodRun:
                 return False, its_total, res, not np.isfinite(res)
             if self.contact is None:
                 break
+            if pose is None:
+                pose = sysm.pose_new(Y)
             # the pairs at the new positions must be among those the step used
             new_pairs = self._find_pairs(pose[2], pose[1])
             merged = self._merge_pairs(pairs, new_pairs)
