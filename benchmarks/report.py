@@ -20,6 +20,7 @@ import json
 import os
 import platform
 import re
+import subprocess
 import sys
 import time
 from datetime import datetime, timezone
@@ -101,6 +102,20 @@ def previous_sections() -> dict:
     return found
 
 
+def ensure_pyelastica() -> None:
+    """Install the PyElastica benchmark's own requirements if PyElastica is missing
+    (benchmark-only: neither hockle nor its tests need it)."""
+    from importlib.util import find_spec
+
+    if find_spec("elastica") is not None:
+        return
+    req = HERE / "requirements-pyelastica.txt"
+    print(f"    installing {req.name} (PyElastica, numba) ...", flush=True)
+    subprocess.run([sys.executable, "-m", "pip", "install", "-q", "-r", str(req)],
+                   check=True)
+    importlib.invalidate_caches()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
@@ -123,6 +138,8 @@ def main() -> None:
             texts[name] = None          # filled from the page as it is when we write
             continue
         print(f"==> {name}: {what}", flush=True)
+        if name == "pyelastica":
+            ensure_pyelastica()
         t0 = time.perf_counter()
         mod = importlib.import_module(module)
         texts[name] = mod.section(FIGDIR, quick=args.quick).rstrip() + "\n"
