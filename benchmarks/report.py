@@ -69,6 +69,14 @@ def headline() -> list[str]:
         res = _load(name)
         if res and isinstance(res.get("headline"), list):
             out.extend(str(x) for x in res["headline"])
+    pe = _load("pyelastica_compare")
+    if pe and isinstance(pe.get("matched_ratios_pyelastica_over_hockle"), dict):
+        parts = [f"{float(level) * 100:g} %: {item['text']}" for level, item in
+                 sorted(pe["matched_ratios_pyelastica_over_hockle"].items(),
+                        key=lambda kv: -float(kv[0]))]
+        out.append("PyElastica side by side (plectoneme example, scaled): wall time of "
+                   "PyElastica over hockle at matched accuracy, " + "; ".join(parts)
+                   + (" (quick mode)" if pe.get("quick") else "") + ".")
     return out
 
 
