@@ -29,8 +29,7 @@ moment of a slender rod equal ½Cφ²/L and Cφ/L.
 
 Measured findings are in the docstrings of the tests that found them. One is a known
 limitation, stated as the correct expectation and marked xfail: at Δt = 1 s with ρ∞ < 1 a
-column compressed beyond the Euler load does not buckle (reproducer
-/tmp/dev/patches/large-dt-suppresses-buckling.py).
+column compressed beyond the Euler load does not buckle (docs/numerics.md § 6).
 """
 from __future__ import annotations
 
@@ -492,7 +491,7 @@ def test_large_time_step_seed_twist(rho_inf):
     then stays (measured 0.159 turns = 1.0 rad, also through the kinks of the table).
     Measured energy_total − work_in: +0.7 % of W at ρ∞ = 0 and 0.5, 0 at ρ∞ = 1: work_in is
     the trapezoid rule on the power at the step levels, not the scheme's discrete work,
-    and differs from it by O(Δt²) (reproducer /tmp/dev/patches/work-in-trapezoid.py: +4.8 %
+    and differs from it by O(Δt²) (docs/numerics.md § 6: +4.8 %
     at Δt = 1 s on the stability map's case, with energy_total equal to the discrete
     work to 1e-6)."""
     spec = seed_spec(40, 1.0, 20.0, contact=False)
@@ -511,9 +510,9 @@ def test_large_time_step_seed_twist(rho_inf):
 
 @pytest.mark.parametrize("rho_inf", [
     pytest.param(0.0, marks=pytest.mark.xfail(
-        strict=True, reason="large-dt-suppresses-buckling.py: σΔt = 3.7, ρ∞ < 1")),
+        strict=True, reason="known limitation, docs/numerics.md § 6: σΔt = 3.7 with ρ∞ < 1 suppresses the growing mode")),
     pytest.param(0.5, marks=pytest.mark.xfail(
-        strict=True, reason="large-dt-suppresses-buckling.py: σΔt = 3.7, ρ∞ < 1")),
+        strict=True, reason="known limitation, docs/numerics.md § 6: σΔt = 3.7 with ρ∞ < 1 suppresses the growing mode")),
     1.0])
 def test_large_time_step_column_beyond_euler_buckles(rho_inf):
     """1.5 P_cr with a constant imperfection force (so that the Δt = 1 s levels see it),
