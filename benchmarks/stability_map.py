@@ -173,10 +173,10 @@ def discrete_work(ds) -> np.ndarray:
     the start section (the far end cannot rotate); at s = L the tension times the axial
     end displacement, T (z_Lⁿ⁺¹ − z_Lⁿ); the imperfection force F times the trapezoid-
     weighted lateral displacement of the nodes it acts on. For ρ∞ = 1 this is the box
-    scheme's exact discrete work (midpoint force × increment); ``work_in`` is the
-    trapezoid rule on the power at the step levels, which differs from it by O(Δt²)
-    (by 5 % of the work at Δt = 1 s, ρ∞ = 0.5: measured E = this work to 1e-6 there, while
-    E − work_in = +0.68 J of 14.1 J). Outputs must be dense (every step, or every
+    scheme's exact discrete work (midpoint force × increment). ``work_in`` was the
+    trapezoid rule on the power at the step levels, which differed from it by O(Δt²)
+    (5 % of the work at Δt = 1 s, ρ∞ = 0.5); since 2026-11-21 it is the same discrete
+    work, accumulated by the solver (docs/numerics.md § 6). Outputs must be dense (every step, or every
     few steps where Δt < 1e-3 s)."""
     t = ds.time.values
     q3 = ds.moment.values[:, 0, 2]

@@ -59,6 +59,18 @@ def end_power(Y: np.ndarray, props) -> float:
     return float(p_end + p_start)
 
 
+def end_loads(Y: np.ndarray, props) -> np.ndarray:
+    """Loads (2, 6) put on the rod at s = 0 and s = L, conjugate to (v, ω) of the end
+    nodes in the body frame: −(f, q) at s = 0 and +(f, q) at s = L (N and N·m), so that
+    end_power = Σ end_loads · Y[ends, 0:6]."""
+    out = np.empty((2, 6))
+    out[0, 0:3] = -Y[0, 6:9]
+    out[0, 3:6] = -props.stiffness[0] * Y[0, 9:12]
+    out[1, 0:3] = Y[-1, 6:9]
+    out[1, 3:6] = props.stiffness[-1] * Y[-1, 9:12]
+    return out
+
+
 def distributed_power(Y: np.ndarray, body_force: np.ndarray | None, props) -> float:
     """Power (W) of a distributed body-frame force (N+1, 3) N/m on the velocities of Y."""
     if body_force is None:
