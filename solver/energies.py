@@ -50,25 +50,27 @@ def energies(Y: np.ndarray, props) -> dict:
     }
 
 
-def end_power(Y: np.ndarray, props) -> float:
-    """Power (W) put into the rod at its two ends by the end loads."""
-    q0 = props.stiffness[0] * Y[0, 9:12]
-    qn = props.stiffness[-1] * Y[-1, 9:12]
-    p_end = np.dot(Y[-1, 6:9], Y[-1, 0:3]) + np.dot(qn, Y[-1, 3:6])
-    p_start = -np.dot(Y[0, 6:9], Y[0, 0:3]) - np.dot(q0, Y[0, 3:6])
-    return float(p_end + p_start)
-
-
 def end_loads(Y: np.ndarray, props) -> np.ndarray:
-    """Loads (2, 6) put on the rod at s = 0 and s = L, conjugate to (v, ω) of the end
-    nodes in the body frame: −(f, q) at s = 0 and +(f, q) at s = L (N and N·m), so that
-    end_power = Σ end_loads · Y[ends, 0:6]."""
+    """Loads (2, 6) on the rod at s = 0 and s = L, conjugate to (v, ω) of the end nodes
+    in the body frame: −(f, q) at s = 0 and +(f, q) at s = L, f in N and q = diag(EJ1,
+    EJ2, GJ3)·κ in N·m (seed eqs. 2-5, boundary terms of the box scheme's flux).
+
+    Y : (N+1, 12) state (v, ω, f, κ); props : RodProperties. Raises nothing.
+    """
     out = np.empty((2, 6))
     out[0, 0:3] = -Y[0, 6:9]
     out[0, 3:6] = -props.stiffness[0] * Y[0, 9:12]
     out[1, 0:3] = Y[-1, 6:9]
     out[1, 3:6] = props.stiffness[-1] * Y[-1, 9:12]
     return out
+
+
+def end_power(Y: np.ndarray, props, loads: np.ndarray | None = None) -> float:
+    """Power (W) put into the rod at its two ends by the end loads: Σ end_loads·(v, ω)
+    at the end nodes. ``loads`` (2, 6), if given, are :func:`end_loads` of Y."""
+    if loads is None:
+        loads = end_loads(Y, props)
+    return float(np.sum(loads * Y[[0, -1], 0:6]))
 
 
 def distributed_power(Y: np.ndarray, body_force: np.ndarray | None, props) -> float:

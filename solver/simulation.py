@@ -113,9 +113,9 @@ class RodRun:
         self.v_global = np.zeros((n1, 3))
         self.v_global_time = np.zeros((n1, 3))
         self.phi = np.zeros(2)                            # end rotations about a3, rad
-        self.phidot = np.zeros(2)                         # their rates, rad/s
         self.work_in = 0.0
-        self.xdot_end = np.zeros((2, 6))                  # end displacement rates (α-relation)
+        # end displacement rates (2, 6) of the α-relation, m/s and rad/s; [:, 5] is φ̇
+        self.xdot_end = np.zeros((2, 6))
         self.xdot_nodes = np.zeros((n1, 3))               # node displacement rates, m/s
         # (advanced only where distributed loads do work: loads.has_global)
         self.quat_norm_error = 0.0
@@ -215,25 +215,23 @@ class RodRun:
             self.contact_count, self.min_gap = contact_count, min_gap
         self.quat_norm_error = max(self.quat_norm_error, float(np.max(np.abs(nrm - 1.0))))
         self.r_time, self.q_time, self.v_global_time = r_t, q_t, vg_t
-        # end rotations about a3 with the scheme's own generalized-α relation (the one
-        # κ obeys through E1), so Lk and the discrete twist advance consistently
+        # displacement increments of the end sections (v, ω components, body frame) with
+        # the scheme's own generalized-α relation (the one κ obeys through E1). Their
+        # a3 rotations are the end rotations φ of the linking number, so Lk and the
+        # discrete twist advance consistently; with the end loads they give the work.
         am, af = params.alpha_m, params.alpha_f
-        rate = (1.0 - af) * Y[[0, -1], 5] + af * self.Y[[0, -1], 5]
-        phidot = (rate - am * self.phidot) / (1.0 - am)
-        self.phi = self.phi + h * ((1.0 - g) * self.phidot + g * phidot)
-        self.phidot = phidot
-        # work put in: the mean load of the step times the increment of its conjugate
-        # displacement, advanced with the scheme's own generalized-α relation (as φ
-        # above). At ρ∞ = 1 this is the box scheme's discrete work, ½(Fⁿ + Fⁿ⁺¹)·½(ẋⁿ +
-        # ẋⁿ⁺¹)Δt, which the energy then equals; a trapezoid of the power (mean of the
-        # products) differs from it by O(Δt²) (10 % at Δt = 1 s, docs/numerics.md § 6).
-        glob = sysm._glob_force
-        body = self._body_force(glob, None if pose is None else (pose[1],))
-        power = end_power(Y, props) + distributed_power(Y, body, props)
-        loads = end_loads(Y, props)
         rate = (1.0 - af) * Y[[0, -1], 0:6] + af * self.Y[[0, -1], 0:6]
         xdot = (rate - am * self.xdot_end) / (1.0 - am)
         dx = h * ((1.0 - g) * self.xdot_end + g * xdot)
+        self.phi = self.phi + dx[:, 5]
+        # work put in: the mean load of the step times the increment of its conjugate
+        # displacement. At ρ∞ = 1 this is the box scheme's discrete work, ½(Fⁿ + Fⁿ⁺¹)·
+        # ½(ẋⁿ + ẋⁿ⁺¹)Δt, which the energy then equals; a trapezoid of the power (mean of
+        # the products) differs from it by O(Δt²) (10 % at Δt = 1 s, docs/numerics.md § 6).
+        glob = sysm._glob_force
+        body = self._body_force(glob, None if pose is None else (pose[1],))
+        loads = end_loads(Y, props)
+        power = end_power(Y, props, loads) + distributed_power(Y, body, props)
         self.work_in += float(np.sum(0.5 * (self.end_load + loads) * dx))
         self.xdot_end, self.end_load = xdot, loads
         if self.loads.has_global:
