@@ -45,7 +45,7 @@ def timed(owner, name, key):
 def run(t_end: float = 45.0, out: str | None = None) -> dict:
     """Run the seed example to t_end (s) with the timers installed; return the figures."""
     TIMERS.update(contact_search=0.0, writhe=0.0)
-    timed(contact_mod.SelfContact, "find_pairs", "contact_search")
+    timed(contact_mod.SelfContact, "candidates", "contact_search")
     timed(contact_mod.SelfContact, "may_touch", "contact_search")
     timed(topology_mod, "writhe", "writhe")
     try:
@@ -68,7 +68,7 @@ def run(t_end: float = 45.0, out: str | None = None) -> dict:
             ds = exc.partial
         wall = time.perf_counter() - t0
     finally:
-        for owner, name in ((contact_mod.SelfContact, "find_pairs"),
+        for owner, name in ((contact_mod.SelfContact, "candidates"),
                             (contact_mod.SelfContact, "may_touch"), (topology_mod, "writhe")):
             fn = getattr(owner, name)
             setattr(owner, name, getattr(fn, "__wrapped__", fn))

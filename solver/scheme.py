@@ -140,7 +140,7 @@ class RodSystem:
         # buffers
         n1 = self.n_nodes
         self._dF = np.zeros((n1, NV, NV))
-        self.pairs = None
+        self.candidates = None
         self._coupled = None
         self.last_failure = None
         self.gmres_failures = 0
@@ -149,13 +149,15 @@ class RodSystem:
 
     # ------------------------------------------------------------------ per step setup
     def begin_step(self, dt, params: StepParameters, t_new, Y_old, Ydot_old, F_old,
-                   bc, q_old=None, r_old=None, v_old_global=None, pairs=None):
+                   bc, q_old=None, r_old=None, v_old_global=None, candidates=None):
         """Freeze the old-level data of a step n -> n+1 of size dt (s) ending at t_new.
 
         Y_old, Ydot_old, F_old: (N+1, 12); bc: a BoundaryRows for t_new; q_old (N+1, 4) and
         r_old (N+1, 3) the old pose (needed for orientation-dependent loads and contact);
         v_old_global (N+1, 3) old global velocities (contact, position update);
-        pairs: the contact pairs held fixed during this step's Newton iterations, or None.
+        candidates: the contact candidates (:class:`solver.contact.ContactCandidates`)
+        searched during this step's Newton iterations, or None. The closest points and
+        the active contacts are re-selected at every iterate.
         """
         p = self.p
         am, af, g = params.alpha_m, params.alpha_f, params.gamma
@@ -169,16 +171,12 @@ class RodSystem:
         self._flux_const = af * self._flux(Y_old)
         self.q_old, self.r_old, self.v_old_global = q_old, r_old, v_old_global
         self._glob_force = self.loads.global_force(t_new) if self.loads.has_global else None
-        self.pairs = pairs if (pairs is not None and len(pairs.i) > 0) else None
-        if self.pairs is not None:
-            self._pair_radii = 0.5 * (self.p.diameter[self.pairs.i]
-                                      + self.p.diameter[self.pairs.j])
-            margin = self.contact.tolerance - float(np.max(self.p.diameter))
-            self._trust_radius = 0.5 * max(margin, 0.25 * float(np.max(self.p.diameter)))
+        self.candidates = candidates if (candidates is not None and candidates.runs > 0) else None
+        self.last_contact = None
         key = (dt, params, bc.key)
         # contact stiffness changes fast with the gaps: a fresh Jacobian every contact step
-        if (key != self.factor_key or self.pairs is not None
-                or (self.pairs is None) != (self._coupled is None)):
+        if (key != self.factor_key or self.candidates is not None
+                or (self.candidates is None) != (self._coupled is None)):
             self.factor_valid = False
         self.factor_key = key
 
@@ -224,8 +222,8 @@ class RodSystem:
         new-level rotation R^n exp(θ) and c = ∂θ/∂ω^{n+1} = ½Δt; None when the case has
         none. The load B = Rᵀ F_global then has ∂B/∂ω^{n+1} = c [B]× J_r(θ).
         glob_force: (N+1, 3) global-frame distributed force (N/m) or None.
-        extra: (B (N+1, 3), dB/dv (N+1, 3, 3)) an additional body-frame load and its
-        node-local velocity Jacobian (self-contact), or None.
+        extra: (B (N+1, 3), dB/d(v, ω) (N+1, 3, 6)) an additional body-frame load and its
+        node-local Jacobian in (v, ω) (self-contact), or None.
         """
         p = self.p
         v, w, f, k = Y[:, V:V + 3], Y[:, W:W + 3], Y[:, F:F + 3], Y[:, K:K + 3]
@@ -274,7 +272,7 @@ class RodSystem:
         if dB_dv is not None:
             d[:, E3:E3 + 3, V:V + 3] += dB_dv
         if extra is not None and extra[1] is not None:
-            d[:, E3:E3 + 3, V:V + 3] += extra[1]
+            d[:, E3:E3 + 3, V:V + 6] += extra[1]
         if b_rot is not None:
             d[:, E3:E3 + 3, W:W + 3] += pose[2] * (skew(b_rot) @ right_jacobian(pose[1]))
         # E4: κ×Bκ − ω×Iω + a3×f
@@ -300,13 +298,13 @@ class RodSystem:
         # the new-level pose is needed inside Newton only by global-frame loads and by
         # active contact pairs; with contact configured but no pair in this step it is
         # computed once after convergence (RodRun.try_step), not at every iterate
-        if self.loads.has_global or self.pairs is not None:
+        if self.loads.has_global or self.candidates is not None:
             pose = self.pose_new(Y)
             pose_arg = (pose[1], pose[3], 0.5 * self.dt)
         extra = None
         glob = self._glob_force
         self._offband = None
-        if self.pairs is not None:
+        if self.candidates is not None:
             contact_global, diag = self._contact_terms(Y, pose, want_jacobian)
             glob = contact_global if glob is None else glob + contact_global
             extra = (None, diag)
@@ -340,37 +338,56 @@ class RodSystem:
     def _contact_terms(self, Y, pose, want_jacobian):
         """Self-contact load at the new level (global frame, N/m) and its Jacobian.
 
-        The pair force depends on r_i − r_j and ṙ_i − ṙ_j at the new level, with
-        r^{n+1} = r^n + ½Δt(ṙ^n + R^{n+1} v^{n+1}) and ṙ^{n+1} = R^{n+1} v^{n+1}, so
-        ∂F_p/∂v_i = (½Δt G_r + G_v) R_i =: H_p R_i (the rotation's dependence on ω is left
-        out here: the body-frame load Rᵀ F is differentiated in ω with the other global
-        loads in :meth:`node_terms`). Node-local blocks go into the band; the blocks
-        coupling i and j are kept in ``self._offband`` for the coupled solve.
-        Returns (F (N+1, 3) global, ∂(RᵀF)/∂v (N+1, 3, 3) body frame, or None).
+        The contacts are re-selected from the step's candidates at this iterate's
+        positions. A contact's force F depends on the positions and global velocities of
+        its three nodes a (owner, segment ends) at the new level, with r_a^{n+1} = r_a^n +
+        ½Δt(ṙ_a^n + R_a v_a^{n+1}) and ṙ_a^{n+1} = R_a v_a^{n+1}, so ∂F/∂v_a = (½Δt ∂F/∂r_a +
+        ∂F/∂ṙ_a) R_a (the rotation's dependence on ω is taken with the other global loads
+        in :meth:`node_terms`). Node a receives w_a F, i.e. the body-frame load
+        B_a = R_aᵀ w_a F. Node-local blocks go into the band; the blocks coupling
+        different nodes are kept in ``self._offband`` for the coupled solve.
+        Returns (F (N+1, 3) global, ∂(RᵀF)/∂(v, ω) (N+1, 3, 6) body frame, or None).
         """
         q, R, r, theta = pose
         vg = np.einsum("nij,nj->ni", R, Y[:, V:V + 3])
+        n1 = self.n_nodes
         if not (np.all(np.isfinite(r)) and np.all(np.isfinite(vg))):
             # a diverging iterate: make the residual non-finite so that Δt is cut
-            return np.full((self.n_nodes, 3), np.nan), None
-        ev = self.contact.evaluate(self.pairs, r, vg)
-        n1 = self.n_nodes
+            return np.full((n1, 3), np.nan), None
+        try:
+            ev = self.contact.evaluate(self.candidates, r, vg)
+        except ValueError:
+            return np.full((n1, 3), np.nan), None
+        self.last_contact = ev
         force = np.zeros((n1, 3))
-        np.add.at(force, ev.i, ev.wi[:, None] * ev.force)
-        np.add.at(force, ev.j, -ev.wj[:, None] * ev.force)
+        if ev.count == 0:
+            self._offband = None
+            return force, None
+        for a in range(3):
+            np.add.at(force, ev.nodes[:, a], ev.weights[:, a, None] * ev.force)
         if not want_jacobian:
             return force, None
-        H = 0.5 * self.dt * ev.d_force_d_dr + ev.d_force_d_dv          # (P, 3, 3)
-        Ri, Rj = R[ev.i], R[ev.j]
-        RiT_H = np.einsum("pki,pkl->pil", Ri, H)                        # R_iᵀ H
-        RjT_H = np.einsum("pki,pkl->pil", Rj, H)
-        diag = np.zeros((n1, 3, 3))
-        np.add.at(diag, ev.i, ev.wi[:, None, None] * (RiT_H @ Ri))
-        np.add.at(diag, ev.j, ev.wj[:, None, None] * (RjT_H @ Rj))
-        off_ij = -ev.wi[:, None, None] * (RiT_H @ Rj)                   # ∂B_i/∂v_j
-        off_ji = -ev.wj[:, None, None] * (RjT_H @ Ri)                   # ∂B_j/∂v_i
-        self._offband = (np.concatenate([ev.i, ev.j]), np.concatenate([ev.j, ev.i]),
-                         np.concatenate([off_ij, off_ji]))
+        # with H_b = ½Δt ∂F/∂r_b + ∂F/∂ṙ_b: ∂F/∂v_b = H_b R_b and, as R_b = R_b^n exp(θ_b),
+        # θ_b = ½Δt(ω_b^n + ω_b^{n+1}), ∂F/∂ω_b = −½Δt H_b R_b [v_b]× J_r(θ_b)
+        nodes = ev.nodes
+        Rn = R[nodes]                                                   # (P, 3, 3, 3)
+        Hb = 0.5 * self.dt * ev.d_force_d_r + ev.d_force_d_v
+        HR = np.einsum("pbij,pbjk->pbik", Hb, Rn)
+        vb = Y[nodes, V:V + 3]
+        Jr = right_jacobian(theta[nodes])
+        HW = -0.5 * self.dt * np.einsum("pbij,pbjk->pbik", HR, skew(vb) @ Jr)
+        Hfull = np.concatenate([HR, HW], axis=-1)                      # (P, 3, 3, 6)
+        # ∂B_a/∂(v, ω)_b = w_a R_aᵀ [H_b R_b | ...]
+        blocks = np.einsum("pa,paji,pbjk->pabik", ev.weights, Rn, Hfull)  # (P, 3, 3, 3, 6)
+        diag = np.zeros((n1, 3, 6))
+        a_idx = np.repeat(np.arange(3), 3)
+        b_idx = np.tile(np.arange(3), 3)
+        na = nodes[:, a_idx].ravel()
+        nb = nodes[:, b_idx].ravel()
+        vals = blocks[:, a_idx, b_idx].reshape(-1, 3, 6)
+        same = na == nb
+        np.add.at(diag, na[same], vals[same])
+        self._offband = (na[~same], nb[~same], vals[~same])
         return force, diag
 
     def _offband_entries(self):
@@ -382,13 +399,14 @@ class RodSystem:
         w = 0.5 * (1.0 - self.params.alpha_f)
         rows, cols, vals = [], [], []
         r3 = np.arange(3)
+        r6 = np.arange(6)
         for side in (-1, 0):
             cell = a + side
             ok = (cell >= 0) & (cell < self.n_cells)
             rr = 6 + NV * cell[ok][:, None, None] + E3 + r3[None, :, None]
-            cc = NV * b[ok][:, None, None] + V + r3[None, None, :]
-            rows.append(np.broadcast_to(rr, (ok.sum(), 3, 3)).ravel())
-            cols.append(np.broadcast_to(cc, (ok.sum(), 3, 3)).ravel())
+            cc = NV * b[ok][:, None, None] + V + r6[None, None, :]
+            rows.append(np.broadcast_to(rr, (ok.sum(), 3, 6)).ravel())
+            cols.append(np.broadcast_to(cc, (ok.sum(), 3, 6)).ravel())
             vals.append((w * blocks[ok]).ravel())
         return np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
 
@@ -400,7 +418,8 @@ class RodSystem:
         pairs = np.concatenate([X[:-1], X[1:]], axis=1)
         out[6:6 + NV * self.n_cells] = np.einsum("cij,cj->ci", blocks, pairs).ravel()
         out[bc_rows] = bc_vals * x[bc_cols]
-        out += off @ x
+        if off is not None:
+            out += off @ x
         return out
 
     def _coupled_solve(self, rhs, rtol=1e-7, max_iterations=40):
@@ -457,7 +476,9 @@ class RodSystem:
         return s12
 
     def factor(self, Y, blocks):
-        """Scale, assemble and factorise the Jacobian at Y. Sets the row scale."""
+        """Scale, assemble and factorise the Jacobian at Y (sets the row and column
+        scales), and set the operator for the coupled solve when contact couples
+        distant nodes."""
         s12 = self.column_scale(Y)
         s24 = np.tile(s12, 2)
         bc_rows, bc_cols, bc_vals = self.bc.jacobian_entries()
@@ -468,24 +489,44 @@ class RodSystem:
         rs[6:6 + NV * self.n_cells] = cell_rowsum.ravel()
         rs[bc_rows] = bc_rowsum
         rs = 1.0 / np.where(rs > 0, rs, 1.0)
-        scaled = blocks * (rs[self.layout.cell_rows][:, :, None] * s24[None, None, :])
-        col_scale = np.tile(s12, self.n_nodes)
-        bc_scaled = bc_vals * rs[bc_rows] * s12[bc_cols % NV]
+        self._row_scale = rs
+        self._col_scale = np.tile(s12, self.n_nodes)
+        self._s24 = s24
+        scaled, bc_scaled = self._scaled(blocks)
         # the band part (with the node-local contact blocks) is always LU-factorised;
         # contact coupling between distant nodes, when present, is kept as a sparse
         # matrix and the correction is solved by GMRES preconditioned with the band LU.
         self.layout.factor(scaled, bc_rows, bc_cols, bc_scaled)
-        if self._offband is None:
-            self._coupled = None
-        else:
-            o_rows, o_cols, o_vals = self._offband_entries()
-            off = csr_matrix((o_vals * rs[o_rows] * col_scale[o_cols], (o_rows, o_cols)),
-                             shape=(self.n, self.n))
-            self._coupled = (scaled.copy(), bc_rows, bc_cols, bc_scaled, off)
-        self._row_scale = rs
-        self._col_scale = col_scale
+        self._set_operator(scaled, bc_scaled)
         self.factor_valid = True
         self.factorizations += 1
+
+    def _scaled(self, blocks):
+        """Cell blocks and boundary values in the scales of the last factorisation."""
+        bc_rows, bc_cols, bc_vals = self.bc.jacobian_entries()
+        rs = self._row_scale
+        scaled = blocks * (rs[self.layout.cell_rows][:, :, None] * self._s24[None, None, :])
+        return scaled, bc_vals * rs[bc_rows] * self._s24[bc_cols % NV]
+
+    def _set_operator(self, scaled, bc_scaled, stale=False):
+        """The (scaled) Jacobian for GMRES: band cells, boundary rows and the distant
+        contact coupling; None when the band LU is the exact Jacobian."""
+        if self._offband is None and not stale:
+            self._coupled = None
+            return
+        bc_rows, bc_cols, _ = self.bc.jacobian_entries()
+        off = None
+        if self._offband is not None:
+            o_rows, o_cols, o_vals = self._offband_entries()
+            off = csr_matrix((o_vals * self._row_scale[o_rows] * self._col_scale[o_cols],
+                              (o_rows, o_cols)), shape=(self.n, self.n))
+        self._coupled = (scaled.copy(), bc_rows, bc_cols, bc_scaled, off)
+
+    def update_operator(self, blocks):
+        """Contact steps between factorisations: the GMRES operator becomes the Jacobian
+        at the current iterate while the (older) band LU stays the preconditioner."""
+        scaled, bc_scaled = self._scaled(blocks)
+        self._set_operator(scaled, bc_scaled, stale=True)
 
     def solve_step(self, Y_guess):
         """Newton iterations for the step set up by :meth:`begin_step`.
@@ -497,17 +538,30 @@ class RodSystem:
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             return self._newton(Y_guess)
 
+    #: contact steps: refactor the band LU when the last GMRES solve needed more
+    #: iterations than this (else the LU of an earlier iterate preconditions the
+    #: current Jacobian)
+    GMRES_REFACTOR = 8
+
     def _newton(self, Y_guess):
         self.last_failure = None
         Y = Y_guess.copy()
+        contact = self.candidates is not None
         res_prev = np.inf
-        refactor = not self.factor_valid
+        refactor = not self.factor_valid or contact
         res = np.inf
         pose = None
         tiny = 0
         history = []
+        stall_scale = None
+        cached = None
+        gmres_last = 0
         for it in range(self.max_iterations + 1):
-            R, Fn, blocks, pose = self.residual(Y, want_jacobian=refactor)
+            if cached is not None:
+                R, Fn, blocks, pose = cached
+                cached = None
+            else:
+                R, Fn, blocks, pose = self.residual(Y, want_jacobian=refactor or contact)
             if not np.all(np.isfinite(R)):
                 return Y, Fn, it, np.inf, False, pose
             fresh = refactor
@@ -518,18 +572,24 @@ class RodSystem:
                     self.last_failure = "singular"
                     return Y, Fn, it, np.inf, False, pose
                 refactor = False
+            elif contact:
+                self.update_operator(blocks)
             res = float(np.max(np.abs(R) * self._row_scale))
             if res <= self.tol:
                 return Y, Fn, it, res, True, pose
             if it == self.max_iterations:
                 break
-            history.append(res)
-            if self.pairs is not None and it >= 6 and res > 0.5 * history[-5]:
-                # contact step: less than a halving in four iterations (typically the
-                # trust region holding every correction back at a Δt that is too large)
-                self.last_failure = "stalled"
-                return Y, Fn, it, res, False, pose
-            if not fresh and res > 0.25 * res_prev:
+            if contact:
+                # stalls are judged in one scale (the row scale changes with the contact
+                # stiffness from one factorisation to the next)
+                if stall_scale is None:
+                    stall_scale = self._row_scale.copy()
+                history.append(float(np.max(np.abs(R) * stall_scale)))
+                if it >= 6 and history[-1] > 0.5 * history[-5]:
+                    # less than a halving in four iterations: Δt is too large
+                    self.last_failure = "stalled"
+                    return Y, Fn, it, res, False, pose
+            elif not fresh and res > 0.25 * res_prev:
                 # the reused factor converges slowly: refactor at this iterate
                 R, Fn, blocks, pose = self.residual(Y, want_jacobian=True)
                 try:
@@ -541,88 +601,88 @@ class RodSystem:
             res_prev = res
             rhs = -R * self._row_scale
             if self._coupled is not None:
-                failures = self.gmres_failures
+                failures, g0 = self.gmres_failures, self.gmres_iterations
                 delta = self._coupled_solve(rhs) * self._col_scale
+                gmres_last = self.gmres_iterations - g0
                 if self.gmres_failures > failures:
-                    # the contact coupling is too strong for the band preconditioner at
-                    # this Δt: the correction is unreliable and the iteration would only
-                    # stall (measured: 25 iterations x 40 GMRES iterations per failed
-                    # attempt). Fail now; the caller cuts Δt.
-                    self.last_failure = "gmres"
-                    return Y, Fn, it + 1, res, False, pose
+                    if not fresh:
+                        # a stale preconditioner: refactor here and solve again
+                        try:
+                            self.factor(Y, blocks)
+                        except BandFactorError:
+                            self.last_failure = "singular"
+                            return Y, Fn, it, np.inf, False, pose
+                        rhs = -R * self._row_scale
+                        failures = self.gmres_failures
+                        delta = self._coupled_solve(rhs) * self._col_scale
+                    if self.gmres_failures > failures:
+                        # the contact coupling is too strong for the band preconditioner
+                        # at this Δt: the correction is unreliable. Fail now; the caller
+                        # cuts Δt.
+                        self.last_failure = "gmres"
+                        return Y, Fn, it + 1, res, False, pose
             else:
                 delta = self.layout.solve(rhs) * self._col_scale
             delta = delta.reshape(Y.shape)
-            if self.pairs is not None:
-                delta, alpha = self._limit_gap_step(Y, delta)
+            if contact:
+                delta, alpha = self._feasible_step(Y, delta)
                 # corrections cut to 1/64 or less three times in a row: the iterate
-                # sits against the barrier or the trust region and Newton stalls
+                # sits against the barrier and Newton stalls
                 tiny = tiny + 1 if alpha <= 1.0 / 64.0 else 0
                 if tiny >= 3:
                     self.last_failure = "stalled"
                     return Y, Fn, it + 1, res, False, pose
-                delta = self._line_search(Y, delta, R)
-                # the barrier k1/gap^k2 changes the Jacobian much between iterates: a
-                # frozen (chord) Jacobian converges only linearly, so contact steps use
-                # full Newton (measured on the seed example: 11-20 iterations per
-                # accepted step with the chord, see docs/contact.md)
-                refactor = True
+                delta, cached = self._line_search(Y, delta, R)
+                refactor = gmres_last > self.GMRES_REFACTOR
             Y = Y + delta
         return Y, Fn, self.max_iterations, res, False, pose
 
     def _line_search(self, Y, delta, R0):
         """Backtracking on the row-scaled residual 2-norm (contact steps only): halve the
-        correction, at most 4 times, until the residual decreases (Armijo, c = 1e-4)."""
+        correction, at most 4 times, until the residual decreases (Armijo, c = 1e-4).
+        Returns (correction, the residual tuple with Jacobian at the accepted point, to be
+        reused as the next iterate's)."""
         f0 = float(np.linalg.norm(R0 * self._row_scale))
         alpha = 1.0
+        out = None
         for _ in range(4):
-            R1 = self.residual(Y + alpha * delta, want_jacobian=False)[0]
-            f1 = float(np.linalg.norm(R1 * self._row_scale))
+            out = self.residual(Y + alpha * delta, want_jacobian=True)
+            f1 = float(np.linalg.norm(out[0] * self._row_scale))
             if np.isfinite(f1) and f1 <= (1.0 - 1e-4 * alpha) * f0:
-                break
+                return alpha * delta, out
             alpha *= 0.5
-        return alpha * delta
+        return 2.0 * alpha * delta, out
 
-    def _pair_positions(self, Y):
-        """New-level positions (2P, 3) m of the step's pair nodes (i then j) at iterate Y."""
-        pr = self.pairs
-        idx = np.concatenate([pr.i, pr.j])
-        theta = 0.5 * self.dt * (self.Y_old[idx, W:W + 3] + Y[idx, W:W + 3])
-        R = quat_to_matrix(quat_multiply(self.q_old[idx], quat_exp(theta)))
-        vg = np.einsum("nij,nj->ni", R, Y[idx, V:V + 3])
-        return self.r_old[idx] + 0.5 * self.dt * (self.v_old_global[idx] + vg)
+    def candidate_gaps(self, Y):
+        """Surface gaps (R,) m of the closest points of the step's contact candidates at
+        the iterate Y (new level), inf for run edges; empty without candidates."""
+        if self.candidates is None:
+            return np.zeros(0)
+        r = self.pose_new(Y)[2]
+        if not np.all(np.isfinite(r)):
+            return np.full(self.candidates.runs, -np.inf)
+        return self.contact.gaps(self.candidates, r)
 
-    def pair_gaps(self, Y):
-        """Surface gaps (P,) m of the step's contact pairs at the iterate Y (new level)."""
-        pr = self.pairs
-        r = self._pair_positions(Y)
-        p = pr.i.size
-        d = np.linalg.norm(r[:p] - r[p:], axis=1)
-        return d - 0.5 * (self.p.diameter[pr.i] + self.p.diameter[pr.j])
+    #: a Newton correction may close no candidate gap to less than this fraction of itself
+    GAP_KEEP = 0.2
 
-    def _limit_gap_step(self, Y, delta):
-        """Safeguards of a Newton correction while contact pairs are active.
-
-        (1) Fraction to the boundary for the k1/gap^k2 barrier: no pair may close to less
-        than 30 % of its current gap; (2) trust region: no pair node may move by more
-        than half the contact margin (tolerance − D) in one iteration, so an iterate
-        cannot leave the neighbourhood in which the pairs were found. The correction is
-        halved (at most 10 times) until both hold. Returns (limited correction, factor).
-        """
-        r0 = self._pair_positions(Y)
-        p = self.pairs.i.size
-        g0 = np.linalg.norm(r0[:p] - r0[p:], axis=1) - self._pair_radii
-        if not (np.all(np.isfinite(r0)) and np.all(np.isfinite(g0))):
+    def _feasible_step(self, Y, delta):
+        """Largest fraction 2^−k (k ≤ 10) of a Newton correction that keeps every
+        candidate gap at least GAP_KEEP of its current value (a filter in the manner of
+        IPC's CCD-bounded line search: Li et al., ACM TOG 39(4), 2020, §4). Gaps are the
+        closest-point gaps of the step's candidates re-selected at each trial, so a
+        correction cannot carry a strand through one it was not pressed against.
+        Returns (limited correction, fraction)."""
+        g0 = self.candidate_gaps(Y)
+        if g0.size == 0 or np.any(np.isnan(g0)) or np.any(g0 == -np.inf):
             return delta, 1.0
-        # a closing gap keeps 30 % of itself; a penetrating pair may not double its depth
-        floor = np.where(g0 > 0.0, 0.3 * g0, 2.0 * g0)
+        finite = np.isfinite(g0)
+        floor = np.where(g0 > 0.0, self.GAP_KEEP * g0, 2.0 * g0)
         alpha = 1.0
         for _ in range(10):
-            r1 = self._pair_positions(Y + alpha * delta)
-            g1 = np.linalg.norm(r1[:p] - r1[p:], axis=1) - self._pair_radii
-            step = np.max(np.linalg.norm(r1 - r0, axis=1)) if r1.size else 0.0
-            if (np.all(np.isfinite(g1)) and np.all(g1 >= floor)
-                    and step <= self._trust_radius):
+            g1 = self.candidate_gaps(Y + alpha * delta)
+            ok = ~finite | (g1 >= floor)
+            if np.all(ok) and not np.any(np.isnan(g1)):
                 break
             alpha *= 0.5
         return alpha * delta, alpha

@@ -18,9 +18,9 @@ import time as _time
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .boundary import BoundaryRows
+from .contact import SelfContact, close_node_pairs, swept_min_distance
 from .energies import distributed_power, end_loads, end_power, energies
 from .kinematics import quat_exp, quat_from_matrix, quat_multiply, quat_to_matrix, space_route
 from .loads import LoadModel
@@ -86,8 +86,6 @@ class RodRun:
         self.loads = LoadModel(case, props)
         self.contact = None
         if case.contact is not None:
-            from .contact import SelfContact
-
             self.contact = SelfContact(case.contact, props.s, props.diameter, props.rho_a)
         self.system = RodSystem(props, self.loads, num.newton.tolerance,
                                 num.newton.max_iterations, contact=self.contact)
@@ -129,6 +127,7 @@ class RodRun:
         self.bc = BoundaryRows(case, props, 0.0, self.system.n)
         self.first_step = True
         self.level_hint = 0
+        self.accepted_at_level = 0
         self.last_iterations = 0
         self.last_residual = 0.0
         self.last_dt = num.dt
@@ -156,20 +155,15 @@ class RodRun:
             guess = self.Y + (h / self.h_prev) * (self.Y - self.Y_prev)
         else:
             guess = self.Y
-        pairs = None
+        cand = None
         if self.contact is not None:
-            # pairs from the predicted positions, held fixed during Newton
-            pairs = self._find_pairs(self.r + h * self.v_global, quat_to_matrix(self.q))
+            cand = self._candidates(h, guess)
+            guess = self._feasible_guess(h, params, t_new, bc, guess, cand)
         its_total = 0
         for _attempt in range(3):
             sysm.begin_step(h, params, t_new, self.Y, self.Ydot, self.F_old, bc,
                             q_old=self.q, r_old=self.r, v_old_global=self.v_global,
-                            pairs=pairs)
-            if sysm.pairs is not None and guess is not self.Y:
-                # an extrapolated predictor must not close any gap by more than 70 %
-                g_old, g_new = sysm.pair_gaps(self.Y), sysm.pair_gaps(guess)
-                if not np.all(g_new >= 0.3 * np.maximum(g_old, 0.0)):
-                    guess = self.Y
+                            candidates=cand)
             Y, Fn, its, res, ok, pose = sysm.solve_step(guess)
             its_total += its
             if not ok:
@@ -178,18 +172,19 @@ class RodRun:
                 break
             if pose is None:
                 pose = sysm.pose_new(Y)
-            # the pairs at the new positions must be among those the step used
-            new_pairs = self._find_pairs(pose[2], pose[1])
-            merged = self._merge_pairs(pairs, new_pairs)
-            if merged is pairs:
+            # every combination within reach of the new positions must have been searched
+            found = self._search(pose[2], pose[1], 0.0)
+            if found is None or self.contact.covers(cand, found):
                 break
-            pairs, guess = merged, Y
+            cand, guess = self.contact.merge(cand, found), Y
+        else:
+            return False, its_total, res, False
         its = its_total
         if self.contact is not None:
             ev = None
-            if pairs is not None and len(pairs.i):
+            if cand is not None and cand.runs:
                 vg = np.einsum("nij,nj->ni", pose[1], Y[:, 0:3])
-                ev = self.contact.evaluate(pairs, pose[2], vg)
+                ev = self.contact.evaluate(cand, pose[2], vg)
             if ev is not None and ev.min_gap < 0.0:
                 # the surfaces interpenetrate: reject, the caller cuts Δt
                 return False, its, res, False
@@ -199,7 +194,9 @@ class RodRun:
         g = params.gamma
         Ydot = (Y - self.Y) / (g * h) - ((1.0 - g) / g) * self.Ydot
         props = self.props
-        # time route of every node (diagnostic) and the end rotations (linking number)
+        # time route of every node and the end rotations (linking number). With contact
+        # the time route is the carried geometry (contact, step control and output see
+        # the positions Newton's contact forces acted on); without, a diagnostic.
         theta = 0.5 * h * (self.Y[:, 3:6] + Y[:, 3:6])
         q_t = quat_multiply(self.q_time, quat_exp(theta))
         nrm = np.linalg.norm(q_t, axis=1)
@@ -207,10 +204,8 @@ class RodRun:
         R_t = quat_to_matrix(q_t)
         vg_t = np.einsum("nij,nj->ni", R_t, Y[:, 0:3])
         r_t = self.r_time + 0.5 * h * (self.v_global_time + vg_t)
-        space = None
         if self.contact is not None:
-            space = space_route(q_t[0], r_t[0], Y[:, 9:12], props.ds)
-            if not self._contact_step_ok(space[1], pose[2]):
+            if not self._no_tunnelling(r_t):
                 return False, its, res, False
             self.contact_count, self.min_gap = contact_count, min_gap
         self.quat_norm_error = max(self.quat_norm_error, float(np.max(np.abs(nrm - 1.0))))
@@ -251,87 +246,86 @@ class RodRun:
         self.t = t_new
         self.bc = bc
         self.first_step = False
-        if space is not None:
-            self.q, self.r = space
-            self.v_global = np.einsum("nij,nj->ni", quat_to_matrix(self.q), self.Y[:, 0:3])
+        if self.contact is not None:
+            self.q, self.r, self.v_global = q_t, r_t, vg_t
         elif sysm.needs_pose:
             self.update_space_route()
         self.last_iterations, self.last_residual = its, res
         return True, its, res, False
 
-    def _contact_step_ok(self, r_space, r_newton) -> bool:
-        """Step control where self-contact is possible (docs/contact.md).
-
-        A step is refused (and Δt cut) when (a) two non-neighbouring nodes may have passed
-        through each other within the step: with their relative position moving linearly
-        from its old to its new value, the closest approach falls below half the sum of
-        their radii (a swept test on the pairs a k-d tree finds within the largest
-        relative motion); (b) the positions Newton used for the contact forces (time
-        route) differ from the shape integrated from κ (space route) by more than
-        δ/2, δ = ½(tolerance − max D); or (c) the surfaces of the space-route shape
-        interpenetrate.
-        """
+    def _no_tunnelling(self, r_new) -> bool:
+        """Collision check of an accepted Newton solution (docs/contact.md): False when
+        two nodes beyond the exclusion, moving linearly from their old to their new
+        positions, come closer than a quarter of the sum of their diameters within the
+        step (a strand passed through another between the candidate searches)."""
         c = self.contact
-        props = self.props
-        tangents = np.diff(r_space, axis=0)
+        disp = r_new - self.r
+        reach = float(np.max(self.props.diameter)) + 2.0 * float(np.max(np.linalg.norm(disp, axis=1)))
+        tangents = np.diff(r_new, axis=0)
         tangents = np.vstack([tangents, tangents[-1:]])
-        if not c.may_touch(r_space, tangents) and not c.may_touch(self.r, tangents):
+        if not c.may_touch(r_new, tangents, reach) and not c.may_touch(self.r, tangents, reach):
             return True
-        dmax = float(np.max(props.diameter))
-        delta = 0.5 * (c.tolerance - dmax)
-        if delta <= 0.0:
-            delta = 0.25 * dmax
-        if float(np.max(np.linalg.norm(r_space - r_newton, axis=1))) > 0.5 * delta:
-            return False
-        # (a) swept test
-        disp = r_space - self.r
-        reach = dmax + 2.0 * float(np.max(np.linalg.norm(disp, axis=1)))
-        cand = cKDTree(r_space).query_pairs(r=reach, output_type="ndarray")
-        if cand.size:
-            a, b = cand[:, 0], cand[:, 1]
-            far = np.abs(props.s[a] - props.s[b]) > c.separation_cut
-            a, b = a[far], b[far]
-            if a.size:
-                x0 = self.r[a] - self.r[b]
-                dx = disp[a] - disp[b]
-                dd = np.einsum("ij,ij->i", dx, dx)
-                tmin = np.clip(-np.einsum("ij,ij->i", x0, dx) / np.where(dd > 0, dd, 1.0),
-                               0.0, 1.0)
-                closest = np.linalg.norm(x0 + tmin[:, None] * dx, axis=1)
-                radii = 0.5 * (props.diameter[a] + props.diameter[b])
-                if np.any(closest < 0.5 * radii):
-                    return False
-        # (c) no interpenetration of the new shape
-        pairs = c.find_pairs(r_space, tangents)
-        if len(pairs.i):
-            gaps = pairs.distance - 0.5 * (props.diameter[pairs.i] + props.diameter[pairs.j])
-            if float(np.min(gaps)) < 0.0:
-                return False
-        return True
+        a, b = close_node_pairs(r_new, reach, self.props.s, c.separation_cut)
+        if a.size == 0:
+            return True
+        closest = swept_min_distance(self.r, r_new, a, b)
+        radii = 0.5 * (self.props.diameter[a] + self.props.diameter[b])
+        return not np.any(closest < 0.5 * radii)
 
-    def _find_pairs(self, positions, R):
-        """Contact pairs at the given positions (N+1, 3) and rotations (N+1, 3, 3), or
-        None when no pair is possible (the O(N) test skips the k-d tree)."""
+    def _search(self, positions, R, reach):
+        """Contact candidates near the given positions (N+1, 3) and rotations (N+1, 3, 3)
+        within tolerance + reach (m), or None when none is possible (the O(N) pre-test
+        skips the k-d tree)."""
         tangents = R[:, :, 2]
-        if not self.contact.may_touch(positions, tangents):
+        if not self.contact.may_touch(positions, tangents, reach):
             return None
-        pairs = self.contact.find_pairs(positions, tangents)
-        return pairs if len(pairs.i) else None
+        cand = self.contact.candidates(positions, tangents, reach)
+        return cand if cand.runs else None
 
-    @staticmethod
-    def _merge_pairs(used, found):
-        """``used`` itself if every pair of ``found`` is in it, else the union."""
-        if found is None:
-            return used
-        if used is None:
-            return found
-        n = 1 + int(max(used.i.max(), used.j.max(), found.i.max(), found.j.max()))
-        key_used = set((used.i * n + used.j).tolist())
-        key_found = (found.i * n + found.j).tolist()
-        if all(k in key_used for k in key_found):
-            return used
-        keep = np.array([k not in key_used for k in key_found])
-        return _concat_pairs(used, found, keep)
+    def _candidates(self, h, guess):
+        """Candidates for a step of h (s) from the Newton start ``guess`` (N+1, 12): node
+        pairs within tolerance + m of each other at the old positions or at the positions
+        the start predicts, m = ¼(tolerance − D_max). Pairs that come within the
+        tolerance beyond that are added by the coverage check after Newton, and the step
+        is solved again."""
+        margin = 0.25 * (self.contact.tolerance - float(np.max(self.props.diameter)))
+        R_old = quat_to_matrix(self.q)
+        old = self._search(self.r, R_old, margin)
+        theta = 0.5 * h * (self.Y[:, 3:6] + guess[:, 3:6])
+        R_new = quat_to_matrix(quat_multiply(self.q, quat_exp(theta)))
+        r_new = self.r + 0.5 * h * (self.v_global + np.einsum("nij,nj->ni", R_new, guess[:, 0:3]))
+        if not np.all(np.isfinite(r_new)):
+            return old
+        new = self._search(r_new, R_new, margin)
+        if old is None or new is None:
+            return new if old is None else old
+        return self.contact.merge(old, new)
+
+    def _feasible_guess(self, h, params, t_new, bc, guess, cand):
+        """A Newton start whose contact gaps are open (the replay of the seed example's
+        first contact: an extrapolated start penetrated and Newton died at the barrier).
+
+        The zero-displacement state (v, ω) = −(v^n, ω^n) keeps every node where it is (the
+        trapezoidal position update); the start is blended from it toward ``guess`` by the
+        largest 2^−k that keeps every candidate gap at least half its old value."""
+        if cand is None or guess is self.Y:
+            return guess
+        sysm = self.system
+        sysm.begin_step(h, params, t_new, self.Y, self.Ydot, self.F_old, bc,
+                        q_old=self.q, r_old=self.r, v_old_global=self.v_global,
+                        candidates=cand)
+        still = self.Y.copy()
+        still[:, 0:6] = -self.Y[:, 0:6]
+        g_old = sysm.candidate_gaps(still)
+        finite = np.isfinite(g_old)
+        beta = 1.0
+        for _ in range(8):
+            trial = still + beta * (guess - still)
+            g = sysm.candidate_gaps(trial)
+            if np.all(~finite | (g >= 0.5 * np.maximum(g_old, 0.0))):
+                return trial
+            beta *= 0.5
+        return still
 
     def update_space_route(self):
         """Recompute pose along the rod from κ, anchored at node 0's time-route pose."""
@@ -344,35 +338,35 @@ class RodRun:
         of the nominal step; raises SolverDivergence (without partial) when all cuts
         fail.
 
-        Δt levels: h = (t_target − t)/factor^level. A nominal step starts one level below
-        the level the previous one needed (so Δt grows back gradually after an event), and
-        substeps at the current level until t_target is reached; after
-        ``GROW_AFTER`` consecutive accepted substeps the level drops by one (Δt grows by
-        the factor) within the nominal step as well, so one brief event does not leave
-        the rest of the step at the smallest Δt.
+        Δt levels: h = (t_target − t)/factor^level. A nominal step starts at the level the
+        previous one ended on and substeps at the current level until t_target is
+        reached; a failure raises the level by one, and after ``GROW_AFTER`` consecutive
+        accepted substeps (counted across nominal steps) the level drops by one (Δt grows
+        by the factor) as soon as the larger step fits in what remains of the nominal
+        step, so a growth is always tried and never retried at every nominal step.
         """
         num = self.case.numerics
         h_full = t_target - self.t
-        level = max(0, self.level_hint - 1)
+        level = self.level_hint
         total_its = 0
-        failed = False
-        accepted = 0
         while self.t < t_target - 1e-12 * max(1.0, abs(t_target)):
-            if accepted >= self.GROW_AFTER and level > 0:
+            remaining = t_target - self.t
+            if (self.accepted_at_level >= self.GROW_AFTER and level > 0
+                    and h_full / num.dt_cut_factor ** (level - 1) <= remaining * (1.0 + 1e-9)):
+                # grow only when the larger step fits and will be tried
                 level -= 1
-                accepted = 0
+                self.accepted_at_level = 0
             h = h_full / num.dt_cut_factor**level
-            h_try = min(h, t_target - self.t)
-            if t_target - self.t - h_try < 1e-9 * h:
-                h_try = t_target - self.t
+            h_try = min(h, remaining)
+            if remaining - h_try < 1e-9 * h:
+                h_try = remaining
             ok, its, res, nonfinite = self.try_step(h_try)
             total_its += its
             if ok:
                 self.last_dt = h_try
-                accepted += 1
+                self.accepted_at_level += 1
                 continue
-            accepted = 0
-            failed = True
+            self.accepted_at_level = 0
             if level >= num.max_dt_cuts:
                 singular = self.system.last_failure == "singular"
                 reason = "nonfinite_state" if (nonfinite and not singular) else "solver_diverged"
@@ -385,7 +379,7 @@ class RodRun:
                     f"Δt cuts (Δt = {h_try:.3g} s, scaled residual {res:.3g}, {why})",
                     t=self.t, step=None, residual=res, reason=reason)
             level += 1
-        self.level_hint = level if failed else max(0, level)
+        self.level_hint = level
         return total_its, self.last_residual
 
     # -------------------------------------------------------------------------------
@@ -427,23 +421,14 @@ class RodRun:
         out["newton_iterations"] = self.last_iterations
         out["residual_norm"] = self.last_residual
         out["dt"] = self.last_dt
-        out["position_route_difference"] = float(np.max(np.linalg.norm(self.r_time - self.r, axis=1)))
+        if self.contact is not None:
+            # the carried geometry is the time route: compare with the shape from κ
+            r_space = space_route(self.q[0], self.r[0], Y[:, 9:12], self.props.ds)[1]
+            out["position_route_difference"] = float(np.max(np.linalg.norm(r_space - self.r, axis=1)))
+        else:
+            out["position_route_difference"] = float(np.max(np.linalg.norm(self.r_time - self.r, axis=1)))
         out["quaternion_norm_error"] = self.quat_norm_error
         return out
-
-
-def _concat_pairs(used, found, keep):
-    """Union of two pair sets (same class), taking the pairs of ``found`` flagged keep."""
-    import dataclasses
-
-    fields = {}
-    for fld in dataclasses.fields(used):
-        a, b = getattr(used, fld.name), getattr(found, fld.name)
-        if isinstance(a, np.ndarray) and a.shape[:1] == used.i.shape:
-            fields[fld.name] = np.concatenate([a, b[keep]])
-        else:
-            fields[fld.name] = a
-    return type(used)(**fields)
 
 
 def simulate(case, progress=None, should_stop=None):
