@@ -697,8 +697,9 @@ class Boundary(BaseModel):
 class Contact(BaseModel):
     """Self-contact: pair search parameters and the penalty/damping law. Omit for none.
 
-    The repulsive force per unit length is ``rho*A*k1/gap**k2`` plus damping set by
-    ``k3`` and ``k4`` (see the solver's contact module for the exact law).
+    The repulsive force per unit length is ``rho*A*k1/gap**k2`` (``law: seed``, the
+    default) or IPC's compact-support barrier (``law: barrier``), plus damping set by
+    ``k3`` and ``k4`` (docs/contact.md gives the exact laws).
     """
 
     model_config = _MODEL_CONFIG
@@ -714,6 +715,37 @@ class Contact(BaseModel):
     exclusion: Optional[Finite] = Field(
         None, ge=0, description="Minimum arclength separation of a contact pair, m; >= 0; null: 2 x the largest diameter."
     )
+    law: Literal["seed", "barrier"] = Field(
+        "seed",
+        description="Repulsion law: 'seed' (rho*A*k1/gap^k2, seed eq. 6, cut off C2-smoothly at the tolerance) "
+        "or 'barrier' (IPC's compact-support log barrier with barrier_gap and barrier_stiffness); the k3/k4 "
+        "damping applies to both.",
+    )
+    barrier_gap: Optional[Finite] = Field(
+        None, gt=0, description="Barrier law: surface gap at which the repulsion starts (d_hat), m; > 0."
+    )
+    barrier_stiffness: Optional[Finite] = Field(
+        None, gt=0, description="Barrier law: stiffness kappa, 1/s^2 (rho*A*kappa*[2(g-d)ln(g/d)+(g-d)^2/g] is N/m); > 0."
+    )
+
+    @model_validator(mode="after")
+    def _barrier_parameters(self) -> "Contact":
+        if self.law == "barrier":
+            for name in ("barrier_gap", "barrier_stiffness"):
+                if getattr(self, name) is None:
+                    raise PydanticCustomError(
+                        "missing_barrier_parameter",
+                        "law 'barrier' needs {name} (> 0)", {"name": name})
+        return self
+
+    @model_serializer(mode="wrap")
+    def _drop_unused(self, handler: Any) -> dict:
+        out = handler(self)
+        if self.law == "seed":
+            for name in ("barrier_gap", "barrier_stiffness"):
+                if out.get(name) is None:
+                    out.pop(name, None)
+        return out
 
 
 class Newton(BaseModel):
@@ -945,6 +977,14 @@ class Case(BaseModel):
                          f"must exceed the largest rod diameter ({d_max!r} m): pairs are "
                          "tested only below this centreline distance, so touching pairs "
                          "(distance = diameter) would be missed", self.contact.tolerance)
+                )
+            elif (self.contact.law == "barrier"
+                  and d_max + self.contact.barrier_gap > self.contact.tolerance):
+                errors.append(
+                    _err(("contact", "barrier_gap"), "out_of_range",
+                         f"the largest diameter ({d_max!r} m) plus barrier_gap must not exceed "
+                         f"the tolerance ({self.contact.tolerance!r} m): the search would miss "
+                         "pairs the barrier acts on", self.contact.barrier_gap)
                 )
         numerics = self.numerics
         n_segments = numerics.n_segments

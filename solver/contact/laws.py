@@ -5,6 +5,8 @@ Both laws give the force per unit length on one strand of a pair at centreline d
 
     f(d, ḋ) = ρĀ φ(d) [ P(g) − (k3/d) ḋ|ḋ|^k4 ],     g = d − (D_i + D_j)/2,
 
+(the barrier's P is not multiplied by φ: it is C² at its activation gap already)
+
 with ρĀ the mean mass per unit length of the pair (kg/m), P(g) the repulsion (m/s²) of the
 law, the seed's damping (Goyal, Perkins & Lee, eq. 6) and φ a C² cut-off that takes the
 whole law smoothly to zero at the outer distance d_off, so a pair can enter and leave the
@@ -18,7 +20,7 @@ active set inside a Newton iteration without a jump in the residual or its slope
 * ``BarrierLaw``: IPC's compact-support log barrier (Li et al., ACM TOG 39(4), 2020, eq. 6)
   b(g) = −(g − ĝ)² ln(g/ĝ) for 0 < g < ĝ; P(g) = −κ b'(g) = κ[2(g − ĝ) ln(g/ĝ) +
   (g − ĝ)²/g], which is C² at ĝ (P = P' = 0 there) and grows like −2ĝκ ln(g/ĝ) + κĝ²/g
-  as g → 0. The damping term uses φ with d_on = D̄ + ½ĝ, d_off = D̄ + ĝ.
+  as g → 0. Only the damping term is cut off, with d_on = D̄ + ½ĝ, d_off = D̄ + ĝ.
 
 A law returns, per pair, f (N/m), ∂f/∂d (N/m²) and ∂f/∂ḋ (N·s/m²).
 """
@@ -46,6 +48,10 @@ def smoothstep_off(d, d_on, d_off):
 class _Law:
     """Shared damping and cut-off; subclasses give the repulsion P(g) and P'(g)."""
 
+    #: whether φ multiplies the repulsion too (the seed's law) or only the damping (the
+    #: barrier, already C² at its activation gap)
+    cut_repulsion = True
+
     def __init__(self, k3: float, k4: float):
         self.k3, self.k4 = float(k3), float(k4)
 
@@ -64,9 +70,13 @@ class _Law:
         absd = np.abs(ddot)
         powk = absd ** self.k4 if self.k4 != 0.0 else np.ones_like(absd)
         damp = self.k3 * ddot * powk / d
-        core = rep - damp
-        f = rho * phi * core
-        f_d = rho * (dphi * core + phi * (rep_slope + damp / d))
+        if self.cut_repulsion:
+            core = rep - damp
+            f = rho * phi * core
+            f_d = rho * (dphi * core + phi * (rep_slope + damp / d))
+        else:
+            f = rho * (rep - phi * damp)
+            f_d = rho * (rep_slope - dphi * damp + phi * damp / d)
         f_dd = -rho * phi * self.k3 * (1.0 + self.k4) * powk / d
         return f, f_d, f_dd, gap
 
@@ -109,6 +119,7 @@ class BarrierLaw(_Law):
     damping k3, k4 as the seed's; gap_floor (m): below it P continues linearly."""
 
     name = "barrier"
+    cut_repulsion = False
 
     def __init__(self, d_hat, stiffness, k3, k4, gap_floor):
         super().__init__(k3, k4)
