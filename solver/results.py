@@ -118,6 +118,13 @@ FIELD_VARIABLES: dict[str, tuple[tuple[str, ...], str, str, str | None]] = {
         "from the rotation of the ends about the rod axis; Lk = Tw + Wr",
     ),
     "topology_error": (("time",), "1", "magnitude of Tw + Wr - Lk", None),
+    "writhe_closure_passages": (
+        ("time",),
+        "1",
+        "net passages of the rod through the closure of its open ends",
+        "each changes the writhe of the closed curve by 2 with no self-crossing; writhe "
+        "is kept continuous by adding 2 per passage (docs/topology.md)",
+    ),
     "contact_count": (("time",), "1", "number of self-contact pairs", None),
     "min_surface_gap": (("time",), "m", "smallest surface gap among self-contact pairs", None),
     "newton_iterations": (
@@ -136,8 +143,10 @@ FIELD_VARIABLES: dict[str, tuple[tuple[str, ...], str, str, str | None]] = {
     "position_route_difference": (
         ("time",),
         "m",
-        "far-end position from the space route minus the time route (magnitude)",
-        "position of s = L integrated along s from kappa minus integrated in t from v",
+        "largest distance between the shape integrated along s from kappa and the "
+        "positions integrated in t from v",
+        "a discretisation-error indicator; with self-contact the positions integrated "
+        "in t are the centreline (docs/numerics.md)",
     ),
     "quaternion_norm_error": (
         ("time",),
@@ -232,7 +241,8 @@ def build_dataset(
         N m; ``position``: (T, N, 3) global frame, m; ``orientation``: (T, N, 4) unit
         quaternion (w, x, y, z); ``energy_bending energy_torsion energy_kinetic
         energy_kinetic_fluid energy_total work_in``: (T,) J; ``power_in``: (T,) W;
-        ``twist writhe linking_number topology_error``: (T,) turns;
+        ``twist writhe linking_number topology_error writhe_closure_passages``: (T,)
+        turns;
         ``contact_count``: (T,); ``min_surface_gap``: (T,) m; ``newton_iterations
         residual_norm quaternion_norm_error``: (T,); ``dt``: (T,) s;
         ``position_route_difference``: (T,) m.

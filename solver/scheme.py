@@ -32,10 +32,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import csr_matrix
 
 from .banded import BandFactorError, BandLayout, NV
-from .kinematics import quat_exp, quat_multiply, quat_to_matrix, right_jacobian, skew
+from .kinematics import (quat_exp, quat_multiply, quat_to_matrix, right_jacobian, skew,
+                         space_route)
 
 __all__ = ["alpha_parameters", "StepParameters", "RodSystem", "BACKWARD_EULER"]
 
@@ -146,6 +146,7 @@ class RodSystem:
         self.gmres_failures = 0
         self.gmres_iterations = 0
         self._blocks = np.empty((self.n_cells, NV, 2 * NV))
+        self._exact = None
 
     # ------------------------------------------------------------------ per step setup
     def begin_step(self, dt, params: StepParameters, t_new, Y_old, Ydot_old, F_old,
@@ -176,7 +177,7 @@ class RodSystem:
         key = (dt, params, bc.key)
         # contact stiffness changes fast with the gaps: a fresh Jacobian every contact step
         if (key != self.factor_key or self.candidates is not None
-                or (self.candidates is None) != (self._coupled is None)):
+                or self.contact is not None):
             self.factor_valid = False
         self.factor_key = key
 
@@ -202,11 +203,23 @@ class RodSystem:
     def pose_new(self, Y):
         """Orientation and position at the new level from the old pose and the rates.
 
-        q^{n+1} = q^n ⊗ exp(θ), θ = ½Δt(ω^n + ω^{n+1}); r^{n+1} = r^n + ½Δt(R^n v^n +
-        R^{n+1} v^{n+1}). Returns (q (N+1, 4), R (N+1, 3, 3), r (N+1, 3) or None,
-        θ (N+1, 3)).
+        Without self-contact, per node (the time route): q^{n+1} = q^n ⊗ exp(θ),
+        θ = ½Δt(ω^n + ω^{n+1}); r^{n+1} = r^n + ½Δt(R^n v^n + R^{n+1} v^{n+1}).
+        With self-contact configured, the pose is the shape integrated along s from
+        κ^{n+1} (the space route, :func:`solver.kinematics.space_route`), anchored at
+        node 0's time-route pose: the one centreline that is carried forward, output and
+        checked, so the contact forces act on it (docs/contact.md, "One geometry").
+        Returns (q (N+1, 4), R (N+1, 3, 3), r (N+1, 3) or None, θ (N+1, 3)); θ is the
+        time-route rotation increment in both cases (used by the Jacobian).
         """
         theta = 0.5 * self.dt * (self.Y_old[:, W:W + 3] + Y[:, W:W + 3])
+        if self.contact is not None and self.r_old is not None:
+            q0 = quat_multiply(self.q_old[:1], quat_exp(theta[:1]))
+            q0 /= np.linalg.norm(q0)
+            R0 = quat_to_matrix(q0)[0]
+            r0 = self.r_old[0] + 0.5 * self.dt * (self.v_old_global[0] + R0 @ Y[0, V:V + 3])
+            q, r = space_route(q0[0], r0, Y[:, K:K + 3], self.p.ds)
+            return q, quat_to_matrix(q), r, theta
         q = quat_multiply(self.q_old, quat_exp(theta))
         R = quat_to_matrix(q)
         r = None
@@ -303,12 +316,16 @@ class RodSystem:
             pose_arg = (pose[1], pose[3], 0.5 * self.dt)
         extra = None
         glob = self._glob_force
-        self._offband = None
+        ev = None
         if self.candidates is not None:
-            contact_global, diag = self._contact_terms(Y, pose, want_jacobian)
+            contact_global, diag, ev = self._contact_terms(Y, pose, want_jacobian)
             glob = contact_global if glob is None else glob + contact_global
             extra = (None, diag)
         Fn, dF = self.node_terms(Y, want_jacobian, pose_arg, glob, extra)
+        if want_jacobian:
+            self._exact = None
+            if self.contact is not None and pose is not None and glob is not None:
+                self._exact = self._exact_data(Y, pose, glob, ev, extra[1] if extra else None)
         Z = 0.5 * self.cm * self._apply_M(Y) + 0.5 * (1.0 - af) * Fn + self._zconst
         flux = (1.0 - af) * self._flux(Y) + self._flux_const
         R = np.empty(self.n)
@@ -353,22 +370,22 @@ class RodSystem:
         n1 = self.n_nodes
         if not (np.all(np.isfinite(r)) and np.all(np.isfinite(vg))):
             # a diverging iterate: make the residual non-finite so that Δt is cut
-            return np.full((n1, 3), np.nan), None
+            return np.full((n1, 3), np.nan), None, None
         try:
             ev = self.contact.evaluate(self.candidates, r, vg)
         except ValueError:
-            return np.full((n1, 3), np.nan), None
+            return np.full((n1, 3), np.nan), None, None
         self.last_contact = ev
         force = np.zeros((n1, 3))
         if ev.count == 0:
-            self._offband = None
-            return force, None
+            return force, None, ev
         for a in range(3):
             np.add.at(force, ev.nodes[:, a], ev.weights[:, a, None] * ev.force)
         if not want_jacobian:
-            return force, None
-        # with H_b = ½Δt ∂F/∂r_b + ∂F/∂ṙ_b: ∂F/∂v_b = H_b R_b and, as R_b = R_b^n exp(θ_b),
-        # θ_b = ½Δt(ω_b^n + ω_b^{n+1}), ∂F/∂ω_b = −½Δt H_b R_b [v_b]× J_r(θ_b)
+            return force, None, ev
+        # node-local approximation (preconditioner only): positions advanced per node in
+        # time, r_b ≈ r_b^n + ½Δt(ṙ_b^n + R_b v_b), so with H_b = ½Δt ∂F/∂r_b + ∂F/∂ṙ_b:
+        # ∂F/∂v_b ≈ H_b R_b, ∂F/∂ω_b ≈ −½Δt H_b R_b [v_b]× J_r(θ_b)
         nodes = ev.nodes
         Rn = R[nodes]                                                   # (P, 3, 3, 3)
         Hb = 0.5 * self.dt * ev.d_force_d_r + ev.d_force_d_v
@@ -376,50 +393,94 @@ class RodSystem:
         vb = Y[nodes, V:V + 3]
         Jr = right_jacobian(theta[nodes])
         HW = -0.5 * self.dt * np.einsum("pbij,pbjk->pbik", HR, skew(vb) @ Jr)
-        Hfull = np.concatenate([HR, HW], axis=-1)                      # (P, 3, 3, 6)
-        # ∂B_a/∂(v, ω)_b = w_a R_aᵀ [H_b R_b | ...]
-        blocks = np.einsum("pa,paji,pbjk->pabik", ev.weights, Rn, Hfull)  # (P, 3, 3, 3, 6)
         diag = np.zeros((n1, 3, 6))
-        a_idx = np.repeat(np.arange(3), 3)
-        b_idx = np.tile(np.arange(3), 3)
-        na = nodes[:, a_idx].ravel()
-        nb = nodes[:, b_idx].ravel()
-        vals = blocks[:, a_idx, b_idx].reshape(-1, 3, 6)
-        same = na == nb
-        np.add.at(diag, na[same], vals[same])
-        self._offband = (na[~same], nb[~same], vals[~same])
-        return force, diag
+        for a in range(3):
+            blk = np.concatenate([HR[:, a], HW[:, a]], axis=-1)        # ∂F/∂(v, ω)_a
+            np.add.at(diag, nodes[:, a], ev.weights[:, a, None, None]
+                      * np.einsum("pji,pjk->pik", Rn[:, a], blk))
+        return force, diag, ev
 
-    def _offband_entries(self):
-        """(rows, cols, values) of the contact coupling between distant nodes.
+    def _exact_data(self, Y, pose, glob, ev, diag):
+        """What the exact Jacobian-vector product of the load terms needs (self-contact
+        configured: the pose is the space route, so every node's position and frame
+        depends on κ upstream of it and on node 0's motion; see :meth:`_exact_loads`)."""
+        q, R, r, theta = pose
+        ds = self.p.ds
+        kap = Y[:, K:K + 3]
+        kbar = 0.5 * (kap[1:] + kap[:-1])
+        half = quat_to_matrix(quat_exp(0.5 * ds * kbar))
+        M = R[:-1] @ half                                               # mid-cell frames
+        C = R[1:] @ right_jacobian(ds * kbar) * ds
+        D = M @ right_jacobian(0.5 * ds * kbar) * (0.5 * ds)
+        A0 = R[0] @ right_jacobian(theta[0]) * (0.5 * self.dt)
+        rdot = np.einsum("nij,nj->ni", R, Y[:, V:V + 3])
+        b_rot = np.einsum("nji,nj->ni", R, glob)
+        # the node-local terms the band holds (subtracted in the operator): the contact
+        # approximation and node_terms' rotation of the global load
+        L = np.zeros((self.n_nodes, 3, 6)) if diag is None else diag.copy()
+        L[:, :, 3:] += 0.5 * self.dt * (skew(b_rot) @ right_jacobian(theta))
+        out = dict(R=R, C=C, D=D, tmid=M[:, :, 2], A0=A0, rdot=rdot, G=glob, L=L)
+        if ev is not None and ev.count:
+            out.update(nodes=ev.nodes, weights=ev.weights, dFdr=ev.d_force_d_r,
+                       dFdv=ev.d_force_d_v, F=ev.force, dtdr=ev.d_t_d_r,
+                       dwdt=ev.d_weights_d_t)
+        return out
 
-        Node a's load enters the cells on both sides of it with weight ½(1−αf).
+    def _exact_loads(self, ex, dY):
+        """Body-frame load change (N+1, 3) for a change dY (N+1, 12) of the unknowns,
+        exact for the space-route pose, minus the node-local part the band holds.
+
+        With δφ_k the global rotation of frame k (space route: R_k = R_{k−1} exp(Δs κ̄_k),
+        mid-cell frame M_k = R_{k−1} exp(½Δs κ̄_k), r_k = r_{k−1} + Δs M_k a3):
+        δφ_0 = R_0 J_r(θ_0) ½Δt δω_0, δφ_k = δφ_{k−1} + R_k J_r(Δs κ̄_k) Δs δκ̄_k,
+        δr_0 = ½Δt(δφ_0 × ṙ_0 + R_0 δv_0), δr_k = δr_{k−1} + Δs (δφ_{k−1} +
+        M_k J_r(½Δs κ̄_k) ½Δs δκ̄_k) × M_k a3, δṙ_k = δφ_k × ṙ_k + R_k δv_k (prefix
+        sums: O(N)). The contact force F_p of each pair changes by Σ_b ∂F/∂r_b δr_b +
+        ∂F/∂ṙ_b δṙ_b, its load w_a F_p on node a by w_a δF_p + F_p (∂w_a/∂t) δt, and the
+        body-frame load B_a = R_aᵀ G_a (G the global force on a) by R_aᵀ(δG_a + G_a × δφ_a).
         """
-        a, b, blocks = self._offband
-        w = 0.5 * (1.0 - self.params.alpha_f)
-        rows, cols, vals = [], [], []
-        r3 = np.arange(3)
-        r6 = np.arange(6)
-        for side in (-1, 0):
-            cell = a + side
-            ok = (cell >= 0) & (cell < self.n_cells)
-            rr = 6 + NV * cell[ok][:, None, None] + E3 + r3[None, :, None]
-            cc = NV * b[ok][:, None, None] + V + r6[None, None, :]
-            rows.append(np.broadcast_to(rr, (ok.sum(), 3, 6)).ravel())
-            cols.append(np.broadcast_to(cc, (ok.sum(), 3, 6)).ravel())
-            vals.append((w * blocks[ok]).ravel())
-        return np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+        dk = dY[:, K:K + 3]
+        dv = dY[:, V:V + 3]
+        dkbar = 0.5 * (dk[1:] + dk[:-1])
+        n1 = self.n_nodes
+        dphi = np.empty((n1, 3))
+        dphi[0] = ex["A0"] @ dY[0, W:W + 3]
+        dphi[1:] = dphi[0] + np.cumsum(np.einsum("cij,cj->ci", ex["C"], dkbar), axis=0)
+        dpsi = dphi[:-1] + np.einsum("cij,cj->ci", ex["D"], dkbar)
+        R = ex["R"]
+        dr = np.empty((n1, 3))
+        dr[0] = 0.5 * self.dt * (np.cross(dphi[0], ex["rdot"][0]) + R[0] @ dv[0])
+        dr[1:] = dr[0] + self.p.ds * np.cumsum(_cross(dpsi, ex["tmid"]), axis=0)
+        dG = _cross(ex["G"], dphi)
+        if "nodes" in ex:
+            nodes = ex["nodes"]
+            drdot = _cross(dphi, ex["rdot"]) + np.einsum("nij,nj->ni", R, dv)
+            dF = (np.einsum("pbij,pbj->pi", ex["dFdr"], dr[nodes])
+                  + np.einsum("pbij,pbj->pi", ex["dFdv"], drdot[nodes]))
+            dt = np.einsum("pbj,pbj->p", ex["dtdr"], dr[nodes])
+            for a in range(1, 3):
+                np.add.at(dG, nodes[:, a], (ex["dwdt"][:, a] * dt)[:, None] * ex["F"])
+            for a in range(3):
+                np.add.at(dG, nodes[:, a], ex["weights"][:, a, None] * dF)
+        dB = np.einsum("nji,nj->ni", R, dG)
+        return dB - np.einsum("nij,nj->ni", ex["L"], dY[:, 0:6])
 
     def _coupled_matvec(self, x):
-        """Scaled Jacobian (band cells + boundary rows + distant contact coupling) times x."""
-        blocks, bc_rows, bc_cols, bc_vals, off = self._coupled
+        """Scaled Jacobian times x: band cells and boundary rows, plus (self-contact
+        configured) the exact load terms of the space-route pose in place of their
+        node-local approximation (:meth:`_exact_loads`)."""
+        blocks, bc_rows, bc_cols, bc_vals, ex = self._coupled
         X = x.reshape(self.n_nodes, NV)
         out = np.empty(self.n)
         pairs = np.concatenate([X[:-1], X[1:]], axis=1)
-        out[6:6 + NV * self.n_cells] = np.einsum("cij,cj->ci", blocks, pairs).ravel()
+        cells = np.einsum("cij,cj->ci", blocks, pairs)
+        if ex is not None:
+            dB = self._exact_loads(ex, X * self._col_scale.reshape(self.n_nodes, NV))
+            w = 0.5 * (1.0 - self.params.alpha_f)
+            rs = self._row_scale[6:6 + NV * self.n_cells].reshape(self.n_cells, NV)
+            cells[:, E3:E3 + 3] += rs[:, E3:E3 + 3] * w * (dB[:-1] + dB[1:])
+        out[6:6 + NV * self.n_cells] = cells.ravel()
         out[bc_rows] = bc_vals * x[bc_cols]
-        if off is not None:
-            out += off @ x
         return out
 
     def _coupled_solve(self, rhs, rtol=1e-7, max_iterations=40):
@@ -509,18 +570,14 @@ class RodSystem:
         return scaled, bc_vals * rs[bc_rows] * self._s24[bc_cols % NV]
 
     def _set_operator(self, scaled, bc_scaled, stale=False):
-        """The (scaled) Jacobian for GMRES: band cells, boundary rows and the distant
-        contact coupling; None when the band LU is the exact Jacobian."""
-        if self._offband is None and not stale:
+        """The (scaled) Jacobian for GMRES: band cells, boundary rows and the exact load
+        terms of the space-route pose; None when the band LU is the exact Jacobian."""
+        ex = self._exact if self.contact is not None else None
+        if ex is None and not stale:
             self._coupled = None
             return
         bc_rows, bc_cols, _ = self.bc.jacobian_entries()
-        off = None
-        if self._offband is not None:
-            o_rows, o_cols, o_vals = self._offband_entries()
-            off = csr_matrix((o_vals * self._row_scale[o_rows] * self._col_scale[o_cols],
-                              (o_rows, o_cols)), shape=(self.n, self.n))
-        self._coupled = (scaled.copy(), bc_rows, bc_cols, bc_scaled, off)
+        self._coupled = (scaled.copy(), bc_rows, bc_cols, bc_scaled, ex)
 
     def update_operator(self, blocks):
         """Contact steps between factorisations: the GMRES operator becomes the Jacobian
@@ -614,7 +671,10 @@ class RodSystem:
                             return Y, Fn, it, np.inf, False, pose
                         rhs = -R * self._row_scale
                         failures = self.gmres_failures
-                        delta = self._coupled_solve(rhs) * self._col_scale
+                        if self._coupled is None:
+                            delta = self.layout.solve(rhs) * self._col_scale
+                        else:
+                            delta = self._coupled_solve(rhs) * self._col_scale
                     if self.gmres_failures > failures:
                         # the contact coupling is too strong for the band preconditioner
                         # at this Δt: the correction is unreliable. Fail now; the caller

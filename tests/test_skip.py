@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import solver.contact as contact_mod
+import solver.contact.geometry as geometry_mod
 import solver.simulation as sim_mod
 import solver.topology as topology_mod
 from solver import Case, simulate
@@ -56,8 +57,7 @@ class Trap:
 
 def test_no_search_structure_without_contact(monkeypatch):
     trap = Trap(fail=True)
-    monkeypatch.setattr(contact_mod, "cKDTree", trap)
-    monkeypatch.setattr(sim_mod, "cKDTree", trap)
+    monkeypatch.setattr(geometry_mod, "cKDTree", trap)
     monkeypatch.setattr(contact_mod.SelfContact, "may_touch", Trap(fail=True).method())
     ds = simulate(Case.model_validate(seed_spec(contact=False, fields=("energies", "position"))))
     assert ds.attrs["hockle_status"] == "completed" and trap.calls == 0
@@ -66,9 +66,8 @@ def test_no_search_structure_without_contact(monkeypatch):
 def test_no_tree_while_no_contact_is_possible(monkeypatch):
     # the seed's rod with contact configured, early in the twist: straight, so the O(N)
     # pre-test rules every pair out and no k-d tree is ever built
-    tree = Trap(original=contact_mod.cKDTree)
-    monkeypatch.setattr(contact_mod, "cKDTree", tree)
-    monkeypatch.setattr(sim_mod, "cKDTree", tree)
+    tree = Trap(original=geometry_mod.cKDTree)
+    monkeypatch.setattr(geometry_mod, "cKDTree", tree)
     pretest = Trap(original=contact_mod.SelfContact.may_touch)
     monkeypatch.setattr(contact_mod.SelfContact, "may_touch", pretest.method())
     ds = simulate(Case.model_validate(seed_spec(contact=True)))

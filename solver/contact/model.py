@@ -88,6 +88,9 @@ class ContactEvaluation:
     d_force_d_r : (P, 3, 3, 3)  ∂F/∂r_a for a = nodes[:, a] (N/m²), the closest point
                               sliding along the segment
     d_force_d_v : (P, 3, 3, 3)  ∂F/∂v_a (N·s/m²)
+    d_t_d_r : (P, 3, 3)       ∂t/∂r_a (1/m): the load weights move with t
+    d_weights_d_t : (P, 3)    ∂w_a/∂t, so node a's load w_a F changes by
+                              w_a δF + F (∂w_a/∂t) Σ_b ∂t/∂r_b δr_b
     gap, distance : (P,) m    surface gap d − D̄ and centreline distance d
     min_gap : float, m        smallest gap (inf if none)
     count : int               P
@@ -102,6 +105,8 @@ class ContactEvaluation:
     force: np.ndarray
     d_force_d_r: np.ndarray
     d_force_d_v: np.ndarray
+    d_t_d_r: np.ndarray
+    d_weights_d_t: np.ndarray
     gap: np.ndarray
     distance: np.ndarray
     min_gap: float
@@ -437,8 +442,13 @@ class SelfContact:
         d_dv = coef[:, :, None, None] * Gu[:, None]
         w = self.weights
         weights = 0.5 * np.stack([np.ones(p), (t - 1.0) * w[i] / w[j], -t * w[i] / w[j + 1]], axis=1)
-        return ContactEvaluation(i, j, t, nodes, weights, coef, force, d_dr, d_dv, gap, d,
-                                 float(gap.min()), int(p))
+        dw_dt = 0.5 * np.stack([np.zeros(p), w[i] / w[j], -w[i] / w[j + 1]], axis=1)
+        tl = tau / L[:, :, 0]
+        xl = x / L[:, :, 0] ** 2
+        dt_dr = np.stack([tl, (t - 1.0)[:, None] * tl - xl, -t[:, None] * tl + xl], axis=1)
+        dt_dr = np.where(interior, dt_dr, 0.0)
+        return ContactEvaluation(i, j, t, nodes, weights, coef, force, d_dr, d_dv, dt_dr,
+                                 dw_dt, gap, d, float(gap.min()), int(p))
 
 
 def _empty_evaluation() -> ContactEvaluation:
@@ -446,4 +456,5 @@ def _empty_evaluation() -> ContactEvaluation:
     zi = np.zeros(0, dtype=np.intp)
     return ContactEvaluation(zi, zi.copy(), z, np.zeros((0, 3), np.intp), np.zeros((0, 3)),
                              np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3, 3, 3)),
-                             np.zeros((0, 3, 3, 3)), z.copy(), z.copy(), float("inf"), 0)
+                             np.zeros((0, 3, 3, 3)), np.zeros((0, 3, 3)), np.zeros((0, 3)),
+                             z.copy(), z.copy(), float("inf"), 0)

@@ -1,0 +1,143 @@
+"""Accuracy of the seed example's contact phase at its time step (issue 9).
+
+The seed example (`cases/goyal-writhing.yaml`, 1000 segments) is run to 18.0 s at its
+Δt = 0.1 s (the rod has buckled; no contact yet). From that one state the first loop
+(18-21 s: first contact, the loop tightening, writhe rising through 1) is run at the
+production step (nominal Δt = 0.1 s, cut only where Newton or the collision check fails)
+and at nominal steps of 12.5 ms and 6.25 ms (the reference; the difference between the two
+references estimates the reference's own error). Outputs every 0.1 s.
+
+Printed and written to benchmarks/results/seed_accuracy.json:
+* the largest writhe difference to the reference, absolute and relative to the largest
+  |Wr| of the window (target: within 1 %);
+* event times (first contact, Wr through 0.5 and 1.0, by linear interpolation between
+  outputs) and their differences (target: within 0.1 s);
+* the largest |Tw + Wr − Lk| at the outputs (target < 0.05) and the smallest surface gap
+  of the polyline (segment to segment, every segment pair beyond the exclusion) at the
+  outputs: > 0 means the centreline never interpenetrates;
+* wall time of each run.
+
+Run: ``python benchmarks/seed_accuracy.py [--t1 21.0] [--quick]`` (quick: references at
+25 ms and 12.5 ms, to 19.5 s).
+"""
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from solver import Case
+from solver.contact import min_surface_gap
+from solver.simulation import RodRun
+from solver.topology import linking_number, twist, writhe
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "benchmarks" / "results"
+
+
+def state_at(t0: float) -> RodRun:
+    """The seed example advanced to t0 (s) at its own Δt."""
+    case = Case.from_file(ROOT / "cases" / "goyal-writhing.yaml")
+    run = RodRun(case)
+    n = int(round(t0 / case.numerics.dt))
+    for k in range(1, n + 1):
+        run.advance(k * case.numerics.dt)
+    return run
+
+
+def record(run: RodRun) -> dict:
+    props = run.props
+    tw = twist(run.Y[:, 11], props.s)
+    wr = writhe(run.r)
+    lk = linking_number(run.phi[0], run.phi[1])
+    wr += 2.0 * round((lk - tw - wr) / 2.0)
+    c = run.contact
+    gap = min_surface_gap(run.r, props.diameter, props.s, c.separation_cut, c.tolerance)
+    return {"t": run.t, "writhe": wr, "topology_error": abs(tw + wr - lk),
+            "contacts": run.contact_count, "min_surface_gap": gap}
+
+
+def advance(run: RodRun, t1: float, h: float, out_every: float = 0.1) -> tuple[list, float]:
+    """Advance with nominal steps h (s) to t1, recording every out_every (s)."""
+    recs = [record(run)]
+    t0 = time.perf_counter()
+    n = int(round((t1 - run.t) / h))
+    start = run.t
+    per_out = int(round(out_every / h))
+    for k in range(1, n + 1):
+        run.advance(start + k * h)
+        if k % per_out == 0:
+            recs.append(record(run))
+    return recs, time.perf_counter() - t0
+
+
+def crossing(ts, ys, level):
+    for k in range(1, len(ts)):
+        if ys[k - 1] < level <= ys[k]:
+            return ts[k - 1] + (level - ys[k - 1]) / (ys[k] - ys[k - 1]) * (ts[k] - ts[k - 1])
+    return None
+
+
+def events(recs) -> dict:
+    ts = [r["t"] for r in recs]
+    wr = [r["writhe"] for r in recs]
+    first = next((r["t"] for r in recs if r["contacts"] > 0), None)
+    return {"first_contact": first, "writhe_0_5": crossing(ts, wr, 0.5),
+            "writhe_1_0": crossing(ts, wr, 1.0)}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--t0", type=float, default=18.0)
+    ap.add_argument("--t1", type=float, default=21.0)
+    ap.add_argument("--quick", action="store_true")
+    args = ap.parse_args()
+    from threadpoolctl import threadpool_limits
+
+    t1 = 19.5 if args.quick else args.t1
+    steps = {"production": 0.1}
+    steps.update({"reference": 0.025, "reference_coarse": 0.05} if args.quick else
+                 {"reference": 0.00625, "reference_coarse": 0.0125})
+    with threadpool_limits(limits=1, user_api="blas"):
+        base = state_at(args.t0)
+        runs = {}
+        for name, h in steps.items():
+            recs, wall = advance(copy.deepcopy(base), t1, h)
+            runs[name] = {"h": h, "wall_s": wall, "records": recs, "events": events(recs)}
+            print(f"{name}: nominal Δt {h} s, wall {wall:.1f} s, events {runs[name]['events']}")
+    ref = np.array([r["writhe"] for r in runs["reference"]["records"]])
+    scale = float(np.max(np.abs(ref)))
+    summary = {"t0": args.t0, "t1": t1, "writhe_scale": scale}
+    for name in ("production", "reference_coarse"):
+        wr = np.array([r["writhe"] for r in runs[name]["records"]])
+        diff = float(np.max(np.abs(wr - ref)))
+        ev = {k: (None if v is None or runs["reference"]["events"][k] is None
+                  else v - runs["reference"]["events"][k]) for k, v in runs[name]["events"].items()}
+        summary[name] = {"writhe_max_abs_diff": diff, "writhe_rel_diff": diff / scale,
+                         "event_time_diffs_s": ev, "wall_s": runs[name]["wall_s"]}
+    for name, r in runs.items():
+        summary.setdefault(name, {})
+        summary[name]["max_topology_error"] = max(x["topology_error"] for x in r["records"])
+        summary[name]["min_surface_gap_m"] = min(x["min_surface_gap"] for x in r["records"])
+        summary[name]["events"] = r["events"]
+        summary[name]["wall_s"] = r["wall_s"]
+    summary["records"] = {k: v["records"] for k, v in runs.items()}
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    (RESULTS / "seed_accuracy.json").write_text(json.dumps(summary, indent=1))
+    p = summary["production"]
+    print(f"writhe vs reference: max |ΔWr| {p['writhe_max_abs_diff']:.4f} "
+          f"({p['writhe_rel_diff'] * 100:.2f} % of max |Wr| {scale:.3f}); the coarse "
+          f"reference differs by {summary['reference_coarse']['writhe_rel_diff'] * 100:.2f} %")
+    print("event time differences (s):", p["event_time_diffs_s"])
+    for name in runs:
+        print(f"{name}: max |Tw+Wr-Lk| {summary[name]['max_topology_error']:.2e}, "
+              f"min surface gap {summary[name]['min_surface_gap_m'] * 1e3:.3f} mm, "
+              f"wall {summary[name]['wall_s']:.1f} s")
+
+
+if __name__ == "__main__":
+    main()
