@@ -25,6 +25,7 @@ from .energies import distributed_power, end_loads, end_power, energies
 from .kinematics import quat_exp, quat_from_matrix, quat_multiply, quat_to_matrix, space_route
 from .loads import LoadModel
 from .properties import RodProperties
+from .newton import Newton
 from .scheme import BACKWARD_EULER, RodSystem, alpha_parameters
 
 __all__ = ["simulate", "SolverDivergence", "Progress", "RodRun"]
@@ -85,10 +86,14 @@ class RodRun:
         self.props = props = RodProperties.from_case(case)
         self.loads = LoadModel(case, props)
         self.contact = None
+        self.route_tolerance = math.inf
+        self.last_step_error = 0.0
         if case.contact is not None:
             self.contact = SelfContact(case.contact, props.s, props.diameter, props.rho_a)
-        self.system = RodSystem(props, self.loads, num.newton.tolerance,
-                                num.newton.max_iterations, contact=self.contact)
+            # accuracy of a step where strands may meet: a quarter of the search margin
+            self.route_tolerance = 0.25 * (self.contact.tolerance - float(np.max(props.diameter)))
+        self.system = RodSystem(props, self.loads, contact=self.contact)
+        self.newton = Newton(self.system, num.newton.tolerance, num.newton.max_iterations)
         self.params = alpha_parameters(num.rho_inf)
         self.rho_inf = num.rho_inf
         n1 = props.s.size
@@ -164,7 +169,7 @@ class RodRun:
             sysm.begin_step(h, params, t_new, self.Y, self.Ydot, self.F_old, bc,
                             q_old=self.q, r_old=self.r, v_old_global=self.v_global,
                             candidates=cand)
-            Y, Fn, its, res, ok, pose = sysm.solve_step(guess)
+            Y, Fn, its, res, ok, pose = self.newton.solve(guess)
             its_total += its
             if not ok:
                 return False, its_total, res, not np.isfinite(res)
@@ -205,6 +210,9 @@ class RodRun:
         r_t = self.r_time + 0.5 * h * (self.v_global_time + vg_t)
         if self.contact is not None:
             # the space route of the new level: what Newton's contact forces acted on
+            self.last_step_error = self._local_error(h, Y, pose[2])
+            if self.last_step_error > self.route_tolerance:
+                return False, its, res, False
             if not self._no_tunnelling(pose[2]):
                 return False, its, res, False
             self.contact_count, self.min_gap = contact_count, min_gap
@@ -255,6 +263,18 @@ class RodRun:
         self.last_iterations, self.last_residual = its, res
         return True, its, res, False
 
+    def _local_error(self, h, Y, r_new) -> float:
+        """Local error indicator of a step (m): the largest distance between the new
+        centreline (integrated along s from κ) and the same nodes advanced one
+        trapezoidal step in time from the old centreline, r^n + ½h(ṙ^n + R^{n+1} v^{n+1})
+        (R^{n+1} = R^n exp(½h(ω^n + ω^{n+1})) per node). Both are second-order routes to
+        the same positions, so their difference is O(h³) per step and measures the step's
+        position error (docs/contact.md, "Step control")."""
+        theta = 0.5 * h * (self.Y[:, 3:6] + Y[:, 3:6])
+        R_t = quat_to_matrix(quat_multiply(self.q, quat_exp(theta)))
+        r_t = self.r + 0.5 * h * (self.v_global + np.einsum("nij,nj->ni", R_t, Y[:, 0:3]))
+        return float(np.max(np.linalg.norm(r_t - r_new, axis=1)))
+
     def _no_tunnelling(self, r_new) -> bool:
         """Collision check of an accepted Newton solution (docs/contact.md): False when
         two nodes beyond the exclusion, moving linearly from their old to their new
@@ -262,12 +282,15 @@ class RodRun:
         step (a strand passed through another between the candidate searches)."""
         c = self.contact
         disp = r_new - self.r
-        reach = float(np.max(self.props.diameter)) + 2.0 * float(np.max(np.linalg.norm(disp, axis=1)))
+        # a pair can come closer than ½D within the step only if it ends closer than
+        # ½D + its relative displacement
+        radius = 0.5 * float(np.max(self.props.diameter)) + 2.0 * float(
+            np.max(np.linalg.norm(disp, axis=1)))
         tangents = np.diff(r_new, axis=0)
         tangents = np.vstack([tangents, tangents[-1:]])
-        if not c.may_touch(r_new, tangents, reach) and not c.may_touch(self.r, tangents, reach):
+        if not c.may_touch(r_new, tangents, radius - c.tolerance):
             return True
-        a, b = close_node_pairs(r_new, reach, self.props.s, c.separation_cut)
+        a, b = close_node_pairs(r_new, radius, self.props.s, c.separation_cut)
         if a.size == 0:
             return True
         closest = swept_min_distance(self.r, r_new, a, b)
@@ -287,10 +310,11 @@ class RodRun:
     def _candidates(self, h, guess):
         """Candidates for a step of h (s) from the Newton start ``guess`` (N+1, 12): node
         pairs within tolerance + m of each other at the old positions or at the positions
-        the start predicts, m = ¼(tolerance − D_max). Pairs that come within the
-        tolerance beyond that are added by the coverage check after Newton, and the step
-        is solved again."""
+        the start predicts, m = min(¼(tolerance − D_max), 2h max|ṙ^n|). Pairs that come
+        within the tolerance beyond that are added by the coverage check after Newton,
+        and the step is solved again."""
         margin = 0.25 * (self.contact.tolerance - float(np.max(self.props.diameter)))
+        margin = min(margin, 2.0 * h * float(np.max(np.linalg.norm(self.v_global, axis=1))))
         R_old = quat_to_matrix(self.q)
         old = self._search(self.r, R_old, margin)
         theta = 0.5 * h * (self.Y[:, 3:6] + guess[:, 3:6])
@@ -370,7 +394,7 @@ class RodRun:
                 continue
             self.accepted_at_level = 0
             if level >= num.max_dt_cuts:
-                singular = self.system.last_failure == "singular"
+                singular = self.newton.last_failure == "singular"
                 reason = "nonfinite_state" if (nonfinite and not singular) else "solver_diverged"
                 why = ("singular Jacobian: the boundary conditions leave a force or moment "
                        "undetermined (e.g. a straight inextensible rod held axially at both "
@@ -493,7 +517,7 @@ def _simulate(case, progress, should_stop):
         if reason is not None:
             ds.attrs["hockle_stop_reason"] = reason
         ds.attrs["wall_time_s"] = _time.perf_counter() - wall0
-        ds.attrs["factorizations"] = run.system.factorizations
+        ds.attrs["factorizations"] = run.newton.factorizations
         return ds
 
     record()

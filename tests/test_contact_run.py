@@ -70,4 +70,4 @@ def test_no_contact_machinery_without_contact():
     assert run.contact is None
     for k in range(3):
         run.advance(0.1 * (k + 1))
-    assert run.system.candidates is None and run.system._coupled is None
+    assert run.system.candidates is None and run.newton._coupled is None

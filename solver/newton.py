@@ -1,0 +1,340 @@
+"""Newton's method for one time step: iteration, safeguards and the linear solver.
+
+The difference equations of a step (:class:`solver.scheme.RodSystem`) are solved for all
+12(N+1) unknowns at once. The strategy, in one place:
+
+* **Jacobian and factorisation.** The analytic Jacobian in LAPACK band storage
+  (kl = ku = 17, :mod:`solver.banded`), equilibrated by a column scale (characteristic
+  size of each unknown) and a row scale (size of the terms of each row). Without contact
+  the LU is reused across iterations and steps (chord) while the step size, the scheme's
+  weights and the boundary rows are unchanged, and refactored when the residual falls
+  by less than 4× in an iteration.
+* **Self-contact.** The pose is the space route (:meth:`RodSystem.pose_new`), so the
+  contact forces depend on κ upstream of each node: the exact Jacobian is not banded.
+  GMRES (right-preconditioned, Saad & Schultz 1986) solves with the exact operator
+  applied matrix-free (:meth:`RodSystem._exact_loads`), preconditioned by the band LU
+  of the node-local (time-route) approximation. That LU is kept across iterates while
+  GMRES converges in at most ``GMRES_REFACTOR`` iterations and refactored when it needs
+  more: about one factorisation per contact step (docs/contact.md).
+* **Feasible iterates.** A correction may close no candidate gap to less than
+  ``GAP_KEEP`` of itself (halving; an IPC-like filter), then an Armijo backtracking on
+  the scaled residual, whose evaluation with its Jacobian is reused as the next iterate.
+* **Fail fast.** A contact step that halves its residual less than once in four
+  iterations, whose corrections are cut to 1/64 three times, or whose GMRES does not
+  converge even with a fresh factorisation, fails at once: the step control
+  (:mod:`solver.simulation`) cuts Δt.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .banded import BandFactorError, BandLayout, NV
+from .scheme import E3
+
+__all__ = ["Newton"]
+
+
+class Newton:
+    """Newton iterations for the steps of one :class:`solver.scheme.RodSystem`.
+
+    Parameters
+    ----------
+    system : RodSystem
+    tolerance : float
+        Convergence when the scaled residual max_i |R_i| / Σ_j |J_ij| y_j (each row's
+        residual relative to the size of its terms) is below it.
+    max_iterations : int
+
+    Attributes
+    ----------
+    factorizations, gmres_iterations, gmres_failures : counters over the run.
+    last_failure : None, "singular", "stalled" or "gmres" (why the last solve failed).
+    """
+
+    #: contact steps: refactor the band LU when the last GMRES solve needed more
+    #: iterations than this (else the LU of an earlier iterate preconditions the
+    #: current Jacobian)
+    GMRES_REFACTOR = 8
+
+    def __init__(self, system, tolerance=1e-9, max_iterations=25):
+        self.system = system
+        self.tol = float(tolerance)
+        self.max_iterations = int(max_iterations)
+        self.layout = BandLayout(system.n_cells)
+        self.factor_valid = False
+        self.factor_key = None
+        self.factorizations = 0
+        self.gmres_failures = 0
+        self.gmres_iterations = 0
+        self.last_failure = None
+        self._row_scale = None
+        self._col_scale = None
+        self._coupled = None
+        self._factored_with_contact = False
+
+    def _coupled_matvec(self, x):
+        """Scaled Jacobian times x: band cells and boundary rows, plus (self-contact
+        configured) the exact load terms of the space-route pose in place of their
+        node-local approximation (:meth:`_exact_loads`)."""
+        blocks, bc_rows, bc_cols, bc_vals, ex = self._coupled
+        X = x.reshape(self.system.n_nodes, NV)
+        out = np.empty(self.system.n)
+        pairs = np.concatenate([X[:-1], X[1:]], axis=1)
+        cells = np.einsum("cij,cj->ci", blocks, pairs)
+        if ex is not None:
+            dB = self.system._exact_loads(ex, X * self._col_scale.reshape(self.system.n_nodes, NV))
+            w = 0.5 * (1.0 - self.system.params.alpha_f)
+            rs = self._row_scale[6:6 + NV * self.system.n_cells].reshape(self.system.n_cells, NV)
+            cells[:, E3:E3 + 3] += rs[:, E3:E3 + 3] * w * (dB[:-1] + dB[1:])
+        out[6:6 + NV * self.system.n_cells] = cells.ravel()
+        out[bc_rows] = bc_vals * x[bc_cols]
+        return out
+
+    def _coupled_solve(self, rhs, rtol=1e-7, max_iterations=40):
+        """Solve the contact-coupled (scaled) system by right-preconditioned GMRES.
+
+        The preconditioner is the band LU (band cells with the node-local contact
+        blocks); the coupling of distant nodes is a low-rank change of that matrix, so
+        few iterations are needed. Arnoldi with classical Gram-Schmidt and one
+        reorthogonalisation (two matrix-vector products with the basis per iteration);
+        the small least-squares problem is solved directly. Stops at a relative residual
+        rtol (an inexact Newton step; Newton's own test is on the nonlinear residual).
+        Source: Saad & Schultz, SIAM J. Sci. Stat. Comput. 7 (1986) 856-869.
+        """
+        n = self.system.n
+        precond = self.layout.solve
+        x0 = precond(rhs)
+        r = rhs - self._coupled_matvec(x0)
+        bnorm = float(np.linalg.norm(rhs))
+        beta = float(np.linalg.norm(r))
+        if beta <= rtol * bnorm or beta == 0.0:
+            return x0
+        m = max_iterations
+        V = np.empty((m + 1, n))
+        Z = np.empty((m, n))
+        H = np.zeros((m + 1, m))
+        V[0] = r / beta
+        y = np.zeros(0)
+        k = 0
+        for k in range(m):
+            Z[k] = precond(V[k])
+            w = self._coupled_matvec(Z[k])
+            h = V[:k + 1] @ w
+            w -= h @ V[:k + 1]
+            h2 = V[:k + 1] @ w
+            w -= h2 @ V[:k + 1]
+            H[:k + 1, k] = h + h2
+            H[k + 1, k] = float(np.linalg.norm(w))
+            e = np.zeros(k + 2)
+            e[0] = beta
+            y = np.linalg.lstsq(H[:k + 2, :k + 1], e, rcond=None)[0]
+            resid = float(np.linalg.norm(e - H[:k + 2, :k + 1] @ y))
+            if resid <= rtol * bnorm or H[k + 1, k] <= 1e-14 * beta:
+                break
+            V[k + 1] = w / H[k + 1, k]
+        else:
+            self.gmres_failures += 1
+        self.gmres_iterations += k + 1
+        return x0 + y @ Z[:k + 1]
+
+    def factor(self, Y, blocks):
+        """Scale, assemble and factorise the Jacobian at Y (sets the row and column
+        scales), and set the operator for the coupled solve when contact couples
+        distant nodes."""
+        s12 = self.system.column_scale(Y)
+        s24 = np.tile(s12, 2)
+        bc_rows, bc_cols, bc_vals = self.system.bc.jacobian_entries()
+        cell_rowsum = np.abs(blocks) @ s24                      # (N, 12)
+        node_of_col = bc_cols // NV
+        bc_rowsum = np.abs(bc_vals) * s12[bc_cols - NV * node_of_col]
+        rs = np.empty(self.system.n)
+        rs[6:6 + NV * self.system.n_cells] = cell_rowsum.ravel()
+        rs[bc_rows] = bc_rowsum
+        rs = 1.0 / np.where(rs > 0, rs, 1.0)
+        self._row_scale = rs
+        self._col_scale = np.tile(s12, self.system.n_nodes)
+        self._s24 = s24
+        scaled, bc_scaled = self._scaled(blocks)
+        # the band part (with the node-local contact blocks) is always LU-factorised;
+        # contact coupling between distant nodes, when present, is kept as a sparse
+        # matrix and the correction is solved by GMRES preconditioned with the band LU.
+        self.layout.factor(scaled, bc_rows, bc_cols, bc_scaled)
+        self._set_operator(scaled, bc_scaled)
+        self.factor_valid = True
+        self._factored_with_contact = self.system.candidates is not None
+        self.factorizations += 1
+
+    def _scaled(self, blocks):
+        """Cell blocks and boundary values in the scales of the last factorisation."""
+        bc_rows, bc_cols, bc_vals = self.system.bc.jacobian_entries()
+        rs = self._row_scale
+        scaled = blocks * (rs[self.layout.cell_rows][:, :, None] * self._s24[None, None, :])
+        return scaled, bc_vals * rs[bc_rows] * self._s24[bc_cols % NV]
+
+    def _set_operator(self, scaled, bc_scaled, stale=False):
+        """The (scaled) Jacobian for GMRES: band cells, boundary rows and the exact load
+        terms of the space-route pose; None when the band LU is the exact Jacobian."""
+        ex = self.system._exact if self.system.contact is not None else None
+        if ex is None and not stale:
+            self._coupled = None
+            return
+        bc_rows, bc_cols, _ = self.system.bc.jacobian_entries()
+        self._coupled = (scaled.copy(), bc_rows, bc_cols, bc_scaled, ex)
+
+    def update_operator(self, blocks):
+        """Contact steps between factorisations: the GMRES operator becomes the Jacobian
+        at the current iterate while the (older) band LU stays the preconditioner."""
+        scaled, bc_scaled = self._scaled(blocks)
+        self._set_operator(scaled, bc_scaled, stale=True)
+
+    def solve(self, Y_guess):
+        """Newton iterations for the step set up by :meth:`begin_step`.
+
+        Returns (Y, F_nodes, iterations, residual_norm, converged, pose). The scaled
+        residual norm is max_i |R_i| r_i with r_i the row scale of the last factorisation.
+        """
+        system = self.system
+        contact = system.candidates is not None
+        if (system.step_key != self.factor_key or contact or self._factored_with_contact):
+            self.factor_valid = False
+        self.factor_key = system.step_key
+        # a trial step that blows up is an expected event (the caller cuts Δt): no warnings
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            return self._newton(Y_guess)
+
+    def _newton(self, Y_guess):
+        self.last_failure = None
+        Y = Y_guess.copy()
+        contact = self.system.candidates is not None
+        res_prev = np.inf
+        refactor = not self.factor_valid or contact
+        res = np.inf
+        pose = None
+        tiny = 0
+        history = []
+        stall_scale = None
+        cached = None
+        gmres_last = 0
+        for it in range(self.max_iterations + 1):
+            if cached is not None:
+                R, Fn, blocks, pose = cached
+                cached = None
+            else:
+                R, Fn, blocks, pose = self.system.residual(Y, want_jacobian=refactor or contact)
+            if not np.all(np.isfinite(R)):
+                return Y, Fn, it, np.inf, False, pose
+            fresh = refactor
+            if refactor:
+                try:
+                    self.factor(Y, blocks)
+                except BandFactorError:
+                    self.last_failure = "singular"
+                    return Y, Fn, it, np.inf, False, pose
+                refactor = False
+            elif contact:
+                self.update_operator(blocks)
+            res = float(np.max(np.abs(R) * self._row_scale))
+            if res <= self.tol:
+                return Y, Fn, it, res, True, pose
+            if it == self.max_iterations:
+                break
+            if contact:
+                # stalls are judged in one scale (the row scale changes with the contact
+                # stiffness from one factorisation to the next)
+                if stall_scale is None:
+                    stall_scale = self._row_scale.copy()
+                history.append(float(np.max(np.abs(R) * stall_scale)))
+                if it >= 6 and history[-1] > 0.5 * history[-5]:
+                    # less than a halving in four iterations: Δt is too large
+                    self.last_failure = "stalled"
+                    return Y, Fn, it, res, False, pose
+            elif not fresh and res > 0.25 * res_prev:
+                # the reused factor converges slowly: refactor at this iterate
+                R, Fn, blocks, pose = self.system.residual(Y, want_jacobian=True)
+                try:
+                    self.factor(Y, blocks)
+                except BandFactorError:
+                    self.last_failure = "singular"
+                    return Y, Fn, it, np.inf, False, pose
+                res = float(np.max(np.abs(R) * self._row_scale))
+            res_prev = res
+            rhs = -R * self._row_scale
+            if self._coupled is not None:
+                failures, g0 = self.gmres_failures, self.gmres_iterations
+                delta = self._coupled_solve(rhs) * self._col_scale
+                gmres_last = self.gmres_iterations - g0
+                if self.gmres_failures > failures:
+                    if not fresh:
+                        # a stale preconditioner: refactor here and solve again
+                        try:
+                            self.factor(Y, blocks)
+                        except BandFactorError:
+                            self.last_failure = "singular"
+                            return Y, Fn, it, np.inf, False, pose
+                        rhs = -R * self._row_scale
+                        failures = self.gmres_failures
+                        if self._coupled is None:
+                            delta = self.layout.solve(rhs) * self._col_scale
+                        else:
+                            delta = self._coupled_solve(rhs) * self._col_scale
+                    if self.gmres_failures > failures:
+                        # the contact coupling is too strong for the band preconditioner
+                        # at this Δt: the correction is unreliable. Fail now; the caller
+                        # cuts Δt.
+                        self.last_failure = "gmres"
+                        return Y, Fn, it + 1, res, False, pose
+            else:
+                delta = self.layout.solve(rhs) * self._col_scale
+            delta = delta.reshape(Y.shape)
+            if contact:
+                delta, alpha = self._feasible_step(Y, delta)
+                # corrections cut to 1/64 or less three times in a row: the iterate
+                # sits against the barrier and Newton stalls
+                tiny = tiny + 1 if alpha <= 1.0 / 64.0 else 0
+                if tiny >= 3:
+                    self.last_failure = "stalled"
+                    return Y, Fn, it + 1, res, False, pose
+                delta, cached = self._line_search(Y, delta, R)
+                refactor = gmres_last > self.GMRES_REFACTOR
+            Y = Y + delta
+        return Y, Fn, self.max_iterations, res, False, pose
+
+    def _line_search(self, Y, delta, R0):
+        """Backtracking on the row-scaled residual 2-norm (contact steps only): halve the
+        correction, at most 4 times, until the residual decreases (Armijo, c = 1e-4).
+        Returns (correction, the residual tuple with Jacobian at the accepted point, to be
+        reused as the next iterate's)."""
+        f0 = float(np.linalg.norm(R0 * self._row_scale))
+        alpha = 1.0
+        out = None
+        for _ in range(4):
+            out = self.system.residual(Y + alpha * delta, want_jacobian=True)
+            f1 = float(np.linalg.norm(out[0] * self._row_scale))
+            if np.isfinite(f1) and f1 <= (1.0 - 1e-4 * alpha) * f0:
+                return alpha * delta, out
+            alpha *= 0.5
+        return 2.0 * alpha * delta, out
+
+    #: a Newton correction may close no candidate gap to less than this fraction of itself
+    GAP_KEEP = 0.2
+
+    def _feasible_step(self, Y, delta):
+        """Largest fraction 2^−k (k ≤ 10) of a Newton correction that keeps every
+        candidate gap at least GAP_KEEP of its current value (a filter in the manner of
+        IPC's CCD-bounded line search: Li et al., ACM TOG 39(4), 2020, §4). Gaps are the
+        closest-point gaps of the step's candidates re-selected at each trial, so a
+        correction cannot carry a strand through one it was not pressed against.
+        Returns (limited correction, fraction)."""
+        g0 = self.system.candidate_gaps(Y)
+        if g0.size == 0 or np.any(np.isnan(g0)) or np.any(g0 == -np.inf):
+            return delta, 1.0
+        finite = np.isfinite(g0)
+        floor = np.where(g0 > 0.0, self.GAP_KEEP * g0, 2.0 * g0)
+        alpha = 1.0
+        for _ in range(10):
+            g1 = self.system.candidate_gaps(Y + alpha * delta)
+            ok = ~finite | (g1 >= floor)
+            if np.all(ok) and not np.any(np.isnan(g1)):
+                break
+            alpha *= 0.5
+        return alpha * delta, alpha
