@@ -90,7 +90,7 @@ class Newton:
         out[bc_rows] = bc_vals * x[bc_cols]
         return out
 
-    def _coupled_solve(self, rhs, rtol=1e-7, max_iterations=40):
+    def _coupled_solve(self, rhs, rtol=1e-4, max_iterations=40):
         """Solve the contact-coupled (scaled) system by right-preconditioned GMRES.
 
         The preconditioner is the band LU (band cells with the node-local contact

@@ -33,6 +33,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from scipy.sparse import csr_matrix
+
 from .banded import NV
 from .kinematics import (quat_exp, quat_multiply, quat_to_matrix, right_jacobian, skew,
                          space_route)
@@ -407,9 +409,18 @@ class RodSystem:
         L[:, :, 3:] += 0.5 * self.dt * (skew(b_rot) @ right_jacobian(theta))
         out = dict(R=R, C=C, D=D, tmid=M[:, :, 2], A0=A0, rdot=rdot, G=glob, L=L)
         if ev is not None and ev.count:
-            out.update(nodes=ev.nodes, weights=ev.weights, dFdr=ev.d_force_d_r,
-                       dFdv=ev.d_force_d_v, F=ev.force, dtdr=ev.d_t_d_r,
-                       dwdt=ev.d_weights_d_t)
+            n_p = ev.count
+            # dF_p = A_p [δr_b; δṙ_b]_(b = 1..3): (P, 3, 18)
+            A = np.concatenate([ev.d_force_d_r.transpose(0, 2, 1, 3).reshape(n_p, 3, 9),
+                                ev.d_force_d_v.transpose(0, 2, 1, 3).reshape(n_p, 3, 9)],
+                               axis=2)
+            cols = np.repeat(np.arange(n_p), 3)
+            rows = ev.nodes.ravel()
+            shape = (self.n_nodes, n_p)
+            out.update(nodes=ev.nodes, A=A, F=ev.force, dtdr=ev.d_t_d_r.reshape(n_p, 9),
+                       scatter_w=csr_matrix((ev.weights.ravel(), (rows, cols)), shape=shape),
+                       scatter_dw=csr_matrix((ev.d_weights_d_t.ravel(), (rows, cols)),
+                                             shape=shape))
         return out
 
     def _exact_loads(self, ex, dY):
@@ -440,14 +451,12 @@ class RodSystem:
         dG = _cross(ex["G"], dphi)
         if "nodes" in ex:
             nodes = ex["nodes"]
+            n_p = nodes.shape[0]
             drdot = _cross(dphi, ex["rdot"]) + np.einsum("nij,nj->ni", R, dv)
-            dF = (np.einsum("pbij,pbj->pi", ex["dFdr"], dr[nodes])
-                  + np.einsum("pbij,pbj->pi", ex["dFdv"], drdot[nodes]))
-            dt = np.einsum("pbj,pbj->p", ex["dtdr"], dr[nodes])
-            for a in range(1, 3):
-                np.add.at(dG, nodes[:, a], (ex["dwdt"][:, a] * dt)[:, None] * ex["F"])
-            for a in range(3):
-                np.add.at(dG, nodes[:, a], ex["weights"][:, a, None] * dF)
+            z = np.concatenate([dr[nodes].reshape(n_p, 9), drdot[nodes].reshape(n_p, 9)], axis=1)
+            dF = np.matmul(ex["A"], z[:, :, None])[:, :, 0]
+            dt = np.einsum("pk,pk->p", ex["dtdr"], z[:, :9])
+            dG += ex["scatter_w"] @ dF + ex["scatter_dw"] @ (dt[:, None] * ex["F"])
         dB = np.einsum("nji,nj->ni", R, dG)
         return dB - np.einsum("nij,nj->ni", ex["L"], dY[:, 0:6])
 

@@ -79,6 +79,7 @@ class RodRun:
     """
 
     GROW_AFTER = 3   # accepted substeps at one Δt level before Δt is allowed to grow
+    GROW_AFTER_MAX = 48  # the same after repeated failed growths (doubling back-off)
 
     def __init__(self, case):
         self.case = case
@@ -133,6 +134,7 @@ class RodRun:
         self.first_step = True
         self.level_hint = 0
         self.accepted_at_level = 0
+        self.grow_after = self.GROW_AFTER
         self.last_iterations = 0
         self.last_residual = 0.0
         self.last_dt = num.dt
@@ -366,10 +368,12 @@ class RodRun:
 
         Δt levels: h = (t_target − t)/factor^level. A nominal step starts at the level the
         previous one ended on and substeps at the current level until t_target is
-        reached; a failure raises the level by one, and after ``GROW_AFTER`` consecutive
-        accepted substeps (counted across nominal steps) the level drops by one (Δt grows
-        by the factor) as soon as the larger step fits in what remains of the nominal
-        step, so a growth is always tried and never retried at every nominal step.
+        reached; a failure raises the level by one, and after ``grow_after`` consecutive
+        accepted substeps (counted across nominal steps; GROW_AFTER, doubled after each
+        growth that fails at once, up to GROW_AFTER_MAX, and reset by one that holds) the
+        level drops by one (Δt grows by the factor) as soon as the larger step fits in
+        what remains of the nominal step, so a growth is always tried and a Δt that
+        keeps failing is not retried at every nominal step.
         """
         num = self.case.numerics
         h_full = t_target - self.t
@@ -377,11 +381,13 @@ class RodRun:
         total_its = 0
         while self.t < t_target - 1e-12 * max(1.0, abs(t_target)):
             remaining = t_target - self.t
-            if (self.accepted_at_level >= self.GROW_AFTER and level > 0
+            grew = False
+            if (self.accepted_at_level >= self.grow_after and level > 0
                     and h_full / num.dt_cut_factor ** (level - 1) <= remaining * (1.0 + 1e-9)):
                 # grow only when the larger step fits and will be tried
                 level -= 1
                 self.accepted_at_level = 0
+                grew = True
             h = h_full / num.dt_cut_factor**level
             h_try = min(h, remaining)
             if remaining - h_try < 1e-9 * h:
@@ -391,8 +397,13 @@ class RodRun:
             if ok:
                 self.last_dt = h_try
                 self.accepted_at_level += 1
+                if grew:
+                    self.grow_after = self.GROW_AFTER
                 continue
             self.accepted_at_level = 0
+            if grew:
+                # a growth that failed at once: wait twice as long before the next one
+                self.grow_after = min(2 * self.grow_after, self.GROW_AFTER_MAX)
             if level >= num.max_dt_cuts:
                 singular = self.newton.last_failure == "singular"
                 reason = "nonfinite_state" if (nonfinite and not singular) else "solver_diverged"
