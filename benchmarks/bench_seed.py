@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import statistics
 import sys
 import time
@@ -53,11 +54,27 @@ def run(t_end: float = 45.0, out: str | None = None) -> dict:
         spec["numerics"]["t_end"] = t_end
         case = Case.model_validate(spec)
         steps = []
-        last = [0.0]
+        last = [0.0, 0]
+        holder = {}
 
         def progress(p):
-            steps.append((p.wall_time - last[0], p.contact_count > 0))
+            run = holder.get("run")
+            fact = run.newton.factorizations if run is not None else 0
+            steps.append((p.wall_time - last[0], p.contact_count > 0, p.t, p.newton_iterations,
+                          fact - last[1]))
             last[0] = p.wall_time
+            last[1] = fact
+
+        # the factorisation count is read from the run the simulation creates
+        import solver.simulation as sim_mod
+
+        original_init = sim_mod.RodRun.__init__
+
+        def init(self, *args, **kwargs):
+            original_init(self, *args, **kwargs)
+            holder["run"] = self
+
+        sim_mod.RodRun.__init__ = init
 
         t0 = time.perf_counter()
         message = "completed"
@@ -68,12 +85,31 @@ def run(t_end: float = 45.0, out: str | None = None) -> dict:
             ds = exc.partial
         wall = time.perf_counter() - t0
     finally:
+        sim_mod.RodRun.__init__ = original_init
         for owner, name in ((contact_mod.SelfContact, "candidates"),
                             (contact_mod.SelfContact, "may_touch"), (topology_mod, "writhe")):
             fn = getattr(owner, name)
             setattr(owner, name, getattr(fn, "__wrapped__", fn))
-    with_c = [w for w, c in steps if c]
-    without = [w for w, c in steps if not c]
+    with_c = [st[0] for st in steps if st[1]]
+    without = [st[0] for st in steps if not st[1]]
+    ev = events(ds)
+    def known(x, default):
+        return default if x is None or not math.isfinite(x) else float(x)
+
+    first = known(ev.get("first_contact"), float("inf"))
+    loop_end = known(ev.get("writhe_above_1_5"), first + 5.0)
+    phases = {}
+    for name, lo, hi in (("before contact", -1.0, first - 1e-9),
+                         ("first loop", first - 1e-9, loop_end),
+                         ("intertwined", loop_end, float("inf"))):
+        sel = [st for st in steps if lo < st[2] <= hi]
+        if sel:
+            n = len(sel)
+            phases[name] = {"from_s": max(lo, 0.0), "to_s": min(hi, float(ds.time[-1])),
+                            "nominal_steps": n, "wall_s": sum(x[0] for x in sel),
+                            "wall_per_step_ms": 1e3 * sum(x[0] for x in sel) / n,
+                            "newton_per_step": sum(x[3] for x in sel) / n,
+                            "factorizations_per_step": sum(x[4] for x in sel) / n}
     res = {"n_segments": case.numerics.n_segments, "dt": case.numerics.dt,
            "t_reached": float(ds.time[-1]), "message": message, "wall_s": wall,
            "nominal_steps": len(steps),
@@ -86,7 +122,9 @@ def run(t_end: float = 45.0, out: str | None = None) -> dict:
            "steps_with_contact": len(with_c), "s_in_contact_steps": sum(with_c),
            "share_contact_search": TIMERS["contact_search"] / wall,
            "share_writhe": TIMERS["writhe"] / wall,
-           "events": {k: float(f"{v:.4g}") for k, v in events(ds).items()}}
+           "factorizations": int(ds.attrs.get("factorizations", 0)),
+           "phases": phases,
+           "events": {k: float(f"{v:.4g}") for k, v in ev.items()}}
     if out:
         from hockle.io import write_netcdf
 
@@ -111,6 +149,11 @@ def report(res: dict) -> None:
               f"steps, {res['s_in_contact_steps']:.1f} s in all)")
     print(f"  share in contact search: {res['share_contact_search'] * 100:.1f} %; "
           f"in writhe: {res['share_writhe'] * 100:.1f} %")
+    for name, ph in res.get("phases", {}).items():
+        print(f"  {name} ({ph['from_s']:.1f}-{ph['to_s']:.1f} s): {ph['wall_s']:.1f} s, "
+              f"{ph['nominal_steps']} steps, {ph['wall_per_step_ms']:.0f} ms, "
+              f"{ph['newton_per_step']:.1f} Newton iterations and "
+              f"{ph['factorizations_per_step']:.1f} factorisations per nominal step")
     print("  events:", json.dumps(res["events"]))
 
 
@@ -138,6 +181,11 @@ def section(figdir: Path, quick: bool = False) -> str:
                      f"({res['steps_with_contact']} steps, {res['s_in_contact_steps']:.0f} s)"))
     rows += [("share in contact search", f"{res['share_contact_search'] * 100:.1f} %"),
              ("share in writhe", f"{res['share_writhe'] * 100:.1f} %")]
+    for name, ph in res.get("phases", {}).items():
+        rows.append((f"phase: {name} ({ph['from_s']:.1f}-{ph['to_s']:.1f} s)",
+                     f"{ph['wall_s']:.1f} s; per nominal step {ph['wall_per_step_ms']:.0f} ms, "
+                     f"{ph['newton_per_step']:.1f} Newton iterations, "
+                     f"{ph['factorizations_per_step']:.1f} factorisations"))
     for key, val in ev.items():
         rows.append((f"event: {key.replace('_', ' ')}", f"{val:g}"))
     lines = ["## The seed example at its resolution",

@@ -95,6 +95,13 @@ class Settings(BaseSettings):
         ge=0,
         description="Hard time limit added per grid point x time step.",
     )
+    time_limit_per_unit_contact: float = Field(
+        2.5e-3,
+        ge=0,
+        description="Hard time limit added per grid point x time step when the case has "
+        "self-contact (the seed example, 1001 points x 450 steps with contact from 18 s, "
+        "measured about 1e-3 s per point-step on the 2-core machine: docs/contact.md).",
+    )
     time_limit_max: float = Field(6 * 3600.0, gt=0, description="Cap of the hard time limit.")
     soft_limit_fraction: float = Field(
         0.95, gt=0, lt=1, description="Soft time limit as a fraction of the hard one."
@@ -159,9 +166,12 @@ class Settings(BaseSettings):
         host = "127.0.0.1" if self.host in ("0.0.0.0", "::") else self.host
         return f"http://{host}:{self.port}"
 
-    def time_limits(self, grid_points: int, n_steps: int) -> tuple[float, float, float]:
-        """(hard, soft, solver budget) in seconds for a case of this size."""
-        hard = min(self.time_limit_max, self.time_limit_base + self.time_limit_per_unit * grid_points * n_steps)
+    def time_limits(self, grid_points: int, n_steps: int,
+                    contact: bool = False) -> tuple[float, float, float]:
+        """(hard, soft, solver budget) in seconds for a case of this size (contact: the
+        case has self-contact, whose steps cost far more)."""
+        per_unit = self.time_limit_per_unit_contact if contact else self.time_limit_per_unit
+        hard = min(self.time_limit_max, self.time_limit_base + per_unit * grid_points * n_steps)
         soft = hard * self.soft_limit_fraction
         return hard, soft, soft * self.budget_fraction
 

@@ -54,7 +54,10 @@ class Newton:
     #: contact steps: refactor the band LU when the last GMRES solve needed more
     #: iterations than this (else the LU of an earlier iterate preconditions the
     #: current Jacobian)
-    GMRES_REFACTOR = 8
+    GMRES_REFACTOR = 20
+
+    #: contact steps: from this iterate on, the closest-point selection is frozen
+    FREEZE_AFTER = 6
 
     def __init__(self, system, tolerance=1e-9, max_iterations=25):
         self.system = system
@@ -287,6 +290,10 @@ class Newton:
                 delta = self.layout.solve(rhs) * self._col_scale
             delta = delta.reshape(Y.shape)
             if contact:
+                if it + 1 == self.FREEZE_AFTER and self.system.selection is not None:
+                    # from here on each contact keeps its partner segment (see
+                    # SelfContact.closest): no switching between iterates
+                    self.system.frozen_selection = self.system.selection
                 delta, alpha = self._feasible_step(Y, delta)
                 # corrections cut to 1/64 or less three times in a row: the iterate
                 # sits against the barrier and Newton stalls

@@ -165,6 +165,8 @@ class RodSystem:
         self._glob_force = self.loads.global_force(t_new) if self.loads.has_global else None
         self.candidates = candidates if (candidates is not None and candidates.runs > 0) else None
         self.last_contact = None
+        self.frozen_selection = None      # set by Newton (see SelfContact.closest)
+        self.selection = None
         # what the Jacobian's band part depends on besides the iterate (solver.newton
         # keeps a factorisation across steps while this is unchanged)
         self.step_key = (dt, params, bc.key)
@@ -360,7 +362,8 @@ class RodSystem:
             # a diverging iterate: make the residual non-finite so that Δt is cut
             return np.full((n1, 3), np.nan), None, None
         try:
-            ev = self.contact.evaluate(self.candidates, r, vg)
+            ev = self.contact.evaluate(self.candidates, r, vg, self.frozen_selection)
+            self.selection = self.contact.last_selection
         except ValueError:
             return np.full((n1, 3), np.nan), None, None
         self.last_contact = ev

@@ -369,8 +369,9 @@ class RodRun:
         Δt levels: h = (t_target − t)/factor^level. A nominal step starts at the level the
         previous one ended on and substeps at the current level until t_target is
         reached; a failure raises the level by one, and after ``grow_after`` consecutive
-        accepted substeps (counted across nominal steps; GROW_AFTER, doubled after each
-        growth that fails at once, up to GROW_AFTER_MAX, and reset by one that holds) the
+        accepted substeps (counted across nominal steps; GROW_AFTER, and for the growth to
+        the nominal Δt doubled after each such growth that fails at once, up to
+        GROW_AFTER_MAX, and reset by one that holds) the
         level drops by one (Δt grows by the factor) as soon as the larger step fits in
         what remains of the nominal step, so a growth is always tried and a Δt that
         keeps failing is not retried at every nominal step.
@@ -382,7 +383,8 @@ class RodRun:
         while self.t < t_target - 1e-12 * max(1.0, abs(t_target)):
             remaining = t_target - self.t
             grew = False
-            if (self.accepted_at_level >= self.grow_after and level > 0
+            needed = self.grow_after if level == 1 else self.GROW_AFTER
+            if (self.accepted_at_level >= needed and level > 0
                     and h_full / num.dt_cut_factor ** (level - 1) <= remaining * (1.0 + 1e-9)):
                 # grow only when the larger step fits and will be tried
                 level -= 1
@@ -401,8 +403,9 @@ class RodRun:
                     self.grow_after = self.GROW_AFTER
                 continue
             self.accepted_at_level = 0
-            if grew:
-                # a growth that failed at once: wait twice as long before the next one
+            if grew and level == 0:
+                # a growth to the nominal Δt that failed at once: wait twice as long
+                # before the next one (below the nominal Δt a growth is cheap to retry)
                 self.grow_after = min(2 * self.grow_after, self.GROW_AFTER_MAX)
             if level >= num.max_dt_cuts:
                 singular = self.newton.last_failure == "singular"

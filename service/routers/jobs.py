@@ -109,7 +109,8 @@ def _submit(svc: Services, body: bytes, content_type: str | None, idempotency_ke
         cached = svc.registry.find_successful(spec_hash, version)
         if cached is not None and _exists(cached.result_path):
             return cached, 200
-    hard, soft, budget = svc.settings.time_limits(case.grid_points, case.n_steps)
+    hard, soft, budget = svc.settings.time_limits(case.grid_points, case.n_steps,
+                                                  contact=case.contact is not None)
     try:
         job, created = svc.registry.create_job(
             spec_json=canonical,

@@ -237,6 +237,7 @@ class SelfContact:
         sep = s[cand[valid]] - s[own[valid]]
         sep = sep[sep > self.separation_cut]
         self.min_separation = float(sep.min()) if sep.size else float("inf")
+        self.last_selection = None
         self.sin_half_aperture = 1.0 if self.aperture >= 180.0 else float(
             np.sin(np.radians(self.aperture) / 2.0))
 
@@ -357,22 +358,32 @@ class SelfContact:
         return ContactCandidates(owner, segment, run_start, lo == 0, hi == n - 1)
 
     # ------------------------------------------------------------------ closest points
-    def closest(self, cand: ContactCandidates, positions):
+    def closest(self, cand: ContactCandidates, positions, frozen=None):
         """Closest point of each run: (k (R,) index into the combinations, t (R,),
-        x (R, 3), d (R,), tau (R, 3), valid (R,) bool: not an interior run edge)."""
+        x (R, 3), d (R,), tau (R, 3), valid (R,) bool: not an interior run edge).
+
+        frozen: (R,) combination indices from an earlier call, or None. Given, each run
+        keeps that segment (the closest point still slides along it): Newton freezes the
+        selection after a few iterates, because where two segments of a partner strand
+        are about equally close (a concave corner) the choice can switch back and forth
+        between iterates and the residual has a kink there."""
         r = positions
         own, seg = cand.owner, cand.segment
-        t, x, d, tau = point_segment(r[own], r[seg], r[seg + 1])
         start = cand.run_start
         last = np.append(start[1:], own.size) - 1
-        dmin = np.minimum.reduceat(d, start)
-        sizes = last - start + 1
-        hit = np.flatnonzero(d == np.repeat(dmin, sizes))
-        k = hit[np.searchsorted(hit, start)]          # first minimum of each run
-        tk = t[k]
+        if frozen is not None:
+            k = frozen
+            tk, x, d, tau = point_segment(r[own[k]], r[seg[k]], r[seg[k] + 1])
+        else:
+            t, x, d, tau = point_segment(r[own], r[seg], r[seg + 1])
+            dmin = np.minimum.reduceat(d, start)
+            sizes = last - start + 1
+            hit = np.flatnonzero(d == np.repeat(dmin, sizes))
+            k = hit[np.searchsorted(hit, start)]          # first minimum of each run
+            tk, x, d, tau = t[k], x[k], d[k], tau[k]
         edge_lo = (k == start) & (tk == 0.0) & ~cand.first_vertex_is_end
         edge_hi = (k == last) & (tk == 1.0) & ~cand.last_vertex_is_end
-        return k, tk, x[k], d[k], tau[k], ~(edge_lo | edge_hi)
+        return k, tk, x, d, tau, ~(edge_lo | edge_hi)
 
     def gaps(self, cand: ContactCandidates, positions) -> np.ndarray:
         """Surface gaps (R,) m of the runs' closest points (inf for run edges)."""
@@ -383,10 +394,12 @@ class SelfContact:
         dbar = 0.5 * (self.diameter[i] + (1.0 - t) * self.diameter[j] + t * self.diameter[j + 1])
         return np.where(valid, d - dbar, np.inf)
 
-    def evaluate(self, cand: ContactCandidates, positions, velocities) -> ContactEvaluation:
+    def evaluate(self, cand: ContactCandidates, positions, velocities,
+                 frozen=None) -> ContactEvaluation:
         """Active contacts of the candidates at a state (module doc), with derivatives.
 
-        positions (N, 3) m and velocities (N, 3) m/s, global. Derivatives with the
+        positions (N, 3) m and velocities (N, 3) m/s, global; frozen: see
+        :meth:`closest` (``self.last_selection`` holds the selection used). Derivatives with the
         closest point sliding on the segment. With G = ∂F/∂x|_u = n (f_d nᵀ + f_ḋ (u −
         ḋ n)ᵀ/d) + (f/d)(I − n nᵀ) and G_u = ∂F/∂u = f_ḋ n nᵀ, and for 0 < t < 1
         dx = (I − ττᵀ) dy − τ (x·de)/L, dt = τ·dy/L + x·de/L² (y = Σ c_a r_a at fixed t,
@@ -398,7 +411,8 @@ class SelfContact:
         v = self._check_field("velocities", velocities)
         if cand is None or not cand.runs:
             return _empty_evaluation()
-        k, t, x, d, tau, valid = self.closest(cand, r)
+        k, t, x, d, tau, valid = self.closest(cand, r, frozen)
+        self.last_selection = k
         i, j = cand.owner[k], cand.segment[k]
         dbar = 0.5 * (self.diameter[i] + (1.0 - t) * self.diameter[j] + t * self.diameter[j + 1])
         d_off = self.law.cutoff(dbar)[1]
