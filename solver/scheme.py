@@ -343,17 +343,15 @@ class RodSystem:
         return R, Fn, blocks, pose
 
     def _contact_terms(self, Y, pose, want_jacobian):
-        """Self-contact load at the new level (global frame, N/m) and its Jacobian.
+        """Self-contact load at the new level (global frame, N/m) and the node-local
+        approximation of its Jacobian (the band preconditioner's part).
 
-        The contacts are re-selected from the step's candidates at this iterate's
-        positions. A contact's force F depends on the positions and global velocities of
-        its three nodes a (owner, segment ends) at the new level, with r_a^{n+1} = r_a^n +
-        ½Δt(ṙ_a^n + R_a v_a^{n+1}) and ṙ_a^{n+1} = R_a v_a^{n+1}, so ∂F/∂v_a = (½Δt ∂F/∂r_a +
-        ∂F/∂ṙ_a) R_a (the rotation's dependence on ω is taken with the other global loads
-        in :meth:`node_terms`). Node a receives w_a F, i.e. the body-frame load
-        B_a = R_aᵀ w_a F. Node-local blocks go into the band; the blocks coupling
-        different nodes are kept in ``self._offband`` for the coupled solve.
-        Returns (F (N+1, 3) global, ∂(RᵀF)/∂(v, ω) (N+1, 3, 6) body frame, or None).
+        The contacts are re-selected from the step's candidates on this iterate's pose
+        (the space route). The exact Jacobian of the load, which is not banded, is applied
+        matrix-free by :meth:`_exact_loads`; the band holds the approximation in which a
+        node moves by its own time route, r_a ≈ r_a^n + ½Δt(ṙ_a^n + R_a v_a).
+        Returns (F (N+1, 3) global, ∂(RᵀF)/∂(v, ω) (N+1, 3, 6) body frame or None,
+        the ContactEvaluation or None).
         """
         q, R, r, theta = pose
         vg = np.einsum("nij,nj->ni", R, Y[:, V:V + 3])
