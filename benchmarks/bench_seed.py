@@ -163,6 +163,11 @@ def section(figdir: Path, quick: bool = False) -> str:
     RESULTS.mkdir(parents=True, exist_ok=True)
     (RESULTS / "bench_seed.json").write_text(json.dumps(res, indent=1))
     report(res)
+    return render_section(res)
+
+
+def render_section(res: dict) -> str:
+    """The Markdown section of a result of :func:`run` (as stored in bench_seed.json)."""
     ev = res["events"]
     rows = [("wall time", f"{res['wall_s']:.1f} s (bar 120 s: {res['wall_s'] / 120:.2f}x; "
              f"goal 20 s: {res['wall_s'] / 20:.2f}x)"),

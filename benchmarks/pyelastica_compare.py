@@ -68,7 +68,7 @@ IMPERFECTION = 1.0e-4              # N/m along global x on the whole rod, whole 
 # about the speed of the collapse into the loop; slower motion is damped less by hockle.
 RHO_FLUID = 1000.0
 CD_NORMAL = 0.04
-# hockle's contact law ρA (k1/gap^k2 − (k3/d) ḋ|ḋ|^k4) acts on node pairs closer than the
+# hockle's contact law ρA (k1/gap^k2 − (k3/d) ḋ|ḋ|^k4) acts on node-segment pairs closer than the
 # tolerance. k1 = 1e-7 m⁴/s² (the seed's) gives a 1 mm gap at the ~100 N/m the loop presses
 # with (PyElastica's penalty lets the strands overlap by ~0.5 mm). The damper acts on the
 # whole tolerance shell (gaps below 5 cm), not only in contact as PyElastica's pair damper
