@@ -718,8 +718,8 @@ class Contact(BaseModel):
     law: Literal["seed", "barrier"] = Field(
         "seed",
         description="Repulsion law: 'seed' (rho*A*k1/gap^k2, seed eq. 6, cut off C2-smoothly at the tolerance) "
-        "or 'barrier' (experimental: IPC's compact-support log barrier with barrier_gap and barrier_stiffness; "
-        "see docs/contact.md for its known failure on the seed example); the k3/k4 damping applies to both.",
+        "or 'barrier' (IPC's compact-support log barrier with barrier_gap and barrier_stiffness, stiff enough "
+        "that impacts stop at a fair fraction of barrier_gap: docs/contact.md); the k3/k4 damping applies to both.",
     )
     barrier_gap: Optional[Finite] = Field(
         None, gt=0, description="Barrier law: surface gap at which the repulsion starts (d_hat), m; > 0."
