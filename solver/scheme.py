@@ -361,7 +361,7 @@ class RodSystem:
             return np.full((n1, 3), np.nan), None, None
         try:
             ev = self.contact.evaluate(self.candidates, r, vg, self.frozen_selection)
-            self.selection = self.contact.last_selection
+            self.selection = ev.selection
         except ValueError:
             return np.full((n1, 3), np.nan), None, None
         self.last_contact = ev

@@ -165,12 +165,13 @@ class RodRun:
         cand = None
         if self.contact is not None:
             cand = self._candidates(h, guess)
-            guess = self._feasible_guess(h, params, t_new, bc, guess, cand)
         its_total = 0
-        for _attempt in range(3):
+        for attempt in range(3):
             sysm.begin_step(h, params, t_new, self.Y, self.Ydot, self.F_old, bc,
                             q_old=self.q, r_old=self.r, v_old_global=self.v_global,
                             candidates=cand)
+            if attempt == 0 and cand is not None:
+                guess = self._feasible_guess(guess)
             Y, Fn, its, res, ok, pose = self.newton.solve(guess)
             its_total += its
             if not ok:
@@ -203,13 +204,10 @@ class RodRun:
         props = self.props
         # time route of every node (a diagnostic: its distance to the space route is a
         # discretisation-error indicator) and the end rotations (linking number)
-        theta = 0.5 * h * (self.Y[:, 3:6] + Y[:, 3:6])
-        q_t = quat_multiply(self.q_time, quat_exp(theta))
+        q_t, _, vg_t, r_t = self._time_step(h, Y, self.q_time, self.r_time,
+                                              self.v_global_time)
         nrm = np.linalg.norm(q_t, axis=1)
         q_t /= nrm[:, None]
-        R_t = quat_to_matrix(q_t)
-        vg_t = np.einsum("nij,nj->ni", R_t, Y[:, 0:3])
-        r_t = self.r_time + 0.5 * h * (self.v_global_time + vg_t)
         if self.contact is not None:
             # the space route of the new level: what Newton's contact forces acted on
             self.last_step_error = self._local_error(h, Y, pose[2])
@@ -265,6 +263,17 @@ class RodRun:
         self.last_iterations, self.last_residual = its, res
         return True, its, res, False
 
+    def _time_step(self, h, Y, q, r, v_global):
+        """Nodes advanced one step h (s) in time, each on its own (the time route):
+        q' = q ⊗ exp(½h(ω^n + ω)), r' = r + ½h(ṙ^n + R' v), with ω, v from Y (N+1, 12),
+        q (N+1, 4), r and ṙ^n = v_global (N+1, 3) m, m/s. Returns (q' unnormalised,
+        R' (N+1, 3, 3), ṙ' = R' v (N+1, 3), r' (N+1, 3))."""
+        theta = 0.5 * h * (self.Y[:, 3:6] + Y[:, 3:6])
+        q_new = quat_multiply(q, quat_exp(theta))
+        R_new = quat_to_matrix(q_new)
+        vg = np.einsum("nij,nj->ni", R_new, Y[:, 0:3])
+        return q_new, R_new, vg, r + 0.5 * h * (v_global + vg)
+
     def _local_error(self, h, Y, r_new) -> float:
         """Local error indicator of a step (m): the largest distance between the new
         centreline (integrated along s from κ) and the same nodes advanced one
@@ -272,9 +281,7 @@ class RodRun:
         (R^{n+1} = R^n exp(½h(ω^n + ω^{n+1})) per node). Both are second-order routes to
         the same positions, so their difference is O(h³) per step and measures the step's
         position error (docs/contact.md, "Step control")."""
-        theta = 0.5 * h * (self.Y[:, 3:6] + Y[:, 3:6])
-        R_t = quat_to_matrix(quat_multiply(self.q, quat_exp(theta)))
-        r_t = self.r + 0.5 * h * (self.v_global + np.einsum("nij,nj->ni", R_t, Y[:, 0:3]))
+        r_t = self._time_step(h, Y, self.q, self.r, self.v_global)[3]
         return float(np.max(np.linalg.norm(r_t - r_new, axis=1)))
 
     def _no_tunnelling(self, r_new) -> bool:
@@ -317,11 +324,8 @@ class RodRun:
         and the step is solved again."""
         margin = 0.25 * (self.contact.tolerance - float(np.max(self.props.diameter)))
         margin = min(margin, 2.0 * h * float(np.max(np.linalg.norm(self.v_global, axis=1))))
-        R_old = quat_to_matrix(self.q)
-        old = self._search(self.r, R_old, margin)
-        theta = 0.5 * h * (self.Y[:, 3:6] + guess[:, 3:6])
-        R_new = quat_to_matrix(quat_multiply(self.q, quat_exp(theta)))
-        r_new = self.r + 0.5 * h * (self.v_global + np.einsum("nij,nj->ni", R_new, guess[:, 0:3]))
+        old = self._search(self.r, quat_to_matrix(self.q), margin)
+        _, R_new, _, r_new = self._time_step(h, guess, self.q, self.r, self.v_global)
         if not np.all(np.isfinite(r_new)):
             return old
         new = self._search(r_new, R_new, margin)
@@ -329,19 +333,17 @@ class RodRun:
             return new if old is None else old
         return self.contact.merge(old, new)
 
-    def _feasible_guess(self, h, params, t_new, bc, guess, cand):
+    def _feasible_guess(self, guess):
         """A Newton start whose contact gaps are open (the replay of the seed example's
         first contact: an extrapolated start penetrated and Newton died at the barrier).
 
         The zero-displacement state (v, ω) = −(v^n, ω^n) keeps every node where it is (the
         trapezoidal position update); the start is blended from it toward ``guess`` by the
-        largest 2^−k that keeps every candidate gap at least half its old value."""
-        if cand is None or guess is self.Y:
+        largest 2^−k that keeps every candidate gap at least half its old value. The step
+        (with its candidates) must have been set up by ``system.begin_step``."""
+        if guess is self.Y:
             return guess
         sysm = self.system
-        sysm.begin_step(h, params, t_new, self.Y, self.Ydot, self.F_old, bc,
-                        q_old=self.q, r_old=self.r, v_old_global=self.v_global,
-                        candidates=cand)
         still = self.Y.copy()
         still[:, 0:6] = -self.Y[:, 0:6]
         g_old = sysm.candidate_gaps(still)

@@ -26,6 +26,8 @@ A law returns, per pair, f (N/m), ∂f/∂d (N/m²) and ∂f/∂ḋ (N·s/m²).
 """
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
+
 import numpy as np
 
 __all__ = ["SeedLaw", "BarrierLaw", "smoothstep_off"]
@@ -45,7 +47,7 @@ def smoothstep_off(d, d_on, d_off):
     return phi, dphi
 
 
-class _Law:
+class _Law(ABC):
     """Shared damping and cut-off; subclasses give the repulsion P(g) and P'(g)."""
 
     #: whether φ multiplies the repulsion too (the seed's law) or only the damping (the
@@ -55,11 +57,13 @@ class _Law:
     def __init__(self, k3: float, k4: float):
         self.k3, self.k4 = float(k3), float(k4)
 
-    def cutoff(self, mean_diameter):  # pragma: no cover - abstract
-        raise NotImplementedError
+    @abstractmethod
+    def cutoff(self, mean_diameter):
+        """(d_on, d_off) (m), each shaped like mean_diameter: where φ leaves 1 and reaches 0."""
 
-    def repulsion(self, gap):  # pragma: no cover - abstract
-        raise NotImplementedError
+    @abstractmethod
+    def repulsion(self, gap):
+        """P(g) (m/s²) and P'(g) (1/s²) for gaps g (m), same shape."""
 
     def __call__(self, d, ddot, mean_diameter, rho):
         """f, ∂f/∂d, ∂f/∂ḋ per pair; d, ddot, mean_diameter (m), rho (kg/m): (P,)."""

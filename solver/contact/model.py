@@ -94,6 +94,8 @@ class ContactEvaluation:
     gap, distance : (P,) m    surface gap d − D̄ and centreline distance d
     min_gap : float, m        smallest gap (inf if none)
     count : int               P
+    selection : (R,) int or None  the combination chosen in every candidate run (active or
+                              not), to pass back as ``frozen`` (:meth:`SelfContact.closest`)
     """
 
     i: np.ndarray
@@ -111,6 +113,7 @@ class ContactEvaluation:
     distance: np.ndarray
     min_gap: float
     count: int
+    selection: np.ndarray | None = None
 
 
 def nodal_weights(s) -> np.ndarray:
@@ -237,7 +240,6 @@ class SelfContact:
         sep = s[cand[valid]] - s[own[valid]]
         sep = sep[sep > self.separation_cut]
         self.min_separation = float(sep.min()) if sep.size else float("inf")
-        self.last_selection = None
         self.sin_half_aperture = 1.0 if self.aperture >= 180.0 else float(
             np.sin(np.radians(self.aperture) / 2.0))
 
@@ -391,15 +393,20 @@ class SelfContact:
             return np.zeros(0)
         k, t, x, d, tau, valid = self.closest(cand, positions)
         i, j = cand.owner[k], cand.segment[k]
-        dbar = 0.5 * (self.diameter[i] + (1.0 - t) * self.diameter[j] + t * self.diameter[j + 1])
-        return np.where(valid, d - dbar, np.inf)
+        return np.where(valid, d - self._at_contact(self.diameter, i, j, t), np.inf)
+
+    @staticmethod
+    def _at_contact(prop, i, j, t):
+        """Mean of a nodal property (N,) between owner i and the partner point at t on
+        segment (j, j+1): ½(p_i + (1 − t) p_j + t p_{j+1}), shape (P,)."""
+        return 0.5 * (prop[i] + (1.0 - t) * prop[j] + t * prop[j + 1])
 
     def evaluate(self, cand: ContactCandidates, positions, velocities,
                  frozen=None) -> ContactEvaluation:
         """Active contacts of the candidates at a state (module doc), with derivatives.
 
         positions (N, 3) m and velocities (N, 3) m/s, global; frozen: see
-        :meth:`closest` (``self.last_selection`` holds the selection used). Derivatives with the
+        :meth:`closest` (``selection`` of the result is the one used). Derivatives with the
         closest point sliding on the segment. With G = ∂F/∂x|_u = n (f_d nᵀ + f_ḋ (u −
         ḋ n)ᵀ/d) + (f/d)(I − n nᵀ) and G_u = ∂F/∂u = f_ḋ n nᵀ, and for 0 < t < 1
         dx = (I − ττᵀ) dy − τ (x·de)/L, dt = τ·dy/L + x·de/L² (y = Σ c_a r_a at fixed t,
@@ -412,13 +419,12 @@ class SelfContact:
         if cand is None or not cand.runs:
             return _empty_evaluation()
         k, t, x, d, tau, valid = self.closest(cand, r, frozen)
-        self.last_selection = k
         i, j = cand.owner[k], cand.segment[k]
-        dbar = 0.5 * (self.diameter[i] + (1.0 - t) * self.diameter[j] + t * self.diameter[j + 1])
+        dbar = self._at_contact(self.diameter, i, j, t)
         d_off = self.law.cutoff(dbar)[1]
         keep = valid & (d < d_off)
         if not np.any(keep):
-            return _empty_evaluation()
+            return _empty_evaluation(k)
         i, j, t, x, d, tau, dbar = i[keep], j[keep], t[keep], x[keep], d[keep], tau[keep], dbar[keep]
         if np.any(d == 0.0):
             raise ValueError("SelfContact.evaluate: coincident centreline points in a pair")
@@ -428,7 +434,7 @@ class SelfContact:
         u = np.einsum("pa,pai->pi", coef, v[nodes])
         n = x / d[:, None]
         ddot = np.einsum("ij,ij->i", n, u)
-        rho = 0.5 * (self.rho_a[i] + (1.0 - t) * self.rho_a[j] + t * self.rho_a[j + 1])
+        rho = self._at_contact(self.rho_a, i, j, t)
         f, f_d, f_dd, gap = self.law(d, ddot, dbar, rho)
         force = f[:, None] * n
         nn = n[:, :, None] * n[:, None, :]
@@ -462,13 +468,13 @@ class SelfContact:
         dt_dr = np.stack([tl, (t - 1.0)[:, None] * tl - xl, -t[:, None] * tl + xl], axis=1)
         dt_dr = np.where(interior, dt_dr, 0.0)
         return ContactEvaluation(i, j, t, nodes, weights, coef, force, d_dr, d_dv, dt_dr,
-                                 dw_dt, gap, d, float(gap.min()), int(p))
+                                 dw_dt, gap, d, float(gap.min()), int(p), k)
 
 
-def _empty_evaluation() -> ContactEvaluation:
+def _empty_evaluation(selection=None) -> ContactEvaluation:
     z = np.zeros(0)
     zi = np.zeros(0, dtype=np.intp)
     return ContactEvaluation(zi, zi.copy(), z, np.zeros((0, 3), np.intp), np.zeros((0, 3)),
                              np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3, 3, 3)),
                              np.zeros((0, 3, 3, 3)), np.zeros((0, 3, 3)), np.zeros((0, 3)),
-                             z.copy(), z.copy(), float("inf"), 0)
+                             z.copy(), z.copy(), float("inf"), 0, selection)
