@@ -143,9 +143,10 @@ class Newton:
         return x0 + y @ Z[:k + 1]
 
     def factor(self, Y, blocks):
-        """Scale, assemble and factorise the Jacobian at Y (sets the row and column
-        scales), and set the operator for the coupled solve when contact couples
-        distant nodes."""
+        """Scale, assemble and factorise the Jacobian at Y (N+1, 12) from its cell blocks
+        (N, 12, 24) (sets the row and column scales), and set the operator for the
+        coupled solve when self-contact is configured. Raises BandFactorError when the
+        band LU meets a zero pivot (a singular Jacobian)."""
         s12 = self.system.column_scale(Y)
         s24 = np.tile(s12, 2)
         bc_rows, bc_cols, bc_vals = self.system.bc.jacobian_entries()
@@ -188,15 +189,19 @@ class Newton:
 
     def update_operator(self, blocks):
         """Contact steps between factorisations: the GMRES operator becomes the Jacobian
-        at the current iterate while the (older) band LU stays the preconditioner."""
+        at the current iterate (cell blocks (N, 12, 24) and the system's exact load data)
+        while the (older) band LU stays the preconditioner."""
         scaled, bc_scaled = self._scaled(blocks)
         self._set_operator(scaled, bc_scaled, stale=True)
 
     def solve(self, Y_guess):
-        """Newton iterations for the step set up by :meth:`begin_step`.
+        """Newton iterations for the step set up by :meth:`RodSystem.begin_step`.
 
-        Returns (Y, F_nodes, iterations, residual_norm, converged, pose). The scaled
-        residual norm is max_i |R_i| r_i with r_i the row scale of the last factorisation.
+        Y_guess: (N+1, 12) start. Returns (Y (N+1, 12), F_nodes (N+1, 12), iterations,
+        residual_norm, converged, pose or None); the scaled residual norm is
+        max_i |R_i| r_i with r_i the row scale of the last factorisation. A failure is
+        returned, not raised (``last_failure`` says why); floating-point warnings of a
+        diverging trial are silenced. The module docstring gives the strategy.
         """
         system = self.system
         contact = system.candidates is not None
