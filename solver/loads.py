@@ -60,13 +60,16 @@ class LoadModel:
             self.forces.append((float(df.start), float(end), mask.astype(float), val))
         self.has_global = self.gravity is not None or bool(self.forces)
 
-    def global_force(self, t: float):
-        """Global-frame distributed force (N+1, 3) N/m at time t, or None if zero."""
+    def global_force(self, t: float, left: bool = False):
+        """Global-frame distributed force (N+1, 3) N/m at time t, or None if zero.
+
+        left: the left limit at t (a window counts as ``start < t <= end``), for the step
+        that ends on a breakpoint (:mod:`solver.stepping`)."""
         out = None
         if self.gravity is not None:
             out = self.gravity.copy()
         for start, end, mask, val in self.forces:
-            if start <= t < end:
+            if (start < t <= end) if left else (start <= t < end):
                 contrib = mask[:, None] * val[None, :]
                 out = contrib if out is None else out + contrib
         return out

@@ -141,7 +141,8 @@ class RodSystem:
 
     # ------------------------------------------------------------------ per step setup
     def begin_step(self, dt, params: StepParameters, t_new, Y_old, Ydot_old, F_old,
-                   bc, q_old=None, r_old=None, v_old_global=None, candidates=None):
+                   bc, q_old=None, r_old=None, v_old_global=None, candidates=None,
+                   left_limit=False):
         """Freeze the old-level data of a step n -> n+1 of size dt (s) ending at t_new.
 
         Y_old, Ydot_old, F_old: (N+1, 12); bc: a BoundaryRows for t_new; q_old (N+1, 4) and
@@ -149,7 +150,8 @@ class RodSystem:
         v_old_global (N+1, 3) old global velocities (contact, position update);
         candidates: the contact candidates (:class:`solver.contact.ContactCandidates`)
         searched during this step's Newton iterations, or None. The closest points and
-        the active contacts are re-selected at every iterate.
+        the active contacts are re-selected at every iterate. left_limit: the step ends
+        on a breakpoint, so the loads are taken as their left limit at t_new.
         """
         p = self.p
         am, af, g = params.alpha_m, params.alpha_f, params.gamma
@@ -162,7 +164,8 @@ class RodSystem:
         self._zconst = zc
         self._flux_const = af * self._flux(Y_old)
         self.q_old, self.r_old, self.v_old_global = q_old, r_old, v_old_global
-        self._glob_force = self.loads.global_force(t_new) if self.loads.has_global else None
+        self._glob_force = (self.loads.global_force(t_new, left=left_limit)
+                             if self.loads.has_global else None)
         self.candidates = candidates if (candidates is not None and candidates.runs > 0) else None
         self.last_contact = None
         self.frozen_selection = None      # set by Newton (see SelfContact.closest)

@@ -7,9 +7,9 @@ is retried from the restored state with Δt cut by ``numerics.dt_cut_factor``, u
 cut steps complete the nominal step, so outputs stay on the nominal time grid. When all
 cuts fail, :class:`SolverDivergence` is raised carrying the partial dataset.
 
-Start-up: for ρ∞ < 1 the first step (and any step at which a boundary condition switches
-kind) is a backward-Euler step, which leaves a consistent Ẏ behind (docs/numerics.md;
-numerics-notes §9 "Initial time derivative"). At ρ∞ = 1 the scheme does not depend on Ẏ^n.
+Steps land on the case's breakpoints (force windows, ``until`` switches, corners of
+boundary tables); at t = 0 and after each breakpoint a short backward-Euler step restarts
+the scheme consistently (:mod:`solver.stepping`, docs/numerics.md § 7).
 """
 from __future__ import annotations
 
@@ -27,6 +27,7 @@ from .loads import LoadModel
 from .properties import RodProperties
 from .newton import Newton
 from .scheme import BACKWARD_EULER, RodSystem, alpha_parameters
+from .stepping import RESTART_FRACTION, breakpoints
 
 __all__ = ["simulate", "SolverDivergence", "Progress", "RodRun"]
 
@@ -131,7 +132,8 @@ class RodRun:
         self.power = end_power(self.Y, props) + distributed_power(self.Y, self.body_force, props)
         self.end_load = end_loads(self.Y, props)
         self.bc = BoundaryRows(case, props, 0.0, self.system.n)
-        self.first_step = True
+        self.breakpoints = breakpoints(case)
+        self.restart_pending = True       # a consistent restart before the next step
         self.level_hint = 0
         self.accepted_at_level = 0
         self.grow_after = self.GROW_AFTER
@@ -148,17 +150,19 @@ class RodRun:
         return np.einsum("nji,nj->ni", pose[0], glob)
 
     # -------------------------------------------------------------------------------
-    def try_step(self, h: float):
-        """Attempt one step of size h (s). On success the state advances and
+    def try_step(self, h: float, t_new=None, left_limit=False, restart=False):
+        """Attempt one step of size h (s), ending at t_new (default t + h; given exactly
+        when the step lands on a breakpoint, with ``left_limit`` so that the loads are
+        their left limit there). ``restart``: a backward-Euler restart step
+        (:mod:`solver.stepping`). On success the state advances and
         (True, iterations, residual, nonfinite=False) is returned; on failure the state is
         untouched."""
         sysm = self.system
-        t_new = self.t + h
+        t_new = self.t + h if t_new is None else t_new
         bc = BoundaryRows(self.case, self.props, t_new, sysm.n)
         switched = bc.key != self.bc.key
-        use_be = (self.rho_inf < 1.0 and self.first_step) or switched
-        params = BACKWARD_EULER if use_be else self.params
-        if self.Y_prev is not None and self.h_prev:
+        params = BACKWARD_EULER if (restart or switched) else self.params
+        if self.Y_prev is not None and self.h_prev and not restart:
             guess = self.Y + (h / self.h_prev) * (self.Y - self.Y_prev)
         else:
             guess = self.Y
@@ -169,7 +173,7 @@ class RodRun:
         for attempt in range(3):
             sysm.begin_step(h, params, t_new, self.Y, self.Ydot, self.F_old, bc,
                             q_old=self.q, r_old=self.r, v_old_global=self.v_global,
-                            candidates=cand)
+                            candidates=cand, left_limit=left_limit)
             if attempt == 0 and cand is not None:
                 guess = self._feasible_guess(guess)
             Y, Fn, its, res, ok, pose = self.newton.solve(guess)
@@ -249,11 +253,11 @@ class RodRun:
                                              np.einsum("ni,ni->n", b_mean, dx)))
             self.xdot_nodes = vdot
         self.power, self.body_force = power, body
-        self.Y_prev, self.h_prev = self.Y, h
+        # after a restart the old level is inconsistent (f jumped): no extrapolation
+        self.Y_prev, self.h_prev = (None, None) if restart else (self.Y, h)
         self.Y, self.Ydot, self.F_old = Y, Ydot, Fn
         self.t = t_new
         self.bc = bc
-        self.first_step = False
         if self.contact is not None:
             self.q = pose[0] / np.linalg.norm(pose[0], axis=1)[:, None]
             self.r = pose[2]
@@ -364,11 +368,61 @@ class RodRun:
         self.v_global = np.einsum("nij,nj->ni", quat_to_matrix(self.q), self.Y[:, 0:3])
 
     def advance(self, t_target: float):
-        """Advance to t_target (s), cutting Δt on failure. Returns (iterations, residual)
-        of the nominal step; raises SolverDivergence (without partial) when all cuts
-        fail.
+        """Advance to t_target (s): the nominal step, split at the case's breakpoints,
+        each substep run by :meth:`_advance_to`, with a consistent restart (a backward-
+        Euler step of RESTART_FRACTION·Δt) at t = 0 and after each breakpoint. Returns
+        (iterations, residual) of the nominal step; raises SolverDivergence (without
+        partial) when all cuts fail."""
+        h_full = t_target - self.t
+        snap = 1e-9 * h_full
+        total_its = 0
+        while self.t < t_target - snap:
+            if self.restart_pending:
+                total_its += self._restart()
+                self.restart_pending = False
+            later = self.breakpoints[self.breakpoints > self.t + snap]
+            if later.size and later[0] <= t_target + snap:
+                stop, at_break = float(later[0]), True
+            else:
+                stop, at_break = t_target, False
+            total_its += self._advance_to(stop, h_full, at_break)
+            if at_break:
+                self.restart_pending = True
+        return total_its, self.last_residual
 
-        Δt levels: h = (t_target − t)/factor^level. A nominal step starts at the level the
+    def _restart(self) -> int:
+        """One backward-Euler step of ε = RESTART_FRACTION·Δt (cut by 10 up to three
+        times if it fails): f and Ẏ become consistent with the loads and conditions now
+        in force (:mod:`solver.stepping`). Returns its Newton iterations."""
+        eps = RESTART_FRACTION * self.case.numerics.dt
+        its_total = 0
+        for _ in range(4):
+            ok, its, res, nonfinite = self.try_step(eps, restart=True)
+            its_total += its
+            if ok:
+                return its_total
+            eps *= 0.1
+        raise self._divergence(f"the consistent restart (a backward-Euler step) at "
+                               f"t = {self.t:.6g} s did not converge", 10.0 * eps, res,
+                               nonfinite)
+
+    def _divergence(self, what, h, res, nonfinite) -> "SolverDivergence":
+        """The SolverDivergence of a step that cannot be completed, with the reason."""
+        singular = self.newton.last_failure == "singular"
+        reason = "nonfinite_state" if (nonfinite and not singular) else "solver_diverged"
+        why = ("singular Jacobian: the boundary conditions leave a force or moment "
+               "undetermined (e.g. a straight inextensible rod held axially at both "
+               "ends)" if singular else
+               "non-finite state" if nonfinite else "Newton did not converge")
+        return SolverDivergence(f"{what} (Δt = {h:.3g} s, scaled residual {res:.3g}, {why})",
+                                t=self.t, step=None, residual=res, reason=reason)
+
+    def _advance_to(self, stop: float, h_full: float, at_break: bool) -> int:
+        """Advance to ``stop`` (s) with the nominal step h_full (s), cutting Δt on failure;
+        the step that reaches ``stop`` ends exactly there (with the loads' left limit when
+        ``at_break``). Returns the Newton iterations.
+
+        Δt levels: h = h_full/factor^level. A nominal step starts at the level the
         previous one ended on and substeps at the current level until t_target is
         reached; a failure raises the level by one, and after ``grow_after`` consecutive
         accepted substeps (counted across nominal steps; GROW_AFTER, and for the growth to
@@ -379,11 +433,10 @@ class RodRun:
         keeps failing is not retried at every nominal step.
         """
         num = self.case.numerics
-        h_full = t_target - self.t
         level = self.level_hint
         total_its = 0
-        while self.t < t_target - 1e-12 * max(1.0, abs(t_target)):
-            remaining = t_target - self.t
+        while self.t < stop - 1e-9 * h_full:
+            remaining = stop - self.t
             grew = False
             needed = self.grow_after if level == 1 else self.GROW_AFTER
             if (self.accepted_at_level >= needed and level > 0
@@ -394,9 +447,11 @@ class RodRun:
                 grew = True
             h = h_full / num.dt_cut_factor**level
             h_try = min(h, remaining)
-            if remaining - h_try < 1e-9 * h:
+            last = remaining - h_try < 1e-9 * h
+            if last:
                 h_try = remaining
-            ok, its, res, nonfinite = self.try_step(h_try)
+            ok, its, res, nonfinite = self.try_step(
+                h_try, t_new=stop if last else None, left_limit=last and at_break)
             total_its += its
             if ok:
                 self.last_dt = h_try
@@ -410,19 +465,12 @@ class RodRun:
                 # before the next one (below the nominal Δt a growth is cheap to retry)
                 self.grow_after = min(2 * self.grow_after, self.GROW_AFTER_MAX)
             if level >= num.max_dt_cuts:
-                singular = self.newton.last_failure == "singular"
-                reason = "nonfinite_state" if (nonfinite and not singular) else "solver_diverged"
-                why = ("singular Jacobian: the boundary conditions leave a force or moment "
-                       "undetermined (e.g. a straight inextensible rod held axially at both "
-                       "ends)" if singular else
-                       "non-finite state" if nonfinite else "Newton did not converge")
-                raise SolverDivergence(
-                    f"time step from t = {self.t:.6g} s did not converge after {level} "
-                    f"Δt cuts (Δt = {h_try:.3g} s, scaled residual {res:.3g}, {why})",
-                    t=self.t, step=None, residual=res, reason=reason)
+                raise self._divergence(f"time step from t = {self.t:.6g} s did not "
+                                       f"converge after {level} Δt cuts", h_try, res,
+                                       nonfinite)
             level += 1
         self.level_hint = level
-        return total_its, self.last_residual
+        return total_its
 
     # -------------------------------------------------------------------------------
     def snapshot(self, fields: set) -> dict:

@@ -46,9 +46,11 @@ TENSIONED_END = {"translation": [{"velocity": 0.0}, {"velocity": 0.0}, {"force":
 
 @pytest.mark.parametrize("rho_inf", [0.0, 0.5, 1.0])
 def test_work_in_is_the_schemes_discrete_work_at_large_dt(rho_inf):
-    # a straight rod twisted by a rate table whose ramps fall inside Δt = 1 s steps: its
-    # energy is exactly the discrete work Σ ½(qⁿ + qⁿ⁺¹)·Δφ of the scheme; a trapezoid of
-    # the power q·ω at the levels missed it by 5-11 % here (docs/numerics.md § 6)
+    # a straight rod twisted by a rate table whose corners fall inside Δt = 1 s steps (the
+    # steps land on them: breakpoints): its energy is exactly the discrete work
+    # Σ ½(qⁿ + qⁿ⁺¹)·Δφ of the scheme; a trapezoid of the power q·ω at the levels missed it
+    # by 5-11 % here (docs/numerics.md § 6). ρ∞ < 1 dissipates: 1.0e-4 of the work at
+    # ρ∞ = 0 with the restarts at the corners.
     case = make_case(n_segments=20, dt=1.0, t_end=3.0, rho_inf=rho_inf, start=RAMPED_TWIST,
                      end=TENSIONED_END, fields=("kappa", "energies"))
     ds = simulate(case)
@@ -58,7 +60,7 @@ def test_work_in_is_the_schemes_discrete_work_at_large_dt(rho_inf):
         np.testing.assert_allclose(e, w, rtol=1e-6, atol=1e-9 * w[-1])
     else:                                            # ρ∞ < 1 only ever removes energy
         assert np.all(e <= w + 1e-9 * w[-1])
-        assert np.all(w - e <= 1e-4 * w[-1])
+        assert np.all(w - e <= 3e-4 * w[-1])
 
 
 def test_work_of_gravity_balances_energy_to_second_order_in_ds():

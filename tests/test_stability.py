@@ -468,7 +468,8 @@ def test_ten_thousand_steps_energy_bounded_rho1():
     assert case.n_steps == 10_000
     ds = run_checked(case, must_complete=True, energy_tol=0.03)
     assert ds.sizes["step"] == 10_000
-    assert float(ds.step_dt.min()) == pytest.approx(0.01)
+    # no Δt cut (the first step is shortened by the restart step of 1e-4 Δt)
+    assert float(ds.step_dt.min()) == pytest.approx(0.01, rel=2e-4)
     t, e, w = ds.time.values, ds.energy_total.values, ds.work_in.values
     free = t >= 1.0
     w_free = w[free]
@@ -515,9 +516,7 @@ def test_large_time_step_seed_twist(rho_inf):
 @pytest.mark.parametrize("rho_inf", [
     pytest.param(0.0, marks=pytest.mark.xfail(
         strict=True, reason="known limitation, docs/numerics.md § 6: σΔt = 3.7 with ρ∞ < 1 suppresses the growing mode")),
-    pytest.param(0.5, marks=pytest.mark.xfail(
-        strict=True, reason="known limitation, docs/numerics.md § 6: σΔt = 3.7 with ρ∞ < 1 suppresses the growing mode")),
-    1.0])
+    0.5, 1.0])
 def test_large_time_step_column_beyond_euler_buckles(rho_inf):
     """1.5 P_cr with a constant imperfection force (so that the Δt = 1 s levels see it),
     N = 20, to 10 s. The column must buckle: its growth time 1/σ = 0.27 s is far shorter
@@ -553,7 +552,7 @@ def test_tiny_time_step_torsional_wave(rho_inf):
     case = Case.model_validate(spec)
     ds = run_checked(case, must_complete=True)
     assert float(ds.step_newton_iterations.max()) <= 3
-    assert float(ds.step_dt.min()) == pytest.approx(1e-4)
+    assert float(ds.step_dt.min()) == pytest.approx(1e-4, rel=2e-4)   # no Δt cut
     t = ds.time.values
     D, L, a = 0.02, 1.0, -2.0
     gj3 = G * np.pi * D**4 / 32
