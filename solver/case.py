@@ -780,6 +780,13 @@ class Numerics(BaseModel):
     wall_clock_budget: Optional[Finite] = Field(
         None, gt=0, description="Wall-clock limit for the run, s; > 0; null: none."
     )
+    growth_guard: Optional[Finite] = Field(
+        1.0,
+        gt=0,
+        description="Largest sigma*dt allowed, sigma the fastest growth rate (1/s) of the linearised "
+        "dynamics: a step that would exceed it is cut, so a large dt cannot suppress a buckling "
+        "(dimensionless); > 0; null: no check.",
+    )
 
     @model_validator(mode="after")
     def _one_of(self) -> "Numerics":

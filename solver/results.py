@@ -161,6 +161,8 @@ DIAGNOSTIC_VARIABLES: dict[str, tuple[str, str]] = {
     "step_dt": ("s", "time step of the accepted step"),
     "step_newton_iterations": ("1", "Newton iterations of the accepted step"),
     "step_residual_norm": ("1", "final scaled Newton residual norm of the accepted step"),
+    "step_growth_rate": ("s-1", "largest growth rate sigma of the linearised dynamics at the "
+                         "last growth-guard check (0: none found; NaN: not checked)"),
 }
 
 _INTEGER_VARIABLES = {"contact_count", "newton_iterations", "step_newton_iterations"}

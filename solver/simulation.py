@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .banded import BandLayout
 from .boundary import BoundaryRows
 from .contact import SelfContact, close_node_pairs, swept_min_distance
 from .energies import distributed_power, end_loads, end_power, energies
@@ -27,7 +28,7 @@ from .loads import LoadModel
 from .properties import RodProperties
 from .newton import Newton
 from .scheme import BACKWARD_EULER, RodSystem, alpha_parameters
-from .stepping import RESTART_FRACTION, breakpoints
+from .stepping import RESTART_FRACTION, breakpoints, growth_rate
 
 __all__ = ["simulate", "SolverDivergence", "Progress", "RodRun"]
 
@@ -80,6 +81,7 @@ class RodRun:
     """
 
     GROW_AFTER = 3   # accepted substeps at one Δt level before Δt is allowed to grow
+    GUARD_EVERY = 10  # accepted steps between growth-guard checks at an unchanged Δt
     GROW_AFTER_MAX = 48  # the same after repeated failed growths (doubling back-off)
 
     def __init__(self, case):
@@ -133,6 +135,16 @@ class RodRun:
         self.end_load = end_loads(self.Y, props)
         self.bc = BoundaryRows(case, props, 0.0, self.system.n)
         self.breakpoints = breakpoints(case)
+        # growth guard (solver.stepping.growth_rate): the last estimate of the fastest
+        # growth rate σ (1/s; NaN: not yet checked), the Δt it was checked at, the largest
+        # Δt checked, accepted steps since, the Arnoldi start vector
+        self.growth_guard = num.growth_guard
+        self.guard_sigma = math.nan
+        self.guard_h = 0.0
+        self.guard_h_max = 0.0
+        self.guard_since = 0
+        self.guard_v0 = None
+        self._guard_layout = None
         self.restart_pending = True       # a consistent restart before the next step
         self.level_hint = 0
         self.accepted_at_level = 0
@@ -202,6 +214,9 @@ class RodRun:
                 return False, its, res, False
             contact_count = 0 if ev is None else int(ev.count)
             min_gap = math.inf if ev is None else float(ev.min_gap)
+        if self.growth_guard is not None and not restart and cand is None:
+            if not self._growth_ok(h, Y):
+                return False, its, res, False
         # accept ------------------------------------------------------------------
         g = params.gamma
         Ydot = (Y - self.Y) / (g * h) - ((1.0 - g) / g) * self.Ydot
@@ -253,6 +268,8 @@ class RodRun:
                                              np.einsum("ni,ni->n", b_mean, dx)))
             self.xdot_nodes = vdot
         self.power, self.body_force = power, body
+        if not restart:
+            self.guard_since += 1
         # after a restart the old level is inconsistent (f jumped): no extrapolation
         self.Y_prev, self.h_prev = (None, None) if restart else (self.Y, h)
         self.Y, self.Ydot, self.F_old = Y, Ydot, Fn
@@ -266,6 +283,39 @@ class RodRun:
             self.update_space_route()
         self.last_iterations, self.last_residual = its, res
         return True, its, res, False
+
+    def _growth_ok(self, h, Y) -> bool:
+        """The growth guard for a converged step of h (s) to Y (N+1, 12): False when the
+        fastest growth rate σ of the linearised dynamics has σh > ``numerics.growth_guard``
+        (such a step would damp the growing mode instead of following it). σ is estimated
+        (:func:`solver.stepping.growth_rate`, shift 2g/h, which finds every σ up to 4g/h;
+        and 16g/h as well when h is more than twice the largest step checked so far)
+        every GUARD_EVERY accepted steps and whenever h exceeds twice the step of the last
+        check (below that the last check's disc covers σ = g/h); in between the last
+        estimate is used. Not run for steps with contact candidates (their Jacobian is not
+        banded)."""
+        g = self.growth_guard
+        if (math.isnan(self.guard_sigma) or self.guard_since >= self.GUARD_EVERY
+                or h > 2.0 * self.guard_h):
+            if self._guard_layout is None:
+                self._guard_layout = BandLayout(self.system.n_cells)
+            sigma, vec = growth_rate(self.system, Y, 2.0 * g / h, self._guard_layout,
+                                     self.guard_v0)
+            if h > 2.0 * self.guard_h_max:
+                far, _ = growth_rate(self.system, Y, 16.0 * g / h, self._guard_layout)
+                sigma = max(sigma, far)
+                self.guard_h_max = h
+            self.guard_sigma = max(sigma, 0.0)
+            self.guard_v0 = vec
+            self.guard_h = h
+            self.guard_since = 0
+        return self.guard_sigma * h <= g * (1.0 + 1e-9)
+
+    def _h_cap(self) -> float:
+        """Largest Δt (s) the growth guard allows now (inf when no growth is known)."""
+        if self.growth_guard is None or not self.guard_sigma > 0.0:
+            return math.inf
+        return self.growth_guard / self.guard_sigma
 
     def _time_step(self, h, Y, q, r, v_global):
         """Nodes advanced one step h (s) in time, each on its own (the time route):
@@ -438,9 +488,23 @@ class RodRun:
         while self.t < stop - 1e-9 * h_full:
             remaining = stop - self.t
             grew = False
+            cap = self._h_cap() * (1.0 + 1e-9)
+            while h_full / num.dt_cut_factor**level > cap:
+                # a known growth rate: the levels it forbids are not tried
+                if level >= num.max_dt_cuts:
+                    raise SolverDivergence(
+                        f"at t = {self.t:.6g} s the dynamics grow at σ = "
+                        f"{self.guard_sigma:.3g} 1/s: the growth guard needs Δt ≤ "
+                        f"{self._h_cap():.3g} s, more than numerics.max_dt_cuts = "
+                        f"{num.max_dt_cuts} cuts of dt (raise max_dt_cuts, lower dt, or set "
+                        f"numerics.growth_guard to null to run without the check)",
+                        t=self.t, step=None, residual=math.nan, reason="solver_diverged")
+                level += 1
+                self.accepted_at_level = 0
             needed = self.grow_after if level == 1 else self.GROW_AFTER
             if (self.accepted_at_level >= needed and level > 0
-                    and h_full / num.dt_cut_factor ** (level - 1) <= remaining * (1.0 + 1e-9)):
+                    and h_full / num.dt_cut_factor ** (level - 1) <= remaining * (1.0 + 1e-9)
+                    and h_full / num.dt_cut_factor ** (level - 1) <= cap):
                 # grow only when the larger step fits and will be tried
                 level -= 1
                 self.accepted_at_level = 0
@@ -565,7 +629,7 @@ def _simulate(case, progress, should_stop):
     n_steps = max(1, int(math.ceil(num.t_end / num.dt - 1e-9)))
     times, records = [], []
     diag = {"step_time": [], "step_dt": [], "step_newton_iterations": [],
-            "step_residual_norm": []}
+            "step_residual_norm": [], "step_growth_rate": []}
 
     def record():
         times.append(run.t)
@@ -606,6 +670,7 @@ def _simulate(case, progress, should_stop):
         diag["step_dt"].append(run.last_dt)
         diag["step_newton_iterations"].append(its)
         diag["step_residual_norm"].append(res)
+        diag["step_growth_rate"].append(run.guard_sigma)
         if step % every == 0 or step == n_steps:
             record()
         if progress is not None:
