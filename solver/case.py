@@ -757,6 +757,22 @@ class Newton(BaseModel):
     max_iterations: Integer = Field(25, ge=1, description="Iterations before a step counts as not converged; >= 1.")
 
 
+class Tolerance(BaseModel):
+    """Local error tolerances of the error-controlled time stepping (docs/numerics.md § 7).
+
+    A step is accepted when, for each of the fields v, ω, κ, its local error estimate is
+    at most ``absolute`` × the field's characteristic size + ``relative`` × the field's
+    largest value on the rod (at the old or new level).
+    """
+
+    model_config = _MODEL_CONFIG
+
+    relative: Finite = Field(1e-3, gt=0, lt=1, description="Relative tolerance on the local error (dimensionless); in (0, 1).")
+    absolute: Finite = Field(
+        1e-6, gt=0, description="Absolute tolerance, in units of each field's characteristic size (dimensionless); > 0."
+    )
+
+
 class Numerics(BaseModel):
     """Discretisation, time integration and step control.
 
@@ -769,7 +785,7 @@ class Numerics(BaseModel):
 
     ds: Optional[Finite] = Field(None, gt=0, description="Segment length, m; > 0; must divide rod.length (1e-9 relative).")
     n_segments: Optional[Integer] = Field(None, ge=1, description="Number of segments (grid points - 1); >= 1.")
-    dt: Finite = Field(..., gt=0, description="Time step, s; > 0.")
+    dt: Finite = Field(..., gt=0, description="Time step, s; > 0 (with tolerance: the first step).")
     t_end: Finite = Field(..., gt=0, description="End time of the run, s; > 0.")
     rho_inf: Finite = Field(
         0.5, ge=0, le=1, description="Spectral radius at infinite frequency of the generalized-alpha scheme, in [0, 1]."
@@ -780,6 +796,12 @@ class Numerics(BaseModel):
     wall_clock_budget: Optional[Finite] = Field(
         None, gt=0, description="Wall-clock limit for the run, s; > 0; null: none."
     )
+    tolerance: Optional[Tolerance] = Field(
+        None,
+        description="Error-controlled time stepping: the solver chooses each dt from a local error "
+        "estimate (dt is the first step); null: fixed steps of dt.",
+    )
+    dt_max: Optional[Finite] = Field(None, gt=0, description="Largest step with tolerance, s; > 0; null: none.")
     growth_guard: Optional[Finite] = Field(
         1.0,
         gt=0,
@@ -822,6 +844,12 @@ class Output(BaseModel):
     model_config = _MODEL_CONFIG
 
     every: Integer = Field(1, ge=1, description="Keep every n-th accepted time step (the first and last are always kept); >= 1.")
+    interval: Optional[Finite] = Field(
+        None,
+        gt=0,
+        description="With numerics.tolerance: keep the state every interval s (steps land on these "
+        "times) instead of every n-th step; > 0; null: use every.",
+    )
     fields: list[OutputField] = Field(
         default_factory=lambda: list(DEFAULT_OUTPUT_FIELDS),
         description="Variables to store: any of v, omega, f, kappa, moment, position, orientation, energies, topology, contact.",
@@ -994,6 +1022,20 @@ class Case(BaseModel):
                          "pairs the barrier acts on", self.contact.barrier_gap)
                 )
         numerics = self.numerics
+        if numerics.tolerance is None:
+            if numerics.dt_max is not None:
+                errors.append(_err(("numerics", "dt_max"), "needs_tolerance",
+                                   "dt_max applies only to error-controlled steps: give "
+                                   "numerics.tolerance, or remove dt_max", numerics.dt_max))
+            if self.output.interval is not None:
+                errors.append(_err(("output", "interval"), "needs_tolerance",
+                                   "output.interval applies only to error-controlled steps "
+                                   "(numerics.tolerance); with fixed steps use output.every",
+                                   self.output.interval))
+        elif numerics.dt_max is not None and numerics.dt > numerics.dt_max:
+            errors.append(_err(("numerics", "dt"), "out_of_range",
+                               f"the first step dt must not exceed dt_max = {numerics.dt_max!r} s",
+                               numerics.dt))
         n_segments = numerics.n_segments
         if numerics.ds is not None:
             ratio = length / numerics.ds
@@ -1079,5 +1121,6 @@ class Case(BaseModel):
 
     @property
     def n_steps(self) -> int:
-        """Number of time steps at the nominal dt, ``ceil(t_end / dt - 1e-9)``."""
+        """Number of time steps at the nominal dt, ``ceil(t_end / dt - 1e-9)`` (with
+        ``numerics.tolerance``: the steps the run would take at its first step dt)."""
         return int(math.ceil(self.numerics.t_end / self.numerics.dt - 1e-9))

@@ -313,6 +313,22 @@ class Newton:
             Y = Y + delta
         return Y, Fn, self.max_iterations, res, False, pose
 
+    def filtered(self, e):
+        """The error filter of stiff integrators, J⁻¹(c M_b e) (Shampine's for RADAU5,
+        Hairer & Wanner, *Solving ODEs II*, § IV.8; Hosea & Shampine, Appl. Numer. Math.
+        20 (1996) 21-37, for the trapezoid): e (N+1, 12) is mapped through the step's last
+        band LU, J = c M_b + (1 − αf) A_b. Components that the step resolves (|λΔt| small)
+        pass unchanged; stiff ones, which the scheme damps and an error estimate should
+        not chase (contact oscillations, checkerboard modes), are divided by about λ/c.
+        The result satisfies the linearised constraints (its f and E2 rows are
+        consistent). Returns (N+1, 12); needs a factorisation of the current step."""
+        sysm = self.system
+        Me = sysm._apply_M(e)
+        rhs = np.zeros(sysm.n)
+        rhs[6:6 + NV * sysm.n_cells] = (0.5 * sysm.cm * (Me[:-1] + Me[1:])).ravel()
+        x = self.layout.solve(rhs * self._row_scale) * self._col_scale
+        return x.reshape(e.shape)
+
     def _line_search(self, Y, delta, R0):
         """Backtracking on the row-scaled residual 2-norm (contact steps only): halve the
         correction, at most 4 times, until the residual decreases (Armijo, c = 1e-4).

@@ -28,7 +28,7 @@ from .loads import LoadModel
 from .properties import RodProperties
 from .newton import Newton
 from .scheme import BACKWARD_EULER, RodSystem, alpha_parameters
-from .stepping import RESTART_FRACTION, breakpoints, growth_rate
+from .stepping import RESTART_FRACTION, ErrorControl, breakpoints, growth_rate
 
 __all__ = ["simulate", "SolverDivergence", "Progress", "RodRun"]
 
@@ -135,6 +135,15 @@ class RodRun:
         self.end_load = end_loads(self.Y, props)
         self.bc = BoundaryRows(case, props, 0.0, self.system.n)
         self.breakpoints = breakpoints(case)
+        # error-controlled steps (numerics.tolerance): the estimator and controller, the
+        # error ratio of the last estimated step, the next step size; why the last
+        # attempt was refused ("newton", "contact", "error", "growth")
+        tol = num.tolerance
+        self.errctl = (ErrorControl(tol.relative, tol.absolute, self.system.floor, num.rho_inf)
+                       if tol is not None else None)
+        self.last_error_ratio = math.nan
+        self.h_next = num.dt
+        self.last_reject = None
         # growth guard (solver.stepping.growth_rate): the last estimate of the fastest
         # growth rate σ (1/s; NaN: not yet checked), the Δt it was checked at, the largest
         # Δt checked, accepted steps since, the Arnoldi start vector
@@ -191,6 +200,7 @@ class RodRun:
             Y, Fn, its, res, ok, pose = self.newton.solve(guess)
             its_total += its
             if not ok:
+                self.last_reject = "newton"
                 return False, its_total, res, not np.isfinite(res)
             if self.contact is None:
                 break
@@ -202,6 +212,7 @@ class RodRun:
                 break
             cand, guess = self.contact.merge(cand, found), Y
         else:
+            self.last_reject = "contact"
             return False, its_total, res, False
         its = its_total
         if self.contact is not None:
@@ -211,11 +222,32 @@ class RodRun:
                 ev = self.contact.evaluate(cand, pose[2], vg)
             if ev is not None and ev.min_gap < 0.0:
                 # the surfaces interpenetrate: reject, the caller cuts Δt
+                self.last_reject = "contact"
                 return False, its, res, False
             contact_count = 0 if ev is None else int(ev.count)
             min_gap = math.inf if ev is None else float(ev.min_gap)
+        # local error: the route rule where strands may meet (a node's trapezoidal step
+        # in time against the κ-integrated centreline) and, with numerics.tolerance, the
+        # estimate of solver.stepping.ErrorControl; their ratios to their tolerances
+        ratio = 0.0
+        if self.contact is not None:
+            self.last_step_error = self._local_error(h, Y, pose[2])
+            ratio = self.last_step_error / self.route_tolerance
+            if self.errctl is None and ratio > 1.0:
+                self.last_reject = "contact"
+                return False, its, res, False
+        if self.errctl is not None and not restart:
+            ratio = max(ratio, self.errctl.ratio(t_new, Y, self.Y, self.newton.filtered))
+            self.last_error_ratio = ratio
+            if ratio > 1.0:
+                self.last_reject = "error"
+                return False, its, res, False
+        if self.contact is not None and not self._no_tunnelling(pose[2]):
+            self.last_reject = "contact"
+            return False, its, res, False
         if self.growth_guard is not None and not restart and cand is None:
             if not self._growth_ok(h, Y):
+                self.last_reject = "growth"
                 return False, its, res, False
         # accept ------------------------------------------------------------------
         g = params.gamma
@@ -228,13 +260,12 @@ class RodRun:
         nrm = np.linalg.norm(q_t, axis=1)
         q_t /= nrm[:, None]
         if self.contact is not None:
-            # the space route of the new level: what Newton's contact forces acted on
-            self.last_step_error = self._local_error(h, Y, pose[2])
-            if self.last_step_error > self.route_tolerance:
-                return False, its, res, False
-            if not self._no_tunnelling(pose[2]):
-                return False, its, res, False
             self.contact_count, self.min_gap = contact_count, min_gap
+        if self.errctl is not None:
+            if restart:
+                self.errctl.reset(t_new, Y, Ydot)
+            else:
+                self.errctl.push(t_new, Y)
         self.quat_norm_error = max(self.quat_norm_error, float(np.max(np.abs(nrm - 1.0))))
         self.r_time, self.q_time, self.v_global_time = r_t, q_t, vg_t
         # displacement increments of the end sections (v, ω components, body frame) with
@@ -439,6 +470,58 @@ class RodRun:
             if at_break:
                 self.restart_pending = True
         return total_its, self.last_residual
+
+    def step_adaptive(self, t_stop: float):
+        """One accepted error-controlled step (``numerics.tolerance``) toward t_stop (s):
+        never past t_stop or the next breakpoint, landing on them exactly (a step that
+        would leave less than itself before the stop is halved instead). A step refused
+        for its error is retried at the controller's smaller size, one refused by the
+        growth guard at g/σ, one whose Newton or contact checks fail at Δt/dt_cut_factor;
+        below dt/dt_cut_factor^max_dt_cuts SolverDivergence is raised. Returns
+        (iterations of all attempts, residual)."""
+        num = self.case.numerics
+        ctl = self.errctl
+        total_its = 0
+        if self.restart_pending:
+            total_its += self._restart()
+            self.restart_pending = False
+        snap = 1e-9 * max(self.h_next, 1e-300)
+        later = self.breakpoints[self.breakpoints > self.t + snap]
+        if later.size and later[0] <= t_stop + snap:
+            stop, at_break = float(later[0]), True
+        else:
+            stop, at_break = t_stop, False
+        h_min = num.dt / num.dt_cut_factor**num.max_dt_cuts
+        h_max = num.dt_max if num.dt_max is not None else math.inf
+        h = self.h_next
+        while True:
+            h = min(h, h_max, self._h_cap())
+            remaining = stop - self.t
+            last = h >= remaining * (1.0 - 1e-9)
+            h_try = remaining if last else (0.5 * remaining if 2.0 * h > remaining else h)
+            ok, its, res, nonfinite = self.try_step(
+                h_try, t_new=stop if last else None, left_limit=last and at_break)
+            total_its += its
+            if ok:
+                self.last_dt = h_try
+                h_new = ctl.accepted(h_try, self.last_error_ratio)
+                # a step shortened to land on a stop does not shrink the next one
+                self.h_next = max(h_new, h) if h_try < h else h_new
+                if last and at_break:
+                    self.restart_pending = True
+                self.last_iterations = total_its
+                return total_its, res
+            if self.last_reject == "error":
+                h = ctl.rejected(h_try, self.last_error_ratio)
+            elif self.last_reject == "growth":
+                h = min(0.5 * h_try, self._h_cap())
+            else:
+                h = h_try / num.dt_cut_factor
+            if h < h_min * (1.0 - 1e-9):
+                raise self._divergence(
+                    f"time step from t = {self.t:.6g} s could not be completed above the "
+                    f"smallest step dt/dt_cut_factor^max_dt_cuts = {h_min:.3g} s "
+                    f"(last refusal: {self.last_reject})", h_try, res, nonfinite)
 
     def _restart(self) -> int:
         """One backward-Euler step of ε = RESTART_FRACTION·Δt (cut by 10 up to three
@@ -650,6 +733,9 @@ def _simulate(case, progress, should_stop):
 
     record()
     budget = num.wall_clock_budget
+    if num.tolerance is not None:
+        return _simulate_adaptive(case, run, record, finish, diag, progress, should_stop,
+                                  wall0)
     for step in range(1, n_steps + 1):
         if should_stop is not None:
             flag = should_stop()
@@ -680,3 +766,54 @@ def _simulate(case, progress, should_stop):
                               fraction=min(1.0, run.t / num.t_end),
                               contact_count=run.contact_count))
     return finish("completed", f"completed {n_steps} steps to t = {run.t:.6g} s")
+
+
+def _simulate_adaptive(case, run, record, finish, diag, progress, should_stop, wall0):
+    """The time loop of error-controlled steps (``numerics.tolerance``): one accepted
+    step per pass, the state kept at every ``output.interval`` s (the steps land on those
+    times) or, without an interval, every ``output.every``-th step; the diagnostics hold
+    every accepted step."""
+    num = case.numerics
+    t_end = num.t_end
+    interval = case.output.interval
+    every = case.output.every
+    budget = num.wall_clock_budget
+    next_out = min(interval, t_end) if interval is not None else t_end
+    step = 0
+    while run.t < t_end * (1.0 - 1e-12):
+        if should_stop is not None:
+            flag = should_stop()
+            if flag:
+                reason = flag if isinstance(flag, str) else "stopped"
+                return finish("stopped", f"stopped at t = {run.t:.6g} s: {reason}", reason)
+        if budget is not None and _time.perf_counter() - wall0 > budget:
+            return finish("stopped", f"wall-clock budget of {budget} s exceeded at "
+                          f"t = {run.t:.6g} s", "timeout")
+        try:
+            its, res = run.step_adaptive(next_out)
+        except SolverDivergence as exc:
+            exc.step = step
+            exc.partial = finish("failed", str(exc), exc.reason)
+            raise
+        step += 1
+        diag["step_time"].append(run.t)
+        diag["step_dt"].append(run.last_dt)
+        diag["step_newton_iterations"].append(its)
+        diag["step_residual_norm"].append(res)
+        diag["step_growth_rate"].append(run.guard_sigma)
+        done = run.t >= t_end * (1.0 - 1e-12)
+        if interval is not None:
+            if run.t >= next_out * (1.0 - 1e-12) or done:
+                record()
+                k = math.floor(run.t / interval + 1e-9) + 1
+                next_out = min(k * interval, t_end)
+        elif step % every == 0 or done:
+            record()
+        if progress is not None:
+            progress(Progress(t=run.t, t_end=t_end, step=step, dt=run.last_dt,
+                              newton_iterations=its, residual_norm=res,
+                              wall_time=_time.perf_counter() - wall0,
+                              fraction=min(1.0, run.t / t_end),
+                              contact_count=run.contact_count))
+    return finish("completed", f"completed {step} error-controlled steps to "
+                  f"t = {run.t:.6g} s")

@@ -75,3 +75,98 @@ def test_second_order_through_a_load_switch(rho_inf, start):
     order = fitted_order(dts, errors)
     assert abs(order - 2.0) <= 0.2, (order, errors)
     assert np.abs(ref[-1, -1, 0]) > 1e-3          # the load moved the tip
+
+
+# --------------------------------------------------------------------------- adaptive
+def test_error_constant_matches_the_schemes_amplification():
+    # the principal root of the generalized-α amplification for y' = λy at z = 0.01:
+    # log(root) = z + C z³ + O(z⁴)
+    from solver.scheme import alpha_parameters
+    from solver.stepping import error_constant
+
+    z = 0.01
+    for rho in (0.0, 0.3, 0.5, 1.0):
+        p = alpha_parameters(rho)
+        am, af, g = p.alpha_m, p.alpha_f, p.gamma
+        A = np.array([[-(1 - af), 1 - am], [1.0, -g * z]])
+        B = np.array([[af, -am], [1.0, (1 - g) * z]])
+        ev = np.linalg.eigvals(np.linalg.solve(A, B))
+        root = ev[np.argmin(np.abs(ev - np.exp(z)))]
+        assert (np.log(root).real - z) / z**3 == pytest.approx(error_constant(rho), rel=0.01)
+
+
+def test_predictor_error_is_the_third_derivative_times_pi():
+    # on a cubic the quadratic predictors (Hermite after a restart, then Lagrange) err by
+    # exactly Y'''·Π/6, the relation the error estimate rests on
+    from solver.stepping import ErrorControl
+
+    ec = ErrorControl(1e-3, 1e-6, np.ones(12), 0.5)
+    cubic = lambda t: np.full((3, 12), 2.0 * t**3 - t)
+    ec.reset(0.5, cubic(0.5), np.full((3, 12), 6.0 * 0.25 - 1.0))
+    ec.push(0.6, cubic(0.6))
+    yp, pi = ec.predict(0.7)
+    np.testing.assert_allclose(cubic(0.7) - yp, 12.0 * pi / 6.0, rtol=1e-9)
+    ec.push(0.7, cubic(0.7))
+    yp, pi = ec.predict(0.85)
+    np.testing.assert_allclose(cubic(0.85) - yp, 12.0 * pi / 6.0, rtol=1e-9)
+
+
+def pulse_case(tolerance=None, dt=0.01, **numerics):
+    from test_convergence_order import tip_case
+
+    spec = tip_case(40, dt, 0.5).model_dump()
+    spec["output"]["every"] = 1
+    if tolerance is not None:
+        spec["numerics"]["tolerance"] = {"relative": tolerance, "absolute": tolerance}
+    spec["numerics"].update(numerics)
+    return Case.model_validate(spec)
+
+
+def test_achieved_error_follows_the_tolerance():
+    """The swung cantilever of test_convergence_order (tip travels ~0.4 m): final
+    positions against a Δt = 1/2560 s run. Measured: tolerance 1e-2 -> 7.4e-4 m, 1e-3 ->
+    1.5e-4 m, 1e-4 -> 1.6e-5 m (25, 54, 151 steps); the error relative to the 0.4 m
+    travel stays within 10x of the tolerance and falls with it."""
+    ref = simulate(pulse_case(dt=1.0 / 2560)).position.isel(time=-1).values
+    travel = 0.4
+    errors, steps = [], []
+    for tol in (1e-2, 1e-3, 1e-4):
+        ds = simulate(pulse_case(tol))
+        assert ds.attrs["hockle_status"] == "completed"
+        errors.append(np.abs(ds.position.isel(time=-1).values - ref).max() / travel)
+        steps.append(ds.sizes["step"])
+        assert 0.01 * tol < errors[-1] < 10 * tol, (tol, errors)
+    assert errors[0] > 3 * errors[1] > 9 * errors[2]
+    assert steps[0] < steps[1] < steps[2]
+
+
+def test_adaptive_steps_land_on_outputs_breakpoints_and_respect_dt_max():
+    case = make_case(n_segments=10, dt=0.01, t_end=1.0, end=free_end(), fluid=FLUID,
+                     forces=[{"value": [0.05, 0.0, 0.0], "start": 0.33, "end": 0.71}])
+    spec = case.model_dump()
+    spec["numerics"].update(tolerance={"relative": 1e-3, "absolute": 1e-3}, dt_max=0.07)
+    spec["output"]["interval"] = 0.25
+    ds = simulate(Case.model_validate(spec))
+    assert ds.attrs["hockle_status"] == "completed"
+    np.testing.assert_allclose(ds.time.values, [0.0, 0.25, 0.5, 0.75, 1.0], atol=1e-12)
+    st = ds.step_time.values
+    for t in (0.25, 0.33, 0.5, 0.71, 0.75, 1.0):
+        assert np.min(np.abs(st - t)) < 1e-12, t
+    assert ds.step_dt.max() <= 0.07 * (1 + 1e-9)
+    # at rest before the load: the steps grow to dt_max; the switch brings them down
+    before = (st > 0.1) & (st < 0.33)
+    assert ds.step_dt.values[before].max() == pytest.approx(0.07)
+
+
+def test_fixed_step_only_fields_are_refused_without_tolerance():
+    spec = make_case().model_dump()
+    spec["numerics"]["dt_max"] = 0.1
+    spec["output"]["interval"] = 0.05
+    with pytest.raises(Exception) as info:
+        Case.model_validate(spec)
+    text = str(info.value)
+    assert "numerics.dt_max" in text and "output.interval" in text
+    spec = make_case(dt=0.2).model_dump()
+    spec["numerics"].update(tolerance={"relative": 1e-3}, dt_max=0.1)
+    with pytest.raises(Exception, match="dt_max"):
+        Case.model_validate(spec)
