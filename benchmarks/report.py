@@ -1,7 +1,7 @@
 """Regenerate every benchmark figure and table into ``docs/benchmarks.md`` (issue 5).
 
 One command: ``python benchmarks/report.py``. It runs, in order, the work-precision
-study, the stability map, the cost of each feature, the profile of the seed example, the
+study, the error-controlled steps against their tolerance, the stability map, the cost of each feature, the profile of the seed example, the
 seed example at its resolution, and the side-by-side run with PyElastica (which installs
 its own requirements, ``benchmarks/requirements-pyelastica.txt``), and writes the
 Markdown page with the figures under ``docs/figures/benchmarks/``. Each section module
@@ -35,6 +35,7 @@ RESULTS = HERE / "results"
 #: (name, module, what it is), in the order of the page
 SECTIONS = [
     ("work_precision", "work_precision", "error against wall time, observed orders"),
+    ("adaptive", "adaptive_precision", "error-controlled steps against the tolerance"),
     ("stability", "stability_map", "stability map over Δt and ρ∞"),
     ("feature_cost", "feature_cost", "cost per step of each feature"),
     ("profile", "profile_seed", "profile of the seed example"),
@@ -65,7 +66,8 @@ def headline() -> list[str]:
                    f"**{seed['wall_s']:.0f} s** wall time on this machine (bar 120 s, goal "
                    f"20 s); {seed['ms_per_step_without_contact'] or float('nan'):.0f} ms per "
                    "step without contact.")
-    for name in ("work_precision", "pyelastica_compare", "stability_map", "feature_cost"):
+    for name in ("work_precision", "adaptive_precision", "pyelastica_compare", "stability_map",
+                 "feature_cost"):
         res = _load(name)
         if res and isinstance(res.get("headline"), list):
             out.extend(str(x) for x in res["headline"])

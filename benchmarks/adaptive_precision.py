@@ -1,0 +1,190 @@
+"""Error-controlled steps: achieved error and wall time against the tolerance (issue 10).
+
+The three reference problems of ``benchmarks/work_precision.py`` (vibration, Greenhill
+growth rate, seed example without contact), each at the grid (n segments) and ρ∞ of its
+cheapest fixed-Δt setting below 1 % in ``benchmarks/results/work_precision.json`` (so
+the spatial error is the same and only the time stepping differs), run with
+``numerics.tolerance`` = {relative: tol, absolute: tol} for tol = 1e-2 … 1e-6, the first
+step dt being that setting's Δt, every accepted step kept. Error as in work_precision.
+Wall time of ``simulate`` (median of 3 for runs under 1 s).
+
+Printed and stored (``benchmarks/results/adaptive_precision.json``): per problem and
+tolerance the error, error/tolerance, steps, wall time; the cheapest tolerance whose run
+and every tighter one reach 1 %, against the cheapest fixed-Δt setting below 1 %
+(wall-time ratio fixed/adaptive, > 1 when the tolerance is cheaper). The fixed setting is
+re-timed in this run, so the ratio compares timings taken together.
+
+Run: ``python benchmarks/adaptive_precision.py [--quick]`` (after work_precision.py).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+import work_precision as wp  # noqa: E402
+
+RESULTS = HERE / "results" / "adaptive_precision.json"
+TOLERANCES = (1e-2, 1e-3, 1e-4, 1e-5, 1e-6)
+
+
+def problems(quick: bool):
+    return [wp.Vibration(), wp.Greenhill(), wp.Seed(False, quick)]
+
+
+def run(quick: bool = False) -> dict:
+    t_start = time.perf_counter()
+    repeats = 1 if quick else 3
+    fixed_table = json.loads(wp.RESULTS.read_text())
+    tols = TOLERANCES[:3] if quick else TOLERANCES
+    out = {"quick": quick, "tolerances": list(tols), "problems": {}}
+    for prob in problems(quick):
+        best = fixed_table["problems"][prob.name]["cheapest"]["0.01"]["any"]
+        n, dt, rho = best["n_segments"], best["dt"], best["rho_inf"]
+        print(f"== {prob.name}: n = {n}, ρ∞ = {rho:g}, fixed Δt = {dt:g} s", flush=True)
+        spec = prob.spec(n, dt, rho)
+        ds, wall, _, status = wp.timed_simulate(spec, repeats)
+        err = prob.error(prob.measure(ds)) if status == "completed" else float("nan")
+        fixed = {"n_segments": n, "dt": dt, "rho_inf": rho, "wall_s": wall, "error": err,
+                 "steps": int(ds.sizes["step"]), "status": status}
+        print(f"  fixed      dt={dt:<8g} wall={wall:7.3f} s error={err:.3e} "
+              f"steps={fixed['steps']}", flush=True)
+        rows = []
+        for tol in tols:
+            spec = prob.spec(n, dt, rho)
+            spec["numerics"]["tolerance"] = {"relative": tol, "absolute": tol}
+            ds, wall, _, status = wp.timed_simulate(spec, repeats)
+            err = prob.error(prob.measure(ds)) if status == "completed" else float("nan")
+            row = {"tolerance": tol, "wall_s": wall, "error": err, "status": status,
+                   "steps": int(ds.sizes["step"]),
+                   "dt_min": float(ds.step_dt.min()), "dt_max": float(ds.step_dt.max()),
+                   "newton_per_step": float(ds.step_newton_iterations.sum()) / ds.sizes["step"]}
+            rows.append(row)
+            print(f"  tol={tol:<8g} wall={wall:7.3f} s error={err:.3e} "
+                  f"error/tol={err / tol:8.3g} steps={row['steps']} "
+                  f"dt {row['dt_min']:.2e}..{row['dt_max']:.2e} {'' if status == 'completed' else status}",
+                  flush=True)
+        good = [r for k, r in enumerate(rows)
+                if all(np.isfinite(q["error"]) and q["error"] < 1e-2 for q in rows[k:])]
+        cheapest = min(good, key=lambda r: r["wall_s"]) if good else None
+        ratio = fixed["wall_s"] / cheapest["wall_s"] if cheapest else float("nan")
+        follows = all(0.1 * r["tolerance"] <= r["error"] <= 10 * r["tolerance"]
+                      for r in rows if np.isfinite(r["error"]))
+        out["problems"][prob.name] = {"title": prob.title, "fixed": fixed, "runs": rows,
+                                      "cheapest_1pc": cheapest,
+                                      "fixed_over_adaptive_wall": ratio,
+                                      "error_within_10x_of_tolerance": follows}
+        print(f"  cheapest tolerance below 1 %: "
+              f"{cheapest['tolerance'] if cheapest else None}; wall fixed/adaptive = "
+              f"{ratio:.2f}; error within 10x of tolerance: {follows}", flush=True)
+    out["wall_total_s"] = time.perf_counter() - t_start
+    out["headline"] = headline(out)
+    return out
+
+
+def headline(res: dict) -> list[str]:
+    parts = []
+    for name, p in res["problems"].items():
+        c = p["cheapest_1pc"]
+        if c is None:
+            parts.append(f"{name}: no tolerance reached 1 %")
+        else:
+            parts.append(f"{name}: tolerance {c['tolerance']:g}, {c['wall_s']:.2f} s against "
+                         f"{p['fixed']['wall_s']:.2f} s fixed (×{p['fixed_over_adaptive_wall']:.2f})")
+    return ["Error-controlled steps, cheapest tolerance below 1 % against the cheapest fixed "
+            "Δt: " + "; ".join(parts) + "."]
+
+
+def figure(res: dict, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = list(res["problems"])
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5))
+    for k, name in enumerate(names):
+        p = res["problems"][name]
+        rows = [r for r in p["runs"] if np.isfinite(r["error"]) and r["error"] > 0]
+        color = f"C{k}"
+        axes[0].loglog([r["tolerance"] for r in rows], [r["error"] for r in rows], "o-",
+                       color=color, label=name)
+        axes[1].loglog([r["wall_s"] for r in rows], [r["error"] for r in rows], "o-",
+                       color=color, label=f"{name}, tolerance")
+        f = p["fixed"]
+        if np.isfinite(f["error"]):
+            axes[1].loglog([f["wall_s"]], [f["error"]], "*", color=color, ms=12, mfc="none",
+                           label=f"{name}, cheapest fixed Δt = {f['dt']:g} s")
+    tt = np.array([min(res["tolerances"]), max(res["tolerances"])])
+    axes[0].loglog(tt, tt, "k-", lw=0.8, label="error = tolerance")
+    axes[0].fill_between(tt, 0.1 * tt, 10 * tt, color="0.9", label="within 10×")
+    axes[0].set_xlabel("tolerance (relative = absolute)")
+    axes[0].set_ylabel("error")
+    axes[0].legend(fontsize=7)
+    axes[1].axhline(1e-2, color="k", lw=0.6, ls=":")
+    axes[1].set_xlabel("wall time of simulate (s)")
+    axes[1].set_ylabel("error")
+    axes[1].legend(fontsize=6)
+    fig.suptitle("Error-controlled time steps (numerics.tolerance)", fontsize=10)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def markdown(res: dict) -> str:
+    lines = ["## Error-controlled steps: achieved error against the tolerance", "",
+             "Written by `benchmarks/adaptive_precision.py`. The three problems of the "
+             "work-precision section, each on the grid and ρ∞ of its cheapest fixed-Δt "
+             "setting below 1 % (same spatial error), run with numerics.tolerance = "
+             "{relative: tol, absolute: tol}, the first step being that setting's Δt. The "
+             "fixed setting is re-timed in the same run. Estimator, controller and filter: "
+             "docs/numerics.md § 7. Total time of this section: "
+             f"{res['wall_total_s']:.0f} s.", ""]
+    if res["quick"]:
+        lines += ["**Quick mode: three tolerances and single runs; not the figures to "
+                  "quote.**", ""]
+    lines += ["![error against tolerance and wall time](figures/benchmarks/adaptive_precision.png)",
+              ""]
+    for name, p in res["problems"].items():
+        f = p["fixed"]
+        lines += [f"**{name}** ({p['title']}), n = {f['n_segments']}, ρ∞ = {f['rho_inf']:g}; "
+                  f"cheapest fixed Δt below 1 %: Δt = {f['dt']:g} s, {f['steps']} steps, "
+                  f"{f['wall_s']:.2f} s, error {f['error']:.1e}.", "",
+                  "| tolerance | error | error / tolerance | steps | Δt min … max (s) "
+                  "| Newton its / step | wall (s) |", "|---:|---:|---:|---:|---|---:|---:|"]
+        for r in p["runs"]:
+            lines.append(f"| {r['tolerance']:g} | {r['error']:.1e} | "
+                         f"{r['error'] / r['tolerance']:.2g} | {r['steps']} | "
+                         f"{r['dt_min']:.2g} … {r['dt_max']:.2g} | {r['newton_per_step']:.1f} | "
+                         f"{r['wall_s']:.2f} |")
+        c = p["cheapest_1pc"]
+        lines += ["", (f"Cheapest tolerance below 1 % (with every tighter one): {c['tolerance']:g}, "
+                       f"{c['wall_s']:.2f} s: fixed/adaptive wall = "
+                       f"{p['fixed_over_adaptive_wall']:.2f}." if c else
+                       "No tolerance reached 1 %."),
+                  f"Error within 10× of the tolerance at every tolerance: "
+                  f"{'yes' if p['error_within_10x_of_tolerance'] else 'no'}.", ""]
+    return "\n".join(lines)
+
+
+def section(figdir: Path, quick: bool = False) -> str:
+    res = run(quick)
+    figure(res, Path(figdir) / "adaptive_precision.png")
+    RESULTS.parent.mkdir(parents=True, exist_ok=True)
+    RESULTS.write_text(json.dumps(res, indent=1, default=float))
+    return markdown(res)
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true")
+    args = ap.parse_args()
+    print(section(wp.FIGDIR, args.quick))
