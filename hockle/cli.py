@@ -135,7 +135,6 @@ class _ProgressBar:
             Progress,
             TextColumn,
             TimeElapsedColumn,
-            TimeRemainingColumn,
         )
 
         console = Console(stderr=True)
@@ -150,11 +149,11 @@ class _ProgressBar:
             TextColumn("Δt {task.fields[dt]:.3g} s"),
             TextColumn("Newton {task.fields[newton]}"),
             TimeElapsedColumn(),
-            TextColumn("ETA"),
-            TimeRemainingColumn(),
+            TextColumn("ETA {task.fields[eta]}"),
             console=console,
         )
-        self._task = self._bar.add_task(name, total=t_end, step=0, dt=float("nan"), newton="-")
+        self._task = self._bar.add_task(name, total=t_end, step=0, dt=float("nan"), newton="-",
+                                        eta="-")
 
     def __enter__(self) -> "_ProgressBar":
         if self._bar is not None:
@@ -173,6 +172,8 @@ class _ProgressBar:
                 step=info.step,
                 dt=info.dt,
                 newton=info.newton_iterations,
+                eta=("-" if getattr(info, "eta_seconds", None) is None
+                     else f"{info.eta_seconds:.0f} s"),
             )
         elif self._plain:
             decile = math.floor(10 * info.fraction + 1e-9)
@@ -183,10 +184,12 @@ class _ProgressBar:
 
 
 def _progress_line(info: Any) -> str:
-    if 0 < info.fraction < 1:
-        eta = f"{info.wall_time * (1 - info.fraction) / info.fraction:.0f} s"
+    if info.fraction >= 1:
+        eta = "0 s"
+    elif getattr(info, "eta_seconds", None) is not None:
+        eta = f"{info.eta_seconds:.0f} s"      # at the recent pace (solver.RateEstimate)
     else:
-        eta = "-" if info.fraction <= 0 else "0 s"
+        eta = "-"
     return (
         f"t {info.t:.4g}/{info.t_end:.4g} s ({100 * info.fraction:.0f} %), step {info.step}, "
         f"Δt {info.dt:.3g} s, Newton {info.newton_iterations}, "

@@ -170,3 +170,22 @@ def test_fixed_step_only_fields_are_refused_without_tolerance():
     spec["numerics"].update(tolerance={"relative": 1e-3}, dt_max=0.1)
     with pytest.raises(Exception, match="dt_max"):
         Case.model_validate(spec)
+
+
+def test_eta_follows_the_recent_pace():
+    # 10 simulated s in 10 wall s, then 0.01 simulated s per wall s: the estimate must
+    # follow the slowdown (the linear estimate promised 35 s for the remaining 35 s)
+    from solver.simulation import RateEstimate
+
+    rate = RateEstimate(window_s=2.0, share=0.2)
+    for w in range(11):
+        fast = rate.update(float(w), float(w), 45.0)
+    assert fast == pytest.approx(35.0)
+    for w in range(11, 20):
+        slow = rate.update(float(w), 10.0 + 0.01 * (w - 10), 45.0)
+    assert slow == pytest.approx((45.0 - 10.09) / 0.01, rel=1e-6)
+    ds_progress = []
+    simulate(make_case(n_segments=4, dt=0.01, t_end=0.05, end=free_end()),
+             progress=ds_progress.append)
+    assert ds_progress[-1].eta_seconds == pytest.approx(0.0, abs=1e-9)
+    assert ds_progress[0].eta_seconds is None

@@ -78,7 +78,7 @@ class JobRun:
     def _write_progress(self, info) -> None:
         fraction = float(min(max(info.fraction, 0.0), 1.0))
         wall = float(info.wall_time)
-        eta = wall * (1.0 - fraction) / fraction if fraction > 0 else None
+        eta = getattr(info, "eta_seconds", None)   # the solver's recent-pace estimate
         try:
             self.registry.record_progress(
                 self.job_id,
