@@ -354,12 +354,15 @@ class RodRun:
         (such a step would damp the growing mode instead of following it). σ is estimated
         (:func:`solver.stepping.growth_rate`, shift 2g/h, which finds every σ up to 4g/h;
         and 16g/h as well when h is more than twice the largest step checked so far)
-        every GUARD_EVERY accepted steps and whenever h exceeds twice the step of the last
+        every GUARD_EVERY accepted steps (every 4 GUARD_EVERY while the last check found
+        σh < g/4) and whenever h exceeds twice the step of the last
         check (below that the last check's disc covers σ = g/h); in between the last
         estimate is used. Not run for steps with contact candidates (their Jacobian is not
         banded)."""
         g = self.growth_guard
-        if (math.isnan(self.guard_sigma) or self.guard_since >= self.GUARD_EVERY
+        # far from the limit (σh < g/4 at the last check) a check every 4·GUARD_EVERY
+        every = self.GUARD_EVERY * (4 if self.guard_sigma * self.guard_h < 0.25 * g else 1)
+        if (math.isnan(self.guard_sigma) or self.guard_since >= every
                 or h > 2.0 * self.guard_h):
             if self._guard_layout is None:
                 self._guard_layout = BandLayout(self.system.n_cells)
