@@ -271,7 +271,7 @@ class RodRun:
         if self.errctl is not None and not restart:
             if cand is None:
                 ratio = max(ratio, self.errctl.ratio(t_new, Y, self.Y, self.newton.filtered))
-            self.last_error_ratio = ratio
+            self.last_error_ratio = ratio      # NaN: not estimated (after a restart)
             if ratio > 1.0:
                 self.last_reject = "error"
                 return False, its, res, False
@@ -296,7 +296,7 @@ class RodRun:
             self.contact_count, self.min_gap = contact_count, min_gap
         if self.errctl is not None:
             if restart:
-                self.errctl.reset(t_new, Y, Ydot)
+                self.errctl.reset(t_new, Y)
             else:
                 self.errctl.push(t_new, Y)
         self.quat_norm_error = max(self.quat_norm_error, float(np.max(np.abs(nrm - 1.0))))
@@ -513,7 +513,7 @@ class RodRun:
         would leave less than itself before the stop is halved instead). A step refused
         for its error is retried at the controller's smaller size, one refused by the
         growth guard at g/σ, one whose Newton or contact checks fail at Δt/dt_cut_factor;
-        below dt/dt_cut_factor^max_dt_cuts SolverDivergence is raised. Returns
+        below 1e-9 t_end SolverDivergence is raised. Returns
         (iterations of all attempts, residual)."""
         num = self.case.numerics
         ctl = self.errctl
@@ -527,7 +527,9 @@ class RodRun:
             stop, at_break = float(later[0]), True
         else:
             stop, at_break = t_stop, False
-        h_min = num.dt / num.dt_cut_factor**num.max_dt_cuts
+        # the step-size floor: 1e-9 of the run (the error control may need far smaller
+        # steps than dt/dt_cut_factor^max_dt_cuts after a switch)
+        h_min = 1e-9 * max(num.t_end, num.dt)
         h_max = num.dt_max if num.dt_max is not None else math.inf
         h = self.h_next
         while True:
@@ -556,7 +558,7 @@ class RodRun:
             if h < h_min * (1.0 - 1e-9):
                 raise self._divergence(
                     f"time step from t = {self.t:.6g} s could not be completed above the "
-                    f"smallest step dt/dt_cut_factor^max_dt_cuts = {h_min:.3g} s "
+                    f"smallest step 1e-9 t_end = {h_min:.3g} s "
                     f"(last refusal: {self.last_reject})", h_try, res, nonfinite)
 
     def _restart(self) -> int:

@@ -15,7 +15,7 @@ the local error of a step, the PI controller of Δt and the growth guard.
   Ẏ and loses an order (Arnold & Brüls, Multibody Syst. Dyn. 18 (2007) 185-202, §3;
   measured in docs/numerics.md § 7).
 * **Local error** (:class:`ErrorControl`): Milne's device. A polynomial predictor
-  through the last accepted levels (three values, or two and the restart's Ẏ) has error
+  through the last three accepted levels (two: linear, conservative) has error
   Y'''·Π/6 (Π the product of the distances to its nodes); the generalized-α corrector
   has error C(ρ∞)·h³·Y''' (C = 1/12 at ρ∞ = 1, :func:`error_constant`). Their difference
   therefore gives the corrector's local error as (Y_c − Y_p)·C h³/(C h³ + Π/6), after
@@ -242,13 +242,11 @@ class ErrorControl:
         self.C = error_constant(rho_inf)
         self.times: list = []
         self.values: list = []
-        self.slope0 = None
         self.err_prev = None
 
-    def reset(self, t: float, Y: np.ndarray, Ydot: np.ndarray) -> None:
-        """Forget the history: a (consistent) restart at t with state Y and rate Ẏ."""
+    def reset(self, t: float, Y: np.ndarray) -> None:
+        """Forget the history: a (consistent) restart at t with state Y."""
         self.times, self.values = [t], [Y]
-        self.slope0 = Ydot
         self.err_prev = None
 
     def push(self, t: float, Y: np.ndarray) -> None:
@@ -261,37 +259,39 @@ class ErrorControl:
 
     def predict(self, t_new: float):
         """Polynomial predictor at t_new through the history: (Y_p (N+1, 12), Π), Π the
-        product of t_new's distances to the interpolation nodes. Three levels: quadratic
-        (Lagrange); two after a restart: quadratic through the restart's Y and Ẏ and the
-        next level (Hermite: the restart node counts twice); the restart alone:
-        Y^n + hẎ^n, with Π = h³ by convention (that estimate is O(h²): conservative)."""
+        product of t_new's distances to the interpolation nodes, or None with only one
+        level (the first step after a restart is not estimated). Three levels: quadratic
+        (Lagrange); two: linear, with Π = 6h³ by convention (an O(h²) estimate read as
+        the O(h³) one of equal steps: conservative). The restart's Ẏ is not used: the
+        short backward-Euler step leaves the grid's stiff modes in it, and an estimate
+        built on it asked the vibration benchmark for 1e-5 s first steps."""
         ts, ys = self.times, self.values
         if len(ts) == 1:
-            h = t_new - ts[0]
-            return ys[0] + h * self.slope0, h**3
+            return None
         if len(ts) == 2:
-            z = (ts[0], ts[0], ts[1])
-            y0 = ys[0]
-            d01 = self.slope0
-            d12 = (ys[1] - ys[0]) / (ts[1] - ts[0])
-        else:
-            z = tuple(ts[-3:])
-            y0, y1, y2 = ys[-3:]
-            d01 = (y1 - y0) / (z[1] - z[0])
-            d12 = (y2 - y1) / (z[2] - z[1])
+            h = t_new - ts[1]
+            return ys[1] + (h / (ts[1] - ts[0])) * (ys[1] - ys[0]), 6.0 * h**3
+        z = tuple(ts[-3:])
+        y0, y1, y2 = ys[-3:]
+        d01 = (y1 - y0) / (z[1] - z[0])
+        d12 = (y2 - y1) / (z[2] - z[1])
         second = (d12 - d01) / (z[2] - z[0])
         w0, w1 = t_new - z[0], t_new - z[1]
         return y0 + d01 * w0 + second * w0 * w1, w0 * w1 * (t_new - z[2])
 
     def ratio(self, t_new: float, Y_new: np.ndarray, Y_old: np.ndarray,
               filter=None) -> float:
-        """Error ratio (estimate / tolerance) of the step ending at t_new with Y_new.
+        """Error ratio (estimate / tolerance) of the step ending at t_new with Y_new;
+        NaN when there is no estimate (the first step after a restart).
 
         filter: callable (N+1, 12) -> (N+1, 12) applied to the predictor-corrector
         difference before it is measured (:meth:`solver.newton.Newton.filtered`), or None.
         """
         h = t_new - self.times[-1]
-        Yp, pi = self.predict(t_new)
+        prediction = self.predict(t_new)
+        if prediction is None:
+            return math.nan
+        Yp, pi = prediction
         ch3 = self.C * h**3
         factor = ch3 / (ch3 + pi / 6.0)
         diff = Y_new - Yp
@@ -309,6 +309,8 @@ class ErrorControl:
     def accepted(self, h: float, err: float) -> float:
         """Next step size after an accepted step of h (s) with error ratio err: the PI
         controller h·0.9·err^(−0.7/k)·err_prev^(0.4/k), k = 3, limited to ×[0.2, 5]."""
+        if math.isnan(err):
+            return h          # no estimate: keep the step
         k = self.ORDER
         e = max(err, 1e-10)
         fac = self.SAFETY * e ** (-0.7 / k)
