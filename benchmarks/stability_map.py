@@ -142,8 +142,8 @@ def counting_attempts():
     counts = {"attempts": 0, "rejected": 0, "min_h": math.inf}
     original = _simulation.RodRun.try_step
 
-    def wrapped(self, h):
-        out = original(self, h)
+    def wrapped(self, h, **kwargs):
+        out = original(self, h, **kwargs)
         counts["attempts"] += 1
         counts["min_h"] = min(counts["min_h"], h)
         if not out[0]:

@@ -130,6 +130,7 @@ class RodSystem:
         b0 = float(np.max(props.stiffness[:, :2]))
         m0 = float(np.max(props.rho_a))
         tc = length**2 * np.sqrt(m0 / b0)
+        self.tc = float(tc)       # bending time scale L²√(ρA/EJ), s
         self.floor = np.repeat([length / tc, 1.0 / tc, b0 / length**2, 1.0 / length], 3)
         self.step_key = None
         # buffers

@@ -355,7 +355,10 @@ class RodRun:
         (:func:`solver.stepping.growth_rate`, shift 2g/h, which finds every σ up to 4g/h;
         and 16g/h as well when h is more than twice the largest step checked so far)
         every GUARD_EVERY accepted steps (every 4 GUARD_EVERY while the last check found
-        σh < g/4) and whenever h exceeds twice the step of the last
+        σh < g/4), at every step longer than a tenth of the bending time scale
+        L²√(ρA/EJ) (a run of a few long steps would otherwise see one check: the
+        stability map's twisted rod at Δt = 0.3 s buckles after its fifth step), and
+        whenever h exceeds twice the step of the last
         check (below that the last check's disc covers σ = g/h); in between the last
         estimate is used. Not run for steps with contact candidates (their Jacobian is not
         banded)."""
@@ -363,7 +366,7 @@ class RodRun:
         # far from the limit (σh < g/4 at the last check) a check every 4·GUARD_EVERY
         every = self.GUARD_EVERY * (4 if self.guard_sigma * self.guard_h < 0.25 * g else 1)
         if (math.isnan(self.guard_sigma) or self.guard_since >= every
-                or h > 2.0 * self.guard_h):
+                or h > 2.0 * self.guard_h or h > 0.1 * self.system.tc):
             if self._guard_layout is None:
                 self._guard_layout = BandLayout(self.system.n_cells)
             sigma, vec = growth_rate(self.system, Y, 2.0 * g / h, self._guard_layout,

@@ -124,8 +124,8 @@ def pulse_case(tolerance=None, dt=0.01, **numerics):
 
 def test_achieved_error_follows_the_tolerance():
     """The swung cantilever of test_convergence_order (tip travels ~0.4 m): final
-    positions against a Δt = 1/2560 s run. Measured: tolerance 1e-2 -> 7.4e-4 m, 1e-3 ->
-    1.5e-4 m, 1e-4 -> 1.6e-5 m (25, 54, 151 steps); the error relative to the 0.4 m
+    positions against a Δt = 1/2560 s run. Measured: tolerance 1e-2 -> 1.2e-3 m, 1e-3 ->
+    3.0e-4 m, 1e-4 -> 2.7e-5 m (20, 42, 117 steps); the error relative to the 0.4 m
     travel stays within 10x of the tolerance and falls with it."""
     ref = simulate(pulse_case(dt=1.0 / 2560)).position.isel(time=-1).values
     travel = 0.4
