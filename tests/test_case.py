@@ -228,10 +228,14 @@ def test_canonical_json_fills_defaults(data):
     del data["output"], data["initial"], data["distributed_forces"]
     del data["numerics"]["rho_inf"], data["numerics"]["newton"]
     out = json.loads(Case.model_validate(data).canonical_json())
-    assert out["output"] == {"every": 1, "fields": ["v", "omega", "f", "kappa", "position", "energies", "topology"]}
+    assert out["output"] == {"every": 1, "interval": None,
+                             "fields": ["v", "omega", "f", "kappa", "position", "energies", "topology"]}
     assert out["initial"] == {"tangent": [0.0, 0.0, 1.0], "normal": [1.0, 0.0, 0.0]}
     assert out["numerics"]["rho_inf"] == 0.5
     assert out["numerics"]["newton"] == {"tolerance": 1e-9, "max_iterations": 25}
+    # fixed steps unless a tolerance is given; the growth guard is on
+    assert out["numerics"]["tolerance"] is None and out["numerics"]["dt_max"] is None
+    assert out["numerics"]["growth_guard"] == 1.0
     assert out["distributed_forces"] == []
 
 

@@ -494,8 +494,12 @@ def seed_twist_rotation(t):
 def test_large_time_step_seed_twist(rho_inf):
     """The seed's twist history (no contact, uniform D = 2 cm, N = 40) at Δt = 1 s to 20 s.
     Lk must equal the integrated end rotation up to the scheme's error: exact at ρ∞ = 1
-    (trapezoid), and for ρ∞ < 1 the backward-Euler start step's ½Δt²|dω/dt| = 1 rad, which
-    then stays (measured 0.159 turns = 1.0 rad, also through the kinks of the table).
+    (trapezoid); for ρ∞ < 1 within ½Δt²|dω/dt| = 1 rad (the end rotation's generalized-α
+    recursion). The rod stays straight below 0.9 Lk_cr. Past critical the growth guard
+    finds the buckling mode (σ = 1.2 1/s at 15 s, rising to 3.7) and cuts Δt to 0.25 s,
+    and the rod buckles by 19-20 s (at Δt = 1 s it used to stay straight to 20 s). At
+    ρ∞ = 0 |Tw + Wr − Lk| then reaches 0.15 turns at 20 s: the end rotation's recursion
+    after the Δt change (docs/numerics.md § 7, step-size changes); 0.05 elsewhere.
     (work_in was once the trapezoid rule on the power, which read energy_total − work_in
     = +0.7 % of W here at ρ∞ = 0 and 0.5; it is now the scheme's discrete work,
     docs/numerics.md § 6.)"""
@@ -503,7 +507,8 @@ def test_large_time_step_seed_twist(rho_inf):
     spec["numerics"]["rho_inf"] = rho_inf
     spec["output"]["fields"] = ["position", "orientation", "energies", "topology"]
     case = Case.model_validate(spec)
-    ds = run_checked(case, must_complete=True, energy_tol=0.02)
+    ds = run_checked(case, must_complete=True, energy_tol=0.02,
+                     lk_tol=0.2 if rho_inf == 0.0 else 0.05)
     t = ds.time.values
     lk_exact = -seed_twist_rotation(t) / (2 * np.pi)
     tol = 1e-9 if rho_inf == 1.0 else 1.0**2 * 2.0 / (2 * np.pi)
@@ -511,6 +516,9 @@ def test_large_time_step_seed_twist(rho_inf):
     lk_cr = critical_torque(0.0) * E / (2 * G) / (2 * np.pi)
     below = ds.linking_number.values < 0.9 * lk_cr
     assert lateral(ds)[below].max() < 1e-3
+    assert np.nanmax(ds.step_growth_rate.values) > 1.0       # the guard saw the mode
+    assert ds.step_dt.values[-1] <= 0.25 + 1e-9
+    assert lateral(ds)[-1] > 0.05                            # and the rod buckled
 
 
 @pytest.mark.parametrize("rho_inf", [0.0, 0.5, 1.0])
