@@ -775,10 +775,9 @@ def _simulate(case, progress, should_stop):
     record()
     budget = num.wall_clock_budget
     rate = RateEstimate()
-    if num.tolerance is not None:
-        return _simulate_adaptive(case, run, record, finish, diag, progress, should_stop,
-                                  wall0, rate)
-    for step in range(1, n_steps + 1):
+
+    def stopped():
+        """The partial dataset when the caller or the wall-clock budget stops the run."""
         if should_stop is not None:
             flag = should_stop()
             if flag:
@@ -787,20 +786,15 @@ def _simulate(case, progress, should_stop):
         if budget is not None and _time.perf_counter() - wall0 > budget:
             return finish("stopped", f"wall-clock budget of {budget} s exceeded at "
                           f"t = {run.t:.6g} s", "timeout")
-        t_target = min(step * num.dt, num.t_end)
-        try:
-            its, res = run.advance(t_target)
-        except SolverDivergence as exc:
-            exc.step = step - 1
-            exc.partial = finish("failed", str(exc), exc.reason)
-            raise
+        return None
+
+    def accepted(step, its, res):
+        """Diagnostics and progress after an accepted (nominal or error-controlled) step."""
         diag["step_time"].append(run.t)
         diag["step_dt"].append(run.last_dt)
         diag["step_newton_iterations"].append(its)
         diag["step_residual_norm"].append(res)
         diag["step_growth_rate"].append(run.guard_sigma)
-        if step % every == 0 or step == n_steps:
-            record()
         if progress is not None:
             wall = _time.perf_counter() - wall0
             progress(Progress(t=run.t, t_end=num.t_end, step=step, dt=run.last_dt,
@@ -808,30 +802,40 @@ def _simulate(case, progress, should_stop):
                               wall_time=wall, fraction=min(1.0, run.t / num.t_end),
                               contact_count=run.contact_count,
                               eta_seconds=rate.update(wall, run.t, num.t_end)))
+
+    if num.tolerance is not None:
+        return _simulate_adaptive(case, run, record, finish, stopped, accepted)
+    for step in range(1, n_steps + 1):
+        out = stopped()
+        if out is not None:
+            return out
+        t_target = min(step * num.dt, num.t_end)
+        try:
+            its, res = run.advance(t_target)
+        except SolverDivergence as exc:
+            exc.step = step - 1
+            exc.partial = finish("failed", str(exc), exc.reason)
+            raise
+        if step % every == 0 or step == n_steps:
+            record()
+        accepted(step, its, res)
     return finish("completed", f"completed {n_steps} steps to t = {run.t:.6g} s")
 
 
-def _simulate_adaptive(case, run, record, finish, diag, progress, should_stop, wall0, rate):
+def _simulate_adaptive(case, run, record, finish, stopped, accepted):
     """The time loop of error-controlled steps (``numerics.tolerance``): one accepted
     step per pass, the state kept at every ``output.interval`` s (the steps land on those
     times) or, without an interval, every ``output.every``-th step; the diagnostics hold
-    every accepted step."""
-    num = case.numerics
-    t_end = num.t_end
+    every accepted step. ``stopped`` and ``accepted`` are :func:`_simulate`'s helpers."""
+    t_end = case.numerics.t_end
     interval = case.output.interval
     every = case.output.every
-    budget = num.wall_clock_budget
     next_out = min(interval, t_end) if interval is not None else t_end
     step = 0
     while run.t < t_end * (1.0 - 1e-12):
-        if should_stop is not None:
-            flag = should_stop()
-            if flag:
-                reason = flag if isinstance(flag, str) else "stopped"
-                return finish("stopped", f"stopped at t = {run.t:.6g} s: {reason}", reason)
-        if budget is not None and _time.perf_counter() - wall0 > budget:
-            return finish("stopped", f"wall-clock budget of {budget} s exceeded at "
-                          f"t = {run.t:.6g} s", "timeout")
+        out = stopped()
+        if out is not None:
+            return out
         try:
             its, res = run.step_adaptive(next_out)
         except SolverDivergence as exc:
@@ -839,11 +843,6 @@ def _simulate_adaptive(case, run, record, finish, diag, progress, should_stop, w
             exc.partial = finish("failed", str(exc), exc.reason)
             raise
         step += 1
-        diag["step_time"].append(run.t)
-        diag["step_dt"].append(run.last_dt)
-        diag["step_newton_iterations"].append(its)
-        diag["step_residual_norm"].append(res)
-        diag["step_growth_rate"].append(run.guard_sigma)
         done = run.t >= t_end * (1.0 - 1e-12)
         if interval is not None:
             if run.t >= next_out * (1.0 - 1e-12) or done:
@@ -852,12 +851,6 @@ def _simulate_adaptive(case, run, record, finish, diag, progress, should_stop, w
                 next_out = min(k * interval, t_end)
         elif step % every == 0 or done:
             record()
-        if progress is not None:
-            wall = _time.perf_counter() - wall0
-            progress(Progress(t=run.t, t_end=t_end, step=step, dt=run.last_dt,
-                              newton_iterations=its, residual_norm=res,
-                              wall_time=wall, fraction=min(1.0, run.t / t_end),
-                              contact_count=run.contact_count,
-                              eta_seconds=rate.update(wall, run.t, t_end)))
+        accepted(step, its, res)
     return finish("completed", f"completed {step} error-controlled steps to "
                   f"t = {run.t:.6g} s")
