@@ -115,6 +115,10 @@ _KINEMATIC_KEYS = frozenset({"velocity", "angular_velocity"})
 UNTIL_RTOL = 1e-12
 #: Relative tolerance with which ``numerics.ds`` must divide ``rod.length``.
 DS_RTOL = 1e-9
+#: the most segments and the most nominal time steps a case may have (bounds against inputs
+#: that validate but cannot run: 1e9 segments, dt = 5e-324 s)
+MAX_SEGMENTS = 1_000_000
+MAX_STEPS = 1e9
 #: Largest |cos| allowed between ``initial.tangent`` and ``initial.normal``.
 ORTHOGONALITY_TOL = 1e-9
 
@@ -784,15 +788,21 @@ class Numerics(BaseModel):
     model_config = _MODEL_CONFIG
 
     ds: Optional[Finite] = Field(None, gt=0, description="Segment length, m; > 0; must divide rod.length (1e-9 relative).")
-    n_segments: Optional[Integer] = Field(None, ge=1, description="Number of segments (grid points - 1); >= 1.")
+    n_segments: Optional[Integer] = Field(
+        None, ge=1, le=MAX_SEGMENTS, description="Number of segments (grid points - 1); 1 to 1e6."
+    )
     dt: Finite = Field(..., gt=0, description="Time step, s; > 0 (with tolerance: the first step).")
     t_end: Finite = Field(..., gt=0, description="End time of the run, s; > 0.")
     rho_inf: Finite = Field(
         0.5, ge=0, le=1, description="Spectral radius at infinite frequency of the generalized-alpha scheme, in [0, 1]."
     )
     newton: Newton = Field(default_factory=Newton, description="Newton iteration controls.")
-    max_dt_cuts: Integer = Field(6, ge=0, description="Times a non-converging step may be retried with a smaller dt; >= 0.")
-    dt_cut_factor: Finite = Field(4.0, gt=1, description="Divisor applied to dt at each cut (dimensionless); > 1.")
+    max_dt_cuts: Integer = Field(
+        6, ge=0, le=50, description="Times a non-converging step may be retried with a smaller dt; 0 to 50."
+    )
+    dt_cut_factor: Finite = Field(
+        4.0, gt=1, le=1000, description="Divisor applied to dt at each cut (dimensionless); > 1, <= 1000."
+    )
     wall_clock_budget: Optional[Finite] = Field(
         None, gt=0, description="Wall-clock limit for the run, s; > 0; null: none."
     )
@@ -967,7 +977,10 @@ class Case(BaseModel):
     model_config = _MODEL_CONFIG
 
     schema_version: Literal[1] = Field(..., description="Case spec schema version; this module reads 1.")
-    name: str = Field(..., min_length=1, description="Free-text name of the case.")
+    name: str = Field(
+        ..., min_length=1, max_length=200,
+        description="Free-text name of the case; 1 to 200 characters, no control characters.",
+    )
     rod: Rod = Field(..., description="Rod length (m), material (Pa, kg/m^3) and diameter (m).")
     fluid: Optional[Fluid] = Field(None, description="Surrounding fluid; null: vacuum, no fluid terms.")
     gravity: Optional[Vector3] = Field(None, description="Gravitational acceleration, m/s^2, global frame; null: none.")
@@ -990,6 +1003,18 @@ class Case(BaseModel):
                 {"v": repr(value)},
             )
         return SCHEMA_VERSION
+
+    @field_validator("name", mode="after")
+    @classmethod
+    def _printable_name(cls, name: str) -> str:
+        for k, ch in enumerate(name):
+            if ord(ch) < 0x20 or ord(ch) == 0x7F:
+                raise PydanticCustomError(
+                    "control_character",
+                    "must not contain control characters (U+{code:04X} at position {pos})",
+                    {"code": ord(ch), "pos": k},
+                )
+        return name
 
     @model_validator(mode="after")
     def _cross_checks(self) -> "Case":
@@ -1022,6 +1047,16 @@ class Case(BaseModel):
                          "pairs the barrier acts on", self.contact.barrier_gap)
                 )
         numerics = self.numerics
+        steps = numerics.t_end / numerics.dt
+        if not steps <= MAX_STEPS:
+            errors.append(_err(("numerics", "dt"), "too_many_steps",
+                               f"t_end / dt = {steps:.3g} steps (t_end = {numerics.t_end!r} s): "
+                               f"more than {MAX_STEPS:.0e}; raise dt or lower t_end", numerics.dt))
+        if numerics.ds is not None and not length / numerics.ds <= MAX_SEGMENTS * (1 + DS_RTOL):
+            errors.append(_err(("numerics", "ds"), "too_many_segments",
+                               f"rod.length / ds = {length / numerics.ds:.3g} segments: more than "
+                               f"{MAX_SEGMENTS:.0e}", numerics.ds))
+            _raise("Case", errors)
         if numerics.tolerance is None:
             if numerics.dt_max is not None:
                 errors.append(_err(("numerics", "dt_max"), "needs_tolerance",

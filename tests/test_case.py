@@ -740,3 +740,26 @@ def test_contact_tolerance_must_exceed_the_largest_diameter():
                                           "k2": 3.0, "k3": 1e-6, "k4": 1.0})
     errors = format_validation_errors(info.value)
     assert any(e["loc"] == "contact.tolerance" and "diameter" in e["msg"] for e in errors)
+
+
+@pytest.mark.parametrize("change, loc, words", [
+    (lambda d: d["numerics"].update(dt=5e-324), "numerics.dt", "steps"),
+    (lambda d: d["numerics"].update(dt=1e-300, t_end=1e12), "numerics.dt", "steps"),
+    (lambda d: d["numerics"].update(max_dt_cuts=1_000_000), "numerics.max_dt_cuts", "50"),
+    (lambda d: d["numerics"].update(dt_cut_factor=1e300), "numerics.dt_cut_factor", "1000"),
+    (lambda d: (d["numerics"].pop("ds", None), d["numerics"].update(n_segments=10**9)),
+     "numerics.n_segments", "1000000"),
+    (lambda d: (d["numerics"].pop("n_segments", None), d["numerics"].update(ds=1e-9)),
+     "numerics.ds", "segments"),
+    (lambda d: d.update(name="x" * 201), "name", "200"),
+    (lambda d: d.update(name="a\x00b"), "name", "control characters"),
+])
+def test_inputs_that_validated_but_could_not_run_are_refused(data, change, loc, words):
+    # found by the service audit: these validated and then overflowed (5e-324 s steps,
+    # 1e6 cuts), ran out of memory (1e9 segments) or broke the PostgreSQL registry (a name
+    # over 200 characters, a NUL byte); each is refused at its field with the reason
+    change(data)
+    with pytest.raises(pydantic.ValidationError) as info:
+        Case.model_validate(data)
+    errors = info.value.errors()
+    assert any(".".join(str(x) for x in e["loc"]) == loc and words in e["msg"] for e in errors), errors
