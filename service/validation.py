@@ -44,6 +44,10 @@ def parse_body(body: bytes, content_type: str | None) -> Any:
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise ProblemError(400, "malformed-body", "Malformed request body",
                            f"the body is not valid JSON: {exc}") from None
+    except RecursionError:
+        raise ProblemError(400, "malformed-body", "Malformed request body",
+                           "the body nests arrays or objects too deeply to parse (a case "
+                           "spec nests at most a few levels)") from None
 
 
 def validate_case(data: Any, max_case_size: int):

@@ -935,7 +935,8 @@ def parse_text(text: Union[str, bytes], fmt: str = "yaml", source: Optional[str]
     YAML 1.2 for numbers (``1e-3`` and ``1.25e7`` are floats, which PyYAML's default
     YAML 1.1 rules read as strings); duplicate keys are refused in both formats. Bytes
     must be UTF-8. Raises :class:`CaseError` (``yaml_syntax``, ``json_syntax``,
-    ``encoding_error``, ``unknown_format``); ``source`` only labels the message.
+    ``too_deep``, ``encoding_error``, ``unknown_format``); ``source`` only labels the
+    message.
     """
     fmt = fmt.lower().lstrip(".")
     if isinstance(text, bytes):
@@ -943,16 +944,22 @@ def parse_text(text: Union[str, bytes], fmt: str = "yaml", source: Optional[str]
             text = text.decode("utf-8")
         except UnicodeDecodeError as exc:
             raise _doc_error(f"not UTF-8 text: {exc}", "encoding_error", source) from exc
+    too_deep = ("the document nests lists or mappings too deeply to parse (a case spec "
+                "nests at most a few levels)")
     if fmt in ("yaml", "yml"):
         try:
             return yaml.load(text, Loader=_YamlLoader)  # noqa: S506 - a SafeLoader subclass
         except yaml.YAMLError as exc:
             raise _doc_error(f"YAML syntax error: {exc}", "yaml_syntax", source) from exc
+        except RecursionError:
+            raise _doc_error(too_deep, "too_deep", source) from None
     if fmt == "json":
         try:
             return json.loads(text, object_pairs_hook=_json_object)
         except ValueError as exc:
             raise _doc_error(f"JSON syntax error: {exc}", "json_syntax", source) from exc
+        except RecursionError:
+            raise _doc_error(too_deep, "too_deep", source) from None
     raise _doc_error(f"unknown format {fmt!r}; expected yaml, yml or json", "unknown_format", source)
 
 

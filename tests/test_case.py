@@ -763,3 +763,11 @@ def test_inputs_that_validated_but_could_not_run_are_refused(data, change, loc, 
         Case.model_validate(data)
     errors = info.value.errors()
     assert any(".".join(str(x) for x in e["loc"]) == loc and words in e["msg"] for e in errors), errors
+
+
+@pytest.mark.parametrize("fmt", ["json", "yaml"])
+def test_too_deep_documents_are_a_case_error(fmt):
+    text = "[" * 5000 + "]" * 5000
+    with pytest.raises(CaseError) as info:
+        parse_text(text, fmt, "deep")
+    assert "too deeply" in str(info.value)
