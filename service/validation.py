@@ -18,11 +18,38 @@ MAX_BODY_BYTES = 4 * 1024 * 1024
 YAML_TYPES = ("application/yaml", "application/x-yaml", "text/yaml", "text/x-yaml")
 
 
+def too_large() -> ProblemError:
+    """The 413 problem of a body over MAX_BODY_BYTES."""
+    return ProblemError(413, "body-too-large", "Request body too large",
+                        f"a case spec may be at most {MAX_BODY_BYTES} bytes")
+
+
+async def read_body(request) -> bytes:
+    """The request body, read in chunks and refused (413) as soon as it exceeds
+    MAX_BODY_BYTES, or at once when Content-Length says so: a large body is never held
+    whole (eight concurrent 50 MB POSTs took the API from 183 to 767 MB when bodies were
+    read before the check)."""
+    declared = request.headers.get("content-length")
+    if declared is not None:
+        try:
+            if int(declared) > MAX_BODY_BYTES:
+                raise too_large()
+        except ValueError:
+            raise ProblemError(400, "malformed-body", "Malformed request body",
+                               "the Content-Length header is not a number") from None
+    chunks, size = [], 0
+    async for chunk in request.stream():
+        size += len(chunk)
+        if size > MAX_BODY_BYTES:
+            raise too_large()
+        chunks.append(chunk)
+    return b"".join(chunks)
+
+
 def parse_body(body: bytes, content_type: str | None) -> Any:
     """JSON (default) or YAML (by Content-Type) to Python data; 400/413/415 problems."""
     if len(body) > MAX_BODY_BYTES:
-        raise ProblemError(413, "body-too-large", "Request body too large",
-                           f"a case spec may be at most {MAX_BODY_BYTES} bytes")
+        raise too_large()
     media = (content_type or "application/json").split(";")[0].strip().lower()
     if not body.strip():
         raise ProblemError(422, "invalid-case", "Invalid case spec", "the request body is empty",

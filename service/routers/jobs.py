@@ -20,7 +20,7 @@ from ..registry import (
     utcnow,
 )
 from ..schemas import JobError, JobLinks, JobList, JobStatus
-from ..validation import parse_body, validate_case
+from ..validation import parse_body, read_body, validate_case
 
 router = APIRouter(tags=["jobs"])
 
@@ -179,7 +179,7 @@ async def submit_job(
     = False,
 ) -> JobStatus:
     """Validate the case and queue it; answers at once (201), never runs a solve itself."""
-    body = await request.body()
+    body = await read_body(request)
     # a burst of submissions waits here, not in the thread pool that status polls need
     async with _submit_slots(request):
         job, status = await run_in_threadpool(

@@ -136,6 +136,22 @@ def test_deeply_nested_bodies_are_400_problems(client):
     assert client.post("/v1/jobs", json=tiny_case("after-deep")).status_code == 201
 
 
+def test_oversized_bodies_are_refused_before_they_are_read_whole(client):
+    from service.validation import MAX_BODY_BYTES
+
+    big = b" " * (MAX_BODY_BYTES + 1)
+    response = client.post("/v1/jobs", content=big, headers={"content-type": "application/json"})
+    assert response.status_code == 413 and response.headers["content-type"] == PROBLEM
+    # without a Content-Length (chunked): refused once the chunks pass the limit
+    def chunks():
+        for _ in range(64):
+            yield b" " * (1 << 20)
+
+    response = client.post("/v1/jobs", content=chunks(), headers={"content-type": "application/json"})
+    assert response.status_code == 413
+    assert client.post("/v1/jobs", json=tiny_case("after-big")).status_code == 201
+
+
 def test_query_errors_are_problems(client):
     response = client.get("/v1/jobs", params={"status": "sleeping"})
     assert response.status_code == 422 and response.json()["errors"][0]["loc"] == "query.status"
