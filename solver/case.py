@@ -1053,6 +1053,16 @@ class Case(BaseModel):
                          f"the tolerance ({self.contact.tolerance!r} m): the search would miss "
                          "pairs the barrier acts on", self.contact.barrier_gap)
                 )
+        # a straight inextensible rod whose two ends both prescribe the axial velocity has
+        # an undetermined tension (the step's Jacobian is exactly singular); the rod is
+        # straight at t = 0, so the conditions in force then decide (issue 11, item 5)
+        if (self.boundary.start.active("translation", 2, 0.0).kinematic
+                and self.boundary.end.active("translation", 2, 0.0).kinematic):
+            errors.append(_err(
+                ("boundary", "end", "translation", 2), "ill_posed",
+                "both ends prescribe the axial velocity (translation[2]) of the straight "
+                "inextensible rod at t = 0, which leaves its tension undetermined; give one "
+                "end an axial force instead (force: 0 lets it slide freely)", None))
         numerics = self.numerics
         steps = numerics.t_end / numerics.dt
         if not steps <= MAX_STEPS:

@@ -159,14 +159,14 @@ def test_adaptive_steps_land_on_outputs_breakpoints_and_respect_dt_max():
 
 
 def test_fixed_step_only_fields_are_refused_without_tolerance():
-    spec = make_case().model_dump()
+    spec = make_case(end=free_end()).model_dump()
     spec["numerics"]["dt_max"] = 0.1
     spec["output"]["interval"] = 0.05
     with pytest.raises(Exception) as info:
         Case.model_validate(spec)
     text = str(info.value)
     assert "numerics.dt_max" in text and "output.interval" in text
-    spec = make_case(dt=0.2).model_dump()
+    spec = make_case(dt=0.2, end=free_end()).model_dump()
     spec["numerics"].update(tolerance={"relative": 1e-3}, dt_max=0.1)
     with pytest.raises(Exception, match="dt_max"):
         Case.model_validate(spec)
