@@ -31,7 +31,32 @@ import numpy as np
 from .banded import BandFactorError, BandLayout, NV
 from .scheme import E3
 
-__all__ = ["Newton"]
+__all__ = ["Newton", "equilibrate", "scale_blocks"]
+
+
+def equilibrate(system, Y, blocks):
+    """Row and column scales of the step's Jacobian at the iterate Y (N+1, 12).
+
+    Columns: the characteristic size of each kind of unknown (``RodSystem.column_scale``,
+    (12,) per node); rows: 1 / Σ_j |J_ij| s_j over the row's entries (cell blocks
+    (N, 12, 24) and the boundary rows), 1 where a row is empty. Returns
+    (row_scale (n,), s12 (12,)). docs/numerics.md § 3 ("Scaling").
+    """
+    s12 = system.column_scale(Y)
+    bc_rows, bc_cols, bc_vals = system.bc.jacobian_entries()
+    rs = np.empty(system.n)
+    rs[6:6 + NV * system.n_cells] = (np.abs(blocks) @ np.tile(s12, 2)).ravel()
+    rs[bc_rows] = np.abs(bc_vals) * s12[bc_cols % NV]
+    return 1.0 / np.where(rs > 0, rs, 1.0), s12
+
+
+def scale_blocks(system, blocks, row_scale, s12, cell_rows):
+    """The cell blocks (N, 12, 24) and boundary values (12,) of the Jacobian in the
+    scales of :func:`equilibrate` (``cell_rows``: ``BandLayout.cell_rows``)."""
+    bc_rows, bc_cols, bc_vals = system.bc.jacobian_entries()
+    s24 = np.tile(s12, 2)
+    scaled = blocks * (row_scale[cell_rows][:, :, None] * s24[None, None, :])
+    return scaled, bc_vals * row_scale[bc_rows] * s12[bc_cols % NV]
 
 
 class Newton:
@@ -147,19 +172,11 @@ class Newton:
         (N, 12, 24) (sets the row and column scales), and set the operator for the
         coupled solve when self-contact is configured. Raises BandFactorError when the
         band LU meets a zero pivot (a singular Jacobian)."""
-        s12 = self.system.column_scale(Y)
-        s24 = np.tile(s12, 2)
-        bc_rows, bc_cols, bc_vals = self.system.bc.jacobian_entries()
-        cell_rowsum = np.abs(blocks) @ s24                      # (N, 12)
-        node_of_col = bc_cols // NV
-        bc_rowsum = np.abs(bc_vals) * s12[bc_cols - NV * node_of_col]
-        rs = np.empty(self.system.n)
-        rs[6:6 + NV * self.system.n_cells] = cell_rowsum.ravel()
-        rs[bc_rows] = bc_rowsum
-        rs = 1.0 / np.where(rs > 0, rs, 1.0)
+        rs, s12 = equilibrate(self.system, Y, blocks)
         self._row_scale = rs
         self._col_scale = np.tile(s12, self.system.n_nodes)
-        self._s24 = s24
+        self._s12 = s12
+        bc_rows, bc_cols, _ = self.system.bc.jacobian_entries()
         scaled, bc_scaled = self._scaled(blocks)
         # the band part (with the node-local contact blocks) is always LU-factorised;
         # contact coupling between distant nodes, when present, is kept as a sparse
@@ -172,10 +189,8 @@ class Newton:
 
     def _scaled(self, blocks):
         """Cell blocks and boundary values in the scales of the last factorisation."""
-        bc_rows, bc_cols, bc_vals = self.system.bc.jacobian_entries()
-        rs = self._row_scale
-        scaled = blocks * (rs[self.layout.cell_rows][:, :, None] * self._s24[None, None, :])
-        return scaled, bc_vals * rs[bc_rows] * self._s24[bc_cols % NV]
+        return scale_blocks(self.system, blocks, self._row_scale, self._s12,
+                            self.layout.cell_rows)
 
     def _set_operator(self, scaled, bc_scaled, stale=False):
         """The (scaled) Jacobian for GMRES: band cells, boundary rows and the exact load
@@ -322,10 +337,7 @@ class Newton:
         not chase (contact oscillations, checkerboard modes), are divided by about λ/c.
         The result satisfies the linearised constraints (its f and E2 rows are
         consistent). Returns (N+1, 12); needs a factorisation of the current step."""
-        sysm = self.system
-        Me = sysm._apply_M(e)
-        rhs = np.zeros(sysm.n)
-        rhs[6:6 + NV * sysm.n_cells] = (0.5 * sysm.cm * (Me[:-1] + Me[1:])).ravel()
+        rhs = self.system.cm * self.system.cell_inertia(e)
         x = self.layout.solve(rhs * self._row_scale) * self._col_scale
         return x.reshape(e.shape)
 

@@ -185,6 +185,27 @@ class RodSystem:
         out[:, E4:E4 + 3] = -p.inertia * Y[:, W:W + 3]
         return out
 
+    def cell_inertia(self, e):
+        """The cell rows of the averaged inertia term, ⟨M e⟩ = ½(M e_{k−1} + M e_k), for
+        e (N+1, 12), as a vector (n,) in the residual's row order (boundary rows 0): the
+        part of the step's Jacobian proportional to c = (1 − αm)/(γΔt), per unit c."""
+        Me = self._apply_M(e)
+        out = np.zeros(self.n)
+        out[6:6 + NV * self.n_cells] = (0.5 * (Me[:-1] + Me[1:])).ravel()
+        return out
+
+    def add_inertia(self, blocks, c):
+        """Add c·∂⟨M Y⟩/∂Y to cell blocks (N, 12, 24) on [node k−1 | node k] in place:
+        −½c on E1/κ, −½c·M_t on E3/v, −½c·I on E4/ω of each node (M of
+        :meth:`_apply_M`). ``c`` is the coefficient of the generalized-α relation,
+        (1 − αm)/(γΔt) in 1/s, or any shift of it."""
+        p = self.p
+        idx = np.arange(3)
+        for off, nodes in ((0, slice(0, -1)), (NV, slice(1, None))):
+            blocks[:, E1 + idx, off + K + idx] -= 0.5 * c
+            blocks[:, E3 + idx, off + V + idx] -= 0.5 * c * p.mass_t[nodes]
+            blocks[:, E4 + idx, off + W + idx] -= 0.5 * c * p.inertia[nodes]
+
     def _flux(self, Y):
         """K Y per node (N+1, 12): (ω, v, f, q = Bκ) for E1..E4."""
         out = np.empty_like(Y)
@@ -329,15 +350,12 @@ class RodSystem:
         blocks = None
         if want_jacobian:
             P = 0.5 * (1.0 - af) * dF
-            c = 0.5 * self.cm
-            P[:, E1:E1 + 3, K:K + 3] -= c * np.eye(3)
             idx = np.arange(3)
-            P[:, E3 + idx, V + idx] -= c * p.mass_t
-            P[:, E4 + idx, W + idx] -= c * p.inertia
             qf = (1.0 - af) / p.ds
             blocks = self._blocks
             blocks[:, :, :NV] = P[:-1]
             blocks[:, :, NV:] = P[1:]
+            self.add_inertia(blocks, self.cm)
             for off, sgn in ((0, -1.0), (NV, 1.0)):
                 nodes = slice(0, -1) if off == 0 else slice(1, None)
                 blocks[:, E1 + idx, off + W + idx] += sgn * qf

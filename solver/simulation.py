@@ -70,7 +70,8 @@ class RateEstimate:
         self.samples: list = []          # (wall s, simulated s)
 
     def update(self, wall: float, t: float, t_end: float):
-        """Record a sample and return the estimate (s) or None."""
+        """Record a sample (wall: s since the start; t, t_end: simulated s) and return the
+        wall seconds left at the recent pace, or None while the pace is unknown."""
         self.samples.append((wall, t))
         span = max(self.window_s, self.share * wall)
         while len(self.samples) > 2 and self.samples[1][0] < wall - span:
@@ -497,15 +498,8 @@ class RodRun:
         snap = 1e-9 * h_full
         total_its = 0
         while self.t < t_target - snap:
-            if self.restart_pending:
-                total_its += self._restart()
-                self.restart_pending = False
-            later = self.breakpoints[self.breakpoints > self.t + snap]
-            if later.size and later[0] <= t_target + snap:
-                stop, at_break = float(later[0]), True
-            else:
-                stop, at_break = t_target, False
-            total_its += self._advance_to(stop, h_full, at_break)
+            its, stop, at_break = self._next_stop(t_target, snap)
+            total_its += its + self._advance_to(stop, h_full, at_break)
             if at_break:
                 self.restart_pending = True
         return total_its, self.last_residual
@@ -520,16 +514,7 @@ class RodRun:
         (iterations of all attempts, residual)."""
         num = self.case.numerics
         ctl = self.errctl
-        total_its = 0
-        if self.restart_pending:
-            total_its += self._restart()
-            self.restart_pending = False
-        snap = 1e-9 * max(self.h_next, 1e-300)
-        later = self.breakpoints[self.breakpoints > self.t + snap]
-        if later.size and later[0] <= t_stop + snap:
-            stop, at_break = float(later[0]), True
-        else:
-            stop, at_break = t_stop, False
+        total_its, stop, at_break = self._next_stop(t_stop, 1e-9 * max(self.h_next, 1e-300))
         # the step-size floor: 1e-9 of the run (the error control may need far smaller
         # steps than dt/dt_cut_factor^max_dt_cuts after a switch)
         h_min = 1e-9 * max(num.t_end, num.dt)
@@ -563,6 +548,19 @@ class RodRun:
                     f"time step from t = {self.t:.6g} s could not be completed above the "
                     f"smallest step 1e-9 t_end = {h_min:.3g} s "
                     f"(last refusal: {self.last_reject})", h_try, res, nonfinite)
+
+    def _next_stop(self, t_stop: float, snap: float):
+        """Take the pending consistent restart, if any, and return (its Newton iterations,
+        the time (s) the next steps must land on, whether it is a breakpoint): the first
+        breakpoint after t if it comes before t_stop (within ``snap`` s), else t_stop."""
+        its = 0
+        if self.restart_pending:
+            its = self._restart()
+            self.restart_pending = False
+        later = self.breakpoints[self.breakpoints > self.t + snap]
+        if later.size and later[0] <= t_stop + snap:
+            return its, float(later[0]), True
+        return its, t_stop, False
 
     def _restart(self) -> int:
         """One backward-Euler step of ε = RESTART_FRACTION·Δt (cut by 10 up to three

@@ -133,42 +133,25 @@ def growth_rate(system, Y, shift: float, layout, v0=None):
     """
     from scipy.sparse.linalg import ArpackNoConvergence, LinearOperator, eigs
 
-    from .banded import BandFactorError, NV
-    from .scheme import E1, E3, E4, K, V, W
+    from .banded import BandFactorError
+    from .newton import equilibrate, scale_blocks
 
-    p = system.p
     af = system.params.alpha_f
     _, _, blocks, _ = system.residual(Y, want_jacobian=True)
     blocks = blocks.copy()
-    dc = (1.0 - af) * shift - system.cm
-    idx = np.arange(3)
-    for off in (0, NV):
-        nodes = slice(0, -1) if off == 0 else slice(1, None)
-        blocks[:, E1 + idx, off + K + idx] -= 0.5 * dc
-        blocks[:, E3 + idx, off + V + idx] -= 0.5 * dc * p.mass_t[nodes]
-        blocks[:, E4 + idx, off + W + idx] -= 0.5 * dc * p.inertia[nodes]
-    s12 = system.column_scale(Y)
-    s24 = np.tile(s12, 2)
-    bc_rows, bc_cols, bc_vals = system.bc.jacobian_entries()
-    n = system.n
-    rs = np.ones(n)
-    cell_sum = np.abs(blocks) @ s24
-    rs[6:6 + NV * system.n_cells] = 1.0 / np.where(cell_sum > 0, cell_sum, 1.0).ravel()
-    bc_sum = np.abs(bc_vals) * s12[bc_cols % NV]
-    rs[bc_rows] = 1.0 / np.where(bc_sum > 0, bc_sum, 1.0)
-    cs = np.tile(s12, system.n_nodes)
-    scaled = blocks * (rs[layout.cell_rows][:, :, None] * s24[None, None, :])
+    system.add_inertia(blocks, (1.0 - af) * shift - system.cm)
+    rs, s12 = equilibrate(system, Y, blocks)
+    scaled, bc_scaled = scale_blocks(system, blocks, rs, s12, layout.cell_rows)
+    bc_rows, bc_cols, _ = system.bc.jacobian_entries()
     try:
-        layout.factor(scaled, bc_rows, bc_cols, bc_vals * rs[bc_rows] * s12[bc_cols % NV])
+        layout.factor(scaled, bc_rows, bc_cols, bc_scaled)
     except BandFactorError:
         return -math.inf, None
-    cell_rs = rs[6:6 + NV * system.n_cells].reshape(system.n_cells, NV)
+    n = system.n
+    cs = np.tile(s12, system.n_nodes)
 
     def apply(z):
-        My = system._apply_M((np.real(z) * cs).reshape(system.n_nodes, NV))
-        rhs = np.zeros(n)
-        rhs[6:6 + NV * system.n_cells] = (0.5 * cell_rs * (My[:-1] + My[1:])).ravel()
-        return layout.solve(rhs)
+        return layout.solve(rs * system.cell_inertia((np.real(z) * cs).reshape(Y.shape)))
 
     op = LinearOperator((n, n), matvec=apply, dtype=float)
     if v0 is None:
@@ -299,11 +282,11 @@ class ErrorControl:
             diff = filter(diff)
         worst = 0.0
         for a, b in self.GROUPS:
-            e = np.sqrt(np.einsum("ni,ni->n", diff[:, a:b], diff[:, a:b]))
+            rms = float(np.sqrt(np.mean(np.einsum("ni,ni->n", diff[:, a:b], diff[:, a:b]))))
             size = max(float(np.max(np.linalg.norm(Y_new[:, a:b], axis=1))),
                        float(np.max(np.linalg.norm(Y_old[:, a:b], axis=1))))
             scale = self.atol * self.floor[a] + self.rtol * size
-            worst = max(worst, factor * float(np.sqrt(np.mean(e * e))) / scale)
+            worst = max(worst, factor * rms / scale)
         return worst
 
     def accepted(self, h: float, err: float) -> float:
