@@ -199,7 +199,11 @@ def _progress_line(info: Any) -> str:
 
 def _write(ds: Any, out: Path) -> bool:
     from hockle.io import write_netcdf
+    from service.settings import DatasetMetadata
+    from solver.results import apply_metadata
 
+    # ACDD creator, licence ... from the HOCKLE_* environment, as the service's workers do
+    apply_metadata(ds, DatasetMetadata().dataset_metadata())
     try:
         write_netcdf(ds, out)
     except OSError as exc:

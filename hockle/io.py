@@ -27,6 +27,19 @@ def _fsync_path(path: Path, directory: bool = False) -> None:
         os.close(fd)
 
 
+def _without_coordinate_fill(ds: xr.Dataset) -> xr.Dataset:
+    """A shallow copy whose dimension coordinates are written without ``_FillValue``.
+
+    CF-1.12 § 2.5.1 forbids a fill value on a coordinate variable; xarray adds one to
+    float coordinates unless told not to, e.g. when a file read back is written again.
+    """
+    out = ds.copy(deep=False)
+    for name in out.dims:
+        if name in out.coords:
+            out[name].encoding = {**out[name].encoding, "_FillValue": None}
+    return out
+
+
 def write_netcdf(ds: xr.Dataset, path: str | os.PathLike[str]) -> Path:
     """Write ``ds`` to ``path`` as NetCDF4, atomically.
 
@@ -40,6 +53,7 @@ def write_netcdf(ds: xr.Dataset, path: str | os.PathLike[str]) -> Path:
     Returns the destination as a :class:`~pathlib.Path`.
     """
     dest = Path(path)
+    ds = _without_coordinate_fill(ds)
     parent = dest.parent if str(dest.parent) else Path(".")
     parent.mkdir(parents=True, exist_ok=True)
     fd, tmp_name = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp", dir=parent)

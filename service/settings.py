@@ -16,10 +16,57 @@ from pathlib import Path
 from pydantic import Field, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
-__all__ = ["Settings", "get_settings"]
+__all__ = ["Settings", "DatasetMetadata", "get_settings"]
 
 
-class Settings(BaseSettings):
+class DatasetMetadata(BaseSettings):
+    """Who makes the result files and on what terms: ACDD-1.3 global attributes.
+
+    Each field is written into every result file (by ``hockle run`` and by the workers) as
+    the ACDD attribute of the same name; unset ones keep the solver's defaults
+    (:data:`solver.results.DEFAULT_METADATA`: ``naming_authority`` "hockle", ``creator_name``
+    and ``license`` "not specified ...") or stay absent. Only strings, so a stray value never
+    stops a run.
+    """
+
+    model_config = SettingsConfigDict(env_prefix="HOCKLE_", extra="ignore")
+
+    naming_authority: str | None = Field(
+        None, description="ACDD naming_authority of the result ids (job ids, case hashes), "
+        "reverse-DNS recommended, e.g. org.example.rodlab; default hockle.")
+    creator_name: str | None = Field(
+        None, description="ACDD creator_name: the person or group who runs this installation.")
+    creator_email: str | None = Field(None, description="ACDD creator_email.")
+    creator_url: str | None = Field(None, description="ACDD creator_url.")
+    creator_type: str | None = Field(
+        None, description="ACDD creator_type: person, group, institution or position.")
+    creator_institution: str | None = Field(None, description="ACDD creator_institution.")
+    institution: str | None = Field(None, description="CF/ACDD institution.")
+    publisher_name: str | None = Field(
+        None, description="ACDD publisher_name: who serves the results.")
+    publisher_email: str | None = Field(None, description="ACDD publisher_email.")
+    publisher_url: str | None = Field(None, description="ACDD publisher_url.")
+    publisher_type: str | None = Field(
+        None, description="ACDD publisher_type: person, group, institution or position.")
+    publisher_institution: str | None = Field(None, description="ACDD publisher_institution.")
+    license: str | None = Field(
+        None, description="ACDD license of the result files, e.g. CC-BY-4.0 or a URL.")
+    project: str | None = Field(None, description="ACDD project.")
+    program: str | None = Field(None, description="ACDD program.")
+    acknowledgement: str | None = Field(None, description="ACDD acknowledgement.")
+    contributor_name: str | None = Field(
+        None, description="ACDD contributor_name (comma-separated for several).")
+    contributor_role: str | None = Field(
+        None, description="ACDD contributor_role, one per contributor_name.")
+
+    def dataset_metadata(self) -> dict[str, str]:
+        """The fields that are set, as ACDD attribute name -> value
+        (for :func:`solver.results.apply_metadata`)."""
+        return {name: getattr(self, name) for name in DatasetMetadata.model_fields
+                if getattr(self, name)}
+
+
+class Settings(DatasetMetadata):
     model_config = SettingsConfigDict(env_prefix="HOCKLE_", extra="ignore")
 
     # --- where things live -------------------------------------------------------------------

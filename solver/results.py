@@ -1,25 +1,33 @@
 """The result dataset: solver arrays -> a self-describing :class:`xarray.Dataset`.
 
 Pure: builds the dataset in memory and does no file I/O (writing is
-:func:`hockle.io.write_netcdf`). The layout is the outside contract of DESIGN.md
-("Result dataset") and the seam of docs/interfaces.md (``solver.results``).
+:func:`hockle.io.write_netcdf`). The layout is the outside contract documented in
+docs/interfaces.md ("The result dataset"); the same page fixes the seam
+``solver.results``.
 
-Dimensions
-----------
-``time``        output instants, s (every ``case.output.every``-th accepted step, and t0)
+Dimensions (each present only when a variable uses it)
+------------------------------------------------------
+``time``        output instants, s (every ``case.output.every``-th accepted step, and t0);
+                CF ``standard_name = "time"``, ``axis = "T"``, elapsed simulation time
 ``s``           arclength of the grid points along the centreline, m
 ``component``   body-frame component 1, 2, 3 (directors a1, a2, a3; a3 the tangent)
-``xyz``         global-frame axis "x", "y", "z" (e1, e2, e3)
-``quaternion``  quaternion component "w", "x", "y", "z" (scalar first)
+``xyz``         global-frame axis index 1, 2, 3 = x, y, z (e1, e2, e3); ``flag_values`` /
+                ``flag_meanings`` name them (CF-1.12 § 3.5), no string coordinate
+``quaternion``  quaternion component index 0, 1, 2, 3 = w, x, y, z (scalar first)
 ``step``        every accepted solver step 1..K (diagnostics), with ``step_time``
 
-Every variable carries ``units`` (UDUNITS-2 strings) and ``long_name``. No quantity here
-has a CF standard name (the CF table has none for rod strain resultants, body-frame
-velocities, strain energies, twist or writhe, and ``time`` is elapsed simulation time in
-"s", not a "units since epoch" time coordinate), so no ``standard_name`` is set.
+Every variable carries ``units`` (UDUNITS-2 strings), ``long_name`` and ACDD-1.3's
+``coverage_content_type``. Only ``time`` has a CF standard name: the CF table has none
+for rod strain resultants, body-frame velocities, strain energies, twist or writhe, and
+an invented one would be wrong. ``time`` keeps units of ``s`` (elapsed simulation time,
+no calendar epoch), so that readers get plain seconds; CF § 4.4 asks a time coordinate
+for a reference date, which a simulation does not have (docs/interfaces.md).
 
 Global attributes follow CF-1.12 and ACDD-1.3 and hold the canonical case spec, so a
-file alone reproduces its run.
+file alone reproduces its run. Who made the data and under which licence is not the
+solver's to know: :func:`apply_metadata` sets the ACDD ``creator_*``, ``publisher_*``,
+``institution``, ``license`` ... attributes from the operator's settings (the CLI and
+the worker call it with the ``HOCKLE_*`` settings of :class:`service.settings.Settings`).
 """
 from __future__ import annotations
 
@@ -32,11 +40,20 @@ import xarray as xr
 
 __all__ = [
     "build_dataset",
+    "apply_metadata",
     "FIELD_VARIABLES",
     "DIAGNOSTIC_VARIABLES",
+    "COVERAGE_CONTENT_TYPES",
+    "METADATA_ATTRIBUTES",
+    "DEFAULT_METADATA",
+    "INDEX_LABELS",
+    "CONVENTIONS",
+    "KEYWORDS",
     "STATUSES",
     "REFERENCES",
 ]
+
+CONVENTIONS = "CF-1.12, ACDD-1.3"
 
 STATUSES = ("completed", "stopped", "failed")
 
@@ -165,6 +182,81 @@ DIAGNOSTIC_VARIABLES: dict[str, tuple[str, str]] = {
                          "last growth-guard check (0: none found; NaN: not checked)"),
 }
 
+# ACDD-1.3 coverage_content_type (ISO 19115-1 MD_CoverageContentTypeCode) of each variable;
+# coordinates are "coordinate", every other variable not listed here is "modelResult".
+COVERAGE_CONTENT_TYPES: dict[str, str] = {
+    "topology_error": "qualityInformation",
+    "newton_iterations": "qualityInformation",
+    "residual_norm": "qualityInformation",
+    "position_route_difference": "qualityInformation",
+    "quaternion_norm_error": "qualityInformation",
+    "step_newton_iterations": "qualityInformation",
+    "step_residual_norm": "qualityInformation",
+    "dt": "auxiliaryInformation",
+    "step_dt": "auxiliaryInformation",
+    "step_growth_rate": "auxiliaryInformation",
+}
+
+# CF-1.12 section 3.4: quality variables linked to the variable whose values they qualify
+# (written only when both are in the dataset).
+_ANCILLARY: dict[str, tuple[str, ...]] = {
+    "position": ("position_route_difference",),
+    "orientation": ("quaternion_norm_error",),
+    "twist": ("topology_error",),
+    "writhe": ("topology_error", "writhe_closure_passages"),
+    "linking_number": ("topology_error",),
+}
+
+# Integer index coordinates of the vector dimensions: dimension -> (index values, labels).
+# The labels travel in the file as CF flag_values / flag_meanings (no string coordinate,
+# which CF checkers and several readers refuse); the REST API accepts either.
+INDEX_LABELS: dict[str, tuple[tuple[int, ...], tuple[str, ...]]] = {
+    "component": ((1, 2, 3), ("a1", "a2", "a3")),
+    "xyz": ((1, 2, 3), ("x", "y", "z")),
+    "quaternion": ((0, 1, 2, 3), ("w", "x", "y", "z")),
+}
+_INDEX_LONG_NAMES = {
+    "component": "body-frame component index: 1, 2, 3 along the directors a1, a2, a3 "
+                 "(a3 the tangent)",
+    "xyz": "global-frame axis index: 1 = x, 2 = y, 3 = z (unit vectors e1, e2, e3)",
+    "quaternion": "unit quaternion component index: 0 = w (scalar part), 1 = x, 2 = y, 3 = z",
+}
+
+KEYWORDS = (
+    "elastic rod, Kirchhoff rod, cable dynamics, hockling, supercoiling, plectoneme, "
+    "twist, writhe, linking number, self-contact, numerical simulation"
+)
+
+# ACDD attributes about who made the data and on what terms: set by the operator (the
+# HOCKLE_* settings, service.settings.Settings), never guessed by the solver.
+METADATA_ATTRIBUTES = (
+    "naming_authority",
+    "creator_name",
+    "creator_email",
+    "creator_url",
+    "creator_type",
+    "creator_institution",
+    "institution",
+    "publisher_name",
+    "publisher_email",
+    "publisher_url",
+    "publisher_type",
+    "publisher_institution",
+    "license",
+    "project",
+    "program",
+    "acknowledgement",
+    "contributor_name",
+    "contributor_role",
+)
+
+# What a file says when the operator set nothing: true statements, not invented names.
+DEFAULT_METADATA: dict[str, str] = {
+    "naming_authority": "hockle",
+    "creator_name": "not specified (the operator sets HOCKLE_CREATOR_NAME)",
+    "license": "not specified (the operator sets HOCKLE_LICENSE)",
+}
+
 _INTEGER_VARIABLES = {"contact_count", "newton_iterations", "step_newton_iterations"}
 
 _COMPRESSED = {"dtype": "float64", "zlib": True, "complevel": 4, "shuffle": True}
@@ -172,6 +264,11 @@ _COMPRESSED = {"dtype": "float64", "zlib": True, "complevel": 4, "shuffle": True
 
 def _utc_now() -> str:
     return _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat()
+
+
+def _iso_duration(seconds: float) -> str:
+    """ISO 8601 duration of ``seconds`` (``PT45S``, ``PT0.05S``)."""
+    return f"PT{float(seconds):.12g}S"
 
 
 def _as_values(name: str, values: Any, shape: tuple[int, ...]) -> np.ndarray:
@@ -215,6 +312,40 @@ def _summary(case: Any, n_points: int, times: np.ndarray, status: str) -> str:
     return "".join(parts)
 
 
+def _index_coordinate(dim: str) -> xr.Variable:
+    values, labels = INDEX_LABELS[dim]
+    var = xr.Variable(
+        dim,
+        np.array(values, dtype=np.int32),
+        {
+            "units": "1",
+            "long_name": _INDEX_LONG_NAMES[dim],
+            "flag_values": np.array(values, dtype=np.int32),
+            "flag_meanings": " ".join(labels),
+            "coverage_content_type": "coordinate",
+        },
+    )
+    var.encoding = {"_FillValue": None}
+    return var
+
+
+def _time_coverage(times: np.ndarray) -> dict[str, str]:
+    """ACDD time_coverage_duration/_resolution as ISO 8601 durations of simulated time.
+
+    No time_coverage_start/_end: those are calendar instants and simulated time has no
+    epoch (docs/interfaces.md, "Time").
+    """
+    out: dict[str, str] = {}
+    if times.size == 0 or not np.all(np.isfinite(times)):
+        return out
+    out["time_coverage_duration"] = _iso_duration(times[-1] - times[0])
+    if times.size > 1:
+        steps = np.diff(times)
+        if np.allclose(steps, steps[0], rtol=1e-9, atol=0.0) and steps[0] > 0:
+            out["time_coverage_resolution"] = _iso_duration(steps[0])
+    return out
+
+
 def build_dataset(
     case: Any,
     s: np.ndarray,
@@ -250,21 +381,33 @@ def build_dataset(
         ``position_route_difference``: (T,) m.
     diagnostics:
         Per accepted step, all of length K: ``step_time`` (s), ``step_dt`` (s),
-        ``step_newton_iterations``, ``step_residual_norm``. An empty mapping adds no
-        ``step`` dimension.
+        ``step_newton_iterations``, ``step_residual_norm``, ``step_growth_rate`` (1/s).
+        An empty mapping adds no ``step`` dimension.
     status:
         ``"completed"``, ``"stopped"`` or ``"failed"`` (global attribute
         ``hockle_status``).
     message:
         Free text for the global attribute ``hockle_message`` (e.g. why a run stopped).
     attrs:
-        Extra global attributes (e.g. ``hockle_stop_reason``); strings or numbers.
+        Extra global attributes (e.g. ``hockle_stop_reason``); strings or numbers. They
+        are applied last and may replace the defaults (``id``, ``license``, ...).
 
     Returns
     -------
     xarray.Dataset
         float64 data; (time, s, ...) variables carry zlib level-4 compression in their
-        ``encoding`` so that ``to_netcdf`` applies it.
+        ``encoding`` so that ``to_netcdf`` applies it. Only the dimensions some variable
+        uses are present (``time`` always). Global attributes: CF-1.12 and ACDD-1.3
+        (``Conventions``, ``id`` = the case hash, ``title``, ``summary``, ``keywords``,
+        ``time_coverage_duration``, ``date_created``, ...) with
+        :data:`DEFAULT_METADATA` for the operator's attributes (see
+        :func:`apply_metadata`).
+
+    Raises
+    ------
+    ValueError
+        Unknown status, field or diagnostic; a shape that does not match; non-numeric
+        values; an attribute that is neither a string nor a number.
     """
     from solver import __version__
 
@@ -288,51 +431,56 @@ def build_dataset(
     n_t, n_s = times.size, s.size
     sizes = {"time": n_t, "s": n_s, "component": 3, "xyz": 3, "quaternion": 4}
 
+    data_vars: dict[str, xr.Variable] = {}
+    for name, values in fields.items():
+        dims, units, long_name, comment = FIELD_VARIABLES[name]
+        arr = _as_values(name, values, tuple(sizes[d] for d in dims))
+        var_attrs = {
+            "units": units,
+            "long_name": long_name,
+            "coverage_content_type": COVERAGE_CONTENT_TYPES.get(name, "modelResult"),
+        }
+        if comment:
+            var_attrs["comment"] = comment
+        ancillary = [a for a in _ANCILLARY.get(name, ()) if a in fields]
+        if ancillary:
+            var_attrs["ancillary_variables"] = " ".join(ancillary)
+        var = xr.Variable(dims, arr, var_attrs)
+        var.encoding = _encoding(arr, dims)
+        data_vars[name] = var
+
+    used = {d for var in data_vars.values() for d in var.dims}
     coords: dict[str, xr.Variable] = {
         "time": xr.Variable(
             "time",
             times,
-            {"units": "s", "long_name": "simulation time (elapsed from the start of the run)"},
+            {
+                "standard_name": "time",
+                "axis": "T",
+                "units": "s",
+                "long_name": "simulation time (elapsed from the start of the run)",
+                "comment": "elapsed simulated time in seconds, without a calendar epoch",
+                "coverage_content_type": "coordinate",
+            },
         ),
-        "s": xr.Variable(
+    }
+    if "s" in used:
+        coords["s"] = xr.Variable(
             "s",
             s,
             {
                 "units": "m",
                 "long_name": "arclength along the rod centreline from the start end",
                 "comment": "s = 0 is the start end, s = L the far end",
+                "coverage_content_type": "coordinate",
             },
-        ),
-        "component": xr.Variable(
-            "component",
-            np.array([1, 2, 3], dtype=np.int32),
-            {
-                "units": "1",
-                "long_name": "body-frame component (directors a1, a2, a3; a3 the tangent)",
-            },
-        ),
-        "xyz": xr.Variable(
-            "xyz", np.array(["x", "y", "z"]), {"long_name": "global-frame axis (e1, e2, e3)"}
-        ),
-        "quaternion": xr.Variable(
-            "quaternion",
-            np.array(["w", "x", "y", "z"]),
-            {"long_name": "unit quaternion component, scalar first"},
-        ),
-    }
-    for name in ("time", "s", "component"):
-        coords[name].encoding = {"_FillValue": None}
-
-    data_vars: dict[str, xr.Variable] = {}
-    for name, values in fields.items():
-        dims, units, long_name, comment = FIELD_VARIABLES[name]
-        arr = _as_values(name, values, tuple(sizes[d] for d in dims))
-        var_attrs = {"units": units, "long_name": long_name}
-        if comment:
-            var_attrs["comment"] = comment
-        var = xr.Variable(dims, arr, var_attrs)
-        var.encoding = _encoding(arr, dims)
-        data_vars[name] = var
+        )
+    for name in ("time", "s"):
+        if name in coords:
+            coords[name].encoding = {"_FillValue": None}
+    for dim in INDEX_LABELS:
+        if dim in used:
+            coords[dim] = _index_coordinate(dim)
 
     if diagnostics:
         lengths = {np.shape(v) for v in diagnostics.values()}
@@ -345,13 +493,23 @@ def build_dataset(
         coords["step"] = xr.Variable(
             "step",
             np.arange(1, n_steps + 1, dtype=np.int32),
-            {"units": "1", "long_name": "accepted solver step number"},
+            {
+                "units": "1",
+                "long_name": "accepted solver step number",
+                "coverage_content_type": "coordinate",
+            },
         )
         coords["step"].encoding = {"_FillValue": None}
         for name, values in diagnostics.items():
             units, long_name = DIAGNOSTIC_VARIABLES[name]
             arr = _as_values(name, values, (n_steps,))
-            var = xr.Variable(("step",), arr, {"units": units, "long_name": long_name})
+            ctype = "coordinate" if name == "step_time" else COVERAGE_CONTENT_TYPES.get(
+                name, "modelResult")
+            var = xr.Variable(
+                ("step",),
+                arr,
+                {"units": units, "long_name": long_name, "coverage_content_type": ctype},
+            )
             var.encoding = _encoding(arr, ("step",))
             if name == "step_time":
                 coords[name] = var  # coordinate-like: the time axis of the step dimension
@@ -360,15 +518,29 @@ def build_dataset(
 
     now = _utc_now()
     global_attrs: dict[str, Any] = {
-        "Conventions": "CF-1.12 ACDD-1.3",
+        "Conventions": CONVENTIONS,
+        "id": case.spec_hash(),
         "title": str(case.name),
         "summary": _summary(case, n_s, times, status),
+        "keywords": KEYWORDS,
+        "comment": (
+            "Body-frame components (dimension component) are along the cross-section's "
+            "directors a1, a2, a3 (a3 the tangent); global-frame ones (dimension xyz) along "
+            "x, y, z. Layout, units and frames: docs/interfaces.md of hockle."
+        ),
         "source": f"hockle {__version__}",
+        "product_version": str(__version__),
+        "processing_level": "simulation output as computed by the solver (no post-processing)",
         "history": f"{now} created by hockle {__version__}",
         "references": REFERENCES,
+        "standard_name_vocabulary": "CF Standard Name Table v93",
+        "date_created": now,
+        "date_modified": now,
+        "date_metadata_modified": now,
+        **_time_coverage(times),
+        **DEFAULT_METADATA,
         "case": case.canonical_json(),
         "case_hash": case.spec_hash(),
-        "date_created": now,
         "hockle_status": status,
         "hockle_message": str(message),
     }
@@ -378,3 +550,56 @@ def build_dataset(
         global_attrs[key] = value
 
     return xr.Dataset(data_vars=data_vars, coords=coords, attrs=global_attrs)
+
+
+def apply_metadata(
+    ds: xr.Dataset,
+    metadata: Mapping[str, str | None],
+    dataset_id: str | None = None,
+) -> xr.Dataset:
+    """Set the operator's ACDD attributes (creator, publisher, licence ...) on ``ds``.
+
+    Parameters
+    ----------
+    ds:
+        A dataset from :func:`build_dataset` (changed in place and returned).
+    metadata:
+        Attribute name -> value, names from :data:`METADATA_ATTRIBUTES`; ``None`` or an
+        empty string leaves the attribute as it is (the default of
+        :data:`DEFAULT_METADATA`, or absent).
+    dataset_id:
+        The ACDD ``id`` (e.g. the service's job id); ``None`` keeps the case hash.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``ds``, with ``date_metadata_modified`` set to now when anything changed.
+
+    Raises
+    ------
+    ValueError
+        A name outside :data:`METADATA_ATTRIBUTES`, a value that is not a string, or an
+        ``id`` with blanks (ACDD asks for none).
+    """
+    unknown = sorted(set(metadata) - set(METADATA_ATTRIBUTES))
+    if unknown:
+        raise ValueError(
+            f"unknown metadata attribute(s) {unknown}; known: {list(METADATA_ATTRIBUTES)}"
+        )
+    changed = False
+    for key, value in metadata.items():
+        if value is None or value == "":
+            continue
+        if not isinstance(value, str):
+            raise ValueError(f"metadata {key!r}: expected a string, got {value!r}")
+        ds.attrs[key] = value
+        changed = True
+    if dataset_id is not None:
+        dataset_id = str(dataset_id)
+        if not dataset_id or any(c.isspace() for c in dataset_id):
+            raise ValueError(f"dataset id {dataset_id!r}: expected a string without blanks")
+        ds.attrs["id"] = dataset_id
+        changed = True
+    if changed:
+        ds.attrs["date_metadata_modified"] = _utc_now()
+    return ds

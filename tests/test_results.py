@@ -1,5 +1,5 @@
 """Tests for solver.results.build_dataset and hockle.io.write_netcdf (the result dataset
-of DESIGN.md, "Result dataset", and docs/interfaces.md, "solver.results")."""
+of docs/interfaces.md, "The result dataset" and "solver.results")."""
 from __future__ import annotations
 
 import datetime as dt
@@ -65,6 +65,7 @@ EXPECTED = {
     "writhe": (("time",), "1"),
     "linking_number": (("time",), "1"),
     "topology_error": (("time",), "1"),
+    "writhe_closure_passages": (("time",), "1"),
     "contact_count": (("time",), "1"),
     "min_surface_gap": (("time",), "m"),
     "newton_iterations": (("time",), "1"),
@@ -78,6 +79,7 @@ EXPECTED_DIAG = {
     "step_dt": "s",
     "step_newton_iterations": "1",
     "step_residual_norm": "1",
+    "step_growth_rate": "s-1",
 }
 SIZES = {"time": T, "s": N, "component": 3, "xyz": 3, "quaternion": 4}
 
@@ -99,6 +101,7 @@ def synthetic(seed: int = 0):
         "step_dt": np.full(K, 0.01),
         "step_newton_iterations": rng.integers(1, 6, K),
         "step_residual_norm": rng.random(K) * 1e-10,
+        "step_growth_rate": rng.random(K),
     }
     s = np.linspace(0.0, 1.0, N)
     times = np.linspace(0.0, 0.05, T)
@@ -118,8 +121,16 @@ def test_dimensions_coordinates_and_variable_shapes(full):
     np.testing.assert_array_equal(ds["time"].values, times)
     np.testing.assert_array_equal(ds["s"].values, s)
     assert list(ds["component"].values) == [1, 2, 3]
-    assert list(ds["xyz"].values) == ["x", "y", "z"]
-    assert list(ds["quaternion"].values) == ["w", "x", "y", "z"]
+    # integer index coordinates, named by CF flag_values / flag_meanings (no strings)
+    assert list(ds["xyz"].values) == [1, 2, 3]
+    assert ds["xyz"].attrs["flag_meanings"] == "x y z"
+    assert list(ds["xyz"].attrs["flag_values"]) == [1, 2, 3]
+    assert list(ds["quaternion"].values) == [0, 1, 2, 3]
+    assert ds["quaternion"].attrs["flag_meanings"] == "w x y z"
+    assert list(ds["quaternion"].attrs["flag_values"]) == [0, 1, 2, 3]
+    assert ds["component"].attrs["flag_meanings"] == "a1 a2 a3"
+    for name in ("component", "xyz", "quaternion"):
+        assert ds[name].dtype == np.int32, name
     assert list(ds["step"].values) == list(range(1, K + 1))
     assert ds["time"].attrs["units"] == "s" and ds["s"].attrs["units"] == "m"
     for name, (dims, _) in EXPECTED.items():
@@ -148,20 +159,53 @@ def test_every_variable_has_units_and_long_name(full):
     assert ds["step_time"].attrs["units"] == "s"
 
 
-def test_no_invented_standard_names(full):
+def test_standard_names_only_where_cf_has_one(full):
     ds = full[0]
-    # None of these quantities has a CF standard name (and "time" here is elapsed
-    # simulation time in "s", not a CF time coordinate with "since").
+    # time is CF's "time" (axis T, elapsed seconds); none of the rod quantities has a CF
+    # standard name, so none is invented.
+    assert ds["time"].attrs["standard_name"] == "time"
+    assert ds["time"].attrs["axis"] == "T" and ds["time"].attrs["units"] == "s"
     for name in list(ds.data_vars) + list(ds.coords):
-        assert "standard_name" not in ds[name].attrs, name
+        if name != "time":
+            assert "standard_name" not in ds[name].attrs, name
+
+
+def test_every_variable_has_a_coverage_content_type(full):
+    ds = full[0]
+    quality = {"topology_error", "newton_iterations", "residual_norm",
+               "position_route_difference", "quaternion_norm_error",
+               "step_newton_iterations", "step_residual_norm"}
+    auxiliary = {"dt", "step_dt", "step_growth_rate"}
+    for name in ds.data_vars:
+        expected = ("qualityInformation" if name in quality else
+                    "auxiliaryInformation" if name in auxiliary else "modelResult")
+        assert ds[name].attrs["coverage_content_type"] == expected, name
+    for name in ds.coords:
+        assert ds[name].attrs["coverage_content_type"] == "coordinate", name
+    # CF ancillary links from a variable to the indicators of its quality
+    assert ds["position"].attrs["ancillary_variables"] == "position_route_difference"
+    assert ds["orientation"].attrs["ancillary_variables"] == "quaternion_norm_error"
+    assert ds["writhe"].attrs["ancillary_variables"] == "topology_error writhe_closure_passages"
 
 
 def test_global_attributes(full, case):
     ds = full[0]
     a = ds.attrs
-    assert a["Conventions"] == "CF-1.12 ACDD-1.3"
+    assert a["Conventions"] == "CF-1.12, ACDD-1.3"
     assert a["title"] == "results-test"
     assert a["summary"]
+    assert a["id"] == case.spec_hash() and " " not in a["id"]
+    assert "writhe" in a["keywords"] and "self-contact" in a["keywords"]
+    assert a["product_version"] == solver.__version__
+    assert a["time_coverage_duration"] == "PT0.05S"
+    assert a["time_coverage_resolution"] == "PT0.01S"
+    # simulated time has no calendar epoch: no time_coverage_start/end instants
+    assert "time_coverage_start" not in a and "time_coverage_end" not in a
+    for key in ("date_created", "date_modified", "date_metadata_modified"):
+        assert dt.datetime.fromisoformat(a[key]).tzinfo is not None, key
+    # the operator's attributes: defaults that say so until the operator sets them
+    assert "HOCKLE_LICENSE" in a["license"] and "HOCKLE_CREATOR_NAME" in a["creator_name"]
+    assert a["naming_authority"] == "hockle"
     assert a["source"] == f"hockle {solver.__version__}"
     assert "created by hockle" in a["history"]
     stamp = a["history"].split()[0]
@@ -196,8 +240,14 @@ def test_variables_only_for_fields_present(case):
     ds = build_dataset(case, s, times, chosen, {}, "completed")
     assert set(ds.data_vars) == {"kappa", "energy_total", "writhe"}
     assert "step" not in ds.dims and "step_time" not in ds.variables
-    # the dimension coordinates are there even when no variable uses them
-    assert ds.sizes["xyz"] == 3 and ds.sizes["quaternion"] == 4
+    # no dimension that no variable uses
+    assert set(ds.dims) == {"time", "s", "component"}
+    scalars = build_dataset(case, s, times, {"energy_total": fields["energy_total"]}, {},
+                            "completed")
+    assert set(scalars.dims) == {"time"} and set(scalars.coords) == {"time"}
+    position = build_dataset(case, s, times, {"position": fields["position"]}, {},
+                             "completed")
+    assert set(position.dims) == {"time", "s", "xyz"}
 
 
 def test_encoding_float64_and_compression_for_time_s_variables(full):
@@ -269,7 +319,7 @@ def test_netcdf_round_trip(full, tmp_path):
         assert back[name].dtype == ds[name].dtype, name  # time stays float seconds
         np.testing.assert_array_equal(back[name].values, ds[name].values)
         for key, value in ds[name].attrs.items():
-            assert back[name].attrs[key] == value, (name, key)
+            np.testing.assert_array_equal(back[name].attrs[key], value, err_msg=f"{name}.{key}")
     assert back.attrs == ds.attrs
     enc = back["v"].encoding
     assert enc["zlib"] is True and enc["complevel"] == 4
@@ -278,7 +328,10 @@ def test_netcdf_round_trip(full, tmp_path):
     import netCDF4
 
     with netCDF4.Dataset(path) as nc:
-        assert nc.Conventions == "CF-1.12 ACDD-1.3"
+        assert nc.Conventions == "CF-1.12, ACDD-1.3"
+        # CF 2.5.1: coordinate variables carry no _FillValue
+        for name in ("time", "s", "component", "xyz", "quaternion", "step"):
+            assert "_FillValue" not in nc[name].ncattrs(), name
         assert nc["v"].units == "m s-1"
         assert nc["v"].filters()["zlib"] is True
 

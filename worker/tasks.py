@@ -120,6 +120,10 @@ class JobRun:
     def save(self, ds) -> str | None:
         if ds is None:
             return None
+        from solver.results import apply_metadata
+
+        # ACDD: the job id is the dataset's id; creator, licence ... from the settings
+        apply_metadata(ds, self.settings.dataset_metadata(), dataset_id=self.job_id)
         ds.attrs["hockle_job_id"] = self.job_id
         ds.attrs["hockle_attempt"] = int(self.attempt)
         ds.attrs["hockle_worker"] = self.worker

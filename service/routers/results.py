@@ -128,8 +128,10 @@ def get_result_variable(
     s: Annotated[str | None, Query(description=f"Arclength, m: {_SELECTOR_HELP}.")] = None,
     component: Annotated[str | None, Query(description="Body-frame component 1, 2, 3 (or '1,3', "
                                                        "'1:2').")] = None,
-    xyz: Annotated[str | None, Query(description="Global axis x, y, z.")] = None,
-    quaternion: Annotated[str | None, Query(description="Quaternion part w, x, y, z.")] = None,
+    xyz: Annotated[str | None, Query(description="Global axis: x, y, z (or its index 1, 2, "
+                                                 "3).")] = None,
+    quaternion: Annotated[str | None, Query(description="Quaternion part: w, x, y, z (or its "
+                                                        "index 0, 1, 2, 3).")] = None,
     step: Annotated[str | None, Query(description="Solver step number (step diagnostics).")] = None,
 ) -> VariableSlice:
     """Select by coordinate labels; refuses (422) a slice larger than HOCKLE_MAX_SLICE_VALUES."""
@@ -193,13 +195,17 @@ def _select(var, dim: str, raw: str):
     if index is not None:
         kind = {"f": "float", "i": "int", "u": "int"}.get(index.dtype.kind, "str")
     convert = {"float": float, "int": int, "str": str}[kind]
+    named = _flag_labels(var, dim) if index is not None else {}
 
     def conv(text: str):
         text = text.strip()
+        if text in named:           # "x" for xyz = 1, "w" for quaternion = 0 (flag_meanings)
+            return named[text]
         try:
             return convert(text)
         except ValueError:
-            raise ValueError(f"{text!r} is not a {kind} label") from None
+            hint = f" or one of {', '.join(named)}" if named else ""
+            raise ValueError(f"{text!r} is not a {kind} label{hint}") from None
 
     raw = raw.strip()
     if index is None:  # a dim without coordinate: positions
@@ -225,6 +231,18 @@ def _select(var, dim: str, raw: str):
     except KeyError:
         raise ValueError(f"{label!r} is not a {dim} label; labels: {_label_hint(index)}") from None
     return out, _jsonable(out[dim].values)
+
+
+def _flag_labels(var, dim: str) -> dict[str, Any]:
+    """Word -> index of an integer index coordinate that names its values with CF
+    ``flag_values``/``flag_meanings`` (``xyz``: x y z, ``quaternion``: w x y z); empty
+    for other coordinates (and for files written before these coordinates were integer)."""
+    coord = var[dim]
+    meanings = str(coord.attrs.get("flag_meanings", "")).split()
+    values = np.atleast_1d(np.asarray(coord.attrs.get("flag_values", []))).tolist()
+    if not meanings or len(meanings) != len(values):
+        return {}
+    return dict(zip(meanings, values))
 
 
 def _label_hint(index) -> str:

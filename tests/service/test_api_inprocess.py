@@ -20,7 +20,8 @@ PROBLEM = "application/problem+json"
 def settings(tmp_path_factory):
     root = tmp_path_factory.mktemp("inproc")
     return Settings(data_dir=root, broker_url="memory://", max_slice_values=40,
-                    max_case_size=2_000_000, progress_interval=0.0)
+                    max_case_size=2_000_000, progress_interval=0.0,
+                    creator_name="Rod Dynamics Lab", license="CC-BY-4.0")
 
 
 @pytest.fixture(scope="module")
@@ -202,6 +203,26 @@ def test_results_slices_and_caps_with_the_real_solver(client, settings):
     assert client.get(f"{base}/nonexistent").status_code == 404
     series = client.get(f"{base}/energy_total").json()
     assert series["dims"] == ["time"] and len(series["data"]) == 6
+
+    # the global axes are an integer index named x, y, z (CF flag_meanings): either works
+    by_name = client.get(f"{base}/position", params={"time": "0.05", "s": "1", "xyz": "x,z"})
+    by_index = client.get(f"{base}/position", params={"time": "0.05", "s": "1", "xyz": "1,3"})
+    assert by_name.status_code == 200, by_name.text
+    assert by_name.json()["data"] == by_index.json()["data"]
+    assert by_name.json()["coords"]["xyz"] == [1, 3]
+    one = client.get(f"{base}/position", params={"time": "0.05", "s": "1", "xyz": "z"}).json()
+    assert one["selected"]["xyz"] == 3 and one["data"] == pytest.approx(1.0)
+    wrong = client.get(f"{base}/position", params={"time": "0", "s": "0", "xyz": "q"})
+    assert wrong.status_code == 422 and "x, y, z" in wrong.json()["errors"][0]["msg"]
+
+    # the file's ACDD id is the job id; creator and licence come from the settings
+    import xarray as xr
+
+    with xr.open_dataset(settings.results_dir / f"{job['id']}.nc") as ds:
+        assert ds.attrs["id"] == job["id"]
+        assert ds.attrs["creator_name"] == "Rod Dynamics Lab"
+        assert ds.attrs["license"] == "CC-BY-4.0"
+        assert ds.attrs["Conventions"] == "CF-1.12, ACDD-1.3"
 
 
 def test_dismissed_while_running_stops_at_the_next_step(client, settings, monkeypatch):
