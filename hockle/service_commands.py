@@ -6,6 +6,7 @@
     hockle serve [--host H] [--port P] [--workers N] [--no-worker]
     hockle worker [--concurrency N] [--hostname NAME] [--loglevel L]
     hockle submit CASE [--url URL] [--wait] [-o OUT.nc] [--idempotency-key K] [--fresh]
+                       [--time-limit S]
 
 ``submit`` exit codes: 0 accepted (or, with --wait, successful); 1 failed; 2 invalid case or
 other refusal; 3 dismissed; 4 service unreachable.
@@ -51,6 +52,9 @@ def register(subparsers) -> None:
     p.add_argument("--idempotency-key", default=None, help="makes a retried submit safe")
     p.add_argument("--fresh", action="store_true",
                    help="run even if an identical case already succeeded")
+    p.add_argument("--time-limit", type=float, default=None, metavar="S",
+                   help="hard time limit of the job in seconds, up to the service's "
+                   "HOCKLE_TIME_LIMIT_MAX (default: derived from the case's size and contact)")
     p.add_argument("--timeout", type=float, default=None, help="with --wait: give up after S s")
     p.add_argument("--poll", type=float, default=1.0, help="seconds between status polls")
     p.set_defaults(func=submit)
@@ -76,7 +80,8 @@ def submit(args: argparse.Namespace) -> int:
     out = sys.stdout
     try:
         with HockleClient(args.url) as client:
-            job = client.submit(args.case, idempotency_key=args.idempotency_key, fresh=args.fresh)
+            job = client.submit(args.case, idempotency_key=args.idempotency_key, fresh=args.fresh,
+                                time_limit=getattr(args, "time_limit", None))
             print(f"job {job.id} {job.state} ({client.base_url}/v1/jobs/{job.id})", file=out)
             if not args.wait:
                 return 0

@@ -93,13 +93,20 @@ class HockleClient:
         return response
 
     # --- jobs ----------------------------------------------------------------------------------
-    def submit(self, case, *, idempotency_key: str | None = None, fresh: bool = False) -> JobStatus:
-        """Submit a case (path, mapping or ``Case``); returns the job's status."""
+    def submit(self, case, *, idempotency_key: str | None = None, fresh: bool = False,
+               time_limit: float | None = None) -> JobStatus:
+        """Submit a case (path, mapping or ``Case``); returns the job's status.
+
+        ``time_limit``: the job's hard time limit in seconds, up to the service's
+        ``HOCKLE_TIME_LIMIT_MAX`` (default: derived from the case's size and contact).
+        """
         body, content_type = case_payload(case)
         headers = {"Content-Type": content_type}
         if idempotency_key:
             headers["Idempotency-Key"] = idempotency_key
-        params = {"fresh": "true"} if fresh else {}
+        params: dict[str, Any] = {"fresh": "true"} if fresh else {}
+        if time_limit is not None:
+            params["time_limit"] = time_limit
         response = self._request("POST", "/v1/jobs", content=body, headers=headers, params=params)
         return JobStatus.model_validate(response.json())
 

@@ -16,7 +16,13 @@ from pathlib import Path
 from pydantic import Field, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
-__all__ = ["Settings", "DatasetMetadata", "get_settings"]
+__all__ = ["Settings", "DatasetMetadata", "get_settings", "CONTACT_CALIBRATION_DT"]
+
+# The contact cost figures (docs/contact.md section 4) are per nominal step of the seed example,
+# dt = 0.1 s; in contact the step control cuts the step to 1-25 ms whatever the nominal dt, so a
+# contact case's cost is counted per 0.1 s of simulated time at least.
+CONTACT_CALIBRATION_DT = 0.1
+
 
 
 class DatasetMetadata(BaseSettings):
@@ -143,13 +149,17 @@ class Settings(DatasetMetadata):
         description="Hard time limit added per grid point x time step.",
     )
     time_limit_per_unit_contact: float = Field(
-        2.5e-3,
+        5.6e-3,
         ge=0,
-        description="Hard time limit added per grid point x time step when the case has "
-        "self-contact (the seed example, 1001 points x 450 steps with contact from 18 s, "
-        "measured about 1e-3 s per point-step on the 2-core machine: docs/contact.md).",
+        description="The same for cases with self-contact, counted over max(time steps, "
+        "t_end / 0.1 s) because contact sets its own sub-steps: the largest measured contact "
+        "cost, 2.8e-3 s per grid point per 0.1 s of simulated time (docs/contact.md section 4), "
+        "times 2 for the shared machine's load (docs/service.md, Time limits).",
     )
-    time_limit_max: float = Field(6 * 3600.0, gt=0, description="Cap of the hard time limit.")
+    time_limit_max: float = Field(
+        6 * 3600.0, gt=0,
+        description="Cap of the hard time limit, derived or requested (POST /v1/jobs?time_limit=).",
+    )
     soft_limit_fraction: float = Field(
         0.95, gt=0, lt=1, description="Soft time limit as a fraction of the hard one."
     )
@@ -213,14 +223,38 @@ class Settings(DatasetMetadata):
         host = "127.0.0.1" if self.host in ("0.0.0.0", "::") else self.host
         return f"http://{host}:{self.port}"
 
-    def time_limits(self, grid_points: int, n_steps: int,
-                    contact: bool = False) -> tuple[float, float, float]:
-        """(hard, soft, solver budget) in seconds for a case of this size (contact: the
-        case has self-contact, whose steps cost far more)."""
-        per_unit = self.time_limit_per_unit_contact if contact else self.time_limit_per_unit
-        hard = min(self.time_limit_max, self.time_limit_base + per_unit * grid_points * n_steps)
+    def time_limits(self, grid_points: int, n_steps: int, contact: bool = False, *,
+                    t_end: float | None = None,
+                    requested: float | None = None) -> tuple[float, float, float]:
+        """(hard, soft, solver budget) in seconds for a case of this size.
+
+        The hard limit is ``requested`` when the job asked for one (the caller checks it against
+        ``time_limit_max``), else ``time_limit_base`` plus the cost model: per grid point and
+        time step, ``time_limit_per_unit``; with self-contact (``contact``),
+        ``time_limit_per_unit_contact`` per grid point and per time step or per
+        ``CONTACT_CALIBRATION_DT`` of simulated time (``t_end``), whichever are more, because
+        the contact step control cuts the step to a few ms whatever the nominal dt. Both are
+        capped at ``time_limit_max``. Soft = ``soft_limit_fraction`` x hard, budget =
+        ``budget_fraction`` x soft.
+        """
+        if requested is not None:
+            hard = min(self.time_limit_max, float(requested))
+        else:
+            hard = min(self.time_limit_max,
+                       self.time_limit_base + self.predicted_cost(grid_points, n_steps, contact,
+                                                                  t_end=t_end))
         soft = hard * self.soft_limit_fraction
         return hard, soft, soft * self.budget_fraction
+
+    def predicted_cost(self, grid_points: int, n_steps: int, contact: bool = False, *,
+                       t_end: float | None = None) -> float:
+        """Upper estimate of a case's wall time in seconds (without ``time_limit_base``)."""
+        if not contact:
+            return self.time_limit_per_unit * grid_points * n_steps
+        steps = float(n_steps)
+        if t_end is not None:
+            steps = max(steps, t_end / CONTACT_CALIBRATION_DT)
+        return self.time_limit_per_unit_contact * grid_points * steps
 
     def child_env(self) -> dict[str, str]:
         """Environment that makes a child process resolve the same settings."""

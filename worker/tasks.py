@@ -117,6 +117,13 @@ class JobRun:
             "wall_time": time.monotonic() - self.started,
         }
 
+    def how_far(self) -> str:
+        """Where the run got: 't = 19.3 s of 45 s (step 193)', or that no step finished."""
+        info = self.last_info
+        if info is None:
+            return f"before the first time step ({time.monotonic() - self.started:.0f} s)"
+        return f"t = {float(info.t):.6g} s of {self.t_end:.6g} s (step {int(info.step)})"
+
     def save(self, ds) -> str | None:
         if ds is None:
             return None
@@ -217,7 +224,7 @@ def _solve(run: JobRun, case) -> str:
     except SoftTimeLimitExceeded:
         run.finish(state=FAILED, reason="timeout",
                    message=f"soft time limit of {run.registry.get(run.job_id).soft_time_limit:.0f} s "
-                           "reached; no result was written",
+                           f"reached at {run.how_far()}; no result was written",
                    **run._position())
         return "failed:timeout"
     except Exception as exc:  # noqa: BLE001 - unexpected: recorded, logged, never retried
@@ -246,7 +253,9 @@ def _solve(run: JobRun, case) -> str:
                        message="dismissed while running; the partial result is kept",
                        result_path=path, result_partial=True, **run._position())
             return "dismissed"
-        message = (f"wall-clock budget of {run.budget:.0f} s reached; the partial result is kept"
+        message = (f"wall-clock budget of {run.budget:.0f} s reached at {run.how_far()}; the "
+                   "partial result is kept (a job may ask for a longer limit, up to "
+                   f"{run.settings.time_limit_max:.0f} s here: POST /v1/jobs?time_limit=)"
                    if stop == "timeout" else f"the solver stopped: {stop}")
         run.finish(state=FAILED, reason="timeout" if stop == "timeout" else "internal_error",
                    message=message, result_path=path, result_partial=True, **run._position())

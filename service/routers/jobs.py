@@ -86,15 +86,29 @@ def get_job_or_404(svc: Services, job_id: str) -> Job:
     return job
 
 
+def _check_time_limit(time_limit: float | None, maximum: float) -> None:
+    """A requested hard time limit must be a number of seconds in [1, HOCKLE_TIME_LIMIT_MAX]."""
+    if time_limit is None:
+        return
+    if not (1.0 <= time_limit <= maximum):  # also refuses NaN
+        raise ProblemError(422, "invalid-request", "Invalid request", errors=[
+            {"loc": "query.time_limit",
+             "msg": f"the hard time limit asked for must be 1 to {maximum:.0f} s (this "
+                    f"service's HOCKLE_TIME_LIMIT_MAX), got {time_limit}",
+             "type": "time_limit_out_of_range"}])
+
+
 def _submit(svc: Services, body: bytes, content_type: str | None, idempotency_key: str | None,
-            fresh: bool) -> tuple[Job, int]:
+            fresh: bool, time_limit: float | None = None) -> tuple[Job, int]:
     import solver
 
+    _check_time_limit(time_limit, svc.settings.time_limit_max)
     case = validate_case(parse_body(body, content_type), svc.settings.max_case_size)
     canonical = case.canonical_json()
     spec_hash = case.spec_hash()
     version = solver.__version__
-    fingerprint = hashlib.sha256(f"{canonical}|fresh={fresh}".encode()).hexdigest()
+    asked = "" if time_limit is None else f"|time_limit={float(time_limit)!r}"
+    fingerprint = hashlib.sha256(f"{canonical}|fresh={fresh}{asked}".encode()).hexdigest()
     if idempotency_key is not None:
         if not 1 <= len(idempotency_key) <= 200:
             raise ProblemError(422, "invalid-request", "Invalid request",
@@ -110,7 +124,9 @@ def _submit(svc: Services, body: bytes, content_type: str | None, idempotency_ke
         if cached is not None and _exists(cached.result_path):
             return cached, 200
     hard, soft, budget = svc.settings.time_limits(case.grid_points, case.n_steps,
-                                                  contact=case.contact is not None)
+                                                  contact=case.contact is not None,
+                                                  t_end=float(case.numerics.t_end),
+                                                  requested=time_limit)
     try:
         job, created = svc.registry.create_job(
             spec_json=canonical,
@@ -177,13 +193,18 @@ async def submit_job(
     fresh: Annotated[bool, Query(
         description="Run even if an identical spec already succeeded with this solver version.")]
     = False,
+    time_limit: Annotated[float | None, Query(
+        description="Hard time limit of the job in seconds, 1 to the service's "
+        "HOCKLE_TIME_LIMIT_MAX; default: derived from the case's size and contact (the solver "
+        "stops itself before it, keeping the partial result).")] = None,
 ) -> JobStatus:
     """Validate the case and queue it; answers at once (201), never runs a solve itself."""
     body = await read_body(request)
     # a burst of submissions waits here, not in the thread pool that status polls need
     async with _submit_slots(request):
         job, status = await run_in_threadpool(
-            _submit, svc, body, request.headers.get("content-type"), idempotency_key, fresh
+            _submit, svc, body, request.headers.get("content-type"), idempotency_key, fresh,
+            time_limit
         )
     response.status_code = status
     response.headers["Location"] = f"/v1/jobs/{job.id}"
