@@ -1,6 +1,6 @@
 """hockle's rod solver: the dynamic Kirchhoff rod of Goyal, Perkins & Lee.
 
-Pure numerics: no I/O, no web or queue imports. Public API (DESIGN.md, "Python API")::
+Pure numerics: no I/O, no web or queue imports. Public API (docs/interfaces.md, "Python API")::
 
     from solver import Case, simulate, SolverDivergence, Progress
 

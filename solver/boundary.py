@@ -1,4 +1,4 @@
-"""Boundary rows of the step's difference equations (DESIGN.md, "boundary").
+"""Boundary rows of the step's difference equations (docs/case-spec.md, "Boundary").
 
 Each end has six conditions, one per degree of freedom, in body-frame components:
 translation i = 1, 2, 3 prescribes the velocity v_i or the internal force f_i, rotation

@@ -1,4 +1,4 @@
-"""The case spec, schema_version 1: hockle's input contract (DESIGN.md, "Case spec").
+"""The case spec, schema_version 1: hockle's input contract (docs/case-spec.md).
 
 A case file (YAML or JSON, SI units throughout) describes one simulation of a twisted
 elastic rod: its material and geometry, the surrounding fluid, loads, the initial

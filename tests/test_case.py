@@ -1,4 +1,4 @@
-"""Tests for solver.case: the case spec, schema_version 1 (DESIGN.md)."""
+"""Tests for solver.case: the case spec, schema_version 1 (docs/case-spec.md)."""
 from __future__ import annotations
 
 import copy
@@ -25,7 +25,7 @@ from solver.case import (
     parse_text,
 )
 
-# The example case of DESIGN.md, "Case spec, schema_version 1", verbatim.
+# The example case of docs/case-spec.md, "A complete example", verbatim (checked below).
 EXAMPLE_YAML = """\
 schema_version: 1
 name: goyal-writhing            # free text
@@ -75,6 +75,15 @@ output:
 """
 
 
+def test_the_docs_example_is_this_one():
+    """docs/case-spec.md shows the same example, so what it shows validates."""
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "case-spec.md").read_text()
+    block = doc.split("## A complete example", 1)[1].split("```yaml\n", 1)[1].split("```", 1)[0]
+    assert block == EXAMPLE_YAML
+
+
 @pytest.fixture
 def data() -> dict:
     """A fresh mapping of the example case, to be mutated by a test."""
@@ -106,7 +115,7 @@ def assert_refused(data: dict, loc: str, fragment: str, etype: str | None = None
 # --------------------------------------------------------------------------- loading
 
 
-def test_design_example_loads():
+def test_docs_example_loads():
     case = Case.from_text(EXAMPLE_YAML)
     assert case.schema_version == 1
     assert case.name == "goyal-writhing"

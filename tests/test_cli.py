@@ -1,4 +1,4 @@
-"""Tests for the ``hockle`` command: validate, run, plot (DESIGN.md, "Command line")."""
+"""Tests for the ``hockle`` command: validate, run, plot (docs/interfaces.md, "Command line")."""
 from __future__ import annotations
 
 import copy
