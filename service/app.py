@@ -15,7 +15,7 @@ from fastapi.openapi.utils import get_openapi
 
 from .problems import install_handlers
 from .queue import Enqueuer
-from .registry import Registry
+from .registry import REGISTRY_UNAVAILABLE, Registry
 from .settings import Settings, get_settings
 from .store import ResultStore
 
@@ -45,7 +45,7 @@ def services(request: Request) -> Services:
 def create_app(settings: Settings | None = None, *, enqueuer: Enqueuer | None = None) -> FastAPI:
     settings = settings or get_settings()
     settings.data_dir.mkdir(parents=True, exist_ok=True)
-    registry = Registry(settings.registry_url)
+    registry = Registry(settings.registry_url, busy_timeout=settings.registry_busy_timeout)
     registry.create_schema()
     store = ResultStore(settings.results_dir)
     store.ensure()
@@ -99,13 +99,18 @@ def _warm_up(svc: Services) -> None:
 
 
 def _reaper(svc: Services, stop: threading.Event) -> None:
-    """Fail jobs killed at their hard time limit (also done by every worker's heartbeat)."""
+    """Every heartbeat_interval: fail jobs killed at their hard time limit, queue again the jobs
+    of lost workers and the accepted jobs whose message is lost (:func:`service.queue.sweep`;
+    every worker's heartbeat thread runs the same sweep)."""
+    from .queue import sweep
+
     while not stop.wait(svc.settings.heartbeat_interval):
         try:
-            for job_id in svc.registry.reap(grace=svc.settings.reaper_grace):
-                log.warning("reaper: job %s passed its hard time limit: failed/timeout", job_id)
-        except Exception:  # noqa: BLE001 - registry briefly down: next sweep
-            log.warning("reaper sweep failed", exc_info=True)
+            sweep(svc.registry, svc.enqueuer, svc.settings, log)
+        except REGISTRY_UNAVAILABLE as exc:  # registry briefly down: next sweep
+            log.warning("sweep failed, registry unavailable: %s", str(exc).splitlines()[0][:200])
+        except Exception:  # noqa: BLE001
+            log.warning("sweep failed", exc_info=True)
 
 
 def _version() -> str:

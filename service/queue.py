@@ -6,13 +6,15 @@ no result backend is configured and Celery task states never reach a client.
 """
 from __future__ import annotations
 
+import logging
 import threading
 
 from celery import Celery
 
+from .registry import Registry
 from .settings import Settings
 
-__all__ = ["TASK_NAME", "make_celery", "Enqueuer"]
+__all__ = ["TASK_NAME", "make_celery", "Enqueuer", "sweep"]
 
 TASK_NAME = "hockle.run_job"
 
@@ -85,3 +87,46 @@ class Enqueuer:
 
     def close(self) -> None:
         self.app.close()
+
+
+def sweep(registry: Registry, enqueuer: Enqueuer, settings: Settings,
+          log: logging.Logger) -> dict[str, list[str]]:
+    """One pass of the sweeper that the API and every worker run each heartbeat_interval.
+
+    * the reaper: running jobs killed at their hard time limit -> failed/timeout;
+    * lost workers: running jobs whose heartbeat is older than job_heartbeat_timeout -> queued
+      again (attempt + 1; the message is sent here), or failed after max_attempts;
+    * lost messages: accepted jobs not claimed within requeue_after of their last message ->
+      the message is sent again.
+
+    Every change is a conditional UPDATE in the registry, so sweepers running at once act on a
+    job once, and a duplicate message is harmless (only an accepted job can be claimed).
+    Returns the ids acted on, by kind (for logs and tests).
+    """
+    done: dict[str, list[str]] = {"reaped": [], "requeued": [], "failed": [], "dismissed": [],
+                                  "resent": []}
+    for job_id in registry.reap(grace=settings.reaper_grace,
+                                heartbeat_timeout=settings.job_heartbeat_timeout):
+        done["reaped"].append(job_id)
+        log.warning("reaper: job %s passed its hard time limit: failed/timeout", job_id)
+    for job, action in registry.requeue_lost(heartbeat_timeout=settings.job_heartbeat_timeout,
+                                             max_attempts=settings.max_attempts):
+        done[action].append(job.id)
+        log.warning("sweeper: job %s: %s (%s)", job.id, action, job.message)
+        if action == "requeued":
+            _send(registry, enqueuer, job, log)
+    for job in registry.requeue_unclaimed(after=settings.requeue_after):
+        done["resent"].append(job.id)
+        log.warning("sweeper: job %s accepted but not claimed since %s: message sent again",
+                    job.id, job.created_at.isoformat(timespec="seconds"))
+        _send(registry, enqueuer, job, log)
+    return done
+
+
+def _send(registry: Registry, enqueuer: Enqueuer, job, log: logging.Logger) -> None:
+    try:
+        enqueuer.enqueue(job.id, time_limit=job.time_limit, soft_time_limit=job.soft_time_limit)
+    except Exception:  # noqa: BLE001 - broker down: the next sweep sends it
+        log.error("sweeper: could not send job %s to the queue; next sweep retries", job.id,
+                  exc_info=True)
+        registry.mark_unsent(job.id)

@@ -5,7 +5,11 @@ commits it *before* the job is enqueued; workers move it through the states with
 ``UPDATE`` statements, so that two deliveries of one job cannot both bring it to a terminal state.
 
 States (OGC API - Processes): ``accepted -> running -> successful | failed | dismissed``, and
-``accepted -> dismissed``. A delivery that finds the job terminal does nothing.
+``accepted -> dismissed``. Only an ``accepted`` job can be claimed (one conditional ``UPDATE``):
+a delivery that finds the job running or terminal does nothing. The process that solves a job
+writes its heartbeat (``heartbeat_at``); a running job whose heartbeat is stale has lost its
+worker and goes back to ``accepted`` (:meth:`Registry.requeue_lost`), and every write of an
+attempt is keyed on its number, so an attempt that was given up cannot finish the job.
 """
 from __future__ import annotations
 
@@ -28,13 +32,21 @@ from sqlalchemy import (
     create_engine,
     event,
     func,
+    inspect,
     or_,
     select,
     text,
     update,
 )
 from sqlalchemy.engine import Engine
-from sqlalchemy.exc import IntegrityError, OperationalError, ProgrammingError
+from sqlalchemy.exc import (
+    DisconnectionError,
+    IntegrityError,
+    InterfaceError,
+    OperationalError,
+    ProgrammingError,
+)
+from sqlalchemy.exc import TimeoutError as PoolTimeoutError
 from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column, sessionmaker
 
 __all__ = [
@@ -46,6 +58,7 @@ __all__ = [
     "WorkerBeat",
     "Registry",
     "IdempotencyConflict",
+    "REGISTRY_UNAVAILABLE",
     "utcnow",
 ]
 
@@ -60,6 +73,11 @@ STATES = (ACCEPTED, RUNNING, SUCCESSFUL, FAILED, DISMISSED)
 ACTIVE_STATES = (ACCEPTED, RUNNING)
 TERMINAL_STATES = (SUCCESSFUL, FAILED, DISMISSED)
 REASONS = ("solver_diverged", "nonfinite_state", "timeout", "cancelled_by_user", "internal_error")
+
+
+# errors of a registry that is locked (SQLite "database is locked"), restarting or unreachable:
+# a worker retries them (worker.tasks.with_registry_retry)
+REGISTRY_UNAVAILABLE = (OperationalError, InterfaceError, DisconnectionError, PoolTimeoutError)
 
 
 def utcnow() -> dt.datetime:
@@ -106,6 +124,11 @@ class Job(Base):
 
     worker: Mapped[str | None] = mapped_column(String(200))
     attempts: Mapped[int] = mapped_column(Integer, default=0)
+    # written every heartbeat_interval by the process solving the job (its attempt)
+    heartbeat_at: Mapped[dt.datetime | None] = mapped_column(DateTime)
+    # when the job's latest message was sent, and how many were sent (re-queues included)
+    enqueued_at: Mapped[dt.datetime | None] = mapped_column(DateTime)
+    dispatches: Mapped[int | None] = mapped_column(Integer, default=1)
     cancel_requested: Mapped[bool] = mapped_column(Boolean, default=False)
 
     time_limit: Mapped[float] = mapped_column(Float)
@@ -170,17 +193,22 @@ def decode_page_token(token: str) -> tuple[dt.datetime, str]:
 class Registry:
     """Data access to the registry; one per process (holds the connection pool)."""
 
-    def __init__(self, url: str, *, echo: bool = False):
+    def __init__(self, url: str, *, echo: bool = False, busy_timeout: float = 30.0):
+        """``busy_timeout``: SQLite only, seconds a statement waits for another connection's
+        lock before it fails with ``database is locked`` (an ``OperationalError``)."""
         self.url = url
+        self.busy_timeout = float(busy_timeout)
         kwargs: dict[str, Any] = {"echo": echo, "pool_pre_ping": True}
         if url.startswith("sqlite"):
-            kwargs["connect_args"] = {"check_same_thread": False, "timeout": 30}
+            kwargs["connect_args"] = {"check_same_thread": False, "timeout": self.busy_timeout}
         else:
             # the API serves requests from a thread pool: enough connections for it
             kwargs.update(pool_size=10, max_overflow=20, pool_timeout=30)
         self.engine: Engine = create_engine(url, **kwargs)
         if url.startswith("sqlite"):
-            event.listen(self.engine, "connect", _sqlite_pragmas)
+            busy_ms = int(self.busy_timeout * 1000)
+            event.listen(self.engine, "connect",
+                         lambda conn, record: _sqlite_pragmas(conn, record, busy_ms))
         self.sessions = sessionmaker(self.engine, expire_on_commit=False)
 
     # --- schema --------------------------------------------------------------------------------
@@ -189,12 +217,26 @@ class Registry:
         for attempt in range(5):
             try:
                 Base.metadata.create_all(self.engine)
+                self._add_missing_columns()
                 return
             except (IntegrityError, ProgrammingError, OperationalError):
                 # two processes racing on CREATE TABLE: the loser retries and finds them made
                 if attempt == 4:
                     raise
                 time.sleep(0.2 * (attempt + 1))
+
+    def _add_missing_columns(self) -> None:
+        """Add the nullable columns a registry made by an older version lacks (heartbeat_at,
+        enqueued_at, dispatches). Not a migration tool: nothing is renamed or dropped."""
+        inspector = inspect(self.engine)
+        for table in Base.metadata.sorted_tables:
+            have = {column["name"] for column in inspector.get_columns(table.name)}
+            for column in table.columns:
+                if column.name in have or not column.nullable:
+                    continue
+                kind = column.type.compile(dialect=self.engine.dialect)
+                with self.engine.begin() as conn:
+                    conn.execute(text(f"ALTER TABLE {table.name} ADD COLUMN {column.name} {kind}"))
 
     def ping(self) -> None:
         with self.engine.connect() as conn:
@@ -247,6 +289,8 @@ class Registry:
             step=0,
             attempts=0,
             cancel_requested=False,
+            enqueued_at=now,
+            dispatches=1,
             time_limit=limits[0],
             soft_time_limit=limits[1],
             wall_clock_budget=limits[2],
@@ -391,39 +435,70 @@ class Registry:
 
     # --- transitions (worker side) -------------------------------------------------------------
     def claim(self, job_id: str, worker: str) -> int | None:
-        """accepted/running -> running for this delivery; returns the attempt number.
+        """accepted -> running for this delivery; returns the attempt number (1, 2, ...).
 
-        None when the job is unknown, terminal, or dismissed while queued (it never starts).
-        A job found ``running`` is a redelivery after its worker died: the new attempt takes over.
+        One conditional ``UPDATE ... WHERE state = 'accepted'``: of two deliveries of one job
+        (a re-queue, a redelivered message) at most one claims it. None when the job is
+        unknown, already running (another attempt holds it and heartbeats), terminal, or
+        dismissed while queued (then it becomes ``dismissed`` here and never starts).
         """
         now = utcnow()
         with self.sessions.begin() as session:
-            job = session.get(Job, job_id, with_for_update=True)
-            if job is None or job.state not in ACTIVE_STATES:
+            claimed = session.execute(
+                update(Job)
+                .where(Job.id == job_id, Job.state == ACCEPTED, Job.cancel_requested.is_(False))
+                .values(
+                    state=RUNNING,
+                    attempts=Job.attempts + 1,
+                    worker=worker,
+                    started_at=now,
+                    updated_at=now,
+                    heartbeat_at=now,
+                    progress=0.0,
+                    sim_time=0.0,
+                    step=0,
+                    eta_seconds=None,
+                )
+            ).rowcount
+            if not claimed:
+                dismissed = session.execute(
+                    update(Job)
+                    .where(Job.id == job_id, Job.state == ACCEPTED, Job.cancel_requested.is_(True))
+                    .values(
+                        state=DISMISSED,
+                        reason="cancelled_by_user",
+                        message=func.coalesce(Job.message, "dismissed before it started"),
+                        finished_at=now,
+                        updated_at=now,
+                    )
+                ).rowcount
+                if dismissed:
+                    session.add(JobEvent(job_id=job_id, at=now, kind="dismissed", worker=worker))
                 return None
-            if job.cancel_requested:
-                job.state = DISMISSED
-                job.reason = "cancelled_by_user"
-                job.message = job.message or "dismissed before it started"
-                job.finished_at = now
-                job.updated_at = now
-                session.add(JobEvent(job_id=job_id, at=now, kind="dismissed", worker=worker))
-                return None
-            job.attempts = (job.attempts or 0) + 1
-            job.state = RUNNING
-            job.worker = worker
-            job.started_at = now
-            job.updated_at = now
-            job.deadline_at = now + dt.timedelta(seconds=job.time_limit)
-            job.progress = 0.0
-            job.sim_time = 0.0
-            job.step = 0
-            job.eta_seconds = None
-            attempt = job.attempts
+            # the row is ours (write-locked) until commit: read back the attempt and limit
+            attempt, limit = session.execute(
+                select(Job.attempts, Job.time_limit).where(Job.id == job_id)
+            ).one()
+            session.execute(
+                update(Job)
+                .where(Job.id == job_id)
+                .values(deadline_at=now + dt.timedelta(seconds=float(limit)))
+            )
             session.add(
                 JobEvent(job_id=job_id, at=now, kind="started", attempt=attempt, worker=worker)
             )
-        return attempt
+        return int(attempt)
+
+    def job_heartbeat(self, job_id: str, attempt: int) -> bool:
+        """Record that ``attempt`` of the job is alive. False when it no longer holds the job
+        (finished, reaped, dismissed, or given up as lost and re-queued): it should stop."""
+        now = utcnow()
+        with self.sessions.begin() as session:
+            return bool(session.execute(
+                update(Job)
+                .where(Job.id == job_id, Job.state == RUNNING, Job.attempts == attempt)
+                .values(heartbeat_at=now)
+            ).rowcount)
 
     def record_progress(
         self,
@@ -526,29 +601,39 @@ class Registry:
             )
         return bool(done)
 
-    def reap(self, now: dt.datetime | None = None, grace: float = 30.0) -> list[str]:
+    def reap(self, now: dt.datetime | None = None, grace: float = 30.0,
+             heartbeat_timeout: float | None = None) -> list[str]:
         """Fail running jobs whose hard time limit (plus ``grace``) has passed: reason timeout.
 
         Celery kills a task at its hard limit without running any of its code; this is what
-        brings such a job to a terminal state. Returns the ids it failed.
+        brings such a job to a terminal state. With ``heartbeat_timeout``, only jobs whose
+        last heartbeat came within ``heartbeat_timeout`` of their deadline (they were alive
+        until about then); a job whose heartbeat stopped earlier lost its worker and is
+        :meth:`requeue_lost`'s. The message says how far the job got. Returns the ids failed.
         """
         now = now or utcnow()
         cutoff = now - dt.timedelta(seconds=grace)
+        beat = func.coalesce(Job.heartbeat_at, Job.started_at)
+        reaped = []
         with self.sessions.begin() as session:
-            ids = list(
-                session.scalars(
-                    select(Job.id).where(Job.state == RUNNING, Job.deadline_at < cutoff)
-                )
-            )
-            reaped = []
-            for job_id in ids:
+            rows = session.execute(
+                select(Job.id, Job.attempts, beat, Job.deadline_at, Job.time_limit, Job.sim_time,
+                       Job.t_end, Job.step)
+                .where(Job.state == RUNNING, Job.deadline_at < cutoff)
+            ).all()
+            for job_id, attempt, last, deadline, limit, sim_time, t_end, step in rows:
+                if (heartbeat_timeout is not None and last is not None
+                        and last < deadline - dt.timedelta(seconds=heartbeat_timeout)):
+                    continue
                 done = session.execute(
                     update(Job)
-                    .where(Job.id == job_id, Job.state == RUNNING, Job.deadline_at < cutoff)
+                    .where(Job.id == job_id, Job.state == RUNNING, Job.attempts == attempt)
                     .values(
                         state=FAILED,
                         reason="timeout",
-                        message="killed at the hard time limit; no result was written",
+                        message=f"killed at the hard time limit of {limit:.0f} s at "
+                                f"t = {sim_time or 0.0:.6g} s of {t_end:.6g} s (step "
+                                f"{step or 0}); no result was written",
                         finished_at=now,
                         updated_at=now,
                         eta_seconds=None,
@@ -556,8 +641,117 @@ class Registry:
                 ).rowcount
                 if done:
                     reaped.append(job_id)
-                    session.add(JobEvent(job_id=job_id, at=now, kind="reaped"))
+                    session.add(JobEvent(job_id=job_id, at=now, kind="reaped", attempt=attempt))
         return reaped
+
+    def requeue_lost(self, *, heartbeat_timeout: float, max_attempts: int,
+                     now: dt.datetime | None = None) -> list[tuple[Job, str]]:
+        """Running jobs whose heartbeat is older than ``heartbeat_timeout`` lost their worker.
+
+        Each goes back to ``accepted`` (the caller sends its message again; the next claim is
+        attempt + 1), or, when it had ``max_attempts`` attempts, becomes ``failed`` (reason
+        ``internal_error``), or ``dismissed`` when a cancel was requested. A job whose last
+        heartbeat came within ``heartbeat_timeout`` of its deadline is left to :meth:`reap`.
+        Conditional on (state, attempt, stale heartbeat): of several sweepers one acts.
+        Returns ``(job, action)`` pairs, ``action`` in ``requeued``, ``failed``, ``dismissed``.
+        """
+        now = now or utcnow()
+        stale = now - dt.timedelta(seconds=heartbeat_timeout)
+        beat = func.coalesce(Job.heartbeat_at, Job.started_at)
+        done: list[tuple[str, str]] = []
+        with self.sessions.begin() as session:
+            rows = session.execute(
+                select(Job.id, Job.attempts, beat, Job.deadline_at, Job.cancel_requested,
+                       Job.worker, Job.sim_time, Job.t_end, Job.step)
+                .where(Job.state == RUNNING, beat < stale)
+            ).all()
+            for job_id, attempt, last, deadline, cancel, worker, sim_time, t_end, step in rows:
+                if deadline is not None and last >= deadline - dt.timedelta(
+                        seconds=heartbeat_timeout):
+                    continue  # alive until about its hard limit: reap() fails it as timeout
+                where = (Job.id == job_id, Job.state == RUNNING, Job.attempts == attempt,
+                         beat < stale)
+                lost = (f"attempt {attempt} lost its worker {worker} at t = "
+                        f"{sim_time or 0.0:.6g} s of {t_end:.6g} s (step {step or 0}; no "
+                        f"heartbeat since {last.isoformat(timespec='seconds')}Z)")
+                if cancel:
+                    action = "dismissed"
+                    values = dict(state=DISMISSED, reason="cancelled_by_user",
+                                  message=f"dismissed while running; {lost}; no result",
+                                  finished_at=now, eta_seconds=None)
+                elif attempt >= max_attempts:
+                    action = "failed"
+                    values = dict(state=FAILED, reason="internal_error",
+                                  message=f"{lost}; given up after {attempt} attempts "
+                                          f"(HOCKLE_MAX_ATTEMPTS = {max_attempts}); no result",
+                                  finished_at=now, eta_seconds=None)
+                else:
+                    action = "requeued"
+                    values = dict(state=ACCEPTED, message=f"{lost}; queued again as attempt "
+                                  f"{attempt + 1} of at most {max_attempts}",
+                                  worker=None, heartbeat_at=None, deadline_at=None,
+                                  progress=0.0, sim_time=0.0, step=0, eta_seconds=None,
+                                  enqueued_at=now, dispatches=func.coalesce(Job.dispatches, 1) + 1)
+                changed = session.execute(
+                    update(Job).where(*where).values(updated_at=now, **values)
+                ).rowcount
+                if changed:
+                    done.append((job_id, action))
+                    session.add(JobEvent(
+                        job_id=job_id, at=now, kind="worker_lost", attempt=attempt,
+                        worker=worker, detail=json.dumps({
+                            "action": action, "last_heartbeat": last.isoformat() + "Z",
+                            "sim_time": sim_time, "step": step})))
+        return [(self.get(job_id), action) for job_id, action in done]
+
+    def requeue_unclaimed(self, *, after: float, now: dt.datetime | None = None,
+                          longest_wait: float = 3600.0) -> list[Job]:
+        """Accepted jobs that no worker claimed within ``after`` s of their last message (which
+        may be lost: a worker that failed before its claim, a broker that lost data, an API
+        stopped between commit and send). The wait doubles with each message sent, up to
+        ``longest_wait`` (a job behind a long queue gets few duplicates). Marks them sent again
+        (conditional on the previous send time: of several sweepers one acts) and returns them;
+        the caller sends the messages. A duplicate is harmless: only one delivery can claim.
+        """
+        now = now or utcnow()
+        sent = func.coalesce(Job.enqueued_at, Job.created_at)
+        due = []
+        with self.sessions.begin() as session:
+            rows = session.execute(
+                select(Job.id, Job.enqueued_at, sent, Job.dispatches)
+                .where(Job.state == ACCEPTED, Job.cancel_requested.is_(False),
+                       sent < now - dt.timedelta(seconds=after))
+            ).all()
+            for job_id, enqueued_at, last, dispatches in rows:
+                n = max(1, int(dispatches or 1))
+                wait = min(after * 2.0 ** min(n - 1, 30), max(after, longest_wait))
+                if last > now - dt.timedelta(seconds=wait):
+                    continue
+                same = (Job.enqueued_at.is_(None) if enqueued_at is None
+                        else Job.enqueued_at == enqueued_at)
+                changed = session.execute(
+                    update(Job)
+                    .where(Job.id == job_id, Job.state == ACCEPTED, same)
+                    .values(enqueued_at=now, dispatches=n + 1)
+                ).rowcount
+                if changed:
+                    due.append(job_id)
+                    session.add(JobEvent(
+                        job_id=job_id, at=now, kind="requeued",
+                        detail=json.dumps({"reason": f"not claimed within {wait:.0f} s of its "
+                                           "last message", "dispatch": n + 1})))
+        jobs = [self.get(job_id) for job_id in due]
+        return [job for job in jobs if job is not None]
+
+    def mark_unsent(self, job_id: str) -> None:
+        """The message of this accepted job could not be sent: make the next
+        :meth:`requeue_unclaimed` send it at once."""
+        with self.sessions.begin() as session:
+            session.execute(
+                update(Job)
+                .where(Job.id == job_id, Job.state == ACCEPTED)
+                .values(enqueued_at=dt.datetime(1970, 1, 1))
+            )
 
     # --- workers -------------------------------------------------------------------------------
     def heartbeat(self, name: str, current_job: str | None = None, *, clear: bool = False) -> None:
@@ -581,9 +775,9 @@ class Registry:
             )
 
 
-def _sqlite_pragmas(dbapi_connection, _record) -> None:
+def _sqlite_pragmas(dbapi_connection, _record, busy_ms: int = 30000) -> None:
     cursor = dbapi_connection.cursor()
     cursor.execute("PRAGMA journal_mode=WAL")
     cursor.execute("PRAGMA synchronous=NORMAL")
-    cursor.execute("PRAGMA busy_timeout=30000")
+    cursor.execute(f"PRAGMA busy_timeout={int(busy_ms)}")
     cursor.close()

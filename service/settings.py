@@ -24,7 +24,6 @@ __all__ = ["Settings", "DatasetMetadata", "get_settings", "CONTACT_CALIBRATION_D
 CONTACT_CALIBRATION_DT = 0.1
 
 
-
 class DatasetMetadata(BaseSettings):
     """Who makes the result files and on what terms: ACDD-1.3 global attributes.
 
@@ -141,6 +140,40 @@ class Settings(DatasetMetadata):
         60.0, gt=0, description="A worker whose last heartbeat is older than this is not listed."
     )
 
+    # --- failures: lost workers, lost messages, registry outages ------------------------------
+    job_heartbeat_timeout: float = Field(
+        60.0,
+        gt=0,
+        description="A running job whose registry heartbeat (written every heartbeat_interval by "
+        "the process that solves it) is older than this has lost its worker: it is queued again "
+        "(attempt + 1), or failed after max_attempts.",
+    )
+    max_attempts: int = Field(
+        3,
+        ge=1,
+        description="Most attempts (claims by a worker) of one job; a job whose worker is lost on "
+        "its last attempt fails with reason internal_error.",
+    )
+    requeue_after: float = Field(
+        300.0,
+        gt=0,
+        description="An accepted job not claimed by any worker this long after it was queued is "
+        "queued again (its message may be lost); the wait doubles with each re-queue, to 1 h.",
+    )
+    registry_retry_timeout: float = Field(
+        300.0,
+        ge=0,
+        description="How long a worker retries (with backoff) a registry that is locked or "
+        "unreachable when it claims or finishes a job, before it hands the message back to the "
+        "broker.",
+    )
+    registry_busy_timeout: float = Field(
+        30.0,
+        gt=0,
+        description="SQLite registry: seconds a statement waits for another connection's lock "
+        "before it fails with 'database is locked' (then retried as above).",
+    )
+
     # --- time limits (seconds) -----------------------------------------------------------------
     time_limit_base: float = Field(60.0, gt=0, description="Hard time limit of the smallest job.")
     time_limit_per_unit: float = Field(
@@ -196,6 +229,11 @@ class Settings(DatasetMetadata):
             raise ValueError(
                 "HOCKLE_VISIBILITY_TIMEOUT must exceed HOCKLE_TIME_LIMIT_MAX, or a job still "
                 "running would be delivered to a second worker"
+            )
+        if self.job_heartbeat_timeout < 2 * self.heartbeat_interval:
+            raise ValueError(
+                "HOCKLE_JOB_HEARTBEAT_TIMEOUT must be at least twice HOCKLE_HEARTBEAT_INTERVAL, "
+                "or a live job between two heartbeats would be taken for a lost one"
             )
         return self
 

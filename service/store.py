@@ -1,8 +1,11 @@
 """The result store: a directory of NetCDF files keyed by job id.
 
 Workers write ``<id>.nc.tmp-<host>-<pid>`` and rename it to ``<id>.nc`` (``os.replace`` is atomic
-on one file system), so a reader never sees a half-written file. When workers run on several
-machines the directory is a shared (ReadWriteMany) volume mounted at the same path everywhere.
+on one file system), so a reader never sees a half-written file. A job's second and later attempts
+(after a lost worker) write ``<id>.attempt-<n>.nc``: an attempt that was given up but still runs
+somewhere can never replace the file of the attempt that finished the job (the registry's
+``result_path`` names the one that counts). When workers run on several machines the directory is
+a shared (ReadWriteMany) volume mounted at the same path everywhere.
 """
 from __future__ import annotations
 
@@ -24,15 +27,19 @@ class ResultStore:
     def ensure(self) -> None:
         self.root.mkdir(parents=True, exist_ok=True)
 
-    def path_for(self, job_id: str) -> Path:
+    def path_for(self, job_id: str, attempt: int | None = None) -> Path:
+        """``<id>.nc`` for the first attempt (or none given), ``<id>.attempt-<n>.nc`` after."""
         if not _ID.match(job_id):
             raise ValueError(f"not a job id: {job_id!r}")
-        return self.root / f"{job_id}.nc"
+        if attempt is None or attempt <= 1:
+            return self.root / f"{job_id}.nc"
+        return self.root / f"{job_id}.attempt-{int(attempt)}.nc"
 
-    def write_dataset(self, job_id: str, ds) -> Path:
-        """Write an xarray.Dataset as NetCDF4 under a temporary name, then rename it."""
+    def write_dataset(self, job_id: str, ds, attempt: int | None = None) -> Path:
+        """Write an xarray.Dataset as NetCDF4 under a temporary name, then rename it to
+        :meth:`path_for` ``(job_id, attempt)``."""
         self.ensure()
-        final = self.path_for(job_id)
+        final = self.path_for(job_id, attempt)
         tmp = final.with_name(f"{final.name}.tmp-{socket.gethostname()}-{os.getpid()}")
         try:
             ds.to_netcdf(tmp, engine="netcdf4")
@@ -43,6 +50,16 @@ class ResultStore:
             if tmp.exists():
                 tmp.unlink()
         return final
+
+    def discard(self, path: str | os.PathLike) -> None:
+        """Remove a result file this store wrote (an attempt that did not finish the job)."""
+        path = Path(path)
+        if path.resolve().parent != self.root.resolve():
+            raise ValueError(f"{path} is not in the result store {self.root}")
+        try:
+            path.unlink()
+        except FileNotFoundError:
+            pass
 
     def check_writable(self) -> None:
         """Raise OSError when files cannot be created in the store."""

@@ -5,6 +5,14 @@
 the dataset (partial ones too) to the result store under a temporary name and renames it, and
 brings the job to its terminal state. Deterministic failures (a case that does not validate, a
 diverged solve) are final: the task never retries.
+
+Faults: the message is acknowledged only after the task returns (``acks_late``); a registry that
+is locked or unreachable at the claim (or at the finish) is retried with backoff for
+``HOCKLE_REGISTRY_RETRY_TIMEOUT`` s, then the message goes back to the broker. While it solves,
+a thread of the solving process writes the job's heartbeat every ``HOCKLE_HEARTBEAT_INTERVAL``
+s; when the registry says the attempt no longer holds the job (given up as lost and queued
+again), the solve stops and writes nothing. Each attempt writes its own result file, so an old
+attempt can never replace the result of the attempt that finished the job.
 """
 from __future__ import annotations
 
@@ -16,11 +24,11 @@ import threading
 import time
 from dataclasses import dataclass, field
 
-from celery.exceptions import SoftTimeLimitExceeded
+from celery.exceptions import Reject, SoftTimeLimitExceeded
 from celery.signals import worker_process_init, worker_ready, worker_shutdown
 
-from service.queue import TASK_NAME
-from service.registry import DISMISSED, FAILED, SUCCESSFUL, Registry
+from service.queue import TASK_NAME, Enqueuer, sweep
+from service.registry import DISMISSED, FAILED, REGISTRY_UNAVAILABLE, SUCCESSFUL, Registry
 from service.settings import Settings, get_settings
 from service.store import ResultStore
 from worker.app import app
@@ -30,19 +38,63 @@ log = logging.getLogger("hockle.worker")
 _DIVERGENCE_REASONS = ("solver_diverged", "nonfinite_state")
 
 
+def _log_registry_error(what: str, exc: BaseException) -> None:
+    """One line for an outage of the registry (retried anyway), a traceback for anything else."""
+    if isinstance(exc, REGISTRY_UNAVAILABLE):
+        log.warning("%s failed, registry unavailable: %s", what, str(exc).splitlines()[0][:200])
+    else:
+        log.warning("%s failed", what, exc_info=exc)
+
+
+class RegistryUnavailable(RuntimeError):
+    """The registry stayed unavailable for HOCKLE_REGISTRY_RETRY_TIMEOUT seconds."""
+
+
+def with_registry_retry(what: str, fn, settings: Settings, *, job_id: str,
+                        sleep=time.sleep):
+    """Call ``fn()``; while the registry is locked or unreachable, call it again with
+    exponential backoff (0.5 s doubling to 30 s) for up to ``settings.registry_retry_timeout``
+    seconds, then raise :class:`RegistryUnavailable`. Other errors propagate at once."""
+    deadline = time.monotonic() + settings.registry_retry_timeout
+    delay = 0.5
+    tries = 0
+    while True:
+        tries += 1
+        try:
+            return fn()
+        except REGISTRY_UNAVAILABLE as exc:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise RegistryUnavailable(
+                    f"job {job_id}: the registry was unavailable for {what} for "
+                    f"{settings.registry_retry_timeout:.0f} s ({tries} tries): "
+                    f"{type(exc).__name__}: {str(exc).splitlines()[0][:200]}") from exc
+            wait = min(delay, left)
+            log.warning("job %s: registry unavailable for %s (%s); try %d again in %.1f s",
+                        job_id, what, str(exc).splitlines()[0][:200], tries + 1, wait)
+            sleep(wait)
+            delay = min(2.0 * delay, 30.0)
+
+
 class _ProcessState:
     """Registry and store of this process, made after fork (never shared with the parent)."""
 
     def __init__(self) -> None:
         self.pid: int | None = None
+        self.key: tuple | None = None
         self.registry: Registry | None = None
         self.store: ResultStore | None = None
 
     def get(self, settings: Settings) -> tuple[Registry, ResultStore]:
-        if self.pid != os.getpid() or self.registry is None:
-            self.registry = Registry(settings.registry_url)
+        key = (settings.registry_url, settings.registry_busy_timeout, str(settings.results_dir))
+        if self.pid != os.getpid() or self.registry is None or self.key != key:
+            if self.registry is not None and self.pid == os.getpid():
+                self.registry.dispose()
+            self.registry = Registry(settings.registry_url,
+                                     busy_timeout=settings.registry_busy_timeout)
             self.store = ResultStore(settings.results_dir)
             self.pid = os.getpid()
+            self.key = key
         return self.registry, self.store  # type: ignore[return-value]
 
 
@@ -65,6 +117,37 @@ class JobRun:
     last_write: float = -math.inf
     last_check: float = -math.inf
     last_info: object | None = None
+    superseded: bool = False
+    _beat_stop: threading.Event = field(default_factory=threading.Event)
+    _beat_thread: threading.Thread | None = None
+
+    # --- the job's heartbeat -------------------------------------------------------------------
+    def start_heartbeat(self) -> None:
+        """Write the job's heartbeat from a thread of this (the solving) process, so that it
+        stops when this process dies, whatever one time step costs."""
+        self._beat_thread = threading.Thread(target=self._beat, name=f"hockle-job-{self.job_id}",
+                                             daemon=True)
+        self._beat_thread.start()
+
+    def stop_heartbeat(self) -> None:
+        self._beat_stop.set()
+        if self._beat_thread is not None:
+            self._beat_thread.join(timeout=5)
+
+    def _beat(self) -> None:
+        while not self._beat_stop.wait(self.settings.heartbeat_interval):
+            try:
+                alive = self.registry.job_heartbeat(self.job_id, self.attempt)
+            except Exception as exc:  # noqa: BLE001 - registry briefly down: next beat
+                _log_registry_error(f"job {self.job_id}: heartbeat", exc)
+                continue
+            if not alive and not self._beat_stop.is_set():
+                # finished by this attempt is excluded (stop_heartbeat comes first); so the
+                # job was reaped, or given up as lost and queued again: stop solving
+                log.warning("job %s attempt %s no longer holds the job: stopping", self.job_id,
+                            self.attempt)
+                self.superseded = True
+                return
 
     # --- callbacks handed to the solver --------------------------------------------------------
     def progress(self, info) -> None:
@@ -93,6 +176,8 @@ class JobRun:
             log.warning("progress write for %s failed", self.job_id, exc_info=True)
 
     def should_stop(self):
+        if self.superseded:
+            return "superseded"
         now = time.monotonic()
         if now - self.started > self.budget:
             return "timeout"
@@ -134,13 +219,21 @@ class JobRun:
         ds.attrs["hockle_job_id"] = self.job_id
         ds.attrs["hockle_attempt"] = int(self.attempt)
         ds.attrs["hockle_worker"] = self.worker
-        return str(self.store.write_dataset(self.job_id, ds))
+        return str(self.store.write_dataset(self.job_id, ds, attempt=self.attempt))
 
     def finish(self, **kwargs) -> bool:
-        done = self.registry.finish(self.job_id, self.attempt, worker=self.worker, **kwargs)
+        """Terminal state for this attempt (retried while the registry is unavailable); a
+        refused finish (the attempt was given up) removes the file this attempt wrote."""
+        done = with_registry_retry(
+            "the finish", lambda: self.registry.finish(self.job_id, self.attempt,
+                                                     worker=self.worker, **kwargs),
+            self.settings, job_id=self.job_id)
         if not done:
             log.warning("job %s attempt %s: finish refused (taken over or reaped)", self.job_id,
                         self.attempt)
+            path = kwargs.get("result_path")
+            if path:
+                self.store.discard(path)
         return done
 
 
@@ -148,17 +241,25 @@ def run_job(job_id: str, worker: str, settings: Settings | None = None) -> str:
     """Run one job to a terminal state; returns what happened (for logs and tests)."""
     settings = settings or get_settings()
     registry, store = _process.get(settings)
-    attempt = registry.claim(job_id, worker)
+    # nothing is acknowledged before the claim is recorded: a locked or unreachable registry
+    # is retried here, then RegistryUnavailable hands the message back to the broker
+    attempt = with_registry_retry("the claim", lambda: registry.claim(job_id, worker), settings,
+                                  job_id=job_id)
     if attempt is None:
         job = registry.get(job_id)
         state = job.state if job else "unknown"
         log.info("job %s not run: %s", job_id, state)
         if job is not None:
-            registry.add_event(job_id, "skipped", worker=worker, detail={"state": state})
+            registry.add_event(job_id, "skipped", worker=worker,
+                               detail={"state": state, "attempts": job.attempts})
         return f"skipped:{state}"
-    job = registry.get(job_id)
+    job = with_registry_retry("reading the job", lambda: registry.get(job_id), settings,
+                              job_id=job_id)
     assert job is not None
-    registry.heartbeat(worker, job_id)
+    try:
+        registry.heartbeat(worker, job_id)
+    except Exception:  # noqa: BLE001 - the worker's row is for /v1/health only
+        log.warning("worker heartbeat for %s failed", job_id, exc_info=True)
     run = JobRun(
         job_id=job_id,
         attempt=attempt,
@@ -169,6 +270,19 @@ def run_job(job_id: str, worker: str, settings: Settings | None = None) -> str:
         budget=job.wall_clock_budget,
         t_end=job.t_end,
     )
+    run.start_heartbeat()
+    try:
+        return _prepare_and_solve(run, job)
+    finally:
+        run.stop_heartbeat()
+        try:
+            registry.heartbeat(worker, None, clear=True)
+        except Exception:  # noqa: BLE001
+            log.warning("heartbeat after %s failed", job_id, exc_info=True)
+
+
+def _prepare_and_solve(run: JobRun, job) -> str:
+    job_id = run.job_id
     try:
         from solver.case import Case
 
@@ -179,13 +293,7 @@ def run_job(job_id: str, worker: str, settings: Settings | None = None) -> str:
         run.finish(state=FAILED, reason="internal_error",
                    message=f"the stored case does not validate with this solver: {exc}")
         return "failed:internal_error"
-    try:
-        return _solve(run, case)
-    finally:
-        try:
-            registry.heartbeat(worker, None, clear=True)
-        except Exception:  # noqa: BLE001
-            log.warning("heartbeat after %s failed", job_id, exc_info=True)
+    return _solve(run, case)
 
 
 def _with_budget(case, budget: float):
@@ -205,7 +313,11 @@ def _solve(run: JobRun, case) -> str:
 
     try:
         ds = simulate(case, progress=run.progress, should_stop=run.should_stop)
+        if run.superseded:
+            return _superseded(run)
     except SolverDivergence as exc:
+        if run.superseded:
+            return _superseded(run)
         run.registry.add_event(run.job_id, "solve_finished", attempt=run.attempt, worker=run.worker,
                                detail={"status": "failed"})
         path = _save_quietly(run, getattr(exc, "partial", None))
@@ -271,6 +383,18 @@ def _solve(run: JobRun, case) -> str:
     return "successful"
 
 
+def _superseded(run: JobRun) -> str:
+    """This attempt was given up (its heartbeat went stale) and the job queued again: the
+    attempt that holds the job now reports it; this one writes nothing."""
+    log.warning("job %s attempt %s: superseded, nothing written", run.job_id, run.attempt)
+    try:
+        run.registry.add_event(run.job_id, "attempt_abandoned", attempt=run.attempt,
+                               worker=run.worker, detail={"at": run._position()})
+    except Exception:  # noqa: BLE001
+        log.warning("job %s: event not recorded", run.job_id, exc_info=True)
+    return "superseded"
+
+
 def _save_quietly(run: JobRun, ds) -> str | None:
     try:
         return run.save(ds)
@@ -302,7 +426,12 @@ def _int_or_none(value):
     ignore_result=True,
 )
 def run_job_task(self, job_id: str) -> str:
-    return run_job(job_id, self.request.hostname or f"pid-{os.getpid()}")
+    try:
+        return run_job(job_id, self.request.hostname or f"pid-{os.getpid()}")
+    except RegistryUnavailable as exc:
+        # never acknowledge a job whose claim or outcome is not recorded: back to the broker
+        log.error("%s; the message goes back to the queue", exc)
+        raise Reject(str(exc), requeue=True) from exc
 
 
 # --- worker process life -----------------------------------------------------------------------
@@ -322,20 +451,22 @@ def _pool_process_init(**_kwargs) -> None:
 @worker_ready.connect
 def _start_heartbeat(sender=None, **_kwargs) -> None:
     settings = get_settings()
-    registry = Registry(settings.registry_url)
+    registry = Registry(settings.registry_url, busy_timeout=settings.registry_busy_timeout)
     registry.create_schema()
     _main_registry.append(registry)
     name = getattr(sender, "hostname", None) or f"pid-{os.getpid()}"
+    enqueuer = Enqueuer(settings, app)
 
     def beat() -> None:
         while not _heartbeat_stop.is_set():
             try:
                 registry.heartbeat(name)
-                reaped = registry.reap(grace=settings.reaper_grace)
-                for job_id in reaped:
-                    log.warning("reaper: job %s passed its hard time limit: failed/timeout", job_id)
-            except Exception:  # noqa: BLE001 - registry down: try again next beat
-                log.warning("heartbeat failed", exc_info=True)
+            except Exception as exc:  # noqa: BLE001 - registry down: try again next beat
+                _log_registry_error("worker heartbeat", exc)
+            try:
+                sweep(registry, enqueuer, settings, log)
+            except Exception as exc:  # noqa: BLE001 - registry down: try again next beat
+                _log_registry_error("sweep", exc)
             _heartbeat_stop.wait(settings.heartbeat_interval)
 
     threading.Thread(target=beat, name="hockle-heartbeat", daemon=True).start()

@@ -269,12 +269,38 @@ def make_stack(tmp_path_factory, name: str, env: dict[str, str]) -> Stack:
     return Stack(root, env)
 
 
-def registry_for(stack: Stack):
-    """A Registry on the stack's database (to read events the API does not expose)."""
+def settings_for(stack: Stack):
+    """The Settings the stack's processes resolve from their environment."""
     from service.settings import Settings
 
+    return Settings(**{k[len("HOCKLE_"):].lower(): v for k, v in stack.env.items()
+                       if k.startswith("HOCKLE_")})
+
+
+def registry_for(stack: Stack):
+    """A Registry on the stack's database (to read events the API does not expose)."""
     from service.registry import Registry
 
-    settings = Settings(**{k[len("HOCKLE_"):].lower(): v for k, v in stack.env.items()
-                           if k.startswith("HOCKLE_")})
-    return Registry(settings.registry_url)
+    return Registry(settings_for(stack).registry_url)
+
+
+def record_job(stack: Stack, case: dict):
+    """Record an accepted job in the stack's registry as the API does, without sending its
+    message (a message lost, or one the test sends itself). Returns the Job."""
+    import solver
+    from service.validation import validate_case
+
+    settings = settings_for(stack)
+    valid = validate_case(case, settings.max_case_size)
+    limits = settings.time_limits(valid.grid_points, valid.n_steps, valid.contact is not None,
+                                  t_end=float(valid.numerics.t_end))
+    registry = registry_for(stack)
+    try:
+        job, _ = registry.create_job(
+            spec_json=valid.canonical_json(), spec_hash=valid.spec_hash(),
+            solver_version=solver.__version__, name=valid.name,
+            grid_points=valid.grid_points, n_steps=valid.n_steps,
+            t_end=float(valid.numerics.t_end), limits=limits)
+    finally:
+        registry.dispose()
+    return job

@@ -1,17 +1,22 @@
 """End to end, distributed mode: real redis-server, PostgreSQL registry, API and Celery worker
-processes. Submit, poll, download, slice; dismiss; kill a worker mid-job; restart Redis and API.
+processes. Submit, poll, download, slice; dismiss; kill or pause a worker mid-job; lose a job's
+message; restart Redis and API.
 """
 from __future__ import annotations
 
 import argparse
 import io
+import json
+import os
 import signal
 from contextlib import redirect_stdout
+from pathlib import Path
 
 import pytest
 import xarray as xr
 
-from svc_support import Stack, long_case, make_stack, registry_for, tiny_case, wait_until
+from svc_support import Stack, long_case, make_stack, record_job, registry_for, tiny_case, \
+    wait_until
 
 pytestmark = pytest.mark.service
 
@@ -23,9 +28,10 @@ def stack(tmp_path_factory, redis_server, pg_url):
     stack = make_stack(tmp_path_factory, "pg-stack", {
         "HOCKLE_DATABASE_URL": pg_url,
         "HOCKLE_BROKER_URL": redis_server.url,
-        # short limits so that a job whose worker died comes back within seconds
-        "HOCKLE_TIME_LIMIT_MAX": "15",
-        "HOCKLE_VISIBILITY_TIMEOUT": "18",
+        # a job whose worker died is re-queued after 10 s without a heartbeat (beats every 1 s)
+        "HOCKLE_JOB_HEARTBEAT_TIMEOUT": "10",
+        # an accepted job whose message is lost is sent again after 5 s
+        "HOCKLE_REQUEUE_AFTER": "5",
         "HOCKLE_UNACKED_RESTORE_INTERVAL": "1",
     })
     stack.redis = redis_server
@@ -197,26 +203,96 @@ def test_dismiss_queued_and_running(stack: Stack):
     assert stack.http.delete(f"/v1/jobs/{long_ids[0]}").status_code == 200
 
 
-def test_worker_killed_mid_job_another_worker_finishes(stack: Stack):
-    job_id = stack.submit(long_case("killed-worker", t_end=16.0)).json()["id"]
-    job = _wait_running(stack, job_id)
+def _victim_and_survivor(job: dict) -> tuple[str, str]:
     victim = job["worker"].split("@")[0]
-    survivor = "w2" if victim == "w1" else "w1"
-    # SIGKILL the whole worker node (main process and its pool process)
-    stack.stop_worker(victim, sig=signal.SIGKILL)
-    done = stack.wait_state(job_id, TERMINAL, 60)
-    assert done["state"] == "successful", done
-    assert done["attempts"] == 2
-    assert done["worker"] == f"{survivor}@test"
+    return victim, "w2" if victim == "w1" else "w1"
+
+
+def _events(stack: Stack, job_id: str):
     registry = registry_for(stack)
     try:
-        events = registry.events(job_id)
-        assert [e.kind for e in events].count("finished") == 1
-        assert [e.worker for e in events if e.kind == "started"] == [f"{victim}@test",
-                                                                     f"{survivor}@test"]
+        return registry.events(job_id)
     finally:
         registry.dispose()
+
+
+def _attempt_of(path: str) -> int:
+    with xr.open_dataset(path, engine="netcdf4") as ds:
+        return int(ds.attrs["hockle_attempt"])
+
+
+def test_worker_killed_mid_job_is_requeued_and_finishes_once(stack: Stack):
+    job_id = stack.submit(long_case("killed-worker", t_end=16.0)).json()["id"]
+    job = _wait_running(stack, job_id, timeout=120)
+    victim, survivor = _victim_and_survivor(job)
+    # SIGKILL the whole worker node (main process and its pool process): nothing of it runs
+    stack.stop_worker(victim, sig=signal.SIGKILL)
+    # its heartbeat goes stale (10 s here), a sweeper queues the job again, the other worker
+    # claims it as attempt 2; generous wait: the machine may be loaded
+    done = stack.wait_state(job_id, TERMINAL, 300)
+    assert done["state"] == "successful", done
+    assert done["attempts"] == 2 and done["worker"] == f"{survivor}@test"
+    assert done["progress"] == 100.0 and not done["result_partial"]
+    events = _events(stack, job_id)
+    kinds = [e.kind for e in events]
+    assert kinds.count("finished") == 1 and "finish_refused" not in kinds
+    assert [e.worker for e in events if e.kind == "started"] == [f"{victim}@test",
+                                                                 f"{survivor}@test"]
+    [lost] = [e for e in events if e.kind == "worker_lost"]
+    assert lost.attempt == 1 and json.loads(lost.detail)["action"] == "requeued"
+    registry = registry_for(stack)
+    try:
+        path = registry.get(job_id).result_path
+    finally:
+        registry.dispose()
+    assert path.endswith(f"{job_id}.attempt-2.nc") and _attempt_of(path) == 2
     stack.start_worker(victim)  # back to two workers for the next tests
+
+
+def test_paused_worker_comes_back_and_cannot_overwrite(stack: Stack):
+    """A worker stalls (SIGSTOP) past the heartbeat timeout: the job is re-queued and finished by
+    the other worker; when the stalled one resumes (SIGCONT) its attempt is refused everywhere
+    and it writes nothing over the result."""
+    job_id = stack.submit(long_case("paused-worker", t_end=16.0)).json()["id"]
+    job = _wait_running(stack, job_id, timeout=120)
+    victim, survivor = _victim_and_survivor(job)
+    proc = stack.workers[victim]
+    os.killpg(proc.pid, signal.SIGSTOP)
+    try:
+        done = stack.wait_state(job_id, TERMINAL, 300)
+    finally:
+        os.killpg(proc.pid, signal.SIGCONT)
+    assert done["state"] == "successful", done
+    assert done["attempts"] == 2 and done["worker"] == f"{survivor}@test"
+    # the old attempt learns at its next heartbeat (or at its refused finish) that it lost
+    wait_until(lambda: any(e.kind in ("attempt_abandoned", "finish_refused") and e.attempt == 1
+                           for e in _events(stack, job_id)), 120, 0.5,
+               "the paused attempt to give up")
+    after = stack.job(job_id)
+    for key in ("state", "attempts", "worker", "progress", "finished", "sim_time"):
+        assert after[key] == done[key], key
+    events = _events(stack, job_id)
+    assert [e.kind for e in events].count("finished") == 1
+    registry = registry_for(stack)
+    try:
+        path = registry.get(job_id).result_path
+    finally:
+        registry.dispose()
+    assert _attempt_of(path) == 2
+    # attempt 1's own file (<id>.nc) is not left behind: nothing written, or deleted
+    first = Path(path).with_name(f"{job_id}.nc")
+    wait_until(lambda: not first.exists(), 30, 0.2, "attempt 1's file to be gone")
+    assert stack.http.get(f"/v1/jobs/{job_id}/results").status_code == 200
+
+
+def test_accepted_job_whose_message_is_lost_is_sent_again(stack: Stack):
+    job = record_job(stack, tiny_case("lost-message"))  # recorded, never sent
+    done = stack.wait_state(job.id, TERMINAL, 120)
+    assert done["state"] == "successful", done
+    assert done["attempts"] == 1
+    kinds = [e.kind for e in _events(stack, job.id)]
+    assert kinds.index("requeued") < kinds.index("started")
+    assert kinds.count("started") == 1 and kinds.count("finished") == 1
 
 
 def test_restart_redis_and_api_keeps_jobs_and_results(stack: Stack):

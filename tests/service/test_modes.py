@@ -77,7 +77,7 @@ def registry(request, tmp_path):
     reg.dispose()
 
 
-def _new(reg: Registry, name="r", key=None, fingerprint="f", hard=10.0):
+def _new(reg: Registry, name="r", key=None, fingerprint="f", hard=1000.0):
     job, created = reg.create_job(
         spec_json=json.dumps({"name": name}), spec_hash="h" * 64, solver_version="0.1.0",
         name=name, grid_points=9, n_steps=5, t_end=0.05, limits=(hard, hard * 0.9, hard * 0.8),
@@ -96,8 +96,15 @@ def test_registry_transitions(registry: Registry):
         _new(registry, key=f"k-{id(registry)}", fingerprint="other")
 
     first = registry.claim(job.id, "a@x")
-    second = registry.claim(job.id, "b@x")  # a redelivery after worker a died takes over
+    # a second delivery of a running job does nothing: only an accepted job can be claimed
+    assert registry.claim(job.id, "b@x") is None
+    # worker a is lost (no heartbeat for 2 minutes): the sweeper queues the job again
+    later = dt.datetime.now(dt.timezone.utc).replace(tzinfo=None) + dt.timedelta(seconds=120)
+    assert [a for j, a in registry.requeue_lost(heartbeat_timeout=60, max_attempts=3, now=later)
+            if j.id == job.id] == ["requeued"]  # the PostgreSQL database is shared: ours only
+    second = registry.claim(job.id, "b@x")
     assert (first, second) == (1, 2)
+    assert not registry.job_heartbeat(job.id, first)  # the old attempt learns it lost the job
     assert not registry.finish(job.id, first, state="successful")  # stale attempt refused
     assert registry.finish(job.id, second, state="successful")
     assert registry.claim(job.id, "c@x") is None  # terminal: never runs again
