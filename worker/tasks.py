@@ -113,6 +113,7 @@ class JobRun:
     settings: Settings
     budget: float
     t_end: float
+    soft_limit: float = 0.0
     started: float = field(default_factory=time.monotonic)
     last_write: float = -math.inf
     last_check: float = -math.inf
@@ -202,6 +203,14 @@ class JobRun:
             "wall_time": time.monotonic() - self.started,
         }
 
+    def event(self, kind: str, detail=None) -> None:
+        """Append an event of this attempt; a registry outage loses the event, not the job."""
+        try:
+            self.registry.add_event(self.job_id, kind, attempt=self.attempt, worker=self.worker,
+                                    detail=detail)
+        except Exception as exc:  # noqa: BLE001
+            _log_registry_error(f"job {self.job_id}: event {kind}", exc)
+
     def how_far(self) -> str:
         """Where the run got: 't = 19.3 s of 45 s (step 193)', or that no step finished."""
         info = self.last_info
@@ -269,6 +278,7 @@ def run_job(job_id: str, worker: str, settings: Settings | None = None) -> str:
         settings=settings,
         budget=job.wall_clock_budget,
         t_end=job.t_end,
+        soft_limit=job.soft_time_limit,
     )
     run.start_heartbeat()
     try:
@@ -318,8 +328,7 @@ def _solve(run: JobRun, case) -> str:
     except SolverDivergence as exc:
         if run.superseded:
             return _superseded(run)
-        run.registry.add_event(run.job_id, "solve_finished", attempt=run.attempt, worker=run.worker,
-                               detail={"status": "failed"})
+        run.event("solve_finished", {"status": "failed"})
         path = _save_quietly(run, getattr(exc, "partial", None))
         reason = getattr(exc, "reason", None)
         run.finish(
@@ -335,8 +344,8 @@ def _solve(run: JobRun, case) -> str:
         return f"failed:{reason}"
     except SoftTimeLimitExceeded:
         run.finish(state=FAILED, reason="timeout",
-                   message=f"soft time limit of {run.registry.get(run.job_id).soft_time_limit:.0f} s "
-                           f"reached at {run.how_far()}; no result was written",
+                   message=f"soft time limit of {run.soft_limit:.0f} s reached at "
+                           f"{run.how_far()}; no result was written",
                    **run._position())
         return "failed:timeout"
     except Exception as exc:  # noqa: BLE001 - unexpected: recorded, logged, never retried
@@ -346,8 +355,7 @@ def _solve(run: JobRun, case) -> str:
         return "failed:internal_error"
 
     status = ds.attrs.get("hockle_status", "completed")
-    run.registry.add_event(run.job_id, "solve_finished", attempt=run.attempt, worker=run.worker,
-                           detail={"status": status})
+    run.event("solve_finished", {"status": status})
     if run.last_info is not None:
         run._write_progress(run.last_info)
     try:
@@ -387,11 +395,7 @@ def _superseded(run: JobRun) -> str:
     """This attempt was given up (its heartbeat went stale) and the job queued again: the
     attempt that holds the job now reports it; this one writes nothing."""
     log.warning("job %s attempt %s: superseded, nothing written", run.job_id, run.attempt)
-    try:
-        run.registry.add_event(run.job_id, "attempt_abandoned", attempt=run.attempt,
-                               worker=run.worker, detail={"at": run._position()})
-    except Exception:  # noqa: BLE001
-        log.warning("job %s: event not recorded", run.job_id, exc_info=True)
+    run.event("attempt_abandoned", {"at": run._position()})
     return "superseded"
 
 
