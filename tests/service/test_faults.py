@@ -13,7 +13,6 @@ import json
 import sqlite3
 import threading
 import time
-from pathlib import Path
 
 import pytest
 from fastapi.testclient import TestClient
