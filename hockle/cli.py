@@ -355,9 +355,9 @@ def build_parser() -> tuple[argparse.ArgumentParser, str | None]:
     p = sub.add_parser(
         "plot",
         help="draw shape snapshots, energies and Tw/Wr/Lk as PNG files",
-        description="Draw the seed paper's figures from a result file: centreline "
-        "snapshots with orthogonal views (Fig. 6), energies (Fig. 7) and twist, writhe "
-        "and linking number (Fig. 8).",
+        description="Draw the seed paper's figures from a result file: the rod (a tube of "
+        "its diameter, contact sites and ends marked) at the run's events with orthogonal "
+        "views (Fig. 6), energies (Fig. 7) and twist, writhe and linking number (Fig. 8).",
     )
     p.add_argument("result", metavar="OUT.nc", help="result file written by hockle run")
     p.add_argument(
@@ -366,7 +366,8 @@ def build_parser() -> tuple[argparse.ArgumentParser, str | None]:
     )
     p.add_argument(
         "--times", nargs="+", type=float, metavar="T",
-        help="snapshot times in s (default: 5 spread over the run)",
+        help="snapshot times in s (default: the run's events: onset of buckling, first "
+        "contact, each unit step of the writhe, the end; 5 spread over the run when none)",
     )
     p.set_defaults(func=cmd_plot)
 

@@ -1,7 +1,12 @@
 """Figures of a result dataset, after the seed paper's Figs. 6, 7 and 8.
 
-* :func:`plot_snapshots` (Fig. 6): the centreline at chosen times, each as a 3-D view
-  with its three orthogonal projections (x-y, x-z, y-z) beside it, all at equal scale.
+* :func:`plot_snapshots` (Fig. 6): the rod at chosen times, each as a 3-D view with its
+  three orthogonal projections (x-y, x-z, y-z) beside it, all at equal scale. The rod is
+  drawn as a tube of its real, possibly varying diameter (from the case in the file), with
+  its contact sites and its two ends marked and named in a legend.
+* :func:`event_times`: the times worth drawing, from what happened in the run: the onset of
+  buckling, the first self-contact, each unit step of the writhe, the end.
+  :func:`snapshot_times` uses them unless times are given.
 * :func:`plot_energies` (Fig. 7): bending, torsional, kinetic and total energy vs time.
 * :func:`plot_topology` (Fig. 8): Tw, Wr and Lk vs time, with |Tw + Wr - Lk| below.
 
@@ -18,10 +23,14 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+import json
+
 import numpy as np
 import xarray as xr
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 from matplotlib.ticker import NullFormatter
 
 __all__ = [
@@ -30,7 +39,11 @@ __all__ = [
     "plot_energies",
     "plot_topology",
     "snapshot_times",
+    "event_times",
 ]
+
+MAX_EVENTS = 8             # snapshot rows at most, when chosen from the events
+WRITHE_ONSET = 0.05        # turns of writhe that count as buckled when no position is stored
 
 Notify = Callable[[str], None]
 
@@ -54,6 +67,118 @@ def _title(ds: xr.Dataset) -> str:
     return title
 
 
+def _rod_property(ds: xr.Dataset, name: str) -> dict | float | None:
+    """A rod property of the case stored in the file (number or ``{s, value}``), or None."""
+    try:
+        return json.loads(str(ds.attrs["case"]))["rod"][name]
+    except (KeyError, TypeError, ValueError):
+        return None
+
+
+def rod_diameter(ds: xr.Dataset, s: np.ndarray) -> np.ndarray | None:
+    """Diameter (m) at arclengths ``s`` from the case in the file (a number or a profile,
+    piecewise linear and held outside), or None when the file does not say."""
+    d = _rod_property(ds, "diameter")
+    s = np.asarray(s, dtype=float)
+    if isinstance(d, (int, float)) and not isinstance(d, bool):
+        return np.full(s.shape, float(d))
+    if isinstance(d, dict) and "s" in d and "value" in d:
+        return np.interp(s, np.asarray(d["s"], float), np.asarray(d["value"], float))
+    return None
+
+
+def _contact_spec(ds: xr.Dataset) -> dict | None:
+    try:
+        return json.loads(str(ds.attrs["case"])).get("contact")
+    except (KeyError, TypeError, ValueError):
+        return None
+
+
+def _first(mask: np.ndarray) -> int | None:
+    hits = np.flatnonzero(mask)
+    return int(hits[0]) if hits.size else None
+
+
+def _chord_deviation(pos: np.ndarray) -> np.ndarray:
+    """(T,) largest distance of the centreline from the line through its two ends (m)."""
+    a, b = pos[:, :1, :], pos[:, -1:, :]
+    axis = b - a
+    length = np.linalg.norm(axis, axis=2, keepdims=True)
+    unit = np.divide(axis, length, out=np.zeros_like(axis), where=length > 0)
+    rel = pos - a
+    along = np.sum(rel * unit, axis=2, keepdims=True)
+    return np.max(np.linalg.norm(rel - along * unit, axis=2), axis=1)
+
+
+def event_times(ds: xr.Dataset, max_events: int = MAX_EVENTS) -> list[tuple[float, str]]:
+    """The stored times at which something happened, with what: ``[(t, label), ...]``.
+
+    * **onset of buckling**: the first time the centreline leaves the line through its ends
+      by more than one rod diameter (``position`` and the case's diameter; 1 % of the
+      length when the file has no diameter), provided it started closer than that; without
+      ``position``, the first time the writhe has changed by 0.05 turns;
+    * **first contact**: the first time ``contact_count`` > 0;
+    * **Wr reaches k**: the first time |Wr| >= k, for k = 1, 2, ... (``writhe``);
+    * **end**: the last stored time.
+
+    Events at the same stored time are merged (labels joined with "; "). With more than
+    ``max_events``, the unit steps of Wr are thinned evenly (the others are kept). Returns
+    ``[]`` for an empty run, and only the end when nothing else can be detected.
+    """
+    t = np.asarray(ds["time"].values, dtype=float) if "time" in ds.coords else np.zeros(0)
+    if t.size == 0:
+        return []
+    fixed: list[tuple[int, str]] = []
+    steps: list[tuple[int, str]] = []
+
+    onset = None
+    if "position" in ds and "s" in ds.coords:
+        pos = np.asarray(ds["position"].transpose("time", "s", "xyz").values, dtype=float)
+        s = np.asarray(ds["s"].values, dtype=float)
+        d = rod_diameter(ds, s)
+        threshold = float(np.max(d)) if d is not None else 0.01 * float(s[-1] - s[0])
+        deviation = _chord_deviation(pos)
+        if np.isfinite(deviation[0]) and deviation[0] < threshold:
+            onset = _first(deviation >= threshold)
+    elif "writhe" in ds:
+        wr = np.asarray(ds["writhe"].values, dtype=float)
+        onset = _first(np.abs(wr - wr[0]) >= WRITHE_ONSET)
+    if onset is not None:
+        fixed.append((onset, "onset of buckling"))
+
+    if "contact_count" in ds:
+        count = np.nan_to_num(np.asarray(ds["contact_count"].values, dtype=float))
+        first = _first(count > 0)
+        if first is not None:
+            fixed.append((first, "first contact"))
+
+    if "writhe" in ds:
+        wr = np.asarray(ds["writhe"].values, dtype=float)
+        finite = np.where(np.isfinite(wr), np.abs(wr), 0.0)
+        for k in range(1, int(np.floor(np.max(finite) + 1e-12)) + 1):
+            i = _first(finite >= k - 1e-12)
+            if i is not None:
+                sign = "-" if wr[i] < 0 else ""
+                steps.append((i, f"Wr reaches {sign}{k}"))
+
+    status = ds.attrs.get("hockle_status")
+    fixed.append((t.size - 1, "end" if status in (None, "completed") else f"end ({status})"))
+
+    taken = {i for i, _ in fixed}
+    merged = [(i, label) for i, label in steps if i in taken]      # no row of their own
+    others = [(i, label) for i, label in steps if i not in taken]
+    room = max(max_events - len(taken), 0)
+    if len(others) > room:
+        keep = np.unique(np.round(np.linspace(0, len(others) - 1, room)).astype(int)) if room else []
+        others = [others[k] for k in keep]
+    by_index: dict[int, list[str]] = {}
+    for i, label in sorted(fixed, key=lambda e: e[0]) + merged + others:
+        by_index.setdefault(i, [])
+        if label not in by_index[i]:
+            by_index[i].append(label)
+    return [(float(t[i]), "; ".join(labels)) for i, labels in sorted(by_index.items())]
+
+
 def snapshot_times(
     ds: xr.Dataset,
     times: Sequence[float] | None = None,
@@ -62,14 +187,28 @@ def snapshot_times(
 ) -> list[float]:
     """Output times to draw: the nearest stored time to each requested one.
 
-    Without ``times``, ``count`` times spread evenly over the run (first and last
-    included). Requested times outside the stored range by more than one output interval
-    are dropped with a message. Duplicates are removed; the result is sorted.
+    Without ``times``, the times of :func:`event_times` (onset of buckling, first contact,
+    each unit step of Wr, the end); when it finds nothing but the end, ``count`` times
+    spread evenly over the run (first and last included). Requested times outside the
+    stored range by more than one output interval are dropped with a message. Duplicates
+    are removed; the result is sorted.
     """
-    stored = np.asarray(ds["time"].values, dtype=float)
+    return [t for t, _ in _snapshot_events(ds, times, count, on_skip)]
+
+
+def _snapshot_events(
+    ds: xr.Dataset,
+    times: Sequence[float] | None,
+    count: int,
+    on_skip: Notify | None,
+) -> list[tuple[float, str]]:
+    stored = np.asarray(ds["time"].values, dtype=float) if "time" in ds.coords else np.zeros(0)
     if stored.size == 0:
         return []
     if times is None:
+        events = event_times(ds)
+        if len(events) > 1:
+            return events
         wanted = np.linspace(stored[0], stored[-1], min(count, stored.size))
     else:
         wanted = np.asarray(list(times), dtype=float)
@@ -84,7 +223,71 @@ def snapshot_times(
                 )
             continue
         chosen.append(float(stored[int(np.argmin(np.abs(stored - t)))]))
-    return sorted(set(chosen))
+    return [(t, "") for t in sorted(set(chosen))]
+
+
+TOUCH_GAP = 0.25          # surface gap, in diameters, below which two strands are drawn touching
+
+
+def contact_sites(
+    ds: xr.Dataset, r: np.ndarray, s: np.ndarray, d: np.ndarray | None
+) -> np.ndarray:
+    """Indices of the grid points where the rod touches itself in the shape ``r`` (N, 3), m.
+
+    Two grid points touch when their surface gap is at most :data:`TOUCH_GAP` times their
+    mean diameter, plus half a segment (the closest points of two strands lie between grid
+    points); pairs closer along the rod than the case's contact ``exclusion`` (default
+    twice the largest diameter, as the solver uses) are neighbours, not contacts. On the
+    seed's rod this marks about as many points as the solver counts contact pairs
+    (``contact_count``). Returns ``[]`` when the file gives no diameter.
+    """
+    from scipy.spatial import cKDTree
+
+    if d is None or r.shape[0] < 2 or not np.all(np.isfinite(r)):
+        return np.zeros(0, dtype=int)
+    d_max = float(np.max(d))
+    exclusion = (_contact_spec(ds) or {}).get("exclusion")
+    exclusion = float(exclusion) if exclusion is not None else 2.0 * d_max
+    half_segment = 0.5 * float(np.max(np.diff(s)))
+    reach = (1.0 + TOUCH_GAP) * d_max + half_segment
+    pairs = cKDTree(r).query_pairs(reach, output_type="ndarray")
+    if pairs.size == 0:
+        return np.zeros(0, dtype=int)
+    pairs = pairs[np.abs(s[pairs[:, 0]] - s[pairs[:, 1]]) > exclusion]
+    dist = np.linalg.norm(r[pairs[:, 0]] - r[pairs[:, 1]], axis=1)
+    mean_d = 0.5 * (d[pairs[:, 0]] + d[pairs[:, 1]])
+    pairs = pairs[dist <= (1.0 + TOUCH_GAP) * mean_d + half_segment]
+    return np.unique(pairs.ravel())
+
+
+def _tube_mesh(r: np.ndarray, d: np.ndarray, around: int = 12):
+    """X, Y, Z (N, around + 1) of a tube of diameter ``d`` around the polyline ``r``,
+    on a rotation-minimising frame (parallel transport of a normal along the tangents)."""
+    tangent = np.gradient(r, axis=0)
+    norm = np.linalg.norm(tangent, axis=1, keepdims=True)
+    tangent = np.divide(tangent, norm, out=np.tile([0.0, 0.0, 1.0], (len(r), 1)), where=norm > 0)
+    seed = np.array([1.0, 0.0, 0.0]) if abs(tangent[0, 0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    normal = np.empty_like(r)
+    n = seed - np.dot(seed, tangent[0]) * tangent[0]
+    for i in range(len(r)):
+        m = n - np.dot(n, tangent[i]) * tangent[i]
+        size = np.linalg.norm(m)
+        if size > 1e-12:
+            n = m / size
+        normal[i] = n
+    binormal = np.cross(tangent, normal)
+    theta = np.linspace(0.0, 2.0 * np.pi, around + 1)
+    ring = (np.cos(theta)[None, :, None] * normal[:, None, :]
+            + np.sin(theta)[None, :, None] * binormal[:, None, :])
+    pts = r[:, None, :] + 0.5 * d[:, None, None] * ring
+    return pts[..., 0], pts[..., 1], pts[..., 2]
+
+
+def _thin(n: int, most: int) -> np.ndarray:
+    """Indices 0..n-1 thinned to at most ``most``, the ends kept."""
+    if n <= most:
+        return np.arange(n)
+    return np.unique(np.round(np.linspace(0, n - 1, most)).astype(int))
 
 
 def _cube_limits(points: np.ndarray) -> tuple[np.ndarray, float]:
@@ -103,37 +306,66 @@ def plot_snapshots(
     stem: str = "result",
     on_skip: Notify | None = _stderr,
 ) -> list[Path]:
-    """Fig. 6: centreline snapshots, one row per time: 3-D view, then x-y, x-z, y-z.
+    """Fig. 6: the rod at chosen times, one row per time: 3-D view, then x-y, x-z, y-z.
 
-    Needs ``position`` (time, s, xyz) in m. All panels share one cubic box that holds
-    every drawn snapshot, so shapes compare at equal, undistorted scale. The start end
-    (s = 0) is marked with a circle, the far end (s = L) with a square.
+    Needs ``position`` (time, s, xyz) in m. Without ``times`` the rows are the run's events
+    (:func:`event_times`: onset of buckling, first contact, each unit step of Wr, the end),
+    named in each row's title. The rod is a tube of its real diameter (from the case in the
+    file; a plain centreline when the file has none): a shaded tube in the 3-D view, a band
+    of the diameter's width at the axes' scale in the projections. Grid points in
+    self-contact (:func:`contact_sites`) are orange dots; the start end (s = 0) is a circle,
+    the far end (s = L) a square; a legend names them. All panels share one cubic box
+    that holds every drawn snapshot, so shapes compare at equal, undistorted scale.
     Writes ``<stem>_snapshots.png``.
     """
     if "position" not in ds:
         if on_skip:
             on_skip("snapshots (Fig. 6) skipped: the dataset has no 'position' variable")
         return []
-    chosen = snapshot_times(ds, times, on_skip=on_skip)
+    chosen = _snapshot_events(ds, times, 5, on_skip)
     if not chosen:
         if on_skip:
             on_skip("snapshots (Fig. 6) skipped: no stored time to draw")
         return []
     pos = ds["position"].transpose("time", "s", "xyz")
-    shapes = [np.asarray(pos.sel(time=t).values, dtype=float) for t in chosen]
+    s = np.asarray(ds["s"].values, dtype=float)
+    diameter = rod_diameter(ds, s)
+    shapes = [np.asarray(pos.sel(time=t).values, dtype=float) for t, _ in chosen]
     centre, half = _cube_limits(np.stack(shapes))
+    if diameter is not None:
+        half += 0.5 * float(np.max(diameter))
     lims = [(c - half, c + half) for c in centre]
+    counts = None
+    if "contact_count" in ds:
+        counts = ds["contact_count"]
 
     n = len(chosen)
-    fig = Figure(figsize=(15.0, 3.4 * n + 0.6), layout="constrained")
-    fig.suptitle(f"{_title(ds)}: centreline snapshots")
+    fig = Figure(figsize=(15.0, 3.4 * n + 1.0), layout="constrained")
+    FigureCanvasAgg(fig)
+    fig.suptitle(f"{_title(ds)}: the rod at the run's events" if times is None
+                 else f"{_title(ds)}: the rod at chosen times")
     grid = fig.add_gridspec(n, 4, width_ratios=(1.35, 1, 1, 1), wspace=0.08)
     views = (("x", "y", 0, 1), ("x", "z", 0, 2), ("y", "z", 1, 2))
-    for row, (t, r) in enumerate(zip(chosen, shapes)):
+    bands = []   # (axes, x, y) of the projections, drawn once the layout is fixed
+    any_contact = False
+    for row, ((t, label), r) in enumerate(zip(chosen, shapes)):
+        title = f"t = {t:g} s" + (f": {label}" if label else "")
+        touching = np.zeros(0, dtype=int)
+        if counts is None or float(np.nan_to_num(counts.sel(time=t).values)) > 0:
+            touching = contact_sites(ds, r, s, diameter)
+        any_contact = any_contact or touching.size > 0
         ax3 = fig.add_subplot(grid[row, 0], projection="3d")
-        ax3.plot(r[:, 0], r[:, 1], r[:, 2], color="C0", lw=1.5)
-        ax3.scatter(*r[0], color="C3", marker="o", s=18)
-        ax3.scatter(*r[-1], color="C2", marker="s", s=18)
+        if diameter is not None:
+            keep = _thin(len(r), 400)
+            X, Y, Z = _tube_mesh(r[keep], diameter[keep])
+            ax3.plot_surface(X, Y, Z, color="C0", shade=True, linewidth=0,
+                             antialiased=False, rcount=len(keep), ccount=X.shape[1])
+        else:
+            ax3.plot(r[:, 0], r[:, 1], r[:, 2], color="C0", lw=1.5)
+        ax3.scatter(*r[0], color="C3", marker="o", s=22, depthshade=False)
+        ax3.scatter(*r[-1], color="C2", marker="s", s=22, depthshade=False)
+        if touching.size:
+            ax3.scatter(*r[touching].T, color="orange", marker=".", s=6, depthshade=False)
         ax3.set_xlim(*lims[0])
         ax3.set_ylim(*lims[1])
         ax3.set_zlim(*lims[2])
@@ -141,21 +373,50 @@ def plot_snapshots(
         ax3.set_xlabel("x (m)")
         ax3.set_ylabel("y (m)")
         ax3.set_zlabel("z (m)")
-        ax3.set_title(f"t = {t:g} s")
+        ax3.set_title(title, fontsize=10)
         ax3.tick_params(labelsize=7)
         for col, (a, b, i, j) in enumerate(views, start=2):
             ax = fig.add_subplot(grid[row, col - 1])
-            ax.plot(r[:, i], r[:, j], color="C0", lw=1.2)
-            ax.plot(r[0, i], r[0, j], "o", color="C3", ms=4)
-            ax.plot(r[-1, i], r[-1, j], "s", color="C2", ms=4)
+            if diameter is None:
+                ax.plot(r[:, i], r[:, j], color="C0", lw=1.2)
+            else:
+                bands.append((ax, r[:, i], r[:, j]))
+                ax.plot(r[:, i], r[:, j], color="navy", lw=0.4, zorder=2)
+            ax.plot(r[0, i], r[0, j], "o", color="C3", ms=5, zorder=4)
+            ax.plot(r[-1, i], r[-1, j], "s", color="C2", ms=5, zorder=4)
+            if touching.size:
+                ax.plot(r[touching, i], r[touching, j], ".", color="orange", ms=3, zorder=3)
             ax.set_xlim(*lims[i])
             ax.set_ylim(*lims[j])
             ax.set_aspect("equal", adjustable="box")
             ax.set_xlabel(f"{a} (m)")
             ax.set_ylabel(f"{b} (m)")
-            ax.set_title(f"{a}-{b} view, t = {t:g} s", fontsize=9)
+            ax.set_title(f"{a}-{b} view, " + title, fontsize=9)
             ax.tick_params(labelsize=7)
             ax.grid(alpha=0.3)
+
+    handles = [
+        Line2D([], [], color="C0", lw=6 if diameter is not None else 1.5,
+               label="rod (tube of its diameter)" if diameter is not None else "centreline"),
+        Line2D([], [], color="C3", marker="o", ls="", label="start end (s = 0)"),
+        Line2D([], [], color="C2", marker="s", ls="", label=f"far end (s = {s[-1]:g} m)"),
+    ]
+    if any_contact:
+        handles.append(Line2D([], [], color="orange", marker=".", ls="",
+                              label="self-contact (grid points)"))
+    fig.legend(handles=handles, loc="outside lower center", ncol=len(handles), fontsize=9)
+    if bands:
+        fig.canvas.draw()   # fixes the layout, so the band widths are true to scale
+        for ax, x, y in bands:
+            box = ax.get_window_extent()
+            xlo, xhi = ax.get_xlim()
+            points_per_m = box.width / (xhi - xlo) * 72.0 / fig.dpi
+            seg = np.stack([np.column_stack([x[:-1], y[:-1]]),
+                            np.column_stack([x[1:], y[1:]])], axis=1)
+            width = 0.5 * (diameter[:-1] + diameter[1:]) * points_per_m
+            ax.add_collection(LineCollection(seg, linewidths=width, colors="C0",
+                                             capstyle="round", joinstyle="round", zorder=1,
+                                             alpha=0.9))
     return [_save(fig, Path(out_dir) / f"{stem}_snapshots.png")]
 
 
@@ -252,7 +513,7 @@ def plot_topology(
         ax.plot(
             t, ds["twist"].values + ds["writhe"].values, "--", color="C3", label="Tw + Wr"
         )
-    ax.set_ylabel("turns")
+    ax.set_ylabel("Tw, Wr, Lk (turns)")
     ax.set_title(f"{_title(ds)}: exchange of twist and writhe")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
@@ -262,7 +523,7 @@ def plot_topology(
         if np.any(np.isfinite(positive)):
             ax_err.set_yscale("log")
             ax_err.yaxis.set_minor_formatter(NullFormatter())
-        ax_err.set_ylabel("|Tw + Wr - Lk|")
+        ax_err.set_ylabel("|Tw + Wr - Lk| (turns)")
         ax_err.set_xlabel("time (s)")
         ax_err.grid(alpha=0.3)
     else:

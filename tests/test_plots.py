@@ -1,0 +1,161 @@
+"""Figures at the events: hockle.plots.event_times, snapshot_times, contact_sites and the
+snapshot figure, on synthetic datasets whose events are known by construction."""
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+
+from hockle.plots import (
+    MAX_EVENTS,
+    contact_sites,
+    event_times,
+    plot_snapshots,
+    rod_diameter,
+    snapshot_times,
+)
+from solver.case import Case
+from solver.results import build_dataset
+
+CASE = {
+    "schema_version": 1,
+    "name": "synthetic events",
+    "rod": {"length": 1.0, "youngs_modulus": 1.25e7, "shear_modulus": 5.0e6,
+            "density": 1500.0,
+            "diameter": {"s": [0.0, 0.4, 0.6, 1.0], "value": [0.02, 0.018, 0.018, 0.02]}},
+    "boundary": {
+        "start": {"translation": [{"velocity": 0}] * 3,
+                  "rotation": [{"angular_velocity": 0}, {"angular_velocity": 0},
+                               {"angular_velocity": 1.0}]},
+        "end": {"translation": [{"velocity": 0}, {"velocity": 0}, {"force": 0}],
+                "rotation": [{"angular_velocity": 0}] * 3},
+    },
+    "numerics": {"n_segments": 100, "dt": 0.1, "t_end": 3.0},
+}
+
+N = 101
+TIMES = np.round(np.arange(0.0, 3.01, 0.1), 10)     # 31 outputs, 0 ... 3 s
+S = np.linspace(0.0, 1.0, N)
+
+
+def _shape(t: float) -> np.ndarray:
+    """Straight along z (a 1e-4 m wiggle) until 1 s, then a bow growing 5 cm per second."""
+    r = np.zeros((N, 3))
+    r[:, 2] = S
+    amp = 1e-4 + (0.05 * (t - 1.0) if t > 1.0 else 0.0)
+    r[:, 0] = amp * np.sin(np.pi * S)
+    return r
+
+
+def dataset(writhe=None, contact_from=1.8, status="completed", case=CASE):
+    """Buckles at 1.4 s (the bow, 1e-4 m + 5 cm/s after 1 s, passes one diameter, 0.02 m,
+    then), first contact at ``contact_from``, and a writhe that rises from 1.2 s to 2.6
+    turns at 3 s (reaching 1 at 1.9 s and 2 at 2.6 s)."""
+    if writhe is None:
+        writhe = np.clip((TIMES - 1.2) / (3.0 - 1.2) * 2.6, 0.0, None)
+    data = {
+        "position": np.stack([_shape(t) for t in TIMES]),
+        "writhe": writhe,
+        "twist": 3.0 - writhe,
+        "linking_number": np.full(TIMES.size, 3.0),
+        "contact_count": np.where(TIMES >= contact_from - 1e-9, 4, 0),
+    }
+    return build_dataset(Case.model_validate(case), S, TIMES, data, {}, status)
+
+
+def test_events_of_a_run_in_order_with_their_names():
+    events = event_times(dataset())
+    assert events == [
+        (pytest.approx(1.4), "onset of buckling"),
+        (pytest.approx(1.8), "first contact"),
+        (pytest.approx(1.9), "Wr reaches 1"),
+        (pytest.approx(2.6), "Wr reaches 2"),
+        (pytest.approx(3.0), "end"),
+    ]
+    # the default snapshot times are these events
+    assert snapshot_times(dataset()) == pytest.approx([1.4, 1.8, 1.9, 2.6, 3.0])
+
+
+def test_events_at_one_stored_time_are_merged_and_a_stopped_run_says_so():
+    events = event_times(dataset(contact_from=1.9, status="stopped"))
+    assert (pytest.approx(1.9), "first contact; Wr reaches 1") in events
+    assert events[-1] == (pytest.approx(3.0), "end (stopped)")
+
+
+def test_negative_writhe_and_many_unit_steps_are_thinned():
+    wr = -np.clip((TIMES - 1.2) * 12.0, 0.0, None)       # to -21.6 turns
+    events = event_times(dataset(writhe=wr))
+    labels = [label for _, label in events]
+    assert len(events) == MAX_EVENTS
+    # buckling, contact and the end keep their rows; a unit step of Wr at one of their
+    # times shares the row, the others are thinned evenly to fill the rest
+    assert labels[1] == "onset of buckling; Wr reaches -2"
+    assert labels[3] == "first contact; Wr reaches -7"
+    assert labels[-1] == "end; Wr reaches -21"
+    own = [label for label in labels if label.startswith("Wr reaches")]
+    assert own[0] == "Wr reaches -1" and len(own) == MAX_EVENTS - 3
+    assert [t for t, _ in events] == sorted(t for t, _ in events)
+
+
+def test_without_position_the_writhe_marks_the_buckling():
+    ds = dataset().drop_vars("position")
+    assert event_times(ds)[0] == (pytest.approx(1.3), "onset of buckling")  # Wr > 0.05 turns
+
+
+def test_nothing_happened_falls_back_to_evenly_spaced_times():
+    ds = dataset(writhe=np.zeros(TIMES.size), contact_from=99.0)
+    ds["position"].values[:] = np.stack([_shape(0.0)] * TIMES.size)
+    assert event_times(ds) == [(pytest.approx(3.0), "end")]
+    chosen = snapshot_times(ds)
+    assert chosen == pytest.approx([0.0, 0.7, 1.5, 2.2, 3.0])   # nearest to 0.75, 2.25
+    # asked-for times still win over the events
+    assert snapshot_times(dataset(), [0.31, 2.0]) == pytest.approx([0.3, 2.0])
+
+
+def test_rod_diameter_from_the_case_in_the_file():
+    ds = dataset()
+    d = rod_diameter(ds, np.array([0.0, 0.2, 0.5, 1.0]))
+    assert d == pytest.approx([0.02, 0.019, 0.018, 0.02])
+    ds.attrs["case"] = "not json"
+    assert rod_diameter(ds, S) is None
+
+
+def test_contact_sites_of_a_hairpin():
+    # two straight strands 0.019 m apart (touching: diameter 0.018-0.02 m) joined by a fold
+    r = np.zeros((N, 3))
+    half = N // 2
+    r[:half, 2] = S[:half]
+    r[half:, 2] = S[half - 1] - (S[half:] - S[half - 1])
+    r[half:, 0] = 0.019
+    ds = dataset()
+    d = rod_diameter(ds, S)
+    sites = contact_sites(ds, r, S, d)
+    assert sites.size > 0.8 * N
+    assert np.any(sites < half) and np.any(sites >= half)        # both strands
+    # neighbours along the rod are not contacts: a straight rod touches nothing
+    straight = np.column_stack([np.zeros(N), np.zeros(N), S])
+    assert contact_sites(ds, straight, S, d).size == 0
+    # a gap of a quarter diameter still touches (within half a segment), two diameters not
+    r[half:, 0] = 0.019 + 0.25 * 0.018
+    assert contact_sites(ds, r, S, d).size > 0
+    r[half:, 0] = 0.06
+    assert contact_sites(ds, r, S, d).size == 0
+    # the case's exclusion decides what is a neighbour: 2 m leaves no pair
+    r[half:, 0] = 0.019
+    case = copy.deepcopy(CASE)
+    case["contact"] = {"aperture": 90.0, "tolerance": 0.04, "k1": 1e-7, "k2": 3.0,
+                       "k3": 1e-6, "k4": 1.0, "exclusion": 2.0}
+    assert contact_sites(dataset(case=case), r, S, d).size == 0
+    # no diameter in the file: nothing is marked
+    assert contact_sites(ds, r, S, None).size == 0
+
+
+def test_snapshot_figure_at_the_events(tmp_path):
+    paths = plot_snapshots(dataset(), tmp_path, stem="events", on_skip=None)
+    assert [p.name for p in paths] == ["events_snapshots.png"]
+    assert paths[0].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # without a diameter in the file it draws the centreline
+    ds = dataset()
+    ds.attrs["case"] = "{}"
+    assert plot_snapshots(ds, tmp_path, stem="bare", on_skip=None)
