@@ -199,11 +199,16 @@ def _progress_line(info: Any) -> str:
 
 def _write(ds: Any, out: Path) -> bool:
     from hockle.io import write_netcdf
-    from service.settings import DatasetMetadata
     from solver.results import apply_metadata
 
-    # ACDD creator, licence ... from the HOCKLE_* environment, as the service's workers do
-    apply_metadata(ds, DatasetMetadata().dataset_metadata())
+    # ACDD creator, licence ... from the HOCKLE_* environment, as the service's workers do;
+    # a problem there costs the attributes, never the result of the run
+    try:
+        from service.settings import DatasetMetadata
+
+        apply_metadata(ds, DatasetMetadata().dataset_metadata())
+    except Exception as exc:  # noqa: BLE001
+        _err(f"hockle: operator metadata (HOCKLE_CREATOR_NAME, ...) not applied: {exc}")
     try:
         write_netcdf(ds, out)
     except OSError as exc:
