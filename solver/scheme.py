@@ -390,7 +390,7 @@ class RodSystem:
         force = np.zeros((n1, 3))
         if ev.count == 0:
             return force, None, ev
-        for a in range(3):
+        for a in range(ev.nodes.shape[1]):
             np.add.at(force, ev.nodes[:, a], ev.weights[:, a, None] * ev.force)
         if not want_jacobian:
             return force, None, ev
@@ -405,7 +405,7 @@ class RodSystem:
         Jr = right_jacobian(theta[nodes])
         HW = -0.5 * self.dt * np.einsum("pbij,pbjk->pbik", HR, skew(vb) @ Jr)
         diag = np.zeros((n1, 3, 6))
-        for a in range(3):
+        for a in range(nodes.shape[1]):
             blk = np.concatenate([HR[:, a], HW[:, a]], axis=-1)        # ∂F/∂(v, ω)_a
             np.add.at(diag, nodes[:, a], ev.weights[:, a, None, None]
                       * np.einsum("pji,pjk->pik", Rn[:, a], blk))
@@ -432,15 +432,15 @@ class RodSystem:
         L[:, :, 3:] += 0.5 * self.dt * (skew(b_rot) @ right_jacobian(theta))
         out = dict(R=R, C=C, D=D, tmid=M[:, :, 2], A0=A0, rdot=rdot, G=glob, L=L)
         if ev is not None and ev.count:
-            n_p = ev.count
-            # dF_p = A_p [δr_b; δṙ_b]_(b = 1..3): (P, 3, 18)
-            A = np.concatenate([ev.d_force_d_r.transpose(0, 2, 1, 3).reshape(n_p, 3, 9),
-                                ev.d_force_d_v.transpose(0, 2, 1, 3).reshape(n_p, 3, 9)],
+            n_p, n_b = ev.nodes.shape
+            # dF_p = A_p [δr_b; δṙ_b]_(b = 1..K): (P, 3, 6K)
+            A = np.concatenate([ev.d_force_d_r.transpose(0, 2, 1, 3).reshape(n_p, 3, 3 * n_b),
+                                ev.d_force_d_v.transpose(0, 2, 1, 3).reshape(n_p, 3, 3 * n_b)],
                                axis=2)
-            cols = np.repeat(np.arange(n_p), 3)
+            cols = np.repeat(np.arange(n_p), n_b)
             rows = ev.nodes.ravel()
             shape = (self.n_nodes, n_p)
-            out.update(nodes=ev.nodes, A=A, F=ev.force, dtdr=ev.d_t_d_r.reshape(n_p, 9),
+            out.update(nodes=ev.nodes, A=A, F=ev.force, dtdr=ev.d_t_d_r.reshape(n_p, 3 * n_b),
                        scatter_w=csr_matrix((ev.weights.ravel(), (rows, cols)), shape=shape),
                        scatter_dw=csr_matrix((ev.d_weights_d_t.ravel(), (rows, cols)),
                                              shape=shape))
@@ -474,11 +474,12 @@ class RodSystem:
         dG = _cross(ex["G"], dphi)
         if "nodes" in ex:
             nodes = ex["nodes"]
-            n_p = nodes.shape[0]
+            n_p, n_b = nodes.shape
             drdot = _cross(dphi, ex["rdot"]) + np.einsum("nij,nj->ni", R, dv)
-            z = np.concatenate([dr[nodes].reshape(n_p, 9), drdot[nodes].reshape(n_p, 9)], axis=1)
+            z = np.concatenate([dr[nodes].reshape(n_p, 3 * n_b),
+                                drdot[nodes].reshape(n_p, 3 * n_b)], axis=1)
             dF = np.matmul(ex["A"], z[:, :, None])[:, :, 0]
-            dt = np.einsum("pk,pk->p", ex["dtdr"], z[:, :9])
+            dt = np.einsum("pk,pk->p", ex["dtdr"], z[:, :3 * n_b])
             dG += ex["scatter_w"] @ dF + ex["scatter_dw"] @ (dt[:, None] * ex["F"])
         dB = np.einsum("nji,nj->ni", R, dG)
         return dB - np.einsum("nij,nj->ni", ex["L"], dY[:, 0:6])

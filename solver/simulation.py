@@ -1,4 +1,4 @@
-"""The time loop: ``simulate(case) -> xarray.Dataset`` (DESIGN.md, "Python API").
+"""The time loop: ``simulate(case) -> xarray.Dataset`` (docs/interfaces.md, "Python API").
 
 Each time step solves the box/generalized-α difference equations of
 :mod:`solver.scheme` for all grid points at once by Newton. A step that does not converge
@@ -712,7 +712,7 @@ class RodRun:
 
 
 def simulate(case, progress=None, should_stop=None):
-    """Run a case and return its result dataset (DESIGN.md "Result dataset").
+    """Run a case and return its result dataset (docs/interfaces.md, "Result dataset").
 
     Parameters
     ----------

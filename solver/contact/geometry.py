@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-__all__ = ["point_segment", "segment_segment", "swept_min_distance", "close_node_pairs",
+__all__ = ["point_segment", "point_curve", "curve_basis", "segment_segment", "swept_min_distance", "close_node_pairs",
            "min_surface_gap"]
 
 
@@ -25,6 +25,97 @@ def point_segment(p, a, b):
     d = np.sqrt(np.einsum("ij,ij->i", x, x))
     tau = e / np.sqrt(safe)[:, None]
     return t, x, d, tau
+
+
+def curve_basis(t, j, n_nodes):
+    """The partner curve's basis on segment j at parameter t: the uniform Catmull-Rom
+    cubic c(t) = Σ_b β_b(t) r_{idx_b} through r_j (t = 0) and r_{j+1} (t = 1) with the
+    tangents ½(r_{j+1} − r_{j−1}) and ½(r_{j+2} − r_j) (Catmull & Rom, "A class of local
+    interpolating splines", Computer Aided Geometric Design, 1974; the Hermite form of
+    Farin, *Curves and Surfaces for CAGD*, § 8.5). Beyond a rod end the missing node is
+    the linear extrapolation (r_{−1} = 2r_0 − r_1), folded into the coefficients.
+
+    The curve is C¹ across nodes, so the closest point of a partner strand to a node moves
+    continuously as the strands slide, also on the concave side of a bend, where the
+    closest point of the polyline jumps between segments (docs/contact.md § 1).
+
+    t, j: (M,) float in [0, 1] and int segment indices (0 ≤ j ≤ n_nodes − 2).
+    Returns (idx (M, 4) int node indices, β, β', β'' (M, 4) the basis and its first and
+    second derivatives in t); Σ β = 1, Σ β' = Σ β'' = 0.
+    """
+    t = np.asarray(t, float)
+    m = t.shape[0]
+    t2 = t * t
+    t3 = t2 * t
+    lo = j - 1 < 0
+    hi = j + 2 > n_nodes - 1
+    out = []
+    for der in range(3):
+        if der == 0:
+            h00, h10, h01, h11 = 2 * t3 - 3 * t2 + 1, t3 - 2 * t2 + t, 3 * t2 - 2 * t3, t3 - t2
+        elif der == 1:
+            h00 = 6 * t2 - 6 * t
+            h10, h01, h11 = 3 * t2 - 4 * t + 1, -h00, 3 * t2 - 2 * t
+        else:
+            h00 = 12 * t - 6
+            h10, h01, h11 = 6 * t - 4, -h00, 6 * t - 2
+        b = np.empty((m, 4))
+        b[:, 0] = -0.5 * h10
+        b[:, 1] = h00 - 0.5 * h11
+        b[:, 2] = h01 + 0.5 * h10
+        b[:, 3] = 0.5 * h11
+        # ghost nodes beyond the ends: r_{-1} = 2 r_0 − r_1, r_{n} = 2 r_{n−1} − r_{n−2}
+        if lo.any():
+            b[lo, 1] += 2.0 * b[lo, 0]
+            b[lo, 2] -= b[lo, 0]
+            b[lo, 0] = 0.0
+        if hi.any():
+            b[hi, 2] += 2.0 * b[hi, 3]
+            b[hi, 1] -= b[hi, 3]
+            b[hi, 3] = 0.0
+        out.append(b)
+    idx = np.empty((m, 4), dtype=np.intp)
+    idx[:, 0] = np.maximum(j - 1, 0)
+    idx[:, 1] = j
+    idx[:, 2] = j + 1
+    idx[:, 3] = np.minimum(j + 2, n_nodes - 1)
+    return (idx, *out)
+
+
+def point_curve(p, positions, j, iterations=3):
+    """Closest points of points p (M, 3) m on the partner curves' segments j (M,) int
+    (:func:`curve_basis` over the nodes ``positions`` (N, 3) m), t ∈ [0, 1].
+
+    Newton on the stationarity c'(t)·(c(t) − p) = 0 from the polyline's closest point,
+    clamped to [0, 1] (a few iterations reach round-off: the curve departs from the
+    chord by O(Δs² κ)).
+    Returns (t (M,), x = p − c(t) (M, 3) m, d = |x| (M,) m, c' (M, 3) m, g = |c'|² −
+    x·c'' (M,) m², the second derivative of ½|p − c|² in t, idx (M, 4), β (M, 4),
+    β' (M, 4)).
+    """
+    r = positions
+    n = r.shape[0]
+    t = point_segment(p, r[j], r[j + 1])[0]
+    idx = np.empty((t.size, 4), dtype=np.intp)
+    idx[:, 0] = np.maximum(j - 1, 0)
+    idx[:, 1] = j
+    idx[:, 2] = j + 1
+    idx[:, 3] = np.minimum(j + 2, n - 1)
+    q = r[idx]                                                      # (M, 4, 3)
+    for it in range(iterations + 1):
+        idx, b0, b1, b2 = curve_basis(t, j, n)
+        c = np.matmul(b0[:, None, :], q)[:, 0]
+        c1 = np.matmul(b1[:, None, :], q)[:, 0]
+        c2 = np.matmul(b2[:, None, :], q)[:, 0]
+        x = p - c
+        g = np.einsum("mi,mi->m", c1, c1) - np.einsum("mi,mi->m", x, c2)
+        if it == iterations:
+            break
+        ok = g > 0.0
+        step = np.einsum("mi,mi->m", c1, x) / np.where(ok, g, 1.0)
+        t = np.clip(t + np.where(ok, step, 0.0), 0.0, 1.0)
+    d = np.sqrt(np.einsum("ij,ij->i", x, x))
+    return t, x, d, c1, g, idx, b0, b1
 
 
 def close_node_pairs(positions, radius, s, separation_cut):

@@ -2,20 +2,22 @@
 
 Formulation (docs/contact.md):
 
-* **Node to segment.** Every node i looks at the other strands of the centreline polyline.
-  For each *run* of nearby partner nodes (contiguous along the partner strand, found once
-  per time step by a k-d tree), the partner point is the closest point of that run's
-  polyline to r_i: segment (j, j+1) at parameter t ∈ [0, 1]. The selection is redone at
-  every Newton iterate, and it is continuous as the strands slide (the closest point of a
-  polyline moves continuously), so a node never holds two partners on one strand and no
-  re-solve with a union of pairs is needed. A minimum at the outer vertex of a run (not a
-  rod end) is the edge of a cut (exclusion or search radius), not a closest approach, and
-  gives no force.
+* **Node to curve.** Every node i looks at the other strands as a C¹ curve: the uniform
+  Catmull-Rom cubic through the nodes (:func:`~.geometry.curve_basis`). For each *run* of
+  nearby partner nodes (contiguous along the partner strand, found once per time step by
+  a k-d tree), the partner point is the closest point of that run's curve to r_i:
+  segment (j, j+1) at parameter t ∈ [0, 1], c(t) = Σ β_b(t) r_b over nodes j − 1 .. j + 2.
+  The selection is redone at every Newton iterate, and it is continuous as the strands
+  slide, on the concave side of a bend too (where the closest point of the polyline
+  jumps between segments, and the residual with it), so a node never holds two partners
+  on one strand and no re-solve with a union of pairs is needed. A minimum at the outer
+  vertex of a run (not a rod end) is the edge of a cut (exclusion or search radius), not
+  a closest approach, and gives no force.
 * **Force.** f(d, ḋ) n per unit length (:mod:`solver.contact.laws`), n = x/d,
-  x = r_i − c, c = (1 − t) r_j + t r_{j+1}, ḋ = n·(v_i − (1 − t) v_j − t v_{j+1}).
-  Node i receives ½ f n; nodes j, j+1 receive −½ f n (1 − t) Δs_i/Δs_j and
-  −½ f n t Δs_i/Δs_{j+1} (Δs the nodal quadrature weights), so Σ Δs·force = 0 and, as
-  both strands' nodes own pairs, each strand receives f per unit length in total.
+  x = r_i − c(t), ḋ = n·(v_i − Σ β_b v_b). Node i receives ½ f n; the curve's node b
+  receives −½ f n β_b Δs_i/Δs_b (Δs the nodal quadrature weights), so Σ Δs·force = 0
+  (Σ β_b = 1) and, as both strands' nodes own pairs, each strand receives f per unit
+  length in total.
 * **Search.** Candidates are node pairs with |s_i − s_j| > exclusion, centreline
   distance < tolerance + reach (reach: the motion the step may make) and each node
   inside the other's aperture cone (|a3 · n| ≤ sin(θ/2)), tested once per step.
@@ -28,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .geometry import close_node_pairs, point_segment
+from .geometry import close_node_pairs, point_curve, point_segment
 from .laws import BarrierLaw, SeedLaw
 
 __all__ = ["SelfContact", "ContactCandidates", "ContactEvaluation", "assemble_nodal",
@@ -81,15 +83,17 @@ class ContactEvaluation:
     i : (P,) int              owner nodes
     j : (P,) int              first node of the partner segment (the other is j + 1)
     t : (P,) float            closest-point parameter on the segment, [0, 1]
-    nodes : (P, 3) int        (i, j, j + 1)
-    weights : (P, 3) float    load weights w_a: node a receives w_a · force (N/m)
-    coef : (P, 3) float       kinematic coefficients c_a: x = Σ c_a r_a, u = Σ c_a v_a
+    nodes : (P, 5) int        (i, j − 1, j, j + 1, j + 2): the owner and the nodes of the
+                              partner curve on segment j (a node index repeats next to a
+                              rod end, with coefficient 0 in its ghost slot)
+    weights : (P, 5) float    load weights w_a: node a receives w_a · force (N/m)
+    coef : (P, 5) float       kinematic coefficients c_a: x = Σ c_a r_a, u = Σ c_a v_a
     force : (P, 3) float      force per unit length F = f n on the owner, N/m, global
-    d_force_d_r : (P, 3, 3, 3)  ∂F/∂r_a for a = nodes[:, a] (N/m²), the closest point
+    d_force_d_r : (P, 5, 3, 3)  ∂F/∂r_a for a = nodes[:, a] (N/m²), the closest point
                               sliding along the segment
-    d_force_d_v : (P, 3, 3, 3)  ∂F/∂v_a (N·s/m²)
-    d_t_d_r : (P, 3, 3)       ∂t/∂r_a (1/m): the load weights move with t
-    d_weights_d_t : (P, 3)    ∂w_a/∂t, so node a's load w_a F changes by
+    d_force_d_v : (P, 5, 3, 3)  ∂F/∂v_a (N·s/m²)
+    d_t_d_r : (P, 5, 3)       ∂t/∂r_a (1/m): the load weights move with t
+    d_weights_d_t : (P, 5)    ∂w_a/∂t, so node a's load w_a F changes by
                               w_a δF + F (∂w_a/∂t) Σ_b ∂t/∂r_b δr_b
     gap, distance : (P,) m    surface gap d − D̄ and centreline distance d
     min_gap : float, m        smallest gap (inf if none)
@@ -137,7 +141,7 @@ def assemble_nodal(ev: ContactEvaluation, n_nodes: int) -> np.ndarray:
         return out
     if ev.nodes.min() < 0 or ev.nodes.max() >= n_nodes:
         raise ValueError(f"assemble_nodal: node index outside [0, {n_nodes})")
-    for a in range(3):
+    for a in range(ev.nodes.shape[1]):
         np.add.at(out, ev.nodes[:, a], ev.weights[:, a, None] * ev.force)
     return out
 
@@ -361,37 +365,48 @@ class SelfContact:
 
     # ------------------------------------------------------------------ closest points
     def closest(self, cand: ContactCandidates, positions, frozen=None):
-        """Closest point of each run: (k (R,) index into the combinations, t (R,),
-        x (R, 3), d (R,), tau (R, 3), valid (R,) bool: not an interior run edge).
+        """Closest point of each run on the partner curve (:func:`~.geometry.curve_basis`):
+        (k (R,) index into the combinations, t (R,), x (R, 3), d (R,), c' (R, 3), g (R,),
+        idx (R, 4), β (R, 4), β' (R, 4), valid (R,) bool: not an interior run edge); the
+        fields after d are those of :func:`~.geometry.point_curve`.
 
         frozen: (R,) combination indices from an earlier call, or None. Given, each run
         keeps that segment (the closest point still slides along it): Newton freezes the
-        selection after a few iterates, because where two segments of a partner strand
-        are about equally close (a concave corner) the choice can switch back and forth
-        between iterates and the residual has a kink there."""
+        selection after a few iterates so that a minimum near a node cannot move back and
+        forth between the two segments that meet there."""
         r = positions
         own, seg = cand.owner, cand.segment
         start = cand.run_start
         last = np.append(start[1:], own.size) - 1
         if frozen is not None:
             k = frozen
-            tk, x, d, tau = point_segment(r[own[k]], r[seg[k]], r[seg[k] + 1])
+            geo = point_curve(r[own[k]], r, seg[k])
         else:
-            t, x, d, tau = point_segment(r[own], r[seg], r[seg + 1])
+            # the polyline's closest segment of each run, then the curve on it and its two
+            # neighbours in the run (the curve departs from the chords by O(Δs² κ), so
+            # its closest point lies on one of them)
+            d = point_segment(r[own], r[seg], r[seg + 1])[2]
             dmin = np.minimum.reduceat(d, start)
             sizes = last - start + 1
             hit = np.flatnonzero(d == np.repeat(dmin, sizes))
-            k = hit[np.searchsorted(hit, start)]          # first minimum of each run
-            tk, x, d, tau = t[k], x[k], d[k], tau[k]
+            k0 = hit[np.searchsorted(hit, start)]          # first minimum of each run
+            trio = np.clip(k0[:, None] + np.arange(-1, 2)[None, :], start[:, None],
+                           last[:, None]).ravel()
+            geo = point_curve(r[own[trio]], r, seg[trio])
+            pick = np.argmin(geo[2].reshape(-1, 3), axis=1)
+            sel = np.arange(start.size) * 3 + pick
+            k = trio[sel]
+            geo = tuple(a[sel] for a in geo)
+        tk = geo[0]
         edge_lo = (k == start) & (tk == 0.0) & ~cand.first_vertex_is_end
         edge_hi = (k == last) & (tk == 1.0) & ~cand.last_vertex_is_end
-        return k, tk, x, d, tau, ~(edge_lo | edge_hi)
+        return (k, *geo, ~(edge_lo | edge_hi))
 
     def gaps(self, cand: ContactCandidates, positions) -> np.ndarray:
         """Surface gaps (R,) m of the runs' closest points (inf for run edges)."""
         if cand is None or not cand.runs:
             return np.zeros(0)
-        k, t, x, d, tau, valid = self.closest(cand, positions)
+        k, t, x, d, *_, valid = self.closest(cand, positions)
         i, j = cand.owner[k], cand.segment[k]
         return np.where(valid, d - self._at_contact(self.diameter, i, j, t), np.inf)
 
@@ -407,10 +422,14 @@ class SelfContact:
 
         positions (N, 3) m and velocities (N, 3) m/s, global; frozen: see
         :meth:`closest` (``selection`` of the result is the one used). Derivatives with the
-        closest point sliding on the segment. With G = ∂F/∂x|_u = n (f_d nᵀ + f_ḋ (u −
-        ḋ n)ᵀ/d) + (f/d)(I − n nᵀ) and G_u = ∂F/∂u = f_ḋ n nᵀ, and for 0 < t < 1
-        dx = (I − ττᵀ) dy − τ (x·de)/L, dt = τ·dy/L + x·de/L² (y = Σ c_a r_a at fixed t,
-        e = r_{j+1} − r_j, L = |e|), u shifting by −(v_{j+1} − v_j) dt.
+        closest point sliding along the partner curve. With G = ∂F/∂x|_u = n (f_d nᵀ +
+        f_ḋ (u − ḋ n)ᵀ/d) + (f/d)(I − n nᵀ), G_u = ∂F/∂u = f_ḋ n nᵀ, x = Σ c_a r_a,
+        u = Σ c_a v_a (c_a = 1 for the owner, −β_a(t) for the curve's nodes) and, for
+        0 < t < 1, the stationarity c'·x = 0 differentiated: g dt = Σ_a (c_a c' − ∂c_a/∂t
+        x)·dr_a with g = |c'|² − x·c'', dx = Σ c_a dr_a − c' dt, du = Σ c_a dv_a +
+        (Σ ∂c_a/∂t v_a) dt. The mean diameter and ρA at the contact are interpolated
+        linearly on segment (j, j + 1); how they move with t is left out of the
+        derivatives.
 
         Raises ValueError on bad shapes or values, or coincident centreline points.
         """
@@ -418,19 +437,22 @@ class SelfContact:
         v = self._check_field("velocities", velocities)
         if cand is None or not cand.runs:
             return _empty_evaluation()
-        k, t, x, d, tau, valid = self.closest(cand, r, frozen)
+        k, t, x, d, c1, g, idx, beta, dbeta, valid = self.closest(cand, r, frozen)
         i, j = cand.owner[k], cand.segment[k]
         dbar = self._at_contact(self.diameter, i, j, t)
         d_off = self.law.cutoff(dbar)[1]
         keep = valid & (d < d_off)
         if not np.any(keep):
             return _empty_evaluation(k)
-        i, j, t, x, d, tau, dbar = i[keep], j[keep], t[keep], x[keep], d[keep], tau[keep], dbar[keep]
+        i, j, t, x, d, dbar = i[keep], j[keep], t[keep], x[keep], d[keep], dbar[keep]
+        c1, g, idx, beta, dbeta = c1[keep], g[keep], idx[keep], beta[keep], dbeta[keep]
         if np.any(d == 0.0):
             raise ValueError("SelfContact.evaluate: coincident centreline points in a pair")
         p = i.size
-        nodes = np.stack([i, j, j + 1], axis=1)
-        coef = np.stack([np.ones(p), t - 1.0, -t], axis=1)
+        # the contact's nodes: the owner and the partner curve's four; x = Σ c_a r_a
+        nodes = np.concatenate([i[:, None], idx], axis=1)                 # (P, 5)
+        coef = np.concatenate([np.ones((p, 1)), -beta], axis=1)
+        dcoef = np.concatenate([np.zeros((p, 1)), -dbeta], axis=1)       # ∂c_a/∂t
         u = np.einsum("pa,pai->pi", coef, v[nodes])
         n = x / d[:, None]
         ddot = np.einsum("ij,ij->i", n, u)
@@ -443,30 +465,22 @@ class SelfContact:
                               + f_dd[:, None, None] * tang[:, None, :])
              + (f / d)[:, None, None] * (np.eye(3)[None] - nn))
         Gu = f_dd[:, None, None] * nn
-        # the closest point slides: with y = Σ c_a r_a (t fixed), e = r_{j+1} − r_j,
-        # L = |e|: dx = (I − ττᵀ) dy − τ (x·de)/L, dt = τ·dy/L + x·de/L², and u moves
-        # by −(v_{j+1} − v_j) dt
+        # the closest point slides (0 < t < 1): from c'(t)·x = 0, g dt = Σ_a (c_a c' −
+        # ∂c_a/∂t x)·dr_a, g = |c'|² − x·c''; then dx = Σ c_a dr_a − c' dt and u moves by
+        # u_t dt, u_t = Σ ∂c_a/∂t v_a
         interior = ((t > 0.0) & (t < 1.0))[:, None, None]
-        seg = r[j + 1] - r[j]
-        L = np.linalg.norm(seg, axis=1)[:, None, None]
-        gdv = np.einsum("pij,pj->pi", Gu, v[j + 1] - v[j])          # Gu Δv
-        Gt = np.einsum("pij,pj->pi", G, tau)                          # G τ
-        tt = tau[:, :, None] * tau[:, None, :]
-        A = np.where(interior, G - Gt[:, :, None] * tau[:, None, :]
-                     - gdv[:, :, None] * tau[:, None, :] / L, G)
-        B = np.where(interior, -(Gt[:, :, None] * x[:, None, :]) / L
-                     - gdv[:, :, None] * x[:, None, :] / L**2, 0.0)
-        del tt
-        sgn = np.array([0.0, -1.0, 1.0])
-        d_dr = coef[:, :, None, None] * A[:, None] + sgn[None, :, None, None] * B[:, None]
+        gs = np.where(g > 0.0, g, np.inf)[:, None, None]
+        dt_dr = np.where(interior, (coef[:, :, None] * c1[:, None, :]
+                                    - dcoef[:, :, None] * x[:, None, :]) / gs, 0.0)
+        u_t = np.einsum("pa,pai->pi", dcoef, v[nodes])
+        H = np.einsum("pij,pj->pi", Gu, u_t) - np.einsum("pij,pj->pi", G, c1)
+        d_dr = (coef[:, :, None, None] * G[:, None]
+                + H[:, None, :, None] * dt_dr[:, :, None, :])
         d_dv = coef[:, :, None, None] * Gu[:, None]
         w = self.weights
-        weights = 0.5 * np.stack([np.ones(p), (t - 1.0) * w[i] / w[j], -t * w[i] / w[j + 1]], axis=1)
-        dw_dt = 0.5 * np.stack([np.zeros(p), w[i] / w[j], -w[i] / w[j + 1]], axis=1)
-        tl = tau / L[:, :, 0]
-        xl = x / L[:, :, 0] ** 2
-        dt_dr = np.stack([tl, (t - 1.0)[:, None] * tl - xl, -t[:, None] * tl + xl], axis=1)
-        dt_dr = np.where(interior, dt_dr, 0.0)
+        ratio = w[i][:, None] / w[nodes]
+        weights = 0.5 * coef * ratio
+        dw_dt = 0.5 * dcoef * ratio
         return ContactEvaluation(i, j, t, nodes, weights, coef, force, d_dr, d_dv, dt_dr,
                                  dw_dt, gap, d, float(gap.min()), int(p), k)
 
@@ -474,7 +488,7 @@ class SelfContact:
 def _empty_evaluation(selection=None) -> ContactEvaluation:
     z = np.zeros(0)
     zi = np.zeros(0, dtype=np.intp)
-    return ContactEvaluation(zi, zi.copy(), z, np.zeros((0, 3), np.intp), np.zeros((0, 3)),
-                             np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3, 3, 3)),
-                             np.zeros((0, 3, 3, 3)), np.zeros((0, 3, 3)), np.zeros((0, 3)),
+    return ContactEvaluation(zi, zi.copy(), z, np.zeros((0, 5), np.intp), np.zeros((0, 5)),
+                             np.zeros((0, 5)), np.zeros((0, 3)), np.zeros((0, 5, 3, 3)),
+                             np.zeros((0, 5, 3, 3)), np.zeros((0, 5, 3)), np.zeros((0, 5)),
                              z.copy(), z.copy(), float("inf"), 0, selection)
