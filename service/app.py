@@ -77,10 +77,11 @@ def create_app(settings: Settings | None = None, *, enqueuer: Enqueuer | None = 
     app.state.services = svc
     install_handlers(app)
 
-    from .routers import health, jobs, results
+    from .routers import health, jobs, results, sweeps
 
     app.include_router(jobs.router, prefix="/v1")
     app.include_router(results.router, prefix="/v1")
+    app.include_router(sweeps.router, prefix="/v1")
     app.include_router(health.router, prefix="/v1")
     app.openapi = lambda: _openapi(app)  # type: ignore[method-assign]
     return app

@@ -190,6 +190,33 @@ def decode_page_token(token: str) -> tuple[dt.datetime, str]:
         raise ValueError("page_token is not one this server issued") from exc
 
 
+class SweepRecord(Base):
+    """A parameter sweep (service/sweeps.py): its members are ordinary jobs, listed here in
+    member order; the sweep's state is derived from theirs."""
+
+    __tablename__ = "hockle_sweeps"
+
+    id: Mapped[str] = mapped_column(String(36), primary_key=True)
+    name: Mapped[str | None] = mapped_column(String(200))
+    combine: Mapped[str] = mapped_column(String(8))
+    # JSON: [{"path": ..., "values": [...]}, ...] in the request's order
+    parameters_json: Mapped[str] = mapped_column(Text)
+    # JSON: the member's job id for each member index (a job may serve several members)
+    member_job_ids: Mapped[str] = mapped_column(Text)
+    base_json: Mapped[str] = mapped_column(Text)
+    owner: Mapped[str | None] = mapped_column(String(64), index=True)
+    created_at: Mapped[dt.datetime] = mapped_column(DateTime, index=True)
+    dismissed_at: Mapped[dt.datetime | None] = mapped_column(DateTime)
+
+    @property
+    def parameters(self) -> dict[str, list]:
+        return {p["path"]: p["values"] for p in json.loads(self.parameters_json)}
+
+    @property
+    def job_ids(self) -> list[str]:
+        return list(json.loads(self.member_job_ids))
+
+
 class Registry:
     """Data access to the registry; one per process (holds the connection pool)."""
 
@@ -774,6 +801,39 @@ class Registry:
                 )
             )
 
+    # --- sweeps --------------------------------------------------------------------------------
+    def create_sweep(self, *, name: str | None, combine: str, parameters: dict[str, list],
+                     job_ids: list[str], base_json: str, owner: str | None = None) -> SweepRecord:
+        """Record a sweep whose member jobs exist already (one id per member, in order)."""
+        sweep = SweepRecord(
+            id=str(uuid.uuid4()), name=name, combine=combine,
+            parameters_json=json.dumps([{"path": p, "values": v} for p, v in parameters.items()]),
+            member_job_ids=json.dumps(list(job_ids)), base_json=base_json, owner=owner,
+            created_at=utcnow(), dismissed_at=None)
+        with self.sessions.begin() as session:
+            session.add(sweep)
+        return sweep
+
+    def get_sweep(self, sweep_id: str) -> SweepRecord | None:
+        with self.sessions() as session:
+            return session.get(SweepRecord, sweep_id)
+
+    def mark_sweep_dismissed(self, sweep_id: str) -> None:
+        """Record that the sweep was dismissed (once: the first time stays)."""
+        with self.sessions.begin() as session:
+            session.execute(update(SweepRecord)
+                            .where(SweepRecord.id == sweep_id, SweepRecord.dismissed_at.is_(None))
+                            .values(dismissed_at=utcnow()))
+
+    def get_many(self, job_ids: Iterable[str]) -> dict[str, Job]:
+        """The jobs with these ids (unknown ids are left out), by id."""
+        ids = list(dict.fromkeys(job_ids))
+        found: dict[str, Job] = {}
+        with self.sessions() as session:
+            for start in range(0, len(ids), 500):
+                for job in session.scalars(select(Job).where(Job.id.in_(ids[start:start + 500]))):
+                    found[job.id] = job
+        return found
 
 def _sqlite_pragmas(dbapi_connection, _record, busy_ms: int = 30000) -> None:
     cursor = dbapi_connection.cursor()
