@@ -5,8 +5,8 @@
 
     hockle serve [--host H] [--port P] [--workers N] [--no-worker]
     hockle worker [--concurrency N] [--hostname NAME] [--loglevel L]
-    hockle submit CASE [--url URL] [--wait] [-o OUT.nc] [--idempotency-key K] [--fresh]
-                       [--time-limit S]
+    hockle submit CASE [--url URL] [--api-key KEY] [--wait] [-o OUT.nc] [--idempotency-key K]
+                       [--fresh] [--time-limit S]
 
 ``submit`` exit codes: 0 accepted (or, with --wait, successful); 1 failed; 2 invalid case or
 other refusal; 3 dismissed; 4 service unreachable.
@@ -46,6 +46,10 @@ def register(subparsers) -> None:
     p.add_argument("case", help="case file (.yaml, .yml or .json)")
     p.add_argument("--url", default=None,
                    help="service base URL (default HOCKLE_PUBLIC_URL or http://HOST:PORT)")
+    p.add_argument("--api-key", default=None, metavar="KEY",
+                   help="API key of the service, sent as 'Authorization: Bearer KEY' (default "
+                   "HOCKLE_API_KEY, which other users of the machine cannot see in the process "
+                   "list as they can an argument)")
     p.add_argument("--wait", action="store_true", help="wait for the job, printing progress")
     p.add_argument("-o", "--output", default=None,
                    help="with --wait: save the NetCDF result here (partial results too)")
@@ -79,7 +83,7 @@ def submit(args: argparse.Namespace) -> int:
 
     out = sys.stdout
     try:
-        with HockleClient(args.url) as client:
+        with HockleClient(args.url, api_key=getattr(args, "api_key", None)) as client:
             job = client.submit(args.case, idempotency_key=args.idempotency_key, fresh=args.fresh,
                                 time_limit=getattr(args, "time_limit", None))
             print(f"job {job.id} {job.state} ({client.base_url}/v1/jobs/{job.id})", file=out)
@@ -112,6 +116,9 @@ def submit(args: argparse.Namespace) -> int:
             return {"successful": 0, "failed": 1, "dismissed": 3}[job.state]
     except HockleAPIError as exc:
         print(f"hockle submit: refused: {exc}", file=sys.stderr)
+        if exc.status == 401:
+            print("hockle submit: give the service's API key with --api-key or HOCKLE_API_KEY",
+                  file=sys.stderr)
         return 2
     except TimeoutError as exc:  # (an OSError: first)
         print(f"hockle submit: {exc}", file=sys.stderr)

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from fastapi import FastAPI, Request
 from fastapi.openapi.utils import get_openapi
 
+from .auth import AuthMiddleware
 from .problems import install_handlers
 from .queue import Enqueuer
 from .registry import REGISTRY_UNAVAILABLE, Registry
@@ -43,7 +44,11 @@ def services(request: Request) -> Services:
 
 
 def create_app(settings: Settings | None = None, *, enqueuer: Enqueuer | None = None) -> FastAPI:
+    """The API. With API keys (``HOCKLE_API_KEYS`` / ``HOCKLE_API_KEYS_FILE``) every route but
+    ``/v1/health`` and the docs needs one (:mod:`service.auth`); a bad key setting raises
+    ``ValueError`` naming the variable before anything starts."""
     settings = settings or get_settings()
+    api_keys = settings.load_api_keys()
     settings.data_dir.mkdir(parents=True, exist_ok=True)
     registry = Registry(settings.registry_url, busy_timeout=settings.registry_busy_timeout)
     registry.create_schema()
@@ -75,7 +80,12 @@ def create_app(settings: Settings | None = None, *, enqueuer: Enqueuer | None = 
         openapi_url="/openapi.json",
     )
     app.state.services = svc
+    app.state.auth_enabled = bool(api_keys)
     install_handlers(app)
+    app.add_middleware(
+        AuthMiddleware, keys=api_keys, rate=settings.rate_limit, burst=settings.rate_limit_burst,
+        public_paths=("/v1/health", app.openapi_url, app.docs_url, app.redoc_url,
+                      app.swagger_ui_oauth2_redirect_url))
 
     from .routers import health, jobs, results, sweeps
 
@@ -143,5 +153,29 @@ def _openapi(app: FastAPI) -> dict:
             "application/yaml": {"schema": {"$ref": "#/components/schemas/Case"}},
         },
     }
+    if getattr(app.state, "auth_enabled", False):
+        _document_auth(schema)
     app.openapi_schema = schema
     return schema
+
+
+def _document_auth(schema: dict) -> None:
+    """Bearer authentication in the OpenAPI document (Swagger UI's Authorize button), with the
+    401 and 429 answers, on every operation but the health check."""
+    schema["components"].setdefault("securitySchemes", {})["apiKey"] = {
+        "type": "http", "scheme": "bearer",
+        "description": "An API key of this service (HOCKLE_API_KEYS): "
+                       "`Authorization: Bearer <key>`."}
+    answers = {401: "No API key, or one this service does not know",
+               429: "The key's rate limit is reached: retry after Retry-After seconds"}
+    for item in schema["paths"].values():
+        for operation in item.values():
+            if not isinstance(operation, dict) or operation.get("operationId") == "get_health":
+                continue
+            operation["security"] = [{"apiKey": []}]
+            responses = operation.setdefault("responses", {})
+            for code, description in answers.items():
+                responses.setdefault(str(code), {
+                    "description": description,
+                    "content": {"application/problem+json": {
+                        "schema": {"$ref": "#/components/schemas/Problem"}}}})

@@ -1,7 +1,7 @@
 """Typed Python client of the hockle service (httpx).
 
     from service.client import HockleClient
-    with HockleClient("http://127.0.0.1:8000") as client:
+    with HockleClient("http://127.0.0.1:8000", api_key="...") as client:   # or HOCKLE_API_KEY
         job = client.submit("cases/goyal-writhing.yaml")
         job = client.wait(job.id, on_progress=lambda j: print(j.state, j.progress))
         ds = client.dataset(job.id)              # xarray.Dataset
@@ -62,13 +62,25 @@ def case_payload(case: str | os.PathLike | Mapping[str, Any] | Any) -> tuple[byt
 
 
 class HockleClient:
-    def __init__(self, base_url: str | None = None, *, timeout: float = 30.0,
-                 transport: httpx.BaseTransport | None = None, headers: dict | None = None):
+    """A client of one hockle service (see the module's docstring)."""
+
+    def __init__(self, base_url: str | None = None, *, api_key: str | None = None,
+                 timeout: float = 30.0, transport: httpx.BaseTransport | None = None,
+                 headers: dict | None = None):
+        """``base_url``: default ``HOCKLE_PUBLIC_URL`` or ``http://HOCKLE_HOST:HOCKLE_PORT``.
+        ``api_key``: sent as ``Authorization: Bearer <key>`` on every request; default the
+        environment's ``HOCKLE_API_KEY``; none for a service without keys. An empty string
+        sends no key even when the environment has one."""
         if base_url is None:
             from .settings import get_settings
 
             base_url = get_settings().base_url
         self.base_url = base_url.rstrip("/")
+        if api_key is None:
+            api_key = os.environ.get("HOCKLE_API_KEY")
+        headers = dict(headers or {})
+        if api_key and api_key.strip():
+            headers["Authorization"] = f"Bearer {api_key.strip()}"
         self._http = httpx.Client(base_url=self.base_url, timeout=timeout, transport=transport,
                                   headers=headers)
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import base64
 import datetime as dt
+import hashlib
 import json
 import time
 import uuid
@@ -58,6 +59,7 @@ __all__ = [
     "WorkerBeat",
     "Registry",
     "IdempotencyConflict",
+    "scoped_idempotency_key",
     "REGISTRY_UNAVAILABLE",
     "utcnow",
 ]
@@ -105,8 +107,12 @@ class Job(Base):
     n_steps: Mapped[int] = mapped_column(Integer)
     t_end: Mapped[float] = mapped_column(Float)
 
+    # as stored: scoped to the owner (scoped_idempotency_key), unique
     idempotency_key: Mapped[str | None] = mapped_column(String(200), unique=True)
     request_fingerprint: Mapped[str | None] = mapped_column(String(64))
+    # service.auth.owner_id of the API key that submitted the job (a hash, never the key);
+    # None when the service ran without keys
+    owner: Mapped[str | None] = mapped_column(String(64), index=True)
 
     created_at: Mapped[dt.datetime] = mapped_column(DateTime, index=True)
     updated_at: Mapped[dt.datetime] = mapped_column(DateTime)
@@ -159,6 +165,15 @@ class WorkerBeat(Base):
     name: Mapped[str] = mapped_column(String(200), primary_key=True)
     last_seen: Mapped[dt.datetime] = mapped_column(DateTime)
     current_job: Mapped[str | None] = mapped_column(String(36))
+
+
+def scoped_idempotency_key(owner: str | None, key: str) -> str:
+    """The value stored for an ``Idempotency-Key``: the key itself for jobs without an owner
+    (a service without API keys), else ``o:`` + SHA-256 of (owner, key), so that two owners'
+    equal keys never meet in the unique column, which still fits (66 characters)."""
+    if owner is None:
+        return key
+    return "o:" + hashlib.sha256(f"{owner}\n{key}".encode()).hexdigest()
 
 
 class IdempotencyConflict(Exception):
@@ -254,7 +269,7 @@ class Registry:
 
     def _add_missing_columns(self) -> None:
         """Add the nullable columns a registry made by an older version lacks (heartbeat_at,
-        enqueued_at, dispatches). Not a migration tool: nothing is renamed or dropped."""
+        enqueued_at, dispatches, owner). Not a migration tool: nothing is renamed or dropped."""
         inspector = inspect(self.engine)
         for table in Base.metadata.sorted_tables:
             have = {column["name"] for column in inspector.get_columns(table.name)}
@@ -264,6 +279,8 @@ class Registry:
                 kind = column.type.compile(dialect=self.engine.dialect)
                 with self.engine.begin() as conn:
                     conn.execute(text(f"ALTER TABLE {table.name} ADD COLUMN {column.name} {kind}"))
+            for index in table.indexes:  # those of added columns (create_all makes only new tables')
+                index.create(self.engine, checkfirst=True)
 
     def ping(self) -> None:
         with self.engine.connect() as conn:
@@ -286,14 +303,16 @@ class Registry:
         limits: tuple[float, float, float],
         idempotency_key: str | None = None,
         request_fingerprint: str | None = None,
+        owner: str | None = None,
     ) -> tuple[Job, bool]:
         """Insert an accepted job and commit it. Returns (job, created).
 
-        With an ``idempotency_key`` already used: the earlier job when the fingerprint matches
-        (created False), else :class:`IdempotencyConflict`.
+        ``owner``: the owner id of the API key that submits it (None without keys).
+        With an ``idempotency_key`` this owner already used: the earlier job when the
+        fingerprint matches (created False), else :class:`IdempotencyConflict`.
         """
         if idempotency_key is not None:
-            earlier = self.by_idempotency_key(idempotency_key)
+            earlier = self.by_idempotency_key(idempotency_key, owner=owner)
             if earlier is not None:
                 return self._replay(earlier, request_fingerprint), False
         now = utcnow()
@@ -307,8 +326,10 @@ class Registry:
             grid_points=grid_points,
             n_steps=n_steps,
             t_end=t_end,
-            idempotency_key=idempotency_key,
+            idempotency_key=(None if idempotency_key is None
+                             else scoped_idempotency_key(owner, idempotency_key)),
             request_fingerprint=request_fingerprint,
+            owner=owner,
             created_at=now,
             updated_at=now,
             progress=0.0,
@@ -329,7 +350,8 @@ class Registry:
                 session.add(JobEvent(job_id=job.id, at=now, kind="submitted"))
         except IntegrityError:
             # a concurrent request with the same key won the race
-            earlier = self.by_idempotency_key(idempotency_key) if idempotency_key else None
+            earlier = (self.by_idempotency_key(idempotency_key, owner=owner)
+                       if idempotency_key else None)
             if earlier is None:
                 raise
             return self._replay(earlier, request_fingerprint), False
@@ -341,24 +363,27 @@ class Registry:
             raise IdempotencyConflict(earlier.id)
         return earlier
 
-    def by_idempotency_key(self, key: str) -> Job | None:
+    def by_idempotency_key(self, key: str, *, owner: str | None = None) -> Job | None:
+        """The job that ``owner`` (None: the service without keys) submitted with this
+        Idempotency-Key, if any."""
+        stored = scoped_idempotency_key(owner, key)
         with self.sessions() as session:
-            return session.scalars(select(Job).where(Job.idempotency_key == key)).first()
+            return session.scalars(select(Job).where(Job.idempotency_key == stored)).first()
 
-    def find_successful(self, spec_hash: str, solver_version: str) -> Job | None:
-        """The latest successful job with this spec hash and solver version and a result file."""
+    def find_successful(self, spec_hash: str, solver_version: str, *,
+                        owner: str | None = None) -> Job | None:
+        """The latest successful job with this spec hash and solver version and a result file;
+        with ``owner``, among that owner's jobs only."""
+        query = select(Job).where(
+            Job.spec_hash == spec_hash,
+            Job.solver_version == solver_version,
+            Job.state == SUCCESSFUL,
+            Job.result_path.is_not(None),
+        )
+        if owner is not None:
+            query = query.where(Job.owner == owner)
         with self.sessions() as session:
-            return session.scalars(
-                select(Job)
-                .where(
-                    Job.spec_hash == spec_hash,
-                    Job.solver_version == solver_version,
-                    Job.state == SUCCESSFUL,
-                    Job.result_path.is_not(None),
-                )
-                .order_by(Job.finished_at.desc())
-                .limit(1)
-            ).first()
+            return session.scalars(query.order_by(Job.finished_at.desc()).limit(1)).first()
 
     # --- reading -------------------------------------------------------------------------------
     def get(self, job_id: str) -> Job | None:
@@ -387,9 +412,13 @@ class Registry:
         created_before: dt.datetime | None = None,
         page_size: int = 50,
         page_token: str | None = None,
+        owner: str | None = None,
     ) -> Page:
-        """Newest first; keyset pagination on (created_at, id)."""
+        """Newest first; keyset pagination on (created_at, id); with ``owner``, that owner's
+        jobs only."""
         query = select(Job).order_by(Job.created_at.desc(), Job.id.desc()).limit(page_size + 1)
+        if owner is not None:
+            query = query.where(Job.owner == owner)
         states = list(states or [])
         if states:
             query = query.where(Job.state.in_(states))
@@ -800,6 +829,7 @@ class Registry:
                     select(WorkerBeat).where(WorkerBeat.last_seen >= since).order_by(WorkerBeat.name)
                 )
             )
+
 
     # --- sweeps --------------------------------------------------------------------------------
     def create_sweep(self, *, name: str | None, combine: str, parameters: dict[str, list],

@@ -42,6 +42,13 @@ def run(args: argparse.Namespace) -> int:
     settings = get_settings()
     logging.basicConfig(level=settings.log_level.upper(),
                         format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    try:
+        api_keys = settings.load_api_keys()
+    except ValueError as exc:
+        log.error("cannot start: %s", exc)
+        return 2
+    if not api_keys:
+        warn_if_open(settings.host)
     settings.data_dir.mkdir(parents=True, exist_ok=True)
 
     worker = None
@@ -73,6 +80,22 @@ def run(args: argparse.Namespace) -> int:
                 worker.kill()
                 worker.wait()
     return 0
+
+
+def warn_if_open(host: str) -> bool:
+    """Log a loud warning when the API binds an address other machines can reach without API
+    keys (anyone who reaches it may read, submit and dismiss every job). True if it warned."""
+    from .auth import is_loopback
+
+    if is_loopback(host):
+        return False
+    rule = "!" * 78
+    log.warning(
+        "\n%s\n!! NO AUTHENTICATION: the API binds %s without API keys.\n"
+        "!! Anyone who can reach this address can submit, read and dismiss every job.\n"
+        "!! Set HOCKLE_API_KEYS (or HOCKLE_API_KEYS_FILE), or bind 127.0.0.1.\n%s",
+        rule, host, rule)
+    return True
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -13,15 +13,21 @@ import os
 from functools import lru_cache
 from pathlib import Path
 
-from pydantic import Field, model_validator
+from pydantic import Field, SecretStr, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
-__all__ = ["Settings", "DatasetMetadata", "get_settings", "CONTACT_CALIBRATION_DT"]
+__all__ = ["Settings", "DatasetMetadata", "get_settings", "CONTACT_CALIBRATION_DT",
+           "MIN_API_KEY_LENGTH"]
 
 # The contact cost figures (docs/contact.md section 4) are per nominal step of the seed example,
 # dt = 0.1 s; in contact the step control cuts the step to 1-25 ms whatever the nominal dt, so a
 # contact case's cost is counted per 0.1 s of simulated time at least.
 CONTACT_CALIBRATION_DT = 0.1
+
+# an API key must be at least this long (a guessable key is no protection)
+MIN_API_KEY_LENGTH = 16
+# settings that child_env() does not hand to a worker process
+SECRET_FIELDS = ("api_keys", "api_keys_file", "api_key")
 
 
 class DatasetMetadata(BaseSettings):
@@ -101,6 +107,34 @@ class Settings(DatasetMetadata):
     port: int = Field(8000, description="Port `hockle serve` binds.")
     public_url: str | None = Field(
         None, description="Base URL the client and `hockle submit` use; default http://<host>:<port>."
+    )
+
+    # --- access --------------------------------------------------------------------------------
+    api_keys: SecretStr | None = Field(
+        None,
+        description="Comma-separated API keys. When set (or api_keys_file), every route but "
+        "/v1/health and the docs needs `Authorization: Bearer <key>`, and each job belongs to "
+        "the key that submitted it. Unset: no authentication (fit for 127.0.0.1 only).",
+    )
+    api_keys_file: Path | None = Field(
+        None,
+        description="File of API keys, one per line (blank lines and lines starting with # "
+        "are skipped); read by the API at start-up, together with api_keys.",
+    )
+    api_key: SecretStr | None = Field(
+        None,
+        description="The key the client (HockleClient) and `hockle submit` send; not read by "
+        "the API.",
+    )
+    rate_limit: float = Field(
+        20.0, ge=0,
+        description="Requests per second each API key may make, on average (a token bucket "
+        "per key in each API process); 0 turns rate limiting off. Only with API keys.",
+    )
+    rate_limit_burst: int = Field(
+        100, ge=1,
+        description="Requests a key may make at once before rate_limit applies (the bucket's "
+        "size).",
     )
 
     # --- limits --------------------------------------------------------------------------------
@@ -294,11 +328,52 @@ class Settings(DatasetMetadata):
             steps = max(steps, t_end / CONTACT_CALIBRATION_DT)
         return self.time_limit_per_unit_contact * grid_points * steps
 
+    def load_api_keys(self) -> list[str]:
+        """The API keys from ``api_keys`` and ``api_keys_file`` (empty: no authentication).
+
+        Raises ``ValueError`` naming the variable and the key's place (never the key) for
+        an unreadable file, an empty file, or a key that is too short or holds whitespace,
+        commas or non-ASCII characters (a key travels in an HTTP header).
+        """
+        keys: list[tuple[str, str]] = []
+        if self.api_keys is not None:
+            raw = self.api_keys.get_secret_value()
+            keys += [(f"HOCKLE_API_KEYS: key {n}", k) for n, k in
+                     enumerate((k.strip() for k in raw.split(",") if k.strip()), 1)]
+            if raw.strip() and not keys:
+                raise ValueError("HOCKLE_API_KEYS: no key in it (comma-separated keys)")
+        if self.api_keys_file is not None:
+            path = Path(os.path.expanduser(self.api_keys_file))
+            try:
+                lines = path.read_text(encoding="utf-8").splitlines()
+            except (OSError, UnicodeDecodeError) as exc:
+                raise ValueError(f"HOCKLE_API_KEYS_FILE: cannot read {path}: "
+                                 f"{getattr(exc, 'strerror', None) or exc}") from None
+            from_file = [(f"HOCKLE_API_KEYS_FILE: the key on line {n} of {path}", line.strip())
+                         for n, line in enumerate(lines, 1)
+                         if line.strip() and not line.strip().startswith("#")]
+            if not from_file:
+                raise ValueError(f"HOCKLE_API_KEYS_FILE: {path} holds no key (one per line)")
+            keys += from_file
+        for where, key in keys:
+            problem = None
+            if len(key) < MIN_API_KEY_LENGTH:
+                problem = f"is {len(key)} characters long; use at least {MIN_API_KEY_LENGTH}"
+            elif not key.isascii() or any(c.isspace() or c == "," or not c.isprintable()
+                                          for c in key):
+                problem = "holds whitespace, a comma or a non-ASCII or control character"
+            if problem:
+                raise ValueError(
+                    f"{where} {problem} (make one with: python3 -c "
+                    f"'import secrets; print(secrets.token_urlsafe(32))')")
+        return list(dict.fromkeys(key for _, key in keys))
+
     def child_env(self) -> dict[str, str]:
-        """Environment that makes a child process resolve the same settings."""
+        """Environment that makes a child process resolve the same settings (the API keys and
+        the client's key excepted: a worker never authenticates)."""
         env = {}
         for name, value in self.model_dump().items():
-            if value is None:
+            if value is None or name in SECRET_FIELDS:
                 continue
             env[f"HOCKLE_{name.upper()}"] = str(value)
         return env

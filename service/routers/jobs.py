@@ -10,6 +10,7 @@ from fastapi import APIRouter, Depends, Header, Query, Request, Response
 from fastapi.concurrency import run_in_threadpool
 
 from ..app import Services, services
+from ..auth import caller
 from ..problems import ProblemError, problem_responses
 from ..registry import (
     RUNNING,
@@ -79,9 +80,12 @@ def _exists(path: str) -> bool:
     return os.path.exists(path)
 
 
-def get_job_or_404(svc: Services, job_id: str) -> Job:
+def get_job_or_404(svc: Services, job_id: str, owner: str | None) -> Job:
+    """The job, if the caller may see it; else a 404 problem. ``owner`` is the caller's
+    (:func:`service.auth.caller`): another owner's job is answered exactly as an unknown id,
+    so that ids cannot be probed. ``None`` (a service without API keys) sees every job."""
     job = svc.registry.get(job_id)
-    if job is None:
+    if job is None or (owner is not None and job.owner != owner):
         raise ProblemError(404, "job-not-found", "Job not found", f"no job with id {job_id}")
     return job
 
@@ -99,7 +103,8 @@ def _check_time_limit(time_limit: float | None, maximum: float) -> None:
 
 
 def _submit(svc: Services, body: bytes, content_type: str | None, idempotency_key: str | None,
-            fresh: bool, time_limit: float | None = None) -> tuple[Job, int]:
+            fresh: bool, time_limit: float | None = None,
+            owner: str | None = None) -> tuple[Job, int]:
     import solver
 
     _check_time_limit(time_limit, svc.settings.time_limit_max)
@@ -114,13 +119,13 @@ def _submit(svc: Services, body: bytes, content_type: str | None, idempotency_ke
             raise ProblemError(422, "invalid-request", "Invalid request",
                                errors=[{"loc": "header.Idempotency-Key",
                                         "msg": "must be 1 to 200 characters", "type": "string"}])
-        earlier = svc.registry.by_idempotency_key(idempotency_key)
+        earlier = svc.registry.by_idempotency_key(idempotency_key, owner=owner)
         if earlier is not None:
             if earlier.request_fingerprint != fingerprint:
                 raise _reuse_problem(earlier.id)
             return earlier, 200
     if not fresh:
-        cached = svc.registry.find_successful(spec_hash, version)
+        cached = svc.registry.find_successful(spec_hash, version, owner=owner)
         if cached is not None and _exists(cached.result_path):
             return cached, 200
     hard, soft, budget = svc.settings.time_limits(case.grid_points, case.n_steps,
@@ -139,6 +144,7 @@ def _submit(svc: Services, body: bytes, content_type: str | None, idempotency_ke
             limits=(hard, soft, budget),
             idempotency_key=idempotency_key,
             request_fingerprint=fingerprint,
+            owner=owner,
         )
     except IdempotencyConflict as exc:
         raise _reuse_problem(exc.job_id) from None
@@ -188,6 +194,7 @@ async def submit_job(
     request: Request,
     response: Response,
     svc: Annotated[Services, Depends(services)],
+    owner: Annotated[str | None, Depends(caller)],
     idempotency_key: Annotated[str | None, Header(
         description="Makes retries safe: the same key and body give the same job.")] = None,
     fresh: Annotated[bool, Query(
@@ -204,7 +211,7 @@ async def submit_job(
     async with _submit_slots(request):
         job, status = await run_in_threadpool(
             _submit, svc, body, request.headers.get("content-type"), idempotency_key, fresh,
-            time_limit
+            time_limit, owner
         )
     response.status_code = status
     response.headers["Location"] = f"/v1/jobs/{job.id}"
@@ -216,6 +223,7 @@ async def submit_job(
 def list_jobs(
     request: Request,
     svc: Annotated[Services, Depends(services)],
+    owner: Annotated[str | None, Depends(caller)],
     status: Annotated[list[str] | None, Query(
         description="Keep these states (repeat, or comma-separated).")] = None,
     created_after: Annotated[dt.datetime | None, Query(description="Created at or after.")] = None,
@@ -233,7 +241,7 @@ def list_jobs(
     try:
         page = svc.registry.list(states=states, created_after=_naive(created_after),
                                  created_before=_naive(created_before), page_size=page_size,
-                                 page_token=page_token)
+                                 page_token=page_token, owner=owner)
     except ValueError as exc:
         raise ProblemError(422, "invalid-request", "Invalid request", errors=[
             {"loc": "query.page_token", "msg": str(exc), "type": "value_error"}]) from None
@@ -252,9 +260,10 @@ def _naive(value: dt.datetime | None) -> dt.datetime | None:
 
 @router.get("/jobs/{job_id}", operation_id="get_job", summary="Job status",
             response_model=JobStatus, responses=problem_responses(404))
-def get_job(job_id: str, svc: Annotated[Services, Depends(services)]) -> JobStatus:
+def get_job(job_id: str, svc: Annotated[Services, Depends(services)],
+            owner: Annotated[str | None, Depends(caller)]) -> JobStatus:
     """State, progress 0-100, simulated time, step, ETA, timestamps, worker, error."""
-    return job_status(get_job_or_404(svc, job_id), _exists)
+    return job_status(get_job_or_404(svc, job_id, owner), _exists)
 
 
 @router.delete(
@@ -266,10 +275,11 @@ def get_job(job_id: str, svc: Annotated[Services, Depends(services)]) -> JobStat
                **problem_responses(404, 409)},
 )
 def dismiss_job(job_id: str, response: Response,
-                svc: Annotated[Services, Depends(services)]) -> JobStatus:
+                svc: Annotated[Services, Depends(services)],
+                owner: Annotated[str | None, Depends(caller)]) -> JobStatus:
     """A queued job never starts (200, dismissed); a running one stops within one time step
     and keeps its partial result (202 now, dismissed soon)."""
-    job = get_job_or_404(svc, job_id)
+    job = get_job_or_404(svc, job_id, owner)
     if job.state in TERMINAL_STATES and job.state != "dismissed":
         raise ProblemError(409, "job-finished", "Job already finished",
                            f"job {job_id} is {job.state}; only accepted or running jobs can be "
@@ -285,9 +295,10 @@ def dismiss_job(job_id: str, response: Response,
 
 @router.get("/jobs/{job_id}/spec", operation_id="get_job_spec", summary="Canonical case spec",
             responses=problem_responses(404))
-def get_job_spec(job_id: str, svc: Annotated[Services, Depends(services)]) -> Response:
+def get_job_spec(job_id: str, svc: Annotated[Services, Depends(services)],
+                 owner: Annotated[str | None, Depends(caller)]) -> Response:
     """The case spec as the service validated it: canonical JSON, defaults filled in."""
-    job = get_job_or_404(svc, job_id)
+    job = get_job_or_404(svc, job_id, owner)
     return Response(job.spec_json, media_type="application/json",
                     headers={"ETag": f'"{job.spec_hash}"'})
 

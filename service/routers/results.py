@@ -11,6 +11,7 @@ from fastapi import APIRouter, Depends, Query, Request, Response
 from fastapi.responses import FileResponse
 
 from ..app import Services, services
+from ..auth import caller
 from ..problems import ProblemError, problem_responses
 from ..registry import Job
 from ..schemas import Series, Summary, VariableInfo, VariableList, VariableSlice
@@ -65,9 +66,10 @@ def _open(path: str) -> Iterator[Any]:
                **problem_responses(404)},
 )
 def download_results(job_id: str, request: Request,
-                     svc: Annotated[Services, Depends(services)]) -> Response:
+                     svc: Annotated[Services, Depends(services)],
+                     owner: Annotated[str | None, Depends(caller)]) -> Response:
     """The job's dataset (partial for failed or dismissed jobs), with Content-Length and ETag."""
-    job = get_job_or_404(svc, job_id)
+    job = get_job_or_404(svc, job_id, owner)
     path = _result_path(svc, job)
     etag = _etag(path)
     if _not_modified(request, etag):
@@ -79,9 +81,10 @@ def download_results(job_id: str, request: Request,
 @router.get("/jobs/{job_id}/results/variables", operation_id="list_result_variables",
             summary="Variables of the result", response_model=VariableList,
             responses=problem_responses(404))
-def list_result_variables(job_id: str, svc: Annotated[Services, Depends(services)]) -> VariableList:
+def list_result_variables(job_id: str, svc: Annotated[Services, Depends(services)],
+                          owner: Annotated[str | None, Depends(caller)]) -> VariableList:
     """Each variable and coordinate with its dims, shape, units and long name."""
-    job = get_job_or_404(svc, job_id)
+    job = get_job_or_404(svc, job_id, owner)
     path = _result_path(svc, job)
     with _open(path) as ds:
         items = [_info(name, ds[name], coordinate=True) for name in ds.coords]
@@ -124,6 +127,7 @@ def get_result_variable(
     job_id: str,
     name: str,
     svc: Annotated[Services, Depends(services)],
+    owner: Annotated[str | None, Depends(caller)],
     time: Annotated[str | None, Query(description=f"Time, s: {_SELECTOR_HELP}.")] = None,
     s: Annotated[str | None, Query(description=f"Arclength, m: {_SELECTOR_HELP}.")] = None,
     component: Annotated[str | None, Query(description="Body-frame component 1, 2, 3 (or '1,3', "
@@ -135,7 +139,7 @@ def get_result_variable(
     step: Annotated[str | None, Query(description="Solver step number (step diagnostics).")] = None,
 ) -> VariableSlice:
     """Select by coordinate labels; refuses (422) a slice larger than HOCKLE_MAX_SLICE_VALUES."""
-    job = get_job_or_404(svc, job_id)
+    job = get_job_or_404(svc, job_id, owner)
     path = _result_path(svc, job)
     query = {"time": time, "s": s, "component": component, "xyz": xyz,
              "quaternion": quaternion, "step": step}
@@ -268,9 +272,10 @@ def _jsonable(values) -> Any:
             responses={304: {"description": "Not modified (If-None-Match)"},
                        **problem_responses(404)})
 def get_summary(job_id: str, request: Request, response: Response,
-                svc: Annotated[Services, Depends(services)]) -> Summary | Response:
+                svc: Annotated[Services, Depends(services)],
+                owner: Annotated[str | None, Depends(caller)]) -> Summary | Response:
     """Energies, twist, writhe, linking number and contact count over time."""
-    job = get_job_or_404(svc, job_id)
+    job = get_job_or_404(svc, job_id, owner)
     path = _result_path(svc, job)
     etag = _etag(path)
     if _not_modified(request, etag):
