@@ -14,6 +14,7 @@ from fastapi import FastAPI, Request
 from fastapi.openapi.utils import get_openapi
 
 from .auth import AuthMiddleware
+from .docs import ASSETS_URL, DOCS_URL, OAUTH2_REDIRECT_URL, REDOC_URL, install_docs
 from .problems import install_handlers
 from .queue import Enqueuer
 from .registry import REGISTRY_UNAVAILABLE, Registry
@@ -76,16 +77,18 @@ def create_app(settings: Settings | None = None, *, enqueuer: Enqueuer | None = 
         version=_version(),
         description=API_DESCRIPTION,
         lifespan=lifespan,
-        docs_url="/docs",
+        docs_url=None,  # served from the package's own assets: service/docs.py
+        redoc_url=None,
         openapi_url="/openapi.json",
     )
     app.state.services = svc
     app.state.auth_enabled = bool(api_keys)
     install_handlers(app)
+    install_docs(app)
     app.add_middleware(
         AuthMiddleware, keys=api_keys, rate=settings.rate_limit, burst=settings.rate_limit_burst,
-        public_paths=("/v1/health", app.openapi_url, app.docs_url, app.redoc_url,
-                      app.swagger_ui_oauth2_redirect_url))
+        public_paths=("/v1/health", app.openapi_url, DOCS_URL, REDOC_URL, OAUTH2_REDIRECT_URL),
+        public_prefixes=(ASSETS_URL + "/",))
 
     from .routers import health, jobs, results, sweeps
 
