@@ -143,6 +143,22 @@ def test_compose_services_commands_ports_volumes():
     assert "flower" in DOCKERFILE.read_text()  # the image it runs has flower installed
 
 
+def test_no_default_passwords_and_the_api_requires_keys():
+    """Secrets are required variables (${VAR:?message}), never defaults: a forgotten one stops
+    `docker compose`, it does not start a database or Flower with a password from this file."""
+    text = COMPOSE.read_text()
+    assert not re.search(r"\$\{(POSTGRES_PASSWORD|FLOWER_PASSWORD|HOCKLE_API_KEYS)(:?-)", text)
+    services = _compose()["services"]
+    assert services["postgres"]["environment"]["POSTGRES_PASSWORD"].startswith(
+        "${POSTGRES_PASSWORD:?")
+    assert "${FLOWER_PASSWORD:?" in " ".join(services["flower"]["command"])
+    # the API binds 0.0.0.0: it gets keys, and the same secret in Kubernetes
+    assert services["api"]["environment"]["HOCKLE_API_KEYS"].startswith("${HOCKLE_API_KEYS:?")
+    (container,) = _by_kind("Deployment")["hockle-api"]["spec"]["template"]["spec"]["containers"]
+    env = {e["name"]: e for e in container["env"]}
+    assert env["HOCKLE_API_KEYS"]["valueFrom"]["secretKeyRef"]["name"] == "hockle-api-keys"
+
+
 def test_dockerfile_copies_the_packages_and_exposes_the_port():
     text = DOCKERFILE.read_text()
     env = _dockerfile_env()
