@@ -279,7 +279,8 @@ class Registry:
                 kind = column.type.compile(dialect=self.engine.dialect)
                 with self.engine.begin() as conn:
                     conn.execute(text(f"ALTER TABLE {table.name} ADD COLUMN {column.name} {kind}"))
-            for index in table.indexes:  # those of added columns (create_all makes only new tables')
+            # an added column's index: create_all makes the indexes of new tables only
+            for index in table.indexes:
                 index.create(self.engine, checkfirst=True)
 
     def ping(self) -> None:

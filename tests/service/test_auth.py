@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import argparse
 import logging
-import sqlite3
+import uuid
 
 import httpx
 import pytest
@@ -281,27 +281,54 @@ def test_serve_refuses_bad_keys_before_starting_anything(monkeypatch, tmp_path, 
     assert not (tmp_path / "never").exists()
 
 
-def test_an_older_registry_gets_the_owner_column_and_index(tmp_path):
-    from sqlalchemy import inspect
+@pytest.fixture(params=["sqlite", "postgresql"])
+def empty_registry_url(request, tmp_path):
+    """The URL of an empty database: a SQLite file, or a new PostgreSQL database of its own
+    (dropped afterwards; skipped when no server answers on 127.0.0.1:5432)."""
+    if request.param == "sqlite":
+        yield f"sqlite:///{tmp_path / 'old.db'}"
+        return
+    psycopg = pytest.importorskip("psycopg")
+    from svc_support import PG_ADMIN
+
+    try:
+        admin = psycopg.connect(PG_ADMIN, autocommit=True, connect_timeout=3)
+    except Exception as exc:  # noqa: BLE001
+        pytest.skip(f"no PostgreSQL server answers on 127.0.0.1:5432 ({exc})")
+    name = f"hockle_old_{uuid.uuid4().hex[:10]}"
+    admin.execute(f'CREATE DATABASE "{name}"')
+    try:
+        yield f"postgresql+psycopg://postgres@127.0.0.1:5432/{name}"
+    finally:
+        admin.execute(
+            "SELECT pg_terminate_backend(pid) FROM pg_stat_activity WHERE datname = %s", (name,))
+        admin.execute(f'DROP DATABASE IF EXISTS "{name}"')
+        admin.close()
+
+
+def test_an_older_registry_gets_the_owner_column_and_index(empty_registry_url):
+    from sqlalchemy import inspect, text
 
     from service.registry import Base
 
-    reg = Registry(f"sqlite:///{tmp_path / 'old.db'}")
+    reg = Registry(empty_registry_url)
     jobs = Base.metadata.tables["hockle_jobs"]
     with reg.engine.begin() as conn:
         cols = ", ".join(f"{c.name} {c.type.compile(dialect=reg.engine.dialect)}"
                          for c in jobs.columns if c.name != "owner")
         conn.exec_driver_sql(f"CREATE TABLE hockle_jobs ({cols})")
-        conn.exec_driver_sql("INSERT INTO hockle_jobs (id, state) VALUES ('old', 'successful')")
+        conn.exec_driver_sql("INSERT INTO hockle_jobs (id, state, created_at) "
+                             "VALUES ('old', 'successful', '2026-01-01 00:00:00')")
     reg.create_schema()
+    reg.create_schema()  # the next start finds column and index made
     inspector = inspect(reg.engine)
     assert "owner" in {c["name"] for c in inspector.get_columns("hockle_jobs")}
     assert any(ix["column_names"] == ["owner"] for ix in inspector.get_indexes("hockle_jobs"))
     assert reg.list(owner=owner_id(KEY_A)).jobs == []  # a job made before keys is no one's
     assert [j.id for j in reg.list().jobs] == ["old"]  # and everyone's without keys
+    with reg.engine.connect() as conn:
+        assert conn.execute(text("SELECT owner FROM hockle_jobs")).all() == [(None,)]
     reg.dispose()
-    with sqlite3.connect(tmp_path / "old.db") as conn:
-        assert conn.execute("SELECT owner FROM hockle_jobs").fetchall() == [(None,)]
 
 
 # --- client and command line -----------------------------------------------------------------
