@@ -32,7 +32,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import uvicorn
 
-    from .settings import get_settings
+    from .settings import SECRET_FIELDS, get_settings
 
     overrides = {"host": args.host, "port": args.port}
     for key, value in overrides.items():
@@ -54,7 +54,9 @@ def run(args: argparse.Namespace) -> int:
     worker = None
     concurrency = settings.worker_concurrency if args.workers is None else args.workers
     if settings.embedded and settings.embedded_worker and not args.no_worker and concurrency > 0:
-        env = dict(os.environ)
+        # the worker never authenticates: it gets no API key
+        secrets = {f"HOCKLE_{name.upper()}" for name in SECRET_FIELDS}
+        env = {k: v for k, v in os.environ.items() if k not in secrets}
         env.update(settings.child_env())
         if "HOCKLE_WORKER_NICE" not in os.environ:
             env["HOCKLE_WORKER_NICE"] = "10"  # the API on this machine stays responsive

@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import logging
 import uuid
+from pathlib import Path
 
 import httpx
 import pytest
@@ -400,8 +401,23 @@ def test_embedded_service_with_keys_end_to_end(tmp_path_factory, tmp_path):
                 assert err.value.status == 404
             assert job.id not in {j.id for j in bob.iter_jobs()}
         assert stack.http.get(f"/v1/jobs/{job.id}").status_code == 401
+        # the embedded worker process got no key in its environment
+        workers = [pid for pid in _children(stack.api.pid)
+                   if b"worker" in Path(f"/proc/{pid}/cmdline").read_bytes()]
+        assert workers
+        for pid in workers:
+            assert b"HOCKLE_API_KEYS" not in Path(f"/proc/{pid}/environ").read_bytes()
         assert stack.http.get("/docs").status_code == 200
         assert "NO AUTHENTICATION" not in stack.log("api.log")
         assert KEY_A not in stack.log("api.log")
     finally:
         stack.close()
+
+
+def _children(pid: int) -> list[int]:
+    """The ids of the direct children of a process (Linux /proc)."""
+    out = []
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        children = (task / "children").read_text().split()
+        out += [int(c) for c in children]
+    return out
