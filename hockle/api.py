@@ -1,0 +1,687 @@
+"""hockle's Python API for in-process runs: callbacks, custom loads, case builders, sweeps.
+
+For users who know PyElastica's ``CallBackBaseClass`` and external forcing: build a case
+with the case spec's own pydantic models (and :func:`clamped`, :func:`twisted`,
+:func:`sliding`, ... for the usual ends), watch or steer a run with callbacks at a cadence,
+add distributed loads written as Python functions, and run sweeps on the local cores::
+
+    from hockle.api import (Callback, Recorder, simulate, sweep, make_case, clamped,
+                            twisted, sliding)
+    case = make_case("twist", start=twisted(2.0), end=sliding(tension=0.5),
+                     n_segments=50, dt=0.05, t_end=20.0)
+    rec = Recorder(["position", "writhe"], interval=1.0)        # every simulated second
+    stop = Callback.when(lambda st: st.writhe > 1.0, reason="writhe above one turn")
+    ds = simulate(case, callbacks=[rec, stop])                  # the result dataset
+    grid = sweep(case, {"boundary.end.translation.2.force": [0.1, 0.5, 1.0]})
+
+:func:`simulate` without callbacks and loads *is* :func:`solver.simulate`. With them it
+drives :class:`solver.simulation.RodRun` itself, with the same steps, outputs and result
+dataset (tests/test_api.py checks that the two agree to the bit), because the solver's
+``progress`` hook carries no state. Nothing here changes the solver; the one thing it
+reaches into is the load model of the run it built (see :class:`DistributedLoad`).
+"""
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+import time as _time
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "State",
+    "Callback",
+    "Recorder",
+    "DistributedLoad",
+    "simulate",
+    "sweep",
+    "make_case",
+    "clamped",
+    "free",
+    "pinned",
+    "twisted",
+    "sliding",
+    "end",
+    "ramp",
+    "switch",
+]
+
+
+# --------------------------------------------------------------------------- the state
+
+
+class State:
+    """The rod at one accepted step, as a callback (or a state-aware load) sees it.
+
+    ``t`` (s), ``step`` (accepted steps so far; 0 at the start), ``dt`` (s, the last step),
+    ``s`` (m, the grid). The fields are computed when first read and are copies (changing
+    them changes nothing in the run): ``position`` (N+1, 3) m, global; ``v``, ``omega``,
+    ``f``, ``kappa``, ``moment`` (N+1, 3) body frame; ``orientation`` (N+1, 4) unit
+    quaternions; ``twist``, ``writhe``, ``linking_number`` (turns; the writhe costs
+    O(N²)); ``energies`` (a dict of J); ``contact_count``, ``min_surface_gap`` (m).
+    ``get(*groups)`` returns the output field groups of the result dataset as a dict.
+    ``run`` is the :class:`solver.simulation.RodRun` itself, for experts: read it, do not
+    change it.
+    """
+
+    _GROUPS = {"v": "v", "omega": "omega", "f": "f", "kappa": "kappa", "moment": "moment",
+               "position": "position", "orientation": "orientation", "twist": "topology",
+               "writhe": "topology", "linking_number": "topology", "contact_count": "contact",
+               "min_surface_gap": "contact"}
+
+    def __init__(self, run, step: int):
+        self.run = run
+        self.t = float(run.t)
+        self.step = int(step)
+        self.dt = float(run.last_dt)
+        self.s = run.props.s
+        self._cache: dict[str, Any] = {}
+
+    def get(self, *groups: str) -> dict[str, Any]:
+        """The result dataset's quantities of these output field groups (``position``,
+        ``energies``, ``topology``, ``contact``, ...) at this state."""
+        missing = [g for g in groups if g not in self._cache]
+        if missing:
+            snap = self.run.snapshot(set(missing))
+            for g in missing:
+                self._cache[g] = snap
+        out: dict[str, Any] = {}
+        for g in groups:
+            out.update(self._cache[g])
+        return out
+
+    def __getattr__(self, name: str) -> Any:
+        if name.startswith("_"):
+            raise AttributeError(name)
+        if name == "energies":
+            snap = self.get("energies")
+            return {k: v for k, v in snap.items()
+                    if k.startswith("energy_") or k in ("work_in", "power_in")}
+        group = State._GROUPS.get(name)
+        if group is None:
+            raise AttributeError(f"State has no {name!r}; fields: "
+                                 f"{', '.join(sorted(State._GROUPS))}, energies")
+        return self.get(group)[name]
+
+    def __repr__(self) -> str:
+        return f"State(t={self.t:.6g} s, step={self.step})"
+
+
+# --------------------------------------------------------------------------- callbacks
+
+
+class Callback:
+    """An observer called with the :class:`State` at a cadence; it may stop the run.
+
+    Subclass and override :meth:`__call__`, or wrap a function: ``Callback(func,
+    every=10)``. ``every``: every that many accepted steps; ``interval``: at the first
+    accepted step at or after each multiple of that many simulated seconds; neither: every
+    accepted step. Every callback is also called once at t = 0 (step 0). Returning ``True``
+    or a non-empty string stops the run at once (any other value is ignored): ``simulate``
+    returns the dataset up to there with ``hockle_status = "stopped"`` and
+    ``hockle_stop_reason`` the string (or ``"callback"``). As in PyElastica, ``every`` is its ``step_skip``.
+    """
+
+    def __init__(self, func: Callable[[State], Any] | None = None, *, every: int | None = None,
+                 interval: float | None = None, name: str | None = None):
+        if every is not None and interval is not None:
+            raise ValueError("Callback: give every (steps) or interval (simulated seconds), "
+                             "not both")
+        if every is not None and (int(every) != every or every < 1):
+            raise ValueError(f"Callback.every must be a whole number of steps >= 1, got {every!r}")
+        if interval is not None and not (interval > 0 and math.isfinite(interval)):
+            raise ValueError(f"Callback.interval must be a positive number of seconds, got "
+                             f"{interval!r}")
+        self.func = func
+        self.every = int(every) if every is not None else (None if interval else 1)
+        self.interval = float(interval) if interval is not None else None
+        self.name = name or getattr(func, "__name__", None) or type(self).__name__
+        self._next_t = 0.0
+
+    def __call__(self, state: State) -> Any:
+        """Observe ``state``; return ``True`` or a reason string to stop the run."""
+        if self.func is None:
+            raise NotImplementedError("override Callback.__call__ or pass a function")
+        return self.func(state)
+
+    @classmethod
+    def when(cls, predicate: Callable[[State], Any], *, reason: str = "stop condition met",
+             every: int | None = None, interval: float | None = None) -> "Callback":
+        """A callback that stops the run when ``predicate(state)`` is true, with ``reason``."""
+        def check(state: State):
+            return reason if predicate(state) else None
+        return cls(check, every=every, interval=interval, name=f"when({reason})")
+
+    # the cadence --------------------------------------------------------------------
+    def _start(self) -> None:
+        self._next_t = self.interval if self.interval else 0.0
+
+    def _due(self, state: State) -> bool:
+        if state.step == 0:
+            return True
+        if self.interval is not None:
+            tol = 1e-9 * max(self.interval, abs(state.t))
+            if state.t >= self._next_t - tol:
+                self._next_t = (math.floor((state.t + tol) / self.interval) + 1) * self.interval
+                return True
+            return False
+        return state.step % self.every == 0
+
+
+class Recorder(Callback):
+    """A callback that keeps quantities of the state: ``times`` (s), ``steps`` and
+    ``data[name]`` (a list per name, e.g. ``position``, ``writhe``, ``energy_total``);
+    :meth:`arrays` stacks them. ``names``: any attribute of :class:`State` or key of its
+    ``energies``."""
+
+    def __init__(self, names: Iterable[str] = ("position",), *, every: int | None = None,
+                 interval: float | None = None):
+        super().__init__(None, every=every, interval=interval, name="Recorder")
+        self.names = list(names)
+        self.times: list[float] = []
+        self.steps: list[int] = []
+        self.data: dict[str, list] = {n: [] for n in self.names}
+
+    def __call__(self, state: State) -> None:
+        self.times.append(state.t)
+        self.steps.append(state.step)
+        energies = None
+        for n in self.names:
+            if n.startswith("energy_") or n in ("work_in", "power_in"):
+                energies = energies if energies is not None else state.energies
+                self.data[n].append(energies[n])
+            else:
+                self.data[n].append(getattr(state, n))
+        return None
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """``{"time": (K,), name: (K, ...)}``."""
+        out = {"time": np.asarray(self.times)}
+        out.update({n: np.asarray(v) for n, v in self.data.items()})
+        return out
+
+
+def _as_callback(cb: Any) -> Callback:
+    if isinstance(cb, Callback):
+        return cb
+    if callable(cb):
+        return Callback(cb)
+    raise TypeError(f"a callback is a hockle.api.Callback or a function of the state, got "
+                    f"{type(cb).__name__}")
+
+
+# --------------------------------------------------------------------------- custom loads
+
+
+class DistributedLoad:
+    """A distributed force per unit length written as a Python function (in-process runs
+    only; the service takes data, never code).
+
+    ``func(t, s)`` returns the force in N/m, **global frame**, at time ``t`` (s) on the grid
+    ``s`` (m, (N+1,)): an (N+1, 3) array or one 3-vector for the whole rod. With
+    ``uses_state=True`` it is ``func(t, s, state)`` with the :class:`State` of the last
+    accepted step: the load is then explicit in the state (lagged by one step; Newton sees
+    it as constant within a step), fine for slowly varying loads, not for stiff ones.
+
+    The solver assembles global-frame distributed forces as it does the case's
+    ``distributed_forces`` (work and power included), and asks for them at every Newton
+    iteration at the new time level. It does not know where the load changes suddenly:
+    steps do not land on a jump of ``func`` (write the case's own ``distributed_forces``
+    for windows in time).
+    """
+
+    def __init__(self, func: Callable[..., Any], *, uses_state: bool = False,
+                 name: str | None = None):
+        if not callable(func):
+            raise TypeError(f"DistributedLoad needs a function, got {type(func).__name__}")
+        self.func = func
+        self.uses_state = bool(uses_state)
+        self.name = name or getattr(func, "__name__", "load")
+
+    def evaluate(self, t: float, s: np.ndarray, state: State | None) -> np.ndarray:
+        """The load on the grid, (N+1, 3) N/m; raises ValueError naming the load for a
+        wrong shape or a non-finite value."""
+        value = self.func(t, s, state) if self.uses_state else self.func(t, s)
+        arr = np.asarray(value, dtype=float)
+        if arr.shape == (3,):
+            arr = np.broadcast_to(arr, (s.size, 3))
+        if arr.shape != (s.size, 3):
+            raise ValueError(f"distributed load {self.name!r} returned shape {arr.shape} at "
+                             f"t = {t:g} s; expected (3,) or ({s.size}, 3) N/m, global frame")
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"distributed load {self.name!r} returned a non-finite value at "
+                             f"t = {t:g} s")
+        return arr
+
+
+# a force on the rod that the case never had, so that the run assembles global-frame
+# distributed loads (needs_pose, the work of distributed forces); removed at once
+_SLOT_VALUE = 1e-300
+
+
+def _run_with_loads(case, loads: Sequence[DistributedLoad]):
+    """A RodRun of ``case`` whose global-frame distributed force is the case's plus
+    ``loads``. The solver has no hook for loads that are code, so the run is built for the
+    case with one extra, negligible (1e-300 N/m) force that makes it assemble global
+    loads, that force is taken out again, and the load model's ``global_force`` is wrapped
+    (docs/interfaces.md, "Python API": what a solver hook would change)."""
+    from solver.case import Case
+    from solver.simulation import RodRun
+
+    doc = case.model_dump(mode="json")
+    doc["distributed_forces"] = list(doc.get("distributed_forces") or []) + [
+        {"value": [_SLOT_VALUE, 0.0, 0.0], "start": 0.0}]
+    run = RodRun(Case.model_validate(doc))
+    model = run.loads
+    slot = model.forces.pop()
+    assert slot[3][0] == _SLOT_VALUE and model.has_global
+    base = model.global_force
+    s = run.props.s
+
+    def global_force(t: float, left: bool = False):
+        out = base(t, left)
+        state = State(run, -1) if any(load.uses_state for load in loads) else None
+        for load in loads:
+            extra = load.evaluate(float(t), s, state)
+            out = extra.copy() if out is None else out + extra
+        return out
+
+    model.global_force = global_force
+    run.case = case          # the user's case for everything read later (switches, limits)
+    return run
+
+
+def _as_load(load: Any) -> DistributedLoad:
+    if isinstance(load, DistributedLoad):
+        return load
+    if callable(load):
+        return DistributedLoad(load)
+    raise TypeError(f"a load is a hockle.api.DistributedLoad or a function (t, s) -> N/m, "
+                    f"got {type(load).__name__}")
+
+
+# --------------------------------------------------------------------------- simulate
+
+
+def _as_case(case: Any):
+    from solver.case import Case
+
+    if isinstance(case, Case):
+        return case
+    if isinstance(case, Mapping):
+        return Case.model_validate(dict(case))
+    if isinstance(case, (str, os.PathLike)):
+        return Case.from_file(case)
+    raise TypeError(f"a case is a solver.case.Case, a mapping or a case file, got "
+                    f"{type(case).__name__}")
+
+
+def simulate(case, callbacks: Iterable[Any] = (), loads: Iterable[Any] = (),
+             progress: Callable | None = None, should_stop: Callable | None = None):
+    """Run ``case`` (a ``Case``, a mapping or a case file) in this process and return the
+    result dataset (docs/interfaces.md).
+
+    ``callbacks``: :class:`Callback` objects or functions of the :class:`State` (every
+    step), called at their cadence after accepted steps and once at t = 0; returning ``True``
+    or a reason string stops the run (``hockle_status = "stopped"``, ``hockle_stop_reason`` its string).
+    ``loads``: :class:`DistributedLoad` objects or functions ``(t, s) -> N/m`` (global
+    frame) added to the case's distributed forces; the dataset then has
+    ``hockle_custom_loads`` naming them (its ``case`` alone no longer reproduces the run).
+    ``progress`` and ``should_stop`` are :func:`solver.simulate`'s. Raises
+    ``SolverDivergence`` (with ``.partial``) as :func:`solver.simulate` does.
+    """
+    from solver.simulation import simulate as solver_simulate
+
+    case = _as_case(case)
+    callbacks = [_as_callback(c) for c in callbacks]
+    loads = [_as_load(load) for load in loads]
+    if not callbacks and not loads:
+        return solver_simulate(case, progress=progress, should_stop=should_stop)
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _drive(case, callbacks, loads, progress, should_stop)
+
+
+def _drive(case, callbacks: list[Callback], loads: list[DistributedLoad], progress,
+           should_stop):
+    """solver.simulation._simulate's loop (fixed and error-controlled steps) with the
+    callbacks after every accepted step."""
+    from solver.results import build_dataset
+    from solver.simulation import Progress, RateEstimate, RodRun, SolverDivergence
+
+    wall0 = _time.perf_counter()
+    run = _run_with_loads(case, loads) if loads else RodRun(case)
+    num = case.numerics
+    fields = set(case.output.fields)
+    every = case.output.every
+    n_steps = max(1, int(math.ceil(num.t_end / num.dt - 1e-9)))
+    times, records = [], []
+    diag: dict[str, list] = {"step_time": [], "step_dt": [], "step_newton_iterations": [],
+                             "step_residual_norm": [], "step_growth_rate": []}
+
+    def record():
+        times.append(run.t)
+        records.append(run.snapshot(fields))
+
+    def finish(status, message="", reason=None):
+        stacked = {}
+        if records:
+            for key in records[0]:
+                stacked[key] = np.asarray([rec[key] for rec in records])
+        ds = build_dataset(case, run.props.s, np.asarray(times), stacked,
+                           {k: np.asarray(v) for k, v in diag.items()}, status, message)
+        if reason is not None:
+            ds.attrs["hockle_stop_reason"] = reason
+        ds.attrs["wall_time_s"] = _time.perf_counter() - wall0
+        ds.attrs["factorizations"] = run.newton.factorizations
+        if loads:
+            ds.attrs["hockle_custom_loads"] = ", ".join(load.name for load in loads)
+        return ds
+
+    def observe(step):
+        """Call the callbacks that are due; the dataset when one stops the run."""
+        state = None
+        for cb in callbacks:
+            state = state or State(run, step)
+            if cb._due(state):
+                flag = cb(state)
+                if flag is True or (isinstance(flag, str) and flag):
+                    reason = flag if isinstance(flag, str) else "callback"
+                    if not times or times[-1] != run.t:
+                        record()          # the state the callback stopped at
+                    return finish("stopped", f"stopped at t = {run.t:.6g} s by callback "
+                                  f"{cb.name}: {reason}", reason)
+        return None
+
+    budget = num.wall_clock_budget
+    rate = RateEstimate()
+
+    def stopped():
+        if should_stop is not None:
+            flag = should_stop()
+            if flag:
+                reason = flag if isinstance(flag, str) else "stopped"
+                return finish("stopped", f"stopped at t = {run.t:.6g} s: {reason}", reason)
+        if budget is not None and _time.perf_counter() - wall0 > budget:
+            return finish("stopped", f"wall-clock budget of {budget} s exceeded at "
+                          f"t = {run.t:.6g} s", "timeout")
+        return None
+
+    def accepted(step, its, res):
+        diag["step_time"].append(run.t)
+        diag["step_dt"].append(run.last_dt)
+        diag["step_newton_iterations"].append(its)
+        diag["step_residual_norm"].append(res)
+        diag["step_growth_rate"].append(run.guard_sigma)
+        if progress is not None:
+            wall = _time.perf_counter() - wall0
+            progress(Progress(t=run.t, t_end=num.t_end, step=step, dt=run.last_dt,
+                              newton_iterations=its, residual_norm=res,
+                              wall_time=wall, fraction=min(1.0, run.t / num.t_end),
+                              contact_count=run.contact_count,
+                              eta_seconds=rate.update(wall, run.t, num.t_end)))
+        return observe(step)
+
+    for cb in callbacks:
+        cb._start()
+    record()
+    out = observe(0)
+    if out is not None:
+        return out
+    if num.tolerance is not None:
+        return _drive_adaptive(case, run, record, finish, stopped, accepted, SolverDivergence)
+    for step in range(1, n_steps + 1):
+        out = stopped()
+        if out is not None:
+            return out
+        t_target = min(step * num.dt, num.t_end)
+        try:
+            its, res = run.advance(t_target)
+        except SolverDivergence as exc:
+            exc.step = step - 1
+            exc.partial = finish("failed", str(exc), exc.reason)
+            raise
+        if step % every == 0 or step == n_steps:
+            record()
+        out = accepted(step, its, res)
+        if out is not None:
+            return out
+    return finish("completed", f"completed {n_steps} steps to t = {run.t:.6g} s")
+
+
+def _drive_adaptive(case, run, record, finish, stopped, accepted, SolverDivergence):
+    """solver.simulation._simulate_adaptive's loop, with the callbacks."""
+    t_end = case.numerics.t_end
+    interval = case.output.interval
+    every = case.output.every
+    next_out = min(interval, t_end) if interval is not None else t_end
+    step = 0
+    while run.t < t_end * (1.0 - 1e-12):
+        out = stopped()
+        if out is not None:
+            return out
+        try:
+            its, res = run.step_adaptive(next_out)
+        except SolverDivergence as exc:
+            exc.step = step
+            exc.partial = finish("failed", str(exc), exc.reason)
+            raise
+        step += 1
+        done = run.t >= t_end * (1.0 - 1e-12)
+        if interval is not None:
+            if run.t >= next_out * (1.0 - 1e-12) or done:
+                record()
+                k = math.floor(run.t / interval + 1e-9) + 1
+                next_out = min(k * interval, t_end)
+        elif step % every == 0 or done:
+            record()
+        out = accepted(step, its, res)
+        if out is not None:
+            return out
+    return finish("completed", f"completed {step} error-controlled steps to "
+                  f"t = {run.t:.6g} s")
+
+
+# --------------------------------------------------------------------------- case builders
+
+
+def _dof(key: str, value: Any) -> dict:
+    return {key: value}
+
+
+def clamped() -> dict:
+    """An end held in place and in orientation: every velocity and angular velocity 0."""
+    return {"translation": [_dof("velocity", 0.0) for _ in range(3)],
+            "rotation": [_dof("angular_velocity", 0.0) for _ in range(3)]}
+
+
+def free() -> dict:
+    """A free end: no force, no moment."""
+    return {"translation": [_dof("force", 0.0) for _ in range(3)],
+            "rotation": [_dof("moment", 0.0) for _ in range(3)]}
+
+
+def pinned() -> dict:
+    """An end held in place but free to turn (a ball joint): velocities 0, moments 0."""
+    return {"translation": [_dof("velocity", 0.0) for _ in range(3)],
+            "rotation": [_dof("moment", 0.0) for _ in range(3)]}
+
+
+def twisted(rate: Any, *, ramp_time: float | None = None) -> dict:
+    """A clamped end turned about the rod's axis at ``rate`` rad/s (a number or a
+    :func:`ramp` table); ``ramp_time`` (s): from 0 to ``rate`` linearly over that time."""
+    if ramp_time is not None:
+        rate = ramp([0.0, float(ramp_time)], [0.0, float(rate)])
+    out = clamped()
+    out["rotation"][2] = _dof("angular_velocity", rate)
+    return out
+
+
+def sliding(tension: Any = 0.0, *, held_after: float | None = None) -> dict:
+    """An end held sideways and in orientation that slides along the rod's axis under an
+    axial force ``tension`` (N, > 0 pulls; a number or a :func:`ramp` table);
+    ``held_after`` (s): held in place from then on (the seed example's end at 30 s)."""
+    out = clamped()
+    axial: Any = _dof("force", tension)
+    if held_after is not None:
+        axial = switch((_dof("force", tension), held_after), _dof("velocity", 0.0))
+    out["translation"][2] = axial
+    return out
+
+
+def end(translation: Sequence[Any], rotation: Sequence[Any]) -> dict:
+    """Any end: three translation items (``{"velocity": v}`` or ``{"force": f}``) and three
+    rotation items (``{"angular_velocity": w}`` or ``{"moment": m}``), body frame; an item
+    may be a :func:`switch`."""
+    if len(translation) != 3 or len(rotation) != 3:
+        raise ValueError("end() needs 3 translation and 3 rotation items (body-frame "
+                         "components a1, a2, a3)")
+    return {"translation": list(translation), "rotation": list(rotation)}
+
+
+def ramp(t: Sequence[float], value: Sequence[float]) -> dict:
+    """A table in time, piecewise linear, held outside: ``{"t": [...], "value": [...]}``."""
+    return {"t": [float(x) for x in t], "value": [float(x) for x in value]}
+
+
+def switch(*items: Any) -> list[dict]:
+    """One DOF switching in time: ``switch(({"force": 0}, 30.0), {"velocity": 0})`` is the
+    force until t = 30 s, then the velocity (every item but the last is ``(condition,
+    until)``)."""
+    out = []
+    for k, item in enumerate(items):
+        if k < len(items) - 1:
+            cond, until = item
+            out.append({**cond, "until": float(until)})
+        else:
+            out.append(dict(item))
+    return out
+
+
+def make_case(name: str, *, start: Any, end: Any, n_segments: int, dt: float, t_end: float,
+              length: float = 1.0, youngs_modulus: Any = 1.25e7, shear_modulus: Any = 5.0e6,
+              density: Any = 1500.0, diameter: Any = 0.02, **sections: Any):
+    """A validated ``Case`` from the usual few numbers (defaults: the seed paper's cable,
+    1 m, E 12.5 MPa, G 5 MPa, 1500 kg/m³, 2 cm) and two ends (:func:`clamped`,
+    :func:`twisted`, ``EndCondition`` models or mappings). ``sections`` are the case's
+    other top-level fields, mappings or their models: ``fluid``, ``gravity``,
+    ``distributed_forces``, ``contact``, ``initial``, ``output``, and ``numerics`` (merged
+    over n_segments, dt, t_end). Raises ``pydantic.ValidationError`` naming the field."""
+    from solver.case import Case
+
+    def plain(x: Any) -> Any:
+        return x.model_dump(mode="json") if hasattr(x, "model_dump") else x
+
+    numerics = {"n_segments": n_segments, "dt": dt, "t_end": t_end,
+                **(plain(sections.pop("numerics", None)) or {})}
+    doc = {"schema_version": 1, "name": name,
+           "rod": {"length": length, "youngs_modulus": plain(youngs_modulus),
+                   "shear_modulus": plain(shear_modulus), "density": plain(density),
+                   "diameter": plain(diameter)},
+           "boundary": {"start": plain(start), "end": plain(end)},
+           "numerics": numerics}
+    doc.update({k: plain(v) for k, v in sections.items()})
+    return Case.model_validate(doc)
+
+
+# --------------------------------------------------------------------------- local sweeps
+
+
+def _run_member(case_json: str, out_path: str) -> tuple[str, str]:
+    """Run one member in this process, write its dataset (partial ones too) to
+    ``out_path``; returns (state, message) in the job states' vocabulary."""
+    from hockle.io import write_netcdf
+    from solver.case import Case
+    from solver.simulation import SolverDivergence
+    from solver.simulation import simulate as solver_simulate
+
+    case = Case.model_validate_json(case_json)
+    try:
+        ds = solver_simulate(case)
+    except SolverDivergence as exc:
+        if exc.partial is not None:
+            write_netcdf(exc.partial, out_path)
+        return "failed", f"{exc.reason}: {exc}"
+    write_netcdf(ds, out_path)
+    if ds.attrs.get("hockle_status") == "completed":
+        return "successful", ""
+    return "failed", str(ds.attrs.get("hockle_message") or ds.attrs.get("hockle_stop_reason"))
+
+
+def sweep(base: Any, parameters: Mapping[str, Sequence[Any]], combine: str = "grid", *,
+          workers: int | None = None, fields: Sequence[str] = (),
+          on_member: Callable[[int, int, int, str], None] | None = None):
+    """Run a parameter sweep on this machine and return the combined dataset (the same
+    :func:`service.sweeps.combine_results` as ``GET /v1/sweeps/{id}/results``).
+
+    ``base``: a ``Case``, mapping or case file; ``parameters``: ``{PATH: [values]}``
+    (docs/service.md, sweeps); ``combine``: ``"grid"`` or ``"zip"``. Every member is
+    validated first (``service.sweeps.SweepError`` names each bad one). Members run in
+    ``workers`` processes (default: as many as cores; 1: in this process); identical
+    member cases run once. A member that fails is marked in ``member_status``, not fatal.
+    ``on_member(done, total, index, state)`` is called as members finish.
+    """
+    from service import sweeps as sw
+
+    if isinstance(base, (str, os.PathLike)):
+        from solver.case import parse_text
+
+        path = Path(base)
+        doc = parse_text(path.read_bytes(), path.suffix, str(path))
+    elif hasattr(base, "model_dump"):
+        doc = base.model_dump(mode="json")
+    else:
+        doc = dict(base)
+    params = sw.normalize_parameters(parameters)
+    members = sw.expand(doc, params, combine)
+    cases = sw.validate_members(members)
+    unique: dict[str, str] = {}
+    key_of = []
+    for case in cases:
+        key = case.spec_hash()
+        unique.setdefault(key, case.canonical_json())
+        key_of.append(key)
+    workers = max(1, int(workers or os.cpu_count() or 1))
+    outcome: dict[str, tuple[str, str]] = {}
+    with tempfile.TemporaryDirectory(prefix="hockle-sweep-") as tmp:
+        paths = {key: os.path.join(tmp, f"{n}.nc") for n, key in enumerate(unique)}
+        done = 0
+
+        def report(key):
+            nonlocal done
+            done += 1
+            if on_member is not None:
+                first = key_of.index(key)
+                on_member(done, len(unique), first, outcome[key][0])
+
+        if workers == 1 or len(unique) == 1:
+            for key, text in unique.items():
+                outcome[key] = _run_member(text, paths[key])
+                report(key)
+        else:
+            from concurrent.futures import ProcessPoolExecutor, as_completed
+
+            with ProcessPoolExecutor(max_workers=min(workers, len(unique))) as pool:
+                futures = {pool.submit(_run_member, text, paths[key]): key
+                           for key, text in unique.items()}
+                for fut in as_completed(futures):
+                    key = futures[fut]
+                    try:
+                        outcome[key] = fut.result()
+                    except Exception as exc:  # noqa: BLE001 - a member, not the sweep
+                        outcome[key] = ("failed", f"internal_error: {type(exc).__name__}: {exc}")
+                    report(key)
+        from hockle.io import open_result
+
+        datasets = {key: open_result(p) if os.path.exists(p) else None
+                    for key, p in paths.items()}
+    results = [sw.MemberResult(index=m.index, values=m.values, state=outcome[k][0],
+                               dataset=datasets[k], message=outcome[k][1])
+               for m, k in zip(members, key_of)]
+    return sw.combine_results(results, params, combine, fields=fields,
+                              attrs={"hockle_sweep_name": doc.get("name")})
