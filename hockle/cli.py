@@ -284,9 +284,14 @@ def cmd_plot(args: argparse.Namespace) -> int:
         return EXIT_INVALID
     out_dir = Path(args.output_dir) if args.output_dir else path.with_name(f"{path.stem}_plots")
 
-    from hockle.plots import plot_all
+    if "hockle_sweep_combine" in ds.attrs:       # a sweep's combined dataset
+        from hockle.sweep_plots import plot_sweep
 
-    paths = plot_all(ds, out_dir, times=args.times, stem=path.stem, on_skip=_err)
+        paths = plot_sweep(ds, out_dir, stem=path.stem, on_skip=_err)
+    else:
+        from hockle.plots import plot_all
+
+        paths = plot_all(ds, out_dir, times=args.times, stem=path.stem, on_skip=_err)
     for p in paths:
         print(p)
     if not paths:
@@ -359,12 +364,17 @@ def build_parser() -> tuple[argparse.ArgumentParser, str | None]:
 
     p = sub.add_parser(
         "plot",
-        help="draw shape snapshots, energies and Tw/Wr/Lk as PNG files",
+        help="draw shape snapshots, energies and Tw/Wr/Lk (or a sweep's threshold map) as "
+        "PNG files",
         description="Draw the seed paper's figures from a result file: the rod (a tube of "
         "its diameter, contact sites and ends marked) at the run's events with orthogonal "
-        "views (Fig. 6), energies (Fig. 7) and twist, writhe and linking number (Fig. 8).",
+        "views (Fig. 6), energies (Fig. 7) and twist, writhe and linking number (Fig. 8). "
+        "From a sweep's combined file (hockle sweep): the threshold map, each event's time "
+        "and the linking number at buckling against the varied parameter(s), and the "
+        "members' writhe over time.",
     )
-    p.add_argument("result", metavar="OUT.nc", help="result file written by hockle run")
+    p.add_argument("result", metavar="OUT.nc",
+                   help="result file written by hockle run (or a sweep's, by hockle sweep)")
     p.add_argument(
         "-o", "--output-dir", metavar="DIR", help="where to write (default: <stem>_plots/ "
         "next to the file)"
@@ -375,6 +385,10 @@ def build_parser() -> tuple[argparse.ArgumentParser, str | None]:
         "contact, each unit step of the writhe, the end; 5 spread over the run when none)",
     )
     p.set_defaults(func=cmd_plot)
+
+    from hockle import sweep_command
+
+    sweep_command.register(sub)
 
     reason = _register_service_commands(sub)
     return parser, reason

@@ -22,7 +22,7 @@ import httpx
 
 from .schemas import Health, JobList, JobStatus, Summary, VariableList, VariableSlice
 
-__all__ = ["HockleClient", "HockleAPIError", "case_payload"]
+__all__ = ["HockleClient", "HockleAPIError", "case_payload", "case_document"]
 
 TERMINAL = ("successful", "failed", "dismissed")
 
@@ -60,6 +60,23 @@ def case_payload(case: str | os.PathLike | Mapping[str, Any] | Any) -> tuple[byt
         raise ValueError(f"{path}: a case file ends in .yaml, .yml or .json")
     return path.read_bytes(), "application/json" if suffix == ".json" else "application/yaml"
 
+
+def case_document(case: str | os.PathLike | Mapping[str, Any] | Any) -> dict[str, Any]:
+    """A case as a JSON-able mapping (the base of a sweep): a mapping as it is, a ``Case``
+    dumped, a file (.yaml/.yml/.json) parsed with the case reader (not yet validated)."""
+    if isinstance(case, Mapping):
+        return dict(case)
+    if hasattr(case, "model_dump"):
+        return case.model_dump(mode="json")
+    from solver.case import parse_text
+
+    path = Path(case)
+    if path.suffix.lower() not in (".yaml", ".yml", ".json"):
+        raise ValueError(f"{path}: a case file ends in .yaml, .yml or .json")
+    doc = parse_text(path.read_bytes(), path.suffix, str(path))
+    if not isinstance(doc, dict):
+        raise ValueError(f"{path}: a case spec is a mapping of fields")
+    return doc
 
 class HockleClient:
     """A client of one hockle service (see the module's docstring)."""
@@ -207,6 +224,90 @@ class HockleClient:
             raise HockleAPIError(response.status_code, _problem(response))
         return Health.model_validate(response.json())
 
+
+    # --- sweeps --------------------------------------------------------------------------------
+    def sweep(self, base, parameters: Mapping[str, Any], *, combine: str = "grid",
+              wait: bool = False, fresh: bool = False, time_limit: float | None = None,
+              name: str | None = None, timeout: float | None = None,
+              poll_interval: float = 1.0, on_progress: Callable | None = None):
+        """Submit a parameter sweep: ``base`` (path, mapping or ``Case``) with each
+        ``parameters`` path (``"boundary.end.translation.2.force"``) set to each of its
+        values, ``combine`` ``"grid"`` (every combination) or ``"zip"``. Returns the
+        sweep's :class:`~service.sweeps.SweepStatus`; with ``wait``, once every member has
+        finished (then :meth:`sweep_dataset` gives the combined dataset). A bad member
+        value raises :class:`HockleAPIError` (422) naming the member and the field, and
+        nothing is queued."""
+        from .sweeps import SweepStatus
+
+        body: dict[str, Any] = {"base": case_document(base), "combine": combine,
+                                "parameters": {str(k): list(v) for k, v in parameters.items()}}
+        if name is not None:
+            body["name"] = name
+        params: dict[str, Any] = {"fresh": "true"} if fresh else {}
+        if time_limit is not None:
+            params["time_limit"] = time_limit
+        response = self._request("POST", "/v1/sweeps", json=body, params=params)
+        status = SweepStatus.model_validate(response.json())
+        if wait:
+            status = self.wait_sweep(status.id, timeout=timeout, poll_interval=poll_interval,
+                                     on_progress=on_progress)
+        return status
+
+    def get_sweep(self, sweep_id: str):
+        """The sweep's state, progress and members (:class:`~service.sweeps.SweepStatus`)."""
+        from .sweeps import SweepStatus
+
+        return SweepStatus.model_validate(self._request("GET", f"/v1/sweeps/{sweep_id}").json())
+
+    def dismiss_sweep(self, sweep_id: str):
+        """Dismiss the sweep's queued and running members; returns its status."""
+        from .sweeps import SweepStatus
+
+        return SweepStatus.model_validate(
+            self._request("DELETE", f"/v1/sweeps/{sweep_id}").json())
+
+    def wait_sweep(self, sweep_id: str, *, timeout: float | None = None,
+                   poll_interval: float = 1.0, on_progress: Callable | None = None):
+        """Poll until every member has finished; calls ``on_progress`` with each status."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while True:
+            status = self.get_sweep(sweep_id)
+            if on_progress is not None:
+                on_progress(status)
+            if status.terminal:
+                return status
+            if deadline is not None and time.monotonic() > deadline:
+                raise TimeoutError(f"sweep {sweep_id} is still {status.state} after {timeout} s")
+            time.sleep(poll_interval)
+
+    def download_sweep(self, sweep_id: str, path: str | os.PathLike,
+                       fields: str | list[str] | None = None) -> Path:
+        """Save the combined NetCDF dataset of a finished sweep to ``path``; ``fields``
+        (``["position"]``) adds full fields to the scalar series and event times."""
+        params = {}
+        if fields:
+            params["fields"] = fields if isinstance(fields, str) else ",".join(fields)
+        path = Path(path)
+        tmp = path.with_name(path.name + ".part")
+        with self._http.stream("GET", f"/v1/sweeps/{sweep_id}/results",
+                               params=params) as response:
+            if response.status_code >= 400:
+                response.read()
+                raise HockleAPIError(response.status_code, _problem(response))
+            with open(tmp, "wb") as fh:
+                for chunk in response.iter_bytes():
+                    fh.write(chunk)
+        os.replace(tmp, path)
+        return path
+
+    def sweep_dataset(self, sweep_id: str, fields: str | list[str] | None = None):
+        """The combined dataset of a finished sweep as an in-memory ``xarray.Dataset``."""
+        import xarray as xr
+
+        with tempfile.TemporaryDirectory(prefix="hockle-") as tmp:
+            path = self.download_sweep(sweep_id, Path(tmp) / f"{sweep_id}.nc", fields)
+            with xr.open_dataset(path, engine="netcdf4") as ds:
+                return ds.load()
 
 def _selector(value: Any) -> str:
     if isinstance(value, slice):

@@ -205,3 +205,41 @@ def test_combine_zipped_and_fields_need_one_grid():
         combine_results(res, params, "zip", fields=["position"])
     # the scalar series still combine
     assert combine_results(res, params, "zip")["writhe"].shape == (2, 31)
+
+
+def test_hockle_sweep_here_and_its_threshold_map(tmp_path, capsys):
+    """hockle sweep without --url runs the members here, writes the combined file, and
+    hockle plot draws its threshold map; a bad value is refused with exit status 2."""
+    from hockle.cli import main
+    from hockle.sweep_command import parse_values
+
+    assert parse_values("0:1:5") == [0.0, 0.25, 0.5, 0.75, 1.0]
+    assert parse_values('1,2.5,x,[1]') == [1, 2.5, "x", [1]]
+    assert parse_values('[0, {"t": [0, 1], "value": [0, 2]}]')[1]["t"] == [0, 1]
+    base = copy.deepcopy(BASE)
+    base["numerics"].update(t_end=0.3)
+    path = tmp_path / "base.json"
+    path.write_text(json.dumps(base))
+    out = tmp_path / "sweep.nc"
+    code = main(["sweep", str(path), "--set", f"{FORCE}=0,1", "--set", f"{SPIN}=1:3:3",
+                 "--workers", "1", "-q", "-o", str(out)])
+    assert code == 0, capsys.readouterr()
+    assert "6 members (6 successful)" in capsys.readouterr().out
+    from hockle.io import open_result
+
+    ds = open_result(out)
+    assert ds["energy_total"].dims == (FORCE, SPIN, "time") and ds.sizes["time"] == 4
+    # nothing buckles in 0.3 s: the map says so, the members' writhe is drawn
+    assert main(["plot", str(out), "-o", str(tmp_path / "plots")]) == 0
+    assert [p.name for p in (tmp_path / "plots").iterdir()] == ["sweep_writhe.png"]
+    # a synthetic sweep with events gets its map
+    members, res = results()
+    synthetic = tmp_path / "synthetic.nc"
+    combine_results(res, PARAMS).to_netcdf(synthetic, engine="netcdf4")
+    assert main(["plot", str(synthetic), "-o", str(tmp_path / "plots2")]) == 0
+    assert sorted(p.name for p in (tmp_path / "plots2").iterdir()) == [
+        "synthetic_threshold.png", "synthetic_writhe.png"]
+    code = main(["sweep", str(path), "--set", "rod.diameter=0.02,-1", "--workers", "1", "-q",
+                 "-o", str(tmp_path / "bad.nc")])
+    assert code == 2 and "members[1].rod.diameter" in capsys.readouterr().err
+    assert not (tmp_path / "bad.nc").exists()
