@@ -1,0 +1,95 @@
+"""/v1/sweeps in-process (SQLite registry, in-memory broker, the worker's task code run here
+with the real solver): results only once every member finished, a member that fails is
+marked, sweeps belong to the API key that made them, the OpenAPI document."""
+from __future__ import annotations
+
+import pytest
+import xarray as xr
+from fastapi.testclient import TestClient
+
+from service.app import create_app
+from service.settings import Settings
+from svc_support import tiny_case
+
+TENSION = "boundary.end.translation.2.force"
+KEY_A = "alice-key-0123456789abcdef"
+KEY_B = "bob-key-0123456789abcdef-bob"
+A = {"Authorization": f"Bearer {KEY_A}"}
+B = {"Authorization": f"Bearer {KEY_B}"}
+
+
+def _run(settings, job_id):
+    from worker.tasks import run_job
+
+    return run_job(job_id, "sweep@test", settings)
+
+
+@pytest.fixture(scope="module")
+def settings(tmp_path_factory):
+    return Settings(data_dir=tmp_path_factory.mktemp("sweeps"), broker_url="memory://",
+                    progress_interval=0.0, api_keys=f"{KEY_A},{KEY_B}", rate_limit=1000.0,
+                    rate_limit_burst=1000)
+
+
+@pytest.fixture(scope="module")
+def client(settings):
+    with TestClient(create_app(settings)) as c:
+        yield c
+
+
+def test_results_wait_for_every_member_and_a_failed_one_is_marked(client, settings, tmp_path):
+    # member 1 diverges: a huge spin with one Newton iteration and no Δt cuts
+    base = tiny_case("partly-failing", max_dt_cuts=0, dt=0.01, t_end=0.05)
+    base["numerics"]["newton"] = {"max_iterations": 1, "tolerance": 1e-14}
+    spin = "boundary.start.rotation.2.angular_velocity"
+    body = {"base": base, "combine": "zip", "parameters": {spin: [0.0, 1.0e4]}}
+    sweep = client.post("/v1/sweeps", json=body, headers=A).json()
+    first, second = (m["job_id"] for m in sweep["members"])
+    assert client.get(f"/v1/sweeps/{sweep['id']}/results", headers=A).status_code == 404
+    assert _run(settings, first) == "successful"
+    status = client.get(f"/v1/sweeps/{sweep['id']}", headers=A).json()
+    assert status["state"] == "running" and status["progress"] == 50.0
+    not_ready = client.get(f"/v1/sweeps/{sweep['id']}/results", headers=A)
+    assert not_ready.status_code == 404 and "still queued or running" in not_ready.json()["detail"]
+    assert _run(settings, second).startswith("failed")
+    status = client.get(f"/v1/sweeps/{sweep['id']}", headers=A).json()
+    assert status["state"] == "failed" and status["counts"] == {"successful": 1, "failed": 1}
+    response = client.get(f"/v1/sweeps/{sweep['id']}/results", headers=A)
+    assert response.status_code == 200
+    etag = response.headers["etag"]
+    assert client.get(f"/v1/sweeps/{sweep['id']}/results",
+                      headers={**A, "If-None-Match": etag}).status_code == 304
+    path = tmp_path / "s.nc"
+    path.write_bytes(response.content)
+    with xr.open_dataset(path, engine="netcdf4") as ds:
+        assert list(ds["member_status"].values) == ["successful", "failed"]
+        assert str(ds["member_message"].values[1])          # why it failed
+        assert ds["energy_total"].isel(member=0).notnull().all()
+    bad_field = client.get(f"/v1/sweeps/{sweep['id']}/results", params={"fields": "colour"},
+                           headers=A)
+    assert bad_field.status_code == 422 and bad_field.json()["errors"][0]["loc"] == "query.fields"
+
+
+def test_a_sweep_belongs_to_its_key(client, settings):
+    assert client.post("/v1/sweeps", json={}).status_code == 401
+    body = {"base": tiny_case("alice-sweep"), "parameters": {TENSION: [0.0, 0.5]}}
+    sweep = client.post("/v1/sweeps", json=body, headers=A).json()
+    for method, url in (("GET", f"/v1/sweeps/{sweep['id']}"),
+                        ("GET", f"/v1/sweeps/{sweep['id']}/results"),
+                        ("DELETE", f"/v1/sweeps/{sweep['id']}")):
+        response = client.request(method, url, headers=B)
+        assert response.status_code == 404, (method, url, response.text)
+        assert response.json()["type"] == "urn:hockle:problem:sweep-not-found"
+    # its members are Alice's jobs
+    job_id = sweep["members"][0]["job_id"]
+    assert client.get(f"/v1/jobs/{job_id}", headers=A).status_code == 200
+    assert client.get(f"/v1/jobs/{job_id}", headers=B).status_code == 404
+    dismissed = client.delete(f"/v1/sweeps/{sweep['id']}", headers=A)
+    assert dismissed.status_code == 200 and dismissed.json()["state"] == "dismissed"
+
+
+def test_openapi_documents_the_sweep_routes(client):
+    paths = client.get("/openapi.json").json()["paths"]
+    ops = {op["operationId"] for item in paths.values() for op in item.values()
+           if isinstance(op, dict) and "operationId" in op}
+    assert {"submit_sweep", "get_sweep", "dismiss_sweep", "download_sweep_results"} <= ops
