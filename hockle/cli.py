@@ -223,7 +223,31 @@ def cmd_run(args: argparse.Namespace) -> int:
         return EXIT_INVALID
     out = Path(args.output) if args.output else Path(Path(args.case).stem + ".nc")
 
+    from solver.checkpoint import Checkpoint, CheckpointError
     from solver.simulation import SolverDivergence, simulate
+
+    resume = None
+    if args.resume:
+        try:
+            resume = Checkpoint.loads(Path(args.resume).read_bytes(), case)
+        except (OSError, CheckpointError) as exc:
+            _err(f"hockle: cannot resume from {args.resume}: {exc}")
+            return EXIT_INVALID
+    if args.checkpoint_every <= 0:
+        _err("hockle: --checkpoint-every must be positive")
+        return EXIT_INVALID
+    ck_path = Path(args.checkpoint) if args.checkpoint else None
+    latest = {}
+
+    def keep(ck: Checkpoint) -> None:
+        data = ck.dumps()
+        latest["t"] = ck.t
+        tmp = ck_path.with_name(ck_path.name + ".tmp")
+        try:
+            tmp.write_bytes(data)
+            tmp.replace(ck_path)               # atomic: a crash keeps the older one
+        except OSError as exc:
+            _err(f"hockle: cannot write checkpoint {ck_path}: {exc}")
 
     wall0 = time.perf_counter()
     # The handler stays in place while the result is written, so a Ctrl-C then does not
@@ -233,10 +257,13 @@ def cmd_run(args: argparse.Namespace) -> int:
             _err(
                 f"hockle: running {case.name}: {case.numerics.n_segments + 1} grid points, "
                 f"{_n_steps(case)} steps to t_end {case.numerics.t_end:g} s -> {out}"
+                + (f" (resumed at t = {resume.t:g} s)" if resume is not None else "")
             )
         try:
             with _ProgressBar(case.name, case.numerics.t_end, enabled=not args.quiet) as bar:
-                ds = simulate(case, progress=bar.update, should_stop=interrupt.should_stop)
+                ds = simulate(case, progress=bar.update, should_stop=interrupt.should_stop,
+                              checkpoint=keep if ck_path else None,
+                              checkpoint_interval=args.checkpoint_every, resume=resume)
         except SolverDivergence as exc:
             wall = time.perf_counter() - wall0
             reason = str(exc).replace("\n", " ")
@@ -360,6 +387,19 @@ def build_parser() -> tuple[argparse.ArgumentParser, str | None]:
         "-o", "--output", metavar="OUT.nc", help="result file (default: <case stem>.nc here)"
     )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--checkpoint", metavar="FILE", help="keep a checkpoint of the run in FILE (written "
+        "atomically every --checkpoint-every seconds of wall time and when the run stops "
+        "or fails), to continue it later with --resume FILE"
+    )
+    p.add_argument(
+        "--checkpoint-every", metavar="S", type=float, default=300.0,
+        help="wall-clock seconds between checkpoints (default 300)"
+    )
+    p.add_argument(
+        "--resume", metavar="FILE", help="continue the run from this checkpoint (written by "
+        "--checkpoint for the same case; only load checkpoints you trust: they are pickles)"
+    )
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser(

@@ -14,6 +14,7 @@ the scheme consistently (:mod:`solver.stepping`, docs/numerics.md § 7).
 from __future__ import annotations
 
 import math
+import pickle
 import time as _time
 from dataclasses import dataclass
 
@@ -711,7 +712,8 @@ class RodRun:
         return out
 
 
-def simulate(case, progress=None, should_stop=None):
+def simulate(case, progress=None, should_stop=None, checkpoint=None,
+             checkpoint_interval=300.0, resume=None):
     """Run a case and return its result dataset (docs/interfaces.md, "Result dataset").
 
     Parameters
@@ -721,6 +723,16 @@ def simulate(case, progress=None, should_stop=None):
     should_stop : callable() -> bool | str, or None; checked before every step. A truthy
         value stops the run: the partial dataset is *returned* with
         ``attrs["hockle_status"] = "stopped"`` and ``attrs["hockle_stop_reason"]``.
+    checkpoint : callable(solver.checkpoint.Checkpoint) or None
+        Called after the accepted step at which ``checkpoint_interval`` wall-clock seconds
+        (default 300) have passed since the start or the last checkpoint, and with the last
+        accepted state when the run stops or fails; the caller
+        serialises it there (``Checkpoint.dumps()``: it refers to the live run) and stores
+        it. The solver does no I/O.
+    resume : solver.checkpoint.Checkpoint or None
+        Continue from this checkpoint instead of t = 0 (the records and diagnostics before
+        it are kept, nothing is recomputed, and the result is the uninterrupted run's to
+        the last bit). It must belong to ``case``.
 
     Returns
     -------
@@ -731,33 +743,58 @@ def simulate(case, progress=None, should_stop=None):
     SolverDivergence
         when a step cannot be completed after all Δt cuts; ``.partial`` holds the dataset
         up to the last accepted step (``hockle_status = "failed"``).
+    solver.checkpoint.CheckpointError
+        when ``resume`` belongs to another case.
     """
     from threadpoolctl import threadpool_limits
 
     # the linear algebra is band LU and small dense blocks: BLAS threads only add
     # overhead and oversubscribe shared cores (measured 3.8x slower in contact phases)
     with threadpool_limits(limits=1, user_api="blas"):
-        return _simulate(case, progress, should_stop)
+        return _simulate(case, progress, should_stop, checkpoint, checkpoint_interval,
+                         resume)
 
 
-def _simulate(case, progress, should_stop):
+def _simulate(case, progress, should_stop, checkpoint=None, checkpoint_interval=300.0,
+              resume=None):
+    from .checkpoint import Checkpoint, CheckpointError, resume_key
     from .results import build_dataset
 
     wall0 = _time.perf_counter()
-    run = RodRun(case)
     num = case.numerics
     fields = set(case.output.fields)
     every = case.output.every
     n_steps = max(1, int(math.ceil(num.t_end / num.dt - 1e-9)))
-    times, records = [], []
-    diag = {"step_time": [], "step_dt": [], "step_newton_iterations": [],
-            "step_residual_norm": [], "step_growth_rate": []}
+    if resume is None:
+        run = RodRun(case)
+        times, records = [], []
+        diag = {"step_time": [], "step_dt": [], "step_newton_iterations": [],
+                "step_residual_norm": [], "step_growth_rate": []}
+        first_step, wall_before = 1, 0.0
+    else:
+        if resume.case_hash != resume_key(case):
+            raise CheckpointError("the checkpoint belongs to another case (resume key "
+                                  f"{resume.case_hash} != {resume_key(case)})")
+        # a copy: the checkpoint stays valid for another resume
+        state = pickle.loads(pickle.dumps(resume))
+        run, times, records, diag = state.run, state.times, state.records, state.diag
+        first_step, wall_before = state.step + 1, state.wall_time
+    last_checkpoint = [_time.perf_counter()]
+    done = [first_step - 1]                   # accepted steps so far
+
+    def save():
+        if checkpoint is not None:
+            checkpoint(Checkpoint(resume_key(case), done[0], run, times, records, diag,
+                                  wall_before + _time.perf_counter() - wall0))
+            last_checkpoint[0] = _time.perf_counter()
 
     def record():
         times.append(run.t)
         records.append(run.snapshot(fields))
 
     def finish(status, message="", reason=None):
+        if status != "completed":
+            save()                            # the last accepted state, to resume from
         stacked = {}
         if records:
             for key in records[0]:
@@ -766,11 +803,14 @@ def _simulate(case, progress, should_stop):
                            {k: np.asarray(v) for k, v in diag.items()}, status, message)
         if reason is not None:
             ds.attrs["hockle_stop_reason"] = reason
-        ds.attrs["wall_time_s"] = _time.perf_counter() - wall0
+        ds.attrs["wall_time_s"] = wall_before + _time.perf_counter() - wall0
         ds.attrs["factorizations"] = run.newton.factorizations
+        if resume is not None:
+            ds.attrs["hockle_resumed_at"] = resume.t
         return ds
 
-    record()
+    if resume is None:
+        record()
     budget = num.wall_clock_budget
     rate = RateEstimate()
 
@@ -793,6 +833,9 @@ def _simulate(case, progress, should_stop):
         diag["step_newton_iterations"].append(its)
         diag["step_residual_norm"].append(res)
         diag["step_growth_rate"].append(run.guard_sigma)
+        done[0] = step
+        if _time.perf_counter() - last_checkpoint[0] >= checkpoint_interval:
+            save()
         if progress is not None:
             wall = _time.perf_counter() - wall0
             progress(Progress(t=run.t, t_end=num.t_end, step=step, dt=run.last_dt,
@@ -802,8 +845,9 @@ def _simulate(case, progress, should_stop):
                               eta_seconds=rate.update(wall, run.t, num.t_end)))
 
     if num.tolerance is not None:
-        return _simulate_adaptive(case, run, record, finish, stopped, accepted)
-    for step in range(1, n_steps + 1):
+        return _simulate_adaptive(case, run, record, finish, stopped, accepted,
+                                  first_step - 1)
+    for step in range(first_step, n_steps + 1):
         out = stopped()
         if out is not None:
             return out
@@ -820,16 +864,18 @@ def _simulate(case, progress, should_stop):
     return finish("completed", f"completed {n_steps} steps to t = {run.t:.6g} s")
 
 
-def _simulate_adaptive(case, run, record, finish, stopped, accepted):
+def _simulate_adaptive(case, run, record, finish, stopped, accepted, step=0):
     """The time loop of error-controlled steps (``numerics.tolerance``): one accepted
     step per pass, the state kept at every ``output.interval`` s (the steps land on those
     times) or, without an interval, every ``output.every``-th step; the diagnostics hold
-    every accepted step. ``stopped`` and ``accepted`` are :func:`_simulate`'s helpers."""
+    every accepted step. ``stopped`` and ``accepted`` are :func:`_simulate`'s helpers;
+    ``step``: the accepted steps so far (a resumed run)."""
     t_end = case.numerics.t_end
     interval = case.output.interval
     every = case.output.every
-    next_out = min(interval, t_end) if interval is not None else t_end
-    step = 0
+    next_out = t_end
+    if interval is not None:
+        next_out = min((math.floor(run.t / interval + 1e-9) + 1) * interval, t_end)
     while run.t < t_end * (1.0 - 1e-12):
         out = stopped()
         if out is not None:

@@ -352,3 +352,30 @@ def test_service_commands_fail_soft_when_their_module_cannot_load(tiny, monkeypa
     assert main(["serve"]) == 1
     assert "hockle serve is unavailable" in capsys.readouterr().err
     assert main(["validate", str(tiny)]) == 0
+
+
+def test_run_checkpoint_and_resume(tiny, tmp_path, capsys):
+    """A run stopped by its wall-clock budget leaves a checkpoint; --resume with the case
+    without the budget finishes it, identical to the uninterrupted run."""
+    full = tmp_path / "full.nc"
+    assert main(["run", str(tiny), "-o", str(full), "--quiet"]) == 0
+    spec = copy.deepcopy(TINY)
+    spec["numerics"]["wall_clock_budget"] = 1e-6
+    stopped = write_case(tmp_path / "budget.yaml", spec)
+    ck = tmp_path / "run.ckpt"
+    part = tmp_path / "part.nc"
+    assert main(["run", str(stopped), "-o", str(part), "--quiet", "--checkpoint", str(ck)]) == 4
+    assert ck.exists() and not (tmp_path / "run.ckpt.tmp").exists()
+    resumed = tmp_path / "resumed.nc"
+    assert main(["run", str(tiny), "-o", str(resumed), "--quiet", "--resume", str(ck)]) == 0
+    a, b = open_result(full), open_result(resumed)
+    for name in a.data_vars:
+        np.testing.assert_array_equal(a[name].values, b[name].values, err_msg=name)
+    # another case, or not a checkpoint: refused with the reason, exit 2
+    other = copy.deepcopy(TINY)
+    other["numerics"]["t_end"] = 0.06
+    assert main(["run", str(write_case(tmp_path / "o.yaml", other)), "--quiet",
+                 "--resume", str(ck)]) == 2
+    assert "another case" in capsys.readouterr().err
+    assert main(["run", str(tiny), "--quiet", "--resume", str(full)]) == 2
+    assert "not a hockle checkpoint" in capsys.readouterr().err

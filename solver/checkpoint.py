@@ -1,0 +1,114 @@
+"""Checkpoints of a run: everything :func:`solver.simulate` needs to continue bit for bit.
+
+A :class:`Checkpoint` holds the :class:`~solver.simulation.RodRun` (state, step control,
+Newton's factorisation and counters), the output records and step diagnostics kept so far,
+the number of accepted steps, and the case it belongs to. :meth:`Checkpoint.dumps` /
+:meth:`Checkpoint.loads` turn it into bytes and back; the solver itself does no I/O: the
+caller of ``simulate(..., checkpoint=...)`` decides where the bytes go (``hockle run
+--checkpoint``, the service's result store).
+
+The bytes are a header line (format name, version, case hash) and a pickle of the
+objects: exact (the resumed run repeats the uninterrupted one to the last bit, tested),
+and as trustworthy as the file it comes from. Load checkpoints only from sources you
+trust (your own runs, the service's own store), as with any pickle.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import pickle
+from dataclasses import dataclass, field
+
+__all__ = ["Checkpoint", "CheckpointError", "FORMAT", "VERSION", "resume_key"]
+
+FORMAT = "hockle-checkpoint"
+VERSION = 1
+
+
+def resume_key(case) -> str:
+    """The identity a checkpoint is bound to: sha256 of the case's canonical JSON without
+    ``numerics.wall_clock_budget`` (a run may be continued under another budget; any other
+    change, physics, numerics or outputs, makes it another run)."""
+    spec = case.model_dump(mode="json")
+    spec.get("numerics", {}).pop("wall_clock_budget", None)
+    text = json.dumps(spec, sort_keys=True, separators=(",", ":"), ensure_ascii=False)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+class CheckpointError(ValueError):
+    """A checkpoint that cannot be used: not a checkpoint, another version, or another
+    case. The message names the reason."""
+
+
+@dataclass
+class Checkpoint:
+    """The state of a run after an accepted step.
+
+    Attributes
+    ----------
+    case_hash : str
+        :func:`resume_key` of the run's case; a resume with another case is refused.
+    step : int
+        Accepted (nominal or error-controlled) steps so far.
+    run : solver.simulation.RodRun
+    times : list of float
+        Output times so far, s.
+    records : list of dict
+        Output records so far (``RodRun.snapshot``).
+    diag : dict of lists
+        Per-step diagnostics so far (``step_time``, ``step_dt``, ...).
+    wall_time : float
+        Wall-clock seconds spent on the run up to this checkpoint (all attempts).
+    """
+
+    case_hash: str
+    step: int
+    run: object
+    times: list = field(default_factory=list)
+    records: list = field(default_factory=list)
+    diag: dict = field(default_factory=dict)
+    wall_time: float = 0.0
+
+    @property
+    def t(self) -> float:
+        """Simulated time reached, s."""
+        return float(self.run.t)
+
+    def dumps(self) -> bytes:
+        """The checkpoint as bytes: a JSON header line, then the pickle."""
+        header = json.dumps({"format": FORMAT, "version": VERSION, "case_hash": self.case_hash,
+                             "t": self.t, "step": self.step}).encode()
+        return header + b"\n" + pickle.dumps(self, protocol=pickle.HIGHEST_PROTOCOL)
+
+    @staticmethod
+    def header(data: bytes) -> dict:
+        """The header of checkpoint bytes (format, version, case_hash, t, step) without
+        unpickling anything. Raises CheckpointError when ``data`` is not a checkpoint."""
+        line = data.split(b"\n", 1)[0]
+        try:
+            head = json.loads(line.decode())
+        except (UnicodeDecodeError, ValueError):
+            head = None
+        if not isinstance(head, dict) or head.get("format") != FORMAT:
+            raise CheckpointError("not a hockle checkpoint (no hockle-checkpoint header)")
+        if head.get("version") != VERSION:
+            raise CheckpointError(f"checkpoint version {head.get('version')!r} is not "
+                                  f"{VERSION}: written by another hockle version; rerun from "
+                                  f"the start")
+        return head
+
+    @classmethod
+    def loads(cls, data: bytes, case=None) -> "Checkpoint":
+        """Checkpoint from :meth:`dumps` bytes. With ``case``, the checkpoint must belong to
+        it (same :func:`resume_key`). Raises CheckpointError with the reason."""
+        head = cls.header(data)
+        if case is not None and head.get("case_hash") != resume_key(case):
+            raise CheckpointError("the checkpoint belongs to another case (resume key "
+                                  f"{head.get('case_hash')} != {resume_key(case)})")
+        try:
+            obj = pickle.loads(data.split(b"\n", 1)[1])
+        except Exception as exc:  # noqa: BLE001 - any unpickling failure is a bad file
+            raise CheckpointError(f"checkpoint cannot be read: {exc}") from None
+        if not isinstance(obj, cls):
+            raise CheckpointError("checkpoint does not hold a run")
+        return obj
