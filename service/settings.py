@@ -188,6 +188,13 @@ class Settings(DatasetMetadata):
         description="Most attempts (claims by a worker) of one job; a job whose worker is lost on "
         "its last attempt fails with reason internal_error.",
     )
+    checkpoint_interval: float = Field(
+        120.0,
+        ge=0,
+        description="Wall-clock seconds between checkpoints of a running job in the result store "
+        "(<id>.ckpt; also written when a solve stops or fails); a re-run after a lost worker "
+        "continues from the last one instead of from t = 0. 0 turns checkpoints off.",
+    )
     requeue_after: float = Field(
         300.0,
         gt=0,

@@ -5,7 +5,8 @@ on one file system), so a reader never sees a half-written file. A job's second 
 (after a lost worker) write ``<id>.attempt-<n>.nc``: an attempt that was given up but still runs
 somewhere can never replace the file of the attempt that finished the job (the registry's
 ``result_path`` names the one that counts). When workers run on several machines the directory is
-a shared (ReadWriteMany) volume mounted at the same path everywhere.
+a shared (ReadWriteMany) volume mounted at the same path everywhere. A running job's latest
+solver checkpoint is ``<id>.ckpt`` (written the same atomic way); a re-run continues from it.
 """
 from __future__ import annotations
 
@@ -50,6 +51,43 @@ class ResultStore:
             if tmp.exists():
                 tmp.unlink()
         return final
+
+    def checkpoint_path(self, job_id: str) -> Path:
+        """``<id>.ckpt``: the job's latest solver checkpoint (solver.checkpoint)."""
+        if not _ID.match(job_id):
+            raise ValueError(f"not a job id: {job_id!r}")
+        return self.root / f"{job_id}.ckpt"
+
+    def write_checkpoint(self, job_id: str, data: bytes) -> Path:
+        """Replace the job's checkpoint atomically (temporary name, fsync, rename): a
+        worker killed while writing leaves the previous checkpoint intact."""
+        self.ensure()
+        final = self.checkpoint_path(job_id)
+        tmp = final.with_name(f"{final.name}.tmp-{socket.gethostname()}-{os.getpid()}")
+        try:
+            with open(tmp, "wb") as fh:
+                fh.write(data)
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.replace(tmp, final)
+        finally:
+            if tmp.exists():
+                tmp.unlink()
+        return final
+
+    def read_checkpoint(self, job_id: str) -> bytes | None:
+        """The job's checkpoint bytes, or None when it has none."""
+        try:
+            return self.checkpoint_path(job_id).read_bytes()
+        except FileNotFoundError:
+            return None
+
+    def discard_checkpoint(self, job_id: str) -> None:
+        """Remove the job's checkpoint (the job has finished)."""
+        try:
+            self.checkpoint_path(job_id).unlink()
+        except FileNotFoundError:
+            pass
 
     def discard(self, path: str | os.PathLike) -> None:
         """Remove a result file this store wrote (an attempt that did not finish the job)."""

@@ -12,7 +12,10 @@ is locked or unreachable at the claim (or at the finish) is retried with backoff
 a thread of the solving process writes the job's heartbeat every ``HOCKLE_HEARTBEAT_INTERVAL``
 s; when the registry says the attempt no longer holds the job (given up as lost and queued
 again), the solve stops and writes nothing. Each attempt writes its own result file, so an old
-attempt can never replace the result of the attempt that finished the job.
+attempt can never replace the result of the attempt that finished the job. Every
+``HOCKLE_CHECKPOINT_INTERVAL`` s (and when a solve stops or fails) the solver's checkpoint goes to
+the result store (``<id>.ckpt``); the next attempt continues from it bit for bit instead of from
+t = 0, and the job's terminal state removes it.
 """
 from __future__ import annotations
 
@@ -218,6 +221,45 @@ class JobRun:
             return f"before the first time step ({time.monotonic() - self.started:.0f} s)"
         return f"t = {float(info.t):.6g} s of {self.t_end:.6g} s (step {int(info.step)})"
 
+    # --- checkpoints (solver.checkpoint) in the result store ----------------------------------
+    def load_checkpoint(self, case):
+        """The job's last checkpoint for ``case`` (a re-run after a lost worker or a
+        redeploy continues from it), or None: none, off, or unusable (logged, then t = 0)."""
+        if not self.settings.checkpoint_interval:
+            return None
+        from solver.checkpoint import Checkpoint, CheckpointError
+
+        try:
+            data = self.store.read_checkpoint(self.job_id)
+            if data is None:
+                return None
+            ck = Checkpoint.loads(data, case)
+        except (OSError, CheckpointError) as exc:
+            log.warning("job %s: checkpoint not used (%s): from t = 0", self.job_id, exc)
+            self.event("checkpoint_ignored", {"error": str(exc)})
+            return None
+        self.event("resumed", {"t": ck.t, "step": ck.step})
+        log.info("job %s attempt %s resumes at t = %g s (step %d)", self.job_id, self.attempt,
+                 ck.t, ck.step)
+        return ck
+
+    def write_checkpoint(self, ck) -> None:
+        """Store a checkpoint handed out by the solver (an attempt that was given up writes
+        none; a store that cannot be written costs the checkpoint, never the solve)."""
+        if self.superseded:
+            return
+        try:
+            self.store.write_checkpoint(self.job_id, ck.dumps())
+        except OSError:
+            log.warning("job %s: checkpoint not written", self.job_id, exc_info=True)
+
+    def drop_checkpoint(self) -> None:
+        """Remove the job's checkpoint (its terminal state is recorded)."""
+        try:
+            self.store.discard_checkpoint(self.job_id)
+        except OSError:
+            log.warning("job %s: checkpoint not removed", self.job_id, exc_info=True)
+
     def save(self, ds) -> str | None:
         if ds is None:
             return None
@@ -232,7 +274,8 @@ class JobRun:
 
     def finish(self, **kwargs) -> bool:
         """Terminal state for this attempt (retried while the registry is unavailable); a
-        refused finish (the attempt was given up) removes the file this attempt wrote."""
+        refused finish (the attempt was given up) removes the file this attempt wrote; a recorded
+        one removes the job's checkpoint."""
         done = with_registry_retry(
             "the finish", lambda: self.registry.finish(self.job_id, self.attempt,
                                                      worker=self.worker, **kwargs),
@@ -243,6 +286,8 @@ class JobRun:
             path = kwargs.get("result_path")
             if path:
                 self.store.discard(path)
+        else:
+            self.drop_checkpoint()            # the job is over: nothing to resume
         return done
 
 
@@ -321,8 +366,12 @@ def _solve(run: JobRun, case) -> str:
     # the submodule, not the package: `solver.simulation` is also the name of the module
     from solver.simulation import SolverDivergence, simulate
 
+    interval = run.settings.checkpoint_interval
     try:
-        ds = simulate(case, progress=run.progress, should_stop=run.should_stop)
+        resume = run.load_checkpoint(case)
+        ds = simulate(case, progress=run.progress, should_stop=run.should_stop,
+                      checkpoint=run.write_checkpoint if interval else None,
+                      checkpoint_interval=interval or math.inf, resume=resume)
         if run.superseded:
             return _superseded(run)
     except SolverDivergence as exc:

@@ -33,6 +33,8 @@ def stack(tmp_path_factory, redis_server, pg_url):
         # an accepted job whose message is lost is sent again after 5 s
         "HOCKLE_REQUEUE_AFTER": "5",
         "HOCKLE_UNACKED_RESTORE_INTERVAL": "1",
+        # a running job's solver checkpoint every second (a re-run continues from it)
+        "HOCKLE_CHECKPOINT_INTERVAL": "1",
     })
     stack.redis = redis_server
     try:
@@ -224,6 +226,10 @@ def _attempt_of(path: str) -> int:
 def test_worker_killed_mid_job_is_requeued_and_finishes_once(stack: Stack):
     job_id = stack.submit(long_case("killed-worker", t_end=16.0)).json()["id"]
     job = _wait_running(stack, job_id, timeout=120)
+    # a checkpoint in the store before the kill (written every second here)
+    checkpoint = stack.root / "data" / "results" / f"{job_id}.ckpt"
+    wait_until(checkpoint.exists, 120, 0.1, "the job's first checkpoint")
+    job = stack.job(job_id)
     victim, survivor = _victim_and_survivor(job)
     # SIGKILL the whole worker node (main process and its pool process): nothing of it runs
     stack.stop_worker(victim, sig=signal.SIGKILL)
@@ -246,6 +252,14 @@ def test_worker_killed_mid_job_is_requeued_and_finishes_once(stack: Stack):
     finally:
         registry.dispose()
     assert path.endswith(f"{job_id}.attempt-2.nc") and _attempt_of(path) == 2
+    # attempt 2 continued from the last checkpoint of attempt 1: nothing before it recomputed
+    [resumed] = [e for e in events if e.kind == "resumed"]
+    at = json.loads(resumed.detail)
+    assert resumed.attempt == 2 and at["t"] > 0.0 and at["step"] > 0
+    with xr.open_dataset(path, engine="netcdf4") as ds:
+        assert float(ds.attrs["hockle_resumed_at"]) == at["t"]
+        assert ds.attrs["hockle_status"] == "completed" and float(ds.time[-1]) == 16.0
+    assert not checkpoint.exists()                 # removed with the job's terminal state
     stack.start_worker(victim)  # back to two workers for the next tests
 
 
