@@ -12,6 +12,7 @@ import datetime as dt
 import hashlib
 import json
 import os
+import threading
 from pathlib import Path
 from typing import Annotated
 
@@ -198,11 +199,12 @@ def _combined_path(svc: Services, sweep: SweepRecord, fields: list[str]) -> Path
 
 
 def _load_member(job: Job | None):
-    from hockle.io import open_result
+    import xarray as xr
 
     if job is None or not job.result_path or not os.path.exists(job.result_path):
         return None
-    return open_result(job.result_path)
+    with xr.open_dataset(job.result_path, engine="netcdf4") as ds:
+        return ds.load()
 
 
 @router.get(
@@ -247,8 +249,6 @@ def download_sweep_results(
 
 def _build(svc: Services, sweep: SweepRecord, jobs: dict[str, Job], fields: list[str],
            path: Path) -> None:
-    from hockle.io import write_netcdf
-
     members = sw.expand(json.loads(sweep.base_json), sweep.parameters, sweep.combine)
     loaded: dict[str, object] = {}
     results = []
@@ -267,7 +267,15 @@ def _build(svc: Services, sweep: SweepRecord, jobs: dict[str, Job], fields: list
                                        "hockle_sweep_name": sweep.name})
     except sw.SweepError as exc:
         raise _invalid(exc) from None
-    write_netcdf(ds, path)
+    # beside the members' results, written under a temporary name and renamed (as they are)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f"{path.name}.tmp-{os.getpid()}-{threading.get_ident()}")
+    try:
+        ds.to_netcdf(tmp, engine="netcdf4")
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
 
 
 __all__ = ["router", "sweep_status"]
