@@ -54,6 +54,7 @@ __all__ = [
     "set_path",
     "parse_request",
     "expand",
+    "member_values",
     "validate_members",
     "sweep_state",
     "member_events",
@@ -314,6 +315,15 @@ def expand(base: dict, parameters: Mapping[str, Sequence[Any]], combine: str = "
             set_path(doc, p, value)
         members.append(Member(index, dict(zip(paths, row)), doc))
     return members
+
+
+def member_values(parameters: Mapping[str, Sequence[Any]], combine: str = "grid") -> list[dict]:
+    """Each member's ``{path: value}`` in member order, without building the cases (what
+    :func:`expand` gives as ``Member.values``)."""
+    paths = list(parameters)
+    lists = [list(parameters[p]) for p in paths]
+    rows = zip(*lists) if combine == "zip" else itertools.product(*lists)
+    return [dict(zip(paths, row)) for row in rows]
 
 
 def describe(values: Mapping[str, Any]) -> str:

@@ -86,14 +86,14 @@ def _create(svc: Services, data, fresh: bool, time_limit: float | None,
 def sweep_status(sweep: SweepRecord, jobs: dict[str, Job]) -> sw.SweepStatus:
     """The status body of a sweep from its record and its member jobs."""
     parameters = sweep.parameters
-    members = sw.expand(json.loads(sweep.base_json), parameters, sweep.combine)
+    values = sw.member_values(parameters, sweep.combine)
     rows, states, progress = [], [], []
-    for member, job_id in zip(members, sweep.job_ids):
+    for index, (member, job_id) in enumerate(zip(values, sweep.job_ids)):
         job = jobs.get(job_id)
         state = job.state if job is not None else "failed"
         done = 100.0 if state in ("successful", "failed", "dismissed") else float(
             min(max((job.progress if job is not None else 0.0) or 0.0, 0.0), 100.0))
-        rows.append(sw.SweepMember(index=member.index, values=member.values, job_id=job_id,
+        rows.append(sw.SweepMember(index=index, values=member, job_id=job_id,
                                    state=state, reason=job.reason if job is not None
                                    else "internal_error", progress=round(done, 3)))
         states.append(state)
@@ -101,7 +101,7 @@ def sweep_status(sweep: SweepRecord, jobs: dict[str, Job]) -> sw.SweepStatus:
     counts = {s: states.count(s) for s in sw.STATES if states.count(s)}
     state = sw.sweep_state(states, dismissed=sweep.dismissed_at is not None)
     shape = ([len(v) for v in parameters.values()] if sweep.combine == "grid"
-             else [len(members)])
+             else [len(values)])
     base = f"/v1/sweeps/{sweep.id}"
     return sw.SweepStatus(
         id=sweep.id, name=sweep.name, state=state,
@@ -249,15 +249,15 @@ def download_sweep_results(
 
 def _build(svc: Services, sweep: SweepRecord, jobs: dict[str, Job], fields: list[str],
            path: Path) -> None:
-    members = sw.expand(json.loads(sweep.base_json), sweep.parameters, sweep.combine)
+    values = sw.member_values(sweep.parameters, sweep.combine)
     loaded: dict[str, object] = {}
     results = []
-    for member, job_id in zip(members, sweep.job_ids):
+    for index, (member, job_id) in enumerate(zip(values, sweep.job_ids)):
         job = jobs.get(job_id)
         if job_id not in loaded:
             loaded[job_id] = _load_member(job)
         results.append(sw.MemberResult(
-            index=member.index, values=member.values,
+            index=index, values=member,
             state=job.state if job is not None else "failed", dataset=loaded[job_id],
             job_id=job_id, message=(job.message or "") if job is not None and
             job.state != "successful" else ""))
