@@ -321,7 +321,8 @@ def _as_case(case: Any):
 
 
 def simulate(case, callbacks: Iterable[Any] = (), loads: Iterable[Any] = (),
-             progress: Callable | None = None, should_stop: Callable | None = None):
+             progress: Callable | None = None, should_stop: Callable | None = None,
+             **solver_options: Any):
     """Run ``case`` (a ``Case``, a mapping or a case file) in this process and return the
     result dataset (docs/interfaces.md).
 
@@ -331,7 +332,9 @@ def simulate(case, callbacks: Iterable[Any] = (), loads: Iterable[Any] = (),
     ``loads``: :class:`DistributedLoad` objects or functions ``(t, s) -> N/m`` (global
     frame) added to the case's distributed forces; the dataset then has
     ``hockle_custom_loads`` naming them (its ``case`` alone no longer reproduces the run).
-    ``progress`` and ``should_stop`` are :func:`solver.simulate`'s. Raises
+    ``progress`` and ``should_stop`` are :func:`solver.simulate`'s; its other options
+    (``checkpoint``, ``checkpoint_interval``, ``resume``) pass through without callbacks and
+    loads only (``ValueError`` otherwise: this module's loop does not checkpoint). Raises
     ``SolverDivergence`` (with ``.partial``) as :func:`solver.simulate` does.
     """
     from solver.simulation import simulate as solver_simulate
@@ -340,7 +343,11 @@ def simulate(case, callbacks: Iterable[Any] = (), loads: Iterable[Any] = (),
     callbacks = [_as_callback(c) for c in callbacks]
     loads = [_as_load(load) for load in loads]
     if not callbacks and not loads:
-        return solver_simulate(case, progress=progress, should_stop=should_stop)
+        return solver_simulate(case, progress=progress, should_stop=should_stop,
+                               **solver_options)
+    if solver_options:
+        raise ValueError(f"{', '.join(sorted(solver_options))}: solver.simulate's options "
+                         "work without callbacks and loads only")
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(limits=1, user_api="blas"):
