@@ -14,18 +14,15 @@ add distributed loads written as Python functions, and run sweeps on the local c
     ds = simulate(case, callbacks=[rec, stop])                  # the result dataset
     grid = sweep(case, {"boundary.end.translation.2.force": [0.1, 0.5, 1.0]})
 
-:func:`simulate` without callbacks and loads *is* :func:`solver.simulate`. With them it
-drives :class:`solver.simulation.RodRun` itself, with the same steps, outputs and result
-dataset (tests/test_api.py checks that the two agree to the bit), because the solver's
-``progress`` hook carries no state. Nothing here changes the solver; the one thing it
-reaches into is the load model of the run it built (see :class:`DistributedLoad`).
+:func:`simulate` is :func:`solver.simulate` with its ``observer`` hook (the callbacks) and
+its ``extra_force`` hook (the loads): the same time loop, steps, outputs, checkpoints and
+result dataset.
 """
 from __future__ import annotations
 
 import math
 import os
 import tempfile
-import time as _time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -260,39 +257,41 @@ class DistributedLoad:
 
 # a force on the rod that the case never had, so that the run assembles global-frame
 # distributed loads (needs_pose, the work of distributed forces); removed at once
-_SLOT_VALUE = 1e-300
+class _LoadSum:
+    """The ``extra_force`` hook of :func:`solver.simulate`: the sum of the user's loads at
+    time t, with the :class:`State` of the run's last accepted step for state-aware ones."""
 
+    def __init__(self, loads: Sequence["DistributedLoad"]):
+        self.loads = list(loads)
+        self.uses_state = any(load.uses_state for load in self.loads)
 
-def _run_with_loads(case, loads: Sequence[DistributedLoad]):
-    """A RodRun of ``case`` whose global-frame distributed force is the case's plus
-    ``loads``. The solver has no hook for loads that are code, so the run is built for the
-    case with one extra, negligible (1e-300 N/m) force that makes it assemble global
-    loads, that force is taken out again, and the load model's ``global_force`` is wrapped
-    (docs/interfaces.md, "Python API": what a solver hook would change)."""
-    from solver.case import Case
-    from solver.simulation import RodRun
-
-    doc = case.model_dump(mode="json")
-    doc["distributed_forces"] = list(doc.get("distributed_forces") or []) + [
-        {"value": [_SLOT_VALUE, 0.0, 0.0], "start": 0.0}]
-    run = RodRun(Case.model_validate(doc))
-    model = run.loads
-    slot = model.forces.pop()
-    assert slot[3][0] == _SLOT_VALUE and model.has_global
-    base = model.global_force
-    s = run.props.s
-
-    def global_force(t: float, left: bool = False):
-        out = base(t, left)
-        state = State(run, -1) if any(load.uses_state for load in loads) else None
-        for load in loads:
-            extra = load.evaluate(float(t), s, state)
+    def __call__(self, t: float, run) -> np.ndarray | None:
+        state = State(run, -1) if self.uses_state else None
+        out = None
+        for load in self.loads:
+            extra = load.evaluate(float(t), run.props.s, state)
             out = extra.copy() if out is None else out + extra
         return out
 
-    model.global_force = global_force
-    run.case = case          # the user's case for everything read later (switches, limits)
-    return run
+
+class _CallbackSet:
+    """The ``observer`` hook of :func:`solver.simulate`: the callbacks that are due, in
+    order; the first that asks to stop stops the run (with its reason)."""
+
+    def __init__(self, callbacks: Sequence["Callback"]):
+        self.callbacks = list(callbacks)
+        for cb in self.callbacks:
+            cb._start()
+
+    def __call__(self, run, step: int):
+        state = None
+        for cb in self.callbacks:
+            state = state or State(run, step)
+            if cb._due(state):
+                flag = cb(state)
+                if flag is True or (isinstance(flag, str) and flag):
+                    return flag if isinstance(flag, str) else "callback"
+        return None
 
 
 def _as_load(load: Any) -> DistributedLoad:
@@ -328,170 +327,30 @@ def simulate(case, callbacks: Iterable[Any] = (), loads: Iterable[Any] = (),
 
     ``callbacks``: :class:`Callback` objects or functions of the :class:`State` (every
     step), called at their cadence after accepted steps and once at t = 0; returning ``True``
-    or a reason string stops the run (``hockle_status = "stopped"``, ``hockle_stop_reason`` its string).
-    ``loads``: :class:`DistributedLoad` objects or functions ``(t, s) -> N/m`` (global
-    frame) added to the case's distributed forces; the dataset then has
+    or a reason string stops the run (``hockle_status = "stopped"``, ``hockle_stop_reason``
+    its string). ``loads``: :class:`DistributedLoad` objects or functions ``(t, s) -> N/m``
+    (global frame) added to the case's distributed forces; the dataset then has
     ``hockle_custom_loads`` naming them (its ``case`` alone no longer reproduces the run).
-    ``progress`` and ``should_stop`` are :func:`solver.simulate`'s; its other options
-    (``checkpoint``, ``checkpoint_interval``, ``resume``) pass through without callbacks and
-    loads only (``ValueError`` otherwise: this module's loop does not checkpoint). Raises
-    ``SolverDivergence`` (with ``.partial``) as :func:`solver.simulate` does.
+    ``progress``, ``should_stop`` and the other options (``checkpoint``,
+    ``checkpoint_interval``, ``resume``) are :func:`solver.simulate`'s; with loads a
+    checkpoint needs picklable (module-level) load functions. Raises ``SolverDivergence``
+    (with ``.partial``) as :func:`solver.simulate` does.
     """
     from solver.simulation import simulate as solver_simulate
 
     case = _as_case(case)
     callbacks = [_as_callback(c) for c in callbacks]
     loads = [_as_load(load) for load in loads]
-    if not callbacks and not loads:
-        return solver_simulate(case, progress=progress, should_stop=should_stop,
-                               **solver_options)
-    if solver_options:
-        raise ValueError(f"{', '.join(sorted(solver_options))}: solver.simulate's options "
-                         "work without callbacks and loads only")
-    from threadpoolctl import threadpool_limits
-
-    with threadpool_limits(limits=1, user_api="blas"):
-        return _drive(case, callbacks, loads, progress, should_stop)
-
-
-def _drive(case, callbacks: list[Callback], loads: list[DistributedLoad], progress,
-           should_stop):
-    """solver.simulation._simulate's loop (fixed and error-controlled steps) with the
-    callbacks after every accepted step."""
-    from solver.results import build_dataset
-    from solver.simulation import Progress, RateEstimate, RodRun, SolverDivergence
-
-    wall0 = _time.perf_counter()
-    run = _run_with_loads(case, loads) if loads else RodRun(case)
-    num = case.numerics
-    fields = set(case.output.fields)
-    every = case.output.every
-    n_steps = max(1, int(math.ceil(num.t_end / num.dt - 1e-9)))
-    times, records = [], []
-    diag: dict[str, list] = {"step_time": [], "step_dt": [], "step_newton_iterations": [],
-                             "step_residual_norm": [], "step_growth_rate": []}
-
-    def record():
-        times.append(run.t)
-        records.append(run.snapshot(fields))
-
-    def finish(status, message="", reason=None):
-        stacked = {}
-        if records:
-            for key in records[0]:
-                stacked[key] = np.asarray([rec[key] for rec in records])
-        ds = build_dataset(case, run.props.s, np.asarray(times), stacked,
-                           {k: np.asarray(v) for k, v in diag.items()}, status, message)
-        if reason is not None:
-            ds.attrs["hockle_stop_reason"] = reason
-        ds.attrs["wall_time_s"] = _time.perf_counter() - wall0
-        ds.attrs["factorizations"] = run.newton.factorizations
-        if loads:
-            ds.attrs["hockle_custom_loads"] = ", ".join(load.name for load in loads)
-        return ds
-
-    def observe(step):
-        """Call the callbacks that are due; the dataset when one stops the run."""
-        state = None
-        for cb in callbacks:
-            state = state or State(run, step)
-            if cb._due(state):
-                flag = cb(state)
-                if flag is True or (isinstance(flag, str) and flag):
-                    reason = flag if isinstance(flag, str) else "callback"
-                    if not times or times[-1] != run.t:
-                        record()          # the state the callback stopped at
-                    return finish("stopped", f"stopped at t = {run.t:.6g} s by callback "
-                                  f"{cb.name}: {reason}", reason)
-        return None
-
-    budget = num.wall_clock_budget
-    rate = RateEstimate()
-
-    def stopped():
-        if should_stop is not None:
-            flag = should_stop()
-            if flag:
-                reason = flag if isinstance(flag, str) else "stopped"
-                return finish("stopped", f"stopped at t = {run.t:.6g} s: {reason}", reason)
-        if budget is not None and _time.perf_counter() - wall0 > budget:
-            return finish("stopped", f"wall-clock budget of {budget} s exceeded at "
-                          f"t = {run.t:.6g} s", "timeout")
-        return None
-
-    def accepted(step, its, res):
-        diag["step_time"].append(run.t)
-        diag["step_dt"].append(run.last_dt)
-        diag["step_newton_iterations"].append(its)
-        diag["step_residual_norm"].append(res)
-        diag["step_growth_rate"].append(run.guard_sigma)
-        if progress is not None:
-            wall = _time.perf_counter() - wall0
-            progress(Progress(t=run.t, t_end=num.t_end, step=step, dt=run.last_dt,
-                              newton_iterations=its, residual_norm=res,
-                              wall_time=wall, fraction=min(1.0, run.t / num.t_end),
-                              contact_count=run.contact_count,
-                              eta_seconds=rate.update(wall, run.t, num.t_end)))
-        return observe(step)
-
-    for cb in callbacks:
-        cb._start()
-    record()
-    out = observe(0)
-    if out is not None:
-        return out
-    if num.tolerance is not None:
-        return _drive_adaptive(case, run, record, finish, stopped, accepted, SolverDivergence)
-    for step in range(1, n_steps + 1):
-        out = stopped()
-        if out is not None:
-            return out
-        t_target = min(step * num.dt, num.t_end)
-        try:
-            its, res = run.advance(t_target)
-        except SolverDivergence as exc:
-            exc.step = step - 1
-            exc.partial = finish("failed", str(exc), exc.reason)
-            raise
-        if step % every == 0 or step == n_steps:
-            record()
-        out = accepted(step, its, res)
-        if out is not None:
-            return out
-    return finish("completed", f"completed {n_steps} steps to t = {run.t:.6g} s")
-
-
-def _drive_adaptive(case, run, record, finish, stopped, accepted, SolverDivergence):
-    """solver.simulation._simulate_adaptive's loop, with the callbacks."""
-    t_end = case.numerics.t_end
-    interval = case.output.interval
-    every = case.output.every
-    next_out = min(interval, t_end) if interval is not None else t_end
-    step = 0
-    while run.t < t_end * (1.0 - 1e-12):
-        out = stopped()
-        if out is not None:
-            return out
-        try:
-            its, res = run.step_adaptive(next_out)
-        except SolverDivergence as exc:
-            exc.step = step
-            exc.partial = finish("failed", str(exc), exc.reason)
-            raise
-        step += 1
-        done = run.t >= t_end * (1.0 - 1e-12)
-        if interval is not None:
-            if run.t >= next_out * (1.0 - 1e-12) or done:
-                record()
-                k = math.floor(run.t / interval + 1e-9) + 1
-                next_out = min(k * interval, t_end)
-        elif step % every == 0 or done:
-            record()
-        out = accepted(step, its, res)
-        if out is not None:
-            return out
-    return finish("completed", f"completed {step} error-controlled steps to "
-                  f"t = {run.t:.6g} s")
+    for key in ("observer", "extra_force"):
+        if key in solver_options:
+            raise ValueError(f"{key}: given by hockle.api.simulate itself (use callbacks= "
+                             "and loads=)")
+    ds = solver_simulate(case, progress=progress, should_stop=should_stop,
+                         observer=_CallbackSet(callbacks) if callbacks else None,
+                         extra_force=_LoadSum(loads) if loads else None, **solver_options)
+    if loads:
+        ds.attrs["hockle_custom_loads"] = ", ".join(load.name for load in loads)
+    return ds
 
 
 # --------------------------------------------------------------------------- case builders

@@ -27,10 +27,18 @@ class LoadModel:
     ----------
     case : solver.case.Case
     props : solver.properties.RodProperties
+    extra : callable(t, owner) -> (N+1, 3) array or None, optional
+        A further global-frame distributed force (N/m) written as code (in-process runs:
+        ``simulate(..., extra_force=...)``), evaluated like the case's forces at every
+        Newton iterate's time level; ``owner`` (the :class:`~solver.simulation.RodRun`) is
+        handed to it so that it may read the last accepted state. None: the case's loads
+        only.
     """
 
-    def __init__(self, case, props):
+    def __init__(self, case, props, extra=None, owner=None):
         self.props = props
+        self.extra = extra
+        self.owner = owner
         fl = case.fluid
         self.has_drag = fl is not None and (fl.drag_coefficient_normal > 0
                                             or fl.drag_coefficient_tangential > 0)
@@ -58,7 +66,7 @@ class LoadModel:
                 mask = (props.s >= s0 - 1e-12) & (props.s <= s1 + 1e-12)
             end = df.end if df.end is not None else np.inf
             self.forces.append((float(df.start), float(end), mask.astype(float), val))
-        self.has_global = self.gravity is not None or bool(self.forces)
+        self.has_global = self.gravity is not None or bool(self.forces) or extra is not None
 
     def global_force(self, t: float, left: bool = False):
         """Global-frame distributed force (N+1, 3) N/m at time t, or None if zero.
@@ -72,6 +80,14 @@ class LoadModel:
             if (start < t <= end) if left else (start <= t < end):
                 contrib = mask[:, None] * val[None, :]
                 out = contrib if out is None else out + contrib
+        if self.extra is not None:
+            contrib = self.extra(t, self.owner)
+            if contrib is not None:
+                contrib = np.asarray(contrib, dtype=float)
+                if contrib.shape != self.props.s.shape + (3,):
+                    raise ValueError(f"extra_force returned shape {contrib.shape}, expected "
+                                     f"{self.props.s.shape + (3,)} (N/m per grid point)")
+                out = contrib.copy() if out is None else out + contrib
         return out
 
     def drag(self, v: np.ndarray, want_jacobian: bool):

@@ -108,17 +108,19 @@ class RodRun:
     Parameters
     ----------
     case : solver.case.Case (validated)
+    extra_force : callable(t, run) -> (N+1, 3) or None, optional
+        A further global-frame distributed force, N/m (:class:`solver.loads.LoadModel`).
     """
 
     GROW_AFTER = 3   # accepted substeps at one Δt level before Δt is allowed to grow
     GUARD_EVERY = 10  # accepted steps between growth-guard checks at an unchanged Δt
     GROW_AFTER_MAX = 48  # the same after repeated failed growths (doubling back-off)
 
-    def __init__(self, case):
+    def __init__(self, case, extra_force=None):
         self.case = case
         num = case.numerics
         self.props = props = RodProperties.from_case(case)
-        self.loads = LoadModel(case, props)
+        self.loads = LoadModel(case, props, extra=extra_force, owner=self)
         self.contact = None
         self.route_tolerance = math.inf
         self.last_step_error = 0.0
@@ -156,13 +158,6 @@ class RodRun:
         self.xdot_nodes = np.zeros((n1, 3))               # node displacement rates, m/s
         # (advanced only where distributed loads do work: loads.has_global)
         self.quat_norm_error = 0.0
-        glob = self.loads.global_force(0.0) if self.loads.has_global else None
-        pose = ((quat_to_matrix(self.q), np.zeros((n1, 3)), 0.0)
-                if self.system.needs_pose else None)
-        self.F_old, _ = self.system.node_terms(self.Y, False, pose, glob)
-        self.body_force = self._body_force(glob, pose)
-        self.power = end_power(self.Y, props) + distributed_power(self.Y, self.body_force, props)
-        self.end_load = end_loads(self.Y, props)
         self.bc = BoundaryRows(case, props, 0.0, self.system.n)
         self.breakpoints = breakpoints(case)
         # error-controlled steps (numerics.tolerance): the estimator and controller, the
@@ -193,6 +188,14 @@ class RodRun:
         self.last_dt = num.dt
         self.contact_count = 0
         self.min_gap = math.inf
+        # the loads at t = 0, last: an extra_force sees a complete run
+        glob = self.loads.global_force(0.0) if self.loads.has_global else None
+        pose = ((quat_to_matrix(self.q), np.zeros((n1, 3)), 0.0)
+                if self.system.needs_pose else None)
+        self.F_old, _ = self.system.node_terms(self.Y, False, pose, glob)
+        self.body_force = self._body_force(glob, pose)
+        self.power = end_power(self.Y, props) + distributed_power(self.Y, self.body_force, props)
+        self.end_load = end_loads(self.Y, props)
 
     @staticmethod
     def _body_force(glob, pose):
@@ -713,7 +716,7 @@ class RodRun:
 
 
 def simulate(case, progress=None, should_stop=None, checkpoint=None,
-             checkpoint_interval=300.0, resume=None):
+             checkpoint_interval=300.0, resume=None, observer=None, extra_force=None):
     """Run a case and return its result dataset (docs/interfaces.md, "Result dataset").
 
     Parameters
@@ -733,6 +736,19 @@ def simulate(case, progress=None, should_stop=None, checkpoint=None,
         Continue from this checkpoint instead of t = 0 (the records and diagnostics before
         it are kept, nothing is recomputed, and the result is the uninterrupted run's to
         the last bit). It must belong to ``case``.
+    observer : callable(run, step) -> None | bool | str, or None
+        Called with the :class:`RodRun` once at t = 0 (step 0) and after every accepted
+        step, after that step's output record; it may read the state (do not change it).
+        A truthy value stops the run there: the state is recorded if it was not, and the
+        partial dataset is returned with ``hockle_status = "stopped"`` and
+        ``hockle_stop_reason`` the string returned (or ``"observer"``). The hook of the
+        Python API's callbacks (:mod:`hockle.api`).
+    extra_force : callable(t, run) -> (N+1, 3) array or None, or None
+        A global-frame distributed force, N/m per grid point, written as code, added to
+        the case's distributed forces at every time level Newton evaluates (it sees the
+        run's last accepted state, so a state-dependent force is explicit: lagged by one
+        step). In-process runs only (the service takes data, never code); with
+        ``checkpoint`` it must be picklable (a module-level function).
 
     Returns
     -------
@@ -752,11 +768,11 @@ def simulate(case, progress=None, should_stop=None, checkpoint=None,
     # overhead and oversubscribe shared cores (measured 3.8x slower in contact phases)
     with threadpool_limits(limits=1, user_api="blas"):
         return _simulate(case, progress, should_stop, checkpoint, checkpoint_interval,
-                         resume)
+                         resume, observer, extra_force)
 
 
 def _simulate(case, progress, should_stop, checkpoint=None, checkpoint_interval=300.0,
-              resume=None):
+              resume=None, observer=None, extra_force=None):
     from .checkpoint import Checkpoint, CheckpointError, resume_key
     from .results import build_dataset
 
@@ -766,7 +782,7 @@ def _simulate(case, progress, should_stop, checkpoint=None, checkpoint_interval=
     every = case.output.every
     n_steps = max(1, int(math.ceil(num.t_end / num.dt - 1e-9)))
     if resume is None:
-        run = RodRun(case)
+        run = RodRun(case, extra_force)
         times, records = [], []
         diag = {"step_time": [], "step_dt": [], "step_newton_iterations": [],
                 "step_residual_norm": [], "step_growth_rate": []}
@@ -779,6 +795,8 @@ def _simulate(case, progress, should_stop, checkpoint=None, checkpoint_interval=
         state = pickle.loads(pickle.dumps(resume))
         run, times, records, diag = state.run, state.times, state.records, state.diag
         first_step, wall_before = state.step + 1, state.wall_time
+        if extra_force is not None:
+            run.loads.extra = extra_force
     last_checkpoint = [_time.perf_counter()]
     done = [first_step - 1]                   # accepted steps so far
 
@@ -827,15 +845,14 @@ def _simulate(case, progress, should_stop, checkpoint=None, checkpoint_interval=
         return None
 
     def accepted(step, its, res):
-        """Diagnostics and progress after an accepted (nominal or error-controlled) step."""
+        """Diagnostics, progress, checkpoint and observer after an accepted (nominal or
+        error-controlled) step; the partial dataset when the observer stops the run."""
         diag["step_time"].append(run.t)
         diag["step_dt"].append(run.last_dt)
         diag["step_newton_iterations"].append(its)
         diag["step_residual_norm"].append(res)
         diag["step_growth_rate"].append(run.guard_sigma)
         done[0] = step
-        if _time.perf_counter() - last_checkpoint[0] >= checkpoint_interval:
-            save()
         if progress is not None:
             wall = _time.perf_counter() - wall0
             progress(Progress(t=run.t, t_end=num.t_end, step=step, dt=run.last_dt,
@@ -843,7 +860,26 @@ def _simulate(case, progress, should_stop, checkpoint=None, checkpoint_interval=
                               wall_time=wall, fraction=min(1.0, run.t / num.t_end),
                               contact_count=run.contact_count,
                               eta_seconds=rate.update(wall, run.t, num.t_end)))
+        if _time.perf_counter() - last_checkpoint[0] >= checkpoint_interval:
+            save()
+        return observed(step)
 
+    def observed(step):
+        """The partial dataset when the observer stops the run after ``step``."""
+        if observer is None:
+            return None
+        flag = observer(run, step)
+        if not flag:
+            return None
+        reason = flag if isinstance(flag, str) else "observer"
+        if not times or times[-1] != run.t:
+            record()                          # the state the observer stopped at
+        return finish("stopped", f"stopped at t = {run.t:.6g} s: {reason}", reason)
+
+    if resume is None:
+        out = observed(0)
+        if out is not None:
+            return out
     if num.tolerance is not None:
         return _simulate_adaptive(case, run, record, finish, stopped, accepted,
                                   first_step - 1)
@@ -860,7 +896,9 @@ def _simulate(case, progress, should_stop, checkpoint=None, checkpoint_interval=
             raise
         if step % every == 0 or step == n_steps:
             record()
-        accepted(step, its, res)
+        out = accepted(step, its, res)
+        if out is not None:
+            return out
     return finish("completed", f"completed {n_steps} steps to t = {run.t:.6g} s")
 
 
@@ -895,6 +933,8 @@ def _simulate_adaptive(case, run, record, finish, stopped, accepted, step=0):
                 next_out = min(k * interval, t_end)
         elif step % every == 0 or done:
             record()
-        accepted(step, its, res)
+        out = accepted(step, its, res)
+        if out is not None:
+            return out
     return finish("completed", f"completed {step} error-controlled steps to "
                   f"t = {run.t:.6g} s")
