@@ -100,7 +100,9 @@ class Checkpoint:
     @classmethod
     def loads(cls, data: bytes, case=None) -> "Checkpoint":
         """Checkpoint from :meth:`dumps` bytes. With ``case``, the checkpoint must belong to
-        it (same :func:`resume_key`). Raises CheckpointError with the reason."""
+        it (same :func:`resume_key`) and hold every attribute a run of this code has (a
+        checkpoint of an older solver that lacks one is refused rather than failing deep
+        inside a step). Raises CheckpointError with the reason."""
         head = cls.header(data)
         if case is not None and head.get("case_hash") != resume_key(case):
             raise CheckpointError("the checkpoint belongs to another case (resume key "
@@ -111,4 +113,25 @@ class Checkpoint:
             raise CheckpointError(f"checkpoint cannot be read: {exc}") from None
         if not isinstance(obj, cls):
             raise CheckpointError("checkpoint does not hold a run")
+        if case is not None:
+            from .simulation import RodRun
+
+            missing = sorted(_layout(RodRun(case)) - _layout(obj.run))
+            if missing:
+                raise CheckpointError("the checkpoint was written by another version of the "
+                                      f"solver (its state lacks {', '.join(missing[:4])}"
+                                      f"{' ...' if len(missing) > 4 else ''}); rerun from "
+                                      "the start")
         return obj
+
+
+def _layout(run) -> set:
+    """``Class.attribute`` names of a run and the objects it holds (loads, system, Newton,
+    contact, error control): what a checkpoint must provide to continue."""
+    names = set()
+    for obj in (run, getattr(run, "loads", None), getattr(run, "system", None),
+                getattr(run, "newton", None), getattr(run, "contact", None),
+                getattr(run, "errctl", None)):
+        if obj is not None and hasattr(obj, "__dict__"):
+            names.update(f"{type(obj).__name__}.{key}" for key in vars(obj))
+    return names

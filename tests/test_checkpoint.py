@@ -91,3 +91,15 @@ def test_a_stopped_run_leaves_a_checkpoint_that_finishes_it(tmp_path):
     ck = Checkpoint.loads(saved[0], case)
     assert ck.step == 7 and ck.t == pytest.approx(0.07)
     assert_identical(full, simulate(case, resume=ck))
+
+
+def test_a_checkpoint_of_an_older_solver_is_refused_with_the_reason():
+    """A checkpoint whose run lacks an attribute this code's runs have (written before the
+    attribute existed) is refused up front, not left to fail inside a step."""
+    load = [{"value": [0.0, 1.0, 0.0], "start": 0.0}]
+    case = make_case(n_segments=6, dt=0.01, t_end=0.05, end=free_end(), forces=load)
+    _, data = run_with_checkpoint_at(case, 0.02)
+    ck = Checkpoint.loads(data, case)
+    del ck.run.loads.extra                       # as written before extra_force existed
+    with pytest.raises(CheckpointError, match="another version of the solver.*LoadModel.extra"):
+        Checkpoint.loads(ck.dumps(), case)
