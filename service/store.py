@@ -36,14 +36,14 @@ class ResultStore:
             return self.root / f"{job_id}.nc"
         return self.root / f"{job_id}.attempt-{int(attempt)}.nc"
 
-    def write_dataset(self, job_id: str, ds, attempt: int | None = None) -> Path:
-        """Write an xarray.Dataset as NetCDF4 under a temporary name, then rename it to
-        :meth:`path_for` ``(job_id, attempt)``."""
+    def _atomic(self, final: Path, write) -> Path:
+        """Write ``final`` atomically: ``write(tmp)`` to a temporary name in the same
+        directory, fsync, rename (os.replace), so a reader or a crash never sees half a
+        file; the temporary file is removed on failure."""
         self.ensure()
-        final = self.path_for(job_id, attempt)
         tmp = final.with_name(f"{final.name}.tmp-{socket.gethostname()}-{os.getpid()}")
         try:
-            ds.to_netcdf(tmp, engine="netcdf4")
+            write(tmp)
             with open(tmp, "rb") as fh:
                 os.fsync(fh.fileno())
             os.replace(tmp, final)
@@ -52,6 +52,12 @@ class ResultStore:
                 tmp.unlink()
         return final
 
+    def write_dataset(self, job_id: str, ds, attempt: int | None = None) -> Path:
+        """Write an xarray.Dataset as NetCDF4 under a temporary name, then rename it to
+        :meth:`path_for` ``(job_id, attempt)``."""
+        return self._atomic(self.path_for(job_id, attempt),
+                            lambda tmp: ds.to_netcdf(tmp, engine="netcdf4"))
+
     def checkpoint_path(self, job_id: str) -> Path:
         """``<id>.ckpt``: the job's latest solver checkpoint (solver.checkpoint)."""
         if not _ID.match(job_id):
@@ -59,21 +65,9 @@ class ResultStore:
         return self.root / f"{job_id}.ckpt"
 
     def write_checkpoint(self, job_id: str, data: bytes) -> Path:
-        """Replace the job's checkpoint atomically (temporary name, fsync, rename): a
-        worker killed while writing leaves the previous checkpoint intact."""
-        self.ensure()
-        final = self.checkpoint_path(job_id)
-        tmp = final.with_name(f"{final.name}.tmp-{socket.gethostname()}-{os.getpid()}")
-        try:
-            with open(tmp, "wb") as fh:
-                fh.write(data)
-                fh.flush()
-                os.fsync(fh.fileno())
-            os.replace(tmp, final)
-        finally:
-            if tmp.exists():
-                tmp.unlink()
-        return final
+        """Replace the job's checkpoint atomically (as :meth:`write_dataset`): a worker
+        killed while writing leaves the previous checkpoint intact."""
+        return self._atomic(self.checkpoint_path(job_id), lambda tmp: tmp.write_bytes(data))
 
     def read_checkpoint(self, job_id: str) -> bytes | None:
         """The job's checkpoint bytes, or None when it has none."""
