@@ -170,6 +170,7 @@ class RodSystem:
         self.candidates = candidates if (candidates is not None and candidates.runs > 0) else None
         self.last_contact = None
         self.frozen_selection = None      # set by Newton (see SelfContact.closest)
+        self._pose_memo = None            # (Y, pose) of the last pose_new call this step
         self.selection = None
         # what the Jacobian's band part depends on besides the iterate (solver.newton
         # keeps a factorisation across steps while this is unchanged)
@@ -227,6 +228,16 @@ class RodSystem:
         Returns (q (N+1, 4), R (N+1, 3, 3), r (N+1, 3) or None, θ (N+1, 3)); θ is the
         time-route rotation increment in both cases (used by the Jacobian).
         """
+        memo = getattr(self, "_pose_memo", None)
+        if memo is not None and np.array_equal(memo[0], Y):
+            # the same iterate again (the feasibility filter and the residual of one trial
+            # point): the space route is integrated once
+            return memo[1]
+        pose = self._pose_new(Y)
+        self._pose_memo = (Y.copy(), pose)
+        return pose
+
+    def _pose_new(self, Y):
         theta = 0.5 * self.dt * (self.Y_old[:, W:W + 3] + Y[:, W:W + 3])
         if self.contact is not None and self.r_old is not None:
             q0 = quat_multiply(self.q_old[:1], quat_exp(theta[:1]))

@@ -374,6 +374,15 @@ class SelfContact:
         keeps that segment (the closest point still slides along it): Newton freezes the
         selection after a few iterates so that a minimum near a node cannot move back and
         forth between the two segments that meet there."""
+        memo = getattr(self, "_closest_memo", None)
+        if (memo is not None and memo[0] is cand and memo[1] is frozen
+                and np.array_equal(memo[2], positions)):
+            return memo[3]                # the same positions again (one Newton trial point)
+        out = self._closest(cand, positions, frozen)
+        self._closest_memo = (cand, frozen, np.array(positions, copy=True), out)
+        return out
+
+    def _closest(self, cand, positions, frozen):
         r = positions
         own, seg = cand.owner, cand.segment
         start = cand.run_start
