@@ -10,6 +10,10 @@
 * :func:`plot_energies` (Fig. 7): bending, torsional, kinetic and total energy vs time.
 * :func:`plot_topology` (Fig. 8): Tw, Wr and Lk vs time, with |Tw + Wr - Lk| below.
 
+The drawing of the rod (:func:`rod_box`, :func:`setup_rod_axes`, :func:`draw_rod`,
+:func:`rod_legend_handles`) and of the curves (:func:`energy_lines`,
+:func:`topology_lines`) is shared with the animation (:mod:`hockle.animate`).
+
 Each function takes an :class:`xarray.Dataset` in the layout of :mod:`solver.results` and
 an output directory, writes PNG files and returns their paths; when the dataset lacks
 the variables a figure needs, it reports that through ``on_skip`` and returns ``[]``.
@@ -40,6 +44,14 @@ __all__ = [
     "plot_topology",
     "snapshot_times",
     "event_times",
+    "contact_sites",
+    "rod_diameter",
+    "rod_box",
+    "setup_rod_axes",
+    "draw_rod",
+    "rod_legend_handles",
+    "energy_lines",
+    "topology_lines",
 ]
 
 MAX_EVENTS = 8             # snapshot rows at most, when chosen from the events
@@ -299,6 +311,74 @@ def _cube_limits(points: np.ndarray) -> tuple[np.ndarray, float]:
     return centre, max(half, 1e-9)
 
 
+def rod_box(shapes: np.ndarray, diameter: np.ndarray | None) -> list[tuple[float, float]]:
+    """Limits ``[(x0, x1), (y0, y1), (z0, z1)]`` (m) of one cube that holds every shape in
+    ``shapes`` (..., 3) and the tube of ``diameter`` around it, so that shapes drawn in it
+    compare at equal, undistorted scale."""
+    centre, half = _cube_limits(shapes)
+    if diameter is not None:
+        half += 0.5 * float(np.max(diameter))
+    return [(c - half, c + half) for c in centre]
+
+
+def setup_rod_axes(ax3, lims: Sequence[tuple[float, float]], zoom: float = 1.0) -> None:
+    """Prepare a 3-D axes for :func:`draw_rod`: the cube ``lims`` (from :func:`rod_box`),
+    equal box aspect (drawn ``zoom`` times the default size), axis labels in m and small
+    tick labels."""
+    ax3.set_xlim(*lims[0])
+    ax3.set_ylim(*lims[1])
+    ax3.set_zlim(*lims[2])
+    ax3.set_box_aspect((1, 1, 1), zoom=zoom)
+    ax3.set_xlabel("x (m)")
+    ax3.set_ylabel("y (m)")
+    ax3.set_zlabel("z (m)")
+    ax3.tick_params(labelsize=7)
+
+
+def draw_rod(ax3, r: np.ndarray, diameter: np.ndarray | None,
+             touching: np.ndarray | None = None) -> list:
+    """Draw the rod of centreline ``r`` (N, 3), m, into the 3-D axes ``ax3``.
+
+    A shaded tube of ``diameter`` (N,), m (thinned to 400 rings), or the bare centreline
+    when ``diameter`` is None; the start end (s = 0) a red circle, the far end a green
+    square, the grid points ``touching`` (from :func:`contact_sites`) orange dots; the
+    styles :func:`rod_legend_handles` names. Returns the artists drawn, so that an
+    animation can remove them before drawing the next shape.
+    """
+    artists: list = []
+    if diameter is not None:
+        keep = _thin(len(r), 400)
+        X, Y, Z = _tube_mesh(r[keep], diameter[keep])
+        artists.append(ax3.plot_surface(X, Y, Z, color="C0", shade=True, linewidth=0,
+                                        antialiased=False, rcount=len(keep),
+                                        ccount=X.shape[1]))
+    else:
+        artists += ax3.plot(r[:, 0], r[:, 1], r[:, 2], color="C0", lw=1.5)
+    artists.append(ax3.scatter(*r[0], color="C3", marker="o", s=22, depthshade=False))
+    artists.append(ax3.scatter(*r[-1], color="C2", marker="s", s=22, depthshade=False))
+    if touching is not None and len(touching):
+        artists.append(ax3.scatter(*r[touching].T, color="orange", marker=".", s=6,
+                                   depthshade=False))
+    return artists
+
+
+def rod_legend_handles(s: np.ndarray, diameter: np.ndarray | None,
+                       contact: bool) -> list[Line2D]:
+    """Legend entries for what :func:`draw_rod` draws: the rod (tube or centreline), the
+    two ends (named by their arclength, from ``s``) and, when ``contact``, the contact
+    sites."""
+    handles = [
+        Line2D([], [], color="C0", lw=6 if diameter is not None else 1.5,
+               label="rod (tube of its diameter)" if diameter is not None else "centreline"),
+        Line2D([], [], color="C3", marker="o", ls="", label="start end (s = 0)"),
+        Line2D([], [], color="C2", marker="s", ls="", label=f"far end (s = {s[-1]:g} m)"),
+    ]
+    if contact:
+        handles.append(Line2D([], [], color="orange", marker=".", ls="",
+                              label="self-contact (grid points)"))
+    return handles
+
+
 def plot_snapshots(
     ds: xr.Dataset,
     out_dir: str | Path,
@@ -331,10 +411,7 @@ def plot_snapshots(
     s = np.asarray(ds["s"].values, dtype=float)
     diameter = rod_diameter(ds, s)
     shapes = [np.asarray(pos.sel(time=t).values, dtype=float) for t, _ in chosen]
-    centre, half = _cube_limits(np.stack(shapes))
-    if diameter is not None:
-        half += 0.5 * float(np.max(diameter))
-    lims = [(c - half, c + half) for c in centre]
+    lims = rod_box(np.stack(shapes), diameter)
     counts = None
     if "contact_count" in ds:
         counts = ds["contact_count"]
@@ -355,26 +432,9 @@ def plot_snapshots(
             touching = contact_sites(ds, r, s, diameter)
         any_contact = any_contact or touching.size > 0
         ax3 = fig.add_subplot(grid[row, 0], projection="3d")
-        if diameter is not None:
-            keep = _thin(len(r), 400)
-            X, Y, Z = _tube_mesh(r[keep], diameter[keep])
-            ax3.plot_surface(X, Y, Z, color="C0", shade=True, linewidth=0,
-                             antialiased=False, rcount=len(keep), ccount=X.shape[1])
-        else:
-            ax3.plot(r[:, 0], r[:, 1], r[:, 2], color="C0", lw=1.5)
-        ax3.scatter(*r[0], color="C3", marker="o", s=22, depthshade=False)
-        ax3.scatter(*r[-1], color="C2", marker="s", s=22, depthshade=False)
-        if touching.size:
-            ax3.scatter(*r[touching].T, color="orange", marker=".", s=6, depthshade=False)
-        ax3.set_xlim(*lims[0])
-        ax3.set_ylim(*lims[1])
-        ax3.set_zlim(*lims[2])
-        ax3.set_box_aspect((1, 1, 1))
-        ax3.set_xlabel("x (m)")
-        ax3.set_ylabel("y (m)")
-        ax3.set_zlabel("z (m)")
+        setup_rod_axes(ax3, lims)
+        draw_rod(ax3, r, diameter, touching)
         ax3.set_title(title, fontsize=10)
-        ax3.tick_params(labelsize=7)
         for col, (a, b, i, j) in enumerate(views, start=2):
             ax = fig.add_subplot(grid[row, col - 1])
             if diameter is None:
@@ -395,15 +455,7 @@ def plot_snapshots(
             ax.tick_params(labelsize=7)
             ax.grid(alpha=0.3)
 
-    handles = [
-        Line2D([], [], color="C0", lw=6 if diameter is not None else 1.5,
-               label="rod (tube of its diameter)" if diameter is not None else "centreline"),
-        Line2D([], [], color="C3", marker="o", ls="", label="start end (s = 0)"),
-        Line2D([], [], color="C2", marker="s", ls="", label=f"far end (s = {s[-1]:g} m)"),
-    ]
-    if any_contact:
-        handles.append(Line2D([], [], color="orange", marker=".", ls="",
-                              label="self-contact (grid points)"))
+    handles = rod_legend_handles(s, diameter, any_contact)
     fig.legend(handles=handles, loc="outside lower center", ncol=len(handles), fontsize=9)
     if bands:
         fig.canvas.draw()   # fixes the layout, so the band widths are true to scale
@@ -430,6 +482,55 @@ _ENERGIES = (
 )
 
 
+def energy_lines(ax, ds: xr.Dataset, t: np.ndarray, index=slice(None)) -> list:
+    """Draw the energies of ``ds`` (whichever of :data:`_ENERGIES` it has) against the
+    times ``t`` into ``ax`` (y label in J, grid), labelled for a legend.
+
+    ``index`` selects the outputs read (``t`` are their times). Returns
+    ``[(line, values), ...]``, so that an animation can show each curve up to a time.
+    """
+    drawn = []
+    marker = "o" if t.size < 3 else None
+    for name, label, color, style in _ENERGIES:
+        if name in ds:
+            y = np.asarray(ds[name].values[index], dtype=float)
+            (line,) = ax.plot(t, y, style, color=color, label=label, marker=marker, ms=3)
+            drawn.append((line, y))
+    ax.set_ylabel("energy (J)")
+    ax.grid(alpha=0.3)
+    return drawn
+
+
+_TOPOLOGY = (
+    ("twist", "Tw (twist)", "C0"),
+    ("writhe", "Wr (writhe)", "C1"),
+    ("linking_number", "Lk (linking number)", "k"),
+)
+
+
+def topology_lines(ax, ds: xr.Dataset, t: np.ndarray, index=slice(None)) -> list:
+    """Draw twist, writhe and linking number (whichever ``ds`` has), and Tw + Wr dashed
+    when both are there, against the times ``t`` into ``ax`` (y label in turns, grid).
+
+    ``index`` selects the outputs read. Returns ``[(line, values), ...]`` as
+    :func:`energy_lines` does.
+    """
+    drawn = []
+    marker = "o" if t.size < 3 else None
+    for name, label, color in _TOPOLOGY:
+        if name in ds:
+            y = np.asarray(ds[name].values[index], dtype=float)
+            (line,) = ax.plot(t, y, color=color, label=label, marker=marker, ms=3)
+            drawn.append((line, y))
+    if "twist" in ds and "writhe" in ds:
+        y = np.asarray(ds["twist"].values[index] + ds["writhe"].values[index], dtype=float)
+        (line,) = ax.plot(t, y, "--", color="C3", label="Tw + Wr")
+        drawn.append((line, y))
+    ax.set_ylabel("Tw, Wr, Lk (turns)")
+    ax.grid(alpha=0.3)
+    return drawn
+
+
 def plot_energies(
     ds: xr.Dataset, out_dir: str | Path, stem: str = "result", on_skip: Notify | None = _stderr
 ) -> list[Path]:
@@ -454,14 +555,9 @@ def plot_energies(
     t = np.asarray(ds["time"].values, dtype=float)
     fig = Figure(figsize=(8.0, 4.8), layout="constrained")
     ax = fig.add_subplot()
-    for name, label, color, style in _ENERGIES:
-        if name in ds:
-            marker = "o" if t.size < 3 else None
-            ax.plot(t, ds[name].values, style, color=color, label=label, marker=marker, ms=3)
+    energy_lines(ax, ds, t)
     ax.set_xlabel("time (s)")
-    ax.set_ylabel("energy (J)")
     ax.set_title(f"{_title(ds)}: energies")
-    ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     return [_save(fig, Path(out_dir) / f"{stem}_energies.png")]
 
@@ -501,21 +597,8 @@ def plot_topology(
     else:
         ax, ax_err = fig.add_subplot(), None
     marker = "o" if t.size < 3 else None
-    labels = {
-        "twist": "Tw (twist)",
-        "writhe": "Wr (writhe)",
-        "linking_number": "Lk (linking number)",
-    }
-    colors = {"twist": "C0", "writhe": "C1", "linking_number": "k"}
-    for name in present:
-        ax.plot(t, ds[name].values, color=colors[name], label=labels[name], marker=marker, ms=3)
-    if "twist" in ds and "writhe" in ds:
-        ax.plot(
-            t, ds["twist"].values + ds["writhe"].values, "--", color="C3", label="Tw + Wr"
-        )
-    ax.set_ylabel("Tw, Wr, Lk (turns)")
+    topology_lines(ax, ds, t)
     ax.set_title(f"{_title(ds)}: exchange of twist and writhe")
-    ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     if ax_err is not None:
         positive = np.where(err > 0, err, np.nan)
