@@ -4,8 +4,9 @@ Exit status
 -----------
 0    success
 1    an internal error, a file that could not be written, or nothing to plot
-2    bad usage or an invalid case (each error printed as ``path: reason``), or a result
-     file that cannot be read
+2    bad usage or an invalid case (each error printed as ``path: reason``), a result
+     file that cannot be read, or an animation format this machine cannot write
+     (``.mp4`` without ffmpeg)
 3    the solver diverged (``SolverDivergence``); the partial results are written
 4    the run stopped before t_end for another reason (e.g. its wall-clock budget);
      the partial results are written
@@ -327,6 +328,48 @@ def cmd_plot(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+# --------------------------------------------------------------------------- animate
+
+
+def cmd_animate(args: argparse.Namespace) -> int:
+    import xarray as xr
+
+    from hockle.animate import AnimationError, NothingToAnimate, animate
+
+    path = Path(args.result)
+    out = Path(args.output) if args.output else path.with_suffix(".gif")
+    try:
+        ds = xr.open_dataset(path, engine="netcdf4")     # lazily: read frame by frame
+    except (OSError, ValueError) as exc:
+        _err(f"hockle: cannot read {path}: {exc}")
+        return EXIT_INVALID
+    reported = [-1]
+
+    def progress(done: int, total: int) -> None:
+        decile = (10 * done) // total
+        if decile > reported[0]:
+            reported[0] = decile
+            _err(f"hockle: animate: frame {done}/{total}")
+
+    try:
+        with ds:
+            if not args.quiet:
+                _err(f"hockle: animating {path} -> {out}")
+            animate(ds, out, frames=args.frames, fps=args.fps, dpi=args.dpi,
+                    window=args.times, progress=None if args.quiet else progress)
+    except NothingToAnimate as exc:
+        _err(f"hockle: nothing to animate in {path}: {exc}")
+        return EXIT_ERROR
+    except AnimationError as exc:
+        _err(f"hockle: {exc}")
+        return EXIT_INVALID
+    except OSError as exc:
+        _err(f"hockle: cannot write {out}: {exc}")
+        return EXIT_ERROR
+    print(out)
+    return EXIT_OK
+
+
 # --------------------------------------------------------------------------- parser
 
 
@@ -425,6 +468,40 @@ def build_parser() -> tuple[argparse.ArgumentParser, str | None]:
         "contact, each unit step of the writhe, the end; 5 spread over the run when none)",
     )
     p.set_defaults(func=cmd_plot)
+
+    # hockle.animate.DEFAULT_* (tests/test_animate.py checks they agree); not imported
+    # from there, which would load matplotlib and xarray for every command
+    DEFAULT_FRAMES, DEFAULT_FPS, DEFAULT_DPI = 150, 15, 80
+    p = sub.add_parser(
+        "animate",
+        help="an animation (.gif, or .mp4 with ffmpeg) of the rod beside its energies and "
+        "Tw/Wr/Lk",
+        description="Animate a result file: the rod in 3-D as hockle plot draws it (a tube "
+        "of its diameter, contact sites and ends marked) beside the energies and twist, "
+        "writhe and linking number drawn up to each frame's time, with t in the title. "
+        ".gif is written with Pillow; .mp4 needs ffmpeg (exit 2 without it: write a .gif). "
+        "The file is read frame by frame, so memory stays bounded.",
+    )
+    p.add_argument("result", metavar="OUT.nc", help="result file written by hockle run")
+    p.add_argument(
+        "-o", "--output", metavar="FILE.gif|FILE.mp4",
+        help="animation to write; the suffix picks the format (default: <stem>.gif next "
+        "to the result)"
+    )
+    p.add_argument("--fps", type=float, default=DEFAULT_FPS,
+                   help=f"frames per second (default {DEFAULT_FPS})")
+    p.add_argument(
+        "--frames", type=int, default=DEFAULT_FRAMES, metavar="N",
+        help=f"at most N frames, the stored outputs subsampled evenly, first and last "
+        f"included (default {DEFAULT_FRAMES})"
+    )
+    p.add_argument("--dpi", type=float, default=DEFAULT_DPI,
+                   help=f"resolution; the figure is 11 x 5.6 inches (default {DEFAULT_DPI})")
+    p.add_argument("--times", nargs=2, type=float, metavar=("T0", "T1"),
+                   help="only the outputs with T0 <= t <= T1 (s); the curves span this "
+                   "window")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(func=cmd_animate)
 
     from hockle import sweep_command
 
