@@ -37,6 +37,8 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import NullFormatter
 
+from solver.results import run_events
+
 __all__ = [
     "plot_all",
     "plot_snapshots",
@@ -55,7 +57,6 @@ __all__ = [
 ]
 
 MAX_EVENTS = 8             # snapshot rows at most, when chosen from the events
-WRITHE_ONSET = 0.05        # turns of writhe that count as buckled when no position is stored
 
 Notify = Callable[[str], None]
 
@@ -106,22 +107,6 @@ def _contact_spec(ds: xr.Dataset) -> dict | None:
         return None
 
 
-def _first(mask: np.ndarray) -> int | None:
-    hits = np.flatnonzero(mask)
-    return int(hits[0]) if hits.size else None
-
-
-def _chord_deviation(pos: np.ndarray) -> np.ndarray:
-    """(T,) largest distance of the centreline from the line through its two ends (m)."""
-    a, b = pos[:, :1, :], pos[:, -1:, :]
-    axis = b - a
-    length = np.linalg.norm(axis, axis=2, keepdims=True)
-    unit = np.divide(axis, length, out=np.zeros_like(axis), where=length > 0)
-    rel = pos - a
-    along = np.sum(rel * unit, axis=2, keepdims=True)
-    return np.max(np.linalg.norm(rel - along * unit, axis=2), axis=1)
-
-
 def event_times(ds: xr.Dataset, max_events: int = MAX_EVENTS) -> list[tuple[float, str]]:
     """The stored times at which something happened, with what: ``[(t, label), ...]``.
 
@@ -142,36 +127,19 @@ def event_times(ds: xr.Dataset, max_events: int = MAX_EVENTS) -> list[tuple[floa
         return []
     fixed: list[tuple[int, str]] = []
     steps: list[tuple[int, str]] = []
-
-    onset = None
-    if "position" in ds and "s" in ds.coords:
-        pos = np.asarray(ds["position"].transpose("time", "s", "xyz").values, dtype=float)
-        s = np.asarray(ds["s"].values, dtype=float)
-        d = rod_diameter(ds, s)
-        threshold = float(np.max(d)) if d is not None else 0.01 * float(s[-1] - s[0])
-        deviation = _chord_deviation(pos)
-        if np.isfinite(deviation[0]) and deviation[0] < threshold:
-            onset = _first(deviation >= threshold)
-    elif "writhe" in ds:
-        wr = np.asarray(ds["writhe"].values, dtype=float)
-        onset = _first(np.abs(wr - wr[0]) >= WRITHE_ONSET)
-    if onset is not None:
-        fixed.append((onset, "onset of buckling"))
-
-    if "contact_count" in ds:
-        count = np.nan_to_num(np.asarray(ds["contact_count"].values, dtype=float))
-        first = _first(count > 0)
-        if first is not None:
-            fixed.append((first, "first contact"))
-
-    if "writhe" in ds:
-        wr = np.asarray(ds["writhe"].values, dtype=float)
-        finite = np.where(np.isfinite(wr), np.abs(wr), 0.0)
-        for k in range(1, int(np.floor(np.max(finite) + 1e-12)) + 1):
-            i = _first(finite >= k - 1e-12)
-            if i is not None:
-                sign = "-" if wr[i] < 0 else ""
-                steps.append((i, f"Wr reaches {sign}{k}"))
+    events = run_events(ds)                   # the one definition (solver.results)
+    if events["buckling_onset"] is not None:
+        fixed.append((events["buckling_onset"], "onset of buckling"))
+    if events["first_contact"] is not None:
+        fixed.append((events["first_contact"], "first contact"))
+    wr = np.asarray(ds["writhe"].values, dtype=float) if "writhe" in ds else None
+    k = 1
+    while f"writhe_{k}" in events:
+        i = events[f"writhe_{k}"]
+        if i is not None:
+            sign = "-" if wr[i] < 0 else ""
+            steps.append((i, f"Wr reaches {sign}{k}"))
+        k += 1
 
     status = ds.attrs.get("hockle_status")
     fixed.append((t.size - 1, "end" if status in (None, "completed") else f"end ({status})"))

@@ -42,6 +42,8 @@ from typing import Any, Callable, Literal, Mapping, Sequence
 import numpy as np
 from pydantic import BaseModel, Field
 
+from solver.results import EVENT_RULES, run_events
+
 __all__ = [
     "COMBINES",
     "MAX_SWEEP_MEMBERS",
@@ -72,7 +74,6 @@ MAX_SWEEP_MEMBERS = 1000
 REQUEST_KEYS = ("base", "parameters", "combine", "name")
 #: errors listed at most in one refusal (a 1000-member sweep with one bad value everywhere)
 MAX_ERRORS = 100
-WRITHE_ONSET = 0.05      # turns of writhe change that count as buckled without positions
 
 # units of the usual leaf names, for the parameter coordinates (plots label their axes)
 _UNITS = {"force": "N", "velocity": "m s-1", "angular_velocity": "rad s-1", "moment": "N m",
@@ -80,14 +81,6 @@ _UNITS = {"force": "N", "velocity": "m s-1", "angular_velocity": "rad s-1", "mom
           "shear_modulus": "Pa", "dt": "s", "t_end": "s", "ds": "m", "until": "s",
           "tolerance": "m", "drag_coefficient_normal": "1", "drag_coefficient_tangential": "1",
           "added_mass_coefficient": "1", "n_segments": "1", "rho_inf": "1"}
-
-EVENT_RULES = (
-    "buckling_onset: first stored time the centreline is farther than the rod's largest "
-    "diameter from the line through its ends (having started closer); without position, "
-    "the first time the writhe has changed by 0.05 turns. first_contact: first time "
-    "contact_count > 0. writhe_k: first time |Wr| >= k turns. NaN: did not happen in the "
-    "stored outputs (or the member has no result).")
-
 
 class SweepError(ValueError):
     """A sweep request that cannot be expanded or whose members do not validate.
@@ -453,63 +446,10 @@ class SweepStatus(BaseModel):
 # --------------------------------------------------------------------------- events
 
 
-def _chord_deviation(pos: np.ndarray) -> np.ndarray:
-    """(T,) largest distance of the centreline from the line through its two ends (m)."""
-    a, b = pos[:, :1, :], pos[:, -1:, :]
-    axis = b - a
-    length = np.linalg.norm(axis, axis=2, keepdims=True)
-    unit = np.divide(axis, length, out=np.zeros_like(axis), where=length > 0)
-    rel = pos - a
-    along = np.sum(rel * unit, axis=2, keepdims=True)
-    return np.max(np.linalg.norm(rel - along * unit, axis=2), axis=1)
-
-
-def _first(mask: np.ndarray) -> int | None:
-    hits = np.flatnonzero(mask)
-    return int(hits[0]) if hits.size else None
-
-
-def _max_diameter(ds) -> float | None:
-    try:
-        d = json.loads(str(ds.attrs["case"]))["rod"]["diameter"]
-    except (KeyError, TypeError, ValueError):
-        return None
-    if isinstance(d, (int, float)) and not isinstance(d, bool):
-        return float(d)
-    if isinstance(d, dict) and d.get("value"):
-        return float(max(d["value"]))
-    return None
-
-
 def member_events(ds) -> dict[str, int | None]:
-    """The output index of each event of one member's result (None: it did not happen).
-
-    Keys: ``buckling_onset``, ``first_contact`` and ``writhe_1``, ``writhe_2``, ... up to
-    the largest |Wr| reached (rules: :data:`EVENT_RULES`; the same as the snapshot rows of
-    ``hockle plot``)."""
-    out: dict[str, int | None] = {"buckling_onset": None, "first_contact": None}
-    if ds is None or "time" not in ds.coords or ds.sizes.get("time", 0) == 0:
-        return out
-    if "position" in ds and "s" in ds.coords:
-        pos = np.asarray(ds["position"].transpose("time", "s", "xyz").values, dtype=float)
-        s = np.asarray(ds["s"].values, dtype=float)
-        d = _max_diameter(ds)
-        threshold = d if d is not None else 0.01 * float(s[-1] - s[0])
-        dev = _chord_deviation(pos)
-        if np.isfinite(dev[0]) and dev[0] < threshold:
-            out["buckling_onset"] = _first(dev >= threshold)
-    elif "writhe" in ds:
-        wr = np.asarray(ds["writhe"].values, dtype=float)
-        out["buckling_onset"] = _first(np.abs(wr - wr[0]) >= WRITHE_ONSET)
-    if "contact_count" in ds:
-        count = np.nan_to_num(np.asarray(ds["contact_count"].values, dtype=float))
-        out["first_contact"] = _first(count > 0)
-    if "writhe" in ds:
-        wr = np.abs(np.asarray(ds["writhe"].values, dtype=float))
-        wr = np.where(np.isfinite(wr), wr, 0.0)
-        for k in range(1, int(np.floor(np.max(wr) + 1e-12)) + 1):
-            out[f"writhe_{k}"] = _first(wr >= k - 1e-12)
-    return out
+    """The output index of each event of one member's result (None: it did not happen):
+    :func:`solver.results.run_events`, the rules of ``hockle plot``'s snapshot rows."""
+    return run_events(ds)
 
 
 # --------------------------------------------------------------------------- combination

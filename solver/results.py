@@ -32,6 +32,7 @@ the worker call it with the ``HOCKLE_*`` settings of :class:`service.settings.Se
 from __future__ import annotations
 
 import datetime as _dt
+import json
 from collections.abc import Mapping
 from typing import Any
 
@@ -40,6 +41,8 @@ import xarray as xr
 
 __all__ = [
     "build_dataset",
+    "run_events",
+    "EVENT_RULES",
     "apply_metadata",
     "FIELD_VARIABLES",
     "DIAGNOSTIC_VARIABLES",
@@ -603,3 +606,78 @@ def apply_metadata(
     if changed:
         ds.attrs["date_metadata_modified"] = _utc_now()
     return ds
+
+
+# --------------------------------------------------------------------------- events of a run
+
+#: turns of writhe change that count as buckled when the file stores no position
+WRITHE_ONSET = 0.05
+
+EVENT_RULES = (
+    "buckling_onset: first stored time the centreline is farther than the rod's largest "
+    "diameter from the line through its ends (having started closer); without position, "
+    "the first time the writhe has changed by 0.05 turns. first_contact: first time "
+    "contact_count > 0. writhe_k: first time |Wr| >= k turns. NaN: did not happen in the "
+    "stored outputs (or the member has no result).")
+
+
+def _chord_deviation(pos: np.ndarray) -> np.ndarray:
+    """(T,) largest distance (m) of the centreline (T, N, 3) from the line through its ends."""
+    a, b = pos[:, :1, :], pos[:, -1:, :]
+    axis = b - a
+    length = np.linalg.norm(axis, axis=2, keepdims=True)
+    unit = np.divide(axis, length, out=np.zeros_like(axis), where=length > 0)
+    rel = pos - a
+    along = np.sum(rel * unit, axis=2, keepdims=True)
+    return np.max(np.linalg.norm(rel - along * unit, axis=2), axis=1)
+
+
+def _first(mask: np.ndarray) -> int | None:
+    hits = np.flatnonzero(mask)
+    return int(hits[0]) if hits.size else None
+
+
+def _largest_diameter(ds) -> float | None:
+    """The rod's largest diameter (m) from the case stored in the file, or None."""
+    try:
+        d = json.loads(str(ds.attrs["case"]))["rod"]["diameter"]
+    except (KeyError, TypeError, ValueError):
+        return None
+    if isinstance(d, (int, float)) and not isinstance(d, bool):
+        return float(d)
+    if isinstance(d, dict) and d.get("value"):
+        return float(max(d["value"]))
+    return None
+
+
+def run_events(ds) -> dict[str, int | None]:
+    """The output index of each event of a result dataset (None: it did not happen).
+
+    Keys: ``buckling_onset``, ``first_contact`` and ``writhe_1``, ``writhe_2``, ... up to
+    the largest |Wr| reached; the rules are :data:`EVENT_RULES` (the threshold is the
+    rod's largest diameter, or 1 % of its length when the file does not say). The one
+    definition behind ``hockle plot``'s snapshot rows and a sweep's event variables.
+    """
+    out: dict[str, int | None] = {"buckling_onset": None, "first_contact": None}
+    if ds is None or "time" not in ds.coords or ds.sizes.get("time", 0) == 0:
+        return out
+    if "position" in ds and "s" in ds.coords:
+        pos = np.asarray(ds["position"].transpose("time", "s", "xyz").values, dtype=float)
+        s = np.asarray(ds["s"].values, dtype=float)
+        d = _largest_diameter(ds)
+        threshold = d if d is not None else 0.01 * float(s[-1] - s[0])
+        dev = _chord_deviation(pos)
+        if np.isfinite(dev[0]) and dev[0] < threshold:
+            out["buckling_onset"] = _first(dev >= threshold)
+    elif "writhe" in ds:
+        wr = np.asarray(ds["writhe"].values, dtype=float)
+        out["buckling_onset"] = _first(np.abs(wr - wr[0]) >= WRITHE_ONSET)
+    if "contact_count" in ds:
+        count = np.nan_to_num(np.asarray(ds["contact_count"].values, dtype=float))
+        out["first_contact"] = _first(count > 0)
+    if "writhe" in ds:
+        wr = np.abs(np.asarray(ds["writhe"].values, dtype=float))
+        wr = np.where(np.isfinite(wr), wr, 0.0)
+        for k in range(1, int(np.floor(np.max(wr) + 1e-12)) + 1):
+            out[f"writhe_{k}"] = _first(wr >= k - 1e-12)
+    return out
