@@ -66,6 +66,11 @@ def run(args: argparse.Namespace) -> int:
         worker = subprocess.Popen(cmd, env=env)
     elif settings.embedded:
         log.info("embedded mode without a local worker: jobs wait for `hockle worker`")
+    # uvicorn re-raises the SIGTERM it caught once it has shut down; with the default action
+    # that kills this process before the `finally` below, and the embedded worker was left
+    # running (seen: an orphan worker after `kill <hockle serve>`). A handler of our own, which
+    # uvicorn restores before re-raising, turns it into SystemExit so the worker is stopped.
+    signal.signal(signal.SIGTERM, _exit_on_signal)
     try:
         from .app import create_app
 
@@ -82,6 +87,11 @@ def run(args: argparse.Namespace) -> int:
                 worker.kill()
                 worker.wait()
     return 0
+
+
+def _exit_on_signal(signum, _frame) -> None:
+    """SIGTERM after uvicorn's shutdown: leave through the ``finally`` of :func:`run`."""
+    raise SystemExit(128 + signum)
 
 
 def warn_if_open(host: str) -> bool:

@@ -125,3 +125,35 @@ def test_registry_transitions(registry: Registry):
     reaped = registry.get(running.id)
     assert (reaped.state, reaped.reason) == ("failed", "timeout")
     assert not registry.finish(running.id, attempt, state="successful")
+
+
+@pytest.mark.service
+def test_sigterm_to_the_api_alone_stops_its_embedded_worker(tmp_path_factory):
+    """`kill <pid of hockle serve>` (SIGTERM to the API process only, as a service manager or
+    a user sends it): uvicorn re-raises the signal after its shutdown, which used to kill the
+    process before it stopped its embedded worker, leaving an orphan worker behind."""
+    import os
+    import signal
+    import subprocess
+
+    stack = make_stack(tmp_path_factory, "embedded-sigterm", {})
+    stack.api_pid = 0
+    try:
+        stack.start_api()
+        stack.api_pid = stack.api.pid
+        wait_until(lambda: stack.http.get("/v1/health").json()["workers"], 60, 0.3,
+                   "the embedded worker")
+        pattern = f"embedded-{stack.api.pid}@"
+
+        def workers() -> str:
+            return subprocess.run(["pgrep", "-f", pattern], capture_output=True,
+                                  text=True).stdout.strip()
+
+        assert workers()
+        os.kill(stack.api.pid, signal.SIGTERM)        # the API process only, not its group
+        stack.api.wait(timeout=60)
+        wait_until(lambda: not workers(), 60, 0.2, "the embedded worker to stop")
+        assert "Warm shutdown" in stack.log("api.log")
+    finally:
+        stack.close()
+        subprocess.run(["pkill", "-9", "-f", f"embedded-{stack.api_pid}@"], check=False)
