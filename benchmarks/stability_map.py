@@ -506,8 +506,6 @@ def markdown(res: dict, names: list[str]) -> str:
 def reading(res: dict) -> str:
     """A short reading generated from the numbers (so that it cannot go stale)."""
     runs = res["runs"]
-    dts, rhos = res["dts"], res["rho_infs"]
-    by_key = {(r["dt"], r["rho_inf"]): r for r in runs}
     parts = []
     c = res["counts"]
     if c["failure"] == 0:

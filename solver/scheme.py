@@ -154,7 +154,6 @@ class RodSystem:
         the active contacts are re-selected at every iterate. left_limit: the step ends
         on a breakpoint, so the loads are taken as their left limit at t_new.
         """
-        p = self.p
         am, af, g = params.alpha_m, params.alpha_f, params.gamma
         self.dt, self.params, self.t_new, self.bc = dt, params, t_new, bc
         self.cm = (1.0 - am) / (g * dt)

@@ -4,7 +4,7 @@ import pydantic
 import pytest
 
 from rodcases import make_case
-from solver import Case, SolverDivergence, simulate
+from solver import Case, simulate
 
 TWIST_START = {"translation": [{"velocity": 0.0}] * 3,
                "rotation": [{"angular_velocity": 0.0}, {"angular_velocity": 0.0},

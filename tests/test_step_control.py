@@ -3,7 +3,7 @@ estimate and the PI controller, the growth guard (docs/numerics.md § 7)."""
 import numpy as np
 import pytest
 
-from rodcases import clamped_end, free_end, make_case
+from rodcases import free_end, make_case
 from solver import Case, simulate
 from solver.stepping import breakpoints
 
