@@ -1,4 +1,4 @@
-"""The ``hockle`` command: run, validate and plot cases; serve, worker and submit.
+"""The ``hockle`` command: run, validate and plot cases; serve, worker, submit and db.
 
 Exit status
 -----------
@@ -32,7 +32,7 @@ EXIT_DIVERGED = 3
 EXIT_STOPPED = 4
 EXIT_INTERRUPTED = 130
 
-SERVICE_COMMANDS = ("serve", "worker", "submit")
+SERVICE_COMMANDS = ("serve", "worker", "submit", "db")
 USER_STOP_REASON = "cancelled_by_user"
 
 

@@ -1,4 +1,4 @@
-"""The service's subcommands of ``hockle``: ``serve``, ``worker`` and ``submit``.
+"""The service's subcommands of ``hockle``: ``serve``, ``worker``, ``submit`` and ``db``.
 
 ``hockle.cli`` calls :func:`register` with its argparse subparsers; each subcommand sets a
 ``func`` default that takes the parsed arguments and returns the exit code.
@@ -7,6 +7,7 @@
     hockle worker [--concurrency N] [--hostname NAME] [--loglevel L]
     hockle submit CASE [--url URL] [--api-key KEY] [--wait] [-o OUT.nc] [--idempotency-key K]
                        [--fresh] [--time-limit S]
+    hockle db {current,upgrade,downgrade,check,history,revision} [--url URL]
 
 ``submit`` exit codes: 0 accepted (or, with --wait, successful); 1 failed; 2 invalid case or
 other refusal; 3 dismissed; 4 service unreachable.
@@ -16,12 +17,13 @@ from __future__ import annotations
 import argparse
 import sys
 
-__all__ = ["register", "serve", "worker", "submit"]
+__all__ = ["register", "serve", "worker", "submit", "db"]
 
 
 def register(subparsers) -> None:
-    """Add ``serve``, ``worker`` and ``submit`` to an argparse subparsers object."""
+    """Add ``serve``, ``worker``, ``submit`` and ``db`` to an argparse subparsers object."""
     from service import serve as serve_module
+    from service.migrations import cli as db_cli
     from worker import cli as worker_cli
 
     p = subparsers.add_parser(
@@ -63,6 +65,14 @@ def register(subparsers) -> None:
     p.add_argument("--poll", type=float, default=1.0, help="seconds between status polls")
     p.set_defaults(func=submit)
 
+    p = subparsers.add_parser(
+        "db", help="the job registry's schema migrations (current, upgrade, check, ...)",
+        description=db_cli.__doc__.split("\n\n")[0] + " See docs/service.md, Schema "
+                    "migrations.",
+    )
+    db_cli.add_arguments(p)
+    p.set_defaults(func=db)
+
 
 def serve(args: argparse.Namespace) -> int:
     from service.serve import run
@@ -72,6 +82,12 @@ def serve(args: argparse.Namespace) -> int:
 
 def worker(args: argparse.Namespace) -> int:
     from worker.cli import run
+
+    return run(args)
+
+
+def db(args: argparse.Namespace) -> int:
+    from service.migrations.cli import run
 
     return run(args)
 

@@ -52,7 +52,7 @@ def create_app(settings: Settings | None = None, *, enqueuer: Enqueuer | None = 
     api_keys = settings.load_api_keys()
     settings.data_dir.mkdir(parents=True, exist_ok=True)
     registry = Registry(settings.registry_url, busy_timeout=settings.registry_busy_timeout)
-    registry.create_schema()
+    registry.create_schema(auto_migrate=settings.auto_migrate)
     store = ResultStore(settings.results_dir)
     store.ensure()
     svc = Services(settings, registry, store, enqueuer or Enqueuer(settings))

@@ -17,7 +17,6 @@ import base64
 import datetime as dt
 import hashlib
 import json
-import time
 import uuid
 from dataclasses import dataclass
 from typing import Any, Iterable
@@ -33,7 +32,6 @@ from sqlalchemy import (
     create_engine,
     event,
     func,
-    inspect,
     or_,
     select,
     text,
@@ -45,7 +43,6 @@ from sqlalchemy.exc import (
     IntegrityError,
     InterfaceError,
     OperationalError,
-    ProgrammingError,
 )
 from sqlalchemy.exc import TimeoutError as PoolTimeoutError
 from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column, sessionmaker
@@ -254,34 +251,23 @@ class Registry:
         self.sessions = sessionmaker(self.engine, expire_on_commit=False)
 
     # --- schema --------------------------------------------------------------------------------
-    def create_schema(self) -> None:
-        """Create the tables if missing; safe when several processes start at once."""
-        for attempt in range(5):
-            try:
-                Base.metadata.create_all(self.engine)
-                self._add_missing_columns()
-                return
-            except (IntegrityError, ProgrammingError, OperationalError):
-                # two processes racing on CREATE TABLE: the loser retries and finds them made
-                if attempt == 4:
-                    raise
-                time.sleep(0.2 * (attempt + 1))
+    def create_schema(self, *, auto_migrate: bool | None = None) -> None:
+        """Bring the registry's schema to what this code needs, at start-up.
 
-    def _add_missing_columns(self) -> None:
-        """Add the nullable columns a registry made by an older version lacks (heartbeat_at,
-        enqueued_at, dispatches, owner). Not a migration tool: nothing is renamed or dropped."""
-        inspector = inspect(self.engine)
-        for table in Base.metadata.sorted_tables:
-            have = {column["name"] for column in inspector.get_columns(table.name)}
-            for column in table.columns:
-                if column.name in have or not column.nullable:
-                    continue
-                kind = column.type.compile(dialect=self.engine.dialect)
-                with self.engine.begin() as conn:
-                    conn.execute(text(f"ALTER TABLE {table.name} ADD COLUMN {column.name} {kind}"))
-            # an added column's index: create_all makes the indexes of new tables only
-            for index in table.indexes:
-                index.create(self.engine, checkfirst=True)
+        With ``auto_migrate`` (None: the setting ``HOCKLE_AUTO_MIGRATE``, default true) the
+        Alembic migrations are run to head (:func:`service.migrations.upgrade`: under a lock,
+        safe when several processes start at once, a no-op when there already; a registry
+        made before migrations is adopted with its rows). Without, only checked:
+        :class:`service.migrations.SchemaNotCurrent` says what to run.
+        """
+        from service import migrations
+
+        if auto_migrate is None:
+            from service.settings import get_settings
+
+            auto_migrate = get_settings().auto_migrate
+        migrations.ensure_schema(self.url, auto_migrate=auto_migrate,
+                                 busy_timeout=self.busy_timeout)
 
     def ping(self) -> None:
         with self.engine.connect() as conn:

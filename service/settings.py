@@ -214,6 +214,12 @@ class Settings(DatasetMetadata):
         description="SQLite registry: seconds a statement waits for another connection's lock "
         "before it fails with 'database is locked' (then retried as above).",
     )
+    auto_migrate: bool = Field(
+        True,
+        description="At start-up the API and each worker bring the registry's schema to the "
+        "code's (Alembic `upgrade head`, under a lock; a no-op when it is there). False: they "
+        "only check it and refuse to start until an operator runs `hockle db upgrade`.",
+    )
 
     # --- time limits (seconds) -----------------------------------------------------------------
     time_limit_base: float = Field(60.0, gt=0, description="Hard time limit of the smallest job.")
