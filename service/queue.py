@@ -14,7 +14,7 @@ from celery import Celery
 from .registry import Registry
 from .settings import Settings
 
-__all__ = ["TASK_NAME", "make_celery", "Enqueuer", "sweep"]
+__all__ = ["TASK_NAME", "make_celery", "Enqueuer", "sweep", "send_job"]
 
 TASK_NAME = "hockle.run_job"
 
@@ -114,16 +114,18 @@ def sweep(registry: Registry, enqueuer: Enqueuer, settings: Settings,
         done[action].append(job.id)
         log.warning("sweeper: job %s: %s (%s)", job.id, action, job.message)
         if action == "requeued":
-            _send(registry, enqueuer, job, log)
+            send_job(registry, enqueuer, job, log)
     for job in registry.requeue_unclaimed(after=settings.requeue_after):
         done["resent"].append(job.id)
         log.warning("sweeper: job %s accepted but not claimed since %s: message sent again",
                     job.id, job.created_at.isoformat(timespec="seconds"))
-        _send(registry, enqueuer, job, log)
+        send_job(registry, enqueuer, job, log)
     return done
 
 
-def _send(registry: Registry, enqueuer: Enqueuer, job, log: logging.Logger) -> None:
+def send_job(registry: Registry, enqueuer: Enqueuer, job, log: logging.Logger) -> None:
+    """Send the message of an ``accepted`` job (queued again); when the broker cannot be
+    reached, mark it unsent so that the next sweep (API or any worker) sends it at once."""
     try:
         enqueuer.enqueue(job.id, time_limit=job.time_limit, soft_time_limit=job.soft_time_limit)
     except Exception:  # noqa: BLE001 - broker down: the next sweep sends it

@@ -722,7 +722,8 @@ class Registry:
                     values = dict(state=DISMISSED, reason="cancelled_by_user",
                                   message=f"dismissed while running; {lost}; no result",
                                   finished_at=now, eta_seconds=None)
-                elif attempt >= max_attempts:
+                elif attempt - self._handed_back(session, job_id) >= max_attempts:
+                    # attempts handed back at a worker's shutdown were not lost: not counted
                     action = "failed"
                     values = dict(state=FAILED, reason="internal_error",
                                   message=f"{lost}; given up after {attempt} attempts "
@@ -730,11 +731,8 @@ class Registry:
                                   finished_at=now, eta_seconds=None)
                 else:
                     action = "requeued"
-                    values = dict(state=ACCEPTED, message=f"{lost}; queued again as attempt "
-                                  f"{attempt + 1} of at most {max_attempts}",
-                                  worker=None, heartbeat_at=None, deadline_at=None,
-                                  progress=0.0, sim_time=0.0, step=0, eta_seconds=None,
-                                  enqueued_at=now, dispatches=func.coalesce(Job.dispatches, 1) + 1)
+                    values = _requeued(now, f"{lost}; queued again as attempt {attempt + 1} of "
+                                            f"at most {max_attempts}")
                 changed = session.execute(
                     update(Job).where(*where).values(updated_at=now, **values)
                 ).rowcount
@@ -746,6 +744,53 @@ class Registry:
                             "action": action, "last_heartbeat": last.isoformat() + "Z",
                             "sim_time": sim_time, "step": step})))
         return [(self.get(job_id), action) for job_id, action in done]
+
+    @staticmethod
+    def _handed_back(session, job_id: str) -> int:
+        """How many attempts of the job were handed back at a worker's shutdown."""
+        return int(session.scalar(
+            select(func.count()).select_from(JobEvent)
+            .where(JobEvent.job_id == job_id, JobEvent.kind == "requeued_at_shutdown")) or 0)
+
+    def requeue_at_shutdown(self, job_id: str, attempt: int, *, worker: str | None = None,
+                            reason: str = "worker_shutdown", sim_time: float | None = None,
+                            step: int | None = None) -> str | None:
+        """``attempt`` stopped because its worker shuts down (a redeploy): the job goes back to
+        ``accepted`` at once, as :meth:`requeue_lost` does for a lost worker but without waiting
+        for its heartbeat to go stale (the caller sends its message again; the next claim is
+        attempt + 1 and continues from the job's checkpoint). Such attempts do not count
+        towards ``max_attempts``. A job whose dismissal was requested becomes ``dismissed``.
+
+        Conditional on (running, ``attempt``): returns ``"requeued"``, ``"dismissed"``, or None
+        when this attempt no longer holds the job (given up as lost, reaped, finished).
+        Event ``requeued_at_shutdown`` with the reason and where it stopped (``t``, ``step``).
+        """
+        now = utcnow()
+        where = (Job.id == job_id, Job.state == RUNNING, Job.attempts == attempt)
+        stopped = (f"attempt {attempt} stopped at t = {sim_time or 0.0:.6g} s (step "
+                   f"{step or 0}) because its worker {worker} shut down")
+        with self.sessions.begin() as session:
+            action = "requeued"
+            changed = session.execute(
+                update(Job).where(*where, Job.cancel_requested.is_(False))
+                .values(updated_at=now, **_requeued(
+                    now, f"{stopped}; queued again as attempt {attempt + 1}"))
+            ).rowcount
+            if not changed:
+                action = "dismissed"
+                changed = session.execute(
+                    update(Job).where(*where, Job.cancel_requested.is_(True))
+                    .values(state=DISMISSED, reason="cancelled_by_user",
+                            message=f"dismissed while running; {stopped}; no result",
+                            finished_at=now, updated_at=now, eta_seconds=None)
+                ).rowcount
+            if not changed:
+                return None
+            session.add(JobEvent(
+                job_id=job_id, at=now, kind="requeued_at_shutdown", attempt=attempt,
+                worker=worker, detail=json.dumps({"action": action, "reason": reason,
+                                                  "t": sim_time, "step": step})))
+        return action
 
     def requeue_unclaimed(self, *, after: float, now: dt.datetime | None = None,
                           longest_wait: float = 3600.0) -> list[Job]:
@@ -851,6 +896,14 @@ class Registry:
                 for job in session.scalars(select(Job).where(Job.id.in_(ids[start:start + 500]))):
                     found[job.id] = job
         return found
+
+def _requeued(now: dt.datetime, message: str) -> dict[str, Any]:
+    """The values that put a running job back to ``accepted`` for its next attempt (a lost
+    worker, a worker's shutdown); its message is marked sent now."""
+    return dict(state=ACCEPTED, message=message, worker=None, heartbeat_at=None,
+                deadline_at=None, progress=0.0, sim_time=0.0, step=0, eta_seconds=None,
+                enqueued_at=now, dispatches=func.coalesce(Job.dispatches, 1) + 1)
+
 
 def _sqlite_pragmas(dbapi_connection, _record, busy_ms: int = 30000) -> None:
     cursor = dbapi_connection.cursor()

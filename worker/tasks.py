@@ -16,6 +16,14 @@ attempt can never replace the result of the attempt that finished the job. Every
 ``HOCKLE_CHECKPOINT_INTERVAL`` s (and when a solve stops or fails) the solver's checkpoint goes to
 the result store (``<id>.ckpt``); the next attempt continues from it bit for bit instead of from
 t = 0, and the job's terminal state removes it.
+
+Shutdown: when the worker shuts down warm (SIGTERM to its main process: ``docker stop``,
+Kubernetes, ``hockle serve`` stopping its worker; or SIGTERM to the whole process group), the
+running job's ``should_stop`` answers ``worker_shutdown``; the solver stops at its next step and
+hands out a final checkpoint, which is stored; the job goes back to ``accepted`` at once
+(``Registry.requeue_at_shutdown``, event ``requeued_at_shutdown``) and its message is sent
+again, so another worker continues it from that checkpoint (attempt + 1). The stopped attempt's
+dataset is not the job's result and is not written.
 """
 from __future__ import annotations
 
@@ -23,14 +31,17 @@ import json
 import logging
 import math
 import os
+import signal
 import threading
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 from celery.exceptions import Reject, SoftTimeLimitExceeded
-from celery.signals import worker_process_init, worker_ready, worker_shutdown
+from celery.signals import worker_process_init, worker_ready, worker_shutdown, \
+    worker_shutting_down
 
-from service.queue import TASK_NAME, Enqueuer, sweep
+from service.queue import TASK_NAME, Enqueuer, send_job, sweep
 from service.registry import DISMISSED, FAILED, REGISTRY_UNAVAILABLE, SUCCESSFUL, Registry
 from service.settings import Settings, get_settings
 from service.store import ResultStore
@@ -39,6 +50,12 @@ from worker.app import app
 log = logging.getLogger("hockle.worker")
 
 _DIVERGENCE_REASONS = ("solver_diverged", "nonfinite_state")
+
+#: ``should_stop``'s answer while the worker shuts down: the job is handed back, not finished
+SHUTDOWN_REASON = "worker_shutdown"
+#: how long a hand-back at shutdown retries an unavailable registry (the grace period is
+#: short; if it never succeeds the job's heartbeat goes stale and a sweeper re-queues it)
+HAND_BACK_RETRY_TIMEOUT = 20.0
 
 
 def _log_registry_error(what: str, exc: BaseException) -> None:
@@ -54,11 +71,13 @@ class RegistryUnavailable(RuntimeError):
 
 
 def with_registry_retry(what: str, fn, settings: Settings, *, job_id: str,
-                        sleep=time.sleep):
+                        sleep=time.sleep, timeout: float | None = None):
     """Call ``fn()``; while the registry is locked or unreachable, call it again with
-    exponential backoff (0.5 s doubling to 30 s) for up to ``settings.registry_retry_timeout``
-    seconds, then raise :class:`RegistryUnavailable`. Other errors propagate at once."""
-    deadline = time.monotonic() + settings.registry_retry_timeout
+    exponential backoff (0.5 s doubling to 30 s) for up to ``timeout`` seconds (default
+    ``settings.registry_retry_timeout``), then raise :class:`RegistryUnavailable`. Other errors
+    propagate at once."""
+    timeout = settings.registry_retry_timeout if timeout is None else timeout
+    deadline = time.monotonic() + timeout
     delay = 0.5
     tries = 0
     while True:
@@ -70,7 +89,7 @@ def with_registry_retry(what: str, fn, settings: Settings, *, job_id: str,
             if left <= 0:
                 raise RegistryUnavailable(
                     f"job {job_id}: the registry was unavailable for {what} for "
-                    f"{settings.registry_retry_timeout:.0f} s ({tries} tries): "
+                    f"{timeout:.0f} s ({tries} tries): "
                     f"{type(exc).__name__}: {str(exc).splitlines()[0][:200]}") from exc
             wait = min(delay, left)
             log.warning("job %s: registry unavailable for %s (%s); try %d again in %.1f s",
@@ -117,6 +136,7 @@ class JobRun:
     budget: float
     t_end: float
     soft_limit: float = 0.0
+    time_limit: float = 0.0
     started: float = field(default_factory=time.monotonic)
     last_write: float = -math.inf
     last_check: float = -math.inf
@@ -192,6 +212,8 @@ class JobRun:
                     return "cancelled_by_user"
             except Exception:  # noqa: BLE001 - registry briefly unreachable: keep solving
                 log.warning("cancel check for %s failed", self.job_id, exc_info=True)
+        if _shutdown.reason is not None:
+            return _shutdown.reason     # the worker shuts down: stop here, hand the job back
         return False
 
     # --- outcome -------------------------------------------------------------------------------
@@ -324,6 +346,7 @@ def run_job(job_id: str, worker: str, settings: Settings | None = None) -> str:
         budget=job.wall_clock_budget,
         t_end=job.t_end,
         soft_limit=job.soft_time_limit,
+        time_limit=float(job.time_limit or 0.0),
     )
     run.start_heartbeat()
     try:
@@ -374,6 +397,9 @@ def _solve(run: JobRun, case) -> str:
                       checkpoint_interval=interval or math.inf, resume=resume)
         if run.superseded:
             return _superseded(run)
+        if (ds.attrs.get("hockle_status") == "stopped"
+                and ds.attrs.get("hockle_stop_reason") == SHUTDOWN_REASON):
+            return _hand_back(run)
     except SolverDivergence as exc:
         if run.superseded:
             return _superseded(run)
@@ -440,6 +466,45 @@ def _solve(run: JobRun, case) -> str:
     return "successful"
 
 
+def _hand_back(run: JobRun) -> str:
+    """The solve stopped because the worker shuts down; the solver handed out its final
+    checkpoint, stored by now. Put the job back in the queue at once (attempt + 1 continues from
+    that checkpoint) and send its message again; the stopped attempt's dataset is dropped."""
+    if run.time_limit and time.monotonic() - run.started >= run.time_limit - 1.0:
+        # billiard's SIGTERM at the hard time limit (SIGKILL follows): the reaper fails the job
+        log.warning("job %s attempt %s: stopped at its hard time limit; not handed back",
+                    run.job_id, run.attempt)
+        return "killed_at_hard_limit"
+    info = run.last_info
+    sim_time = None if info is None else float(info.t)
+    step = None if info is None else int(info.step)
+    try:
+        action = with_registry_retry(
+            "the hand-back at shutdown",
+            lambda: run.registry.requeue_at_shutdown(run.job_id, run.attempt, worker=run.worker,
+                                                     reason=SHUTDOWN_REASON, sim_time=sim_time,
+                                                     step=step),
+            run.settings, job_id=run.job_id, timeout=HAND_BACK_RETRY_TIMEOUT)
+    except RegistryUnavailable as exc:
+        log.error("%s; its heartbeat stops now and a sweeper queues it again", exc)
+        return "shutdown:registry_unavailable"
+    if action is None:
+        log.warning("job %s attempt %s: stopped at shutdown but no longer holds the job",
+                    run.job_id, run.attempt)
+        return "superseded"
+    log.warning("job %s attempt %s: worker shutting down at %s: %s", run.job_id, run.attempt,
+                run.how_far(), "queued again" if action == "requeued" else action)
+    if action == "requeued":
+        job = run.registry.get(run.job_id)
+        if job is not None:
+            enqueuer = Enqueuer(run.settings, app)
+            try:
+                send_job(run.registry, enqueuer, job, log)
+            finally:
+                enqueuer.close()
+    return f"requeued_at_shutdown:{action}"
+
+
 def _superseded(run: JobRun) -> str:
     """This attempt was given up (its heartbeat went stale) and the job queued again: the
     attempt that holds the job now reports it; this one writes nothing."""
@@ -480,11 +545,90 @@ def _int_or_none(value):
 )
 def run_job_task(self, job_id: str) -> str:
     try:
-        return run_job(job_id, self.request.hostname or f"pid-{os.getpid()}")
+        with _stop_on_sigterm():
+            return run_job(job_id, self.request.hostname or f"pid-{os.getpid()}")
     except RegistryUnavailable as exc:
         # never acknowledge a job whose claim or outcome is not recorded: back to the broker
         log.error("%s; the message goes back to the queue", exc)
         raise Reject(str(exc), requeue=True) from exc
+
+
+# --- warm shutdown: hand the running job back --------------------------------------------------
+class _ShutdownRequest:
+    """Set in the process that solves a job when its worker shuts down (read by should_stop)."""
+
+    def __init__(self) -> None:
+        self.reason: str | None = None
+        self.at: float = -math.inf
+        self.previous = None        # the SIGTERM handler outside a job (billiard's)
+
+
+_shutdown = _ShutdownRequest()
+
+#: a second SIGTERM this long after the first ends the pool process as before (an operator who
+#: will not wait for the step); sooner, it is the same shutdown (process group + forwarded)
+_SECOND_SIGTERM_AFTER = 2.0
+
+
+def _on_sigterm(signum, frame) -> None:
+    """SIGTERM while a job solves in a pool process: ask the solve to stop and hand back."""
+    now = time.monotonic()
+    if _shutdown.reason is None:
+        _shutdown.reason, _shutdown.at = SHUTDOWN_REASON, now
+        return
+    if now - _shutdown.at < _SECOND_SIGTERM_AFTER:
+        return
+    previous = _shutdown.previous
+    if callable(previous):
+        previous(signum, frame)       # billiard's: SystemExit, the process goes
+    else:
+        signal.signal(signum, signal.SIG_DFL)
+        os.kill(os.getpid(), signum)
+
+
+@contextmanager
+def _stop_on_sigterm():
+    """While the task runs in a pool process, SIGTERM stops the solve at its next step (the
+    job is handed back) instead of killing the process mid-step. Billiard installs its own
+    handler after ``worker_process_init`` (SystemExit), so ours is set per task and the previous
+    one restored afterwards; an idle pool process keeps billiard's behaviour. In the worker's
+    main process (a solo pool, tests calling the task in-process) signals are left alone."""
+    from billiard.process import current_process
+
+    _shutdown.reason = None
+    if (threading.current_thread() is not threading.main_thread()
+            or current_process()._name == "MainProcess"):
+        yield
+        return
+    _shutdown.previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, _shutdown.previous)
+        _shutdown.previous = None
+
+
+@worker_shutting_down.connect
+def _forward_warm_shutdown(sig=None, how=None, **_kwargs) -> None:
+    """In the worker's main process, at a warm shutdown (SIGTERM or SIGINT to it alone, as
+    ``docker stop`` and Kubernetes send): pass SIGTERM on to each pool process that runs a job,
+    whose solve then stops at its next step and hands the job back (Celery itself would wait for
+    the job to finish, hours maybe, and the grace period would kill it)."""
+    if how != "Warm":
+        return          # cold shutdown: Celery terminates the pool processes itself (SIGTERM)
+    from celery.worker import state as worker_state
+
+    for request in list(worker_state.active_requests):
+        pid = getattr(request, "worker_pid", None)
+        if getattr(request, "name", None) != TASK_NAME or not pid:
+            continue
+        if pid == os.getpid():
+            _shutdown.reason, _shutdown.at = SHUTDOWN_REASON, time.monotonic()
+            continue
+        try:
+            os.kill(pid, signal.SIGTERM)
+        except (ProcessLookupError, PermissionError):
+            pass
 
 
 # --- worker process life -----------------------------------------------------------------------

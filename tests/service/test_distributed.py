@@ -9,9 +9,11 @@ import io
 import json
 import os
 import signal
+import time
 from contextlib import redirect_stdout
 from pathlib import Path
 
+import numpy as np
 import pytest
 import xarray as xr
 
@@ -260,6 +262,92 @@ def test_worker_killed_mid_job_is_requeued_and_finishes_once(stack: Stack):
         assert float(ds.attrs["hockle_resumed_at"]) == at["t"]
         assert ds.attrs["hockle_status"] == "completed" and float(ds.time[-1]) == 16.0
     assert not checkpoint.exists()                 # removed with the job's terminal state
+    stack.start_worker(victim)  # back to two workers for the next tests
+
+
+_REFERENCE: dict = {}
+
+
+def _uninterrupted(case: dict) -> dict:
+    """The data variables of ``case`` solved in this process without a stop (cached)."""
+    key = json.dumps(case["numerics"], sort_keys=True)
+    if key not in _REFERENCE:
+        from solver.case import Case
+        from solver.simulation import simulate
+
+        ds = simulate(Case.model_validate(case))
+        _REFERENCE[key] = {name: ds[name].values.copy() for name in ds.data_vars}
+    return _REFERENCE[key]
+
+
+@pytest.mark.parametrize("target", ["process_group", "main_process"])
+def test_worker_shut_down_mid_job_hands_it_back(stack: Stack, target: str):
+    """SIGTERM to a worker mid-job (warm shutdown: to its whole process group as systemd and
+    `kill -TERM -pgid` send it, or to its main process alone as docker stop and Kubernetes
+    do): the solve stops at its next step, its final checkpoint is stored, the job goes back
+    to the queue at once (no heartbeat timeout), the worker exits by itself, and the other
+    worker continues from that checkpoint to a result equal bit for bit to an uninterrupted
+    run, finished exactly once."""
+    case = long_case(f"shutdown-{target}", t_end=16.0)
+    job_id = stack.submit(case).json()["id"]
+    _wait_running(stack, job_id, timeout=120, min_step=20)
+    job = stack.job(job_id)
+    victim, survivor = _victim_and_survivor(job)
+    proc = stack.workers.pop(victim)
+    before = job["sim_time"]
+    signalled = time.monotonic()
+    if target == "process_group":
+        os.killpg(proc.pid, signal.SIGTERM)
+    else:
+        os.kill(proc.pid, signal.SIGTERM)
+    try:
+        # handed back promptly: well before the 10-s heartbeat timeout of a lost worker
+        wait_until(lambda: any(e.kind == "requeued_at_shutdown" for e in _events(stack, job_id)),
+                   60, 0.2, "the job to be handed back")
+        handed_back_after = time.monotonic() - signalled
+        # the warm shutdown ends by itself once the job is handed back
+        assert proc.wait(timeout=60) == 0
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait(timeout=10)
+    assert handed_back_after < 10.0, handed_back_after
+    log = stack.log(f"worker-{victim}.log")
+    assert "WorkerLostError" not in log and "Traceback" not in log.split("Warm shutdown")[-1]
+
+    done = stack.wait_state(job_id, TERMINAL, 300)
+    assert done["state"] == "successful", done
+    assert done["attempts"] == 2 and done["worker"] == f"{survivor}@test"
+    assert done["progress"] == 100.0 and not done["result_partial"]
+    events = _events(stack, job_id)
+    kinds = [e.kind for e in events]
+    assert kinds.count("finished") == 1 and "finish_refused" not in kinds
+    assert "worker_lost" not in kinds                 # not the lost-worker path
+    assert [e.worker for e in events if e.kind == "started"] == [f"{victim}@test",
+                                                                 f"{survivor}@test"]
+    [back] = [e for e in events if e.kind == "requeued_at_shutdown"]
+    stop = json.loads(back.detail)
+    assert back.attempt == 1 and stop["action"] == "requeued"
+    assert stop["reason"] == "worker_shutdown" and stop["t"] >= before
+    # attempt 2 continued from the checkpoint handed out at the stop (nothing recomputed)
+    [resumed] = [e for e in events if e.kind == "resumed"]
+    at = json.loads(resumed.detail)
+    assert resumed.attempt == 2 and at["t"] >= before and at["t"] == stop["t"]
+    registry = registry_for(stack)
+    try:
+        path = registry.get(job_id).result_path
+    finally:
+        registry.dispose()
+    assert path.endswith(f"{job_id}.attempt-2.nc") and _attempt_of(path) == 2
+    # the stopped attempt wrote no dataset: its result is not the job's
+    assert not Path(path).with_name(f"{job_id}.nc").exists()
+    assert not (stack.root / "data" / "results" / f"{job_id}.ckpt").exists()
+    reference = _uninterrupted(case)
+    with xr.open_dataset(path, engine="netcdf4") as ds:
+        assert float(ds.attrs["hockle_resumed_at"]) == at["t"]
+        assert ds.attrs["hockle_status"] == "completed" and float(ds.time[-1]) == 16.0
+        for name, values in reference.items():
+            assert np.array_equal(ds[name].values, values, equal_nan=True), name
     stack.start_worker(victim)  # back to two workers for the next tests
 
 

@@ -148,6 +148,38 @@ def test_lost_worker_of_a_dismissed_job_dismisses_it(registry: Registry):
     assert (after.state, after.reason) == ("dismissed", "cancelled_by_user")
 
 
+def test_attempt_handed_back_at_shutdown_is_requeued_and_not_counted(registry: Registry):
+    """A worker's shutdown puts the job back at once (no stale heartbeat needed); only the
+    attempt that holds the job can; hand-backs do not use up HOCKLE_MAX_ATTEMPTS."""
+    job = _new(registry, "redeployed")
+    for attempt in (1, 2, 3):
+        assert registry.claim(job.id, f"w{attempt}@x") == attempt
+        assert registry.requeue_at_shutdown(job.id, attempt, worker=f"w{attempt}@x",
+                                            sim_time=0.5 * attempt, step=5 * attempt) == "requeued"
+        after = registry.get(job.id)
+        assert (after.state, after.worker, after.heartbeat_at) == ("accepted", None, None)
+        assert f"attempt {attempt} stopped at t = {0.5 * attempt:g} s" in after.message
+        assert after.dispatches == attempt + 1
+        # the stopped attempt can neither hand back again, beat, nor finish
+        assert registry.requeue_at_shutdown(job.id, attempt) is None
+        assert not registry.job_heartbeat(job.id, attempt)
+        assert not registry.finish(job.id, attempt, state="successful")
+    back = [e for e in registry.events(job.id) if e.kind == "requeued_at_shutdown"]
+    assert [(e.attempt, json.loads(e.detail)["t"]) for e in back] == [(1, 0.5), (2, 1.0),
+                                                                      (3, 1.5)]
+    # attempt 4 loses its worker: the first attempt lost, re-queued (max_attempts = 3)
+    assert registry.claim(job.id, "w4@x") == 4
+    [(after, action)] = _lost(registry, job.id, now=_utc(120))
+    assert action == "requeued" and after.state == "accepted"
+    # a job whose dismissal was requested while it ran is dismissed, not re-queued
+    other = _new(registry, "redeployed-dismissed")
+    registry.claim(other.id, "a@x")
+    assert registry.dismiss(other.id).cancel_requested
+    assert registry.requeue_at_shutdown(other.id, 1, worker="a@x") == "dismissed"
+    assert (registry.get(other.id).state, registry.get(other.id).reason) == (
+        "dismissed", "cancelled_by_user")
+
+
 def test_reaper_and_lost_worker_split_by_the_last_heartbeat(registry: Registry):
     # alive until its hard limit (Celery killed it there): reaped as timeout, saying how far
     limited = _new(registry, "limited", hard=30.0)
