@@ -5,7 +5,7 @@ migrations it keeps the tables and rows there.
 
 Revision ID: 0001_baseline
 Revises:
-Create Date: 2026-11-23
+Create Date: 2026-11-22
 """
 from __future__ import annotations
 

@@ -6,7 +6,7 @@ hockle_sweeps table records sweeps. Adds only what is missing (service.migration
 
 Revision ID: 0002_heartbeats_sweeps
 Revises: 0001_baseline
-Create Date: 2026-11-23
+Create Date: 2026-11-22
 """
 from __future__ import annotations
 

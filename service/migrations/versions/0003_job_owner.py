@@ -4,7 +4,7 @@ submitted the job (None without keys), and its index. Adds only what is missing
 
 Revision ID: 0003_job_owner
 Revises: 0002_heartbeats_sweeps
-Create Date: 2026-11-23
+Create Date: 2026-11-22
 """
 from __future__ import annotations
 
