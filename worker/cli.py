@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import os
 import socket
+import sys
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -37,10 +38,39 @@ def celery_argv(args: argparse.Namespace) -> list[str]:
     ]
 
 
+def schema_ready() -> str | None:
+    """Bring the registry's schema to head (``HOCKLE_AUTO_MIGRATE``) or check it, before Celery
+    starts: None when ready, else why the worker must not start (a schema this code cannot
+    use). A registry that does not answer is not refused here: the worker starts and retries
+    it, as before."""
+    import logging
+
+    from service.migrations import SchemaNotCurrent
+    from service.registry import Registry
+    from service.settings import get_settings
+
+    settings = get_settings()
+    registry = Registry(settings.registry_url, busy_timeout=settings.registry_busy_timeout)
+    try:
+        registry.create_schema(auto_migrate=settings.auto_migrate)
+    except SchemaNotCurrent as exc:
+        return str(exc)
+    except Exception as exc:  # noqa: BLE001 - unreachable now: the worker retries later
+        logging.getLogger("hockle.worker").warning(
+            "registry schema not checked before start (%s: %s)", type(exc).__name__, exc)
+    finally:
+        registry.dispose()
+    return None
+
+
 def run(args: argparse.Namespace) -> int:
     if args.concurrency:
         os.environ["HOCKLE_WORKER_CONCURRENCY"] = str(args.concurrency)
     argv = celery_argv(args)
+    problem = schema_ready()
+    if problem is not None:
+        print(f"hockle worker: not started: {problem}", file=sys.stderr)
+        return 1
     from worker.app import app  # pins BLAS threads before numpy is imported
 
     app.worker_main(argv=argv)

@@ -351,3 +351,23 @@ def test_python_m_service_migrations(tmp_path):
                          cwd=REPO, capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     assert migrations.current(url) == migrations.head()
+
+
+def test_a_worker_does_not_start_on_a_registry_it_cannot_use(tmp_path, monkeypatch):
+    """``hockle worker`` / ``python -m worker`` check the schema before Celery starts: with
+    HOCKLE_AUTO_MIGRATE=false and a registry not at head, they exit 1 saying what to run."""
+    from service.settings import get_settings
+    from worker.cli import schema_ready
+
+    monkeypatch.setenv("HOCKLE_DATA_DIR", str(tmp_path))
+    monkeypatch.setenv("HOCKLE_AUTO_MIGRATE", "false")
+    get_settings.cache_clear()
+    try:
+        problem = schema_ready()
+        assert problem is not None and "HOCKLE_AUTO_MIGRATE" in problem
+        monkeypatch.setenv("HOCKLE_AUTO_MIGRATE", "true")
+        get_settings.cache_clear()
+        assert schema_ready() is None
+        assert migrations.current(get_settings().registry_url) == migrations.head()
+    finally:
+        get_settings.cache_clear()
