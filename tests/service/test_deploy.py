@@ -141,6 +141,34 @@ def test_compose_services_commands_ports_volumes():
     assert "--basic-auth=" in cmd and "flower" in flower["command"]
     assert f"--broker={api_settings.broker_url}" in cmd
     assert "flower" in DOCKERFILE.read_text()  # the image it runs has flower installed
+    # its own healthcheck on Flower's port (the image's HEALTHCHECK probes the API's :8000),
+    # healthy on any HTTP answer (its basic auth answers 401), failing when nothing listens
+    check = flower["healthcheck"]["test"]
+    assert check[:3] == ["CMD", "python", "-c"] and "127.0.0.1:5555" in check[3]
+    import http.server
+    import subprocess
+    import sys
+    import threading
+
+    class Unauthorised(http.server.BaseHTTPRequestHandler):
+        def do_GET(self):
+            self.send_response(401)
+            self.end_headers()
+
+        def log_message(self, *args):
+            pass
+
+    probe = check[3].replace("127.0.0.1:5555", "127.0.0.1:{port}")
+    server = http.server.HTTPServer(("127.0.0.1", 0), Unauthorised)
+    port = server.server_address[1]
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    try:
+        assert subprocess.run([sys.executable, "-c", probe.format(port=port)]).returncode == 0
+    finally:
+        server.shutdown()
+        server.server_close()
+    assert subprocess.run([sys.executable, "-c", probe.format(port=port)],
+                          capture_output=True).returncode != 0
 
 
 def test_no_default_passwords_and_the_api_requires_keys():
