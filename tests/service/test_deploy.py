@@ -261,3 +261,62 @@ def test_health_route_exists_in_the_app():
     from service.routers.health import router
 
     assert "/health" in {r.path for r in router.routes}
+
+
+def _stub_docker(bin_dir: Path, log: Path, digest: str) -> None:
+    """A `docker` on PATH that records its arguments and answers `inspect` with a digest."""
+    bin_dir.mkdir()
+    stub = bin_dir / "docker"
+    stub.write_text("#!/bin/sh\n"
+                    f'echo "$@" >> "{log}"\n'
+                    'if [ "$1" = inspect ]; then echo "ghcr.io/lab/hockle@' + digest + '"; fi\n')
+    stub.chmod(0o755)
+
+
+def test_build_push_pins_the_manifests_to_the_pushed_image(tmp_path):
+    """deploy/build-push.sh builds with the Dockerfile, pushes, and rewrites the
+    kustomization to the pushed image by digest (docker stubbed: no engine runs in CI)."""
+    import os
+    import shutil
+    import subprocess
+
+    root = tmp_path / "repo"
+    shutil.copytree(REPO / "deploy", root / "deploy")
+    log = tmp_path / "docker.log"
+    digest = "sha256:" + "ab" * 32
+    _stub_docker(tmp_path / "bin", log, digest)
+    env = dict(os.environ, PATH=f"{tmp_path / 'bin'}:{os.environ['PATH']}")
+    out = subprocess.run([str(root / "deploy" / "build-push.sh"), "ghcr.io/lab/hockle", "v1.2"],
+                         env=env, capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    calls = log.read_text().splitlines()
+    assert calls[0] == (f"build -f {root}/deploy/Dockerfile -t ghcr.io/lab/hockle:v1.2 {root}")
+    assert calls[1] == "push ghcr.io/lab/hockle:v1.2"
+    kust = yaml.safe_load((root / "deploy" / "k8s" / "kustomization.yaml").read_text())
+    assert kust["images"] == [{"name": "hockle", "newName": "ghcr.io/lab/hockle",
+                               "digest": digest}]
+    assert kust["resources"] == yaml.safe_load(
+        (REPO / "deploy" / "k8s" / "kustomization.yaml").read_text())["resources"]
+    assert (root / "deploy" / "k8s" / "kustomization.yaml").read_text().startswith("# ")
+    # a tag of a tree with uncommitted changes is refused unless asked for
+    out = subprocess.run([str(root / "deploy" / "build-push.sh"), "ghcr.io/lab/hockle",
+                          "0a1b2c3-dirty"], env=env, capture_output=True, text=True)
+    assert out.returncode == 2 and "uncommitted" in out.stderr
+
+
+@pytest.mark.parametrize("args, why", [
+    (["ghcr.io/Lab/Hockle", "v1"], "not an image repository"),
+    (["ghcr.io/lab/hockle", "v 1"], "not an image tag"),
+    (["ghcr.io/lab/hockle", "v1", "sha256:xyz"], "not an image digest"),
+])
+def test_set_image_refuses_bad_references(tmp_path, args, why):
+    import shutil
+    import subprocess
+    import sys
+
+    kust = tmp_path / "kustomization.yaml"
+    shutil.copy(REPO / "deploy" / "k8s" / "kustomization.yaml", kust)
+    out = subprocess.run([sys.executable, str(REPO / "deploy" / "set_image.py"), str(kust),
+                          *args], capture_output=True, text=True)
+    assert out.returncode == 2 and why in out.stderr
+    assert kust.read_text() == (REPO / "deploy" / "k8s" / "kustomization.yaml").read_text()
