@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import collections
+import contextlib
 import json
 import os
 import random
@@ -209,22 +210,17 @@ def run_load(base: str, n_jobs: int, rate: float, submit_concurrency: int) -> di
             "states": states, "submit_wall": submit_wall, "ids": job_ids}
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--jobs", type=int, default=200)
-    parser.add_argument("--rate", type=float, default=50.0, help="dashboard GETs per second")
-    parser.add_argument("--workers", type=int, default=2, help="worker processes (concurrency 1)")
-    parser.add_argument("--registry", choices=("postgresql", "sqlite"), default="postgresql")
-    parser.add_argument("--submit-concurrency", type=int, default=50)
-    parser.add_argument("--worker-nice", type=int, default=10,
-                        help="HOCKLE_WORKER_NICE of the workers (0: same priority as the API)")
-    parser.add_argument("--json", default=None, help="also write the figures to this file")
-    args = parser.parse_args()
-
-    root = Path(tempfile.mkdtemp(prefix="hockle-bench-"))
+@contextlib.contextmanager
+def service_stack(root: Path, registry: str, workers: int, name: str,
+                  worker_env: dict[str, str] | None = None):
+    """The distributed service on this machine for a benchmark: a redis-server on a free
+    port, the registry (a fresh PostgreSQL database on 127.0.0.1:5432, dropped afterwards,
+    or SQLite under ``root``), the API and ``workers`` Celery worker processes (concurrency
+    1, hostnames ``<name><i>@host``, ``worker_env`` added to their environment). Yields (the
+    API's base URL, the services' environment); stops every process on exit. Raises RuntimeError when a process does not
+    come up in time."""
     procs = Processes(root)
-    admin = None
-    db_name = None
+    admin = db_name = None
     env = {k: v for k, v in os.environ.items() if not k.startswith("HOCKLE_")}
     try:
         redis_port = free_port()
@@ -234,7 +230,7 @@ def main() -> int:
         import redis
 
         wait_for(lambda: redis.Redis(port=redis_port).ping(), 15, "redis-server")
-        if args.registry == "postgresql":
+        if registry == "postgresql":
             import psycopg
 
             admin = psycopg.connect("postgresql://postgres@127.0.0.1:5432/postgres",
@@ -254,89 +250,108 @@ def main() -> int:
         base = f"http://127.0.0.1:{api_port}"
         procs.spawn([sys.executable, "-m", "service"], "api.log", env)
         wait_for(lambda: httpx.get(f"{base}/v1/health").status_code == 200, 60, "the API")
-        # API and workers share this machine: the workers run niced (HOCKLE_WORKER_NICE)
-        worker_env = {**env, "HOCKLE_WORKER_NICE": str(args.worker_nice)}
-        for i in range(args.workers):
+        for i in range(workers):
             procs.spawn([sys.executable, "-m", "worker", "--concurrency", "1", "--hostname",
-                         f"bench{i}@%h", "--loglevel", "WARNING"], f"worker{i}.log", worker_env)
-        wait_for(lambda: len(httpx.get(f"{base}/v1/health").json()["workers"]) >= args.workers,
+                         f"{name}{i}@%h", "--loglevel", "WARNING"], f"worker{i}.log",
+                        {**env, **(worker_env or {})})
+        wait_for(lambda: len(httpx.get(f"{base}/v1/health").json()["workers"]) >= workers,
                  90, "the workers")
-
-        t0 = time.monotonic()
-        result = run_load(base, args.jobs, args.rate, args.submit_concurrency)
-        wall = time.monotonic() - t0
-
-        states = result["states"]
-        counts = collections.Counter(j["state"] for j in states.values())
-        starts = [j["created"] for j in states.values()]
-        finishes = [j["finished"] for j in states.values() if j["finished"]]
-        from datetime import datetime
-
-        span = (max(datetime.fromisoformat(f) for f in finishes)
-                - min(datetime.fromisoformat(s) for s in starts)).total_seconds()
-
-        from service.registry import Registry
-        from service.settings import Settings
-
-        registry = Registry(Settings(data_dir=root / "data",
-                                     database_url=env.get("HOCKLE_DATABASE_URL")).registry_url)
-        solves = collections.Counter()
-        finished = collections.Counter()
-        for event in registry.events():
-            if event.kind == "solve_finished":
-                solves[event.job_id] += 1
-            if event.kind == "finished":
-                finished[event.job_id] += 1
-        registry.dispose()
-        twice = sorted(j for j in result["ids"] if solves[j] > 1 or finished[j] > 1)
-        lost = sorted(j for j in result["ids"] if states.get(j, {}).get("state") != "successful")
-        attempts = collections.Counter(j["attempts"] for j in states.values())
-
-        figures = {
-            "jobs": args.jobs,
-            "workers": args.workers,
-            "registry": args.registry,
-            "dashboard_rate_per_s": args.rate,
-            "worker_nice": args.worker_nice,
-            "wall_s": round(wall, 2),
-            "submit_wall_s": round(result["submit_wall"], 2),
-            "jobs_per_minute": round(len(finishes) / span * 60.0, 1) if span > 0 else None,
-            "get_requests": len(result["get"]),
-            "get_errors": result["get_errors"],
-            "get_p50_ms": round(statistics.median(result["get"]) * 1e3, 2),
-            "get_p90_ms": round(percentile(result["get"], 90) * 1e3, 2),
-            "get_p99_ms": round(percentile(result["get"], 99) * 1e3, 2),
-            "get_max_ms": round(max(result["get"]) * 1e3, 2),
-            "post_p50_ms": round(statistics.median(result["post"]) * 1e3, 2),
-            "post_p99_ms": round(percentile(result["post"], 99) * 1e3, 2),
-            "states": dict(counts),
-            "lost": len(lost),
-            "run_twice_to_completion": len(twice),
-            "attempts": dict(attempts),
-        }
-        print(f"hockle load benchmark: {args.jobs} tiny jobs, {args.workers} workers, "
-              f"{args.registry} registry, dashboard {args.rate:g} GET/s, workers niced "
-              f"{args.worker_nice}")
-        print(f"  jobs completed per minute     {figures['jobs_per_minute']}")
-        print(f"  GET /v1/jobs/{{id}} p50 / p99   {figures['get_p50_ms']} / {figures['get_p99_ms']} ms"
-              f"  ({figures['get_requests']} requests while busy; p90 {figures['get_p90_ms']} ms,"
-              f" max {figures['get_max_ms']} ms)")
-        print(f"  POST /v1/jobs p50 / p99       {figures['post_p50_ms']} / {figures['post_p99_ms']} ms"
-              f"  (all {args.jobs} submitted in {figures['submit_wall_s']} s)")
-        print(f"  states                        {dict(counts)}")
-        print(f"  lost                          {len(lost)}")
-        print(f"  run twice to completion       {len(twice)}")
-        if args.json:
-            Path(args.json).write_text(json.dumps(figures, indent=2))
-        print(f"  dashboard GET errors          {result['get_errors']}")
-        return 0 if not lost and not twice and not result["get_errors"] else 1
+        yield base, env
     finally:
         procs.stop_all()
-        if admin is not None and db_name:
+        if admin is not None and db_name is not None:
             admin.execute("SELECT pg_terminate_backend(pid) FROM pg_stat_activity "
                           "WHERE datname = %s", (db_name,))
             admin.execute(f'DROP DATABASE IF EXISTS "{db_name}"')
             admin.close()
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--jobs", type=int, default=200)
+    parser.add_argument("--rate", type=float, default=50.0, help="dashboard GETs per second")
+    parser.add_argument("--workers", type=int, default=2, help="worker processes (concurrency 1)")
+    parser.add_argument("--registry", choices=("postgresql", "sqlite"), default="postgresql")
+    parser.add_argument("--submit-concurrency", type=int, default=50)
+    parser.add_argument("--worker-nice", type=int, default=10,
+                        help="HOCKLE_WORKER_NICE of the workers (0: same priority as the API)")
+    parser.add_argument("--json", default=None, help="also write the figures to this file")
+    args = parser.parse_args()
+
+    root = Path(tempfile.mkdtemp(prefix="hockle-bench-"))
+    try:
+        # API and workers share this machine: the workers run niced (HOCKLE_WORKER_NICE)
+        with service_stack(root, args.registry, args.workers, "bench",
+                           {"HOCKLE_WORKER_NICE": str(args.worker_nice)}) as (base, env):
+            t0 = time.monotonic()
+            result = run_load(base, args.jobs, args.rate, args.submit_concurrency)
+            wall = time.monotonic() - t0
+
+            states = result["states"]
+            counts = collections.Counter(j["state"] for j in states.values())
+            starts = [j["created"] for j in states.values()]
+            finishes = [j["finished"] for j in states.values() if j["finished"]]
+            from datetime import datetime
+
+            span = (max(datetime.fromisoformat(f) for f in finishes)
+                    - min(datetime.fromisoformat(s) for s in starts)).total_seconds()
+
+            from service.registry import Registry
+            from service.settings import Settings
+
+            registry = Registry(Settings(data_dir=root / "data",
+                                         database_url=env.get("HOCKLE_DATABASE_URL")).registry_url)
+            solves = collections.Counter()
+            finished = collections.Counter()
+            for event in registry.events():
+                if event.kind == "solve_finished":
+                    solves[event.job_id] += 1
+                if event.kind == "finished":
+                    finished[event.job_id] += 1
+            registry.dispose()
+            twice = sorted(j for j in result["ids"] if solves[j] > 1 or finished[j] > 1)
+            lost = sorted(j for j in result["ids"] if states.get(j, {}).get("state") != "successful")
+            attempts = collections.Counter(j["attempts"] for j in states.values())
+
+            figures = {
+                "jobs": args.jobs,
+                "workers": args.workers,
+                "registry": args.registry,
+                "dashboard_rate_per_s": args.rate,
+                "worker_nice": args.worker_nice,
+                "wall_s": round(wall, 2),
+                "submit_wall_s": round(result["submit_wall"], 2),
+                "jobs_per_minute": round(len(finishes) / span * 60.0, 1) if span > 0 else None,
+                "get_requests": len(result["get"]),
+                "get_errors": result["get_errors"],
+                "get_p50_ms": round(statistics.median(result["get"]) * 1e3, 2),
+                "get_p90_ms": round(percentile(result["get"], 90) * 1e3, 2),
+                "get_p99_ms": round(percentile(result["get"], 99) * 1e3, 2),
+                "get_max_ms": round(max(result["get"]) * 1e3, 2),
+                "post_p50_ms": round(statistics.median(result["post"]) * 1e3, 2),
+                "post_p99_ms": round(percentile(result["post"], 99) * 1e3, 2),
+                "states": dict(counts),
+                "lost": len(lost),
+                "run_twice_to_completion": len(twice),
+                "attempts": dict(attempts),
+            }
+            print(f"hockle load benchmark: {args.jobs} tiny jobs, {args.workers} workers, "
+                  f"{args.registry} registry, dashboard {args.rate:g} GET/s, workers niced "
+                  f"{args.worker_nice}")
+            print(f"  jobs completed per minute     {figures['jobs_per_minute']}")
+            print(f"  GET /v1/jobs/{{id}} p50 / p99   {figures['get_p50_ms']} / {figures['get_p99_ms']} ms"
+                  f"  ({figures['get_requests']} requests while busy; p90 {figures['get_p90_ms']} ms,"
+                  f" max {figures['get_max_ms']} ms)")
+            print(f"  POST /v1/jobs p50 / p99       {figures['post_p50_ms']} / {figures['post_p99_ms']} ms"
+                  f"  (all {args.jobs} submitted in {figures['submit_wall_s']} s)")
+            print(f"  states                        {dict(counts)}")
+            print(f"  lost                          {len(lost)}")
+            print(f"  run twice to completion       {len(twice)}")
+            if args.json:
+                Path(args.json).write_text(json.dumps(figures, indent=2))
+            print(f"  dashboard GET errors          {result['get_errors']}")
+            return 0 if not lost and not twice and not result["get_errors"] else 1
+    finally:
         shutil.rmtree(root, ignore_errors=True)
 
 

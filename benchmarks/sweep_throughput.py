@@ -23,11 +23,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import tempfile
 import time
-import uuid
 from datetime import datetime
 from pathlib import Path
 
@@ -37,7 +35,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / "benchmarks"))
 
-from load_service import Processes, free_port, wait_for  # noqa: E402
+from load_service import service_stack  # noqa: E402
 
 TWIST = "boundary.start.rotation.2.angular_velocity"
 TERMINAL = ("successful", "failed", "dismissed")
@@ -162,43 +160,7 @@ def main() -> int:
         args.members, args.segments, args.t_end = 4, 10, 2.0
 
     root = Path(tempfile.mkdtemp(prefix="hockle-sweep-bench-"))
-    procs = Processes(root)
-    admin = db_name = None
-    env = {k: v for k, v in os.environ.items() if not k.startswith("HOCKLE_")}
-    try:
-        redis_port = free_port()
-        procs.spawn(["redis-server", "--port", str(redis_port), "--bind", "127.0.0.1", "--dir",
-                     str(root), "--appendonly", "yes", "--save", "",
-                     "--maxmemory-policy", "noeviction"], "redis.log")
-        import redis
-
-        wait_for(lambda: redis.Redis(port=redis_port).ping(), 15, "redis-server")
-        if args.registry == "postgresql":
-            import psycopg
-
-            admin = psycopg.connect("postgresql://postgres@127.0.0.1:5432/postgres",
-                                    autocommit=True)
-            db_name = f"hockle_bench_{uuid.uuid4().hex[:8]}"
-            admin.execute(f'CREATE DATABASE "{db_name}"')
-            env["HOCKLE_DATABASE_URL"] = f"postgresql://postgres@127.0.0.1:5432/{db_name}"
-        api_port = free_port()
-        env.update({
-            "HOCKLE_DATA_DIR": str(root / "data"),
-            "HOCKLE_BROKER_URL": f"redis://127.0.0.1:{redis_port}/0",
-            "HOCKLE_HOST": "127.0.0.1",
-            "HOCKLE_PORT": str(api_port),
-            "HOCKLE_LOG_LEVEL": "WARNING",
-            "PYTHONUNBUFFERED": "1",
-        })
-        base = f"http://127.0.0.1:{api_port}"
-        procs.spawn([sys.executable, "-m", "service"], "api.log", env)
-        wait_for(lambda: httpx.get(f"{base}/v1/health").status_code == 200, 60, "the API")
-        for i in range(args.workers):
-            procs.spawn([sys.executable, "-m", "worker", "--concurrency", "1", "--hostname",
-                         f"sweep{i}@%h", "--loglevel", "WARNING"], f"worker{i}.log", env)
-        wait_for(lambda: len(httpx.get(f"{base}/v1/health").json()["workers"]) >= args.workers,
-                 90, "the workers")
-
+    with service_stack(root, args.registry, args.workers, "sweep") as (base, _env):
         figures = measure(base, args.members, args.segments, args.t_end, args.workers)
         print(f"hockle sweep throughput: {args.members} members of a {args.segments}-segment "
               f"case to {args.t_end:g} s, {args.workers} workers, {args.registry} registry")
@@ -217,13 +179,6 @@ def main() -> int:
         if args.json:
             Path(args.json).write_text(json.dumps(figures, indent=2) + "\n")
         return 0 if figures["sweep_state"] == "successful" else 1
-    finally:
-        procs.stop_all()
-        if admin is not None and db_name is not None:
-            admin.execute("SELECT pg_terminate_backend(pid) FROM pg_stat_activity "
-                          "WHERE datname = %s", (db_name,))
-            admin.execute(f'DROP DATABASE IF EXISTS "{db_name}"')
-            admin.close()
 
 
 if __name__ == "__main__":
