@@ -6,6 +6,7 @@ against it in order (they are written so that each one also passes alone).
 """
 from __future__ import annotations
 
+import contextlib
 import copy
 import os
 import shutil
@@ -140,6 +141,30 @@ def redis_server(tmp_path_factory):
 
 # --- postgresql ----------------------------------------------------------------------------------
 PG_ADMIN = "postgresql://postgres@127.0.0.1:5432/postgres"
+
+
+@contextlib.contextmanager
+def empty_database_url(kind: str, directory: Path, prefix: str):
+    """The URL of an empty registry database: a SQLite file in ``directory``, or (kind
+    "postgresql") a new PostgreSQL database ``<prefix>_<random>`` of its own, dropped on exit;
+    skips the test when no server answers on 127.0.0.1:5432."""
+    if kind == "sqlite":
+        yield f"sqlite:///{directory / (prefix + '.db')}"
+        return
+    psycopg = pytest.importorskip("psycopg")
+    try:
+        admin = psycopg.connect(PG_ADMIN, autocommit=True, connect_timeout=3)
+    except Exception as exc:  # noqa: BLE001
+        pytest.skip(f"no PostgreSQL server answers on 127.0.0.1:5432 ({exc})")
+    name = f"{prefix}_{uuid.uuid4().hex[:10]}"
+    admin.execute(f'CREATE DATABASE "{name}"')
+    try:
+        yield f"postgresql+psycopg://postgres@127.0.0.1:5432/{name}"
+    finally:
+        admin.execute(
+            "SELECT pg_terminate_backend(pid) FROM pg_stat_activity WHERE datname = %s", (name,))
+        admin.execute(f'DROP DATABASE IF EXISTS "{name}"')
+        admin.close()
 
 
 @pytest.fixture(scope="session")

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import argparse
 import logging
-import uuid
 from pathlib import Path
 
 import httpx
@@ -17,7 +16,7 @@ from service.app import create_app
 from service.auth import RateLimiter, owner_id
 from service.registry import Registry
 from service.settings import Settings
-from svc_support import free_port, make_stack, tiny_case
+from svc_support import empty_database_url, free_port, make_stack, tiny_case
 
 PROBLEM = "application/problem+json"
 KEY_A = "alice-key-0123456789abcdef"
@@ -286,25 +285,8 @@ def test_serve_refuses_bad_keys_before_starting_anything(monkeypatch, tmp_path, 
 def empty_registry_url(request, tmp_path):
     """The URL of an empty database: a SQLite file, or a new PostgreSQL database of its own
     (dropped afterwards; skipped when no server answers on 127.0.0.1:5432)."""
-    if request.param == "sqlite":
-        yield f"sqlite:///{tmp_path / 'old.db'}"
-        return
-    psycopg = pytest.importorskip("psycopg")
-    from svc_support import PG_ADMIN
-
-    try:
-        admin = psycopg.connect(PG_ADMIN, autocommit=True, connect_timeout=3)
-    except Exception as exc:  # noqa: BLE001
-        pytest.skip(f"no PostgreSQL server answers on 127.0.0.1:5432 ({exc})")
-    name = f"hockle_old_{uuid.uuid4().hex[:10]}"
-    admin.execute(f'CREATE DATABASE "{name}"')
-    try:
-        yield f"postgresql+psycopg://postgres@127.0.0.1:5432/{name}"
-    finally:
-        admin.execute(
-            "SELECT pg_terminate_backend(pid) FROM pg_stat_activity WHERE datname = %s", (name,))
-        admin.execute(f'DROP DATABASE IF EXISTS "{name}"')
-        admin.close()
+    with empty_database_url(request.param, tmp_path, "hockle_old") as db_url:
+        yield db_url
 
 
 def test_an_older_registry_gets_the_owner_column_and_index(empty_registry_url):

@@ -11,7 +11,6 @@ from __future__ import annotations
 import datetime as dt
 import subprocess
 import sys
-import uuid
 from pathlib import Path
 
 import pytest
@@ -19,6 +18,7 @@ import sqlalchemy as sa
 
 from service import migrations
 from service.registry import Base, Registry
+from svc_support import empty_database_url
 
 REPO = Path(__file__).resolve().parents[2]
 T0 = dt.datetime(2026, 1, 1, 12, 0, 0)
@@ -28,25 +28,8 @@ T0 = dt.datetime(2026, 1, 1, 12, 0, 0)
 def url(request, tmp_path):
     """An empty registry database: a SQLite file, or a new PostgreSQL database of its own
     for this test (dropped afterwards)."""
-    if request.param == "sqlite":
-        yield f"sqlite:///{tmp_path / 'registry.db'}"
-        return
-    psycopg = pytest.importorskip("psycopg")
-    from svc_support import PG_ADMIN
-
-    try:
-        admin = psycopg.connect(PG_ADMIN, autocommit=True, connect_timeout=3)
-    except Exception as exc:  # noqa: BLE001
-        pytest.skip(f"no PostgreSQL server answers on 127.0.0.1:5432 ({exc})")
-    name = f"hockle_mig_{uuid.uuid4().hex[:10]}"
-    admin.execute(f'CREATE DATABASE "{name}"')
-    try:
-        yield f"postgresql+psycopg://postgres@127.0.0.1:5432/{name}"
-    finally:
-        admin.execute(
-            "SELECT pg_terminate_backend(pid) FROM pg_stat_activity WHERE datname = %s", (name,))
-        admin.execute(f'DROP DATABASE IF EXISTS "{name}"')
-        admin.close()
+    with empty_database_url(request.param, tmp_path, "hockle_mig") as db_url:
+        yield db_url
 
 
 def schema(url: str) -> dict[str, tuple[set[str], set[str]]]:
