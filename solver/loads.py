@@ -72,7 +72,8 @@ class LoadModel:
         """Global-frame distributed force (N+1, 3) N/m at time t, or None if zero.
 
         left: the left limit at t (a window counts as ``start < t <= end``), for the step
-        that ends on a breakpoint (:mod:`solver.stepping`)."""
+        that ends on a breakpoint (:mod:`solver.stepping`). Raises ValueError when the
+        ``extra`` force returns another shape than (N+1, 3)."""
         out = None
         if self.gravity is not None:
             out = self.gravity.copy()
