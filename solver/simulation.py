@@ -169,6 +169,7 @@ class RodRun:
         self.last_error_ratio = math.nan
         self.h_next = num.dt
         self.last_reject = None
+        self.last_had_candidates = False
         # growth guard (solver.stepping.growth_rate): the last estimate of the fastest
         # growth rate σ (1/s; NaN: not yet checked), the Δt it was checked at, the largest
         # Δt checked, accepted steps since, the Arnoldi start vector
@@ -204,11 +205,13 @@ class RodRun:
         return np.einsum("nji,nj->ni", pose[0], glob)
 
     # -------------------------------------------------------------------------------
-    def try_step(self, h: float, t_new=None, left_limit=False, restart=False):
+    def try_step(self, h: float, t_new=None, left_limit=False, restart=False,
+                 estimate=True):
         """Attempt one step of size h (s), ending at t_new (default t + h; given exactly
         when the step lands on a breakpoint, with ``left_limit`` so that the loads are
         their left limit there). ``restart``: a backward-Euler restart step
-        (:mod:`solver.stepping`). On success the state advances and
+        (:mod:`solver.stepping`); ``estimate=False``: no error estimate (the steps of a
+        step-doubling estimate, :meth:`_doubled_step`). On success the state advances and
         (True, iterations, residual, nonfinite=False) is returned; on failure the state is
         untouched."""
         sysm = self.system
@@ -223,6 +226,7 @@ class RodRun:
         cand = None
         if self.contact is not None:
             cand = self._candidates(h, guess)
+        self.last_had_candidates = cand is not None
         its_total = 0
         for attempt in range(3):
             sysm.begin_step(h, params, t_new, self.Y, self.Ydot, self.F_old, bc,
@@ -273,7 +277,7 @@ class RodRun:
             if self.errctl is None and ratio > 1.0:
                 self.last_reject = "contact"
                 return False, its, res, False
-        if self.errctl is not None and not restart:
+        if self.errctl is not None and not restart and estimate:
             if cand is None:
                 ratio = max(ratio, self.errctl.ratio(t_new, Y, self.Y, self.newton.filtered))
             self.last_error_ratio = ratio      # NaN: not estimated (after a restart)
@@ -529,10 +533,21 @@ class RodRun:
             remaining = stop - self.t
             last = h >= remaining * (1.0 - 1e-9)
             h_try = remaining if last else (0.5 * remaining if 2.0 * h > remaining else h)
-            ok, its, res, nonfinite = self.try_step(
-                h_try, t_new=stop if last else None, left_limit=last and at_break)
+            doubled = not ctl.can_estimate and not self.last_had_candidates
+            if doubled:
+                ok, its, res, nonfinite = self._doubled_step(h_try, stop if last else None,
+                                                             last and at_break)
+                if ok is None:                   # strands may meet: no doubling there
+                    total_its += its
+                    doubled = False
+            if not doubled:
+                ok, its, res, nonfinite = self.try_step(
+                    h_try, t_new=stop if last else None, left_limit=last and at_break)
             total_its += its
             if ok:
+                if doubled:                      # the first half step was kept
+                    h_try, last = 0.5 * h_try, False
+                    h = min(h, h_try)
                 self.last_dt = h_try
                 h_new = ctl.accepted(h_try, self.last_error_ratio)
                 # a step shortened to land on a stop does not shrink the next one
@@ -552,6 +567,60 @@ class RodRun:
                     f"time step from t = {self.t:.6g} s could not be completed above the "
                     f"smallest step 1e-9 t_end = {h_min:.3g} s "
                     f"(last refusal: {self.last_reject})", h_try, res, nonfinite)
+
+    def _state(self):
+        """The run's state between steps, for :meth:`_restore` (the accepted-step path
+        rebinds every array it changes, so a shallow copy suffices)."""
+        return dict(self.__dict__), self.errctl.state() if self.errctl is not None else None
+
+    def _restore(self, state) -> None:
+        self.__dict__.update(state[0])
+        if self.errctl is not None:
+            self.errctl.restore(state[1])
+
+    def _doubled_step(self, h: float, t_new, left_limit: bool):
+        """The first error-controlled step after a restart, which has no predictor: one
+        step h (s) and two steps h/2 over the same interval, the difference giving a half
+        step's local error (step doubling, :meth:`ErrorControl.doubling_error`). The
+        first half step is kept when the error ratio is ≤ 1, nothing when not (ratio in
+        ``last_error_ratio``). Before, the first step after a restart went unmeasured:
+        the numerics.dt it ran at set the Greenhill growth rate 2 % off at every
+        tolerance (docs/numerics.md § 7). Returns try_step's tuple, with ok = None (state
+        unchanged) when strands may meet in one of the steps: there the route rule
+        decides (docs/contact.md)."""
+        start = self._state()
+        Y_old = self.Y
+        t_end = self.t + h if t_new is None else t_new
+        ok, its, res, nonfinite = self.try_step(h, t_new=t_new, left_limit=left_limit,
+                                                estimate=False)
+        if not ok or self.last_had_candidates:
+            self._restore(start)
+            return (None if ok else False), its, res, nonfinite
+        Y_full = self.Y
+        self._restore(start)
+        ok, its2, res, nonfinite = self.try_step(0.5 * h, estimate=False)
+        its += its2
+        if not ok or self.last_had_candidates:
+            self._restore(start)
+            return (None if ok else False), its, res, nonfinite
+        half = self._state()
+        ok, its3, res3, nonfinite = self.try_step(t_end - self.t, t_new=t_new,
+                                                  left_limit=left_limit, estimate=False)
+        its += its3
+        if not ok or self.last_had_candidates:
+            self._restore(start)
+            return (None if ok else False), its, res3, nonfinite
+        ctl = self.errctl
+        ratio = ctl.measure(ctl.doubling_error(Y_full, self.Y), self.Y, Y_old,
+                            self.newton.filtered)
+        self._restore(half)
+        self.last_error_ratio = ratio
+        if ratio > 1.0:
+            self._restore(start)
+            self.last_error_ratio = ratio
+            self.last_reject = "error"
+            return False, its, res, False
+        return True, its, res, False
 
     def _next_stop(self, t_stop: float, snap: float):
         """Take the pending consistent restart, if any, and return (its Newton iterations,
