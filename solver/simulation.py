@@ -588,39 +588,34 @@ class RodRun:
         tolerance (docs/numerics.md § 7). Returns try_step's tuple, with ok = None (state
         unchanged) when strands may meet in one of the steps: there the route rule
         decides (docs/contact.md)."""
-        start = self._state()
-        Y_old = self.Y
+        start, Y_old = self._state(), self.Y
         t_end = self.t + h if t_new is None else t_new
-        ok, its, res, nonfinite = self.try_step(h, t_new=t_new, left_limit=left_limit,
-                                                estimate=False)
-        if not ok or self.last_had_candidates:
-            self._restore(start)
-            return (None if ok else False), its, res, nonfinite
-        Y_full = self.Y
-        self._restore(start)
-        ok, its2, res, nonfinite = self.try_step(0.5 * h, estimate=False)
-        its += its2
-        if not ok or self.last_had_candidates:
-            self._restore(start)
-            return (None if ok else False), its, res, nonfinite
-        half = self._state()
-        ok, its3, res3, nonfinite = self.try_step(t_end - self.t, t_new=t_new,
-                                                  left_limit=left_limit, estimate=False)
-        its += its3
-        if not ok or self.last_had_candidates:
-            self._restore(start)
-            return (None if ok else False), its, res3, nonfinite
+        its, Y_full, half, kept_res = 0, None, None, math.nan
+        for leg in ("whole", "first half", "second half"):
+            if leg == "first half":              # the whole step is kept aside
+                Y_full = self.Y
+                self._restore(start)
+            elif leg == "second half":           # the state the step keeps if accepted
+                half = self._state()
+            size = {"whole": h, "first half": 0.5 * h, "second half": t_end - self.t}[leg]
+            ends = None if leg == "first half" else t_new
+            ok, k, res, nonfinite = self.try_step(size, t_new=ends, estimate=False,
+                                                  left_limit=left_limit and ends is not None)
+            its += k
+            if not ok or self.last_had_candidates:
+                self._restore(start)
+                return (None if ok else False), its, res, nonfinite
+            if leg == "first half":
+                kept_res = res
         ctl = self.errctl
         ratio = ctl.measure(ctl.doubling_error(Y_full, self.Y), self.Y, Y_old,
                             self.newton.filtered)
-        self._restore(half)
+        accepted = ratio <= 1.0
+        self._restore(half if accepted else start)
         self.last_error_ratio = ratio
-        if ratio > 1.0:
-            self._restore(start)
-            self.last_error_ratio = ratio
+        if not accepted:
             self.last_reject = "error"
-            return False, its, res, False
-        return True, its, res, False
+        return accepted, its, kept_res, False
 
     def _next_stop(self, t_stop: float, snap: float):
         """Take the pending consistent restart, if any, and return (its Newton iterations,
