@@ -433,3 +433,16 @@ def test_closest_point_is_continuous_on_the_concave_side_of_a_bend():
     assert jumps < 0.02 * np.abs(samples).max()
     # the foot advances monotonically by about one cell per millimetre
     assert np.all(np.diff(feet) > 0.0) and np.diff(feet).max() < 0.1
+
+
+def test_unique_keys_equals_numpy_unique_through_the_table_and_the_fallback(monkeypatch):
+    from solver.contact import model
+    rng = np.random.default_rng(3)
+    size = 1001 * 1001
+    keys = rng.integers(0, size, 50_000)
+    keys[:100] = keys[100:200]                     # repeats
+    expected = np.unique(keys)
+    np.testing.assert_array_equal(model._unique_keys(keys, size), expected)
+    monkeypatch.setattr(model, "_TABLE_KEYS", 10)  # the np.unique branch
+    np.testing.assert_array_equal(model._unique_keys(keys, size), expected)
+    assert model._unique_keys(np.zeros(0, np.int64), size).size == 0
