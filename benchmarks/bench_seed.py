@@ -3,7 +3,9 @@ self-contact, to 45 s. Prints the wall time, the time per nominal step with and 
 active contact (medians), and the shares of the wall time spent in the contact search and
 in the writhe. Bar: 120 s on this 2-core machine; goal: 20 s.
 
-Run: ``python benchmarks/bench_seed.py [--t-end 45] [--out goyal.nc]``. The timers wrap
+Run: ``python benchmarks/bench_seed.py [--t-end 45] [--out goyal.nc] [--repeats K]``
+(K runs with the Newton tolerance perturbed by 0.1 % steps: median and range, for
+comparing versions; see :func:`repeated`). The timers wrap
 the contact search (SelfContact.may_touch / find_pairs) and the writhe from here; the
 solver itself is not changed.
 """
@@ -43,8 +45,9 @@ def timed(owner, name, key):
     setattr(owner, name, wrapper)
 
 
-def run(t_end: float = 45.0, out: str | None = None) -> dict:
-    """Run the seed example to t_end (s) with the timers installed; return the figures."""
+def run(t_end: float = 45.0, out: str | None = None, newton_scale: float = 1.0) -> dict:
+    """Run the seed example to t_end (s) with the timers installed; return the figures.
+    newton_scale multiplies the case's Newton tolerance (:func:`repeated`)."""
     TIMERS.update(contact_search=0.0, writhe=0.0)
     timed(contact_mod.SelfContact, "candidates", "contact_search")
     timed(contact_mod.SelfContact, "may_touch", "contact_search")
@@ -52,6 +55,7 @@ def run(t_end: float = 45.0, out: str | None = None) -> dict:
     try:
         spec = Case.from_file(ROOT / "cases" / "goyal-writhing.yaml").model_dump(mode="json")
         spec["numerics"]["t_end"] = t_end
+        spec["numerics"]["newton"]["tolerance"] *= newton_scale
         case = Case.model_validate(spec)
         steps = []
         last = [0.0, 0]
@@ -132,6 +136,32 @@ def run(t_end: float = 45.0, out: str | None = None) -> dict:
     return res
 
 
+#: Newton-tolerance factors of the repeated runs (:func:`repeated`): 1, then ±0.1 %, ±0.2 %
+PERTURBATIONS = (1.0, 0.999, 1.001, 0.998, 1.002)
+
+
+def repeated(k: int, t_end: float = 45.0) -> dict:
+    """The seed run k times (k ≤ 5), the Newton tolerance scaled by PERTURBATIONS[:k], and
+    the median and range of the wall time and Newton iterations. The run's cost is
+    trajectory-sensitive: a 0.1 % change of the tolerance moved the intertwined phase's
+    Newton iterations by 14 % and identical runs differed by 18 % in wall time on this
+    shared machine (docs/contact.md § 4), so one run cannot judge a 10 % change."""
+    runs = []
+    for scale in PERTURBATIONS[:k]:
+        res = run(t_end, newton_scale=scale)
+        runs.append({"newton_scale": scale, "wall_s": res["wall_s"],
+                     "newton_iterations": res["newton_iterations"],
+                     "writhe_above_2": res["events"].get("writhe_above_2")})
+        print(f"  tolerance x {scale:g}: {res['wall_s']:.1f} s, "
+              f"{res['newton_iterations']} Newton iterations", flush=True)
+    walls = [r["wall_s"] for r in runs]
+    its = [r["newton_iterations"] for r in runs]
+    return {"runs": runs, "wall_s_median": statistics.median(walls),
+            "wall_s_range": [min(walls), max(walls)],
+            "newton_iterations_median": statistics.median(its),
+            "newton_iterations_range": [min(its), max(its)]}
+
+
 def report(res: dict) -> None:
     print(f"== seed example, {res['n_segments']} segments, Δt = {res['dt']} s, "
           f"to {res['t_reached']:.1f} s ({res['message']})")
@@ -210,7 +240,19 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--t-end", type=float, default=45.0)
     ap.add_argument("--out", default=None, help="also write the dataset (NetCDF)")
+    ap.add_argument("--repeats", type=int, default=1, choices=range(1, 6),
+                    help="run k times with the Newton tolerance perturbed by 0.1 %% steps and "
+                         "print the median and range (written to bench_seed_repeats.json)")
     args = ap.parse_args()
+    if args.repeats > 1:
+        rep = repeated(args.repeats, args.t_end)
+        print(f"== {args.repeats} runs: wall median {rep['wall_s_median']:.1f} s "
+              f"(range {rep['wall_s_range'][0]:.1f}-{rep['wall_s_range'][1]:.1f}), Newton "
+              f"iterations median {rep['newton_iterations_median']:g} (range "
+              f"{rep['newton_iterations_range'][0]}-{rep['newton_iterations_range'][1]})")
+        RESULTS.mkdir(parents=True, exist_ok=True)
+        (RESULTS / "bench_seed_repeats.json").write_text(json.dumps(rep, indent=1))
+        return
     res = run(args.t_end, args.out)
     report(res)
     RESULTS.mkdir(parents=True, exist_ok=True)
