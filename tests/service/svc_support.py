@@ -144,13 +144,10 @@ PG_ADMIN = "postgresql://postgres@127.0.0.1:5432/postgres"
 
 
 @contextlib.contextmanager
-def empty_database_url(kind: str, directory: Path, prefix: str):
-    """The URL of an empty registry database: a SQLite file in ``directory``, or (kind
-    "postgresql") a new PostgreSQL database ``<prefix>_<random>`` of its own, dropped on exit;
-    skips the test when no server answers on 127.0.0.1:5432."""
-    if kind == "sqlite":
-        yield f"sqlite:///{directory / (prefix + '.db')}"
-        return
+def _fresh_pg_database(prefix: str):
+    """A new PostgreSQL database ``<prefix>_<random>`` on the local server (its name is
+    yielded), its connections ended and the database dropped on exit; skips the test when no
+    server answers on 127.0.0.1:5432."""
     psycopg = pytest.importorskip("psycopg")
     try:
         admin = psycopg.connect(PG_ADMIN, autocommit=True, connect_timeout=3)
@@ -159,31 +156,31 @@ def empty_database_url(kind: str, directory: Path, prefix: str):
     name = f"{prefix}_{uuid.uuid4().hex[:10]}"
     admin.execute(f'CREATE DATABASE "{name}"')
     try:
-        yield f"postgresql+psycopg://postgres@127.0.0.1:5432/{name}"
+        yield name
     finally:
         admin.execute(
             "SELECT pg_terminate_backend(pid) FROM pg_stat_activity WHERE datname = %s", (name,))
         admin.execute(f'DROP DATABASE IF EXISTS "{name}"')
         admin.close()
+
+
+@contextlib.contextmanager
+def empty_database_url(kind: str, directory: Path, prefix: str):
+    """The URL of an empty registry database: a SQLite file in ``directory``, or (kind
+    "postgresql") a new PostgreSQL database ``<prefix>_<random>`` of its own, dropped on exit;
+    skips the test when no server answers on 127.0.0.1:5432."""
+    if kind == "sqlite":
+        yield f"sqlite:///{directory / (prefix + '.db')}"
+        return
+    with _fresh_pg_database(prefix) as name:
+        yield f"postgresql+psycopg://postgres@127.0.0.1:5432/{name}"
 
 
 @pytest.fixture(scope="session")
 def pg_url():
     """A fresh database hockle_test_<random> on the local server, dropped afterwards."""
-    psycopg = pytest.importorskip("psycopg")
-    try:
-        admin = psycopg.connect(PG_ADMIN, autocommit=True, connect_timeout=3)
-    except Exception as exc:  # noqa: BLE001
-        pytest.skip(f"no PostgreSQL server answers on 127.0.0.1:5432 ({exc})")
-    name = f"hockle_test_{uuid.uuid4().hex[:10]}"
-    admin.execute(f'CREATE DATABASE "{name}"')
-    try:
+    with _fresh_pg_database("hockle_test") as name:
         yield f"postgresql://postgres@127.0.0.1:5432/{name}"
-    finally:
-        admin.execute(
-            "SELECT pg_terminate_backend(pid) FROM pg_stat_activity WHERE datname = %s", (name,))
-        admin.execute(f'DROP DATABASE IF EXISTS "{name}"')
-        admin.close()
 
 
 # --- API and worker processes -----------------------------------------------------------------
