@@ -447,13 +447,16 @@ class RodSystem:
             A = np.concatenate([ev.d_force_d_r.transpose(0, 2, 1, 3).reshape(n_p, 3, 3 * n_b),
                                 ev.d_force_d_v.transpose(0, 2, 1, 3).reshape(n_p, 3, 3 * n_b)],
                                axis=2)
+            # one sparse product scatters both parts of the pairs' load change onto the
+            # nodes: [w | ∂w/∂t] (N+1, 2P) times [δF_p ; F_p δt_p] (2P, 3)
             cols = np.repeat(np.arange(n_p), n_b)
             rows = ev.nodes.ravel()
-            shape = (self.n_nodes, n_p)
+            scatter = csr_matrix((np.concatenate([ev.weights.ravel(), ev.d_weights_d_t.ravel()]),
+                                  (np.concatenate([rows, rows]),
+                                   np.concatenate([cols, cols + n_p]))),
+                                 shape=(self.n_nodes, 2 * n_p))
             out.update(nodes=ev.nodes, A=A, F=ev.force, dtdr=ev.d_t_d_r.reshape(n_p, 3 * n_b),
-                       scatter_w=csr_matrix((ev.weights.ravel(), (rows, cols)), shape=shape),
-                       scatter_dw=csr_matrix((ev.d_weights_d_t.ravel(), (rows, cols)),
-                                             shape=shape))
+                       scatter=scatter)
         return out
 
     def _exact_loads(self, ex, dY):
@@ -479,7 +482,7 @@ class RodSystem:
         dpsi = dphi[:-1] + np.einsum("cij,cj->ci", ex["D"], dkbar)
         R = ex["R"]
         dr = np.empty((n1, 3))
-        dr[0] = 0.5 * self.dt * (np.cross(dphi[0], ex["rdot"][0]) + R[0] @ dv[0])
+        dr[0] = 0.5 * self.dt * (_cross(dphi[0], ex["rdot"][0]) + R[0] @ dv[0])
         dr[1:] = dr[0] + self.p.ds * np.cumsum(_cross(dpsi, ex["tmid"]), axis=0)
         dG = _cross(ex["G"], dphi)
         if "nodes" in ex:
@@ -490,7 +493,7 @@ class RodSystem:
                                 drdot[nodes].reshape(n_p, 3 * n_b)], axis=1)
             dF = np.matmul(ex["A"], z[:, :, None])[:, :, 0]
             dt = np.einsum("pk,pk->p", ex["dtdr"], z[:, :3 * n_b])
-            dG += ex["scatter_w"] @ dF + ex["scatter_dw"] @ (dt[:, None] * ex["F"])
+            dG += ex["scatter"] @ np.concatenate([dF, dt[:, None] * ex["F"]])
         dB = np.einsum("nji,nj->ni", R, dG)
         return dB - np.einsum("nij,nj->ni", ex["L"], dY[:, 0:6])
 
