@@ -193,9 +193,9 @@ class Newton:
         return x0 + y @ Z[:k + 1]
 
     def _krylov_basis(self, m, n):
-        """GMRES's work arrays V (m+1, n) and Z (m, n), kept between solves: allocating
-        their 8 MB afresh at every solve (1000 segments, m = 40) cost a quarter of the
-        solve's time in page faults. Not pickled (:meth:`__getstate__`)."""
+        """GMRES's work arrays V (m+1, n) and Z (m, n), allocated once and kept between
+        solves instead of afresh at every solve (8 MB at 1000 segments, m = 40). Not
+        pickled (:meth:`__getstate__`)."""
         work = getattr(self, "_work", None)
         if work is None or work[0].shape != (m + 1, n):
             work = (np.empty((m + 1, n)), np.empty((m, n)))
