@@ -126,7 +126,9 @@ class Newton:
         cells = np.matmul(blocks, pairs[:, :, None])[:, :, 0]
         if ex is not None:
             dB = system._exact_loads(ex, (x * self._col_scale).reshape(system.n_nodes, NV))
-            cells[:, E3:E3 + 3] += self._load_rows * (dB[:-1] + dB[1:])
+            # the load's weight in the scaled rows of E3: ½(1 − αf)·row scale
+            rs = self._row_scale[6:6 + NV * n_cells].reshape(n_cells, NV)[:, E3:E3 + 3]
+            cells[:, E3:E3 + 3] += (0.5 * (1.0 - system.params.alpha_f)) * rs * (dB[:-1] + dB[1:])
         out[6:6 + NV * n_cells] = cells.ravel()
         out[bc_rows] = bc_vals * x[bc_cols]
         return out
@@ -215,10 +217,6 @@ class Newton:
         rs, s12 = equilibrate(self.system, Y, blocks)
         self._row_scale = rs
         self._col_scale = np.tile(s12, self.system.n_nodes)
-        # the load's weight in the scaled cell rows of E3, ½(1 − αf)·row scale (N, 3)
-        n_cells = self.system.n_cells
-        self._load_rows = (0.5 * (1.0 - self.system.params.alpha_f)
-                           * rs[6:6 + NV * n_cells].reshape(n_cells, NV)[:, E3:E3 + 3])
         self._s12 = s12
         bc_rows, bc_cols, _ = self.system.bc.jacobian_entries()
         scaled, bc_scaled = self._scaled(blocks)
