@@ -93,6 +93,12 @@ class Newton:
     #: current Jacobian)
     GMRES_REFACTOR = 20
 
+    #: contact steps: the share of the node-local contact blocks that the band LU
+    #: preconditioning GMRES holds (the operator stays exact). All of them tie each
+    #: touching node to a fixed partner and cost GMRES iterations; none made Newton's
+    #: steps worse in the plies (measured on replayed seed steps: docs/contact.md § 4)
+    CONTACT_BAND_WEIGHT = 0.05
+
     #: contact steps: from this iterate on, the closest-point selection is frozen
     FREEZE_AFTER = 6
 
@@ -219,12 +225,12 @@ class Newton:
         self._col_scale = np.tile(s12, self.system.n_nodes)
         self._s12 = s12
         bc_rows, bc_cols, _ = self.system.bc.jacobian_entries()
-        scaled, bc_scaled = self._scaled(blocks)
-        # the band part (with the node-local contact blocks) is always LU-factorised;
-        # contact coupling between distant nodes, when present, is kept as a sparse
-        # matrix and the correction is solved by GMRES preconditioned with the band LU.
+        # the band part (with a share of the node-local contact blocks) is always
+        # LU-factorised; with self-contact the correction is solved by GMRES with the
+        # exact operator, preconditioned by the band LU
+        scaled, bc_scaled, ex = self._preconditioner_band(blocks)
         self.layout.factor(scaled, bc_rows, bc_cols, bc_scaled)
-        self._set_operator(scaled, bc_scaled)
+        self._set_operator(scaled, bc_scaled, ex)
         self.factor_valid = True
         self._factored_with_contact = self.system.candidates is not None
         self.factorizations += 1
@@ -234,10 +240,33 @@ class Newton:
         return scale_blocks(self.system, blocks, self._row_scale, self._s12,
                             self.layout.cell_rows)
 
-    def _set_operator(self, scaled, bc_scaled, stale=False):
+    def _preconditioner_band(self, blocks):
+        """The scaled cell blocks (N, 12, 24) and boundary values of the band that
+        preconditions GMRES, and the exact load data of the operator that goes with it.
+
+        The band holds the node-local contact blocks (``RodSystem.contact_band``) only with
+        the weight CONTACT_BAND_WEIGHT; the operator's node-local part is weighted alike,
+        so band + exact product is still the exact Jacobian. The row scale is that of the
+        full blocks (:func:`equilibrate`), so the residual test does not change."""
+        system = self.system
+        ex = system._exact if system.contact is not None else None
+        scaled, bc_scaled = self._scaled(blocks)
+        diag = getattr(system, "contact_band", None)
+        if diag is None or ex is None or self.CONTACT_BAND_WEIGHT == 1.0:
+            return scaled, bc_scaled, ex
+        cut = 1.0 - self.CONTACT_BAND_WEIGHT
+        n_cells = system.n_cells
+        rows = (0.5 * (1.0 - system.params.alpha_f) * cut
+                * self._row_scale[6:6 + NV * n_cells].reshape(n_cells, NV)[:, E3:E3 + 3])
+        cols = self._s12[0:6]
+        scaled[:, E3:E3 + 3, 0:6] -= rows[:, :, None] * diag[:-1] * cols
+        scaled[:, E3:E3 + 3, NV:NV + 6] -= rows[:, :, None] * diag[1:] * cols
+        return scaled, bc_scaled, dict(ex, L=ex["L"] - cut * diag)
+
+    def _set_operator(self, scaled, bc_scaled, ex, stale=False):
         """The (scaled) Jacobian for GMRES: band cells, boundary rows and the exact load
-        terms of the space-route pose; None when the band LU is the exact Jacobian."""
-        ex = self.system._exact if self.system.contact is not None else None
+        terms ``ex`` of the space-route pose (:meth:`_preconditioner_band`); None when
+        the band LU is the exact Jacobian."""
         if ex is None and not stale:
             self._coupled = None
             return
@@ -248,8 +277,8 @@ class Newton:
         """Contact steps between factorisations: the GMRES operator becomes the Jacobian
         at the current iterate (cell blocks (N, 12, 24) and the system's exact load data)
         while the (older) band LU stays the preconditioner."""
-        scaled, bc_scaled = self._scaled(blocks)
-        self._set_operator(scaled, bc_scaled, stale=True)
+        scaled, bc_scaled, ex = self._preconditioner_band(blocks)
+        self._set_operator(scaled, bc_scaled, ex, stale=True)
 
     def solve(self, Y_guess):
         """Newton iterations for the step set up by :meth:`RodSystem.begin_step`.

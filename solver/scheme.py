@@ -139,6 +139,7 @@ class RodSystem:
         self.candidates = None
         self._blocks = np.empty((self.n_cells, NV, 2 * NV))
         self._exact = None
+        self.contact_band = None
 
     # ------------------------------------------------------------------ per step setup
     def begin_step(self, dt, params: StepParameters, t_new, Y_old, Ydot_old, F_old,
@@ -348,6 +349,9 @@ class RodSystem:
             extra = (None, diag)
         Fn, dF = self.node_terms(Y, want_jacobian, pose_arg, glob, extra)
         if want_jacobian:
+            # the node-local contact blocks (N+1, 3, 6) now in the band, or None: Newton
+            # weights them in its preconditioner (Newton.CONTACT_BAND_WEIGHT)
+            self.contact_band = extra[1] if extra is not None else None
             self._exact = None
             if self.contact is not None and pose is not None and glob is not None:
                 self._exact = self._exact_data(Y, pose, glob, ev, extra[1] if extra else None)

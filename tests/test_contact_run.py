@@ -110,3 +110,48 @@ def test_gmres_solves_the_exact_contact_operator(monkeypatch):
     assert np.linalg.norm(captured["tight"] - exact) <= 1e-7 * np.linalg.norm(exact)
     r = np.linalg.norm(A @ captured["default"] - rhs) / np.linalg.norm(rhs)
     assert r <= 1e-4 * (1 + 1e-6)
+
+
+class _Captured(Exception):
+    pass
+
+
+def test_contact_operator_is_the_jacobian_of_the_residual(monkeypatch):
+    """The operator GMRES solves with in a contact step (the band, which holds only a
+    share of the node-local contact blocks, plus the matrix-free exact load product) is
+    the Jacobian of the step's residual: against central differences along random
+    directions at the first iterate with five pairs (N = 100)."""
+    from solver.newton import Newton
+
+    run = RodRun(fast_writhing_case(6.8))
+    assert 0.0 < Newton.CONTACT_BAND_WEIGHT < 1.0
+    captured = {}
+    solve = Newton._coupled_solve
+
+    def spy(self, rhs, *args, **kwargs):
+        ex = self._coupled[4]
+        if ex is not None and "nodes" in ex and len(ex["nodes"]) >= 5:
+            system = self.system
+            Y = system._pose_memo[0].copy()           # the iterate of this solve
+            rng = np.random.default_rng(1)
+            rows = []
+            for _ in range(3):
+                x = rng.standard_normal(rhs.size)
+                dY = (x * self._col_scale).reshape(Y.shape)
+                eps = 1e-6
+                Rp = system.residual(Y + eps * dY)[0]
+                Rm = system.residual(Y - eps * dY)[0]
+                rows.append((self._coupled_matvec(x),
+                             self._row_scale * (Rp - Rm) / (2.0 * eps)))
+            captured["pairs"] = rows
+            raise _Captured
+        return solve(self, rhs, *args, **kwargs)
+
+    monkeypatch.setattr(Newton, "_coupled_solve", spy)
+    k = 0
+    with pytest.raises(_Captured):
+        while run.t < 6.8 - 1e-9:
+            k += 1
+            run.advance(0.1 * k)
+    for product, central in captured["pairs"]:
+        assert np.max(np.abs(product - central)) <= 1e-6 * np.max(np.abs(central))
