@@ -13,7 +13,8 @@ The difference equations of a step (:class:`solver.scheme.RodSystem`) are solved
   contact forces depend on κ upstream of each node: the exact Jacobian is not banded.
   GMRES (right-preconditioned, Saad & Schultz 1986) solves with the exact operator
   applied matrix-free (:meth:`RodSystem._exact_loads`), preconditioned by the band LU
-  of the node-local (time-route) approximation. That LU is kept across iterates while
+  of the node-local (time-route) approximation with its contact blocks weighted by
+  ``CONTACT_BAND_WEIGHT`` (:meth:`_preconditioner_band`). That LU is kept across iterates while
   GMRES converges in at most ``GMRES_REFACTOR`` iterations and refactored when it needs
   more: about one factorisation per contact step (docs/contact.md).
 * **Feasible iterates.** A correction may close no candidate gap to less than
