@@ -1,0 +1,139 @@
+"""Per-step replays of the seed example's contact phase: solver variants compared step by
+step from the same states (issue 9).
+
+A replay of a window of the seed example from one saved state diverges from the
+original after a few steps (any change of rounding moves later Newton stalls), and on a
+shared machine the wall time of the same computation moves by tens of percent, so
+neither a window replay nor one run per version can judge a change of 10 %. Here the
+baseline solver advances the seed example (`cases/goyal-writhing.yaml`, 1000 segments,
+Δt = 0.1 s) through the chosen windows; before every nominal step inside a window its
+state is copied, and each variant advances that copy by one nominal step. Every variant
+thus starts every step from the same state, and its Newton iterations, GMRES iterations
+and band factorisations per step are deterministic; the sums per window are printed with
+the wall time (the variants run alternately, step by step, so their wall times share the
+machine's moods; the counts are what to compare first).
+
+A variant is a set of class attributes of :class:`solver.newton.Newton` (the solver's
+tuning constants), e.g. ``CONTACT_BAND_WEIGHT=1.0`` (all node-local contact blocks in the
+preconditioner, the setting before session 4) or ``GAP_KEEP=0.1``.
+
+Run: ``python benchmarks/replay_steps.py [--windows 18:21 26:29 34:36 41:44]
+[--variant NAME:ATTR=VALUE[,ATTR=VALUE...]] ...``; without ``--variant`` the baseline and
+``CONTACT_BAND_WEIGHT=1.0`` are compared. Results: benchmarks/results/replay_steps.json.
+About 3 min per variant for the default windows, plus 1 min to reach 18 s.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import pickle
+import time
+from pathlib import Path
+
+from threadpoolctl import threadpool_limits
+
+from solver import Case
+from solver.newton import Newton
+from solver.simulation import RodRun
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "benchmarks" / "results" / "replay_steps.json"
+
+
+def parse_variant(text: str) -> tuple[str, dict]:
+    """``NAME:ATTR=VALUE,...`` -> (NAME, {ATTR: float or int}); raises ValueError naming
+    an attribute that Newton does not have."""
+    name, _, body = text.partition(":")
+    settings = {}
+    for item in filter(None, body.split(",")):
+        attr, _, value = item.partition("=")
+        if not hasattr(Newton, attr):
+            raise ValueError(f"--variant {text!r}: Newton has no attribute {attr!r}")
+        current = getattr(Newton, attr)
+        settings[attr] = int(value) if isinstance(current, int) else float(value)
+    return name, settings
+
+
+def replay_step(snapshot: bytes, t_target: float, settings: dict) -> dict:
+    """One nominal step to t_target (s) from a pickled RodRun with the Newton class
+    attributes ``settings`` set for its duration; returns its counts and wall time."""
+    saved = {k: getattr(Newton, k) for k in settings}
+    try:
+        for k, v in settings.items():
+            setattr(Newton, k, v)
+        run = pickle.loads(snapshot)
+        g0, f0 = run.newton.gmres_iterations, run.newton.factorizations
+        t0 = time.perf_counter()
+        its, _ = run.advance(t_target)
+        wall = time.perf_counter() - t0
+        return {"newton": its, "gmres": run.newton.gmres_iterations - g0,
+                "factorizations": run.newton.factorizations - f0, "wall": wall}
+    finally:
+        for k, v in saved.items():
+            setattr(Newton, k, v)
+
+
+def replay(windows: list[tuple[float, float]], variants: dict[str, dict]) -> dict:
+    """Advance the seed example with the baseline through the windows (s), replaying every
+    nominal step inside them with each variant; returns the sums per window and variant
+    and the per-step Newton iterations."""
+    case = Case.from_file(ROOT / "cases" / "goyal-writhing.yaml")
+    dt = case.numerics.dt
+    run = RodRun(case)
+    out = {"windows": [list(w) for w in windows], "variants": variants, "results": {}}
+    end = max(w[1] for w in windows)
+    k = 0
+    with threadpool_limits(limits=1, user_api="blas"):
+        while run.t < end - 1e-9:
+            t_target = round((k + 1) * dt, 10)
+            window = next((w for w in windows if w[0] - 1e-9 <= run.t < w[1] - 1e-9), None)
+            if window is not None:
+                snapshot = pickle.dumps(run, protocol=pickle.HIGHEST_PROTOCOL)
+                for name, settings in variants.items():
+                    res = replay_step(snapshot, t_target, settings)
+                    key = f"{window[0]:g}-{window[1]:g}"
+                    acc = out["results"].setdefault(name, {}).setdefault(
+                        key, {"steps": 0, "newton": 0, "gmres": 0, "factorizations": 0,
+                              "wall": 0.0, "per_step_newton": []})
+                    acc["steps"] += 1
+                    for f in ("newton", "gmres", "factorizations", "wall"):
+                        acc[f] += res[f]
+                    acc["per_step_newton"].append(res["newton"])
+            run.advance(t_target)
+            k += 1
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--windows", nargs="+", default=["18:21", "26:29", "34:36", "41:44"],
+                    help="windows START:END in s of simulated time")
+    ap.add_argument("--variant", action="append", default=[],
+                    help="NAME:ATTR=VALUE[,ATTR=VALUE...] (Newton class attributes)")
+    args = ap.parse_args()
+    windows = []
+    for w in args.windows:
+        a, _, b = w.partition(":")
+        windows.append((float(a), float(b)))
+    variants = {"baseline": {}}
+    for text in args.variant or ["weight-1:CONTACT_BAND_WEIGHT=1.0"]:
+        name, settings = parse_variant(text)
+        variants[name] = settings
+    t0 = time.perf_counter()
+    res = replay(sorted(windows), variants)
+    res["wall_s"] = time.perf_counter() - t0
+    RESULTS.parent.mkdir(parents=True, exist_ok=True)
+    RESULTS.write_text(json.dumps(res, indent=1))
+    print(f"per-step replays of the seed example ({res['wall_s']:.0f} s); "
+          "Newton / GMRES iterations / factorisations / wall s")
+    for name, per in res["results"].items():
+        total = {f: sum(v[f] for v in per.values())
+                 for f in ("steps", "newton", "gmres", "factorizations", "wall")}
+        cells = "  ".join(f"{key}: {v['newton']} / {v['gmres']} / {v['factorizations']} / "
+                          f"{v['wall']:.1f}" for key, v in per.items())
+        print(f"{name:>12}  all {total['steps']} steps: {total['newton']} / {total['gmres']} / "
+              f"{total['factorizations']} / {total['wall']:.1f}   {cells}")
+
+
+if __name__ == "__main__":
+    main()
