@@ -95,9 +95,10 @@ class Newton:
     GMRES_REFACTOR = 20
 
     #: contact steps: the share of the node-local contact blocks that the band LU
-    #: preconditioning GMRES holds (the operator stays exact). All of them tie each
-    #: touching node to a fixed partner and cost GMRES iterations; none made Newton's
-    #: steps worse in the plies (measured on replayed seed steps: docs/contact.md § 4)
+    #: preconditioning GMRES holds (the operator stays exact). With all of them GMRES
+    #: needs more iterations (each touching node is tied to a fixed partner); without
+    #: any, Newton's steps were worse late in the seed example's plies (measured on
+    #: replayed seed steps: docs/contact.md § 4)
     CONTACT_BAND_WEIGHT = 0.05
 
     #: contact steps: from this iterate on, the closest-point selection is frozen
@@ -133,12 +134,17 @@ class Newton:
         cells = np.matmul(blocks, pairs[:, :, None])[:, :, 0]
         if ex is not None:
             dB = system._exact_loads(ex, (x * self._col_scale).reshape(system.n_nodes, NV))
-            # the load's weight in the scaled rows of E3: ½(1 − αf)·row scale
-            rs = self._row_scale[6:6 + NV * n_cells].reshape(n_cells, NV)[:, E3:E3 + 3]
-            cells[:, E3:E3 + 3] += (0.5 * (1.0 - system.params.alpha_f)) * rs * (dB[:-1] + dB[1:])
+            cells[:, E3:E3 + 3] += self._load_row_weight() * (dB[:-1] + dB[1:])
         out[6:6 + NV * n_cells] = cells.ravel()
         out[bc_rows] = bc_vals * x[bc_cols]
         return out
+
+    def _load_row_weight(self):
+        """The weight (N, 3) of a node load in the scaled E3 rows of its two cells,
+        ½(1 − αf)·row scale (the cell average of the loads at the α-level)."""
+        n_cells = self.system.n_cells
+        rs = self._row_scale[6:6 + NV * n_cells].reshape(n_cells, NV)[:, E3:E3 + 3]
+        return (0.5 * (1.0 - self.system.params.alpha_f)) * rs
 
     def _coupled_solve(self, rhs, rtol=1e-4, max_iterations=40):
         """Solve the contact-coupled (scaled) system by right-preconditioned GMRES.
@@ -256,9 +262,7 @@ class Newton:
         if diag is None or ex is None or self.CONTACT_BAND_WEIGHT == 1.0:
             return scaled, bc_scaled, ex
         cut = 1.0 - self.CONTACT_BAND_WEIGHT
-        n_cells = system.n_cells
-        rows = (0.5 * (1.0 - system.params.alpha_f) * cut
-                * self._row_scale[6:6 + NV * n_cells].reshape(n_cells, NV)[:, E3:E3 + 3])
+        rows = cut * self._load_row_weight()
         cols = self._s12[0:6]
         scaled[:, E3:E3 + 3, 0:6] -= rows[:, :, None] * diag[:-1] * cols
         scaled[:, E3:E3 + 3, NV:NV + 6] -= rows[:, :, None] * diag[1:] * cols
@@ -272,7 +276,8 @@ class Newton:
             self._coupled = None
             return
         bc_rows, bc_cols, _ = self.system.bc.jacobian_entries()
-        self._coupled = (scaled.copy(), bc_rows, bc_cols, bc_scaled, ex)
+        # ``scaled`` is a fresh array (scale_blocks), used by nothing else afterwards
+        self._coupled = (scaled, bc_rows, bc_cols, bc_scaled, ex)
 
     def update_operator(self, blocks):
         """Contact steps between factorisations: the GMRES operator becomes the Jacobian

@@ -354,7 +354,7 @@ class RodSystem:
             self.contact_band = extra[1] if extra is not None else None
             self._exact = None
             if self.contact is not None and pose is not None and glob is not None:
-                self._exact = self._exact_data(Y, pose, glob, ev, extra[1] if extra else None)
+                self._exact = self._exact_data(Y, pose, glob, ev, self.contact_band)
         Z = 0.5 * self.cm * self._apply_M(Y) + 0.5 * (1.0 - af) * Fn + self._zconst
         flux = (1.0 - af) * self._flux(Y) + self._flux_const
         R = np.empty(self.n)
