@@ -164,7 +164,8 @@ class RodRun:
         # error ratio of the last estimated step, the next step size; why the last
         # attempt was refused ("newton", "contact", "error", "growth")
         tol = num.tolerance
-        self.errctl = (ErrorControl(tol.relative, tol.absolute, self.system.floor, num.rho_inf)
+        self.errctl = (ErrorControl(tol.relative, tol.absolute, self.system.floor, num.rho_inf,
+                                    props.s)
                        if tol is not None else None)
         self.last_error_ratio = math.nan
         self.h_next = num.dt
