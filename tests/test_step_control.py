@@ -316,3 +316,23 @@ def test_tight_tolerances_do_not_chase_the_grid_modes_of_a_sudden_load():
         assert ds.sizes["step"] < 600, ds.sizes["step"]
         errors.append(np.abs(ds.position.isel(time=-1).values - final).max() / peak)
     assert errors[1] < 0.3 * errors[0] and errors[1] < 1e-2, errors
+
+
+def test_a_rolled_back_probe_step_keeps_what_the_growth_guard_learnt():
+    # step doubling and refused steps roll the run back; the guard's last σ (a band LU
+    # and an Arnoldi run to find) must survive, the state must not
+    from solver.simulation import RodRun
+
+    case = make_case(n_segments=8, dt=0.01, t_end=0.1, end=free_end(),
+                     forces=[{"value": [0.05, 0.0, 0.0], "start": 0.0}])
+    spec = case.model_dump()
+    spec["numerics"]["tolerance"] = {"relative": 1e-3, "absolute": 1e-3}
+    run = RodRun(Case.model_validate(spec))
+    before = run._state()
+    t0, Y0 = run.t, run.Y
+    run.try_step(1e-6, restart=True)
+    run.guard_sigma, run.guard_h, run.guard_since = 3.5, 0.02, 0
+    assert run.t > t0
+    run._restore(before)
+    assert run.t == t0 and run.Y is Y0
+    assert (run.guard_sigma, run.guard_h, run.guard_since) == (3.5, 0.02, 0)
