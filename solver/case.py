@@ -433,7 +433,10 @@ class DistributedForce(BaseModel):
     ``value`` is N/m in the global frame; ``start``/``end`` are times in s (``end`` None:
     until the end of the run; ``end`` must be > ``start``); ``s_range`` optionally limits
     it to arclengths ``[s0, s1]`` in m (``s0 < s1``, both within ``[0, rod.length]``,
-    checked by :class:`Case`).
+    checked by :class:`Case`); ``factor`` optionally scales it in time by a dimensionless
+    :class:`Table` (piecewise linear, held constant outside its knots), so that a load can
+    be ramped on and off smoothly instead of switched (a switch costs the scheme an order
+    at the switch unless the step lands on it and restarts, docs/numerics.md § 7).
     """
 
     model_config = _MODEL_CONFIG
@@ -445,6 +448,11 @@ class DistributedForce(BaseModel):
     )
     s_range: Optional[Annotated[list[Finite], Field(min_length=2, max_length=2)]] = Field(
         None, description="Arclength interval [s0, s1] the force acts on, m; s0 < s1 within [0, rod.length]; null: whole rod."
+    )
+    factor: Optional[Table] = Field(
+        None,
+        description="Dimensionless multiplier of value in time: a table {t: [s], value: [-]}, piecewise "
+        "linear, held constant outside its knots (e.g. a ramp {t: [0, 1], value: [0, 1]}); null: 1.",
     )
 
     @model_validator(mode="after")
@@ -461,6 +469,10 @@ class DistributedForce(BaseModel):
     def is_active(self, t: float) -> bool:
         """Whether the force acts at time ``t`` (s): ``start <= t < end``."""
         return self.start <= t and (self.end is None or t < self.end)
+
+    def scale_at(self, t: float) -> float:
+        """The ``factor`` table at time ``t`` (s), 1 without one (dimensionless)."""
+        return 1.0 if self.factor is None else self.factor.value_at(t)
 
 
 def _unit(v: list[float]) -> list[float]:

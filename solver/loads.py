@@ -7,7 +7,8 @@ assembled only when the case has it.
   part of the translational mass matrix (see :mod:`solver.properties`).
 * Gravity with buoyancy: ``B_g = (ρ - ρ_f) A Rᵀ g`` (ρ_f = 0 without fluid).
 * Time-windowed distributed forces given in the global frame: ``B = Rᵀ F(t)`` on
-  ``start <= t < end`` and, optionally, on an arclength window ``s0 <= s <= s1``.
+  ``start <= t < end`` and, optionally, on an arclength window ``s0 <= s <= s1``; F(t)
+  is ``value`` times the force's ``factor`` table at t (piecewise linear; 1 without one).
 
 Orientation-dependent loads are evaluated with the orientation at the new time level
 inside Newton; their derivative with respect to ω^{n+1} is ``(Δt_ω)[B]×`` where
@@ -65,7 +66,8 @@ class LoadModel:
                 s0, s1 = s_range
                 mask = (props.s >= s0 - 1e-12) & (props.s <= s1 + 1e-12)
             end = df.end if df.end is not None else np.inf
-            self.forces.append((float(df.start), float(end), mask.astype(float), val))
+            self.forces.append((float(df.start), float(end), mask.astype(float), val,
+                                df.factor))
         self.has_global = self.gravity is not None or bool(self.forces) or extra is not None
 
     def global_force(self, t: float, left: bool = False):
@@ -77,9 +79,10 @@ class LoadModel:
         out = None
         if self.gravity is not None:
             out = self.gravity.copy()
-        for start, end, mask, val in self.forces:
+        for start, end, mask, val, factor in self.forces:
             if (start < t <= end) if left else (start <= t < end):
-                contrib = mask[:, None] * val[None, :]
+                scale = 1.0 if factor is None else factor.value_at(t)
+                contrib = (scale * mask)[:, None] * val[None, :]
                 out = contrib if out is None else out + contrib
         if self.extra is not None:
             contrib = self.extra(t, self.owner)

@@ -71,7 +71,8 @@ def _table_kinks(t, value) -> list:
 def breakpoints(case) -> np.ndarray:
     """Times (s) in (0, t_end) at which the case's loads or boundary conditions change.
 
-    Collected: ``start`` and ``end`` of every distributed force with a non-zero value;
+    Collected: ``start`` and ``end`` of every distributed force with a non-zero value
+    (unless its ``factor`` table is 0 there: no jump) and the kinks of that table;
     ``until`` of every boundary condition; the kinks of every boundary table (held
     constant outside its knots) whose slope change exceeds KINK_FRACTION of the table's
     steepest slope: the corners of a ramp are breakpoints, the knots of a finely sampled
@@ -84,9 +85,13 @@ def breakpoints(case) -> np.ndarray:
     for df in case.distributed_forces:
         if not np.any(np.asarray(df.value, float) != 0):
             continue
-        times.append(float(df.start))
-        if df.end is not None:
+        # a switch (start/end) is a jump unless the factor is 0 on that side of it
+        if df.scale_at(df.start) != 0.0:
+            times.append(float(df.start))
+        if df.end is not None and df.scale_at(df.end) != 0.0:
             times.append(float(df.end))
+        if df.factor is not None:
+            times.extend(_table_kinks(df.factor.t, df.factor.value))
     for end in (case.boundary.start, case.boundary.end):
         for group in (end.translation, end.rotation):
             for conditions in group:

@@ -44,6 +44,7 @@ fluid:                          # omit: vacuum, and no fluid terms are assembled
 gravity: [0.0, 0.0, 0.0]        # m/s^2, global frame; omit: none
 distributed_forces:             # N/m, global frame, on [start, end) seconds
   - {value: [1.0e-4, 0.0, 0.0], start: 0.0, end: 20.0}
+  - {value: [0.0, 1.0e-4, 0.0], factor: {t: [0.0, 1.0], value: [0.0, 1.0]}}  # ramped on
 initial:                        # straight and stress-free, start end at the origin
   tangent: [0.0, 0.0, 1.0]      # global direction of a3 along the rod
   normal: [1.0, 0.0, 0.0]       # global direction of a1
