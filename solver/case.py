@@ -869,8 +869,13 @@ class Output(BaseModel):
     interval: Optional[Finite] = Field(
         None,
         gt=0,
-        description="With numerics.tolerance: keep the state every interval s (steps land on these "
-        "times) instead of every n-th step; > 0; null: use every.",
+        description="With numerics.tolerance: keep the state every interval s instead of every n-th "
+        "step; > 0; null: use every.",
+    )
+    interpolate: bool = Field(
+        True,
+        description="With interval: the states between steps are the steps' dense output (cubic "
+        "Hermite), so the outputs do not bound the steps; false: the steps land on the output times.",
     )
     fields: list[OutputField] = Field(
         default_factory=lambda: list(DEFAULT_OUTPUT_FIELDS),

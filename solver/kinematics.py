@@ -17,6 +17,8 @@ Seed: Goyal, Perkins & Lee, "Writhing dynamics of cables with self-contact", eqs
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 __all__ = [
@@ -81,6 +83,20 @@ def quat_exp(theta: np.ndarray) -> np.ndarray:
     out[..., 0] = np.cos(half)
     out[..., 1:] = sinc[..., None] * theta
     return out
+
+
+def quat_slerp(q0: np.ndarray, q1: np.ndarray, s: float) -> np.ndarray:
+    """Spherical linear interpolation of unit quaternions (4,) at s ∈ [0, 1]: the rotation
+    q0 ⊗ exp(s·θ), θ the rotation vector of q0⁻¹ ⊗ q1 taken the short way (Shoemake,
+    SIGGRAPH 1985): constant angular velocity about a fixed axis between the two."""
+    q0 = np.asarray(q0, float)
+    q1 = np.asarray(q1, float)
+    rel = quat_multiply(q0 * np.array([1.0, -1.0, -1.0, -1.0]), q1)
+    if rel[0] < 0.0:
+        rel = -rel
+    vn = float(np.linalg.norm(rel[1:]))
+    theta = (2.0 * math.atan2(vn, rel[0]) / vn) * rel[1:] if vn > 0.0 else np.zeros(3)
+    return quat_multiply(q0, quat_exp(s * theta))
 
 
 def quat_to_matrix(q: np.ndarray) -> np.ndarray:

@@ -24,12 +24,13 @@ from .banded import BandLayout
 from .boundary import BoundaryRows
 from .contact import SelfContact, close_node_pairs, swept_min_distance
 from .energies import distributed_power, end_loads, end_power, energies
-from .kinematics import quat_exp, quat_from_matrix, quat_multiply, quat_to_matrix, space_route
+from .kinematics import (quat_exp, quat_from_matrix, quat_multiply, quat_slerp,
+                         quat_to_matrix, space_route)
 from .loads import LoadModel
 from .properties import RodProperties
 from .newton import Newton
 from .scheme import BACKWARD_EULER, RodSystem, alpha_parameters
-from .stepping import RESTART_FRACTION, ErrorControl, breakpoints, growth_rate
+from .stepping import RESTART_FRACTION, ErrorControl, breakpoints, growth_rate, hermite
 
 __all__ = ["simulate", "SolverDivergence", "Progress", "RodRun", "RateEstimate"]
 
@@ -738,6 +739,41 @@ class RodRun:
         return total_its
 
     # -------------------------------------------------------------------------------
+    def dense_state(self):
+        """What :meth:`interpolated_snapshot` needs of the level a step starts from (the
+        accepted-step path rebinds every array it changes, so references suffice)."""
+        return (self.t, self.Y, self.Ydot, self.q_time, self.r_time, self.v_global_time,
+                self.phi, self.xdot_end[:, 5], self.work_in, self.power)
+
+    def interpolated_snapshot(self, fields: set, t: float, start) -> dict:
+        """:meth:`snapshot` at a time t (s) inside the last accepted step, which began at
+        the :meth:`dense_state` ``start``: the dense output of error-controlled steps.
+
+        Y (v, ω, f, κ), the time-route positions, the end rotations φ (linking number)
+        and the work put in by cubic Hermite interpolation between the step's levels with
+        their rates (Ẏ of the scheme, the global node velocities, φ̇, the power:
+        :func:`solver.stepping.hermite`); the anchor's orientation by slerp; the centreline
+        and frames then by the space route from the interpolated κ, as at a step. The
+        contact count and smallest gap, Newton's figures and Δt are the step's (the
+        interpolated state is not itself checked for contact). Returns the snapshot dict.
+        """
+        import copy
+
+        t0, Y0, D0, q0, r0, v0, phi0, dphi0, w0, p0 = start
+        h = self.t - t0
+        s = (t - t0) / h
+        view = copy.copy(self)
+        view.t = t
+        view.Y = hermite(s, h, Y0, D0, self.Y, self.Ydot)
+        view.r_time = hermite(s, h, r0, v0, self.r_time, self.v_global_time)
+        view.q_time = self.q_time.copy()
+        view.q_time[0] = quat_slerp(q0[0], self.q_time[0], s)
+        view.phi = hermite(s, h, phi0, dphi0, self.phi, self.xdot_end[:, 5])
+        view.work_in = float(hermite(s, h, w0, p0, self.work_in, self.power))
+        view.power = (1.0 - s) * p0 + s * self.power
+        view.update_space_route()
+        return view.snapshot(fields)
+
     def snapshot(self, fields: set) -> dict:
         """Output quantities of the current state for the requested field groups."""
         out = {}
@@ -881,9 +917,15 @@ def _simulate(case, progress, should_stop, checkpoint=None, checkpoint_interval=
                                   wall_before + _time.perf_counter() - wall0))
             last_checkpoint[0] = _time.perf_counter()
 
-    def record():
-        times.append(run.t)
-        records.append(run.snapshot(fields))
+    def record(t=None, start=None):
+        """Keep the state now, or (error-controlled steps) at t inside the last step,
+        which began at the dense state ``start``."""
+        if t is None:
+            times.append(run.t)
+            records.append(run.snapshot(fields))
+        else:
+            times.append(t)
+            records.append(run.interpolated_snapshot(fields, t, start))
 
     def finish(status, message="", reason=None):
         if status != "completed":
@@ -979,12 +1021,15 @@ def _simulate(case, progress, should_stop, checkpoint=None, checkpoint_interval=
 
 def _simulate_adaptive(case, run, record, finish, stopped, accepted, step=0):
     """The time loop of error-controlled steps (``numerics.tolerance``): one accepted
-    step per pass, the state kept at every ``output.interval`` s (the steps land on those
-    times) or, without an interval, every ``output.every``-th step; the diagnostics hold
-    every accepted step. ``stopped`` and ``accepted`` are :func:`_simulate`'s helpers;
-    ``step``: the accepted steps so far (a resumed run)."""
+    step per pass, the state kept at every ``output.interval`` s or, without an interval,
+    every ``output.every``-th step; the diagnostics hold every accepted step. With an
+    interval the outputs inside a step are its dense output
+    (:meth:`RodRun.interpolated_snapshot`; ``output.interpolate``, the default) or the
+    steps land on them (``interpolate: false``). ``stopped`` and ``accepted`` are
+    :func:`_simulate`'s helpers; ``step``: the accepted steps so far (a resumed run)."""
     t_end = case.numerics.t_end
     interval = case.output.interval
+    dense = interval is not None and case.output.interpolate
     every = case.output.every
     next_out = t_end
     if interval is not None:
@@ -993,8 +1038,9 @@ def _simulate_adaptive(case, run, record, finish, stopped, accepted, step=0):
         out = stopped()
         if out is not None:
             return out
+        start = run.dense_state() if dense else None
         try:
-            its, res = run.step_adaptive(next_out)
+            its, res = run.step_adaptive(t_end if dense else next_out)
         except SolverDivergence as exc:
             exc.step = step
             exc.partial = finish("failed", str(exc), exc.reason)
@@ -1002,9 +1048,16 @@ def _simulate_adaptive(case, run, record, finish, stopped, accepted, step=0):
         step += 1
         done = run.t >= t_end * (1.0 - 1e-12)
         if interval is not None:
-            if run.t >= next_out * (1.0 - 1e-12) or done:
-                record()
-                k = math.floor(run.t / interval + 1e-9) + 1
+            # every output time the step reached: inside it interpolated, at its end the
+            # state itself
+            while next_out <= run.t * (1.0 + 1e-12) or done:
+                if next_out < run.t * (1.0 - 1e-12) and start is not None:
+                    record(next_out, start)
+                else:
+                    record()
+                if next_out >= t_end * (1.0 - 1e-12):
+                    break
+                k = math.floor(next_out / interval + 1e-9) + 1
                 next_out = min(k * interval, t_end)
         elif step % every == 0 or done:
             record()

@@ -44,7 +44,7 @@ import math
 import numpy as np
 
 __all__ = ["breakpoints", "RESTART_FRACTION", "ErrorControl", "DisplacementWeight",
-           "error_constant", "growth_rate"]
+           "error_constant", "growth_rate", "hermite"]
 
 #: size of the backward-Euler restart step, as a fraction of the nominal Δt
 RESTART_FRACTION = 1e-4
@@ -107,6 +107,18 @@ def breakpoints(case) -> np.ndarray:
         if not out or t > out[-1] * (1.0 + 1e-12) + 1e-300:
             out.append(t)
     return np.asarray(out, float)
+
+
+# --------------------------------------------------------------------------- dense output
+def hermite(s: float, h: float, a, da, b, db):
+    """Cubic Hermite interpolant at the fraction s ∈ [0, 1] of a step of h (s) between
+    values a, b with time derivatives da, db (arrays of one shape, or floats): the dense
+    output of an error-controlled step (Hairer, Nørsett & Wanner I, § II.6). With the
+    scheme's Ẏ (second-order accurate) its error is O(h³), below the O(h²) global error
+    the tolerance controls."""
+    s2, s3 = s * s, s * s * s
+    return ((2.0 * s3 - 3.0 * s2 + 1.0) * a + (s3 - 2.0 * s2 + s) * h * da
+            + (3.0 * s2 - 2.0 * s3) * b + (s3 - s2) * h * db)
 
 
 # --------------------------------------------------------------------------- growth guard

@@ -238,7 +238,7 @@ def test_canonical_json_fills_defaults(data):
     del data["output"], data["initial"], data["distributed_forces"]
     del data["numerics"]["rho_inf"], data["numerics"]["newton"]
     out = json.loads(Case.model_validate(data).canonical_json())
-    assert out["output"] == {"every": 1, "interval": None,
+    assert out["output"] == {"every": 1, "interval": None, "interpolate": True,
                              "fields": ["v", "omega", "f", "kappa", "position", "energies", "topology"]}
     assert out["initial"] == {"tangent": [0.0, 0.0, 1.0], "normal": [1.0, 0.0, 0.0]}
     assert out["numerics"]["rho_inf"] == 0.5
