@@ -13,6 +13,7 @@ the scheme consistently (:mod:`solver.stepping`, docs/numerics.md § 7).
 """
 from __future__ import annotations
 
+import copy
 import math
 import pickle
 import time as _time
@@ -757,8 +758,6 @@ class RodRun:
         contact count and smallest gap, Newton's figures and Δt are the step's (the
         interpolated state is not itself checked for contact). Returns the snapshot dict.
         """
-        import copy
-
         t0, Y0, D0, q0, r0, v0, phi0, dphi0, w0, p0 = start
         h = self.t - t0
         s = (t - t0) / h
