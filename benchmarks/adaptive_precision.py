@@ -200,7 +200,9 @@ def markdown(res: dict) -> str:
              "and seed problems (what these measure, a 1e-7 m imperfection, a bending "
              "energy 1e-12 of the torsional one, lies far below the fields' sizes), the "
              "first step being that setting's Δt. The "
-             "fixed setting is re-timed in the same run. Estimator, controller and filter: "
+             "fixed setting is re-timed in the same run; the seed's state every 0.1 s is "
+             "the steps' dense output (output.interpolate), so the outputs do not bound its "
+             "steps. Estimator, displacement weight, controller and filter: "
              "docs/numerics.md § 7. Total time of this section: "
              f"{res['wall_total_s']:.0f} s.", ""]
     if res["quick"]:
