@@ -113,9 +113,13 @@ def breakpoints(case) -> np.ndarray:
 def hermite(s: float, h: float, a, da, b, db):
     """Cubic Hermite interpolant at the fraction s ∈ [0, 1] of a step of h (s) between
     values a, b with time derivatives da, db (arrays of one shape, or floats): the dense
-    output of an error-controlled step (Hairer, Nørsett & Wanner I, § II.6). With the
-    scheme's Ẏ (second-order accurate) its error is O(h³), below the O(h²) global error
-    the tolerance controls."""
+    output of an error-controlled step (Hairer, Nørsett & Wanner I, § II.6). The scheme's
+    Ẏ approximates Y' only to first order at its level when ρ∞ < 1 (the α-levels shift
+    it by about (αm − αf)h; second order at ρ∞ = 1), so with it the interpolant's error is
+    O(h²), the order of the global error the tolerance controls. Measured on the swung
+    cantilever (ρ∞ = 0.5): the interpolated positions lie within 1-3× the tolerance of a
+    fine run; a quadratic through the last three accepted levels instead (no Ẏ) gave the
+    same errors to 10 % (tried, not kept)."""
     s2, s3 = s * s, s * s * s
     return ((2.0 * s3 - 3.0 * s2 + 1.0) * a + (s3 - 2.0 * s2 + s) * h * da
             + (3.0 * s2 - 2.0 * s3) * b + (s3 - s2) * h * db)
