@@ -383,10 +383,14 @@ class RodRun:
                 self._guard_layout = BandLayout(self.system.n_cells)
             sigma, vec = growth_rate(self.system, Y, 2.0 * g / h, self._guard_layout,
                                      self.guard_v0)
-            if h > 2.0 * self.guard_h_max:
+            # further out (16g/h) at new largest steps, and when a growth known from the
+            # last check is not in the near disc any more: under a rising load σ grows
+            # past 4g/h rather than vanishing (the stability map's twisted rod at Δt =
+            # 0.3 s: σ = 2.2 s⁻¹, then none in (0, 14), then 21 s⁻¹ one step later)
+            if h > 2.0 * self.guard_h_max or (not sigma > 0.0 and self.guard_sigma > 0.0):
                 far, _ = growth_rate(self.system, Y, 16.0 * g / h, self._guard_layout)
                 sigma = max(sigma, far)
-                self.guard_h_max = h
+                self.guard_h_max = max(self.guard_h_max, h)
             self.guard_sigma = max(sigma, 0.0)
             self.guard_v0 = vec
             self.guard_h = h

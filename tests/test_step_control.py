@@ -432,3 +432,37 @@ def test_dense_output_does_not_bound_the_steps():
         err = np.abs(ds.position.values - at).max() / 0.4
         assert err < 1e-2, (interpolate, err)
     assert steps[True] == free < steps[False]
+
+
+def test_the_guard_looks_further_when_a_known_growth_leaves_its_disc():
+    """The stability map's rod (benchmarks/stability_map.py: 0.5 m, 40 segments, 5 N of
+    tension, twisted at 10 rad/s to 1.1x Greenhill's critical twist, an imperfection
+    load) at Δt = 0.3 s, ρ∞ = 0.5: under the rising twist σ went 1.0, 2.2 s⁻¹, then no
+    growth in the next check's disc (0, 4g/Δt), then 21 s⁻¹ one step later, too late:
+    the rod ended straight at T = 1.8 s (writhe −0.003 against the reference's −0.166).
+    A growth that leaves the near disc is now looked for at 16g/Δt: found at 1.2 s, the
+    step cut, and the rod buckles (measured writhe −0.26)."""
+    zero, rot0 = {"velocity": 0.0}, {"angular_velocity": 0.0}
+    rate, ramp, phi = 10.0, 0.1, 14.863684701399588      # stability_map.twist_angle()
+    spec = {
+        "schema_version": 1, "name": "guard",
+        "rod": {"length": 0.5, "youngs_modulus": 1.25e7, "shear_modulus": 5.0e6,
+                "density": 1500.0, "diameter": 0.02},
+        "fluid": {"density": 1000.0, "added_mass_coefficient": 1.0,
+                  "drag_coefficient_normal": 1.2},
+        "distributed_forces": [{"value": [0.02, 0.0, 0.0], "start": 0.0,
+                                "s_range": [0.15, 0.25]}],
+        "boundary": {
+            "start": {"translation": [zero, zero, zero],
+                      "rotation": [rot0, rot0, {"angular_velocity": {
+                          "t": [0.0, ramp, phi / rate, phi / rate + ramp],
+                          "value": [0.0, rate, rate, 0.0]}}]},
+            "end": {"translation": [zero, zero, {"force": 5.0}],
+                    "rotation": [rot0, rot0, rot0]}},
+        "numerics": {"n_segments": 40, "dt": 0.3, "t_end": 1.8, "rho_inf": 0.5},
+        "output": {"every": 1, "fields": ["position", "topology"]},
+    }
+    ds = simulate(Case.model_validate(spec))
+    assert ds.attrs["hockle_status"] == "completed"
+    assert abs(float(ds.writhe.values[-1])) > 0.1 * 0.166
+    assert float(np.nanmax(ds.step_growth_rate.values)) > 10.0
