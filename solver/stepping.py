@@ -241,7 +241,10 @@ class DisplacementWeight:
     cells at the ends): w_j u_j − ℓ²[(u_{j+1} − u_j)/h_j − (u_j − u_{j−1})/h_{j−1}] =
     w_j e_j, a symmetric positive definite tridiagonal system, factorised once (LAPACK
     ``dpttrf``, L D Lᵀ) and solved per call (``dpttrs``); constants pass exactly.
-    Calling the object on e (N+1, m) returns u (N+1, m).
+    Calling the object on e (N+1, m) returns u (N+1, m). Parameters: s (N+1,) node
+    arclengths, m, increasing; length_factor: ℓ in units of L/π. Raises ArithmeticError
+    if the factorisation fails (it cannot for increasing s: the matrix is diagonally
+    dominant).
     """
 
     def __init__(self, s, length_factor: float = 1.0):
