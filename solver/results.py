@@ -183,6 +183,9 @@ DIAGNOSTIC_VARIABLES: dict[str, tuple[str, str]] = {
     "step_residual_norm": ("1", "final scaled Newton residual norm of the accepted step"),
     "step_growth_rate": ("s-1", "largest growth rate sigma of the linearised dynamics at the "
                          "last growth-guard check (0: none found; NaN: not checked)"),
+    "step_rejected_attempts": ("1", "attempts refused before the accepted step (error "
+                               "estimate, Newton, contact or growth guard), each followed "
+                               "by a smaller time step"),
 }
 
 # ACDD-1.3 coverage_content_type (ISO 19115-1 MD_CoverageContentTypeCode) of each variable;
@@ -198,6 +201,7 @@ COVERAGE_CONTENT_TYPES: dict[str, str] = {
     "dt": "auxiliaryInformation",
     "step_dt": "auxiliaryInformation",
     "step_growth_rate": "auxiliaryInformation",
+    "step_rejected_attempts": "qualityInformation",
 }
 
 # CF-1.12 section 3.4: quality variables linked to the variable whose values they qualify
@@ -260,7 +264,8 @@ DEFAULT_METADATA: dict[str, str] = {
     "license": "not specified (the operator sets HOCKLE_LICENSE)",
 }
 
-_INTEGER_VARIABLES = {"contact_count", "newton_iterations", "step_newton_iterations"}
+_INTEGER_VARIABLES = {"contact_count", "newton_iterations", "step_newton_iterations",
+                      "step_rejected_attempts"}
 
 _COMPRESSED = {"dtype": "float64", "zlib": True, "complevel": 4, "shuffle": True}
 
@@ -384,7 +389,8 @@ def build_dataset(
         ``position_route_difference``: (T,) m.
     diagnostics:
         Per accepted step, all of length K: ``step_time`` (s), ``step_dt`` (s),
-        ``step_newton_iterations``, ``step_residual_norm``, ``step_growth_rate`` (1/s).
+        ``step_newton_iterations``, ``step_residual_norm``, ``step_growth_rate`` (1/s),
+        ``step_rejected_attempts`` (optional).
         An empty mapping adds no ``step`` dimension.
     status:
         ``"completed"``, ``"stopped"`` or ``"failed"`` (global attribute

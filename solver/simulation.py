@@ -172,6 +172,9 @@ class RodRun:
         self.last_error_ratio = math.nan
         self.h_next = num.dt
         self.last_reject = None
+        # refused step attempts so far, by reason (the dataset's step_rejected_attempts
+        # and hockle_refused_attempts)
+        self.refusals = {"error": 0, "newton": 0, "contact": 0, "growth": 0}
         self.last_had_candidates = False
         # growth guard (solver.stepping.growth_rate): the last estimate of the fastest
         # growth rate σ (1/s; NaN: not yet checked), the Δt it was checked at, the largest
@@ -563,6 +566,7 @@ class RodRun:
                     self.restart_pending = True
                 self.last_iterations = total_its
                 return total_its, res
+            self.refusals[self.last_reject] = self.refusals.get(self.last_reject, 0) + 1
             if self.last_reject == "error":
                 h = ctl.rejected(h_try, self.last_error_ratio)
             elif self.last_reject == "growth":
@@ -731,6 +735,7 @@ class RodRun:
                     self.grow_after = self.GROW_AFTER
                 continue
             self.accepted_at_level = 0
+            self.refusals[self.last_reject] = self.refusals.get(self.last_reject, 0) + 1
             if grew and level == 0:
                 # a growth to the nominal Δt that failed at once: wait twice as long
                 # before the next one (below the nominal Δt a growth is cheap to retry)
@@ -899,7 +904,8 @@ def _simulate(case, progress, should_stop, checkpoint=None, checkpoint_interval=
         run = RodRun(case, extra_force)
         times, records = [], []
         diag = {"step_time": [], "step_dt": [], "step_newton_iterations": [],
-                "step_residual_norm": [], "step_growth_rate": []}
+                "step_residual_norm": [], "step_growth_rate": [],
+                "step_rejected_attempts": []}
         first_step, wall_before = 1, 0.0
     else:
         if resume.case_hash != resume_key(case):
@@ -912,6 +918,7 @@ def _simulate(case, progress, should_stop, checkpoint=None, checkpoint_interval=
         if extra_force is not None:
             run.loads.extra = extra_force
     last_checkpoint = [_time.perf_counter()]
+    refused_before = [sum(run.refusals.values())]
     done = [first_step - 1]                   # accepted steps so far
 
     def save():
@@ -943,6 +950,8 @@ def _simulate(case, progress, should_stop, checkpoint=None, checkpoint_interval=
             ds.attrs["hockle_stop_reason"] = reason
         ds.attrs["wall_time_s"] = wall_before + _time.perf_counter() - wall0
         ds.attrs["factorizations"] = run.newton.factorizations
+        ds.attrs["hockle_refused_attempts"] = ", ".join(
+            f"{k} {v}" for k, v in sorted(run.refusals.items()))
         if resume is not None:
             ds.attrs["hockle_resumed_at"] = resume.t
         return ds
@@ -972,6 +981,9 @@ def _simulate(case, progress, should_stop, checkpoint=None, checkpoint_interval=
         diag["step_newton_iterations"].append(its)
         diag["step_residual_norm"].append(res)
         diag["step_growth_rate"].append(run.guard_sigma)
+        refused = sum(run.refusals.values())
+        diag["step_rejected_attempts"].append(refused - refused_before[0])
+        refused_before[0] = refused
         done[0] = step
         if progress is not None:
             wall = _time.perf_counter() - wall0

@@ -290,6 +290,13 @@ def test_the_first_step_after_a_restart_is_measured():
     ds = simulate(pulse_case(1e-3, dt=0.2))
     assert ds.attrs["hockle_status"] == "completed"
     assert ds.step_dt.values[0] < 0.1          # refused at 0.2 s and cut
+    # the refusals are in the result: per accepted step, and by reason in the attributes
+    assert ds.step_rejected_attempts.values[0] >= 1
+    assert ds.step_rejected_attempts.dtype.kind == "i"
+    refused = dict(item.split() for item in ds.attrs["hockle_refused_attempts"].split(", "))
+    assert int(refused["error"]) >= 1
+    assert int(refused["error"]) + int(refused["newton"]) + int(refused["contact"]) \
+        + int(refused["growth"]) == int(ds.step_rejected_attempts.sum())
     err = np.abs(ds.position.isel(time=-1).values - ref).max() / 0.4
     assert err < 1e-2, err
 
