@@ -66,8 +66,7 @@ class LoadModel:
                 s0, s1 = s_range
                 mask = (props.s >= s0 - 1e-12) & (props.s <= s1 + 1e-12)
             end = df.end if df.end is not None else np.inf
-            self.forces.append((float(df.start), float(end), mask.astype(float), val,
-                                df.factor))
+            self.forces.append((float(df.start), float(end), mask.astype(float), val, df))
         self.has_global = self.gravity is not None or bool(self.forces) or extra is not None
 
     def global_force(self, t: float, left: bool = False):
@@ -79,10 +78,9 @@ class LoadModel:
         out = None
         if self.gravity is not None:
             out = self.gravity.copy()
-        for start, end, mask, val, factor in self.forces:
+        for start, end, mask, val, df in self.forces:
             if (start < t <= end) if left else (start <= t < end):
-                scale = 1.0 if factor is None else factor.value_at(t)
-                contrib = (scale * mask)[:, None] * val[None, :]
+                contrib = (df.scale_at(t) * mask)[:, None] * val[None, :]
                 out = contrib if out is None else out + contrib
         if self.extra is not None:
             contrib = self.extra(t, self.owner)

@@ -566,7 +566,7 @@ class RodRun:
                     self.restart_pending = True
                 self.last_iterations = total_its
                 return total_its, res
-            self.refusals[self.last_reject] = self.refusals.get(self.last_reject, 0) + 1
+            self._count_refusal()
             if self.last_reject == "error":
                 h = ctl.rejected(h_try, self.last_error_ratio)
             elif self.last_reject == "growth":
@@ -578,6 +578,10 @@ class RodRun:
                     f"time step from t = {self.t:.6g} s could not be completed above the "
                     f"smallest step 1e-9 t_end = {h_min:.3g} s "
                     f"(last refusal: {self.last_reject})", h_try, res, nonfinite)
+
+    def _count_refusal(self) -> None:
+        """Count the attempt just refused under its reason (:attr:`last_reject`)."""
+        self.refusals[self.last_reject] = self.refusals.get(self.last_reject, 0) + 1
 
     def _state(self):
         """The run's state between steps, for :meth:`_restore` (the accepted-step path
@@ -735,7 +739,7 @@ class RodRun:
                     self.grow_after = self.GROW_AFTER
                 continue
             self.accepted_at_level = 0
-            self.refusals[self.last_reject] = self.refusals.get(self.last_reject, 0) + 1
+            self._count_refusal()
             if grew and level == 0:
                 # a growth to the nominal Δt that failed at once: wait twice as long
                 # before the next one (below the nominal Δt a growth is cheap to retry)
