@@ -17,8 +17,16 @@ Printed and written to benchmarks/results/seed_accuracy.json:
   outputs: > 0 means the centreline never interpenetrates;
 * wall time of each run.
 
-Run: ``python benchmarks/seed_accuracy.py [--t1 21.0] [--quick]`` (quick: references at
-25 ms and 12.5 ms, to 19.5 s).
+With ``--tolerances`` (default 1e-2, 3e-3, 1e-3, 1e-4) the same window is also run from
+the same state with error-controlled steps (``numerics.tolerance`` = {relative: tol,
+absolute: 1e-6·tol}, first step and dt_max 0.1 s, steps landing on the 0.1-s outputs; the
+estimator's field peaks start from the 18-s state), each once with the route rule's
+tolerance tied to the tolerance (``RodRun.ROUTE_RELATIVE``, the default) and once with the
+search margin's quarter alone ("untied", as before session 6): rows ``tolerance <tol>``
+and ``tolerance <tol> untied``.
+
+Run: ``python benchmarks/seed_accuracy.py [--t1 21.0] [--quick] [--tolerances 1e-3,1e-4]``
+(quick: references at 25 ms and 12.5 ms, to 19.5 s; ``--tolerances ''``: none).
 """
 from __future__ import annotations
 
@@ -75,6 +83,45 @@ def advance(run: RodRun, t1: float, h: float, out_every: float = 0.1) -> tuple[l
     return recs, time.perf_counter() - t0
 
 
+def with_tolerance(base: RodRun, relative: float, tied: bool = True) -> RodRun:
+    """A copy of ``base`` that goes on with error-controlled steps: the estimator and the
+    route rule's tolerance are those ``RodRun`` sets up for the case with
+    numerics.tolerance = {relative, absolute: 1e-6·relative} and dt_max = 0.1 s (with
+    ``tied`` False, the route rule keeps the search margin's quarter)."""
+    spec = base.case.model_dump()
+    spec["numerics"].update(tolerance={"relative": relative, "absolute": 1e-6 * relative},
+                            dt_max=0.1)
+    case = Case.model_validate(spec)
+    saved = RodRun.ROUTE_RELATIVE
+    RodRun.ROUTE_RELATIVE = saved if tied else None
+    try:
+        fresh = RodRun(case)
+    finally:
+        RodRun.ROUTE_RELATIVE = saved
+    run = copy.deepcopy(base)
+    run.case, run.errctl, run.route_tolerance = case, fresh.errctl, fresh.route_tolerance
+    run.errctl.reset(run.t, run.Y)
+    run.h_next = case.numerics.dt
+    return run
+
+
+def advance_adaptive(run: RodRun, t1: float, out_every: float = 0.1) -> tuple[list, float, int]:
+    """Error-controlled steps to t1 (s), landing on and recording every out_every (s);
+    returns (records, wall s, accepted steps)."""
+    recs = [record(run)]
+    t0 = time.perf_counter()
+    steps = 0
+    n = int(round((t1 - run.t) / out_every))
+    start = run.t
+    for k in range(1, n + 1):
+        stop = start + k * out_every
+        while run.t < stop - 1e-9 * out_every:
+            run.step_adaptive(stop)
+            steps += 1
+        recs.append(record(run))
+    return recs, time.perf_counter() - t0, steps
+
+
 def crossing(ts, ys, level):
     for k in range(1, len(ts)):
         if ys[k - 1] < level <= ys[k]:
@@ -95,7 +142,10 @@ def main() -> None:
     ap.add_argument("--t0", type=float, default=18.0)
     ap.add_argument("--t1", type=float, default=21.0)
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--tolerances", default="1e-2,3e-3,1e-3,1e-4",
+                    help="comma-separated relative tolerances of error-controlled runs")
     args = ap.parse_args()
+    tolerances = [float(x) for x in args.tolerances.split(",") if x.strip()]
     from threadpoolctl import threadpool_limits
 
     t1 = 19.5 if args.quick else args.t1
@@ -109,16 +159,25 @@ def main() -> None:
             recs, wall = advance(copy.deepcopy(base), t1, h)
             runs[name] = {"h": h, "wall_s": wall, "records": recs, "events": events(recs)}
             print(f"{name}: nominal Δt {h} s, wall {wall:.1f} s, events {runs[name]['events']}")
+        for tol in tolerances:
+            for tied in (True, False):
+                name = f"tolerance {tol:g}" + ("" if tied else " untied")
+                recs, wall, steps = advance_adaptive(with_tolerance(base, tol, tied), t1)
+                runs[name] = {"tolerance": tol, "route_tied": tied, "steps": steps,
+                              "wall_s": wall, "records": recs, "events": events(recs)}
+                print(f"{name}: {steps} steps, wall {wall:.1f} s, events {runs[name]['events']}",
+                      flush=True)
     ref = np.array([r["writhe"] for r in runs["reference"]["records"]])
     scale = float(np.max(np.abs(ref)))
     summary = {"t0": args.t0, "t1": t1, "writhe_scale": scale}
-    for name in ("production", "reference_coarse"):
+    for name in [k for k in runs if k != "reference"]:
         wr = np.array([r["writhe"] for r in runs[name]["records"]])
         diff = float(np.max(np.abs(wr - ref)))
         ev = {k: (None if v is None or runs["reference"]["events"][k] is None
                   else v - runs["reference"]["events"][k]) for k, v in runs[name]["events"].items()}
         summary[name] = {"writhe_max_abs_diff": diff, "writhe_rel_diff": diff / scale,
-                         "event_time_diffs_s": ev, "wall_s": runs[name]["wall_s"]}
+                         "event_time_diffs_s": ev, "wall_s": runs[name]["wall_s"],
+                         "steps": runs[name].get("steps")}
     for name, r in runs.items():
         summary.setdefault(name, {})
         summary[name]["max_topology_error"] = max(x["topology_error"] for x in r["records"])
@@ -134,6 +193,8 @@ def main() -> None:
           f"reference differs by {summary['reference_coarse']['writhe_rel_diff'] * 100:.2f} %")
     print("event time differences (s):", p["event_time_diffs_s"])
     for name in runs:
+        if name != "reference":
+            print(f"{name}: writhe {summary[name]['writhe_rel_diff'] * 100:.2f} % off")
         print(f"{name}: max |Tw+Wr-Lk| {summary[name]['max_topology_error']:.2e}, "
               f"min surface gap {summary[name]['min_surface_gap_m'] * 1e3:.3f} mm, "
               f"wall {summary[name]['wall_s']:.1f} s")

@@ -118,6 +118,15 @@ class RodRun:
     GUARD_EVERY = 10  # accepted steps between growth-guard checks at an unchanged Δt
     GROW_AFTER_MAX = 48  # the same after repeated failed growths (doubling back-off)
 
+    #: with numerics.tolerance, the route rule's tolerance in steps where strands may
+    #: meet (a node's position error per step, m) is at most ROUTE_RELATIVE × relative
+    #: tolerance × rod length, so that the contact phase's accuracy follows the
+    #: tolerance too (None: the search margin's quarter alone, as with fixed steps).
+    #: Measured on the seed's first loop (docs/numerics.md § 7): with the margin's
+    #: 5 mm alone the writhe stayed 1.1-2.2 % off a 6.25-ms reference at every
+    #: tolerance from 1e-2 to 1e-4; tied, 1e-3 gives 0.65 % and 1e-4 0.35 %
+    ROUTE_RELATIVE = 1.0
+
     def __init__(self, case, extra_force=None):
         self.case = case
         num = case.numerics
@@ -128,8 +137,13 @@ class RodRun:
         self.last_step_error = 0.0
         if case.contact is not None:
             self.contact = SelfContact(case.contact, props.s, props.diameter, props.rho_a)
-            # accuracy of a step where strands may meet: a quarter of the search margin
+            # accuracy of a step where strands may meet: a quarter of the search margin,
+            # and with numerics.tolerance at most relative × L (ROUTE_RELATIVE)
             self.route_tolerance = 0.25 * (self.contact.tolerance - float(np.max(props.diameter)))
+            if num.tolerance is not None and self.ROUTE_RELATIVE is not None:
+                length = float(props.s[-1] - props.s[0])
+                self.route_tolerance = min(self.route_tolerance, self.ROUTE_RELATIVE
+                                           * num.tolerance.relative * length)
         self.system = RodSystem(props, self.loads, contact=self.contact)
         self.newton = Newton(self.system, num.newton.tolerance, num.newton.max_iterations)
         self.params = alpha_parameters(num.rho_inf)
@@ -275,7 +289,8 @@ class RodRun:
         # steps with contact candidates only the route rule: there the estimate follows
         # the stiff law's impact transients (the seed case at tolerance 1e-2 ran its first
         # loop at 5e-4 s steps, 20x the route rule's, which keeps its events within
-        # 0.001 s of a 6.25-ms reference; docs/numerics.md § 7)
+        # 0.001 s of a 6.25-ms reference; docs/numerics.md § 7). With a tolerance the
+        # route rule's own tolerance follows it (ROUTE_RELATIVE)
         ratio = 0.0
         if self.contact is not None:
             self.last_step_error = self._local_error(h, Y, pose[2])

@@ -3,7 +3,7 @@ estimate and the PI controller, the growth guard (docs/numerics.md § 7)."""
 import numpy as np
 import pytest
 
-from rodcases import free_end, make_case
+from rodcases import clamped_end, free_end, kin, make_case, smooth_pulse_table
 from solver import Case, simulate
 from solver.stepping import breakpoints
 
@@ -473,3 +473,69 @@ def test_the_guard_looks_further_when_a_known_growth_leaves_its_disc():
     assert ds.attrs["hockle_status"] == "completed"
     assert abs(float(ds.writhe.values[-1])) > 0.1 * 0.166
     assert float(np.nanmax(ds.step_growth_rate.values)) > 10.0
+
+
+# --------------------------------------------------------------------------- controller
+def test_the_controller_keeps_the_step_at_its_target_and_grows_fast_far_below_it():
+    from solver.stepping import ErrorControl
+
+    ctl = ErrorControl(1e-3, 1e-6, np.ones(12), 0.5)
+    th = ctl.TARGET
+    assert ctl.accepted(0.01, th) == pytest.approx(0.01)          # first estimate
+    assert ctl.accepted(0.01, th) == pytest.approx(0.01)          # steady: PI, ×1
+    # one low ratio among normal ones: the PI controller (×(θ/e)^0.1 at most)
+    assert ctl.accepted(0.01, 0.1 * th) == pytest.approx(0.01 * 10 ** (0.7 / 3))
+    # a second low one in a row: the elementary controller, at most ×FAST_MAX
+    assert ctl.accepted(0.01, 0.3 * th) == pytest.approx(0.01 * (1 / 0.3) ** (1 / 3))
+    assert ctl.accepted(0.01, 1e-4 * th) == pytest.approx(0.01 * ctl.FAST_MAX)
+    # after a fast step the history is the target: landing on it keeps the step
+    assert ctl.accepted(0.01, th) == pytest.approx(0.01)
+
+
+def test_steps_grow_out_of_a_start_from_rest_in_fewer_steps(monkeypatch):
+    """The seed case's first 2 s (100 segments, no contact, tolerance 1e-2): the twist
+    ramp and the perturbation start from rest, and after every breakpoint (1 s) the
+    error ratio stays far below the target while the step is small. With the
+    elementary controller there the run takes 56 steps (measured), with the PI
+    controller alone 61, with as many refused attempts."""
+    from pathlib import Path
+
+    from solver.stepping import ErrorControl
+
+    root = Path(__file__).resolve().parents[1]
+    spec = Case.from_file(root / "cases" / "goyal-writhing.yaml").model_dump()
+    spec.pop("contact")
+    spec["numerics"].pop("ds", None)
+    spec["numerics"].update(n_segments=100, t_end=2.0,
+                            tolerance={"relative": 1e-2, "absolute": 1e-8})
+    spec["output"] = {"every": 1, "fields": ["energies"]}
+    case = Case.model_validate(spec)
+    fast = simulate(case)
+    monkeypatch.setattr(ErrorControl, "FAST_BELOW", 0.0)
+    slow = simulate(case)
+    assert fast.attrs["hockle_status"] == slow.attrs["hockle_status"] == "completed"
+    assert fast.sizes["step"] < slow.sizes["step"] - 2, (fast.sizes["step"], slow.sizes["step"])
+    assert fast.step_rejected_attempts.sum() <= slow.step_rejected_attempts.sum()
+
+
+def test_the_route_rule_follows_the_tolerance_where_strands_may_meet():
+    """In steps with contact candidates the route rule (a node's position error per step)
+    replaces the estimate; with numerics.tolerance its tolerance is at most relative × L,
+    so a tighter tolerance also tightens the contact phase (the seed's first loop: the
+    writhe 1.1-2.2 % off a fine reference at every tolerance with the 5-mm margin rule
+    alone, 0.65 % at 1e-3 tied: docs/numerics.md § 7). Fixed steps keep the margin's
+    quarter."""
+    from pathlib import Path
+
+    from solver.simulation import RodRun
+
+    root = Path(__file__).resolve().parents[1]
+    spec = Case.from_file(root / "cases" / "goyal-writhing.yaml").model_dump()
+    spec["numerics"].pop("ds", None)
+    spec["numerics"]["n_segments"] = 50
+    margin = 0.25 * (0.04 - 0.02)                        # contact tolerance, largest D
+    assert RodRun(Case.model_validate(spec)).route_tolerance == pytest.approx(margin)
+    for tol, expected in ((1e-3, 1e-3), (1e-1, margin)):
+        spec["numerics"]["tolerance"] = {"relative": tol, "absolute": 1e-6 * tol}
+        run = RodRun(Case.model_validate(spec))
+        assert run.route_tolerance == pytest.approx(expected)
