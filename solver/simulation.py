@@ -553,6 +553,7 @@ class RodRun:
         h_min = 1e-9 * max(num.t_end, num.dt)
         h_max = num.dt_max if num.dt_max is not None else math.inf
         h = self.h_next
+        refused = None           # (h, ratio) of the last attempt refused for its error
         while True:
             h = min(h, h_max, self._h_cap())
             remaining = stop - self.t
@@ -583,7 +584,8 @@ class RodRun:
                 return total_its, res
             self._count_refusal()
             if self.last_reject == "error":
-                h = ctl.rejected(h_try, self.last_error_ratio)
+                h = ctl.rejected(h_try, self.last_error_ratio, refused)
+                refused = (h_try, self.last_error_ratio)
             elif self.last_reject == "growth":
                 h = min(0.5 * h_try, self._h_cap())
             else:
@@ -799,13 +801,15 @@ class RodRun:
         view.work_in = float(hermite(s, h, w0, p0, self.work_in, self.power))
         view.power = (1.0 - s) * p0 + s * self.power
         view.update_space_route()
-        return view.snapshot(fields)
+        return view.snapshot(fields, route_current=True)
 
-    def snapshot(self, fields: set) -> dict:
-        """Output quantities of the current state for the requested field groups."""
+    def snapshot(self, fields: set, route_current: bool = False) -> dict:
+        """Output quantities of the current state for the requested field groups
+        (``route_current``: the space route is already that of the current κ; otherwise it
+        is recomputed where the steps do not keep it, ``system.needs_pose`` False)."""
         out = {}
         Y = self.Y
-        if not self.system.needs_pose:
+        if not self.system.needs_pose and not route_current:
             self.update_space_route()
         if "v" in fields:
             out["v"] = Y[:, 0:3].copy()
