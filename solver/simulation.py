@@ -123,8 +123,8 @@ class RodRun:
     #: tolerance × rod length, so that the contact phase's accuracy follows the
     #: tolerance too (None: the search margin's quarter alone, as with fixed steps).
     #: Measured on the seed's first loop (docs/numerics.md § 7): with the margin's
-    #: 5 mm alone the writhe stayed 1.1-2.2 % off a 6.25-ms reference at every
-    #: tolerance from 1e-2 to 1e-4; tied, 1e-3 gives 0.65 % and 1e-4 0.35 %
+    #: 5 mm alone the writhe stayed 1.1-2.7 % off a 6.25-ms reference at every
+    #: tolerance from 1e-2 to 1e-4; tied, 1e-3 gives 0.65-1.2 % and 1e-4 0.37 %
     ROUTE_RELATIVE = 1.0
 
     def __init__(self, case, extra_force=None):

@@ -476,6 +476,28 @@ def test_the_guard_looks_further_when_a_known_growth_leaves_its_disc():
 
 
 # --------------------------------------------------------------------------- controller
+def seed_spec(n_segments: int) -> dict:
+    """The seed case (cases/goyal-writhing.yaml) at n_segments, as a spec dict."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    spec = Case.from_file(root / "cases" / "goyal-writhing.yaml").model_dump()
+    spec["numerics"].pop("ds", None)
+    spec["numerics"]["n_segments"] = n_segments
+    return spec
+
+
+def seed_from_rest(t_end: float, relative: float, absolute: float) -> Case:
+    """The seed case at 100 segments without contact, error-controlled, energies kept
+    at every step."""
+    spec = seed_spec(100)
+    spec.pop("contact")
+    spec["numerics"].update(t_end=t_end,
+                            tolerance={"relative": relative, "absolute": absolute})
+    spec["output"] = {"every": 1, "fields": ["energies"]}
+    return Case.model_validate(spec)
+
+
 def test_the_controller_keeps_the_step_at_its_target_and_grows_fast_far_below_it():
     from solver.stepping import ErrorControl
 
@@ -498,18 +520,9 @@ def test_steps_grow_out_of_a_start_from_rest_in_fewer_steps(monkeypatch):
     error ratio stays far below the target while the step is small. With the
     elementary controller there the run takes 56 steps (measured), with the PI
     controller alone 61, with as many refused attempts."""
-    from pathlib import Path
-
     from solver.stepping import ErrorControl
 
-    root = Path(__file__).resolve().parents[1]
-    spec = Case.from_file(root / "cases" / "goyal-writhing.yaml").model_dump()
-    spec.pop("contact")
-    spec["numerics"].pop("ds", None)
-    spec["numerics"].update(n_segments=100, t_end=2.0,
-                            tolerance={"relative": 1e-2, "absolute": 1e-8})
-    spec["output"] = {"every": 1, "fields": ["energies"]}
-    case = Case.model_validate(spec)
+    case = seed_from_rest(t_end=2.0, relative=1e-2, absolute=1e-8)
     fast = simulate(case)
     monkeypatch.setattr(ErrorControl, "FAST_BELOW", 0.0)
     slow = simulate(case)
@@ -522,17 +535,12 @@ def test_the_route_rule_follows_the_tolerance_where_strands_may_meet():
     """In steps with contact candidates the route rule (a node's position error per step)
     replaces the estimate; with numerics.tolerance its tolerance is at most relative × L,
     so a tighter tolerance also tightens the contact phase (the seed's first loop: the
-    writhe 1.1-2.2 % off a fine reference at every tolerance with the 5-mm margin rule
-    alone, 0.65 % at 1e-3 tied: docs/numerics.md § 7). Fixed steps keep the margin's
-    quarter."""
-    from pathlib import Path
-
+    writhe 1.1-2.7 % off a fine reference at every tolerance with the 5-mm margin rule
+    alone, 0.65-1.2 % at 1e-3 and 0.37 % at 1e-4 tied: docs/numerics.md § 7). Fixed
+    steps keep the margin's quarter."""
     from solver.simulation import RodRun
 
-    root = Path(__file__).resolve().parents[1]
-    spec = Case.from_file(root / "cases" / "goyal-writhing.yaml").model_dump()
-    spec["numerics"].pop("ds", None)
-    spec["numerics"]["n_segments"] = 50
+    spec = seed_spec(50)
     margin = 0.25 * (0.04 - 0.02)                        # contact tolerance, largest D
     assert RodRun(Case.model_validate(spec)).route_tolerance == pytest.approx(margin)
     for tol, expected in ((1e-3, 1e-3), (1e-1, margin)):
@@ -561,18 +569,9 @@ def test_the_first_step_from_rest_is_found_in_few_attempts(monkeypatch):
     relative to fields that grow from zero depends on h/t, not h, so the first step's
     error ratio stayed at 1.1-2.8 from 0.1 s down to 2e-4 s. Retried at ×0.86 (the
     h³ rule) it was refused 27 times (measured); at the order the refusals show, 5."""
-    from pathlib import Path
-
     from solver.stepping import ErrorControl
 
-    root = Path(__file__).resolve().parents[1]
-    spec = Case.from_file(root / "cases" / "goyal-writhing.yaml").model_dump()
-    spec.pop("contact")
-    spec["numerics"].pop("ds", None)
-    spec["numerics"].update(n_segments=100, t_end=0.5,
-                            tolerance={"relative": 3e-3, "absolute": 3e-9})
-    spec["output"] = {"every": 1, "fields": ["energies"]}
-    case = Case.model_validate(spec)
+    case = seed_from_rest(t_end=0.5, relative=3e-3, absolute=3e-9)
     ds = simulate(case)
     assert ds.attrs["hockle_status"] == "completed"
     first = int(ds.step_rejected_attempts.values[0])
