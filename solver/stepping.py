@@ -494,12 +494,12 @@ class ErrorControl:
         ``previous``: (h, err) of the attempt refused before this one from the same
         state, or None. Then p is the order the two attempts show,
         log(err_prev/err)/log(h_prev/h), at most k, and below MIN_ORDER the step is cut
-        by MAX_SHRINK outright: right after a start
-        from rest a relative error does not fall as h³ (the fields grow like a power of
-        the elapsed time t, so the error relative to them depends on h/t, not h, until h
-        reaches t), and the seed case's first step was refused 27 times at ×0.86 each,
-        from 0.1 s down to 1.7e-4 s (81 Newton solves), with the error ratio at 1.1-2.8
-        throughout; with the observed order 5 (measured)."""
+        by MAX_SHRINK outright. Why: right after a start from rest a relative error does
+        not fall as h³ (the fields grow like a power of the elapsed time t, so the error
+        relative to them depends on h/t, not h, until h reaches t), and the seed case's
+        first step was refused 27 times at ×0.86 each, from 0.1 s down to 1.7e-4 s (81
+        Newton solves), with the error ratio at 1.1-2.8 throughout; with the observed
+        order 5 times (measured)."""
         p = float(self.ORDER)
         if previous is not None:
             h_prev, err_prev = previous
