@@ -581,3 +581,38 @@ def test_the_first_step_from_rest_is_found_in_few_attempts(monkeypatch):
                         lambda self, h, err, previous=None: plain(self, h, err))
     old = int(simulate(case).step_rejected_attempts.values[0])
     assert old > 3 * first, (old, first)
+
+
+def test_dense_output_integrates_the_centreline_only_when_asked(monkeypatch):
+    """With a load in the global frame (the steps keep the centreline) an interpolated
+    output of energies alone does not integrate the space route; the energies are those
+    of the run that also keeps the positions, to round-off, in the same steps."""
+    from solver.simulation import RodRun
+
+    calls = {"n": 0}
+    route = RodRun.update_space_route
+
+    def counted(self):
+        calls["n"] += 1
+        return route(self)
+
+    monkeypatch.setattr(RodRun, "update_space_route", counted)
+    runs = {}
+    for fields in (["energies"], ["energies", "position"]):
+        spec = pulse_case(1e-3).model_dump()
+        spec["fluid"] = FLUID
+        spec["distributed_forces"] = [{"value": [0.0, 1e-3, 0.0], "start": 0.0}]
+        spec["output"].update(interval=1.0 / 32, fields=fields)
+        spec["output"].pop("every", None)
+        calls["n"] = 0
+        ds = simulate(Case.model_validate(spec))
+        assert ds.attrs["hockle_status"] == "completed"
+        assert np.all(np.isfinite(ds.position_route_difference.values))
+        runs[len(fields)] = (ds, calls["n"])
+    (a, n_a), (b, n_b) = runs[1], runs[2]
+    assert a.sizes["step"] == b.sizes["step"]
+    np.testing.assert_allclose(a.energy_total.values, b.energy_total.values, rtol=1e-12)
+    interpolated = a.sizes["time"] - 1 - np.sum(np.isin(a.time.values,
+                                                        np.cumsum(a.step_dt.values)))
+    assert interpolated > 10
+    assert n_b - n_a >= interpolated - 1, (n_a, n_b, interpolated)
