@@ -92,14 +92,11 @@ def with_tolerance(base: RodRun, relative: float, tied: bool = True) -> RodRun:
     spec["numerics"].update(tolerance={"relative": relative, "absolute": 1e-6 * relative},
                             dt_max=0.1)
     case = Case.model_validate(spec)
-    saved = RodRun.ROUTE_RELATIVE
-    RodRun.ROUTE_RELATIVE = saved if tied else None
-    try:
-        fresh = RodRun(case)
-    finally:
-        RodRun.ROUTE_RELATIVE = saved
+    fresh = RodRun(case)
     run = copy.deepcopy(base)
-    run.case, run.errctl, run.route_tolerance = case, fresh.errctl, fresh.route_tolerance
+    run.case, run.errctl = case, fresh.errctl
+    if tied:                 # untied: the fixed-step run's own bound, the margin's quarter
+        run.route_tolerance = fresh.route_tolerance
     run.errctl.reset(run.t, run.Y)
     run.h_next = case.numerics.dt
     return run

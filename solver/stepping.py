@@ -318,8 +318,9 @@ class ErrorControl:
     MAX_SHRINK = 0.2
     #: below this observed order a refused step is cut by MAX_SHRINK (:meth:`rejected`)
     MIN_ORDER = 1.0
-    #: steady error ratio of the PI controller (0.9¹⁰: the classic 0.9·e^(−0.7/k) form)
-    TARGET = 0.9 ** 10
+    #: steady error ratio of the PI controller: 0.9¹⁰, that of the classic
+    #: SAFETY·e^(−0.7/k)·e_prev^(0.4/k) form (SAFETY^(k/0.3), k = 3)
+    TARGET = SAFETY ** 10
     #: below this fraction of TARGET at two accepted steps in a row, the elementary
     #: controller grows the step (at most ×FAST_MAX per step)
     FAST_BELOW = 0.5
@@ -454,7 +455,7 @@ class ErrorControl:
         """Return to a :meth:`state` (steps taken only to be measured are forgotten)."""
         self.times, self.values, self.err_prev = list(state[0]), list(state[1]), state[2]
         self.peak = state[3].copy()
-        self.low_prev = state[4] if len(state) > 4 else False
+        self.low_prev = state[4]
 
     def accepted(self, h: float, err: float) -> float:
         """Next step size after an accepted step of h (s) with error ratio err.
