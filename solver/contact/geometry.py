@@ -27,6 +27,69 @@ def point_segment(p, a, b):
     return t, x, d, tau
 
 
+#: the uniform Catmull-Rom cubic in power form: c(t) = [1, t, t², t³] · _CATMULL_ROM ·
+#: [r_{j−1}, r_j, r_{j+1}, r_{j+2}] (Catmull & Rom 1974; rows: powers of t, columns:
+#: nodes): the cubic through r_j, r_{j+1} with tangents ½(r_{j+1} − r_{j−1}), ½(r_{j+2} − r_j)
+_CATMULL_ROM = 0.5 * np.array([[0.0, 2.0, 0.0, 0.0],
+                               [-1.0, 0.0, 1.0, 0.0],
+                               [2.0, -5.0, 4.0, -1.0],
+                               [-1.0, 3.0, -3.0, 1.0]])
+
+
+def _fold_ends(m, lo, hi):
+    """The matrix m (4, 4) with the ghost nodes of a first (lo) or last (hi) segment
+    folded into the real ones: r_{−1} = 2r_0 − r_1, r_n = 2r_{n−1} − r_{n−2}."""
+    m = m.copy()
+    if lo:
+        m[:, 1] += 2.0 * m[:, 0]
+        m[:, 2] -= m[:, 0]
+        m[:, 0] = 0.0
+    if hi:
+        m[:, 2] += 2.0 * m[:, 3]
+        m[:, 1] -= m[:, 3]
+        m[:, 3] = 0.0
+    return m
+
+
+#: _CATMULL_ROM for an interior segment, the first, the last, and a rod of one segment
+_CATMULL_ROM_ENDS = np.stack([_fold_ends(_CATMULL_ROM, lo, hi)
+                              for lo, hi in ((False, False), (True, False), (False, True),
+                                             (True, True))])
+
+
+def _segment_nodes(j, n_nodes):
+    """The four node indices (M, 4) of the Catmull-Rom cubic on each segment j (M,) int,
+    clamped to the rod (the ghost nodes beyond an end are folded into the matrices)."""
+    idx = np.empty((j.shape[0], 4), dtype=np.intp)
+    idx[:, 0] = np.maximum(j - 1, 0)
+    idx[:, 1] = j
+    idx[:, 2] = j + 1
+    idx[:, 3] = np.minimum(j + 2, n_nodes - 1)
+    return idx
+
+
+def _segment_matrices(j, n_nodes):
+    """The Catmull-Rom matrix (M, 4, 4) of each segment j (M,) int, its ends folded."""
+    return _CATMULL_ROM_ENDS[(j - 1 < 0).astype(np.intp) + 2 * (j + 2 > n_nodes - 1)]
+
+
+def _basis(t, mats):
+    """β, β', β'' stacked (M, 3, 4) at t (M,) for the segment matrices ``mats``
+    (M, 4, 4): the powers of t and their derivatives times the matrix."""
+    T = np.zeros((t.shape[0], 3, 4))
+    t2 = t * t
+    T[:, 0, 0] = 1.0
+    T[:, 0, 1] = t
+    T[:, 0, 2] = t2
+    T[:, 0, 3] = t2 * t
+    T[:, 1, 1] = 1.0
+    T[:, 1, 2] = 2.0 * t
+    T[:, 1, 3] = 3.0 * t2
+    T[:, 2, 2] = 2.0
+    T[:, 2, 3] = 6.0 * t
+    return np.matmul(T, mats)
+
+
 def curve_basis(t, j, n_nodes):
     """The partner curve's basis on segment j at parameter t: the uniform Catmull-Rom
     cubic c(t) = Σ_b β_b(t) r_{idx_b} through r_j (t = 0) and r_{j+1} (t = 1) with the
@@ -44,42 +107,8 @@ def curve_basis(t, j, n_nodes):
     second derivatives in t); Σ β = 1, Σ β' = Σ β'' = 0.
     """
     t = np.asarray(t, float)
-    m = t.shape[0]
-    t2 = t * t
-    t3 = t2 * t
-    lo = j - 1 < 0
-    hi = j + 2 > n_nodes - 1
-    out = []
-    for der in range(3):
-        if der == 0:
-            h00, h10, h01, h11 = 2 * t3 - 3 * t2 + 1, t3 - 2 * t2 + t, 3 * t2 - 2 * t3, t3 - t2
-        elif der == 1:
-            h00 = 6 * t2 - 6 * t
-            h10, h01, h11 = 3 * t2 - 4 * t + 1, -h00, 3 * t2 - 2 * t
-        else:
-            h00 = 12 * t - 6
-            h10, h01, h11 = 6 * t - 4, -h00, 6 * t - 2
-        b = np.empty((m, 4))
-        b[:, 0] = -0.5 * h10
-        b[:, 1] = h00 - 0.5 * h11
-        b[:, 2] = h01 + 0.5 * h10
-        b[:, 3] = 0.5 * h11
-        # ghost nodes beyond the ends: r_{-1} = 2 r_0 − r_1, r_{n} = 2 r_{n−1} − r_{n−2}
-        if lo.any():
-            b[lo, 1] += 2.0 * b[lo, 0]
-            b[lo, 2] -= b[lo, 0]
-            b[lo, 0] = 0.0
-        if hi.any():
-            b[hi, 2] += 2.0 * b[hi, 3]
-            b[hi, 1] -= b[hi, 3]
-            b[hi, 3] = 0.0
-        out.append(b)
-    idx = np.empty((m, 4), dtype=np.intp)
-    idx[:, 0] = np.maximum(j - 1, 0)
-    idx[:, 1] = j
-    idx[:, 2] = j + 1
-    idx[:, 3] = np.minimum(j + 2, n_nodes - 1)
-    return (idx, *out)
+    b = _basis(t, _segment_matrices(j, n_nodes))
+    return _segment_nodes(j, n_nodes), b[:, 0], b[:, 1], b[:, 2]
 
 
 def point_curve(p, positions, j, iterations=3):
@@ -96,26 +125,22 @@ def point_curve(p, positions, j, iterations=3):
     r = positions
     n = r.shape[0]
     t = point_segment(p, r[j], r[j + 1])[0]
-    idx = np.empty((t.size, 4), dtype=np.intp)
-    idx[:, 0] = np.maximum(j - 1, 0)
-    idx[:, 1] = j
-    idx[:, 2] = j + 1
-    idx[:, 3] = np.minimum(j + 2, n - 1)
+    idx = _segment_nodes(j, n)
     q = r[idx]                                                      # (M, 4, 3)
+    mats = _segment_matrices(j, n)
     for it in range(iterations + 1):
-        idx, b0, b1, b2 = curve_basis(t, j, n)
-        c = np.matmul(b0[:, None, :], q)[:, 0]
-        c1 = np.matmul(b1[:, None, :], q)[:, 0]
-        c2 = np.matmul(b2[:, None, :], q)[:, 0]
-        x = p - c
-        g = np.einsum("mi,mi->m", c1, c1) - np.einsum("mi,mi->m", x, c2)
+        b = _basis(t, mats)
+        c = np.matmul(b, q)                                         # (M, 3, 3): c, c', c''
+        x = p - c[:, 0]
+        c1 = c[:, 1]
+        g = np.einsum("mi,mi->m", c1, c1) - np.einsum("mi,mi->m", x, c[:, 2])
         if it == iterations:
             break
         ok = g > 0.0
         step = np.einsum("mi,mi->m", c1, x) / np.where(ok, g, 1.0)
         t = np.clip(t + np.where(ok, step, 0.0), 0.0, 1.0)
     d = np.sqrt(np.einsum("ij,ij->i", x, x))
-    return t, x, d, c1, g, idx, b0, b1
+    return t, x, d, c1, g, idx, b[:, 0], b[:, 1]
 
 
 def close_node_pairs(positions, radius, s, separation_cut):
