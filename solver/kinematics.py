@@ -50,15 +50,34 @@ def skew(a: np.ndarray) -> np.ndarray:
     return out
 
 
+#: the Hamilton product as a bilinear form: (p ⊗ q)_i = Σ_jk p_j q_k _HAMILTON[4j + k, i]
+_HAMILTON = np.zeros((16, 4))
+for _i, _j, _k, _s in ((0, 0, 0, 1), (0, 1, 1, -1), (0, 2, 2, -1), (0, 3, 3, -1),
+                       (1, 0, 1, 1), (1, 1, 0, 1), (1, 2, 3, 1), (1, 3, 2, -1),
+                       (2, 0, 2, 1), (2, 1, 3, -1), (2, 2, 0, 1), (2, 3, 1, 1),
+                       (3, 0, 3, 1), (3, 1, 2, 1), (3, 2, 1, -1), (3, 3, 0, 1)):
+    _HAMILTON[4 * _j + _k, _i] = _s
+del _i, _j, _k, _s
+
+#: below this many products quat_multiply takes the bilinear form (two numpy calls
+#: instead of some twenty: 5 µs against 20 µs for 25 products; 65 µs against 43 µs for
+#: 1000, where the component form wins)
+_SMALL_PRODUCT = 128
+
+
 def quat_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Hamilton product ``p ⊗ q`` of quaternions (..., 4) -> (..., 4), broadcast."""
     p = np.asarray(p, float)
     q = np.asarray(q, float)
+    shape = np.broadcast_shapes(p.shape, q.shape)
+    if math.prod(shape) <= 4 * _SMALL_PRODUCT:
+        outer = p[..., :, None] * q[..., None, :]
+        return outer.reshape(outer.shape[:-2] + (16,)) @ _HAMILTON
     pw, px, py, pz = p[..., 0], p[..., 1], p[..., 2], p[..., 3]
     qw, qx, qy, qz = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
     # written component by component into one array (the space route's prefix scan calls
     # this ten times per pose; with np.moveaxis/np.stack 1000 products took 47 µs, now 36)
-    out = np.empty(np.broadcast_shapes(p.shape, q.shape))
+    out = np.empty(shape)
     out[..., 0] = pw * qw - px * qx - py * qy - pz * qz
     out[..., 1] = pw * qx + px * qw + py * qz - pz * qy
     out[..., 2] = pw * qy - px * qz + py * qw + pz * qx
