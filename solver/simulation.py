@@ -8,8 +8,8 @@ cut steps complete the nominal step, so outputs stay on the nominal time grid. W
 cuts fail, :class:`SolverDivergence` is raised carrying the partial dataset.
 
 Steps land on the case's breakpoints (force windows, ``until`` switches, corners of
-boundary tables); at t = 0 and after each breakpoint a short backward-Euler step restarts
-the scheme consistently (:mod:`solver.stepping`, docs/numerics.md § 7).
+boundary tables); at t = 0 and after each breakpoint two short backward-Euler steps
+restart the scheme consistently (:mod:`solver.stepping`, docs/numerics.md § 7).
 """
 from __future__ import annotations
 
@@ -31,7 +31,7 @@ from .loads import LoadModel
 from .properties import RodProperties
 from .newton import Newton
 from .scheme import BACKWARD_EULER, RodSystem, alpha_parameters
-from .stepping import RESTART_FRACTION, ErrorControl, breakpoints, growth_rate, hermite
+from .stepping import RESTART_FRACTION, RESTART_STEPS, ErrorControl, breakpoints, growth_rate, hermite
 
 __all__ = ["simulate", "SolverDivergence", "Progress", "RodRun", "RateEstimate"]
 
@@ -676,17 +676,22 @@ class RodRun:
         return its, t_stop, False
 
     def _restart(self) -> int:
-        """One backward-Euler step of ε = RESTART_FRACTION·Δt (cut by 10 up to three
-        times if it fails): f and Ẏ become consistent with the loads and conditions now
-        in force (:mod:`solver.stepping`). Returns its Newton iterations."""
+        """RESTART_STEPS backward-Euler steps of ε = RESTART_FRACTION·Δt (ε cut by 10 up
+        to three times if one fails): f and Ẏ become consistent with the loads and
+        conditions now in force, also after a jump of the velocities
+        (:mod:`solver.stepping`). Returns their Newton iterations."""
         eps = RESTART_FRACTION * self.case.numerics.dt
         its_total = 0
-        for _ in range(4):
+        taken = 0
+        for _ in range(RESTART_STEPS + 3):
             ok, its, res, nonfinite = self.try_step(eps, restart=True)
             its_total += its
             if ok:
-                return its_total
-            eps *= 0.1
+                taken += 1
+                if taken == RESTART_STEPS:
+                    return its_total
+            else:
+                eps *= 0.1
         raise self._divergence(f"the consistent restart (a backward-Euler step) at "
                                f"t = {self.t:.6g} s did not converge", 10.0 * eps, res,
                                nonfinite)

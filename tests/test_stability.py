@@ -468,8 +468,8 @@ def test_ten_thousand_steps_energy_bounded_rho1():
     assert case.n_steps == 10_000
     ds = run_checked(case, must_complete=True, energy_tol=0.03)
     assert ds.sizes["step"] == 10_000
-    # no Δt cut (the first step is shortened by the restart step of 1e-4 Δt)
-    assert float(ds.step_dt.min()) == pytest.approx(0.01, rel=2e-4)
+    # no Δt cut (the first step is shortened by the two restart steps of 1e-4 Δt)
+    assert float(ds.step_dt.min()) == pytest.approx(0.01, rel=3e-4)
     t, e, w = ds.time.values, ds.energy_total.values, ds.work_in.values
     free = t >= 1.0
     w_free = w[free]
@@ -575,7 +575,8 @@ def test_tiny_time_step_torsional_wave(rho_inf):
     case = Case.model_validate(spec)
     ds = run_checked(case, must_complete=True)
     assert float(ds.step_newton_iterations.max()) <= 3
-    assert float(ds.step_dt.min()) == pytest.approx(1e-4, rel=2e-4)   # no Δt cut
+    # no Δt cut (the first step is shortened by the two restart steps of 1e-4 Δt)
+    assert float(ds.step_dt.min()) == pytest.approx(1e-4, rel=3e-4)
     t = ds.time.values
     D, L, a = 0.02, 1.0, -2.0
     gj3 = G * np.pi * D**4 / 32

@@ -3,7 +3,7 @@ estimate and the PI controller, the growth guard (docs/numerics.md § 7)."""
 import numpy as np
 import pytest
 
-from rodcases import clamped_end, free_end, kin, make_case, smooth_pulse_table
+from rodcases import RHO, clamped_end, free_end, kin, make_case, smooth_pulse_table
 from solver import Case, simulate
 from solver.stepping import breakpoints
 
@@ -46,6 +46,30 @@ def test_steps_land_on_a_breakpoint_inside_a_step():
     dt = ds.step_dt.values
     assert dt[3] == pytest.approx(0.07, rel=2e-3)          # 0.33 -> 0.4 after the restart
     assert dt[7] == pytest.approx(0.1 - 0.01, rel=2e-3)    # 0.71 -> 0.8 after the restart
+
+
+def test_a_held_sliding_end_does_not_ring_after_the_switch():
+    """A straight rod pushed along its axis by 0.5 N/m slides freely (force 0 at both ends)
+    until 0.2 s, when its start is held: its velocity jumps to 0 and the end force is
+    the static b·L = 0.5 N from the next step on, for ρ∞ = 1 and 0.5. With one
+    backward-Euler restart step the impulse it carried (ρA L Δv/ε ≈ 2e4 N) rang on at
+    ±2e4 N, undamped at ρ∞ = 1 (docs/numerics.md § 7)."""
+    still = [kin(key="angular_velocity")] * 3
+    start = {"translation": [kin(), kin(), [{"until": 0.2, "force": 0.0}, kin()]],
+             "rotation": still}
+    end = {"translation": [kin(), kin(), {"force": 0.0}], "rotation": still}
+    for rho_inf in (1.0, 0.5):
+        case = make_case(n_segments=10, dt=0.05, t_end=0.5, rho_inf=rho_inf, start=start,
+                         end=end, forces=[{"value": [0.0, 0.0, 0.5]}], fields=("v", "f"))
+        ds = simulate(case)
+        t = ds.time.values
+        v_end, f_end = ds.v.values[:, 0, 2], ds.f.values[:, 0, 2]
+        sliding = t < 0.2 + 1e-9
+        # free axial motion at b/(ρA) before, held after
+        np.testing.assert_allclose(v_end[sliding], 0.5 / (RHO * np.pi * 1e-4) * t[sliding],
+                                   rtol=1e-6)
+        np.testing.assert_allclose(v_end[~sliding], 0.0, atol=1e-12)
+        np.testing.assert_allclose(f_end[~sliding], 0.5, rtol=1e-6)
 
 
 # --------------------------------------------------------------------------- order
