@@ -84,3 +84,56 @@ def test_work_of_gravity_balances_energy_to_second_order_in_ds():
         gaps.append(float(np.max(np.abs(e - w))) / float(w[-1]))
     assert gaps[-1] < 5e-3
     assert gaps[0] / gaps[1] > 2.8 and gaps[1] / gaps[2] > 2.8
+
+
+# ------------------------------------------------------------------ the Newton start
+def test_newton_starts_extrapolate_the_accepted_levels_exactly():
+    """RodRun._predictions: the line through the last two levels and the parabola through
+    the last three (unequal steps) reproduce a state that is linear / quadratic in t."""
+    from solver.simulation import RodRun
+    run = RodRun(make_case(n_segments=4, end=SLIDING_END))
+    base = np.random.default_rng(1).standard_normal((2, 5, 12))
+    t2, t1, t0, h = -0.5, -0.2, 0.0, 0.3                  # levels at t0 − h1 − h2, t0 − h1, t0
+    quad = lambda t: base[0] + base[1] * t + 0.7 * t * t      # noqa: E731
+    lin = lambda t: base[0] + base[1] * t                     # noqa: E731
+    for state, kinds in ((quad, ("quadratic",)), (lin, ("linear", "quadratic"))):
+        run.Y_prev2, run.Y_prev, run.Y = state(t2), state(t1), state(t0)
+        run.h_prev2, run.h_prev = t1 - t2, t0 - t1
+        pred = run._predictions(h)
+        for kind in kinds:
+            np.testing.assert_allclose(pred[kind], state(h), atol=1e-12)
+    assert np.abs(pred["linear"] - quad(h)).max() > 0.01
+    run.Y_prev2 = None                                        # after a restart: the line only
+    assert set(run._predictions(h)) == {"linear"}
+
+
+def test_the_newton_start_follows_the_predictor_that_placed_kappa_better():
+    """The next step starts from whichever extrapolation put the last accepted step's κ
+    nearer (κ sets the centreline and every contact gap), whatever the other unknowns
+    do; on a smoothly swung cantilever the choice saves Newton iterations against the
+    line alone (114 against 123 measured) and converges to the same motion."""
+    from solver import simulation as sim
+    from rodcases import smooth_pulse_table
+    run = sim.RodRun(make_case(n_segments=4, end=SLIDING_END))
+    Y = np.zeros((5, 12))
+    near_kappa, near_rest = Y.copy(), Y.copy()
+    near_kappa[:, 9:12] = 1e-6
+    near_kappa[:, 0:9] = 1.0                                  # far in v, ω, f
+    near_rest[:, 9:12] = 1e-3
+    assert run._better_predictor(Y, {"linear": near_rest, "quadratic": near_kappa}) == "quadratic"
+    assert run._better_predictor(Y, {"linear": near_kappa, "quadratic": near_rest}) == "linear"
+
+    end = {"translation": [{"force": smooth_pulse_table(0.02, 1.0)}, {"force": 0.0},
+                           {"force": 0.0}], "rotation": [{"moment": 0.0}] * 3}
+    case = make_case(n_segments=20, dt=0.02, t_end=1.0, end=end, fields=("position",))
+    chosen = simulate(case)
+    original = sim.RodRun._better_predictor
+    sim.RodRun._better_predictor = lambda self, Y, predictions: "linear"
+    try:
+        line = simulate(case)
+    finally:
+        sim.RodRun._better_predictor = original
+    its_chosen = int(chosen.step_newton_iterations.sum())
+    its_line = int(line.step_newton_iterations.sum())
+    assert its_chosen < its_line, (its_chosen, its_line)
+    np.testing.assert_allclose(chosen.position.values, line.position.values, atol=1e-9)
