@@ -31,7 +31,8 @@ from .loads import LoadModel
 from .properties import RodProperties
 from .newton import Newton
 from .scheme import BACKWARD_EULER, RodSystem, alpha_parameters
-from .stepping import RESTART_FRACTION, RESTART_STEPS, ErrorControl, breakpoints, growth_rate, hermite
+from .stepping import (RESTART_FRACTION, RESTART_STEPS, ErrorControl, breakpoints, extrapolate,
+                       growth_rate, hermite)
 
 __all__ = ["simulate", "SolverDivergence", "Progress", "RodRun", "RateEstimate"]
 
@@ -680,24 +681,22 @@ class RodRun:
     def _predictions(self, h: float):
         """Newton starts for a step of h (s) extrapolated from the accepted levels: the
         line through the last two ("linear") and, with three since the last restart, the
-        parabola through the last three ("quadratic", Lagrange with the actual steps).
+        parabola through the last three ("quadratic", with the actual steps;
+        :func:`solver.stepping.extrapolate`).
         None without a level before the current one. Returns a dict of (N+1, 12) arrays."""
         if self.Y_prev is None or not self.h_prev:
             return None
-        out = {"linear": self.Y + (h / self.h_prev) * (self.Y - self.Y_prev)}
-        Y2, h2 = self.Y_prev2, self.h_prev2
-        if Y2 is not None and h2:
-            h1 = self.h_prev
-            # Lagrange weights at t + h of the levels at t − h1 − h2, t − h1, t
-            w2 = h * (h + h1) / (h2 * (h1 + h2))
-            w1 = -h * (h + h1 + h2) / (h1 * h2)
-            w0 = (h + h1) * (h + h1 + h2) / (h1 * (h1 + h2))
-            out["quadratic"] = w0 * self.Y + w1 * self.Y_prev + w2 * Y2
+        # times relative to the current level (t = 0)
+        h1 = self.h_prev
+        out = {"linear": extrapolate((-h1, 0.0), (self.Y_prev, self.Y), h)}
+        if self.Y_prev2 is not None and self.h_prev2:
+            out["quadratic"] = extrapolate((-h1 - self.h_prev2, -h1, 0.0),
+                                           (self.Y_prev2, self.Y_prev, self.Y), h)
         return out
 
     def _better_predictor(self, Y: np.ndarray, predictions: dict) -> str:
         """The predictor whose curvature κ was nearer the accepted level Y (N+1, 12)'s
-        (RMS over the nodes). κ is what the centreline, and so every contact gap, is
+        (sum of squares over the nodes; ``predictions`` as :meth:`_predictions` returns). κ is what the centreline, and so every contact gap, is
         integrated from: at the seed's 40 s the parabola's κ was 2-10× nearer and its
         centreline within 0.04-0.3 mm against 0.2-0.9 mm, while the RMS over all twelve
         unknowns ranked the two alike. The parabola halves the Newton iterations of the

@@ -51,7 +51,7 @@ import math
 
 import numpy as np
 
-__all__ = ["breakpoints", "RESTART_FRACTION", "ErrorControl", "DisplacementWeight",
+__all__ = ["breakpoints", "RESTART_FRACTION", "RESTART_STEPS", "extrapolate", "ErrorControl", "DisplacementWeight",
            "error_constant", "growth_rate", "hermite"]
 
 #: size of the backward-Euler restart step, as a fraction of the nominal Δt
@@ -121,6 +121,26 @@ def breakpoints(case) -> np.ndarray:
         if not out or t > out[-1] * (1.0 + 1e-12) + 1e-300:
             out.append(t)
     return np.asarray(out, float)
+
+
+def extrapolate(times, values, t_new: float):
+    """The polynomial through two or three levels evaluated at t_new (s): the line
+    through (times[0], values[0]) and (times[1], values[1]), or the parabola through
+    three (Newton's divided differences, unequal spacing). times: 2 or 3 distinct floats
+    (s); values: as many arrays of one shape; returns an array of that shape. The
+    predictor of the error estimate (:meth:`ErrorControl.predict`) and the Newton start
+    (``RodRun._predictions``). Raises ValueError for another number of levels."""
+    if len(times) == 2:
+        (t0, t1), (y0, y1) = times, values
+        return y1 + ((t_new - t1) / (t1 - t0)) * (y1 - y0)
+    if len(times) != 3:
+        raise ValueError(f"extrapolate: 2 or 3 levels, got {len(times)}")
+    (z0, z1, z2), (y0, y1, y2) = times, values
+    d01 = (y1 - y0) / (z1 - z0)
+    d12 = (y2 - y1) / (z2 - z1)
+    second = (d12 - d01) / (z2 - z0)
+    w0, w1 = t_new - z0, t_new - z1
+    return y0 + d01 * w0 + second * w0 * w1
 
 
 # --------------------------------------------------------------------------- dense output
@@ -397,15 +417,9 @@ class ErrorControl:
         if len(ts) == 1:
             return None
         if len(ts) == 2:
-            h = t_new - ts[1]
-            return ys[1] + (h / (ts[1] - ts[0])) * (ys[1] - ys[0]), 6.0 * h**3
+            return extrapolate(ts, ys, t_new), 6.0 * (t_new - ts[1])**3
         z = tuple(ts[-3:])
-        y0, y1, y2 = ys[-3:]
-        d01 = (y1 - y0) / (z[1] - z[0])
-        d12 = (y2 - y1) / (z[2] - z[1])
-        second = (d12 - d01) / (z[2] - z[0])
-        w0, w1 = t_new - z[0], t_new - z[1]
-        return y0 + d01 * w0 + second * w0 * w1, w0 * w1 * (t_new - z[2])
+        return extrapolate(z, ys[-3:], t_new), (t_new - z[0]) * (t_new - z[1]) * (t_new - z[2])
 
     def ratio(self, t_new: float, Y_new: np.ndarray, Y_old: np.ndarray,
               filter=None) -> float:
