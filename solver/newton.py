@@ -85,6 +85,8 @@ class Newton:
 
     Attributes
     ----------
+    min_iterations : iterations taken even when the start passes the test (0; the run
+        sets 1 under error control, docs/numerics.md § 7 "Newton's noise").
     factorizations, gmres_iterations, gmres_failures : counters over the run.
     last_failure : None, "singular", "stalled" or "gmres" (why the last solve failed).
     """
@@ -108,6 +110,7 @@ class Newton:
         self.system = system
         self.tol = float(tolerance)
         self.max_iterations = int(max_iterations)
+        self.min_iterations = 0
         self.layout = BandLayout(system.n_cells)
         self.factor_valid = False
         self.factor_key = None
@@ -336,7 +339,7 @@ class Newton:
             elif contact:
                 self.update_operator(blocks)
             res = float(np.max(np.abs(R) * self._row_scale))
-            if res <= self.tol:
+            if res <= self.tol and it >= self.min_iterations:
                 return Y, Fn, it, res, True, pose
             if it == self.max_iterations:
                 break

@@ -195,6 +195,11 @@ class RodRun:
         self.errctl = (ErrorControl(tol.relative, tol.absolute, self.system.floor, num.rho_inf,
                                     props.s)
                        if tol is not None else None)
+        if self.errctl is not None:
+            # the estimate is the corrector minus the predictor: a start that already
+            # passes Newton's test would measure an error of exactly 0, blind below
+            # Newton's tolerance (docs/numerics.md § 7, "Newton's noise")
+            self.newton.min_iterations = 1
         self.last_error_ratio = math.nan
         self.h_next = num.dt
         self.last_reject = None

@@ -640,3 +640,22 @@ def test_dense_output_integrates_the_centreline_only_when_asked(monkeypatch):
                                                         np.cumsum(a.step_dt.values)))
     assert interpolated > 10
     assert n_b - n_a >= interpolated - 1, (n_a, n_b, interpolated)
+
+
+def test_the_estimate_sees_below_newtons_tolerance():
+    """Error control with an absolute tolerance far below Newton's (1e-12 against 1e-9):
+    a predictor that already passed Newton's test was accepted unchanged, so its error
+    was measured as exactly 0 and the next step grew ×5 into a refusal. The seed case
+    from rest (20 segments) then needed 97,119 steps and 94,308 refusals to reach 2e-4 s
+    (measured); with one Newton iteration always taken (``Newton.min_iterations``) it
+    takes 199. The wall-clock budget stops the old behaviour within the test."""
+    spec = seed_spec(20)
+    spec.pop("contact")
+    spec["numerics"].update(t_end=2e-4, wall_clock_budget=20.0,
+                            tolerance={"relative": 1e-6, "absolute": 1e-12})
+    spec["output"] = {"every": 1, "fields": ["energies"]}
+    ds = simulate(Case.model_validate(spec))
+    assert ds.attrs["hockle_status"] == "completed"
+    assert int(np.sum(ds.step_newton_iterations.values == 0)) == 0
+    assert ds.sizes["step"] < 1000, ds.sizes["step"]
+    assert int(ds.step_rejected_attempts.sum()) < 50
