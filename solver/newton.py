@@ -106,11 +106,14 @@ class Newton:
     #: contact steps: from this iterate on, the closest-point selection is frozen
     FREEZE_AFTER = 6
 
+    #: iterations taken even when the start passes the test (a class default, so that
+    #: runs pickled before it existed resume; the run sets 1 under error control)
+    min_iterations = 0
+
     def __init__(self, system, tolerance=1e-9, max_iterations=25):
         self.system = system
         self.tol = float(tolerance)
         self.max_iterations = int(max_iterations)
-        self.min_iterations = 0
         self.layout = BandLayout(system.n_cells)
         self.factor_valid = False
         self.factor_key = None
