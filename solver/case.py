@@ -743,6 +743,13 @@ class Contact(BaseModel):
     barrier_stiffness: Optional[Finite] = Field(
         None, gt=0, description="Barrier law: stiffness kappa, 1/s^2 (rho*A*kappa*[2(g-d)ln(g/d)+(g-d)^2/g] is N/m); > 0."
     )
+    position_tolerance: Optional[Finite] = Field(
+        None, gt=0,
+        description="Largest position error per step where strands may meet, m; > 0 (the step is refused and "
+        "cut above it; estimated as the distance between each node advanced in time and the centreline "
+        "integrated from the curvature). Null: a quarter of (tolerance - largest diameter), and with "
+        "numerics.tolerance at most its relative value x the rod length (docs/contact.md).",
+    )
 
     @model_validator(mode="after")
     def _barrier_parameters(self) -> "Contact":

@@ -149,13 +149,17 @@ class RodRun:
         self.last_step_error = 0.0
         if case.contact is not None:
             self.contact = SelfContact(case.contact, props.s, props.diameter, props.rho_a)
-            # accuracy of a step where strands may meet: a quarter of the search margin,
-            # and with numerics.tolerance at most relative × L (ROUTE_RELATIVE)
-            self.route_tolerance = 0.25 * (self.contact.tolerance - float(np.max(props.diameter)))
-            if num.tolerance is not None and self.ROUTE_RELATIVE is not None:
-                length = float(props.s[-1] - props.s[0])
-                self.route_tolerance = min(self.route_tolerance, self.ROUTE_RELATIVE
-                                           * num.tolerance.relative * length)
+            # accuracy of a step where strands may meet (m): contact.position_tolerance,
+            # by default a quarter of the search margin, and with numerics.tolerance at
+            # most relative × L (ROUTE_RELATIVE)
+            self.route_tolerance = case.contact.position_tolerance
+            if self.route_tolerance is None:
+                self.route_tolerance = 0.25 * (self.contact.tolerance
+                                               - float(np.max(props.diameter)))
+                if num.tolerance is not None and self.ROUTE_RELATIVE is not None:
+                    length = float(props.s[-1] - props.s[0])
+                    self.route_tolerance = min(self.route_tolerance, self.ROUTE_RELATIVE
+                                               * num.tolerance.relative * length)
         self.system = RodSystem(props, self.loads, contact=self.contact)
         self.newton = Newton(self.system, num.newton.tolerance, num.newton.max_iterations)
         self.params = alpha_parameters(num.rho_inf)
