@@ -25,8 +25,14 @@ tolerance tied to the tolerance (``RodRun.ROUTE_RELATIVE``, the default) and onc
 search margin's quarter alone ("untied", as before session 6): rows ``tolerance <tol>``
 and ``tolerance <tol> untied``.
 
-Run: ``python benchmarks/seed_accuracy.py [--t1 21.0] [--quick] [--tolerances 1e-3,1e-4]``
-(quick: references at 25 ms and 12.5 ms, to 19.5 s; ``--tolerances ''``: none).
+With ``--position-tolerances`` (m, default none) the window is also run with
+``contact.position_tolerance`` set (the largest position error per step where strands
+may meet): at the production step (rows ``position <x>``) and with each tolerance of
+``--tolerances`` (rows ``tolerance <tol> position <x>``).
+
+Run: ``python benchmarks/seed_accuracy.py [--t1 21.0] [--quick] [--tolerances 1e-3,1e-4]
+[--position-tolerances 3e-4]`` (quick: references at 25 ms and 12.5 ms, to 19.5 s;
+``--tolerances ''``: none).
 """
 from __future__ import annotations
 
@@ -102,6 +108,17 @@ def with_tolerance(base: RodRun, relative: float, tied: bool = True) -> RodRun:
     return run
 
 
+def with_position_tolerance(base: RodRun, position: float) -> RodRun:
+    """A copy of ``base`` whose steps where strands may meet keep each node's position
+    error within ``position`` (m): ``contact.position_tolerance``."""
+    spec = base.case.model_dump()
+    spec["contact"]["position_tolerance"] = position
+    run = copy.deepcopy(base)
+    run.case = Case.model_validate(spec)
+    run.route_tolerance = position
+    return run
+
+
 def advance_adaptive(run: RodRun, t1: float, out_every: float = 0.1) -> tuple[list, float, int]:
     """Error-controlled steps to t1 (s), landing on and recording every out_every (s);
     returns (records, wall s, accepted steps)."""
@@ -141,8 +158,11 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--tolerances", default="1e-2,3e-3,1e-3,1e-4",
                     help="comma-separated relative tolerances of error-controlled runs")
+    ap.add_argument("--position-tolerances", default="",
+                    help="comma-separated contact.position_tolerance values, m")
     args = ap.parse_args()
     tolerances = [float(x) for x in args.tolerances.split(",") if x.strip()]
+    positions = [float(x) for x in args.position_tolerances.split(",") if x.strip()]
     from threadpoolctl import threadpool_limits
 
     t1 = 19.5 if args.quick else args.t1
@@ -156,14 +176,26 @@ def main() -> None:
             recs, wall = advance(copy.deepcopy(base), t1, h)
             runs[name] = {"h": h, "wall_s": wall, "records": recs, "events": events(recs)}
             print(f"{name}: nominal Δt {h} s, wall {wall:.1f} s, events {runs[name]['events']}")
+        for pos in positions:
+            name = f"position {pos:g}"
+            recs, wall = advance(with_position_tolerance(base, pos), t1, steps["production"])
+            runs[name] = {"h": steps["production"], "position_tolerance": pos, "wall_s": wall,
+                          "records": recs, "events": events(recs)}
+            print(f"{name}: wall {wall:.1f} s, events {runs[name]['events']}", flush=True)
         for tol in tolerances:
-            for tied in (True, False):
-                name = f"tolerance {tol:g}" + ("" if tied else " untied")
-                recs, wall, steps = advance_adaptive(with_tolerance(base, tol, tied), t1)
-                runs[name] = {"tolerance": tol, "route_tied": tied, "steps": steps,
+            variants = [("", dict(tied=True)), (" untied", dict(tied=False))]
+            variants += [(f" position {pos:g}", dict(tied=True, position=pos)) for pos in positions]
+            for suffix, how in variants:
+                name = f"tolerance {tol:g}" + suffix
+                run = with_tolerance(base, tol, how["tied"])
+                if "position" in how:
+                    run = with_position_tolerance(run, how["position"])
+                recs, wall, n_steps = advance_adaptive(run, t1)
+                runs[name] = {"tolerance": tol, "route_tied": how["tied"], "steps": n_steps,
+                              "position_tolerance": how.get("position"),
                               "wall_s": wall, "records": recs, "events": events(recs)}
-                print(f"{name}: {steps} steps, wall {wall:.1f} s, events {runs[name]['events']}",
-                      flush=True)
+                print(f"{name}: {n_steps} steps, wall {wall:.1f} s, events "
+                      f"{runs[name]['events']}", flush=True)
     ref = np.array([r["writhe"] for r in runs["reference"]["records"]])
     scale = float(np.max(np.abs(ref)))
     summary = {"t0": args.t0, "t1": t1, "writhe_scale": scale}
