@@ -27,8 +27,9 @@ and ``tolerance <tol> untied``.
 
 With ``--position-tolerances`` (m, default none) the window is also run with
 ``contact.position_tolerance`` set (the largest position error per step where strands
-may meet): at the production step (rows ``position <x>``) and with each tolerance of
-``--tolerances`` (rows ``tolerance <tol> position <x>``).
+may meet): at the production step (rows ``position <x>``; with ``--dt-cut-factor f``
+also with the fixed steps cut by f instead of 4, rows ``position <x> cut <f>``) and with
+each tolerance of ``--tolerances`` (rows ``tolerance <tol> position <x>``).
 
 Run: ``python benchmarks/seed_accuracy.py [--t1 21.0] [--quick] [--tolerances 1e-3,1e-4]
 [--position-tolerances 3e-4]`` (quick: references at 25 ms and 12.5 ms, to 19.5 s;
@@ -39,6 +40,7 @@ from __future__ import annotations
 import argparse
 import copy
 import json
+import math
 import time
 from pathlib import Path
 
@@ -108,14 +110,22 @@ def with_tolerance(base: RodRun, relative: float, tied: bool = True) -> RodRun:
     return run
 
 
-def with_position_tolerance(base: RodRun, position: float) -> RodRun:
+def with_position_tolerance(base: RodRun, position: float, cut_factor=None) -> RodRun:
     """A copy of ``base`` whose steps where strands may meet keep each node's position
-    error within ``position`` (m): ``contact.position_tolerance``."""
+    error within ``position`` (m): ``contact.position_tolerance``; with ``cut_factor``
+    its fixed steps are cut by that factor instead (``numerics.dt_cut_factor``, as many
+    cuts as keep the smallest step)."""
     spec = base.case.model_dump()
     spec["contact"]["position_tolerance"] = position
+    if cut_factor is not None:
+        smallest = spec["numerics"]["dt_cut_factor"] ** spec["numerics"]["max_dt_cuts"]
+        spec["numerics"]["dt_cut_factor"] = cut_factor
+        spec["numerics"]["max_dt_cuts"] = int(math.ceil(math.log(smallest)
+                                                        / math.log(cut_factor) - 1e-9))
     run = copy.deepcopy(base)
     run.case = Case.model_validate(spec)
     run.route_tolerance = position
+    run.level_hint = 0
     return run
 
 
@@ -160,6 +170,9 @@ def main() -> None:
                     help="comma-separated relative tolerances of error-controlled runs")
     ap.add_argument("--position-tolerances", default="",
                     help="comma-separated contact.position_tolerance values, m")
+    ap.add_argument("--dt-cut-factor", type=float, default=None,
+                    help="the position rows' numerics.dt_cut_factor (also run with it: "
+                         "rows 'position <x> cut <f>')")
     args = ap.parse_args()
     tolerances = [float(x) for x in args.tolerances.split(",") if x.strip()]
     positions = [float(x) for x in args.position_tolerances.split(",") if x.strip()]
@@ -176,12 +189,16 @@ def main() -> None:
             recs, wall = advance(copy.deepcopy(base), t1, h)
             runs[name] = {"h": h, "wall_s": wall, "records": recs, "events": events(recs)}
             print(f"{name}: nominal Δt {h} s, wall {wall:.1f} s, events {runs[name]['events']}")
+        cuts = [None] + ([args.dt_cut_factor] if args.dt_cut_factor else [])
         for pos in positions:
-            name = f"position {pos:g}"
-            recs, wall = advance(with_position_tolerance(base, pos), t1, steps["production"])
-            runs[name] = {"h": steps["production"], "position_tolerance": pos, "wall_s": wall,
-                          "records": recs, "events": events(recs)}
-            print(f"{name}: wall {wall:.1f} s, events {runs[name]['events']}", flush=True)
+            for cut in cuts:
+                name = f"position {pos:g}" + ("" if cut is None else f" cut {cut:g}")
+                recs, wall = advance(with_position_tolerance(base, pos, cut), t1,
+                                     steps["production"])
+                runs[name] = {"h": steps["production"], "position_tolerance": pos,
+                              "dt_cut_factor": cut, "wall_s": wall, "records": recs,
+                              "events": events(recs)}
+                print(f"{name}: wall {wall:.1f} s, events {runs[name]['events']}", flush=True)
         for tol in tolerances:
             variants = [("", dict(tied=True)), (" untied", dict(tied=False))]
             variants += [(f" position {pos:g}", dict(tied=True, position=pos)) for pos in positions]
