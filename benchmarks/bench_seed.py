@@ -47,6 +47,20 @@ def timed(owner, name, key):
     setattr(owner, name, wrapper)
 
 
+def set_variant(spec: dict, position_tolerance=None, dt_cut_factor=None) -> dict:
+    """Set ``contact.position_tolerance`` (m) and ``numerics.dt_cut_factor`` in a case
+    spec (dict, changed in place and returned), None leaving a field as it is; with a new
+    cut factor ``max_dt_cuts`` is raised so that the smallest step stays the spec's."""
+    if position_tolerance is not None:
+        spec["contact"]["position_tolerance"] = position_tolerance
+    if dt_cut_factor is not None:
+        smallest = spec["numerics"]["dt_cut_factor"] ** spec["numerics"]["max_dt_cuts"]
+        spec["numerics"]["dt_cut_factor"] = dt_cut_factor
+        spec["numerics"]["max_dt_cuts"] = int(math.ceil(math.log(smallest)
+                                                        / math.log(dt_cut_factor) - 1e-9))
+    return spec
+
+
 def run(t_end: float = 45.0, out: str | None = None, newton_scale: float = 1.0,
         position_tolerance: float | None = None, dt_cut_factor: float | None = None) -> dict:
     """Run the seed example to t_end (s) with the timers installed; return the figures.
@@ -62,13 +76,7 @@ def run(t_end: float = 45.0, out: str | None = None, newton_scale: float = 1.0,
         spec = Case.from_file(ROOT / "cases" / "goyal-writhing.yaml").model_dump(mode="json")
         spec["numerics"]["t_end"] = t_end
         spec["numerics"]["newton"]["tolerance"] *= newton_scale
-        if position_tolerance is not None:
-            spec["contact"]["position_tolerance"] = position_tolerance
-        if dt_cut_factor is not None:
-            smallest = spec["numerics"]["dt_cut_factor"] ** spec["numerics"]["max_dt_cuts"]
-            spec["numerics"]["dt_cut_factor"] = dt_cut_factor
-            spec["numerics"]["max_dt_cuts"] = int(math.ceil(math.log(smallest)
-                                                            / math.log(dt_cut_factor) - 1e-9))
+        set_variant(spec, position_tolerance, dt_cut_factor)
         case = Case.model_validate(spec)
         steps = []
         last = [0.0, 0]

@@ -40,7 +40,6 @@ from __future__ import annotations
 import argparse
 import copy
 import json
-import math
 import time
 from pathlib import Path
 
@@ -115,13 +114,9 @@ def with_position_tolerance(base: RodRun, position: float, cut_factor=None) -> R
     error within ``position`` (m): ``contact.position_tolerance``; with ``cut_factor``
     its fixed steps are cut by that factor instead (``numerics.dt_cut_factor``, as many
     cuts as keep the smallest step)."""
-    spec = base.case.model_dump()
-    spec["contact"]["position_tolerance"] = position
-    if cut_factor is not None:
-        smallest = spec["numerics"]["dt_cut_factor"] ** spec["numerics"]["max_dt_cuts"]
-        spec["numerics"]["dt_cut_factor"] = cut_factor
-        spec["numerics"]["max_dt_cuts"] = int(math.ceil(math.log(smallest)
-                                                        / math.log(cut_factor) - 1e-9))
+    from bench_seed import set_variant
+
+    spec = set_variant(base.case.model_dump(), position, cut_factor)
     run = copy.deepcopy(base)
     run.case = Case.model_validate(spec)
     run.route_tolerance = position
