@@ -119,10 +119,11 @@ class RodRun:
     GUARD_EVERY = 10  # accepted steps between growth-guard checks at an unchanged Δt
     GROW_AFTER_MAX = 48  # the same after repeated failed growths (doubling back-off)
 
-    #: with numerics.tolerance, the route rule's tolerance in steps where strands may
-    #: meet (a node's position error per step, m) is at most ROUTE_RELATIVE × relative
-    #: tolerance × rod length, so that the contact phase's accuracy follows the
-    #: tolerance too (None: the search margin's quarter alone, as with fixed steps).
+    #: with numerics.tolerance and no contact.position_tolerance, the route rule's
+    #: tolerance in steps where strands may meet (a node's position error per step, m)
+    #: is at most ROUTE_RELATIVE × relative tolerance × rod length, so that the contact
+    #: phase's accuracy follows the tolerance too (None: the search margin's quarter
+    #: alone, as with fixed steps).
     #: Measured on the seed's first loop (docs/numerics.md § 7): with the margin's
     #: 5 mm alone the writhe stayed 1.1-2.7 % off a 6.25-ms reference at every
     #: tolerance from 1e-2 to 1e-4; tied, 1e-3 gives 0.65-1.2 % and 1e-4 0.37 %
