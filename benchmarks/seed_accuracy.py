@@ -32,7 +32,7 @@ also with the fixed steps cut by f instead of 4, rows ``position <x> cut <f>``) 
 each tolerance of ``--tolerances`` (rows ``tolerance <tol> position <x>``).
 
 Run: ``python benchmarks/seed_accuracy.py [--t1 21.0] [--quick] [--tolerances 1e-3,1e-4]
-[--position-tolerances 3e-4]`` (quick: references at 25 ms and 12.5 ms, to 19.5 s;
+[--position-tolerances 3e-4 [--dt-cut-factor 2]]`` (quick: references at 25 ms and 12.5 ms, to 19.5 s;
 ``--tolerances ''``: none).
 """
 from __future__ import annotations
