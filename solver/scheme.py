@@ -31,9 +31,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
-
-from scipy.sparse import csr_matrix
 
 from .banded import NV
 from .kinematics import (quat_exp, quat_multiply, quat_to_matrix, right_jacobian, skew,
@@ -102,6 +101,95 @@ def _add_skew(out, r0, c0, a, rscale=None, cscale=None, sign=1.0):
         if cscale is not None:
             term = term * cscale[:, c]
         out[:, r0 + r, c0 + c] += term
+
+
+#: the contact arguments of _exact_loads_kernel when no pair is active
+_NO_PAIRS = (np.zeros((0, 5), np.intp), np.zeros((0, 3, 30)), np.zeros((0, 15)),
+             np.zeros((0, 3)), np.zeros((0, 5)), np.zeros((0, 5)))
+
+
+@numba.njit(cache=True)
+def _exact_loads_kernel(dY, A0, C, D, R, rdot, tmid, G, L, ds, dt, nodes, A, dtdr, Fp, w,
+                        dwdt):
+    """Compiled body of :meth:`RodSystem._exact_loads` (its docstring has the formulas):
+    the prefix sums along the rod, the pairs' load changes and the body-frame rotation
+    in one pass each; returns dB (N+1, 3)."""
+    n1 = dY.shape[0]
+    dphi = np.empty((n1, 3))
+    dr = np.empty((n1, 3))
+    dG = np.empty((n1, 3))
+    for i in range(3):
+        dphi[0, i] = A0[i, 0] * dY[0, 3] + A0[i, 1] * dY[0, 4] + A0[i, 2] * dY[0, 5]
+    # dr_0 = ½Δt(δφ_0 × ṙ_0 + R_0 δv_0)
+    p0, p1, p2 = dphi[0, 0], dphi[0, 1], dphi[0, 2]
+    c0 = p1 * rdot[0, 2] - p2 * rdot[0, 1]
+    c1 = p2 * rdot[0, 0] - p0 * rdot[0, 2]
+    c2 = p0 * rdot[0, 1] - p1 * rdot[0, 0]
+    dr[0, 0] = 0.5 * dt * (c0 + R[0, 0, 0] * dY[0, 0] + R[0, 0, 1] * dY[0, 1] + R[0, 0, 2] * dY[0, 2])
+    dr[0, 1] = 0.5 * dt * (c1 + R[0, 1, 0] * dY[0, 0] + R[0, 1, 1] * dY[0, 1] + R[0, 1, 2] * dY[0, 2])
+    dr[0, 2] = 0.5 * dt * (c2 + R[0, 2, 0] * dY[0, 0] + R[0, 2, 1] * dY[0, 1] + R[0, 2, 2] * dY[0, 2])
+    for k in range(1, n1):
+        c = k - 1
+        k0 = 0.5 * (dY[k, 9] + dY[c, 9])
+        k1 = 0.5 * (dY[k, 10] + dY[c, 10])
+        k2 = 0.5 * (dY[k, 11] + dY[c, 11])
+        # δψ (mid-cell rotation) from δφ_{k−1}, then δφ_k
+        s0 = dphi[c, 0] + D[c, 0, 0] * k0 + D[c, 0, 1] * k1 + D[c, 0, 2] * k2
+        s1 = dphi[c, 1] + D[c, 1, 0] * k0 + D[c, 1, 1] * k1 + D[c, 1, 2] * k2
+        s2 = dphi[c, 2] + D[c, 2, 0] * k0 + D[c, 2, 1] * k1 + D[c, 2, 2] * k2
+        for i in range(3):
+            dphi[k, i] = dphi[c, i] + C[c, i, 0] * k0 + C[c, i, 1] * k1 + C[c, i, 2] * k2
+        t0, t1, t2 = tmid[c, 0], tmid[c, 1], tmid[c, 2]
+        dr[k, 0] = dr[c, 0] + ds * (s1 * t2 - s2 * t1)
+        dr[k, 1] = dr[c, 1] + ds * (s2 * t0 - s0 * t2)
+        dr[k, 2] = dr[c, 2] + ds * (s0 * t1 - s1 * t0)
+    for k in range(n1):
+        dG[k, 0] = G[k, 1] * dphi[k, 2] - G[k, 2] * dphi[k, 1]
+        dG[k, 1] = G[k, 2] * dphi[k, 0] - G[k, 0] * dphi[k, 2]
+        dG[k, 2] = G[k, 0] * dphi[k, 1] - G[k, 1] * dphi[k, 0]
+    n_p = nodes.shape[0]
+    n_b = nodes.shape[1]
+    z = np.empty(6 * n_b)
+    for p in range(n_p):
+        for b in range(n_b):
+            a = nodes[p, b]
+            # δr_b and δṙ_b = δφ × ṙ + R δv
+            for i in range(3):
+                z[3 * b + i] = dr[a, i]
+            q0, q1, q2 = dphi[a, 0], dphi[a, 1], dphi[a, 2]
+            e0 = q1 * rdot[a, 2] - q2 * rdot[a, 1]
+            e1 = q2 * rdot[a, 0] - q0 * rdot[a, 2]
+            e2 = q0 * rdot[a, 1] - q1 * rdot[a, 0]
+            for i in range(3):
+                e = e0 if i == 0 else (e1 if i == 1 else e2)
+                z[3 * n_b + 3 * b + i] = e + (R[a, i, 0] * dY[a, 0] + R[a, i, 1] * dY[a, 1]
+                                              + R[a, i, 2] * dY[a, 2])
+        dtp = 0.0
+        for m in range(3 * n_b):
+            dtp += dtdr[p, m] * z[m]
+        f0 = 0.0
+        f1 = 0.0
+        f2 = 0.0
+        for m in range(6 * n_b):
+            f0 += A[p, 0, m] * z[m]
+            f1 += A[p, 1, m] * z[m]
+            f2 += A[p, 2, m] * z[m]
+        for b in range(n_b):
+            a = nodes[p, b]
+            wb = w[p, b]
+            tb = dwdt[p, b] * dtp
+            dG[a, 0] += wb * f0 + tb * Fp[p, 0]
+            dG[a, 1] += wb * f1 + tb * Fp[p, 1]
+            dG[a, 2] += wb * f2 + tb * Fp[p, 2]
+    out = np.empty((n1, 3))
+    for k in range(n1):
+        for i in range(3):
+            acc = R[k, 0, i] * dG[k, 0] + R[k, 1, i] * dG[k, 1] + R[k, 2, i] * dG[k, 2]
+            for j in range(6):
+                acc -= L[k, i, j] * dY[k, j]
+            out[k, i] = acc
+    return out
+
 
 
 class RodSystem:
@@ -444,23 +532,19 @@ class RodSystem:
         # approximation and node_terms' rotation of the global load
         L = np.zeros((self.n_nodes, 3, 6)) if diag is None else diag.copy()
         L[:, :, 3:] += 0.5 * self.dt * (skew(b_rot) @ right_jacobian(theta))
-        out = dict(R=R, C=C, D=D, tmid=M[:, :, 2], A0=A0, rdot=rdot, G=glob, L=L)
+        out = dict(R=R, C=C, D=D, tmid=np.ascontiguousarray(M[:, :, 2]), A0=A0, rdot=rdot,
+                   G=np.ascontiguousarray(glob, dtype=float), L=L)
         if ev is not None and ev.count:
             n_p, n_b = ev.nodes.shape
             # dF_p = A_p [δr_b; δṙ_b]_(b = 1..K): (P, 3, 6K)
             A = np.concatenate([ev.d_force_d_r.transpose(0, 2, 1, 3).reshape(n_p, 3, 3 * n_b),
                                 ev.d_force_d_v.transpose(0, 2, 1, 3).reshape(n_p, 3, 3 * n_b)],
                                axis=2)
-            # one sparse product scatters both parts of the pairs' load change onto the
-            # nodes: [w | ∂w/∂t] (N+1, 2P) times [δF_p ; F_p δt_p] (2P, 3)
-            cols = np.repeat(np.arange(n_p), n_b)
-            rows = ev.nodes.ravel()
-            scatter = csr_matrix((np.concatenate([ev.weights.ravel(), ev.d_weights_d_t.ravel()]),
-                                  (np.concatenate([rows, rows]),
-                                   np.concatenate([cols, cols + n_p]))),
-                                 shape=(self.n_nodes, 2 * n_p))
-            out.update(nodes=ev.nodes, A=A, F=ev.force, dtdr=ev.d_t_d_r.reshape(n_p, 3 * n_b),
-                       scatter=scatter)
+            out.update(nodes=np.ascontiguousarray(ev.nodes), A=np.ascontiguousarray(A),
+                       F=np.ascontiguousarray(ev.force),
+                       dtdr=np.ascontiguousarray(ev.d_t_d_r.reshape(n_p, 3 * n_b)),
+                       w=np.ascontiguousarray(ev.weights),
+                       dwdt=np.ascontiguousarray(ev.d_weights_d_t))
         return out
 
     def _exact_loads(self, ex, dY):
@@ -476,30 +560,15 @@ class RodSystem:
         ∂F/∂ṙ_b δṙ_b, its load w_a F_p on node a by w_a δF_p + F_p (∂w_a/∂t) δt, and the
         body-frame load B_a = R_aᵀ G_a (G the global force on a) by R_aᵀ(δG_a + G_a × δφ_a).
         """
-        dk = dY[:, K:K + 3]
-        dv = dY[:, V:V + 3]
-        dkbar = 0.5 * (dk[1:] + dk[:-1])
-        n1 = self.n_nodes
-        dphi = np.empty((n1, 3))
-        dphi[0] = ex["A0"] @ dY[0, W:W + 3]
-        dphi[1:] = dphi[0] + np.cumsum(np.einsum("cij,cj->ci", ex["C"], dkbar), axis=0)
-        dpsi = dphi[:-1] + np.einsum("cij,cj->ci", ex["D"], dkbar)
-        R = ex["R"]
-        dr = np.empty((n1, 3))
-        dr[0] = 0.5 * self.dt * (_cross(dphi[0], ex["rdot"][0]) + R[0] @ dv[0])
-        dr[1:] = dr[0] + self.p.ds * np.cumsum(_cross(dpsi, ex["tmid"]), axis=0)
-        dG = _cross(ex["G"], dphi)
         if "nodes" in ex:
-            nodes = ex["nodes"]
-            n_p, n_b = nodes.shape
-            drdot = _cross(dphi, ex["rdot"]) + np.einsum("nij,nj->ni", R, dv)
-            z = np.concatenate([dr[nodes].reshape(n_p, 3 * n_b),
-                                drdot[nodes].reshape(n_p, 3 * n_b)], axis=1)
-            dF = np.matmul(ex["A"], z[:, :, None])[:, :, 0]
-            dt = np.einsum("pk,pk->p", ex["dtdr"], z[:, :3 * n_b])
-            dG += ex["scatter"] @ np.concatenate([dF, dt[:, None] * ex["F"]])
-        dB = np.einsum("nji,nj->ni", R, dG)
-        return dB - np.einsum("nij,nj->ni", ex["L"], dY[:, 0:6])
+            nodes, A, dtdr, F, w, dwdt = (ex["nodes"], ex["A"], ex["dtdr"], ex["F"], ex["w"],
+                                          ex["dwdt"])
+        else:
+            nodes, A, dtdr, F, w, dwdt = _NO_PAIRS
+        return _exact_loads_kernel(np.ascontiguousarray(dY), ex["A0"], ex["C"], ex["D"],
+                                   ex["R"], ex["rdot"], ex["tmid"], ex["G"], ex["L"],
+                                   float(self.p.ds), float(self.dt), nodes, A, dtdr, F, w,
+                                   dwdt)
 
     def column_scale(self, Y):
         """Scale of each unknown (n,): max(|Y| of its kind over the grid, its floor)."""

@@ -1,9 +1,13 @@
 """Distances between the centreline polyline's nodes and segments, and the swept test.
 
-Pure numpy. Positions are global (m); a segment k joins nodes k and k+1.
+Numpy, with the closest point on the partner curve compiled by numba. Positions are
+global (m); a segment k joins nodes k and k+1.
 """
 from __future__ import annotations
 
+import math
+
+import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -11,19 +15,48 @@ __all__ = ["point_segment", "point_curve", "curve_basis", "segment_segment", "sw
            "min_surface_gap"]
 
 
+@numba.njit(cache=True)
+def _point_segment_kernel(p, a, b, t, x, d, tau):
+    for m in range(p.shape[0]):
+        e0 = b[m, 0] - a[m, 0]
+        e1 = b[m, 1] - a[m, 1]
+        e2 = b[m, 2] - a[m, 2]
+        ee = e0 * e0 + e1 * e1 + e2 * e2
+        safe = ee if ee > 0.0 else 1.0
+        w0 = p[m, 0] - a[m, 0]
+        w1 = p[m, 1] - a[m, 1]
+        w2 = p[m, 2] - a[m, 2]
+        tm = min(max((w0 * e0 + w1 * e1 + w2 * e2) / safe, 0.0), 1.0)
+        x0 = w0 - tm * e0
+        x1 = w1 - tm * e1
+        x2 = w2 - tm * e2
+        t[m] = tm
+        x[m, 0] = x0
+        x[m, 1] = x1
+        x[m, 2] = x2
+        d[m] = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+        sq = math.sqrt(safe)
+        tau[m, 0] = e0 / sq
+        tau[m, 1] = e1 / sq
+        tau[m, 2] = e2 / sq
+
+
 def point_segment(p, a, b):
     """Closest points of points p on segments [a, b], all (M, 3) m.
 
     Returns (t (M,) in [0, 1], x = p − (a + t(b − a)) (M, 3) m, d = |x| (M,) m,
     tau (M, 3) the unit segment tangents). Degenerate segments give t = 0.
+    Compiled (numba).
     """
-    e = b - a
-    ee = np.einsum("ij,ij->i", e, e)
-    safe = np.where(ee > 0.0, ee, 1.0)
-    t = np.clip(np.einsum("ij,ij->i", p - a, e) / safe, 0.0, 1.0)
-    x = p - a - t[:, None] * e
-    d = np.sqrt(np.einsum("ij,ij->i", x, x))
-    tau = e / np.sqrt(safe)[:, None]
+    p = np.ascontiguousarray(p, dtype=float)
+    a = np.ascontiguousarray(a, dtype=float)
+    b = np.ascontiguousarray(b, dtype=float)
+    m = p.shape[0]
+    t = np.empty(m)
+    x = np.empty((m, 3))
+    d = np.empty(m)
+    tau = np.empty((m, 3))
+    _point_segment_kernel(p, a, b, t, x, d, tau)
     return t, x, d, tau
 
 
@@ -111,6 +144,72 @@ def curve_basis(t, j, n_nodes):
     return _segment_nodes(j, n_nodes), b[:, 0], b[:, 1], b[:, 2]
 
 
+@numba.njit(cache=True)
+def _point_curve_kernel(p, r, j, iterations, ends, t_out, x_out, d_out, c1_out, g_out,
+                        idx_out, b0_out, b1_out):
+    """Compiled body of :func:`point_curve`, one point at a time (its docstring)."""
+    n = r.shape[0]
+    for m in range(p.shape[0]):
+        jm = j[m]
+        idx_out[m, 0] = max(jm - 1, 0)
+        idx_out[m, 1] = jm
+        idx_out[m, 2] = jm + 1
+        idx_out[m, 3] = min(jm + 2, n - 1)
+        mat = ends[(1 if jm - 1 < 0 else 0) + (2 if jm + 2 > n - 1 else 0)]
+        # start: the chord's closest point
+        e0 = r[jm + 1, 0] - r[jm, 0]
+        e1 = r[jm + 1, 1] - r[jm, 1]
+        e2 = r[jm + 1, 2] - r[jm, 2]
+        ee = e0 * e0 + e1 * e1 + e2 * e2
+        t = 0.0
+        if ee > 0.0:
+            t = ((p[m, 0] - r[jm, 0]) * e0 + (p[m, 1] - r[jm, 1]) * e1
+                 + (p[m, 2] - r[jm, 2]) * e2) / ee
+            t = min(max(t, 0.0), 1.0)
+        x0 = x1 = x2 = 0.0
+        d0 = d1 = d2 = 0.0
+        g = 0.0
+        for it in range(iterations + 1):
+            t2 = t * t
+            c0x = c0y = c0z = 0.0
+            d0 = d1 = d2 = 0.0
+            s0 = s1 = s2 = 0.0
+            for b in range(4):
+                # β_b, β'_b, β''_b: powers of t (and their derivatives) times column b
+                bb = mat[0, b] + t * mat[1, b] + t2 * mat[2, b] + t2 * t * mat[3, b]
+                db = mat[1, b] + 2.0 * t * mat[2, b] + 3.0 * t2 * mat[3, b]
+                sb = 2.0 * mat[2, b] + 6.0 * t * mat[3, b]
+                b0_out[m, b] = bb
+                b1_out[m, b] = db
+                a = idx_out[m, b]
+                c0x += bb * r[a, 0]
+                c0y += bb * r[a, 1]
+                c0z += bb * r[a, 2]
+                d0 += db * r[a, 0]
+                d1 += db * r[a, 1]
+                d2 += db * r[a, 2]
+                s0 += sb * r[a, 0]
+                s1 += sb * r[a, 1]
+                s2 += sb * r[a, 2]
+            x0 = p[m, 0] - c0x
+            x1 = p[m, 1] - c0y
+            x2 = p[m, 2] - c0z
+            g = d0 * d0 + d1 * d1 + d2 * d2 - (x0 * s0 + x1 * s1 + x2 * s2)
+            if it == iterations:
+                break
+            if g > 0.0:
+                t = min(max(t + (d0 * x0 + d1 * x1 + d2 * x2) / g, 0.0), 1.0)
+        t_out[m] = t
+        x_out[m, 0] = x0
+        x_out[m, 1] = x1
+        x_out[m, 2] = x2
+        d_out[m] = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+        c1_out[m, 0] = d0
+        c1_out[m, 1] = d1
+        c1_out[m, 2] = d2
+        g_out[m] = g
+
+
 def point_curve(p, positions, j, iterations=3):
     """Closest points of points p (M, 3) m on the partner curves' segments j (M,) int
     (:func:`curve_basis` over the nodes ``positions`` (N, 3) m), t ∈ [0, 1].
@@ -120,27 +219,23 @@ def point_curve(p, positions, j, iterations=3):
     chord by O(Δs² κ)).
     Returns (t (M,), x = p − c(t) (M, 3) m, d = |x| (M,) m, c' (M, 3) m, g = |c'|² −
     x·c'' (M,) m², the second derivative of ½|p − c|² in t, idx (M, 4), β (M, 4),
-    β' (M, 4)).
+    β' (M, 4)). Compiled (numba): one pass over the points, all iterations in registers.
     """
-    r = positions
-    n = r.shape[0]
-    t = point_segment(p, r[j], r[j + 1])[0]
-    idx = _segment_nodes(j, n)
-    q = r[idx]                                                      # (M, 4, 3)
-    mats = _segment_matrices(j, n)
-    for it in range(iterations + 1):
-        b = _basis(t, mats)
-        c = np.matmul(b, q)                                         # (M, 3, 3): c, c', c''
-        x = p - c[:, 0]
-        c1 = c[:, 1]
-        g = np.einsum("mi,mi->m", c1, c1) - np.einsum("mi,mi->m", x, c[:, 2])
-        if it == iterations:
-            break
-        ok = g > 0.0
-        step = np.einsum("mi,mi->m", c1, x) / np.where(ok, g, 1.0)
-        t = np.clip(t + np.where(ok, step, 0.0), 0.0, 1.0)
-    d = np.sqrt(np.einsum("ij,ij->i", x, x))
-    return t, x, d, c1, g, idx, b[:, 0], b[:, 1]
+    p = np.ascontiguousarray(p, dtype=float)
+    r = np.ascontiguousarray(positions, dtype=float)
+    j = np.ascontiguousarray(j, dtype=np.intp)
+    m = p.shape[0]
+    t = np.empty(m)
+    x = np.empty((m, 3))
+    d = np.empty(m)
+    c1 = np.empty((m, 3))
+    g = np.empty(m)
+    idx = np.empty((m, 4), dtype=np.intp)
+    b0 = np.empty((m, 4))
+    b1 = np.empty((m, 4))
+    _point_curve_kernel(p, r, j, int(iterations), _CATMULL_ROM_ENDS, t, x, d, c1, g, idx,
+                        b0, b1)
+    return t, x, d, c1, g, idx, b0, b1
 
 
 def close_node_pairs(positions, radius, s, separation_cut):
