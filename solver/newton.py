@@ -27,6 +27,8 @@ The difference equations of a step (:class:`solver.scheme.RodSystem`) are solved
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.lib.stride_tricks import as_strided
 from scipy.linalg import solve_triangular
@@ -70,6 +72,11 @@ def _back_substitute(R, g):
     if np.all(np.diag(R) != 0.0):
         return solve_triangular(R, g, check_finite=False)
     return np.linalg.lstsq(R, g, rcond=None)[0]
+
+
+def _norm(x):
+    """2-norm of a vector (n,); inf or NaN where x has one (a diverging trial point)."""
+    return math.sqrt(float(x @ x))
 
 
 class Newton:
@@ -172,8 +179,8 @@ class Newton:
         precond = self.layout.solve
         x0 = precond(rhs)
         r = rhs - self._coupled_matvec(x0)
-        bnorm = float(np.linalg.norm(rhs))
-        beta = float(np.linalg.norm(r))
+        bnorm = math.sqrt(float(rhs @ rhs))
+        beta = math.sqrt(float(r @ r))
         if beta <= rtol * bnorm or beta == 0.0:
             return x0
         m = max_iterations
@@ -193,7 +200,7 @@ class Newton:
             h2 = V[:k + 1] @ w
             w -= h2 @ V[:k + 1]
             col = h + h2
-            hnext = float(np.linalg.norm(w))
+            hnext = math.sqrt(float(w @ w))
             H[:k + 1, k] = col
             # apply the earlier rotations to the new column, then annihilate H[k+1, k]
             for i in range(k):
@@ -431,12 +438,12 @@ class Newton:
         correction, at most 4 times, until the residual decreases (Armijo, c = 1e-4).
         Returns (correction, the residual tuple with Jacobian at the accepted point, to be
         reused as the next iterate's)."""
-        f0 = float(np.linalg.norm(R0 * self._row_scale))
+        f0 = _norm(R0 * self._row_scale)
         alpha = 1.0
         out = None
         for _ in range(4):
             out = self.system.residual(Y + alpha * delta, want_jacobian=True)
-            f1 = float(np.linalg.norm(out[0] * self._row_scale))
+            f1 = _norm(out[0] * self._row_scale)
             if np.isfinite(f1) and f1 <= (1.0 - 1e-4 * alpha) * f0:
                 return alpha * delta, out
             alpha *= 0.5

@@ -492,8 +492,8 @@ class RodSystem:
         force = np.zeros((n1, 3))
         if ev.count == 0:
             return force, None, ev
-        for a in range(ev.nodes.shape[1]):
-            np.add.at(force, ev.nodes[:, a], ev.weights[:, a, None] * ev.force)
+        np.add.at(force, ev.nodes.ravel(),
+                  (ev.weights[:, :, None] * ev.force[:, None, :]).reshape(-1, 3))
         if not want_jacobian:
             return force, None, ev
         # node-local approximation (preconditioner only): positions advanced per node in
@@ -502,15 +502,15 @@ class RodSystem:
         nodes = ev.nodes
         Rn = R[nodes]                                                   # (P, 3, 3, 3)
         Hb = 0.5 * self.dt * ev.d_force_d_r + ev.d_force_d_v
-        HR = np.einsum("pbij,pbjk->pbik", Hb, Rn)
+        HR = Hb @ Rn
         vb = Y[nodes, V:V + 3]
         Jr = right_jacobian(theta[nodes])
-        HW = -0.5 * self.dt * np.einsum("pbij,pbjk->pbik", HR, skew(vb) @ Jr)
+        HW = (-0.5 * self.dt) * (HR @ (skew(vb) @ Jr))
+        # ∂F/∂(v, ω) of each pair node, rotated to its body frame and weighted: (P, K, 3, 6)
+        blk = np.concatenate([HR, HW], axis=-1)
+        blk = ev.weights[:, :, None, None] * (np.swapaxes(Rn, -1, -2) @ blk)
         diag = np.zeros((n1, 3, 6))
-        for a in range(nodes.shape[1]):
-            blk = np.concatenate([HR[:, a], HW[:, a]], axis=-1)        # ∂F/∂(v, ω)_a
-            np.add.at(diag, nodes[:, a], ev.weights[:, a, None, None]
-                      * np.einsum("pji,pjk->pik", Rn[:, a], blk))
+        np.add.at(diag, nodes.ravel(), blk.reshape(-1, 3, 6))
         return force, diag, ev
 
     def _exact_data(self, Y, pose, glob, ev, diag):

@@ -11,7 +11,7 @@ import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
-__all__ = ["point_segment", "point_curve", "curve_basis", "segment_segment", "swept_min_distance", "close_node_pairs",
+__all__ = ["point_segment", "run_minima", "point_curve", "curve_basis", "segment_segment", "swept_min_distance", "close_node_pairs",
            "min_surface_gap"]
 
 
@@ -58,6 +58,52 @@ def point_segment(p, a, b):
     tau = np.empty((m, 3))
     _point_segment_kernel(p, a, b, t, x, d, tau)
     return t, x, d, tau
+
+
+@numba.njit(cache=True)
+def _run_minima_kernel(r, own, seg, start, out):
+    n_runs = start.shape[0]
+    total = own.shape[0]
+    for q in range(n_runs):
+        lo = start[q]
+        hi = start[q + 1] if q + 1 < n_runs else total
+        best = np.inf
+        arg = lo
+        for m in range(lo, hi):
+            i = own[m]
+            j = seg[m]
+            e0 = r[j + 1, 0] - r[j, 0]
+            e1 = r[j + 1, 1] - r[j, 1]
+            e2 = r[j + 1, 2] - r[j, 2]
+            w0 = r[i, 0] - r[j, 0]
+            w1 = r[i, 1] - r[j, 1]
+            w2 = r[i, 2] - r[j, 2]
+            ee = e0 * e0 + e1 * e1 + e2 * e2
+            t = 0.0
+            if ee > 0.0:
+                t = min(max((w0 * e0 + w1 * e1 + w2 * e2) / ee, 0.0), 1.0)
+            x0 = w0 - t * e0
+            x1 = w1 - t * e1
+            x2 = w2 - t * e2
+            dd = x0 * x0 + x1 * x1 + x2 * x2
+            if dd < best:
+                best = dd
+                arg = m
+        out[q] = arg
+
+
+def run_minima(positions, owner, segment, run_start):
+    """For each run of owner/segment combinations (a run: the combinations from
+    ``run_start[q]`` up to the next run's start), the index of the first combination
+    whose segment [r_j, r_{j+1}] is closest to the owner node r_i (the polyline's closest
+    segment). positions (N, 3) m; owner, segment (M,) int; run_start (R,) int, increasing
+    from 0. Returns (R,) int. Compiled (numba): no (M, 3) gathers."""
+    out = np.empty(len(run_start), dtype=np.intp)
+    _run_minima_kernel(np.ascontiguousarray(positions, dtype=float),
+                       np.ascontiguousarray(owner, dtype=np.intp),
+                       np.ascontiguousarray(segment, dtype=np.intp),
+                       np.ascontiguousarray(run_start, dtype=np.intp), out)
+    return out
 
 
 #: the uniform Catmull-Rom cubic in power form: c(t) = [1, t, t², t³] · _CATMULL_ROM ·

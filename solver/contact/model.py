@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .geometry import close_node_pairs, point_curve, point_segment
+from .geometry import close_node_pairs, point_curve, run_minima
 from .laws import BarrierLaw, SeedLaw
 
 __all__ = ["SelfContact", "ContactCandidates", "ContactEvaluation", "assemble_nodal",
@@ -411,11 +411,7 @@ class SelfContact:
             # the polyline's closest segment of each run, then the curve on it and its two
             # neighbours in the run (the curve departs from the chords by O(Δs² κ), so
             # its closest point lies on one of them)
-            d = point_segment(r[own], r[seg], r[seg + 1])[2]
-            dmin = np.minimum.reduceat(d, start)
-            sizes = last - start + 1
-            hit = np.flatnonzero(d == np.repeat(dmin, sizes))
-            k0 = hit[np.searchsorted(hit, start)]          # first minimum of each run
+            k0 = run_minima(r, own, seg, start)            # first minimum of each run
             trio = np.clip(k0[:, None] + np.arange(-1, 2)[None, :], start[:, None],
                            last[:, None]).ravel()
             geo = point_curve(r[own[trio]], r, seg[trio])
