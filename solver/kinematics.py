@@ -185,6 +185,9 @@ def _space_route_kernel(q0, r0, kappa, ds, q, r):
         q[0, c] = q0[c]
     for c in range(3):
         r[0, c] = r0[c]
+    a0 = 0.0
+    a1 = 0.0
+    a2 = 0.0
     for k in range(1, n):
         # half-cell rotation exp(½Δs κ̄) as (hw, hx, hy, hz)
         tx = 0.25 * ds * (kappa[k - 1, 0] + kappa[k, 0])
@@ -209,10 +212,14 @@ def _space_route_kernel(q0, r0, kappa, ds, q, r):
         q[k, 1] = mw * hx + mx * hw + my * hz - mz * hy
         q[k, 2] = mw * hy - mx * hz + my * hw + mz * hx
         q[k, 3] = mw * hz + mx * hy - my * hx + mz * hw
-        # r_k = r_{k−1} + Δs a3(m), a3 the third column of R(m)
-        r[k, 0] = r[k - 1, 0] + ds * 2.0 * (mx * mz + mw * my)
-        r[k, 1] = r[k - 1, 1] + ds * 2.0 * (my * mz - mw * mx)
-        r[k, 2] = r[k - 1, 2] + ds * (1.0 - 2.0 * (mx * mx + my * my))
+        # r_k = r_0 + Δs Σ a3(m), a3 the third column of R(m) (the sum of the tangents
+        # first, as the initial shape is built: a straight rod comes out the same)
+        a0 += 2.0 * (mx * mz + mw * my)
+        a1 += 2.0 * (my * mz - mw * mx)
+        a2 += 1.0 - 2.0 * (mx * mx + my * my)
+        r[k, 0] = r0[0] + ds * a0
+        r[k, 1] = r0[1] + ds * a1
+        r[k, 2] = r0[2] + ds * a2
     for k in range(n):
         nrm = math.sqrt(q[k, 0] ** 2 + q[k, 1] ** 2 + q[k, 2] ** 2 + q[k, 3] ** 2)
         for c in range(4):

@@ -90,17 +90,53 @@ def _cross(a: np.ndarray, b: np.ndarray, out: np.ndarray | None = None) -> np.nd
     return out
 
 
-def _add_skew(out, r0, c0, a, rscale=None, cscale=None, sign=1.0):
-    """out[:, r0:r0+3, c0:c0+3] += sign · diag(rscale) [a]× diag(cscale), vectorised."""
-    a0, a1, a2 = a[:, 0], a[:, 1], a[:, 2]
-    entries = ((0, 1, -a2), (0, 2, a1), (1, 0, a2), (1, 2, -a0), (2, 0, -a1), (2, 1, a0))
-    for r, c, val in entries:
-        term = sign * val
-        if rscale is not None:
-            term = term * rscale[:, r]
-        if cscale is not None:
-            term = term * cscale[:, c]
-        out[:, r0 + r, c0 + c] += term
+@numba.njit(cache=True, inline="always")
+def _skew_into(d, k, r0, c0, a0, a1, a2, rs, cs, sign):
+    """d[k, r0:r0+3, c0:c0+3] += sign · diag(rs) [a]× diag(cs) for one node."""
+    d[k, r0, c0 + 1] -= sign * a2 * rs[0] * cs[1]
+    d[k, r0, c0 + 2] += sign * a1 * rs[0] * cs[2]
+    d[k, r0 + 1, c0] += sign * a2 * rs[1] * cs[0]
+    d[k, r0 + 1, c0 + 2] -= sign * a0 * rs[1] * cs[2]
+    d[k, r0 + 2, c0] -= sign * a1 * rs[2] * cs[0]
+    d[k, r0 + 2, c0 + 1] += sign * a0 * rs[2] * cs[1]
+
+
+@numba.njit(cache=True)
+def _node_jacobian_kernel(Y, mass_t, stiffness, inertia, d):
+    """∂F/∂Y (N+1, 12, 12) of the node terms without loads (:meth:`RodSystem.node_terms`),
+    written into d: the cross products of seed eqs. 2-5 per node."""
+    one = np.ones(3)
+    for k in range(Y.shape[0]):
+        for i in range(12):
+            for j in range(12):
+                d[k, i, j] = 0.0
+        v0, v1, v2 = Y[k, 0], Y[k, 1], Y[k, 2]
+        w0, w1, w2 = Y[k, 3], Y[k, 4], Y[k, 5]
+        f0, f1, f2 = Y[k, 6], Y[k, 7], Y[k, 8]
+        k0, k1, k2 = Y[k, 9], Y[k, 10], Y[k, 11]
+        m = mass_t[k]
+        B = stiffness[k]
+        I = inertia[k]
+        # E1: κ×ω
+        _skew_into(d, k, 0, 3, k0, k1, k2, one, one, 1.0)
+        _skew_into(d, k, 0, 9, w0, w1, w2, one, one, -1.0)
+        # E2: κ×v + a3×ω
+        _skew_into(d, k, 3, 0, k0, k1, k2, one, one, 1.0)
+        _skew_into(d, k, 3, 9, v0, v1, v2, one, one, -1.0)
+        d[k, 3, 4] -= 1.0
+        d[k, 4, 3] += 1.0
+        # E3: κ×f − M_t(ω×v)
+        _skew_into(d, k, 6, 6, k0, k1, k2, one, one, 1.0)
+        _skew_into(d, k, 6, 9, f0, f1, f2, one, one, -1.0)
+        _skew_into(d, k, 6, 3, v0, v1, v2, m, one, 1.0)
+        _skew_into(d, k, 6, 0, w0, w1, w2, m, one, -1.0)
+        # E4: κ×Bκ − ω×Iω + a3×f
+        _skew_into(d, k, 9, 9, k0, k1, k2, one, B, 1.0)
+        _skew_into(d, k, 9, 9, B[0] * k0, B[1] * k1, B[2] * k2, one, one, -1.0)
+        _skew_into(d, k, 9, 3, w0, w1, w2, one, I, -1.0)
+        _skew_into(d, k, 9, 3, I[0] * w0, I[1] * w1, I[2] * w2, one, one, 1.0)
+        d[k, 9, 7] -= 1.0
+        d[k, 10, 6] += 1.0
 
 
 #: the contact arguments of _exact_loads_kernel when no pair is active
@@ -382,33 +418,15 @@ class RodSystem:
         if not want_jacobian:
             return Fv, None
         d = self._dF
-        d.fill(0.0)
-        # E1: κ×ω
-        _add_skew(d, E1, W, k)
-        _add_skew(d, E1, K, w, sign=-1.0)
-        # E2: κ×v + a3×ω
-        _add_skew(d, E2, V, k)
-        _add_skew(d, E2, K, v, sign=-1.0)
-        d[:, E2, W + 1] -= 1.0
-        d[:, E2 + 1, W] += 1.0
-        # E3: κ×f − M_t(ω×v) + B
-        _add_skew(d, E3, F, k)
-        _add_skew(d, E3, K, f, sign=-1.0)
-        _add_skew(d, E3, W, v, rscale=p.mass_t)
-        _add_skew(d, E3, V, w, rscale=p.mass_t, sign=-1.0)
+        # E1 κ×ω, E2 κ×v + a3×ω, E3 κ×f − M_t(ω×v), E4 κ×Bκ − ω×Iω + a3×f (compiled)
+        _node_jacobian_kernel(np.ascontiguousarray(Y), p.mass_t, p.stiffness, p.inertia, d)
+        # E3: + B (drag, contact, rotated global loads)
         if dB_dv is not None:
             d[:, E3:E3 + 3, V:V + 3] += dB_dv
         if extra is not None and extra[1] is not None:
             d[:, E3:E3 + 3, V:V + 6] += extra[1]
         if b_rot is not None:
             d[:, E3:E3 + 3, W:W + 3] += pose[2] * (skew(b_rot) @ right_jacobian(pose[1]))
-        # E4: κ×Bκ − ω×Iω + a3×f
-        _add_skew(d, E4, K, k, cscale=p.stiffness)
-        _add_skew(d, E4, K, q, sign=-1.0)
-        _add_skew(d, E4, W, w, cscale=p.inertia, sign=-1.0)
-        _add_skew(d, E4, W, Iw)
-        d[:, E4, F + 1] -= 1.0
-        d[:, E4 + 1, F] += 1.0
         return Fv, d
 
     # ------------------------------------------------------------------ global system
