@@ -170,6 +170,24 @@ def test_point_segment_closest_points():
     np.testing.assert_allclose(tau, np.tile([1.0, 0, 0], (3, 1)))
 
 
+def test_run_minima_is_the_first_closest_segment_of_each_run():
+    """The compiled search of each run's closest polyline segment against point_segment
+    over every combination, on a random ply with runs of 1-9 segments and an exact tie."""
+    from solver.contact.geometry import run_minima
+
+    rng = np.random.default_rng(7)
+    r = np.cumsum(rng.normal(scale=0.01, size=(300, 3)), axis=0)
+    sizes = rng.integers(1, 10, size=40)
+    start = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    owner = np.repeat(rng.integers(0, 300, size=40), sizes)
+    segment = np.concatenate([rng.integers(0, 299 - k) + np.arange(k) for k in sizes])
+    # a tie: the owner at the shared node of two segments of its run (distance 0 to both)
+    owner[start[3]:start[3] + sizes[3]] = segment[start[3]] + (1 if sizes[3] > 1 else 0)
+    d = point_segment(r[owner], r[segment], r[segment + 1])[2]
+    expected = [lo + int(np.argmin(d[lo:lo + k])) for lo, k in zip(start, sizes)]
+    np.testing.assert_array_equal(run_minima(r, owner, segment, start), expected)
+
+
 def test_swept_test_sees_a_pass_through_that_both_ends_of_the_step_miss():
     r0 = np.array([[0.0, -0.05, 0.0], [0.0, 0.05, 0.0]])
     r1 = np.array([[0.0, 0.05, 0.0], [0.0, -0.05, 0.0]])

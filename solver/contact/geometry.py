@@ -85,7 +85,9 @@ def _run_minima_kernel(r, own, seg, start, out):
             x0 = w0 - t * e0
             x1 = w1 - t * e1
             x2 = w2 - t * e2
-            dd = x0 * x0 + x1 * x1 + x2 * x2
+            # the distance itself (not its square): ties at rounding level resolve as
+            # on point_segment's distances, to the first
+            dd = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
             if dd < best:
                 best = dd
                 arg = m
