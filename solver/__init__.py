@@ -2,7 +2,7 @@
 
 Pure numerics: no I/O, no web or queue imports. Public API (docs/interfaces.md, "Python API")::
 
-    from solver import Case, simulate, SolverDivergence, Progress
+    from solver import Case, simulate, SolverDivergence, Progress, warm_up
 
 Names are resolved lazily so that importing :mod:`solver.case` alone (as the service's
 API process does) does not import the numerics.
@@ -17,6 +17,7 @@ _LAZY = {
     "simulate": ("solver.simulation", "simulate"),
     "SolverDivergence": ("solver.simulation", "SolverDivergence"),
     "Progress": ("solver.simulation", "Progress"),
+    "warm_up": ("solver.compiled", "warm_up"),
 }
 
 __all__ = sorted(_LAZY) + ["__version__"]

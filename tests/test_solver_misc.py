@@ -137,3 +137,28 @@ def test_the_newton_start_follows_the_predictor_that_placed_kappa_better():
     its_line = int(line.step_newton_iterations.sum())
     assert its_chosen < its_line, (its_chosen, its_line)
     np.testing.assert_allclose(chosen.position.values, line.position.values, atol=1e-9)
+
+
+def test_warm_up_loads_every_compiled_kernel():
+    """solver.warm_up calls each numba kernel of the solver (found by scanning its
+    modules), so a timed run after it pays no compilation or cache loading."""
+    import importlib
+
+    from numba.core.registry import CPUDispatcher
+
+    from solver import warm_up
+
+    warm_up()
+    kernels = []
+    for name in ("solver.topology", "solver.kinematics", "solver.scheme",
+                 "solver.contact.geometry"):
+        module = importlib.import_module(name)
+        kernels += [(name, k) for k, v in vars(module).items() if isinstance(v, CPUDispatcher)]
+    # kernels called only from other kernels (compiled into their callers)
+    helpers = {"solver.topology._atan2_fast", "solver.topology._row_terms",
+               "solver.scheme._skew_into"}
+    names = {f"{m}.{k}" for m, k in kernels}
+    assert helpers <= names and len(names - helpers) >= 7, names
+    missing = [f"{m}.{k}" for m, k in kernels if f"{m}.{k}" not in helpers
+               and not getattr(importlib.import_module(m), k).signatures]
+    assert not missing, missing

@@ -1,0 +1,48 @@
+"""The solver's compiled (numba) kernels, loaded ahead of a timed run.
+
+The hot loops over nodes and pairs are numba kernels in the modules that own them:
+the writhe's pair sum (:mod:`solver.topology`), the space route and the right Jacobian
+(:mod:`solver.kinematics`), the node Jacobian of seed eqs. 2-5 and the exact contact load
+product (:mod:`solver.scheme`), the closest points (:mod:`solver.contact.geometry`). They
+are compiled once per installation and cached on disk (``cache=True``); a process still
+loads each from the cache at its first call, about 1 s in all on the development machine.
+:func:`warm_up` does that at once, for benchmarks that time single runs and for processes
+that serve many short ones.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["warm_up"]
+
+
+def warm_up() -> None:
+    """Call every compiled kernel once on small arrays of the types the solver passes,
+    so that later calls in this process run at once. Pure (no I/O of its own besides
+    numba's cache). Raises nothing on a working installation."""
+    from .contact.geometry import point_curve, point_segment, run_minima
+    from .kinematics import quat_exp, right_jacobian, space_route
+    from .scheme import _NO_PAIRS, _exact_loads_kernel, _node_jacobian_kernel
+    from .topology import writhe
+
+    n = 8
+    rng = np.random.default_rng(0)
+    kappa = rng.normal(size=(n, 3))
+    q, r = space_route(quat_exp(np.array([0.1, 0.2, 0.3])), np.zeros(3), kappa, 0.1)
+    writhe(r)
+    J = right_jacobian(kappa)
+    j = np.arange(n - 1, dtype=np.intp)
+    point_segment(r[:-1], r[:-1], r[1:])
+    point_curve(r[:-1], r, j)
+    run_minima(r, np.zeros(n - 1, dtype=np.intp), j, np.array([0, 3], dtype=np.intp))
+    Y = rng.normal(size=(n, 12))
+    ones = np.ones((n, 3))
+    _node_jacobian_kernel(Y, ones, ones, ones, np.empty((n, 12, 12)))
+    R = np.ascontiguousarray(np.broadcast_to(np.eye(3), (n, 3, 3)))
+    args = (Y, np.eye(3), J[1:].copy(), J[1:].copy(), R, r.copy(), r[1:].copy(), r.copy(),
+            np.zeros((n, 3, 6)), 0.1, 0.1)
+    _exact_loads_kernel(*args, *_NO_PAIRS)
+    p = 2
+    _exact_loads_kernel(*args, np.zeros((p, 5), np.intp), np.zeros((p, 3, 30)),
+                        np.zeros((p, 15)), np.zeros((p, 3)), np.zeros((p, 5)),
+                        np.zeros((p, 5)))
