@@ -18,7 +18,7 @@ import statistics
 import time
 from pathlib import Path
 
-from solver import Case, simulate
+from solver import Case, simulate, warm_up
 
 ROOT = Path(__file__).resolve().parents[1]
 SEED = ROOT / "cases" / "goyal-writhing.yaml"
@@ -98,6 +98,7 @@ def run(quick: bool = False, repeats: int | None = None) -> dict:
     t_end = 1.0 if quick else 2.0
     repeats = repeats or (1 if quick else 5)
     simulate(Case.model_validate(bare_spec(50, 0.3)))          # warm-up (imports, caches)
+    warm_up()                                                   # the compiled kernels
     out = []
     base = None
     for group, label, spec in variants(n_segments, t_end, quick):
