@@ -4,8 +4,9 @@ The hot loops over nodes and pairs are numba kernels in the modules that own the
 the writhe's pair sum (:mod:`solver.topology`), the space route and the right Jacobian
 (:mod:`solver.kinematics`), the node Jacobian of seed eqs. 2-5 and the exact contact load
 product (:mod:`solver.scheme`), the closest points (:mod:`solver.contact.geometry`). They
-are compiled once per installation and cached on disk (``cache=True``); a process still
-loads each from the cache at its first call, about 1 s in all on the development machine.
+are compiled once per installation and cached on disk (``cache=True``; about 15 s on the
+development machine, measured on a fresh clone); a process still loads each from the
+cache at its first call, about 1 s in all.
 :func:`warm_up` does that at once, for benchmarks that time single runs and for processes
 that serve many short ones.
 """
