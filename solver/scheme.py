@@ -110,33 +110,33 @@ def _node_jacobian_kernel(Y, mass_t, stiffness, inertia, d):
         for i in range(12):
             for j in range(12):
                 d[k, i, j] = 0.0
-        v0, v1, v2 = Y[k, 0], Y[k, 1], Y[k, 2]
-        w0, w1, w2 = Y[k, 3], Y[k, 4], Y[k, 5]
-        f0, f1, f2 = Y[k, 6], Y[k, 7], Y[k, 8]
-        k0, k1, k2 = Y[k, 9], Y[k, 10], Y[k, 11]
+        v0, v1, v2 = Y[k, V], Y[k, V + 1], Y[k, V + 2]
+        w0, w1, w2 = Y[k, W], Y[k, W + 1], Y[k, W + 2]
+        f0, f1, f2 = Y[k, F], Y[k, F + 1], Y[k, F + 2]
+        k0, k1, k2 = Y[k, K], Y[k, K + 1], Y[k, K + 2]
         m = mass_t[k]
         B = stiffness[k]
         I = inertia[k]
         # E1: κ×ω
-        _skew_into(d, k, 0, 3, k0, k1, k2, one, one, 1.0)
-        _skew_into(d, k, 0, 9, w0, w1, w2, one, one, -1.0)
+        _skew_into(d, k, E1, W, k0, k1, k2, one, one, 1.0)
+        _skew_into(d, k, E1, K, w0, w1, w2, one, one, -1.0)
         # E2: κ×v + a3×ω
-        _skew_into(d, k, 3, 0, k0, k1, k2, one, one, 1.0)
-        _skew_into(d, k, 3, 9, v0, v1, v2, one, one, -1.0)
-        d[k, 3, 4] -= 1.0
-        d[k, 4, 3] += 1.0
+        _skew_into(d, k, E2, V, k0, k1, k2, one, one, 1.0)
+        _skew_into(d, k, E2, K, v0, v1, v2, one, one, -1.0)
+        d[k, E2, W + 1] -= 1.0
+        d[k, E2 + 1, W] += 1.0
         # E3: κ×f − M_t(ω×v)
-        _skew_into(d, k, 6, 6, k0, k1, k2, one, one, 1.0)
-        _skew_into(d, k, 6, 9, f0, f1, f2, one, one, -1.0)
-        _skew_into(d, k, 6, 3, v0, v1, v2, m, one, 1.0)
-        _skew_into(d, k, 6, 0, w0, w1, w2, m, one, -1.0)
+        _skew_into(d, k, E3, F, k0, k1, k2, one, one, 1.0)
+        _skew_into(d, k, E3, K, f0, f1, f2, one, one, -1.0)
+        _skew_into(d, k, E3, W, v0, v1, v2, m, one, 1.0)
+        _skew_into(d, k, E3, V, w0, w1, w2, m, one, -1.0)
         # E4: κ×Bκ − ω×Iω + a3×f
-        _skew_into(d, k, 9, 9, k0, k1, k2, one, B, 1.0)
-        _skew_into(d, k, 9, 9, B[0] * k0, B[1] * k1, B[2] * k2, one, one, -1.0)
-        _skew_into(d, k, 9, 3, w0, w1, w2, one, I, -1.0)
-        _skew_into(d, k, 9, 3, I[0] * w0, I[1] * w1, I[2] * w2, one, one, 1.0)
-        d[k, 9, 7] -= 1.0
-        d[k, 10, 6] += 1.0
+        _skew_into(d, k, E4, K, k0, k1, k2, one, B, 1.0)
+        _skew_into(d, k, E4, K, B[0] * k0, B[1] * k1, B[2] * k2, one, one, -1.0)
+        _skew_into(d, k, E4, W, w0, w1, w2, one, I, -1.0)
+        _skew_into(d, k, E4, W, I[0] * w0, I[1] * w1, I[2] * w2, one, one, 1.0)
+        d[k, E4, F + 1] -= 1.0
+        d[k, E4 + 1, F] += 1.0
 
 
 #: the contact arguments of _exact_loads_kernel when no pair is active
