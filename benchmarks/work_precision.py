@@ -43,6 +43,7 @@ Run: ``python benchmarks/work_precision.py [--quick] [--recompute-reference]``; 
 from __future__ import annotations
 
 import argparse
+import functools
 import hashlib
 import json
 import statistics
@@ -161,17 +162,13 @@ def _project(w: np.ndarray, s: np.ndarray, phi: np.ndarray) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- timing
-_WARM = []
-
-
+@functools.cache
 def _warm() -> None:
     """Load the solver's compiled kernels once per process before the first timed run
     (about 1 s, which would otherwise land on whichever run comes first)."""
-    if not _WARM:
-        from solver import warm_up
+    from solver import warm_up
 
-        warm_up()
-        _WARM.append(True)
+    warm_up()
 
 
 def timed_simulate(spec: dict, repeats: int) -> tuple[object, float, list[float], str]:

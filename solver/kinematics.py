@@ -235,8 +235,8 @@ def space_route(q0: np.ndarray, r0: np.ndarray, kappa: np.ndarray, ds: float):
 
     Parameters: q0 (4,), r0 (3,) m, kappa (N+1, 3) rad/m body frame, ds m.
     Returns (q (N+1, 4), r (N+1, 3)). The sequential products are one compiled pass
-    along the rod (numba; 1000 nodes in ~15 µs, against ~0.5 ms for the former prefix
-    scan of numpy products); each q_k is normalised.
+    along the rod (numba; 1000 nodes in ~0.06 ms, against ~0.5 ms for the former
+    prefix scan of numpy products); each q_k is normalised.
     """
     kappa = np.ascontiguousarray(kappa, dtype=float)
     n = kappa.shape[0]

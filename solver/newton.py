@@ -179,8 +179,8 @@ class Newton:
         precond = self.layout.solve
         x0 = precond(rhs)
         r = rhs - self._coupled_matvec(x0)
-        bnorm = math.sqrt(float(rhs @ rhs))
-        beta = math.sqrt(float(r @ r))
+        bnorm = _norm(rhs)
+        beta = _norm(r)
         if beta <= rtol * bnorm or beta == 0.0:
             return x0
         m = max_iterations
@@ -200,7 +200,7 @@ class Newton:
             h2 = V[:k + 1] @ w
             w -= h2 @ V[:k + 1]
             col = h + h2
-            hnext = math.sqrt(float(w @ w))
+            hnext = _norm(w)
             H[:k + 1, k] = col
             # apply the earlier rotations to the new column, then annihilate H[k+1, k]
             for i in range(k):

@@ -155,20 +155,21 @@ def _exact_loads_kernel(dY, A0, C, D, R, rdot, tmid, G, L, ds, dt, nodes, A, dtd
     dr = np.empty((n1, 3))
     dG = np.empty((n1, 3))
     for i in range(3):
-        dphi[0, i] = A0[i, 0] * dY[0, 3] + A0[i, 1] * dY[0, 4] + A0[i, 2] * dY[0, 5]
+        dphi[0, i] = A0[i, 0] * dY[0, W] + A0[i, 1] * dY[0, W + 1] + A0[i, 2] * dY[0, W + 2]
     # dr_0 = ½Δt(δφ_0 × ṙ_0 + R_0 δv_0)
     p0, p1, p2 = dphi[0, 0], dphi[0, 1], dphi[0, 2]
     c0 = p1 * rdot[0, 2] - p2 * rdot[0, 1]
     c1 = p2 * rdot[0, 0] - p0 * rdot[0, 2]
     c2 = p0 * rdot[0, 1] - p1 * rdot[0, 0]
-    dr[0, 0] = 0.5 * dt * (c0 + R[0, 0, 0] * dY[0, 0] + R[0, 0, 1] * dY[0, 1] + R[0, 0, 2] * dY[0, 2])
-    dr[0, 1] = 0.5 * dt * (c1 + R[0, 1, 0] * dY[0, 0] + R[0, 1, 1] * dY[0, 1] + R[0, 1, 2] * dY[0, 2])
-    dr[0, 2] = 0.5 * dt * (c2 + R[0, 2, 0] * dY[0, 0] + R[0, 2, 1] * dY[0, 1] + R[0, 2, 2] * dY[0, 2])
+    dv0, dv1, dv2 = dY[0, V], dY[0, V + 1], dY[0, V + 2]
+    dr[0, 0] = 0.5 * dt * (c0 + R[0, 0, 0] * dv0 + R[0, 0, 1] * dv1 + R[0, 0, 2] * dv2)
+    dr[0, 1] = 0.5 * dt * (c1 + R[0, 1, 0] * dv0 + R[0, 1, 1] * dv1 + R[0, 1, 2] * dv2)
+    dr[0, 2] = 0.5 * dt * (c2 + R[0, 2, 0] * dv0 + R[0, 2, 1] * dv1 + R[0, 2, 2] * dv2)
     for k in range(1, n1):
         c = k - 1
-        k0 = 0.5 * (dY[k, 9] + dY[c, 9])
-        k1 = 0.5 * (dY[k, 10] + dY[c, 10])
-        k2 = 0.5 * (dY[k, 11] + dY[c, 11])
+        k0 = 0.5 * (dY[k, K] + dY[c, K])
+        k1 = 0.5 * (dY[k, K + 1] + dY[c, K + 1])
+        k2 = 0.5 * (dY[k, K + 2] + dY[c, K + 2])
         # δψ (mid-cell rotation) from δφ_{k−1}, then δφ_k
         s0 = dphi[c, 0] + D[c, 0, 0] * k0 + D[c, 0, 1] * k1 + D[c, 0, 2] * k2
         s1 = dphi[c, 1] + D[c, 1, 0] * k0 + D[c, 1, 1] * k1 + D[c, 1, 2] * k2
@@ -193,13 +194,13 @@ def _exact_loads_kernel(dY, A0, C, D, R, rdot, tmid, G, L, ds, dt, nodes, A, dtd
             for i in range(3):
                 z[3 * b + i] = dr[a, i]
             q0, q1, q2 = dphi[a, 0], dphi[a, 1], dphi[a, 2]
-            e0 = q1 * rdot[a, 2] - q2 * rdot[a, 1]
-            e1 = q2 * rdot[a, 0] - q0 * rdot[a, 2]
-            e2 = q0 * rdot[a, 1] - q1 * rdot[a, 0]
+            o = 3 * n_b + 3 * b
+            z[o] = q1 * rdot[a, 2] - q2 * rdot[a, 1]
+            z[o + 1] = q2 * rdot[a, 0] - q0 * rdot[a, 2]
+            z[o + 2] = q0 * rdot[a, 1] - q1 * rdot[a, 0]
             for i in range(3):
-                e = e0 if i == 0 else (e1 if i == 1 else e2)
-                z[3 * n_b + 3 * b + i] = e + (R[a, i, 0] * dY[a, 0] + R[a, i, 1] * dY[a, 1]
-                                              + R[a, i, 2] * dY[a, 2])
+                z[o + i] += (R[a, i, 0] * dY[a, V] + R[a, i, 1] * dY[a, V + 1]
+                             + R[a, i, 2] * dY[a, V + 2])
         dtp = 0.0
         for m in range(3 * n_b):
             dtp += dtdr[p, m] * z[m]

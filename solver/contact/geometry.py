@@ -15,30 +15,37 @@ __all__ = ["point_segment", "run_minima", "point_curve", "curve_basis", "segment
            "min_surface_gap"]
 
 
+@numba.njit(cache=True, inline="always")
+def _project(p0, p1, p2, a0, a1, a2, b0, b1, b2):
+    """Closest point of p on the segment [a, b] (one point, compiled): returns
+    (t ∈ [0, 1], x = p − (a + t(b − a)) as three floats, |b − a|²); t = 0 for a
+    degenerate segment."""
+    e0 = b0 - a0
+    e1 = b1 - a1
+    e2 = b2 - a2
+    ee = e0 * e0 + e1 * e1 + e2 * e2
+    w0 = p0 - a0
+    w1 = p1 - a1
+    w2 = p2 - a2
+    t = 0.0
+    if ee > 0.0:
+        t = min(max((w0 * e0 + w1 * e1 + w2 * e2) / ee, 0.0), 1.0)
+    return t, w0 - t * e0, w1 - t * e1, w2 - t * e2, ee
+
+
 @numba.njit(cache=True)
 def _point_segment_kernel(p, a, b, t, x, d, tau):
     for m in range(p.shape[0]):
-        e0 = b[m, 0] - a[m, 0]
-        e1 = b[m, 1] - a[m, 1]
-        e2 = b[m, 2] - a[m, 2]
-        ee = e0 * e0 + e1 * e1 + e2 * e2
-        safe = ee if ee > 0.0 else 1.0
-        w0 = p[m, 0] - a[m, 0]
-        w1 = p[m, 1] - a[m, 1]
-        w2 = p[m, 2] - a[m, 2]
-        tm = min(max((w0 * e0 + w1 * e1 + w2 * e2) / safe, 0.0), 1.0)
-        x0 = w0 - tm * e0
-        x1 = w1 - tm * e1
-        x2 = w2 - tm * e2
+        tm, x0, x1, x2, ee = _project(p[m, 0], p[m, 1], p[m, 2], a[m, 0], a[m, 1], a[m, 2],
+                                      b[m, 0], b[m, 1], b[m, 2])
         t[m] = tm
         x[m, 0] = x0
         x[m, 1] = x1
         x[m, 2] = x2
         d[m] = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
-        sq = math.sqrt(safe)
-        tau[m, 0] = e0 / sq
-        tau[m, 1] = e1 / sq
-        tau[m, 2] = e2 / sq
+        sq = math.sqrt(ee) if ee > 0.0 else 1.0
+        for c in range(3):
+            tau[m, c] = (b[m, c] - a[m, c]) / sq
 
 
 def point_segment(p, a, b):
@@ -72,19 +79,8 @@ def _run_minima_kernel(r, own, seg, start, out):
         for m in range(lo, hi):
             i = own[m]
             j = seg[m]
-            e0 = r[j + 1, 0] - r[j, 0]
-            e1 = r[j + 1, 1] - r[j, 1]
-            e2 = r[j + 1, 2] - r[j, 2]
-            w0 = r[i, 0] - r[j, 0]
-            w1 = r[i, 1] - r[j, 1]
-            w2 = r[i, 2] - r[j, 2]
-            ee = e0 * e0 + e1 * e1 + e2 * e2
-            t = 0.0
-            if ee > 0.0:
-                t = min(max((w0 * e0 + w1 * e1 + w2 * e2) / ee, 0.0), 1.0)
-            x0 = w0 - t * e0
-            x1 = w1 - t * e1
-            x2 = w2 - t * e2
+            t, x0, x1, x2, ee = _project(r[i, 0], r[i, 1], r[i, 2], r[j, 0], r[j, 1],
+                                         r[j, 2], r[j + 1, 0], r[j + 1, 1], r[j + 1, 2])
             # the distance itself (not its square): ties at rounding level resolve as
             # on point_segment's distances, to the first
             dd = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
@@ -193,27 +189,16 @@ def curve_basis(t, j, n_nodes):
 
 
 @numba.njit(cache=True)
-def _point_curve_kernel(p, r, j, iterations, ends, t_out, x_out, d_out, c1_out, g_out,
-                        idx_out, b0_out, b1_out):
-    """Compiled body of :func:`point_curve`, one point at a time (its docstring)."""
-    n = r.shape[0]
+def _point_curve_kernel(p, r, j, iterations, idx, mats, t_out, x_out, d_out, c1_out, g_out,
+                        b0_out, b1_out):
+    """Compiled body of :func:`point_curve`, one point at a time (its docstring); idx
+    (M, 4) and mats (M, 4, 4) from :func:`_segment_nodes` and :func:`_segment_matrices`."""
     for m in range(p.shape[0]):
         jm = j[m]
-        idx_out[m, 0] = max(jm - 1, 0)
-        idx_out[m, 1] = jm
-        idx_out[m, 2] = jm + 1
-        idx_out[m, 3] = min(jm + 2, n - 1)
-        mat = ends[(1 if jm - 1 < 0 else 0) + (2 if jm + 2 > n - 1 else 0)]
+        mat = mats[m]
         # start: the chord's closest point
-        e0 = r[jm + 1, 0] - r[jm, 0]
-        e1 = r[jm + 1, 1] - r[jm, 1]
-        e2 = r[jm + 1, 2] - r[jm, 2]
-        ee = e0 * e0 + e1 * e1 + e2 * e2
-        t = 0.0
-        if ee > 0.0:
-            t = ((p[m, 0] - r[jm, 0]) * e0 + (p[m, 1] - r[jm, 1]) * e1
-                 + (p[m, 2] - r[jm, 2]) * e2) / ee
-            t = min(max(t, 0.0), 1.0)
+        t = _project(p[m, 0], p[m, 1], p[m, 2], r[jm, 0], r[jm, 1], r[jm, 2],
+                     r[jm + 1, 0], r[jm + 1, 1], r[jm + 1, 2])[0]
         x0 = x1 = x2 = 0.0
         d0 = d1 = d2 = 0.0
         g = 0.0
@@ -229,7 +214,7 @@ def _point_curve_kernel(p, r, j, iterations, ends, t_out, x_out, d_out, c1_out, 
                 sb = 2.0 * mat[2, b] + 6.0 * t * mat[3, b]
                 b0_out[m, b] = bb
                 b1_out[m, b] = db
-                a = idx_out[m, b]
+                a = idx[m, b]
                 c0x += bb * r[a, 0]
                 c0y += bb * r[a, 1]
                 c0z += bb * r[a, 2]
@@ -278,11 +263,12 @@ def point_curve(p, positions, j, iterations=3):
     d = np.empty(m)
     c1 = np.empty((m, 3))
     g = np.empty(m)
-    idx = np.empty((m, 4), dtype=np.intp)
     b0 = np.empty((m, 4))
     b1 = np.empty((m, 4))
-    _point_curve_kernel(p, r, j, int(iterations), _CATMULL_ROM_ENDS, t, x, d, c1, g, idx,
-                        b0, b1)
+    n = r.shape[0]
+    idx = _segment_nodes(j, n)
+    _point_curve_kernel(p, r, j, int(iterations), idx, _segment_matrices(j, n), t, x, d,
+                        c1, g, b0, b1)
     return t, x, d, c1, g, idx, b0, b1
 
 
