@@ -5,7 +5,8 @@ the writhe's pair sum (:mod:`solver.topology`), the space route, the right Jacob
 the quaternion exponential and rotation matrices (:mod:`solver.kinematics`), the node
 terms of seed eqs. 2-5 with their Jacobian, the cell rows and blocks of the step's
 equations and the exact contact load product (:mod:`solver.scheme`), the Morison drag
-(:mod:`solver.loads`), the scaling of the Jacobian's blocks (:mod:`solver.newton`), the
+(:mod:`solver.loads`), the scaling of the Jacobian's blocks and GMRES's
+operator product (:mod:`solver.newton`), the
 closest points (:mod:`solver.contact.geometry`). They
 are compiled once per installation and cached on disk (``cache=True``; about 15 s on the
 development machine, measured on a fresh clone); a process still loads each from the
@@ -27,7 +28,7 @@ def warm_up() -> None:
     from .contact.geometry import point_curve, point_segment, run_minima
     from .kinematics import quat_exp, quat_to_matrix, right_jacobian, space_route
     from .loads import _drag_kernel
-    from .newton import _scale_blocks_kernel
+    from .newton import _NO_LOAD_ROWS, _matvec_kernel, _scale_blocks_kernel
     from .scheme import (_NO_PAIRS, _add_inertia_kernel, _cell_blocks_kernel, _cells_kernel,
                          _exact_loads_kernel, _node_forces_kernel, _node_jacobian_kernel)
     from .topology import writhe
@@ -54,6 +55,9 @@ def warm_up() -> None:
     _cell_blocks_kernel(dF, ones, ones, ones, 1.0, 0.5, 0.1, blocks)
     _add_inertia_kernel(blocks, 1.0, ones, ones)
     _scale_blocks_kernel(blocks, np.ones(12 * n), np.ones(12), np.empty_like(blocks))
+    x = np.ones(12 * n)
+    _matvec_kernel(blocks, x, np.ones((n - 1, 3)), np.ones((n, 3)), np.empty(12 * n))
+    _matvec_kernel(blocks, x, _NO_LOAD_ROWS, _NO_LOAD_ROWS, np.empty(12 * n))
     _drag_kernel(Y[:, :3].copy(), np.ones(n), np.ones(n), np.empty((n, 3)),
                  np.empty((n, 3, 3)), True)
     R = np.ascontiguousarray(np.broadcast_to(np.eye(3), (n, 3, 3)))
