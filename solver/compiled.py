@@ -7,7 +7,9 @@ terms of seed eqs. 2-5 with their Jacobian, the cell rows and blocks of the step
 equations and the exact contact load product (:mod:`solver.scheme`), the Morison drag
 (:mod:`solver.loads`), the scaling of the Jacobian's blocks and GMRES's
 operator product (:mod:`solver.newton`), the
-closest points (:mod:`solver.contact.geometry`). They
+closest points (:mod:`solver.contact.geometry`), the contact forces' derivatives
+(:mod:`solver.contact.model`) and their node loads and band blocks (:mod:`solver.scheme`).
+They
 are compiled once per installation and cached on disk (``cache=True``; about 15 s on the
 development machine, measured on a fresh clone); a process still loads each from the
 cache at its first call, about 1 s in all.
@@ -26,11 +28,13 @@ def warm_up() -> None:
     so that later calls in this process run at once. Pure (no I/O of its own besides
     numba's cache). Raises nothing on a working installation."""
     from .contact.geometry import point_curve, point_segment, run_minima
+    from .contact.model import _force_derivatives, _relative_motion
     from .kinematics import quat_exp, quat_to_matrix, right_jacobian, space_route
     from .loads import _drag_kernel
     from .newton import _NO_LOAD_ROWS, _matvec_kernel, _scale_blocks_kernel
     from .scheme import (_NO_PAIRS, _add_inertia_kernel, _cell_blocks_kernel, _cells_kernel,
-                         _exact_loads_kernel, _node_forces_kernel, _node_jacobian_kernel)
+                         _contact_band_kernel, _contact_loads_kernel, _exact_loads_kernel,
+                         _node_forces_kernel, _node_jacobian_kernel)
     from .topology import writhe
 
     n = 8
@@ -68,3 +72,13 @@ def warm_up() -> None:
     _exact_loads_kernel(*args, np.zeros((p, 5), np.intp), np.zeros((p, 3, 30)),
                         np.zeros((p, 15)), np.zeros((p, 3)), np.zeros((p, 5)),
                         np.zeros((p, 5)))
+    # the contact's relative motion, force derivatives and node loads: two pairs, 5 nodes
+    nodes = np.array([[0, 2, 3, 4, 5], [1, 3, 4, 5, 6]], dtype=np.intp)
+    c5 = np.ones((p, 5))
+    x3 = np.ones((p, 3))
+    one = np.ones(p)
+    n3, u3, ddot, ut = _relative_motion(x3, one, c5, c5, nodes, r)
+    out = _force_derivatives(n3, u3, ddot, ut, one, one, one, one, c5, c5, x3, x3, one,
+                             0.5 * one, np.ones(n), nodes)
+    _contact_loads_kernel(nodes, out[4], out[0], np.zeros((n, 3)))
+    _contact_band_kernel(nodes, out[4], out[1], out[2], R, Y, J, 0.1, np.zeros((n, 3, 6)))

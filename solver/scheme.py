@@ -229,6 +229,58 @@ def _cell_blocks_kernel(dF, mass_t, stiffness, inertia, cm, af, ds, blocks):
                 blocks[k, E4 + i, off + K + i] += sgn * qf * stiffness[node, i]
 
 
+@numba.njit(cache=True)
+def _contact_loads_kernel(nodes, weights, force, out):
+    """Node loads (N+1, 3) N/m added into out: node nodes[p, a] receives
+    weights[p, a] · force[p] (:class:`solver.contact.ContactEvaluation`)."""
+    for p in range(nodes.shape[0]):
+        for a in range(nodes.shape[1]):
+            b = nodes[p, a]
+            w = weights[p, a]
+            for c in range(3):
+                out[b, c] += w * force[p, c]
+
+
+@numba.njit(cache=True)
+def _contact_band_kernel(nodes, weights, d_dr, d_dv, R, Y, Jr, dt, diag):
+    """The node-local approximation of the contact loads' Jacobian (the band
+    preconditioner's part, :meth:`RodSystem._contact_terms`) added into diag (N+1, 3, 6):
+    positions advanced per node in time, r_b ≈ r_b^n + ½Δt(ṙ_b^n + R_b v_b), so with
+    H_b = ½Δt ∂F/∂r_b + ∂F/∂ṙ_b, ∂F/∂v_b ≈ H_b R_b and ∂F/∂ω_b ≈ −½Δt H_b R_b [v_b]×
+    J_r(θ_b), rotated to node b's body frame (R_bᵀ) and weighted by its load weight.
+    R (N+1, 3, 3), Y (N+1, 12), Jr (N+1, 3, 3) the right Jacobians of the time-route
+    rotations θ, dt s."""
+    HR = np.empty((3, 3))
+    S = np.empty((3, 3))
+    HW = np.empty((3, 3))
+    for p in range(nodes.shape[0]):
+        for a in range(nodes.shape[1]):
+            b = nodes[p, a]
+            for i in range(3):
+                for j in range(3):
+                    acc = 0.0
+                    for k in range(3):
+                        acc += (0.5 * dt * d_dr[p, a, i, k] + d_dv[p, a, i, k]) * R[b, k, j]
+                    HR[i, j] = acc
+            # S = [v_b]× J_r(θ_b)
+            v0, v1, v2 = Y[b, V], Y[b, V + 1], Y[b, V + 2]
+            for j in range(3):
+                S[0, j] = -v2 * Jr[b, 1, j] + v1 * Jr[b, 2, j]
+                S[1, j] = v2 * Jr[b, 0, j] - v0 * Jr[b, 2, j]
+                S[2, j] = -v1 * Jr[b, 0, j] + v0 * Jr[b, 1, j]
+            for i in range(3):
+                for j in range(3):
+                    HW[i, j] = -0.5 * dt * (HR[i, 0] * S[0, j] + HR[i, 1] * S[1, j]
+                                            + HR[i, 2] * S[2, j])
+            w = weights[p, a]
+            for i in range(3):
+                for j in range(3):
+                    acc_v = R[b, 0, i] * HR[0, j] + R[b, 1, i] * HR[1, j] + R[b, 2, i] * HR[2, j]
+                    acc_w = R[b, 0, i] * HW[0, j] + R[b, 1, i] * HW[1, j] + R[b, 2, i] * HW[2, j]
+                    diag[b, i, j] += w * acc_v
+                    diag[b, i, 3 + j] += w * acc_w
+
+
 #: the contact arguments of _exact_loads_kernel when no pair is active
 _NO_PAIRS = (np.zeros((0, 5), np.intp), np.zeros((0, 3, 30)), np.zeros((0, 15)),
              np.zeros((0, 3)), np.zeros((0, 5)), np.zeros((0, 5)))
@@ -574,25 +626,14 @@ class RodSystem:
         force = np.zeros((n1, 3))
         if ev.count == 0:
             return force, None, ev
-        np.add.at(force, ev.nodes.ravel(),
-                  (ev.weights[:, :, None] * ev.force[:, None, :]).reshape(-1, 3))
         if not want_jacobian:
+            _contact_loads_kernel(ev.nodes, ev.weights, ev.force, force)
             return force, None, ev
-        # node-local approximation (preconditioner only): positions advanced per node in
-        # time, r_b ≈ r_b^n + ½Δt(ṙ_b^n + R_b v_b), so with H_b = ½Δt ∂F/∂r_b + ∂F/∂ṙ_b:
-        # ∂F/∂v_b ≈ H_b R_b, ∂F/∂ω_b ≈ −½Δt H_b R_b [v_b]× J_r(θ_b)
-        nodes = ev.nodes
-        Rn = R[nodes]                                                   # (P, 3, 3, 3)
-        Hb = 0.5 * self.dt * ev.d_force_d_r + ev.d_force_d_v
-        HR = Hb @ Rn
-        vb = Y[nodes, V:V + 3]
-        Jr = right_jacobian(theta[nodes])
-        HW = (-0.5 * self.dt) * (HR @ (skew(vb) @ Jr))
-        # ∂F/∂(v, ω) of each pair node, rotated to its body frame and weighted: (P, K, 3, 6)
-        blk = np.concatenate([HR, HW], axis=-1)
-        blk = ev.weights[:, :, None, None] * (np.swapaxes(Rn, -1, -2) @ blk)
         diag = np.zeros((n1, 3, 6))
-        np.add.at(diag, nodes.ravel(), blk.reshape(-1, 3, 6))
+        _contact_loads_kernel(ev.nodes, ev.weights, ev.force, force)
+        _contact_band_kernel(ev.nodes, ev.weights, ev.d_force_d_r, ev.d_force_d_v, R,
+                             np.ascontiguousarray(Y), right_jacobian(theta), float(self.dt),
+                             diag)
         return force, diag, ev
 
     def _exact_data(self, Y, pose, glob, ev, diag):

@@ -151,7 +151,7 @@ def test_warm_up_loads_every_compiled_kernel():
     warm_up()
     kernels = []
     for name in ("solver.topology", "solver.kinematics", "solver.scheme", "solver.loads",
-                 "solver.newton", "solver.contact.geometry"):
+                 "solver.newton", "solver.contact.geometry", "solver.contact.model"):
         module = importlib.import_module(name)
         kernels += [(name, k) for k, v in vars(module).items() if isinstance(v, CPUDispatcher)]
     # kernels called only from other kernels (compiled into their callers)

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from .geometry import close_node_pairs, point_curve, run_minima
@@ -475,36 +476,96 @@ class SelfContact:
         nodes = np.concatenate([i[:, None], idx], axis=1)                 # (P, 5)
         coef = np.concatenate([np.ones((p, 1)), -beta], axis=1)
         dcoef = np.concatenate([np.zeros((p, 1)), -dbeta], axis=1)       # ∂c_a/∂t
-        u = np.einsum("pa,pai->pi", coef, v[nodes])
-        n = x / d[:, None]
-        ddot = np.einsum("ij,ij->i", n, u)
+        x, c1 = np.ascontiguousarray(x), np.ascontiguousarray(c1)
+        n, u, ddot, u_t = _relative_motion(x, d, coef, dcoef, nodes, np.ascontiguousarray(v))
         rho = self._at_contact(self.rho_a, i, j, t)
         f, f_d, f_dd, gap = self.law(d, ddot, dbar, rho)
-        force = f[:, None] * n
-        nn = n[:, :, None] * n[:, None, :]
-        tang = (u - ddot[:, None] * n) / d[:, None]
-        G = (n[:, :, None] * (f_d[:, None, None] * n[:, None, :]
-                              + f_dd[:, None, None] * tang[:, None, :])
-             + (f / d)[:, None, None] * (np.eye(3)[None] - nn))
-        Gu = f_dd[:, None, None] * nn
-        # the closest point slides (0 < t < 1): from c'(t)·x = 0, g dt = Σ_a (c_a c' −
-        # ∂c_a/∂t x)·dr_a, g = |c'|² − x·c''; then dx = Σ c_a dr_a − c' dt and u moves by
-        # u_t dt, u_t = Σ ∂c_a/∂t v_a
-        interior = ((t > 0.0) & (t < 1.0))[:, None, None]
-        gs = np.where(g > 0.0, g, np.inf)[:, None, None]
-        dt_dr = np.where(interior, (coef[:, :, None] * c1[:, None, :]
-                                    - dcoef[:, :, None] * x[:, None, :]) / gs, 0.0)
-        u_t = np.einsum("pa,pai->pi", dcoef, v[nodes])
-        H = np.einsum("pij,pj->pi", Gu, u_t) - np.einsum("pij,pj->pi", G, c1)
-        d_dr = (coef[:, :, None, None] * G[:, None]
-                + H[:, None, :, None] * dt_dr[:, :, None, :])
-        d_dv = coef[:, :, None, None] * Gu[:, None]
-        w = self.weights
-        ratio = w[i][:, None] / w[nodes]
-        weights = 0.5 * coef * ratio
-        dw_dt = 0.5 * dcoef * ratio
+        force, d_dr, d_dv, dt_dr, weights, dw_dt = _force_derivatives(
+            n, u, ddot, u_t, d, f, f_d, f_dd, coef, dcoef, c1, x, g, t, self.weights,
+            nodes)
         return ContactEvaluation(i, j, t, nodes, weights, coef, force, d_dr, d_dv, dt_dr,
                                  dw_dt, gap, d, float(gap.min()), int(p), k)
+
+
+@numba.njit(cache=True)
+def _relative_motion(x, d, coef, dcoef, nodes, v):
+    """Per contact (P,): the normal n = x/d (P, 3), the relative velocity u = Σ c_a v_a
+    (P, 3), the approach rate ḋ = n·u (P,) and u_t = Σ ∂c_a/∂t v_a (P, 3) (how u moves
+    with the closest point's parameter); v (N, 3) global node velocities, m/s."""
+    p = x.shape[0]
+    n = np.empty((p, 3))
+    u = np.zeros((p, 3))
+    u_t = np.zeros((p, 3))
+    ddot = np.empty(p)
+    for q in range(p):
+        for a in range(nodes.shape[1]):
+            b = nodes[q, a]
+            for c in range(3):
+                u[q, c] += coef[q, a] * v[b, c]
+                u_t[q, c] += dcoef[q, a] * v[b, c]
+        acc = 0.0
+        for c in range(3):
+            n[q, c] = x[q, c] / d[q]
+            acc += n[q, c] * u[q, c]
+        ddot[q] = acc
+    return n, u, ddot, u_t
+
+
+@numba.njit(cache=True)
+def _force_derivatives(n, u, ddot, u_t, d, f, f_d, f_dd, coef, dcoef, c1, x, g, t, w,
+                       nodes):
+    """Force F = f n (P, 3) and its derivatives per contact (formulas in
+    :meth:`SelfContact.evaluate`): G = n (f_d nᵀ + f_ḋ (u − ḋ n)ᵀ/d) + (f/d)(I − n nᵀ),
+    G_u = f_ḋ n nᵀ, ∂t/∂r_a = (c_a c' − ∂c_a/∂t x)/g for 0 < t < 1 (else 0; g ≤ 0 as
+    g = ∞), H = G_u u_t − G c', ∂F/∂r_a = c_a G + H (∂t/∂r_a)ᵀ, ∂F/∂v_a = c_a G_u; the
+    load weights w_a = ½ c_a Δs_i/Δs_a and ∂w_a/∂t = ½ ∂c_a/∂t Δs_i/Δs_a (w: (N,)
+    nodal quadrature weights). Returns (force, d_dr (P, 5, 3, 3), d_dv (P, 5, 3, 3),
+    dt_dr (P, 5, 3), weights (P, 5), dw_dt (P, 5))."""
+    p = n.shape[0]
+    m = nodes.shape[1]
+    force = np.empty((p, 3))
+    d_dr = np.empty((p, m, 3, 3))
+    d_dv = np.empty((p, m, 3, 3))
+    dt_dr = np.zeros((p, m, 3))
+    weights = np.empty((p, m))
+    dw_dt = np.empty((p, m))
+    G = np.empty((3, 3))
+    Gu = np.empty((3, 3))
+    tang = np.empty(3)
+    H = np.empty(3)
+    for q in range(p):
+        fq = f[q]
+        fd = f_d[q]
+        fdd = f_dd[q]
+        dq = d[q]
+        for c in range(3):
+            force[q, c] = fq * n[q, c]
+            tang[c] = (u[q, c] - ddot[q] * n[q, c]) / dq
+        for a in range(3):
+            for b in range(3):
+                nn = n[q, a] * n[q, b]
+                eye = 1.0 if a == b else 0.0
+                G[a, b] = n[q, a] * (fd * n[q, b] + fdd * tang[b]) + (fq / dq) * (eye - nn)
+                Gu[a, b] = fdd * nn
+        interior = 0.0 < t[q] < 1.0
+        gs = g[q] if g[q] > 0.0 else np.inf
+        for a in range(3):
+            H[a] = (Gu[a, 0] * u_t[q, 0] + Gu[a, 1] * u_t[q, 1] + Gu[a, 2] * u_t[q, 2]) - (
+                G[a, 0] * c1[q, 0] + G[a, 1] * c1[q, 1] + G[a, 2] * c1[q, 2])
+        wi = w[nodes[q, 0]]
+        for k in range(m):
+            ck = coef[q, k]
+            if interior:
+                for c in range(3):
+                    dt_dr[q, k, c] = (ck * c1[q, c] - dcoef[q, k] * x[q, c]) / gs
+            for a in range(3):
+                for b in range(3):
+                    d_dr[q, k, a, b] = ck * G[a, b] + H[a] * dt_dr[q, k, b]
+                    d_dv[q, k, a, b] = ck * Gu[a, b]
+            ratio = wi / w[nodes[q, k]]
+            weights[q, k] = 0.5 * ck * ratio
+            dw_dt[q, k] = 0.5 * dcoef[q, k] * ratio
+    return force, d_dr, d_dv, dt_dr, weights, dw_dt
 
 
 def _empty_evaluation(selection=None) -> ContactEvaluation:
