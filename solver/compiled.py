@@ -1,20 +1,18 @@
 """The solver's compiled (numba) kernels, loaded ahead of a timed run.
 
-The hot loops over nodes and pairs are numba kernels in the modules that own them:
-the writhe's pair sum (:mod:`solver.topology`), the space route, the right Jacobian,
-the quaternion exponential and rotation matrices (:mod:`solver.kinematics`), the node
-terms of seed eqs. 2-5 with their Jacobian, the cell rows and blocks of the step's
-equations and the exact contact load product (:mod:`solver.scheme`), the Morison drag
-(:mod:`solver.loads`), the scaling of the Jacobian's blocks and GMRES's
-operator product (:mod:`solver.newton`), the
-closest points (:mod:`solver.contact.geometry`), the contact forces' derivatives
-(:mod:`solver.contact.model`) and their node loads and band blocks (:mod:`solver.scheme`).
-They
-are compiled once per installation and cached on disk (``cache=True``; about 15 s on the
-development machine, measured on a fresh clone); a process still loads each from the
-cache at its first call, about 1 s in all.
-:func:`warm_up` does that at once, for benchmarks that time single runs and for processes
-that serve many short ones.
+The hot loops over nodes and pairs are numba kernels in the modules that own them: the
+writhe's pair sum (:mod:`solver.topology`); the space route, the right Jacobian, the
+quaternion exponential and rotation matrices (:mod:`solver.kinematics`); the node terms
+of seed eqs. 2-5 with their Jacobian, the cell rows and blocks of the step's equations,
+the contact loads with their band blocks and the exact contact load product
+(:mod:`solver.scheme`); the Morison drag (:mod:`solver.loads`); the scaling of the
+Jacobian's blocks and GMRES's operator product (:mod:`solver.newton`); the candidate
+search and the closest points (:mod:`solver.contact.geometry`) and the contact forces'
+derivatives (:mod:`solver.contact.model`). They are compiled once per installation and
+cached on disk (``cache=True``; about 15 s on the development machine, measured on a
+fresh clone); a process still loads each from the cache at its first call, about 1 s in
+all. :func:`warm_up` does that at once, for benchmarks that time single runs and for
+processes that serve many short ones.
 """
 from __future__ import annotations
 
@@ -27,7 +25,7 @@ def warm_up() -> None:
     """Call every compiled kernel once on small arrays of the types the solver passes,
     so that later calls in this process run at once. Pure (no I/O of its own besides
     numba's cache). Raises nothing on a working installation."""
-    from .contact.geometry import point_curve, point_segment, run_minima
+    from .contact.geometry import candidate_pairs, point_curve, point_segment, run_minima
     from .contact.model import _force_derivatives, _relative_motion
     from .kinematics import quat_exp, quat_to_matrix, right_jacobian, space_route
     from .loads import _drag_kernel
@@ -48,6 +46,7 @@ def warm_up() -> None:
     point_segment(r[:-1], r[:-1], r[1:])
     point_curve(r[:-1], r, j)
     run_minima(r, np.zeros(n - 1, dtype=np.intp), j, np.array([0, 3], dtype=np.intp))
+    candidate_pairs(r, r, 1.0, np.arange(n, dtype=float), 0.5, 0.7)
     Y = rng.normal(size=(n, 12))
     ones = np.ones((n, 3))
     dF = np.empty((n, 12, 12))

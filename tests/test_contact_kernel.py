@@ -188,6 +188,47 @@ def test_run_minima_is_the_first_closest_segment_of_each_run():
     np.testing.assert_array_equal(run_minima(r, owner, segment, start), expected)
 
 
+def test_candidate_pairs_are_the_k_d_tree_pairs_beyond_the_exclusion_in_both_cones():
+    """The compiled cell-list search against scipy's k-d tree and the filters it replaced
+    (exclusion, aperture cones, both orders, sorted), on random coiled curves, with and
+    without the cones, and with a pair at exactly the search radius."""
+    from scipy.spatial import cKDTree
+
+    from solver.contact.geometry import candidate_pairs
+
+    def reference(r, t, radius, s, cut, lim):
+        pairs = cKDTree(r).query_pairs(r=radius, output_type="ndarray").astype(np.intp)
+        a, b = pairs[:, 0], pairs[:, 1]
+        keep = np.abs(s[a] - s[b]) > cut
+        a, b = a[keep], b[keep]
+        if lim < 1.0:
+            n = r[a] - r[b]
+            n /= np.linalg.norm(n, axis=1)[:, None]
+            keep = ((np.abs(np.einsum("ij,ij->i", t[a], n)) <= lim)
+                    & (np.abs(np.einsum("ij,ij->i", t[b], n)) <= lim))
+            a, b = a[keep], b[keep]
+        key = np.unique(np.concatenate([a, b]) * len(r) + np.concatenate([b, a]))
+        return key // len(r), key % len(r)
+
+    rng = np.random.default_rng(11)
+    for trial in range(12):
+        n = int(rng.integers(30, 400))
+        steps = rng.normal(size=(n - 1, 3)) + [0.0, 0.0, 0.3 * (trial % 3)]
+        steps /= np.linalg.norm(steps, axis=1)[:, None]
+        r = np.vstack([np.zeros(3), np.cumsum(0.01 * steps, axis=0)])
+        s = 0.01 * np.arange(n)
+        t = np.vstack([steps, steps[-1:]])
+        radius = float(rng.uniform(0.02, 0.15))
+        if trial == 0:                 # two nodes exactly one radius apart
+            radius = float(np.linalg.norm(r[0] - r[-1]))
+        for lim in (1.0, np.sin(np.radians(45.0))):
+            owner, partner = candidate_pairs(r, t, radius, s, 0.05, lim)
+            a, b = reference(r, t, radius, s, 0.05, lim)
+            np.testing.assert_array_equal(owner, a)
+            np.testing.assert_array_equal(partner, b)
+            assert owner.size > 0 or trial % 3
+
+
 def test_swept_test_sees_a_pass_through_that_both_ends_of_the_step_miss():
     r0 = np.array([[0.0, -0.05, 0.0], [0.0, 0.05, 0.0]])
     r1 = np.array([[0.0, 0.05, 0.0], [0.0, -0.05, 0.0]])

@@ -11,7 +11,7 @@ import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
-__all__ = ["point_segment", "run_minima", "point_curve", "curve_basis", "segment_segment", "swept_min_distance", "close_node_pairs",
+__all__ = ["point_segment", "run_minima", "point_curve", "curve_basis", "segment_segment", "swept_min_distance", "close_node_pairs", "candidate_pairs",
            "min_surface_gap"]
 
 
@@ -282,6 +282,117 @@ def close_node_pairs(positions, radius, s, separation_cut):
     a, b = cand[:, 0].astype(np.intp), cand[:, 1].astype(np.intp)
     keep = np.abs(s[a] - s[b]) > separation_cut
     return a[keep], b[keep]
+
+
+@numba.njit(cache=True)
+def _candidate_pairs_kernel(r, t, radius, s, separation_cut, sin_half_aperture):
+    """Ordered node pairs (i, j), i ≠ j, with |r_i − r_j| ≤ radius, |s_i − s_j| >
+    separation_cut and (if sin_half_aperture < 1) |t_i·n| ≤ and |t_j·n| ≤ it, n the unit
+    vector between them; by owner, partners ascending. A cell list (cells of size
+    ``radius``, nodes sorted by cell): each pair i < j is tested once against the nodes
+    of the 27 cells around i, then both orders are laid out by owner (counting sort)
+    and each owner's partners sorted. Returns (owner (M,), partner (M,))."""
+    n = r.shape[0]
+    lo0, lo1, lo2 = r[0, 0], r[0, 1], r[0, 2]
+    for k in range(n):
+        lo0 = min(lo0, r[k, 0])
+        lo1 = min(lo1, r[k, 1])
+        lo2 = min(lo2, r[k, 2])
+    cell = np.empty((n, 3), np.int64)
+    dims = np.zeros(3, np.int64)
+    for k in range(n):
+        cell[k, 0] = int((r[k, 0] - lo0) / radius)
+        cell[k, 1] = int((r[k, 1] - lo1) / radius)
+        cell[k, 2] = int((r[k, 2] - lo2) / radius)
+        for c in range(3):
+            dims[c] = max(dims[c], cell[k, c] + 1)
+    key = (cell[:, 2] * dims[1] + cell[:, 1]) * dims[0] + cell[:, 0]
+    order = np.argsort(key, kind="mergesort")
+    skey = key[order]
+    r2 = radius * radius
+    cap = 4 * n
+    pa = np.empty(cap, np.intp)
+    pb = np.empty(cap, np.intp)
+    m = 0
+    for i in range(n):
+        for dz in range(-1, 2):
+            cz = cell[i, 2] + dz
+            if cz < 0 or cz >= dims[2]:
+                continue
+            for dy in range(-1, 2):
+                cy = cell[i, 1] + dy
+                if cy < 0 or cy >= dims[1]:
+                    continue
+                base = (cz * dims[1] + cy) * dims[0]
+                first = np.searchsorted(skey, base + max(cell[i, 0] - 1, 0))
+                last = np.searchsorted(skey, base + min(cell[i, 0] + 1, dims[0] - 1),
+                                       side="right")
+                for q in range(first, last):
+                    j = order[q]
+                    if j <= i or abs(s[i] - s[j]) <= separation_cut:
+                        continue
+                    x = r[i, 0] - r[j, 0]
+                    y = r[i, 1] - r[j, 1]
+                    z = r[i, 2] - r[j, 2]
+                    d2 = x * x + y * y + z * z
+                    if d2 > r2:
+                        continue
+                    if sin_half_aperture < 1.0:
+                        d = math.sqrt(d2)
+                        if d > 0.0:
+                            x /= d
+                            y /= d
+                            z /= d
+                        if (abs(t[i, 0] * x + t[i, 1] * y + t[i, 2] * z) > sin_half_aperture
+                                or abs(t[j, 0] * x + t[j, 1] * y + t[j, 2] * z)
+                                > sin_half_aperture):
+                            continue
+                    if m == cap:
+                        cap *= 2
+                        pa = np.concatenate((pa, np.empty(cap - m, np.intp)))
+                        pb = np.concatenate((pb, np.empty(cap - m, np.intp)))
+                    pa[m] = i
+                    pb[m] = j
+                    m += 1
+    # both orders, grouped by owner, partners ascending
+    start = np.zeros(n + 1, np.intp)
+    for k in range(m):
+        start[pa[k] + 1] += 1
+        start[pb[k] + 1] += 1
+    for k in range(n):
+        start[k + 1] += start[k]
+    fill = start[:n].copy()
+    owner = np.empty(2 * m, np.intp)
+    partner = np.empty(2 * m, np.intp)
+    for k in range(m):
+        a = pa[k]
+        b = pb[k]
+        owner[fill[a]] = a
+        partner[fill[a]] = b
+        fill[a] += 1
+        owner[fill[b]] = b
+        partner[fill[b]] = a
+        fill[b] += 1
+    for k in range(n):
+        if start[k + 1] - start[k] > 1:
+            partner[start[k]:start[k + 1]] = np.sort(partner[start[k]:start[k + 1]])
+    return owner, partner
+
+
+def candidate_pairs(positions, tangents, radius, s, separation_cut, sin_half_aperture):
+    """Node pairs for the contact search, both orders: (owner (M,), partner (M,)) int
+    arrays sorted by owner and then partner, each pair with centreline distance ≤
+    ``radius`` (m), arclength separation > ``separation_cut`` (m) and, when
+    ``sin_half_aperture`` < 1, each node inside the other's aperture cone
+    (|a3 · n| ≤ sin(θ/2), n the unit vector between them; ``tangents`` (N, 3) unit a3
+    axes). positions (N, 3) m, s (N,) m. Compiled (a cell list,
+    :func:`_candidate_pairs_kernel`): with the k-d tree, its pairs along each strand,
+    which the exclusion then dropped, and the filters and deduplication after it took 3.4
+    ms at the seed example's 32 s."""
+    return _candidate_pairs_kernel(np.ascontiguousarray(positions, dtype=float),
+                                   np.ascontiguousarray(tangents, dtype=float), float(radius),
+                                   np.ascontiguousarray(s, dtype=float), float(separation_cut),
+                                   float(sin_half_aperture))
 
 
 def swept_min_distance(r0, r1, a, b):

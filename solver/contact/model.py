@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from .geometry import close_node_pairs, point_curve, run_minima
+from .geometry import candidate_pairs, point_curve, run_minima
 from .laws import BarrierLaw, SeedLaw
 
 __all__ = ["SelfContact", "ContactCandidates", "ContactEvaluation", "assemble_nodal",
@@ -310,16 +310,9 @@ class SelfContact:
         if np.any(tn == 0.0):
             raise ValueError("SelfContact: tangents must be non-zero")
         t = t / tn[:, None]
-        a, b = close_node_pairs(r, self.tolerance + reach, self.s, self.separation_cut)
-        if a.size and self.sin_half_aperture < 1.0:
-            n = r[a] - r[b]
-            d = np.linalg.norm(n, axis=1)
-            n = n / np.where(d > 0, d, 1.0)[:, None]
-            lim = self.sin_half_aperture
-            keep = ((np.abs(np.einsum("ij,ij->i", t[a], n)) <= lim)
-                    & (np.abs(np.einsum("ij,ij->i", t[b], n)) <= lim))
-            a, b = a[keep], b[keep]
-        return self._runs(np.concatenate([a, b]), np.concatenate([b, a]))
+        own, par = candidate_pairs(r, t, self.tolerance + reach, self.s,
+                                   self.separation_cut, self.sin_half_aperture)
+        return self._runs(own, par, sorted_unique=True)
 
     def merge(self, c1: ContactCandidates, c2: ContactCandidates) -> ContactCandidates:
         """Candidates covering both sets (runs rebuilt from the union of their nodes)."""
@@ -348,14 +341,18 @@ class SelfContact:
         need = _unique_keys(other.owner * n + other.segment, n * n)
         return bool(np.all(np.isin(need, have, assume_unique=True)))
 
-    def _runs(self, own, par) -> ContactCandidates:
+    def _runs(self, own, par, sorted_unique=False) -> ContactCandidates:
+        """Runs of the node pairs (own (M,), par (M,)): per owner, partners closer than 3
+        nodes apart form one run, extended by one node each side. ``sorted_unique``: the
+        pairs are already unique and sorted by owner, then partner."""
         n = self.n_nodes
         if own.size == 0:
             z = np.zeros(0, dtype=np.intp)
             zb = np.zeros(0, dtype=bool)
             return ContactCandidates(z, z.copy(), z.copy(), zb, zb.copy())
-        key = _unique_keys(own.astype(np.int64) * n + par, n * n)
-        own, par = key // n, key % n
+        if not sorted_unique:
+            key = _unique_keys(own.astype(np.int64) * n + par, n * n)
+            own, par = key // n, key % n
         new = np.ones(own.size, dtype=bool)
         new[1:] = (own[1:] != own[:-1]) | (par[1:] > par[:-1] + 3)
         start = np.flatnonzero(new)
