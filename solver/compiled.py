@@ -25,7 +25,8 @@ def warm_up() -> None:
     """Call every compiled kernel once on small arrays of the types the solver passes,
     so that later calls in this process run at once. Pure (no I/O of its own besides
     numba's cache). Raises nothing on a working installation."""
-    from .contact.geometry import candidate_pairs, point_curve, point_segment, run_minima
+    from .contact.geometry import (candidate_pairs, point_curve, point_segment, run_closest,
+                                   run_minima)
     from .contact.model import _force_derivatives, _relative_motion
     from .kinematics import quat_exp, quat_to_matrix, right_jacobian, space_route
     from .loads import _drag_kernel
@@ -47,6 +48,9 @@ def warm_up() -> None:
     point_curve(r[:-1], r, j)
     run_minima(r, np.zeros(n - 1, dtype=np.intp), j, np.array([0, 3], dtype=np.intp))
     candidate_pairs(r, r, 1.0, np.arange(n, dtype=float), 0.5, 0.7)
+    run_closest(r, np.zeros(n - 1, dtype=np.intp), j, np.array([0, 3], dtype=np.intp))
+    run_closest(r, np.zeros(n - 1, dtype=np.intp), j, np.array([0, 3], dtype=np.intp),
+                np.array([1, 4], dtype=np.intp))
     Y = rng.normal(size=(n, 12))
     ones = np.ones((n, 3))
     dF = np.empty((n, 12, 12))

@@ -188,10 +188,44 @@ def test_run_minima_is_the_first_closest_segment_of_each_run():
     np.testing.assert_array_equal(run_minima(r, owner, segment, start), expected)
 
 
+def test_run_closest_is_the_nearest_curve_point_of_the_polyline_minimum_and_neighbours():
+    """The compiled per-run selection against point_curve on each run's polyline minimum
+    and its two neighbours (clipped to the run; the first on a tie), and with a frozen
+    selection, on a random ply whose runs touch both rod ends."""
+    from solver.contact.geometry import point_curve, run_closest, run_minima
+
+    rng = np.random.default_rng(5)
+    n = 200
+    r = np.cumsum(rng.normal(scale=0.01, size=(n, 3)), axis=0)
+    sizes = rng.integers(1, 8, size=30)
+    start = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    owner = np.repeat(rng.integers(0, n, size=30), sizes)
+    first = rng.integers(0, n - 1 - sizes)
+    first[0], first[1] = 0, n - 1 - sizes[1]           # runs at both ends of the rod
+    segment = np.concatenate([f + np.arange(k) for f, k in zip(first, sizes)])
+    last = np.append(start[1:], owner.size) - 1
+    k0 = run_minima(r, owner, segment, start)
+    trio = np.clip(k0[:, None] + np.arange(-1, 2)[None, :], start[:, None],
+                   last[:, None]).ravel()
+    geo = point_curve(r[owner[trio]], r, segment[trio])
+    sel = np.arange(start.size) * 3 + np.argmin(geo[2].reshape(-1, 3), axis=1)
+    got = run_closest(r, owner, segment, start)
+    np.testing.assert_array_equal(got[0], trio[sel])
+    for a, b in zip(got[1:], geo):
+        np.testing.assert_array_equal(a, b[sel])
+    frozen = start + rng.integers(0, sizes)
+    got = run_closest(r, owner, segment, start, frozen)
+    geo = point_curve(r[owner[frozen]], r, segment[frozen])
+    np.testing.assert_array_equal(got[0], frozen)
+    for a, b in zip(got[1:], geo):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_candidate_pairs_are_the_k_d_tree_pairs_beyond_the_exclusion_in_both_cones():
     """The compiled cell-list search against scipy's k-d tree and the filters it replaced
     (exclusion, aperture cones, both orders, sorted), on random coiled curves, with and
-    without the cones, and with a pair at exactly the search radius."""
+    without the cones, with a pair at exactly the search radius and with one node so far
+    away that the cells are made larger than the radius."""
     from scipy.spatial import cKDTree
 
     from solver.contact.geometry import candidate_pairs
@@ -221,6 +255,8 @@ def test_candidate_pairs_are_the_k_d_tree_pairs_beyond_the_exclusion_in_both_con
         radius = float(rng.uniform(0.02, 0.15))
         if trial == 0:                 # two nodes exactly one radius apart
             radius = float(np.linalg.norm(r[0] - r[-1]))
+        if trial == 1:                 # a node 1e5 km away: cells larger than the radius
+            r[-1] += [1e8, 0.0, 0.0]
         for lim in (1.0, np.sin(np.radians(45.0))):
             owner, partner = candidate_pairs(r, t, radius, s, 0.05, lim)
             a, b = reference(r, t, radius, s, 0.05, lim)

@@ -11,7 +11,7 @@ import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
-__all__ = ["point_segment", "run_minima", "point_curve", "curve_basis", "segment_segment", "swept_min_distance", "close_node_pairs", "candidate_pairs",
+__all__ = ["point_segment", "run_minima", "point_curve", "curve_basis", "segment_segment", "swept_min_distance", "close_node_pairs", "candidate_pairs", "run_closest",
            "min_surface_gap"]
 
 
@@ -67,27 +67,32 @@ def point_segment(p, a, b):
     return t, x, d, tau
 
 
+@numba.njit(cache=True, inline="always")
+def _run_minimum(r, own, seg, lo, hi):
+    """The first combination m in [lo, hi) whose segment is closest to its owner."""
+    best = np.inf
+    arg = lo
+    for m in range(lo, hi):
+        i = own[m]
+        j = seg[m]
+        t, x0, x1, x2, ee = _project(r[i, 0], r[i, 1], r[i, 2], r[j, 0], r[j, 1],
+                                     r[j, 2], r[j + 1, 0], r[j + 1, 1], r[j + 1, 2])
+        # the distance itself (not its square): ties at rounding level resolve as
+        # on point_segment's distances, to the first
+        dd = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+        if dd < best:
+            best = dd
+            arg = m
+    return arg
+
+
 @numba.njit(cache=True)
 def _run_minima_kernel(r, own, seg, start, out):
     n_runs = start.shape[0]
     total = own.shape[0]
     for q in range(n_runs):
-        lo = start[q]
-        hi = start[q + 1] if q + 1 < n_runs else total
-        best = np.inf
-        arg = lo
-        for m in range(lo, hi):
-            i = own[m]
-            j = seg[m]
-            t, x0, x1, x2, ee = _project(r[i, 0], r[i, 1], r[i, 2], r[j, 0], r[j, 1],
-                                         r[j, 2], r[j + 1, 0], r[j + 1, 1], r[j + 1, 2])
-            # the distance itself (not its square): ties at rounding level resolve as
-            # on point_segment's distances, to the first
-            dd = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
-            if dd < best:
-                best = dd
-                arg = m
-        out[q] = arg
+        out[q] = _run_minimum(r, own, seg, start[q],
+                              start[q + 1] if q + 1 < n_runs else total)
 
 
 def run_minima(positions, owner, segment, run_start):
@@ -188,50 +193,58 @@ def curve_basis(t, j, n_nodes):
     return _segment_nodes(j, n_nodes), b[:, 0], b[:, 1], b[:, 2]
 
 
+@numba.njit(cache=True, inline="always")
+def _curve_point(p0, p1, p2, r, idx, mat, iterations, b0_out, b1_out, m):
+    """The closest point of p on the Catmull-Rom cubic of one segment (node indices idx
+    (4,), matrix mat (4, 4); :func:`point_curve`'s docstring): writes β, β' into row m of
+    b0_out, b1_out and returns (t, x (3 floats), c' (3 floats), g)."""
+    # start: the chord's closest point
+    t = _project(p0, p1, p2, r[idx[1], 0], r[idx[1], 1], r[idx[1], 2],
+                 r[idx[2], 0], r[idx[2], 1], r[idx[2], 2])[0]
+    x0 = x1 = x2 = 0.0
+    d0 = d1 = d2 = 0.0
+    g = 0.0
+    for it in range(iterations + 1):
+        t2 = t * t
+        c0x = c0y = c0z = 0.0
+        d0 = d1 = d2 = 0.0
+        s0 = s1 = s2 = 0.0
+        for b in range(4):
+            # β_b, β'_b, β''_b: powers of t (and their derivatives) times column b
+            bb = mat[0, b] + t * mat[1, b] + t2 * mat[2, b] + t2 * t * mat[3, b]
+            db = mat[1, b] + 2.0 * t * mat[2, b] + 3.0 * t2 * mat[3, b]
+            sb = 2.0 * mat[2, b] + 6.0 * t * mat[3, b]
+            b0_out[m, b] = bb
+            b1_out[m, b] = db
+            a = idx[b]
+            c0x += bb * r[a, 0]
+            c0y += bb * r[a, 1]
+            c0z += bb * r[a, 2]
+            d0 += db * r[a, 0]
+            d1 += db * r[a, 1]
+            d2 += db * r[a, 2]
+            s0 += sb * r[a, 0]
+            s1 += sb * r[a, 1]
+            s2 += sb * r[a, 2]
+        x0 = p0 - c0x
+        x1 = p1 - c0y
+        x2 = p2 - c0z
+        g = d0 * d0 + d1 * d1 + d2 * d2 - (x0 * s0 + x1 * s1 + x2 * s2)
+        if it == iterations:
+            break
+        if g > 0.0:
+            t = min(max(t + (d0 * x0 + d1 * x1 + d2 * x2) / g, 0.0), 1.0)
+    return t, x0, x1, x2, d0, d1, d2, g
+
+
 @numba.njit(cache=True)
-def _point_curve_kernel(p, r, j, iterations, idx, mats, t_out, x_out, d_out, c1_out, g_out,
+def _point_curve_kernel(p, r, iterations, idx, mats, t_out, x_out, d_out, c1_out, g_out,
                         b0_out, b1_out):
     """Compiled body of :func:`point_curve`, one point at a time (its docstring); idx
     (M, 4) and mats (M, 4, 4) from :func:`_segment_nodes` and :func:`_segment_matrices`."""
     for m in range(p.shape[0]):
-        jm = j[m]
-        mat = mats[m]
-        # start: the chord's closest point
-        t = _project(p[m, 0], p[m, 1], p[m, 2], r[jm, 0], r[jm, 1], r[jm, 2],
-                     r[jm + 1, 0], r[jm + 1, 1], r[jm + 1, 2])[0]
-        x0 = x1 = x2 = 0.0
-        d0 = d1 = d2 = 0.0
-        g = 0.0
-        for it in range(iterations + 1):
-            t2 = t * t
-            c0x = c0y = c0z = 0.0
-            d0 = d1 = d2 = 0.0
-            s0 = s1 = s2 = 0.0
-            for b in range(4):
-                # β_b, β'_b, β''_b: powers of t (and their derivatives) times column b
-                bb = mat[0, b] + t * mat[1, b] + t2 * mat[2, b] + t2 * t * mat[3, b]
-                db = mat[1, b] + 2.0 * t * mat[2, b] + 3.0 * t2 * mat[3, b]
-                sb = 2.0 * mat[2, b] + 6.0 * t * mat[3, b]
-                b0_out[m, b] = bb
-                b1_out[m, b] = db
-                a = idx[m, b]
-                c0x += bb * r[a, 0]
-                c0y += bb * r[a, 1]
-                c0z += bb * r[a, 2]
-                d0 += db * r[a, 0]
-                d1 += db * r[a, 1]
-                d2 += db * r[a, 2]
-                s0 += sb * r[a, 0]
-                s1 += sb * r[a, 1]
-                s2 += sb * r[a, 2]
-            x0 = p[m, 0] - c0x
-            x1 = p[m, 1] - c0y
-            x2 = p[m, 2] - c0z
-            g = d0 * d0 + d1 * d1 + d2 * d2 - (x0 * s0 + x1 * s1 + x2 * s2)
-            if it == iterations:
-                break
-            if g > 0.0:
-                t = min(max(t + (d0 * x0 + d1 * x1 + d2 * x2) / g, 0.0), 1.0)
+        t, x0, x1, x2, d0, d1, d2, g = _curve_point(p[m, 0], p[m, 1], p[m, 2], r, idx[m],
+                                                    mats[m], iterations, b0_out, b1_out, m)
         t_out[m] = t
         x_out[m, 0] = x0
         x_out[m, 1] = x1
@@ -241,6 +254,88 @@ def _point_curve_kernel(p, r, j, iterations, idx, mats, t_out, x_out, d_out, c1_
         c1_out[m, 1] = d1
         c1_out[m, 2] = d2
         g_out[m] = g
+
+
+@numba.njit(cache=True)
+def _run_closest_kernel(r, own, seg, start, frozen, iterations, ends, k_out, t_out, x_out,
+                        d_out, c1_out, g_out, idx_out, b0_out, b1_out):
+    """Compiled body of :func:`run_closest`: per run q, the combination k (frozen[q] if
+    ``frozen`` is non-empty, else the best of the polyline's closest segment and its two
+    neighbours in the run, the first on a tie) and its closest point on the curve."""
+    n = r.shape[0]
+    n_runs = start.shape[0]
+    total = own.shape[0]
+    idx = np.empty(4, np.intp)
+    tb0 = np.empty((3, 4))
+    tb1 = np.empty((3, 4))
+    for q in range(n_runs):
+        lo = start[q]
+        hi = (start[q + 1] if q + 1 < n_runs else total) - 1
+        if frozen.shape[0]:
+            trio = (frozen[q], frozen[q], frozen[q])
+            count = 1
+        else:
+            k0 = _run_minimum(r, own, seg, lo, hi + 1)
+            trio = (max(k0 - 1, lo), k0, min(k0 + 1, hi))
+            count = 3
+        best = np.inf
+        for c in range(count):
+            kc = trio[c]
+            j = seg[kc]
+            i = own[kc]
+            idx[0] = max(j - 1, 0)
+            idx[1] = j
+            idx[2] = j + 1
+            idx[3] = min(j + 2, n - 1)
+            mat = ends[(1 if j - 1 < 0 else 0) + (2 if j + 2 > n - 1 else 0)]
+            t, x0, x1, x2, d0, d1, d2, g = _curve_point(r[i, 0], r[i, 1], r[i, 2], r, idx,
+                                                        mat, iterations, tb0, tb1, c)
+            d = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+            if c == 0 or d < best:
+                best = d
+                k_out[q] = kc
+                t_out[q] = t
+                x_out[q, 0] = x0
+                x_out[q, 1] = x1
+                x_out[q, 2] = x2
+                d_out[q] = d
+                c1_out[q, 0] = d0
+                c1_out[q, 1] = d1
+                c1_out[q, 2] = d2
+                g_out[q] = g
+                for b in range(4):
+                    idx_out[q, b] = idx[b]
+                    b0_out[q, b] = tb0[c, b]
+                    b1_out[q, b] = tb1[c, b]
+
+
+def run_closest(positions, owner, segment, run_start, frozen=None, iterations=3):
+    """For each run of owner/segment combinations (as :func:`run_minima`), the
+    combination whose partner curve segment holds the owner's closest point, and that
+    point (:func:`point_curve`): the polyline's closest segment of the run
+    (:func:`run_minima`) and its two neighbours in the run are tried on the curve, the
+    nearest kept (the first on a tie). ``frozen`` (R,) int: the combination of each run
+    given instead (Newton's frozen selection). Returns (k (R,), and point_curve's t, x,
+    d, c', g, idx, β, β' for those combinations). Compiled (numba): one pass over the
+    runs, no (3R, 3) gathers."""
+    r = np.ascontiguousarray(positions, dtype=float)
+    start = np.ascontiguousarray(run_start, dtype=np.intp)
+    m = start.shape[0]
+    k = np.empty(m, np.intp)
+    t = np.empty(m)
+    x = np.empty((m, 3))
+    d = np.empty(m)
+    c1 = np.empty((m, 3))
+    g = np.empty(m)
+    idx = np.empty((m, 4), np.intp)
+    b0 = np.empty((m, 4))
+    b1 = np.empty((m, 4))
+    fz = (np.zeros(0, np.intp) if frozen is None
+          else np.ascontiguousarray(frozen, dtype=np.intp))
+    _run_closest_kernel(r, np.ascontiguousarray(owner, dtype=np.intp),
+                        np.ascontiguousarray(segment, dtype=np.intp), start, fz,
+                        int(iterations), _CATMULL_ROM_ENDS, k, t, x, d, c1, g, idx, b0, b1)
+    return k, t, x, d, c1, g, idx, b0, b1
 
 
 def point_curve(p, positions, j, iterations=3):
@@ -267,7 +362,7 @@ def point_curve(p, positions, j, iterations=3):
     b1 = np.empty((m, 4))
     n = r.shape[0]
     idx = _segment_nodes(j, n)
-    _point_curve_kernel(p, r, j, int(iterations), idx, _segment_matrices(j, n), t, x, d,
+    _point_curve_kernel(p, r, int(iterations), idx, _segment_matrices(j, n), t, x, d,
                         c1, g, b0, b1)
     return t, x, d, c1, g, idx, b0, b1
 
@@ -289,21 +384,28 @@ def _candidate_pairs_kernel(r, t, radius, s, separation_cut, sin_half_aperture):
     """Ordered node pairs (i, j), i ≠ j, with |r_i − r_j| ≤ radius, |s_i − s_j| >
     separation_cut and (if sin_half_aperture < 1) |t_i·n| ≤ and |t_j·n| ≤ it, n the unit
     vector between them; by owner, partners ascending. A cell list (cells of size
-    ``radius``, nodes sorted by cell): each pair i < j is tested once against the nodes
-    of the 27 cells around i, then both orders are laid out by owner (counting sort)
-    and each owner's partners sorted. Returns (owner (M,), partner (M,))."""
+    ``radius``, larger on a very long rod; nodes sorted by cell): each pair i < j is
+    tested once against the nodes of the 27 cells around i, then both orders are laid
+    out by owner (counting sort) and each owner's partners sorted. Returns (owner (M,),
+    partner (M,))."""
     n = r.shape[0]
     lo0, lo1, lo2 = r[0, 0], r[0, 1], r[0, 2]
+    hi = 0.0                                # the largest extent of the positions
     for k in range(n):
         lo0 = min(lo0, r[k, 0])
         lo1 = min(lo1, r[k, 1])
         lo2 = min(lo2, r[k, 2])
+    for k in range(n):
+        hi = max(hi, r[k, 0] - lo0, r[k, 1] - lo1, r[k, 2] - lo2)
+    # cells no smaller than the radius (the 27 around a node hold every node within it),
+    # and at most 2^20 a side, so that the cell keys stay within int64
+    size = max(radius, hi / 2.0**20)
     cell = np.empty((n, 3), np.int64)
     dims = np.zeros(3, np.int64)
     for k in range(n):
-        cell[k, 0] = int((r[k, 0] - lo0) / radius)
-        cell[k, 1] = int((r[k, 1] - lo1) / radius)
-        cell[k, 2] = int((r[k, 2] - lo2) / radius)
+        cell[k, 0] = int((r[k, 0] - lo0) / size)
+        cell[k, 1] = int((r[k, 1] - lo1) / size)
+        cell[k, 2] = int((r[k, 2] - lo2) / size)
         for c in range(3):
             dims[c] = max(dims[c], cell[k, c] + 1)
     key = (cell[:, 2] * dims[1] + cell[:, 1]) * dims[0] + cell[:, 0]

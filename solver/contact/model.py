@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from .geometry import candidate_pairs, point_curve, run_minima
+from .geometry import candidate_pairs, run_closest
 from .laws import BarrierLaw, SeedLaw
 
 __all__ = ["SelfContact", "ContactCandidates", "ContactEvaluation", "assemble_nodal",
@@ -398,25 +398,12 @@ class SelfContact:
         return out
 
     def _closest(self, cand, positions, frozen):
-        r = positions
-        own, seg = cand.owner, cand.segment
+        # the polyline's closest segment of each run, then the curve on it and its two
+        # neighbours in the run (the curve departs from the chords by O(Δs² κ), so its
+        # closest point lies on one of them); or the frozen combination of each run
+        k, *geo = run_closest(positions, cand.owner, cand.segment, cand.run_start, frozen)
         start = cand.run_start
-        last = np.append(start[1:], own.size) - 1
-        if frozen is not None:
-            k = frozen
-            geo = point_curve(r[own[k]], r, seg[k])
-        else:
-            # the polyline's closest segment of each run, then the curve on it and its two
-            # neighbours in the run (the curve departs from the chords by O(Δs² κ), so
-            # its closest point lies on one of them)
-            k0 = run_minima(r, own, seg, start)            # first minimum of each run
-            trio = np.clip(k0[:, None] + np.arange(-1, 2)[None, :], start[:, None],
-                           last[:, None]).ravel()
-            geo = point_curve(r[own[trio]], r, seg[trio])
-            pick = np.argmin(geo[2].reshape(-1, 3), axis=1)
-            sel = np.arange(start.size) * 3 + pick
-            k = trio[sel]
-            geo = tuple(a[sel] for a in geo)
+        last = np.append(start[1:], cand.owner.size) - 1
         tk = geo[0]
         edge_lo = (k == start) & (tk == 0.0) & ~cand.first_vertex_is_end
         edge_hi = (k == last) & (tk == 1.0) & ~cand.last_vertex_is_end
