@@ -222,10 +222,10 @@ def test_run_closest_is_the_nearest_curve_point_of_the_polyline_minimum_and_neig
 
 
 def test_candidate_pairs_are_the_k_d_tree_pairs_beyond_the_exclusion_in_both_cones():
-    """The compiled cell-list search against scipy's k-d tree and the filters it replaced
-    (exclusion, aperture cones, both orders, sorted), on random coiled curves, with and
-    without the cones, with a pair at exactly the search radius and with one node so far
-    away that the cells are made larger than the radius."""
+    """The compiled filter of the k-d tree's pairs (exclusion, aperture cones, both
+    orders, sorted by owner and partner) against the numpy filters and deduplication it
+    replaced, on random coiled curves, with and without the cones, with a pair at
+    exactly the search radius and with one node far away."""
     from scipy.spatial import cKDTree
 
     from solver.contact.geometry import candidate_pairs
@@ -255,7 +255,7 @@ def test_candidate_pairs_are_the_k_d_tree_pairs_beyond_the_exclusion_in_both_con
         radius = float(rng.uniform(0.02, 0.15))
         if trial == 0:                 # two nodes exactly one radius apart
             radius = float(np.linalg.norm(r[0] - r[-1]))
-        if trial == 1:                 # a node 1e5 km away: cells larger than the radius
+        if trial == 1:                 # a node 1e5 km away
             r[-1] += [1e8, 0.0, 0.0]
         for lim in (1.0, np.sin(np.radians(45.0))):
             owner, partner = candidate_pairs(r, t, radius, s, 0.05, lim)
