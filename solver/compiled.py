@@ -31,9 +31,10 @@ def warm_up() -> None:
     from .kinematics import quat_exp, quat_to_matrix, right_jacobian, space_route
     from .loads import _drag_kernel
     from .newton import _NO_LOAD_ROWS, _matvec_kernel, _scale_blocks_kernel
-    from .scheme import (_NO_PAIRS, _add_inertia_kernel, _cell_blocks_kernel, _cells_kernel,
-                         _contact_band_kernel, _contact_loads_kernel, _exact_loads_kernel,
-                         _node_forces_kernel, _node_jacobian_kernel)
+    from .scheme import (_NO_PAIRS, _add_inertia_kernel, _apply_M_kernel, _cell_blocks_kernel,
+                         _cells_kernel, _contact_band_kernel, _contact_loads_kernel,
+                         _exact_loads_kernel, _flux_kernel, _node_forces_kernel,
+                         _node_jacobian_kernel)
     from .topology import writhe
 
     n = 8
@@ -58,6 +59,8 @@ def warm_up() -> None:
     Fn = np.empty((n, 12))
     _node_forces_kernel(Y, ones, ones, ones, Fn)
     _cells_kernel(Y, Fn, Fn, Fn, ones, ones, ones, 1.0, 0.5, 0.1, np.empty((n - 1, 12)))
+    _apply_M_kernel(Y, ones, ones, np.empty((n, 12)))
+    _flux_kernel(Y, ones, np.empty((n, 12)))
     blocks = np.empty((n - 1, 12, 24))
     _cell_blocks_kernel(dF, ones, ones, ones, 1.0, 0.5, 0.1, blocks)
     _add_inertia_kernel(blocks, 1.0, ones, ones)

@@ -157,6 +157,47 @@ def _node_forces_kernel(Y, mass_t, stiffness, inertia, Fv):
         Fv[k, E4 + 2] = (k0 * q1 - k1 * q0) - (w0 * i1 - w1 * i0)
 
 
+@numba.njit(cache=True, inline="always")
+def _mass_row(Y, k, i, mass_t, inertia, out):
+    """(M Y)_k component i of E1..E4 into out (4,): −κ_i, 0, −M_t,i v_i, −I_i ω_i (the
+    mass operator of the module docstring, its one home)."""
+    out[0] = -Y[k, K + i]
+    out[1] = 0.0
+    out[2] = -mass_t[k, i] * Y[k, V + i]
+    out[3] = -inertia[k, i] * Y[k, W + i]
+
+
+@numba.njit(cache=True, inline="always")
+def _flux_row(Y, k, i, stiffness, out):
+    """(K Y)_k component i of E1..E4 into out (4,): ω_i, v_i, f_i, q_i = B_i κ_i."""
+    out[0] = Y[k, W + i]
+    out[1] = Y[k, V + i]
+    out[2] = Y[k, F + i]
+    out[3] = stiffness[k, i] * Y[k, K + i]
+
+
+@numba.njit(cache=True)
+def _apply_M_kernel(Y, mass_t, inertia, out):
+    """M Y per node (N+1, 12) into out (:meth:`RodSystem._apply_M`)."""
+    row = np.empty(4)
+    for k in range(Y.shape[0]):
+        for i in range(3):
+            _mass_row(Y, k, i, mass_t, inertia, row)
+            for e in range(4):
+                out[k, 3 * e + i] = row[e]
+
+
+@numba.njit(cache=True)
+def _flux_kernel(Y, stiffness, out):
+    """K Y per node (N+1, 12) into out (:meth:`RodSystem._flux`)."""
+    row = np.empty(4)
+    for k in range(Y.shape[0]):
+        for i in range(3):
+            _flux_row(Y, k, i, stiffness, row)
+            for e in range(4):
+                out[k, 3 * e + i] = row[e]
+
+
 @numba.njit(cache=True)
 def _cells_kernel(Y, Fn, zconst, flux_const, mass_t, stiffness, inertia, cm, af, ds, out):
     """The cell rows of the residual (N, 12) into out: ⟨M Ẏ^{n+1−αm}⟩ + [(KY)_k −
@@ -171,19 +212,15 @@ def _cells_kernel(Y, Fn, zconst, flux_const, mass_t, stiffness, inertia, cm, af,
     z_next = np.empty(NV)
     x_prev = np.empty(NV)
     x_next = np.empty(NV)
+    mrow = np.empty(4)
+    krow = np.empty(4)
     for k in range(n_cells + 1):
         for i in range(3):
-            # M Y: E1 −κ, E2 0, E3 −M_t v, E4 −I ω;  K Y: E1 ω, E2 v, E3 f, E4 Bκ
-            z_next[E1 + i] = (hc * -Y[k, K + i] + hf * Fn[k, E1 + i]) + zconst[k, E1 + i]
-            z_next[E2 + i] = (hc * 0.0 + hf * Fn[k, E2 + i]) + zconst[k, E2 + i]
-            z_next[E3 + i] = ((hc * (-mass_t[k, i] * Y[k, V + i]) + hf * Fn[k, E3 + i])
-                              + zconst[k, E3 + i])
-            z_next[E4 + i] = ((hc * (-inertia[k, i] * Y[k, W + i]) + hf * Fn[k, E4 + i])
-                              + zconst[k, E4 + i])
-            x_next[E1 + i] = gf * Y[k, W + i] + flux_const[k, E1 + i]
-            x_next[E2 + i] = gf * Y[k, V + i] + flux_const[k, E2 + i]
-            x_next[E3 + i] = gf * Y[k, F + i] + flux_const[k, E3 + i]
-            x_next[E4 + i] = gf * (stiffness[k, i] * Y[k, K + i]) + flux_const[k, E4 + i]
+            _mass_row(Y, k, i, mass_t, inertia, mrow)
+            _flux_row(Y, k, i, stiffness, krow)
+            for e in range(4):
+                z_next[3 * e + i] = (hc * mrow[e] + hf * Fn[k, 3 * e + i]) + zconst[k, 3 * e + i]
+                x_next[3 * e + i] = gf * krow[e] + flux_const[k, 3 * e + i]
         if k > 0:
             for j in range(NV):
                 out[k - 1, j] = (z_prev[j] + z_next[j]) + (x_next[j] - x_prev[j]) / ds
@@ -445,12 +482,11 @@ class RodSystem:
 
     # ------------------------------------------------------------------ node pieces
     def _apply_M(self, Y):
-        """M Y per node (N+1, 12): E1 −κ, E2 0, E3 −M_t v, E4 −I ω."""
-        p = self.p
-        out = np.zeros_like(Y)
-        out[:, E1:E1 + 3] = -Y[:, K:K + 3]
-        out[:, E3:E3 + 3] = -p.mass_t * Y[:, V:V + 3]
-        out[:, E4:E4 + 3] = -p.inertia * Y[:, W:W + 3]
+        """M Y per node (N+1, 12): E1 −κ, E2 0, E3 −M_t v, E4 −I ω (compiled,
+        :func:`_mass_row`)."""
+        out = np.empty_like(Y, dtype=float)
+        _apply_M_kernel(np.ascontiguousarray(Y, dtype=float), self.p.mass_t, self.p.inertia,
+                        out)
         return out
 
     def cell_inertia(self, e):
@@ -470,12 +506,10 @@ class RodSystem:
         _add_inertia_kernel(blocks, float(c), self.p.mass_t, self.p.inertia)
 
     def _flux(self, Y):
-        """K Y per node (N+1, 12): (ω, v, f, q = Bκ) for E1..E4."""
-        out = np.empty_like(Y)
-        out[:, E1:E1 + 3] = Y[:, W:W + 3]
-        out[:, E2:E2 + 3] = Y[:, V:V + 3]
-        out[:, E3:E3 + 3] = Y[:, F:F + 3]
-        out[:, E4:E4 + 3] = self.p.stiffness * Y[:, K:K + 3]
+        """K Y per node (N+1, 12): (ω, v, f, q = Bκ) for E1..E4 (compiled,
+        :func:`_flux_row`)."""
+        out = np.empty_like(Y, dtype=float)
+        _flux_kernel(np.ascontiguousarray(Y, dtype=float), self.p.stiffness, out)
         return out
 
     def pose_new(self, Y):
