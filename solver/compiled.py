@@ -4,8 +4,8 @@ The hot loops over nodes and pairs are numba kernels in the modules that own the
 writhe's pair sum (:mod:`solver.topology`); the space route, the right Jacobian, the
 quaternion exponential and rotation matrices (:mod:`solver.kinematics`); the node terms
 of seed eqs. 2-5 with their Jacobian, the cell rows and blocks of the step's equations,
-the contact loads with their band blocks and the exact contact load product
-(:mod:`solver.scheme`); the Morison drag (:mod:`solver.loads`); the scaling of the
+the contact loads with their band blocks and the exact contact load product with its
+pose data (:mod:`solver.scheme`); the Morison drag (:mod:`solver.loads`); the scaling of the
 Jacobian's blocks and GMRES's operator product (:mod:`solver.newton`); the candidate
 search and the closest points (:mod:`solver.contact.geometry`) and the contact forces'
 derivatives (:mod:`solver.contact.model`). They are compiled once per installation and
@@ -33,8 +33,8 @@ def warm_up() -> None:
     from .newton import _NO_LOAD_ROWS, _matvec_kernel, _scale_blocks_kernel
     from .scheme import (_NO_PAIRS, _add_inertia_kernel, _apply_M_kernel, _cell_blocks_kernel,
                          _cells_kernel, _contact_band_kernel, _contact_loads_kernel,
-                         _exact_loads_kernel, _flux_kernel, _node_forces_kernel,
-                         _node_jacobian_kernel)
+                         _exact_frames_kernel, _exact_loads_kernel, _flux_kernel,
+                         _node_forces_kernel, _node_jacobian_kernel)
     from .topology import writhe
 
     n = 8
@@ -74,6 +74,9 @@ def warm_up() -> None:
     args = (Y, np.eye(3), J[1:].copy(), J[1:].copy(), R, r.copy(), r[1:].copy(), r.copy(),
             np.zeros((n, 3, 6)), 0.1, 0.1)
     _exact_loads_kernel(*args, *_NO_PAIRS)
+    _exact_frames_kernel(R, Y, kappa, r.copy(), 0.1, 0.1, np.empty((n - 1, 3, 3)),
+                         np.empty((n - 1, 3, 3)), np.empty((n - 1, 3)), np.empty((n, 3)),
+                         np.empty((3, 3)), np.empty((n, 3, 3)))
     p = 2
     _exact_loads_kernel(*args, np.zeros((p, 5), np.intp), np.zeros((p, 3, 30)),
                         np.zeros((p, 15)), np.zeros((p, 3)), np.zeros((p, 5)),

@@ -86,18 +86,21 @@ def quat_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     return out
 
 
+@numba.njit(cache=True, inline="always")
+def _exp_one(x, y, z):
+    """The unit quaternion (w, x, y, z) of one rotation vector (x, y, z), rad."""
+    ang = math.sqrt(x * x + y * y + z * z)
+    half = 0.5 * ang
+    # sin(half)/ang, with its series for small angles
+    sinc = 0.5 - ang * ang / 48.0 if ang < 1e-4 else math.sin(half) / ang
+    return math.cos(half), sinc * x, sinc * y, sinc * z
+
+
 @numba.njit(cache=True)
 def _quat_exp_kernel(theta, out):
     for n in range(theta.shape[0]):
-        x, y, z = theta[n, 0], theta[n, 1], theta[n, 2]
-        ang = math.sqrt(x * x + y * y + z * z)
-        half = 0.5 * ang
-        # sin(half)/ang, with its series for small angles
-        sinc = 0.5 - ang * ang / 48.0 if ang < 1e-4 else math.sin(half) / ang
-        out[n, 0] = math.cos(half)
-        out[n, 1] = sinc * x
-        out[n, 2] = sinc * y
-        out[n, 3] = sinc * z
+        out[n, 0], out[n, 1], out[n, 2], out[n, 3] = _exp_one(theta[n, 0], theta[n, 1],
+                                                               theta[n, 2])
 
 
 def quat_exp(theta: np.ndarray) -> np.ndarray:
@@ -127,19 +130,24 @@ def quat_slerp(q0: np.ndarray, q1: np.ndarray, s: float) -> np.ndarray:
     return quat_multiply(q0, quat_exp(s * theta))
 
 
+@numba.njit(cache=True, inline="always")
+def _matrix_into(w, x, y, z, out, n):
+    """The rotation matrix of the unit quaternion (w, x, y, z) into out[n] (3, 3)."""
+    out[n, 0, 0] = 1 - 2 * (y * y + z * z)
+    out[n, 0, 1] = 2 * (x * y - w * z)
+    out[n, 0, 2] = 2 * (x * z + w * y)
+    out[n, 1, 0] = 2 * (x * y + w * z)
+    out[n, 1, 1] = 1 - 2 * (x * x + z * z)
+    out[n, 1, 2] = 2 * (y * z - w * x)
+    out[n, 2, 0] = 2 * (x * z - w * y)
+    out[n, 2, 1] = 2 * (y * z + w * x)
+    out[n, 2, 2] = 1 - 2 * (x * x + y * y)
+
+
 @numba.njit(cache=True)
 def _quat_to_matrix_kernel(q, out):
     for n in range(q.shape[0]):
-        w, x, y, z = q[n, 0], q[n, 1], q[n, 2], q[n, 3]
-        out[n, 0, 0] = 1 - 2 * (y * y + z * z)
-        out[n, 0, 1] = 2 * (x * y - w * z)
-        out[n, 0, 2] = 2 * (x * z + w * y)
-        out[n, 1, 0] = 2 * (x * y + w * z)
-        out[n, 1, 1] = 1 - 2 * (x * x + z * z)
-        out[n, 1, 2] = 2 * (y * z - w * x)
-        out[n, 2, 0] = 2 * (x * z - w * y)
-        out[n, 2, 1] = 2 * (y * z + w * x)
-        out[n, 2, 2] = 1 - 2 * (x * x + y * y)
+        _matrix_into(q[n, 0], q[n, 1], q[n, 2], q[n, 3], out, n)
 
 
 def quat_to_matrix(q: np.ndarray) -> np.ndarray:
@@ -264,29 +272,34 @@ def space_route(q0: np.ndarray, r0: np.ndarray, kappa: np.ndarray, ds: float):
     return q, r
 
 
+@numba.njit(cache=True, inline="always")
+def _right_jacobian_into(x, y, z, out, k):
+    """J_r of one rotation vector (x, y, z) into out[k] (3, 3) (:func:`right_jacobian`)."""
+    a2 = x * x + y * y + z * z
+    a = math.sqrt(a2)
+    if a < 1e-4:
+        c1 = 0.5 - a2 / 24.0
+        c2 = 1.0 / 6.0 - a2 / 120.0
+    else:
+        c1 = (1.0 - math.cos(a)) / a2
+        c2 = (a - math.sin(a)) / (a2 * a)
+    # I − c1 [θ]× + c2 [θ]×², [θ]×² = θθᵀ − a² I
+    d = 1.0 - c2 * a2
+    out[k, 0, 0] = d + c2 * x * x
+    out[k, 1, 1] = d + c2 * y * y
+    out[k, 2, 2] = d + c2 * z * z
+    out[k, 0, 1] = c1 * z + c2 * x * y
+    out[k, 1, 0] = -c1 * z + c2 * x * y
+    out[k, 0, 2] = -c1 * y + c2 * x * z
+    out[k, 2, 0] = c1 * y + c2 * x * z
+    out[k, 1, 2] = c1 * x + c2 * y * z
+    out[k, 2, 1] = -c1 * x + c2 * y * z
+
+
 @numba.njit(cache=True)
 def _right_jacobian_kernel(theta, out):
     for k in range(theta.shape[0]):
-        x, y, z = theta[k, 0], theta[k, 1], theta[k, 2]
-        a2 = x * x + y * y + z * z
-        a = math.sqrt(a2)
-        if a < 1e-4:
-            c1 = 0.5 - a2 / 24.0
-            c2 = 1.0 / 6.0 - a2 / 120.0
-        else:
-            c1 = (1.0 - math.cos(a)) / a2
-            c2 = (a - math.sin(a)) / (a2 * a)
-        # I − c1 [θ]× + c2 [θ]×², [θ]×² = θθᵀ − a² I
-        d = 1.0 - c2 * a2
-        out[k, 0, 0] = d + c2 * x * x
-        out[k, 1, 1] = d + c2 * y * y
-        out[k, 2, 2] = d + c2 * z * z
-        out[k, 0, 1] = c1 * z + c2 * x * y
-        out[k, 1, 0] = -c1 * z + c2 * x * y
-        out[k, 0, 2] = -c1 * y + c2 * x * z
-        out[k, 2, 0] = c1 * y + c2 * x * z
-        out[k, 1, 2] = c1 * x + c2 * y * z
-        out[k, 2, 1] = -c1 * x + c2 * y * z
+        _right_jacobian_into(theta[k, 0], theta[k, 1], theta[k, 2], out, k)
 
 
 def right_jacobian(theta: np.ndarray) -> np.ndarray:

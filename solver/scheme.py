@@ -35,8 +35,8 @@ import numba
 import numpy as np
 
 from .banded import NV
-from .kinematics import (quat_exp, quat_multiply, quat_to_matrix, right_jacobian, skew,
-                         space_route)
+from .kinematics import (_exp_one, _matrix_into, _right_jacobian_into, quat_exp,
+                         quat_multiply, quat_to_matrix, right_jacobian, skew, space_route)
 
 __all__ = ["alpha_parameters", "StepParameters", "RodSystem", "BACKWARD_EULER"]
 
@@ -316,6 +316,65 @@ def _contact_band_kernel(nodes, weights, d_dr, d_dv, R, Y, Jr, dt, diag):
                     acc_w = R[b, 0, i] * HW[0, j] + R[b, 1, i] * HW[1, j] + R[b, 2, i] * HW[2, j]
                     diag[b, i, j] += w * acc_v
                     diag[b, i, 3 + j] += w * acc_w
+
+
+@numba.njit(cache=True, inline="always")
+def _mat3(A, a, B, b, scale, out, o):
+    """out[o] = scale · A[a] B[b] for stacks of (3, 3) matrices."""
+    for i in range(3):
+        for j in range(3):
+            out[o, i, j] = scale * (A[a, i, 0] * B[b, 0, j] + A[a, i, 1] * B[b, 1, j]
+                                    + A[a, i, 2] * B[b, 2, j])
+
+
+@numba.njit(cache=True)
+def _exact_frames_kernel(R, Y, theta, glob, ds, dt, C, D, tmid, rdot, A0, Lrot):
+    """The pose data of :meth:`RodSystem._exact_loads` (its docstring has the formulas),
+    per cell k (N,): κ̄_k = ½(κ_{k−1} + κ_k), the mid-cell frame M_k = R_{k−1} exp(½Δs κ̄_k)
+    (its a3 into tmid (N, 3)), C_k = Δs R_k J_r(Δs κ̄_k), D_k = ½Δs M_k J_r(½Δs κ̄_k)
+    (N, 3, 3); per node: ṙ = R v (N+1, 3) and the load rotation's node-local block
+    ½Δt [Rᵀ G]× J_r(θ) (N+1, 3, 3) into Lrot; A0 (3, 3) = ½Δt R_0 J_r(θ_0)."""
+    n1 = Y.shape[0]
+    H = np.empty((1, 3, 3))
+    M = np.empty((1, 3, 3))
+    J = np.empty((1, 3, 3))
+    S = np.empty((1, 3, 3))
+    for k in range(1, n1):
+        c = k - 1
+        kx = 0.5 * (Y[k, K] + Y[c, K])
+        ky = 0.5 * (Y[k, K + 1] + Y[c, K + 1])
+        kz = 0.5 * (Y[k, K + 2] + Y[c, K + 2])
+        w, x, y, z = _exp_one(0.5 * ds * kx, 0.5 * ds * ky, 0.5 * ds * kz)
+        _matrix_into(w, x, y, z, H, 0)
+        _mat3(R, c, H, 0, 1.0, M, 0)
+        for i in range(3):
+            tmid[c, i] = M[0, i, 2]
+        _right_jacobian_into(ds * kx, ds * ky, ds * kz, J, 0)
+        _mat3(R, k, J, 0, ds, C, c)
+        _right_jacobian_into(0.5 * ds * kx, 0.5 * ds * ky, 0.5 * ds * kz, J, 0)
+        _mat3(M, 0, J, 0, 0.5 * ds, D, c)
+    for k in range(n1):
+        for i in range(3):
+            rdot[k, i] = R[k, i, 0] * Y[k, V] + R[k, i, 1] * Y[k, V + 1] + R[k, i, 2] * Y[k, V + 2]
+        b0 = R[k, 0, 0] * glob[k, 0] + R[k, 1, 0] * glob[k, 1] + R[k, 2, 0] * glob[k, 2]
+        b1 = R[k, 0, 1] * glob[k, 0] + R[k, 1, 1] * glob[k, 1] + R[k, 2, 1] * glob[k, 2]
+        b2 = R[k, 0, 2] * glob[k, 0] + R[k, 1, 2] * glob[k, 1] + R[k, 2, 2] * glob[k, 2]
+        S[0, 0, 0] = 0.0
+        S[0, 0, 1] = -b2
+        S[0, 0, 2] = b1
+        S[0, 1, 0] = b2
+        S[0, 1, 1] = 0.0
+        S[0, 1, 2] = -b0
+        S[0, 2, 0] = -b1
+        S[0, 2, 1] = b0
+        S[0, 2, 2] = 0.0
+        _right_jacobian_into(theta[k, 0], theta[k, 1], theta[k, 2], J, 0)
+        _mat3(S, 0, J, 0, 0.5 * dt, Lrot, k)
+        if k == 0:
+            for i in range(3):
+                for j in range(3):
+                    A0[i, j] = 0.5 * dt * (R[0, i, 0] * J[0, 0, j] + R[0, i, 1] * J[0, 1, j]
+                                           + R[0, i, 2] * J[0, 2, j])
 
 
 #: the contact arguments of _exact_loads_kernel when no pair is active
@@ -675,22 +734,21 @@ class RodSystem:
         configured: the pose is the space route, so every node's position and frame
         depends on κ upstream of it and on node 0's motion; see :meth:`_exact_loads`)."""
         q, R, r, theta = pose
-        ds = self.p.ds
-        kap = Y[:, K:K + 3]
-        kbar = 0.5 * (kap[1:] + kap[:-1])
-        half = quat_to_matrix(quat_exp(0.5 * ds * kbar))
-        M = R[:-1] @ half                                               # mid-cell frames
-        C = R[1:] @ right_jacobian(ds * kbar) * ds
-        D = M @ right_jacobian(0.5 * ds * kbar) * (0.5 * ds)
-        A0 = R[0] @ right_jacobian(theta[0]) * (0.5 * self.dt)
-        rdot = np.einsum("nij,nj->ni", R, Y[:, V:V + 3])
-        b_rot = np.einsum("nji,nj->ni", R, glob)
+        n1, n_cells = self.n_nodes, self.n_cells
+        glob = np.ascontiguousarray(glob, dtype=float)
+        C = np.empty((n_cells, 3, 3))
+        D = np.empty((n_cells, 3, 3))
+        tmid = np.empty((n_cells, 3))
+        rdot = np.empty((n1, 3))
+        A0 = np.empty((3, 3))
+        Lrot = np.empty((n1, 3, 3))
+        _exact_frames_kernel(R, np.ascontiguousarray(Y), np.ascontiguousarray(theta), glob,
+                             float(self.p.ds), float(self.dt), C, D, tmid, rdot, A0, Lrot)
         # the node-local terms the band holds (subtracted in the operator): the contact
         # approximation and node_terms' rotation of the global load
-        L = np.zeros((self.n_nodes, 3, 6)) if diag is None else diag.copy()
-        L[:, :, 3:] += 0.5 * self.dt * (skew(b_rot) @ right_jacobian(theta))
-        out = dict(R=R, C=C, D=D, tmid=np.ascontiguousarray(M[:, :, 2]), A0=A0, rdot=rdot,
-                   G=np.ascontiguousarray(glob, dtype=float), L=L)
+        L = np.zeros((n1, 3, 6)) if diag is None else diag.copy()
+        L[:, :, 3:] += Lrot
+        out = dict(R=R, C=C, D=D, tmid=tmid, A0=A0, rdot=rdot, G=glob, L=L)
         if ev is not None and ev.count:
             n_p, n_b = ev.nodes.shape
             # dF_p = A_p [δr_b; δṙ_b]_(b = 1..K): (P, 3, 6K)
