@@ -215,18 +215,9 @@ def _space_route_kernel(q0, r0, kappa, ds, q, r):
     a2 = 0.0
     for k in range(1, n):
         # half-cell rotation exp(½Δs κ̄) as (hw, hx, hy, hz)
-        tx = 0.25 * ds * (kappa[k - 1, 0] + kappa[k, 0])
-        ty = 0.25 * ds * (kappa[k - 1, 1] + kappa[k, 1])
-        tz = 0.25 * ds * (kappa[k - 1, 2] + kappa[k, 2])
-        ang = math.sqrt(tx * tx + ty * ty + tz * tz)
-        if ang < 1e-4:
-            sinc = 0.5 - ang * ang / 48.0
-        else:
-            sinc = math.sin(0.5 * ang) / ang
-        hw = math.cos(0.5 * ang)
-        hx = sinc * tx
-        hy = sinc * ty
-        hz = sinc * tz
+        hw, hx, hy, hz = _exp_one(0.25 * ds * (kappa[k - 1, 0] + kappa[k, 0]),
+                                  0.25 * ds * (kappa[k - 1, 1] + kappa[k, 1]),
+                                  0.25 * ds * (kappa[k - 1, 2] + kappa[k, 2]))
         pw, px, py, pz = q[k - 1, 0], q[k - 1, 1], q[k - 1, 2], q[k - 1, 3]
         # mid-cell frame m = q_{k−1} ⊗ h, then q_k = m ⊗ h
         mw = pw * hw - px * hx - py * hy - pz * hz
