@@ -74,9 +74,9 @@ def warm_up() -> None:
     args = (Y, np.eye(3), J[1:].copy(), J[1:].copy(), R, r.copy(), r[1:].copy(), r.copy(),
             np.zeros((n, 3, 6)), 0.1, 0.1)
     _exact_loads_kernel(*args, *_NO_PAIRS)
-    _exact_frames_kernel(R, Y, kappa, r.copy(), 0.1, 0.1, np.empty((n - 1, 3, 3)),
+    _exact_frames_kernel(R, Y, kappa, 0.1, 0.1, np.empty((n - 1, 3, 3)),
                          np.empty((n - 1, 3, 3)), np.empty((n - 1, 3)), np.empty((n, 3)),
-                         np.empty((3, 3)), np.empty((n, 3, 3)))
+                         np.empty((3, 3)))
     p = 2
     _exact_loads_kernel(*args, np.zeros((p, 5), np.intp), np.zeros((p, 3, 30)),
                         np.zeros((p, 15)), np.zeros((p, 3)), np.zeros((p, 5)),

@@ -328,17 +328,15 @@ def _mat3(A, a, B, b, scale, out, o):
 
 
 @numba.njit(cache=True)
-def _exact_frames_kernel(R, Y, theta, glob, ds, dt, C, D, tmid, rdot, A0, Lrot):
+def _exact_frames_kernel(R, Y, theta, ds, dt, C, D, tmid, rdot, A0):
     """The pose data of :meth:`RodSystem._exact_loads` (its docstring has the formulas),
     per cell k (N,): κ̄_k = ½(κ_{k−1} + κ_k), the mid-cell frame M_k = R_{k−1} exp(½Δs κ̄_k)
     (its a3 into tmid (N, 3)), C_k = Δs R_k J_r(Δs κ̄_k), D_k = ½Δs M_k J_r(½Δs κ̄_k)
-    (N, 3, 3); per node: ṙ = R v (N+1, 3) and the load rotation's node-local block
-    ½Δt [Rᵀ G]× J_r(θ) (N+1, 3, 3) into Lrot; A0 (3, 3) = ½Δt R_0 J_r(θ_0)."""
+    (N, 3, 3); per node ṙ = R v (N+1, 3); A0 (3, 3) = ½Δt R_0 J_r(θ_0)."""
     n1 = Y.shape[0]
     H = np.empty((1, 3, 3))
     M = np.empty((1, 3, 3))
     J = np.empty((1, 3, 3))
-    S = np.empty((1, 3, 3))
     for k in range(1, n1):
         c = k - 1
         kx = 0.5 * (Y[k, K] + Y[c, K])
@@ -355,26 +353,13 @@ def _exact_frames_kernel(R, Y, theta, glob, ds, dt, C, D, tmid, rdot, A0, Lrot):
         _mat3(M, 0, J, 0, 0.5 * ds, D, c)
     for k in range(n1):
         for i in range(3):
-            rdot[k, i] = R[k, i, 0] * Y[k, V] + R[k, i, 1] * Y[k, V + 1] + R[k, i, 2] * Y[k, V + 2]
-        b0 = R[k, 0, 0] * glob[k, 0] + R[k, 1, 0] * glob[k, 1] + R[k, 2, 0] * glob[k, 2]
-        b1 = R[k, 0, 1] * glob[k, 0] + R[k, 1, 1] * glob[k, 1] + R[k, 2, 1] * glob[k, 2]
-        b2 = R[k, 0, 2] * glob[k, 0] + R[k, 1, 2] * glob[k, 1] + R[k, 2, 2] * glob[k, 2]
-        S[0, 0, 0] = 0.0
-        S[0, 0, 1] = -b2
-        S[0, 0, 2] = b1
-        S[0, 1, 0] = b2
-        S[0, 1, 1] = 0.0
-        S[0, 1, 2] = -b0
-        S[0, 2, 0] = -b1
-        S[0, 2, 1] = b0
-        S[0, 2, 2] = 0.0
-        _right_jacobian_into(theta[k, 0], theta[k, 1], theta[k, 2], J, 0)
-        _mat3(S, 0, J, 0, 0.5 * dt, Lrot, k)
-        if k == 0:
-            for i in range(3):
-                for j in range(3):
-                    A0[i, j] = 0.5 * dt * (R[0, i, 0] * J[0, 0, j] + R[0, i, 1] * J[0, 1, j]
-                                           + R[0, i, 2] * J[0, 2, j])
+            rdot[k, i] = (R[k, i, 0] * Y[k, V] + R[k, i, 1] * Y[k, V + 1]
+                          + R[k, i, 2] * Y[k, V + 2])
+    _right_jacobian_into(theta[0, 0], theta[0, 1], theta[0, 2], J, 0)
+    for i in range(3):
+        for j in range(3):
+            A0[i, j] = 0.5 * dt * (R[0, i, 0] * J[0, 0, j] + R[0, i, 1] * J[0, 1, j]
+                                   + R[0, i, 2] * J[0, 2, j])
 
 
 #: the contact arguments of _exact_loads_kernel when no pair is active
@@ -503,6 +488,7 @@ class RodSystem:
         self._blocks = np.empty((self.n_cells, NV, 2 * NV))
         self._exact = None
         self.contact_band = None
+        self._load_rotation = None        # node_terms' ½Δt [Rᵀ G]× J_r(θ) (N+1, 3, 3)
 
     # ------------------------------------------------------------------ per step setup
     def begin_step(self, dt, params: StepParameters, t_new, Y_old, Ydot_old, F_old,
@@ -644,8 +630,12 @@ class RodSystem:
             d[:, E3:E3 + 3, V:V + 3] += dB_dv
         if extra is not None and extra[1] is not None:
             d[:, E3:E3 + 3, V:V + 6] += extra[1]
+        # the rotated loads' node-local block, kept for the exact load product
+        # (:meth:`_exact_data`, which the band's node-local part is subtracted from)
+        self._load_rotation = None
         if b_rot is not None:
-            d[:, E3:E3 + 3, W:W + 3] += pose[2] * (skew(b_rot) @ right_jacobian(pose[1]))
+            self._load_rotation = pose[2] * (skew(b_rot) @ right_jacobian(pose[1]))
+            d[:, E3:E3 + 3, W:W + 3] += self._load_rotation
         return Fv, d
 
     # ------------------------------------------------------------------ global system
@@ -741,13 +731,12 @@ class RodSystem:
         tmid = np.empty((n_cells, 3))
         rdot = np.empty((n1, 3))
         A0 = np.empty((3, 3))
-        Lrot = np.empty((n1, 3, 3))
-        _exact_frames_kernel(R, np.ascontiguousarray(Y), np.ascontiguousarray(theta), glob,
-                             float(self.p.ds), float(self.dt), C, D, tmid, rdot, A0, Lrot)
+        _exact_frames_kernel(R, np.ascontiguousarray(Y), np.ascontiguousarray(theta),
+                             float(self.p.ds), float(self.dt), C, D, tmid, rdot, A0)
         # the node-local terms the band holds (subtracted in the operator): the contact
-        # approximation and node_terms' rotation of the global load
+        # approximation and node_terms' rotation of the global load (computed there)
         L = np.zeros((n1, 3, 6)) if diag is None else diag.copy()
-        L[:, :, 3:] += Lrot
+        L[:, :, 3:] += self._load_rotation
         out = dict(R=R, C=C, D=D, tmid=tmid, A0=A0, rdot=rdot, G=glob, L=L)
         if ev is not None and ev.count:
             n_p, n_b = ev.nodes.shape

@@ -257,15 +257,15 @@ def _point_curve_kernel(p, r, iterations, idx, mats, t_out, x_out, d_out, c1_out
 
 
 @numba.njit(cache=True)
-def _run_closest_kernel(r, own, seg, start, frozen, iterations, ends, k_out, t_out, x_out,
-                        d_out, c1_out, g_out, idx_out, b0_out, b1_out):
+def _run_closest_kernel(r, own, seg, start, frozen, iterations, seg_nodes, seg_mats, k_out,
+                        t_out, x_out, d_out, c1_out, g_out, idx_out, b0_out, b1_out):
     """Compiled body of :func:`run_closest`: per run q, the combination k (frozen[q] if
     ``frozen`` is non-empty, else the best of the polyline's closest segment and its two
-    neighbours in the run, the first on a tie) and its closest point on the curve."""
-    n = r.shape[0]
+    neighbours in the run, the first on a tie) and its closest point on the curve;
+    seg_nodes (N−1, 4) and seg_mats (N−1, 4, 4) every segment's nodes and matrix
+    (:func:`_segment_nodes`, :func:`_segment_matrices`)."""
     n_runs = start.shape[0]
     total = own.shape[0]
-    idx = np.empty(4, np.intp)
     tb0 = np.empty((3, 4))
     tb1 = np.empty((3, 4))
     for q in range(n_runs):
@@ -283,13 +283,9 @@ def _run_closest_kernel(r, own, seg, start, frozen, iterations, ends, k_out, t_o
             kc = trio[c]
             j = seg[kc]
             i = own[kc]
-            idx[0] = max(j - 1, 0)
-            idx[1] = j
-            idx[2] = j + 1
-            idx[3] = min(j + 2, n - 1)
-            mat = ends[(1 if j - 1 < 0 else 0) + (2 if j + 2 > n - 1 else 0)]
-            t, x0, x1, x2, d0, d1, d2, g = _curve_point(r[i, 0], r[i, 1], r[i, 2], r, idx,
-                                                        mat, iterations, tb0, tb1, c)
+            t, x0, x1, x2, d0, d1, d2, g = _curve_point(r[i, 0], r[i, 1], r[i, 2], r,
+                                                        seg_nodes[j], seg_mats[j],
+                                                        iterations, tb0, tb1, c)
             d = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
             if c == 0 or d < best:
                 best = d
@@ -304,7 +300,7 @@ def _run_closest_kernel(r, own, seg, start, frozen, iterations, ends, k_out, t_o
                 c1_out[q, 2] = d2
                 g_out[q] = g
                 for b in range(4):
-                    idx_out[q, b] = idx[b]
+                    idx_out[q, b] = seg_nodes[j, b]
                     b0_out[q, b] = tb0[c, b]
                     b1_out[q, b] = tb1[c, b]
 
@@ -316,9 +312,13 @@ def run_closest(positions, owner, segment, run_start, frozen=None, iterations=3)
     (:func:`run_minima`) and its two neighbours in the run are tried on the curve, the
     nearest kept (the first on a tie). ``frozen`` (R,) int: the combination of each run
     given instead (Newton's frozen selection). Returns (k (R,), and point_curve's t, x,
-    d, c', g, idx, β, β' for those combinations). Compiled (numba): one pass over the
-    runs, no (3R, 3) gathers."""
+    d, c', g, idx, β, β' for those combinations; shapes as there with M = R). positions
+    (N, 3) m; owner, segment (M,) int, run_start (R,) int as :func:`run_minima` takes
+    them (indices not checked). Compiled (numba): one pass over the runs, no (3R, 3)
+    gathers; every segment's nodes and matrix from :func:`_segment_nodes` and
+    :func:`_segment_matrices`."""
     r = np.ascontiguousarray(positions, dtype=float)
+    every = np.arange(r.shape[0] - 1)
     start = np.ascontiguousarray(run_start, dtype=np.intp)
     m = start.shape[0]
     k = np.empty(m, np.intp)
@@ -334,7 +334,8 @@ def run_closest(positions, owner, segment, run_start, frozen=None, iterations=3)
           else np.ascontiguousarray(frozen, dtype=np.intp))
     _run_closest_kernel(r, np.ascontiguousarray(owner, dtype=np.intp),
                         np.ascontiguousarray(segment, dtype=np.intp), start, fz,
-                        int(iterations), _CATMULL_ROM_ENDS, k, t, x, d, c1, g, idx, b0, b1)
+                        int(iterations), _segment_nodes(every, r.shape[0]),
+                        _segment_matrices(every, r.shape[0]), k, t, x, d, c1, g, idx, b0, b1)
     return k, t, x, d, c1, g, idx, b0, b1
 
 
@@ -380,19 +381,17 @@ def close_node_pairs(positions, radius, s, separation_cut):
 
 
 @numba.njit(cache=True)
-def _candidate_pairs_kernel(r, t, pairs, s, separation_cut, sin_half_aperture):
-    """Of the node pairs (P, 2) (a < b, within the search radius), those with |s_a − s_b|
-    > separation_cut and (if sin_half_aperture < 1) |t_a·n| ≤ and |t_b·n| ≤ it, n the unit
-    vector between them, in both orders, laid out by owner (a counting sort) with each
-    owner's partners sorted. Returns (owner (M,), partner (M,))."""
+def _candidate_pairs_kernel(r, t, a, b, sin_half_aperture):
+    """Of the node pairs (a, b) (P,) each, those (if sin_half_aperture < 1) with
+    |t_a·n| ≤ and |t_b·n| ≤ it, n the unit vector between them, in both orders, laid out
+    by owner (a counting sort) with each owner's partners sorted. Returns (owner (M,),
+    partner (M,))."""
     n = r.shape[0]
-    keep = np.zeros(pairs.shape[0], np.bool_)
+    keep = np.zeros(a.shape[0], np.bool_)
     start = np.zeros(n + 1, np.intp)
-    for k in range(pairs.shape[0]):
-        i = pairs[k, 0]
-        j = pairs[k, 1]
-        if abs(s[i] - s[j]) <= separation_cut:
-            continue
+    for k in range(a.shape[0]):
+        i = a[k]
+        j = b[k]
         if sin_half_aperture < 1.0:
             x = r[i, 0] - r[j, 0]
             y = r[i, 1] - r[j, 1]
@@ -414,10 +413,10 @@ def _candidate_pairs_kernel(r, t, pairs, s, separation_cut, sin_half_aperture):
     m = start[n]
     owner = np.empty(m, np.intp)
     partner = np.empty(m, np.intp)
-    for k in range(pairs.shape[0]):
+    for k in range(a.shape[0]):
         if keep[k]:
-            i = pairs[k, 0]
-            j = pairs[k, 1]
+            i = a[k]
+            j = b[k]
             owner[fill[i]] = i
             partner[fill[i]] = j
             fill[i] += 1
@@ -433,18 +432,19 @@ def _candidate_pairs_kernel(r, t, pairs, s, separation_cut, sin_half_aperture):
 def candidate_pairs(positions, tangents, radius, s, separation_cut, sin_half_aperture):
     """Node pairs for the contact search, both orders: (owner (M,), partner (M,)) int
     arrays sorted by owner and then partner, each pair with centreline distance ≤
-    ``radius`` (m), arclength separation > ``separation_cut`` (m) and, when
-    ``sin_half_aperture`` < 1, each node inside the other's aperture cone
-    (|a3 · n| ≤ sin(θ/2), n the unit vector between them; ``tangents`` (N, 3) unit a3
-    axes). positions (N, 3) m, s (N,) m. The pairs within the radius from a k-d tree
-    (scipy.spatial.cKDTree); the exclusion, the cones and the ordering in one compiled
+    ``radius`` (m), arclength separation > ``separation_cut`` (m) (:func:`close_node_pairs`)
+    and, when ``sin_half_aperture`` < 1, each node inside the other's aperture cone
+    (|a3 · n| ≤ sin(θ/2), n the unit vector between them; seed § 3). positions (N, 3) m,
+    tangents (N, 3) unit a3 axes, s (N,) m. The cones and the ordering are one compiled
     pass (:func:`_candidate_pairs_kernel`), where numpy's filters and deduplication had
-    taken 2 of the search's 3.4 ms at the seed example's 32 s."""
+    taken 2 of the search's 3.4 ms at the seed example's 32 s. Raises nothing of its own
+    (scipy's k-d tree rejects non-finite positions)."""
     r = np.ascontiguousarray(positions, dtype=float)
-    pairs = cKDTree(r).query_pairs(r=radius, output_type="ndarray").astype(np.intp)
+    a, b = close_node_pairs(r, radius, s, separation_cut)
     return _candidate_pairs_kernel(r, np.ascontiguousarray(tangents, dtype=float),
-                                   pairs.reshape(-1, 2), np.ascontiguousarray(s, dtype=float),
-                                   float(separation_cut), float(sin_half_aperture))
+                                   np.ascontiguousarray(a, dtype=np.intp),
+                                   np.ascontiguousarray(b, dtype=np.intp),
+                                   float(sin_half_aperture))
 
 
 def swept_min_distance(r0, r1, a, b):
