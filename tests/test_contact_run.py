@@ -190,7 +190,7 @@ def test_position_tolerance_bounds_the_error_of_every_contact_step(monkeypatch):
 
 def test_fixed_steps_grow_only_where_the_route_rule_may_pass(monkeypatch):
     """A fixed step grows by the cut factor F after a few accepted substeps; where the
-    last contact step's route error ratio × F^ROUTE_ORDER exceeds 1 the larger step would
+    last contact step's route error ratio × (grown step / its Δt)^ROUTE_ORDER exceeds 1 the larger step would
     be refused by the route rule, so it is not tried (RodRun._route_allows_growth). Over
     the collapse into the first loop (100 segments, the seed case's 0.3-mm bound) the
     rule takes away growths that would fail for the route (15 → 11 here, where the
@@ -199,12 +199,20 @@ def test_fixed_steps_grow_only_where_the_route_rule_may_pass(monkeypatch):
     growths refused over its first loop before; docs/contact.md § 4)."""
     run = RodRun(fast_writhing_case(0.1))
     run.last_had_candidates, run.route_tolerance = True, 3e-4
+    run.last_dt = 0.025                             # growth 25 ms -> 0.1 s: F = 4
     run.last_step_error = 0.9 * 3e-4 / 16.0
-    assert run._route_allows_growth(4.0)
+    assert run._route_allows_growth(0.1)
     run.last_step_error = 1.1 * 3e-4 / 16.0
-    assert not run._route_allows_growth(4.0)
+    assert not run._route_allows_growth(0.1)
+    # a last substep shortened to 12.5 ms foresees the 0.1-s step from its own size:
+    # its error ratio × 8², not × 4²
+    run.last_dt = 0.0125
+    run.last_step_error = 0.9 * 3e-4 / 16.0
+    assert not run._route_allows_growth(0.1)
+    run.last_step_error = 0.9 * 3e-4 / 64.0
+    assert run._route_allows_growth(0.1)
     run.last_had_candidates = False                 # no candidates: no route rule
-    assert run._route_allows_growth(4.0)
+    assert run._route_allows_growth(0.1)
 
     plain = RodRun.try_step
     rule = RodRun._route_allows_growth
@@ -219,7 +227,7 @@ def test_fixed_steps_grow_only_where_the_route_rule_may_pass(monkeypatch):
 
         monkeypatch.setattr(RodRun, "try_step", recording)
         monkeypatch.setattr(RodRun, "_route_allows_growth",
-                            rule if with_rule else (lambda self, factor: True))
+                            rule if with_rule else (lambda self, grown: True))
         ds = simulate(fast_writhing_case(6.6))
         assert ds.attrs["hockle_status"] == "completed"
         grown = [b for a, b in zip(attempts, attempts[1:]) if a[1] and b[0] > 1.5 * a[0]]
