@@ -31,8 +31,18 @@ may meet): at the production step (rows ``position <x>``; with ``--dt-cut-factor
 also with the fixed steps cut by f instead of 4, rows ``position <x> cut <f>``) and with
 each tolerance of ``--tolerances`` (rows ``tolerance <tol> position <x>``).
 
+With ``--spread`` (Newton tolerances, default none) the measurement is repeated from
+the case's own state for each: the case (with ``--spread-position`` as its
+``contact.position_tolerance``, default the case's) is run from t = 0 with that Newton
+tolerance to t0, and the window at the production step is compared with a 6.25-ms
+reference from the same state (the Newton tolerance moves the trajectory through
+Newton's convergence noise, so the rows show how firm the error is); printed and written
+to benchmarks/results/seed_accuracy_spread.json (``seed_accuracy_spread_<x>.json`` with
+``--spread-position x``).
+
 Run: ``python benchmarks/seed_accuracy.py [--t1 21.0] [--quick] [--tolerances 1e-3,1e-4]
-[--position-tolerances 3e-4 [--dt-cut-factor 2]]`` (quick: references at 25 ms and 12.5 ms, to 19.5 s;
+[--position-tolerances 3e-4 [--dt-cut-factor 2]] [--spread 1e-10,1e-9,1e-8
+[--spread-position 5e-4]]`` (quick: references at 25 ms and 12.5 ms, to 19.5 s;
 ``--tolerances ''``: none).
 """
 from __future__ import annotations
@@ -54,9 +64,17 @@ ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
 
 
-def state_at(t0: float) -> RodRun:
-    """The seed example advanced to t0 (s) at its own Δt."""
+def state_at(t0: float, newton_tolerance=None, position_tolerance=None) -> RodRun:
+    """The seed example advanced to t0 (s) at its own Δt; with ``newton_tolerance`` and
+    ``position_tolerance`` (m) set in the case, None keeping the case's."""
     case = Case.from_file(ROOT / "cases" / "goyal-writhing.yaml")
+    if newton_tolerance is not None or position_tolerance is not None:
+        spec = case.model_dump(mode="json")
+        if newton_tolerance is not None:
+            spec["numerics"]["newton"]["tolerance"] = newton_tolerance
+        if position_tolerance is not None:
+            spec["contact"]["position_tolerance"] = position_tolerance
+        case = Case.model_validate(spec)
     run = RodRun(case)
     n = int(round(t0 / case.numerics.dt))
     for k in range(1, n + 1):
@@ -156,6 +174,39 @@ def events(recs) -> dict:
             "writhe_1_0": crossing(ts, wr, 1.0)}
 
 
+def compare(recs, ref_recs) -> dict:
+    """Writhe difference (largest, absolute and relative to the reference's largest |Wr|)
+    and event-time differences (s) of a window's records against a reference's."""
+    ref = np.array([r["writhe"] for r in ref_recs])
+    wr = np.array([r["writhe"] for r in recs])
+    diff = float(np.max(np.abs(wr - ref)))
+    ev, ev_ref = events(recs), events(ref_recs)
+    return {"writhe_max_abs_diff": diff, "writhe_rel_diff": diff / float(np.max(np.abs(ref))),
+            "event_time_diffs_s": {k: (None if v is None or ev_ref[k] is None
+                                       else v - ev_ref[k]) for k, v in ev.items()}}
+
+
+def spread(newton_tolerances, position, t0: float, t1: float, h_ref: float) -> list:
+    """The window's accuracy from the case's own state at t0 for each Newton tolerance
+    (the case run from t = 0 with it; ``position``: contact.position_tolerance, m, or
+    None for the case's), each against its own reference at nominal steps h_ref (s)."""
+    rows = []
+    for tol in newton_tolerances:
+        base = state_at(t0, tol, position)
+        recs, wall = advance(copy.deepcopy(base), t1, 0.1)
+        ref, wall_ref = advance(copy.deepcopy(base), t1, h_ref)
+        row = {"newton_tolerance": tol, "position_tolerance": base.route_tolerance,
+               "wall_s": wall, "reference_wall_s": wall_ref, **compare(recs, ref),
+               "max_topology_error": max(x["topology_error"] for x in recs),
+               "min_surface_gap_m": min(x["min_surface_gap"] for x in recs)}
+        rows.append(row)
+        print(f"Newton tolerance {tol:g}, position bound {row['position_tolerance']:g} m: "
+              f"writhe {100 * row['writhe_rel_diff']:.2f} % off, event time differences "
+              f"{row['event_time_diffs_s']}, max |Tw+Wr-Lk| {row['max_topology_error']:.1e}, "
+              f"min gap {1e3 * row['min_surface_gap_m']:.3f} mm", flush=True)
+    return rows
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--t0", type=float, default=18.0)
@@ -168,7 +219,24 @@ def main() -> None:
     ap.add_argument("--dt-cut-factor", type=float, default=None,
                     help="the position rows' numerics.dt_cut_factor (also run with it: "
                          "rows 'position <x> cut <f>')")
+    ap.add_argument("--spread", default="",
+                    help="comma-separated Newton tolerances: the window from the case's own "
+                         "state for each, against its own reference (only this is run)")
+    ap.add_argument("--spread-position", type=float, default=None,
+                    help="contact.position_tolerance (m) of the --spread runs")
     args = ap.parse_args()
+    if args.spread:
+        from threadpoolctl import threadpool_limits
+
+        t1 = 19.5 if args.quick else args.t1
+        with threadpool_limits(limits=1, user_api="blas"):
+            rows = spread([float(x) for x in args.spread.split(",") if x.strip()],
+                          args.spread_position, args.t0, t1, 0.025 if args.quick else 0.00625)
+        RESULTS.mkdir(parents=True, exist_ok=True)
+        name = ("seed_accuracy_spread.json" if args.spread_position is None
+                else f"seed_accuracy_spread_{args.spread_position:g}.json")
+        (RESULTS / name).write_text(json.dumps(rows, indent=1))
+        return
     tolerances = [float(x) for x in args.tolerances.split(",") if x.strip()]
     positions = [float(x) for x in args.position_tolerances.split(",") if x.strip()]
     from threadpoolctl import threadpool_limits
