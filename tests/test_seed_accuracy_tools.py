@@ -1,0 +1,41 @@
+"""The seed-accuracy benchmark's comparison (benchmarks/seed_accuracy.py): event times by
+interpolation between outputs and the writhe difference against a reference, on records
+with known answers. The solver runs of the benchmark are not repeated here."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+import seed_accuracy as sa  # noqa: E402
+
+
+def _records(ts, wrs, first_contact):
+    return [{"t": t, "writhe": w, "contacts": int(t >= first_contact), "topology_error": 0.0,
+             "min_surface_gap": 1e-3} for t, w in zip(ts, wrs)]
+
+
+def test_events_interpolate_the_writhe_crossings_between_outputs():
+    recs = _records([18.0, 18.1, 18.2, 18.3], [0.0, 0.4, 0.8, 1.2], 18.1)
+    ev = sa.events(recs)
+    assert ev["first_contact"] == 18.1
+    assert ev["writhe_0_5"] == pytest.approx(18.125)      # 0.4 → 0.8 crosses 0.5 at ¼
+    assert ev["writhe_1_0"] == pytest.approx(18.25)
+
+
+def test_compare_gives_the_largest_writhe_difference_and_the_event_shifts():
+    ts = [18.0, 18.1, 18.2, 18.3]
+    ref = _records(ts, [0.0, 0.4, 0.8, 1.2], 18.1)
+    run = _records(ts, [0.0, 0.4, 0.86, 1.2], 18.1)
+    out = sa.compare(run, ref)
+    assert out["writhe_max_abs_diff"] == pytest.approx(0.06)
+    assert out["writhe_rel_diff"] == pytest.approx(0.06 / 1.2)
+    # the run crosses 1.0 between 18.2 (0.86) and 18.3 (1.2), at 0.14/0.34 of that output step
+    assert out["event_time_diffs_s"]["writhe_1_0"] == pytest.approx(
+        18.2 + 0.1 * 0.14 / 0.34 - 18.25)
+    assert out["event_time_diffs_s"]["first_contact"] == 0.0
+    # an event the run never reaches compares as None
+    late = sa.compare(_records(ts, [0.0, 0.1, 0.2, 0.3], 18.1), ref)
+    assert late["event_time_diffs_s"]["writhe_0_5"] is None
