@@ -280,13 +280,8 @@ def main() -> None:
     scale = float(np.max(np.abs(ref)))
     summary = {"t0": args.t0, "t1": t1, "writhe_scale": scale}
     for name in [k for k in runs if k != "reference"]:
-        wr = np.array([r["writhe"] for r in runs[name]["records"]])
-        diff = float(np.max(np.abs(wr - ref)))
-        ev = {k: (None if v is None or runs["reference"]["events"][k] is None
-                  else v - runs["reference"]["events"][k]) for k, v in runs[name]["events"].items()}
-        summary[name] = {"writhe_max_abs_diff": diff, "writhe_rel_diff": diff / scale,
-                         "event_time_diffs_s": ev, "wall_s": runs[name]["wall_s"],
-                         "steps": runs[name].get("steps")}
+        summary[name] = {**compare(runs[name]["records"], runs["reference"]["records"]),
+                         "wall_s": runs[name]["wall_s"], "steps": runs[name].get("steps")}
     for name, r in runs.items():
         summary.setdefault(name, {})
         summary[name]["max_topology_error"] = max(x["topology_error"] for x in r["records"])

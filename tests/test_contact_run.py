@@ -190,8 +190,9 @@ def test_position_tolerance_bounds_the_error_of_every_contact_step(monkeypatch):
 
 def test_fixed_steps_grow_only_where_the_route_rule_may_pass(monkeypatch):
     """A fixed step grows by the cut factor F after a few accepted substeps; where the
-    last contact step's route error ratio × (grown step / its Δt)^ROUTE_ORDER exceeds 1 the larger step would
-    be refused by the route rule, so it is not tried (RodRun._route_allows_growth). Over
+    last contact step's route error ratio × (grown step / its Δt)^ROUTE_ORDER exceeds 1
+    the larger step would be refused by the route rule, so it is not tried
+    (RodRun._route_allows_growth). Over
     the collapse into the first loop (100 segments, the seed case's 0.3-mm bound) the
     rule takes away growths that would fail for the route (15 → 11 here, where the
     iterations came out alike, 645 against 638) and leaves the result as it was (the
