@@ -808,10 +808,10 @@ class RodRun:
                 level += 1
                 self.accepted_at_level = 0
             needed = self.grow_after if level == 1 else self.GROW_AFTER
+            grown = h_full / num.dt_cut_factor ** (level - 1)   # the step one level up
             if (self.accepted_at_level >= needed and level > 0
-                    and h_full / num.dt_cut_factor ** (level - 1) <= remaining * (1.0 + 1e-9)
-                    and h_full / num.dt_cut_factor ** (level - 1) <= cap
-                    and self._route_allows_growth(h_full / num.dt_cut_factor ** (level - 1))):
+                    and grown <= remaining * (1.0 + 1e-9) and grown <= cap
+                    and self._route_allows_growth(grown)):
                 # grow only when the larger step fits, will be tried and may pass
                 level -= 1
                 self.accepted_at_level = 0
