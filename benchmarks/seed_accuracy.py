@@ -40,9 +40,19 @@ Newton's convergence noise, so the rows show how firm the error is); printed and
 to benchmarks/results/seed_accuracy_spread.json (``seed_accuracy_spread_<x>.json`` with
 ``--spread-position x``).
 
-Run: ``python benchmarks/seed_accuracy.py [--t1 21.0] [--quick] [--tolerances 1e-3,1e-4]
-[--position-tolerances 3e-4 [--dt-cut-factor 2]] [--spread 1e-10,1e-9,1e-8
-[--spread-position 5e-4]]`` (quick: references at 25 ms and 12.5 ms, to 19.5 s;
+Other windows (``--t0``, ``--t1``; the state at t0 from the case run from t = 0) are
+written to ``seed_accuracy_<t0>-<t1>.json``; ``--fixed-steps`` adds rows at other
+nominal steps with the case's step control (rows ``nominal <h>``: how the window's error
+converges with the step), ``--windows`` the writhe error of every row over sub-windows
+(``by_window``), and the events include the writhe's first crossings of 1.5 and 2.0 (the
+second collapse, the plies wrapped). The whole contact phase, as in docs/contact.md § 4
+(session 13): ``--t0 18 --t1 45 --tolerances '' --fixed-steps 0.025
+--windows 18-21,21-25,25-26,26-30,30-35,35-45``.
+
+Run: ``python benchmarks/seed_accuracy.py [--t0 18.0] [--t1 21.0] [--quick]
+[--tolerances 1e-3,1e-4] [--position-tolerances 3e-4 [--dt-cut-factor 2]]
+[--fixed-steps 0.025,0.0125] [--windows 18-21,26-30] [--spread 1e-10,1e-9,1e-8
+[--spread-position 5e-4]]`` (quick: references at 25 ms and 50 ms, to 19.5 s;
 ``--tolerances ''``: none).
 """
 from __future__ import annotations
@@ -166,26 +176,47 @@ def crossing(ts, ys, level):
     return None
 
 
+#: writhe levels whose first upward crossing is an event (the seed example's: the loop
+#: forms (0.5, 1.0), the second collapse (1.5), the plies wrapped (2.0))
+WRITHE_LEVELS = (0.5, 1.0, 1.5, 2.0)
+
+
 def events(recs) -> dict:
+    """Event times (s) of a list of :func:`record` dicts: the first output with contact
+    and the first upward crossing of each of :data:`WRITHE_LEVELS` by the writhe
+    (interpolated linearly between outputs; None where not reached)."""
     ts = [r["t"] for r in recs]
     wr = [r["writhe"] for r in recs]
     first = next((r["t"] for r in recs if r["contacts"] > 0), None)
-    return {"first_contact": first, "writhe_0_5": crossing(ts, wr, 0.5),
-            "writhe_1_0": crossing(ts, wr, 1.0)}
+    out = {"first_contact": first}
+    for level in WRITHE_LEVELS:
+        out[f"writhe_{level:.1f}".replace(".", "_")] = crossing(ts, wr, level)
+    return out
 
 
-def compare(recs, ref_recs) -> dict:
+def compare(recs, ref_recs, windows=()) -> dict:
     """Writhe difference (largest, absolute and relative to the reference's largest |Wr|)
     and event-time differences (s; None where either run misses the event) of a window's
     records against a reference's: both lists of :func:`record` dicts at the same output
-    times (equal length; numpy raises ValueError otherwise)."""
+    times (equal length; numpy raises ValueError otherwise). ``windows``: (t_lo, t_hi)
+    pairs (s); for each, ``by_window`` gives the largest |ΔWr| over the outputs with
+    t_lo ≤ t ≤ t_hi relative to the reference's largest |Wr| there (None: no output)."""
     ref = np.array([r["writhe"] for r in ref_recs])
     wr = np.array([r["writhe"] for r in recs])
+    ts = np.array([r["t"] for r in ref_recs])
     diff = float(np.max(np.abs(wr - ref)))
     ev, ev_ref = events(recs), events(ref_recs)
-    return {"writhe_max_abs_diff": diff, "writhe_rel_diff": diff / float(np.max(np.abs(ref))),
-            "event_time_diffs_s": {k: (None if v is None or ev_ref[k] is None
-                                       else v - ev_ref[k]) for k, v in ev.items()}}
+    by_window = {}
+    for lo, hi in windows:
+        sel = (ts >= lo - 1e-9) & (ts <= hi + 1e-9)
+        by_window[f"{lo:g}-{hi:g}"] = (float(np.max(np.abs(wr[sel] - ref[sel]))
+                                        / np.max(np.abs(ref[sel]))) if sel.any() else None)
+    out = {"writhe_max_abs_diff": diff, "writhe_rel_diff": diff / float(np.max(np.abs(ref))),
+           "event_time_diffs_s": {k: (None if v is None or ev_ref[k] is None
+                                      else v - ev_ref[k]) for k, v in ev.items()}}
+    if windows:
+        out["by_window"] = by_window
+    return out
 
 
 def spread(newton_tolerances, position, t0: float, t1: float, h_ref: float) -> list:
@@ -228,6 +259,12 @@ def main() -> None:
                          "state for each, against its own reference (only this is run)")
     ap.add_argument("--spread-position", type=float, default=None,
                     help="contact.position_tolerance (m) of the --spread runs")
+    ap.add_argument("--fixed-steps", default="",
+                    help="comma-separated nominal steps (s) also run with the case's step "
+                         "control (rows 'nominal <h>'); each must divide 0.1 s")
+    ap.add_argument("--windows", default="",
+                    help="comma-separated sub-windows lo-hi (s), e.g. 18-21,26-30: the "
+                         "writhe error of every row in each (by_window)")
     args = ap.parse_args()
     if args.spread:
         from threadpoolctl import threadpool_limits
@@ -257,6 +294,11 @@ def main() -> None:
             runs[name] = {"h": h, "wall_s": wall, "records": recs, "events": events(recs)}
             print(f"{name}: nominal Δt {h} s, wall {wall:.1f} s, events {runs[name]['events']}")
         cuts = [None] + ([args.dt_cut_factor] if args.dt_cut_factor else [])
+        for h in [float(x) for x in args.fixed_steps.split(",") if x.strip()]:
+            name = f"nominal {h:g}"
+            recs, wall = advance(copy.deepcopy(base), t1, h)
+            runs[name] = {"h": h, "wall_s": wall, "records": recs, "events": events(recs)}
+            print(f"{name}: wall {wall:.1f} s, events {runs[name]['events']}", flush=True)
         for pos in positions:
             for cut in cuts:
                 name = f"position {pos:g}" + ("" if cut is None else f" cut {cut:g}")
@@ -283,8 +325,11 @@ def main() -> None:
     ref = np.array([r["writhe"] for r in runs["reference"]["records"]])
     scale = float(np.max(np.abs(ref)))
     summary = {"t0": args.t0, "t1": t1, "writhe_scale": scale}
+    windows = [tuple(float(v) for v in w.split("-")) for w in args.windows.split(",")
+               if w.strip()]
     for name in [k for k in runs if k != "reference"]:
-        summary[name] = {**compare(runs[name]["records"], runs["reference"]["records"]),
+        summary[name] = {**compare(runs[name]["records"], runs["reference"]["records"],
+                                   windows),
                          "wall_s": runs[name]["wall_s"], "steps": runs[name].get("steps")}
     for name, r in runs.items():
         summary.setdefault(name, {})
@@ -294,7 +339,9 @@ def main() -> None:
         summary[name]["wall_s"] = r["wall_s"]
     summary["records"] = {k: v["records"] for k, v in runs.items()}
     RESULTS.mkdir(parents=True, exist_ok=True)
-    (RESULTS / "seed_accuracy.json").write_text(json.dumps(summary, indent=1))
+    out = ("seed_accuracy.json" if (args.t0, args.t1) == (18.0, 21.0) and not args.quick
+           else f"seed_accuracy_{args.t0:g}-{t1:g}.json")
+    (RESULTS / out).write_text(json.dumps(summary, indent=1))
     p = summary["production"]
     print(f"writhe vs reference: max |ΔWr| {p['writhe_max_abs_diff']:.4f} "
           f"({p['writhe_rel_diff'] * 100:.2f} % of max |Wr| {scale:.3f}); the coarse "
@@ -302,7 +349,9 @@ def main() -> None:
     print("event time differences (s):", p["event_time_diffs_s"])
     for name in runs:
         if name != "reference":
-            print(f"{name}: writhe {summary[name]['writhe_rel_diff'] * 100:.2f} % off")
+            print(f"{name}: writhe {summary[name]['writhe_rel_diff'] * 100:.2f} % off"
+                  + "".join(f"; {w} s: {100 * e:.2f} %" for w, e in
+                            summary[name].get("by_window", {}).items() if e is not None))
         print(f"{name}: max |Tw+Wr-Lk| {summary[name]['max_topology_error']:.2e}, "
               f"min surface gap {summary[name]['min_surface_gap_m'] * 1e3:.3f} mm, "
               f"wall {summary[name]['wall_s']:.1f} s")

@@ -39,3 +39,22 @@ def test_compare_gives_the_largest_writhe_difference_and_the_event_shifts():
     # an event the run never reaches compares as None
     late = sa.compare(_records(ts, [0.0, 0.1, 0.2, 0.3], 18.1), ref)
     assert late["event_time_diffs_s"]["writhe_0_5"] is None
+
+
+def test_events_include_the_later_writhe_levels_and_none_where_not_reached():
+    recs = _records([25.0, 25.1, 25.2, 25.3], [1.2, 1.4, 1.8, 1.9], 18.1)
+    ev = sa.events(recs)
+    assert ev["writhe_1_5"] == pytest.approx(25.125)      # 1.4 → 1.8 crosses 1.5 at ¼
+    assert ev["writhe_2_0"] is None
+    assert ev["writhe_1_0"] is None                       # already above 1 at the start
+
+
+def test_compare_by_window_takes_each_windows_own_scale():
+    ts = [18.0, 18.1, 18.2, 18.3]
+    ref = _records(ts, [0.5, 1.0, 2.0, 2.0], 18.0)
+    run = _records(ts, [0.51, 1.0, 2.0, 1.9], 18.0)
+    out = sa.compare(run, ref, windows=[(18.0, 18.1), (18.2, 18.3), (19.0, 20.0)])
+    assert out["by_window"]["18-18.1"] == pytest.approx(0.01 / 1.0)
+    assert out["by_window"]["18.2-18.3"] == pytest.approx(0.1 / 2.0)
+    assert out["by_window"]["19-20"] is None
+    assert "by_window" not in sa.compare(run, ref)
