@@ -31,7 +31,8 @@ from .loads import LoadModel
 from .properties import RodProperties
 from .newton import Newton
 from .scheme import BACKWARD_EULER, RodSystem, alpha_parameters
-from .stepping import (RESTART_FRACTION, RESTART_STEPS, ErrorControl, breakpoints, extrapolate,
+from .stepping import (RESTART_FRACTION, RESTART_STEPS, ErrorControl, PIController,
+                       breakpoints, extrapolate,
                        growth_rate, hermite)
 
 __all__ = ["simulate", "SolverDivergence", "Progress", "RodRun", "RateEstimate"]
@@ -118,14 +119,6 @@ class RodRun:
     GROW_AFTER = 3   # accepted substeps at one Δt level before Δt is allowed to grow
     GUARD_EVERY = 10  # accepted steps between growth-guard checks at an unchanged Δt
     GROW_AFTER_MAX = 48  # the same after repeated failed growths (doubling back-off)
-
-    #: the order in Δt of the route rule's position error per step, with which a fixed-
-    #: step growth by the cut factor F is foreseen: the step grows only if its last
-    #: accepted contact step's error ratio × F^ROUTE_ORDER ≤ 1 (else it would be refused
-    #: by the route rule). Measured on the seed example's contact phase (refused steps
-    #: against the accepted step after the cut, 17 pairs): orders 1.5-3.0, median 2.1;
-    #: the rule's own O(Δt³) holds only where the motion is smooth over the step
-    ROUTE_ORDER = 2.0
 
     #: with numerics.tolerance and no contact.position_tolerance, the route rule's
     #: tolerance in steps where strands may meet (a node's position error per step, m)
@@ -234,6 +227,13 @@ class RodRun:
         self.level_hint = 0
         self.accepted_at_level = 0
         self.grow_after = self.GROW_AFTER
+        # fixed steps where strands may meet: Δt from the route rule's error ratio by the
+        # PI controller (:meth:`_route_step`); h_route is the next such step (None: the
+        # levels of :meth:`_advance_to` decide)
+        self.route_pi = (PIController() if self.contact is not None and self.errctl is None
+                         and math.isfinite(self.route_tolerance) else None)
+        self.h_route = None
+        self.last_route_ratio = math.nan
         self.last_iterations = 0
         self.last_residual = 0.0
         self.last_dt = num.dt
@@ -265,6 +265,7 @@ class RodRun:
         (True, iterations, residual, nonfinite=False) is returned; on failure the state is
         untouched."""
         sysm = self.system
+        self.last_route_ratio = math.nan
         t_new = self.t + h if t_new is None else t_new
         bc = BoundaryRows(self.case, self.props, t_new, sysm.n)
         switched = bc.key != self.bc.key
@@ -325,7 +326,7 @@ class RodRun:
         ratio = 0.0
         if self.contact is not None:
             self.last_step_error = self._local_error(h, Y, pose[2])
-            ratio = self.last_step_error / self.route_tolerance
+            ratio = self.last_route_ratio = self.last_step_error / self.route_tolerance
             if self.errctl is None and ratio > 1.0:
                 self.last_reject = "contact"
                 return False, its, res, False
@@ -784,14 +785,18 @@ class RodRun:
         GROW_AFTER_MAX, and reset by one that holds) the
         level drops by one (Δt grows by the factor) as soon as the larger step fits in
         what remains of the nominal step, so a growth is always tried and a Δt that
-        keeps failing is not retried at every nominal step. Where the last step had
-        contact candidates the growth also waits until the route rule may pass at the
-        larger step (:meth:`_route_allows_growth`).
+        keeps failing is not retried at every nominal step. Once a step with contact
+        candidates is accepted, the steps go on by :meth:`_route_step` (Δt from the
+        route rule's error ratio) until one has none.
         """
         num = self.case.numerics
         level = self.level_hint
         total_its = 0
         while self.t < stop - 1e-9 * h_full:
+            if self.h_route is not None:
+                total_its += self._route_step(stop, h_full, at_break)
+                level = self.level_hint
+                continue
             remaining = stop - self.t
             grew = False
             cap = self._h_cap() * (1.0 + 1e-9)
@@ -810,9 +815,8 @@ class RodRun:
             needed = self.grow_after if level == 1 else self.GROW_AFTER
             grown = h_full / num.dt_cut_factor ** (level - 1)   # the step one level up
             if (self.accepted_at_level >= needed and level > 0
-                    and grown <= remaining * (1.0 + 1e-9) and grown <= cap
-                    and self._route_allows_growth(grown)):
-                # grow only when the larger step fits, will be tried and may pass
+                    and grown <= remaining * (1.0 + 1e-9) and grown <= cap):
+                # grow only when the larger step fits and will be tried
                 level -= 1
                 self.accepted_at_level = 0
                 grew = True
@@ -829,6 +833,10 @@ class RodRun:
                 self.accepted_at_level += 1
                 if grew:
                     self.grow_after = self.GROW_AFTER
+                if self.route_pi is not None and self.last_had_candidates:
+                    # strands may meet: from here Δt follows the route rule's ratio
+                    self.route_pi.forget()
+                    self.h_route = self.route_pi.accepted(h_try, self.last_route_ratio)
                 continue
             self.accepted_at_level = 0
             self._count_refusal()
@@ -844,19 +852,58 @@ class RodRun:
         self.level_hint = level
         return total_its
 
-    def _route_allows_growth(self, grown: float) -> bool:
-        """Whether a fixed step grown to ``grown`` (s) may pass the route rule: True unless
-        the last accepted step had contact candidates and its position error ratio
-        (:meth:`_local_error` over the route tolerance) × (grown / its Δt)^ROUTE_ORDER
-        exceeds 1 (the step's own Δt, not the level's: a last substep shortened to land
-        on the nominal step foresees the grown one from its own size).
-        On the seed example's first loop (18-21 s, 0.3-mm bound) 23 of 24 growths from
-        25 ms to 0.1 s were refused, 172 of 938 Newton iterations; in the intertwined
-        phase (32-35 s) 8 of 10 held (docs/contact.md § 3)."""
-        if not self.last_had_candidates or not math.isfinite(self.route_tolerance):
-            return True
-        ratio = self.last_step_error / self.route_tolerance
-        return ratio * (grown / self.last_dt) ** self.ROUTE_ORDER <= 1.0
+    def _route_step(self, stop: float, h_full: float, at_break: bool) -> int:
+        """One accepted fixed-mode step where strands may meet, toward ``stop`` (s), of
+        at most the nominal h_full (s): Δt from the route rule's error ratio (the step's
+        position error over ``contact.position_tolerance``, :meth:`_local_error`) by the
+        PI controller of error-controlled steps (:class:`solver.stepping.PIController`:
+        target ratio 0.35, retries after a route refusal at its smaller size), cut by
+        ``dt_cut_factor`` when Newton or a contact check fails; it lands on ``stop`` as
+        :meth:`step_adaptive` does (a step that would leave less than itself is halved).
+        The levels h_full/factor^k chose these steps before session 13: with Δt chosen
+        continuously the seed example's contact phase is more accurate for its cost
+        (docs/contact.md § 4). When the accepted step has no candidates the levels take
+        over again, at the level of that step. Raises SolverDivergence below
+        h_full/dt_cut_factor^max_dt_cuts. Returns the Newton iterations."""
+        num = self.case.numerics
+        ctl = self.route_pi
+        h_min = h_full / num.dt_cut_factor ** num.max_dt_cuts
+        h = min(self.h_route, h_full, self._h_cap())
+        refused = None           # (h, ratio) of the last attempt refused by the route rule
+        total_its = 0
+        while True:
+            remaining = stop - self.t
+            last = h >= remaining * (1.0 - 1e-9)
+            h_try = remaining if last else (0.5 * remaining if 2.0 * h > remaining else h)
+            ok, its, res, nonfinite = self.try_step(
+                h_try, t_new=stop if last else None, left_limit=last and at_break)
+            total_its += its
+            if ok:
+                self.last_dt = h_try
+                if self.last_had_candidates:
+                    h_new = ctl.accepted(h_try, self.last_route_ratio)
+                    # a step shortened to land on a stop does not shrink the next one
+                    self.h_route = max(h_new, h) if h_try < h else h_new
+                else:
+                    # strands apart: the levels again, from the largest not above this Δt
+                    self.h_route = None
+                    self.level_hint = max(0, math.ceil(
+                        math.log(h_full / h_try) / math.log(num.dt_cut_factor) - 1e-9))
+                    self.accepted_at_level = 0
+                return total_its
+            self._count_refusal()
+            if self.last_reject == "contact" and self.last_route_ratio > 1.0:
+                h = ctl.rejected(h_try, self.last_route_ratio, refused)
+                refused = (h_try, self.last_route_ratio)
+            elif self.last_reject == "growth":
+                h = min(0.5 * h_try, self._h_cap())
+            else:
+                h = h_try / num.dt_cut_factor
+            if h < h_min * (1.0 - 1e-9):
+                raise self._divergence(
+                    f"time step from t = {self.t:.6g} s did not converge above the smallest "
+                    f"step dt/dt_cut_factor^max_dt_cuts = {h_min:.3g} s (last refusal: "
+                    f"{self.last_reject})", h_try, res, nonfinite)
 
     # -------------------------------------------------------------------------------
     def dense_state(self):

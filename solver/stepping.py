@@ -51,7 +51,8 @@ import math
 
 import numpy as np
 
-__all__ = ["breakpoints", "RESTART_FRACTION", "RESTART_STEPS", "extrapolate", "ErrorControl", "DisplacementWeight",
+__all__ = ["breakpoints", "RESTART_FRACTION", "RESTART_STEPS", "extrapolate", "ErrorControl",
+           "PIController", "DisplacementWeight",
            "error_constant", "growth_rate", "hermite"]
 
 #: size of the backward-Euler restart step, as a fraction of the nominal Δt
@@ -313,7 +314,97 @@ def _group_sq(X: np.ndarray, groups) -> np.ndarray:
     return np.stack([sq[:, a:b].sum(axis=1) for a, b in groups], axis=1)
 
 
-class ErrorControl:
+class PIController:
+    """The step-size controller of error-controlled steps: Δt from the ratio of a step's
+    local error estimate to its tolerance (accept when ≤ 1).
+
+    Used by :class:`ErrorControl` (``numerics.tolerance``) and, with fixed steps, by the
+    steps where strands may meet, whose error ratio is the route rule's
+    (docs/contact.md § 3). Holds only the controller's memory (the last ratio, whether
+    the last two were low); the constants are class attributes. Sources: Gustafsson,
+    ACM TOMS 17 (1991) 533-554; Söderlind, ACM TOMS 29 (2003) 1-26.
+    """
+
+    ORDER = 3                            # the local error is O(h³)
+    SAFETY = 0.9
+    MAX_GROWTH = 5.0
+    MAX_SHRINK = 0.2
+    #: below this observed order a refused step is cut by MAX_SHRINK (:meth:`rejected`)
+    MIN_ORDER = 1.0
+    #: steady error ratio of the PI controller: 0.9¹⁰, that of the classic
+    #: SAFETY·e^(−0.7/k)·e_prev^(0.4/k) form (SAFETY^(k/0.3), k = 3)
+    TARGET = SAFETY ** 10
+    #: below this fraction of TARGET at two accepted steps in a row, the elementary
+    #: controller grows the step (at most ×FAST_MAX per step)
+    FAST_BELOW = 0.5
+    FAST_MAX = 2.0
+
+    def __init__(self):
+        self.err_prev = None
+        #: whether the last accepted step's ratio was below FAST_BELOW·TARGET
+        self.low_prev = False
+
+    def forget(self) -> None:
+        """Drop the controller's memory (a restart, or the start of a run of steps)."""
+        self.err_prev = None
+        self.low_prev = False
+
+    def accepted(self, h: float, err: float) -> float:
+        """Next step size after an accepted step of h (s) with error ratio err.
+
+        Near the target (the usual case): Gustafsson's PI controller
+        h·(θ/e)^(0.7/k)·(e_prev/θ)^(0.4/k), k = 3, θ = TARGET = 0.9¹⁰ (identical to the
+        form h·0.9·e^(−0.7/k)·e_prev^(0.4/k), whose steady error ratio is θ; Gustafsson,
+        ACM TOMS 17 (1991) 533-554). Its integral gain is small: at a steady error ratio
+        e ≪ θ it grows the step by only (θ/e)^(0.1) per step (×1.13 at e = 0.1), so after
+        a start from rest or a restart the Greenhill benchmark spent ~30 steps growing at
+        e ≈ 0.1. When the error ratio has been below FAST_BELOW·θ at two accepted steps
+        in a row (and on the first estimate after a restart) the elementary controller
+        h·(θ/e)^(1/k) is used instead, at most ×FAST_MAX, and the history is set to θ so
+        that the PI step after it does not read the jump as a rising error. Two in a row,
+        not one: the estimate fluctuates by ×3-10 from step to step in the seed's
+        pre-buckling phase, and acting on single low values doubled the refused steps.
+        Limited to ×[MAX_SHRINK, MAX_GROWTH]; NaN (no estimate) keeps the step."""
+        if math.isnan(err):
+            return h          # no estimate: keep the step
+        k = self.ORDER
+        e = max(err, 1e-10)
+        th = self.TARGET
+        low = e < self.FAST_BELOW * th
+        was_low, self.low_prev = self.low_prev, low
+        if self.err_prev is None or (low and was_low):
+            fac = min((th / e) ** (1.0 / k), self.FAST_MAX)
+            self.err_prev = th
+        else:
+            fac = (th / e) ** (0.7 / k) * (max(self.err_prev, 1e-10) / th) ** (0.4 / k)
+            self.err_prev = e
+        return h * min(self.MAX_GROWTH, max(self.MAX_SHRINK, fac))
+
+    def rejected(self, h: float, err: float, previous=None) -> float:
+        """Step size to retry with after a step of h (s) rejected with error ratio err > 1:
+        h·max(MAX_SHRINK, 0.9·err^(−1/p)), p = k = 3, the order of the local error.
+
+        ``previous``: (h, err) of the attempt refused before this one from the same
+        state, or None. Then p is the order the two attempts show,
+        log(err_prev/err)/log(h_prev/h), at most k, and below MIN_ORDER the step is cut
+        by MAX_SHRINK outright. Why: right after a start from rest a relative error does
+        not fall as h³ (the fields grow like a power of the elapsed time t, so the error
+        relative to them depends on h/t, not h, until h reaches t), and the seed case's
+        first step was refused 27 times at ×0.86 each, from 0.1 s down to 1.7e-4 s (81
+        Newton solves), with the error ratio at 1.1-2.8 throughout; with the observed
+        order 5 times (measured)."""
+        p = float(self.ORDER)
+        if previous is not None:
+            h_prev, err_prev = previous
+            if h_prev > h and err_prev > 0.0 and err > 0.0:
+                observed = math.log(err_prev / err) / math.log(h_prev / h)
+                if observed < self.MIN_ORDER:
+                    return h * self.MAX_SHRINK
+                p = min(p, observed)
+        return h * max(self.MAX_SHRINK, self.SAFETY * err ** (-1.0 / p))
+
+
+class ErrorControl(PIController):
     """Local error estimate and PI step-size controller for ``numerics.tolerance``.
 
     Parameters
@@ -344,21 +435,6 @@ class ErrorControl:
     #: size, the lateral error went unseen and a buckling time ran 1-2 % off at every
     #: tolerance (docs/numerics.md § 7)
     GROUPS = ((0, 2), (2, 3), (3, 5), (5, 6), (9, 11), (11, 12))
-    ORDER = 3                            # the local error is O(h³)
-    SAFETY = 0.9
-    MAX_GROWTH = 5.0
-    MAX_SHRINK = 0.2
-    #: below this observed order a refused step is cut by MAX_SHRINK (:meth:`rejected`)
-    MIN_ORDER = 1.0
-    #: steady error ratio of the PI controller: 0.9¹⁰, that of the classic
-    #: SAFETY·e^(−0.7/k)·e_prev^(0.4/k) form (SAFETY^(k/0.3), k = 3)
-    TARGET = SAFETY ** 10
-    #: below this fraction of TARGET at two accepted steps in a row, the elementary
-    #: controller grows the step (at most ×FAST_MAX per step)
-    FAST_BELOW = 0.5
-    FAST_MAX = 2.0
-    #: whether the last accepted step's ratio was below FAST_BELOW·TARGET
-    low_prev = False
 
     #: length ℓ of the displacement weighting in units of L/π (None: no weighting, the
     #: raw fields; kept for measurements)
@@ -373,7 +449,7 @@ class ErrorControl:
         self.C = error_constant(rho_inf)
         self.times: list = []
         self.values: list = []
-        self.err_prev = None
+        super().__init__()
         #: the largest norm each group has reached on the rod at an accepted level
         self.peak = np.zeros(len(self.GROUPS))
         self._sized = None
@@ -381,8 +457,7 @@ class ErrorControl:
     def reset(self, t: float, Y: np.ndarray) -> None:
         """Forget the history (not the peaks): a (consistent) restart at t with state Y."""
         self.times, self.values = [t], [Y]
-        self.err_prev = None
-        self.low_prev = False
+        self.forget()
         self.peak = np.maximum(self.peak, self._group_sizes(Y))
 
     def _group_sizes(self, Y: np.ndarray) -> np.ndarray:
@@ -483,56 +558,3 @@ class ErrorControl:
         self.peak = state[3].copy()
         self.low_prev = state[4]
 
-    def accepted(self, h: float, err: float) -> float:
-        """Next step size after an accepted step of h (s) with error ratio err.
-
-        Near the target (the usual case): Gustafsson's PI controller
-        h·(θ/e)^(0.7/k)·(e_prev/θ)^(0.4/k), k = 3, θ = TARGET = 0.9¹⁰ (identical to the
-        form h·0.9·e^(−0.7/k)·e_prev^(0.4/k), whose steady error ratio is θ; Gustafsson,
-        ACM TOMS 17 (1991) 533-554). Its integral gain is small: at a steady error ratio
-        e ≪ θ it grows the step by only (θ/e)^(0.1) per step (×1.13 at e = 0.1), so after
-        a start from rest or a restart the Greenhill benchmark spent ~30 steps growing at
-        e ≈ 0.1. When the error ratio has been below FAST_BELOW·θ at two accepted steps
-        in a row (and on the first estimate after a restart) the elementary controller
-        h·(θ/e)^(1/k) is used instead, at most ×FAST_MAX, and the history is set to θ so
-        that the PI step after it does not read the jump as a rising error. Two in a row,
-        not one: the estimate fluctuates by ×3-10 from step to step in the seed's
-        pre-buckling phase, and acting on single low values doubled the refused steps.
-        Limited to ×[MAX_SHRINK, MAX_GROWTH]; NaN (no estimate) keeps the step."""
-        if math.isnan(err):
-            return h          # no estimate: keep the step
-        k = self.ORDER
-        e = max(err, 1e-10)
-        th = self.TARGET
-        low = e < self.FAST_BELOW * th
-        was_low, self.low_prev = self.low_prev, low
-        if self.err_prev is None or (low and was_low):
-            fac = min((th / e) ** (1.0 / k), self.FAST_MAX)
-            self.err_prev = th
-        else:
-            fac = (th / e) ** (0.7 / k) * (max(self.err_prev, 1e-10) / th) ** (0.4 / k)
-            self.err_prev = e
-        return h * min(self.MAX_GROWTH, max(self.MAX_SHRINK, fac))
-
-    def rejected(self, h: float, err: float, previous=None) -> float:
-        """Step size to retry with after a step of h (s) rejected with error ratio err > 1:
-        h·max(MAX_SHRINK, 0.9·err^(−1/p)), p = k = 3, the order of the local error.
-
-        ``previous``: (h, err) of the attempt refused before this one from the same
-        state, or None. Then p is the order the two attempts show,
-        log(err_prev/err)/log(h_prev/h), at most k, and below MIN_ORDER the step is cut
-        by MAX_SHRINK outright. Why: right after a start from rest a relative error does
-        not fall as h³ (the fields grow like a power of the elapsed time t, so the error
-        relative to them depends on h/t, not h, until h reaches t), and the seed case's
-        first step was refused 27 times at ×0.86 each, from 0.1 s down to 1.7e-4 s (81
-        Newton solves), with the error ratio at 1.1-2.8 throughout; with the observed
-        order 5 times (measured)."""
-        p = float(self.ORDER)
-        if previous is not None:
-            h_prev, err_prev = previous
-            if h_prev > h and err_prev > 0.0 and err > 0.0:
-                observed = math.log(err_prev / err) / math.log(h_prev / h)
-                if observed < self.MIN_ORDER:
-                    return h * self.MAX_SHRINK
-                p = min(p, observed)
-        return h * max(self.MAX_SHRINK, self.SAFETY * err ** (-1.0 / p))

@@ -561,12 +561,12 @@ def test_the_route_rule_follows_the_tolerance_where_strands_may_meet():
     so a tighter tolerance also tightens the contact phase (the seed's first loop: the
     writhe 1.1-2.7 % off a fine reference at every tolerance with the 5-mm margin rule
     alone, 0.65-1.2 % at 1e-3 and 0.37 % at 1e-4 tied: docs/numerics.md § 7). Fixed
-    steps keep the margin's quarter. (The seed case sets 0.3 mm, which wins over both;
+    steps keep the margin's quarter. (The seed case sets 0.05 mm, which wins over both;
     here it is taken out to test the defaults.)"""
     from solver.simulation import RodRun
 
     spec = seed_spec(50)
-    assert RodRun(Case.model_validate(spec)).route_tolerance == pytest.approx(3e-4)
+    assert RodRun(Case.model_validate(spec)).route_tolerance == pytest.approx(5e-5)
     spec["contact"]["position_tolerance"] = None
     margin = 0.25 * (0.04 - 0.02)                        # contact tolerance, largest D
     assert RodRun(Case.model_validate(spec)).route_tolerance == pytest.approx(margin)
