@@ -53,12 +53,17 @@ def test_tension_case_validates_and_differs_only_at_the_sliding_end():
     tension = flatten(parse_text(TENSION.read_text()))
     assert seed.keys() == tension.keys()
     diff = {k for k in seed if seed[k] != tension[k]}
+    # and the contact steps' position bound: the seed case's 0.05 mm (session 13) was
+    # measured on the seed case only; the tension reading keeps the 0.3 mm its figures
+    # were measured with (docs/seed-example.md, "The tension reading")
     assert diff == {
         "name",
         "boundary.end.translation[2][0].force",
         "boundary.start.rotation[2].angular_velocity.value[1]",
         "boundary.start.rotation[2].angular_velocity.value[2]",
+        "contact.position_tolerance",
     }, diff
+    assert tension["contact.position_tolerance"] == 3.0e-4
     assert seed["boundary.end.translation[2][0].force"] == 0
     T = tension["boundary.end.translation[2][0].force"]
     assert T > 0                                    # f3 > 0 is tension (solver/boundary.py)
