@@ -747,7 +747,8 @@ class Contact(BaseModel):
         None, gt=0,
         description="Largest position error per step where strands may meet, m; > 0 (the step is refused and "
         "cut above it, and the next step's size is chosen from its ratio to this bound; estimated as the "
-        "distance between each node advanced in time and the centreline integrated from the curvature). Null: a quarter of (tolerance - largest diameter), and with "
+        "distance between each node advanced in time and the centreline integrated from the curvature). "
+        "Null: a quarter of (tolerance - largest diameter), and with "
         "numerics.tolerance at most its relative value x the rod length (docs/contact.md).",
     )
 

@@ -594,9 +594,7 @@ class RodRun:
         refused = None           # (h, ratio) of the last attempt refused for its error
         while True:
             h = min(h, h_max, self._h_cap())
-            remaining = stop - self.t
-            last = h >= remaining * (1.0 - 1e-9)
-            h_try = remaining if last else (0.5 * remaining if 2.0 * h > remaining else h)
+            h_try, last = self._landing(h, stop - self.t)
             doubled = not ctl.can_estimate and not self.last_had_candidates
             if doubled:
                 ok, its, res, nonfinite = self._doubled_step(h_try, stop if last else None,
@@ -621,18 +619,34 @@ class RodRun:
                 self.last_iterations = total_its
                 return total_its, res
             self._count_refusal()
-            if self.last_reject == "error":
-                h = ctl.rejected(h_try, self.last_error_ratio, refused)
-                refused = (h_try, self.last_error_ratio)
-            elif self.last_reject == "growth":
-                h = min(0.5 * h_try, self._h_cap())
-            else:
-                h = h_try / num.dt_cut_factor
+            h, refused = self._retry_size(h_try, ctl, self.last_error_ratio,
+                                          self.last_reject == "error", refused)
             if h < h_min * (1.0 - 1e-9):
                 raise self._divergence(
                     f"time step from t = {self.t:.6g} s could not be completed above the "
                     f"smallest step 1e-9 t_end = {h_min:.3g} s "
                     f"(last refusal: {self.last_reject})", h_try, res, nonfinite)
+
+    @staticmethod
+    def _landing(h: float, remaining: float) -> tuple[float, bool]:
+        """The step to try (s) of a controller's size h (s) with ``remaining`` (s) to the
+        next stop, and whether it lands there: the remainder when h reaches it, half of
+        it when h would leave less than itself, else h."""
+        last = h >= remaining * (1.0 - 1e-9)
+        return (remaining if last else (0.5 * remaining if 2.0 * h > remaining else h)), last
+
+    def _retry_size(self, h_try: float, ctl, ratio: float, by_error: bool, refused):
+        """Size (s) to retry a controlled step of h_try (s) with, after a refusal, and the
+        (h, ratio) to pass as ``previous`` next time: the controller's smaller size
+        (:meth:`solver.stepping.PIController.rejected`) when the error estimate refused
+        it (``by_error``, ratio its error ratio), half of it within the growth guard's
+        cap after a growth refusal, else h_try / dt_cut_factor (Newton or a contact
+        check failed)."""
+        if by_error:
+            return ctl.rejected(h_try, ratio, refused), (h_try, ratio)
+        if self.last_reject == "growth":
+            return min(0.5 * h_try, self._h_cap()), refused
+        return h_try / self.case.numerics.dt_cut_factor, refused
 
     def _count_refusal(self) -> None:
         """Count the attempt just refused under its reason (:attr:`last_reject`)."""
@@ -872,9 +886,7 @@ class RodRun:
         refused = None           # (h, ratio) of the last attempt refused by the route rule
         total_its = 0
         while True:
-            remaining = stop - self.t
-            last = h >= remaining * (1.0 - 1e-9)
-            h_try = remaining if last else (0.5 * remaining if 2.0 * h > remaining else h)
+            h_try, last = self._landing(h, stop - self.t)
             ok, its, res, nonfinite = self.try_step(
                 h_try, t_new=stop if last else None, left_limit=last and at_break)
             total_its += its
@@ -892,13 +904,9 @@ class RodRun:
                     self.accepted_at_level = 0
                 return total_its
             self._count_refusal()
-            if self.last_reject == "contact" and self.last_route_ratio > 1.0:
-                h = ctl.rejected(h_try, self.last_route_ratio, refused)
-                refused = (h_try, self.last_route_ratio)
-            elif self.last_reject == "growth":
-                h = min(0.5 * h_try, self._h_cap())
-            else:
-                h = h_try / num.dt_cut_factor
+            h, refused = self._retry_size(
+                h_try, ctl, self.last_route_ratio,
+                self.last_reject == "contact" and self.last_route_ratio > 1.0, refused)
             if h < h_min * (1.0 - 1e-9):
                 raise self._divergence(
                     f"time step from t = {self.t:.6g} s did not converge above the smallest "
