@@ -198,12 +198,11 @@ def hockle_plectoneme_case(n, dt, t_end, out_dt=0.02, damped=True, contact=True,
     return Case.model_validate(spec)
 
 
-def run_hockle_plectoneme(n, dt, t_end, out_dt=0.02, damped=True, contact=True, k3=None):
-    """Run the plectoneme case with hockle. Returns a dict of (T,) time series (s, m, J,
-    turns), the final centreline (N+1, 3) m, the wall time (s, simulate() only) and step
-    counts."""
+def simulate_traced(case):
+    """``solver.simulate`` of a case with its progress traced: (dataset, status, wall time
+    (s), trace (K, 2) of (simulated t, wall time) pairs). A divergence is reported in the
+    status ("diverged at t = … s: reason") with the partial dataset, not raised."""
     from solver import SolverDivergence, simulate
-    case = hockle_plectoneme_case(n, dt, t_end, out_dt, damped, contact, k3)
     status = "completed"
     trace = []
     t0 = time.perf_counter()
@@ -212,12 +211,20 @@ def run_hockle_plectoneme(n, dt, t_end, out_dt=0.02, damped=True, contact=True, 
     except SolverDivergence as exc:        # reported, not hidden
         ds, status = exc.partial, f"diverged at t = {exc.t:.3f} s: {exc.reason}"
     wall = time.perf_counter() - t0
+    return ds, status, wall, (np.array(trace) if trace else np.zeros((0, 2)))
+
+
+def run_hockle_plectoneme(n, dt, t_end, out_dt=0.02, damped=True, contact=True, k3=None):
+    """Run the plectoneme case with hockle. Returns a dict of (T,) time series (s, m, J,
+    turns), the final centreline (N+1, 3) m, the wall time (s, simulate() only) and step
+    counts."""
+    case = hockle_plectoneme_case(n, dt, t_end, out_dt, damped, contact, k3)
+    ds, status, wall, trace = simulate_traced(case)
     t = ds.time.values
     pos = ds.position.values
     gap = np.array([min_surface_gap(p) for p in pos])
     step_dt = ds.step_dt.values
     ev = events(t, lateral(pos), gap)
-    trace = np.array(trace) if trace else np.zeros((0, 2))
     before = trace[trace[:, 0] <= ev["t_contact"], 1] if np.isfinite(ev["t_contact"]) \
         else trace[:, 1]
     return {

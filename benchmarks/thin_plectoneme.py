@@ -20,7 +20,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -29,8 +28,6 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 import pyelastica_compare as pc  # noqa: E402
-
-from solver import SolverDivergence, simulate  # noqa: E402
 
 RESULTS = HERE / "results" / "thin_plectoneme.json"
 DIAMETER = 0.01                      # m: L/D = 100
@@ -54,20 +51,11 @@ def thin_case(n: int, dt: float, t_end: float = T_END):
 def run(n: int, dt: float, t_end: float = T_END) -> dict:
     """One setting: wall time split at first contact, iterations, checks and the writhe
     series (t, Wr) for the comparison."""
-    case = thin_case(n, dt, t_end)
-    trace = []
-    t0 = time.perf_counter()
-    status = "completed"
-    try:
-        ds = simulate(case, progress=lambda p: trace.append((p.t, p.wall_time)))
-    except SolverDivergence as exc:        # reported, not hidden
-        ds, status = exc.partial, f"diverged at t = {exc.t:.3f} s: {exc.reason}"
-    wall = time.perf_counter() - t0
+    ds, status, wall, trace = pc.simulate_traced(thin_case(n, dt, t_end))
     t = ds.time.values
     count = ds.contact_count.values
     touched = np.flatnonzero(count > 0)
     t_contact = float(t[touched[0]]) if touched.size else float("nan")
-    trace = np.array(trace) if trace else np.zeros((0, 2))
     before = trace[trace[:, 0] <= t_contact, 1] if touched.size else trace[:, 1]
     wall_before = float(before[-1]) if len(before) else 0.0
     topo = ds.twist.values + ds.writhe.values - ds.linking_number.values
