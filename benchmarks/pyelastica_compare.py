@@ -214,6 +214,14 @@ def simulate_traced(case):
     return ds, status, wall, (np.array(trace) if trace else np.zeros((0, 2)))
 
 
+def wall_before(trace, t):
+    """Wall time (s) the run had taken when it reached simulated time t (s), from the trace
+    (K, 2) of (t, wall) pairs of :func:`simulate_traced`: the last entry at or before t;
+    the whole run's last entry when t is NaN (no such event); 0 without entries."""
+    before = trace[trace[:, 0] <= t, 1] if np.isfinite(t) else trace[:, 1]
+    return float(before[-1]) if len(before) else 0.0
+
+
 def run_hockle_plectoneme(n, dt, t_end, out_dt=0.02, damped=True, contact=True, k3=None):
     """Run the plectoneme case with hockle. Returns a dict of (T,) time series (s, m, J,
     turns), the final centreline (N+1, 3) m, the wall time (s, simulate() only) and step
@@ -225,8 +233,6 @@ def run_hockle_plectoneme(n, dt, t_end, out_dt=0.02, damped=True, contact=True, 
     gap = np.array([min_surface_gap(p) for p in pos])
     step_dt = ds.step_dt.values
     ev = events(t, lateral(pos), gap)
-    before = trace[trace[:, 0] <= ev["t_contact"], 1] if np.isfinite(ev["t_contact"]) \
-        else trace[:, 1]
     return {
         "code": "hockle", "n": int(n), "dt": float(dt), "status": status, "wall": wall,
         "k3": float(k3 if k3 is not None else CONTACT["k3"]),
@@ -238,7 +244,7 @@ def run_hockle_plectoneme(n, dt, t_end, out_dt=0.02, damped=True, contact=True, 
         "final": pos[-1], "positions": pos,
         "nominal_steps": int(ds.sizes["step"]), "smallest_dt": float(step_dt.min()),
         "newton_iterations": int(ds.step_newton_iterations.sum()),
-        "wall_before_contact": float(before[-1]) if len(before) else 0.0,
+        "wall_before_contact": wall_before(trace, ev["t_contact"]),
         **ev,
     }
 

@@ -29,6 +29,8 @@ sys.path.insert(0, str(HERE))
 
 import pyelastica_compare as pc  # noqa: E402
 
+from solver import Case  # noqa: E402
+
 RESULTS = HERE / "results" / "thin_plectoneme.json"
 DIAMETER = 0.01                      # m: L/D = 100
 T_END = 16.0                         # s
@@ -38,26 +40,25 @@ REFERENCE = (400, 0.005)
 
 def thin_case(n: int, dt: float, t_end: float = T_END):
     """The plectoneme case of ``pyelastica_compare`` with D = 1 cm and the contact
-    tolerance 2D: n segments, time step dt (s), to t_end (s), outputs every 0.02 s."""
-    saved = pc.DIAMETER, pc.CONTACT
-    pc.DIAMETER = DIAMETER
-    pc.CONTACT = dict(pc.CONTACT, tolerance=2.0 * DIAMETER)
-    try:
-        return pc.hockle_plectoneme_case(n, dt, t_end)
-    finally:
-        pc.DIAMETER, pc.CONTACT = saved
+    tolerance 2D: n segments, time step dt (s), to t_end (s), outputs every 0.02 s.
+    Returns a validated ``solver.Case``."""
+    spec = pc.hockle_plectoneme_case(n, dt, t_end).model_dump(mode="json")
+    spec["rod"]["diameter"] = DIAMETER
+    spec["contact"]["tolerance"] = 2.0 * DIAMETER
+    return Case.model_validate(spec)
 
 
 def run(n: int, dt: float, t_end: float = T_END) -> dict:
-    """One setting: wall time split at first contact, iterations, checks and the writhe
-    series (t, Wr) for the comparison."""
+    """One setting (n segments, time step dt s, to t_end s): wall time (s) split at first
+    contact, Newton iterations, smallest Δt (s), max |Tw + Wr − Lk|, smallest surface gap
+    (m), and the writhe series ``t`` (T,) s and ``writhe`` (T,) for the comparison. A
+    divergence is reported in ``status`` with the partial results, not raised."""
     ds, status, wall, trace = pc.simulate_traced(thin_case(n, dt, t_end))
     t = ds.time.values
     count = ds.contact_count.values
     touched = np.flatnonzero(count > 0)
     t_contact = float(t[touched[0]]) if touched.size else float("nan")
-    before = trace[trace[:, 0] <= t_contact, 1] if touched.size else trace[:, 1]
-    wall_before = float(before[-1]) if len(before) else 0.0
+    wall_before = pc.wall_before(trace, t_contact)
     topo = ds.twist.values + ds.writhe.values - ds.linking_number.values
     return {"n": n, "dt": dt, "status": status, "wall_s": wall,
             "wall_before_contact_s": wall_before, "wall_in_contact_s": wall - wall_before,
@@ -70,7 +71,9 @@ def run(n: int, dt: float, t_end: float = T_END) -> dict:
 
 
 def writhe_error(r: dict, ref: dict, after: float) -> float:
-    """Largest |Wr − Wr_ref| after ``after`` (s), relative to the reference's max |Wr| there."""
+    """Largest |Wr − Wr_ref| after ``after`` (s), relative to the reference's max |Wr| there;
+    r and ref hold ``t`` (T,) s and ``writhe`` (T,), r interpolated linearly onto ref's
+    times."""
     m = ref["t"] >= after
     wr = np.interp(ref["t"][m], r["t"], r["writhe"])
     return float(np.max(np.abs(wr - ref["writhe"][m])) / np.max(np.abs(ref["writhe"][m])))
