@@ -69,6 +69,29 @@ class BoundaryRows:
         self.kinematic = np.array(kin)
         self.key = tuple(self.cols.tolist())
 
+    def end_drift_offsets(self, n_last: int, position_error, rotation_error, rate: float):
+        """Offsets (12,) to the prescribed values that steer the s = L end back onto its
+        prescribed motion: rate·(a_i·e) on each kinematic translation row i = 1, 2, 3 and
+        rate·θ_i on each kinematic rotation row i = 1, 2 (the tilt of a3; a prescribed
+        rate about a3 is left alone, so that the end rotation φ of the linking number
+        stays the prescribed one), zero elsewhere.
+
+        n_last: index N of the s = L node; position_error (3,) m and rotation_error (3,)
+        rad: body-frame components of how far the end's prescribed position and frame lie
+        from the end of the centreline (:meth:`solver.simulation.RodRun.end_correction`);
+        rate: 1/s. A velocity-level (Baumgarte) stabilisation of the end's position
+        constraint: Baumgarte, Comput. Methods Appl. Mech. Eng. 1 (1972) 1-16."""
+        off = np.zeros(self.rows.size)
+        for j in range(6, 12):                    # the s = L rows
+            if not self.kinematic[j]:
+                continue
+            idx = int(self.cols[j]) - NV * n_last     # 0-2: v_i, 3-5: ω_i
+            if idx < 3:
+                off[j] = rate * float(position_error[idx])
+            elif idx < 5:
+                off[j] = rate * float(rotation_error[idx - 3])
+        return off
+
     def residual(self, Y: np.ndarray, R: np.ndarray) -> None:
         """Write the 12 boundary residuals coef·Y − value into R (n,) in place."""
         R[self.rows] = self.coef * Y.reshape(-1)[self.cols] - self.values

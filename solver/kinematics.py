@@ -25,6 +25,7 @@ import numpy as np
 __all__ = [
     "quat_multiply",
     "quat_exp",
+    "relative_rotation",
     "quat_to_matrix",
     "quat_from_matrix",
     "rotate",
@@ -116,18 +117,25 @@ def quat_exp(theta: np.ndarray) -> np.ndarray:
     return out.reshape(theta.shape[:-1] + (4,))
 
 
-def quat_slerp(q0: np.ndarray, q1: np.ndarray, s: float) -> np.ndarray:
-    """Spherical linear interpolation of unit quaternions (4,) at s ∈ [0, 1]: the rotation
-    q0 ⊗ exp(s·θ), θ the rotation vector of q0⁻¹ ⊗ q1 taken the short way (Shoemake,
-    SIGGRAPH 1985): constant angular velocity about a fixed axis between the two."""
+def relative_rotation(q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
+    """Rotation vector θ (3,) rad, components in q0's body frame, with q1 = q0 ⊗ exp(θ):
+    the logarithm of q0⁻¹ ⊗ q1 taken the short way (|θ| ≤ π). q0, q1: unit quaternions
+    (4,), (w, x, y, z)."""
     q0 = np.asarray(q0, float)
     q1 = np.asarray(q1, float)
     rel = quat_multiply(q0 * np.array([1.0, -1.0, -1.0, -1.0]), q1)
     if rel[0] < 0.0:
         rel = -rel
     vn = float(np.linalg.norm(rel[1:]))
-    theta = (2.0 * math.atan2(vn, rel[0]) / vn) * rel[1:] if vn > 0.0 else np.zeros(3)
-    return quat_multiply(q0, quat_exp(s * theta))
+    return (2.0 * math.atan2(vn, rel[0]) / vn) * rel[1:] if vn > 0.0 else np.zeros(3)
+
+
+def quat_slerp(q0: np.ndarray, q1: np.ndarray, s: float) -> np.ndarray:
+    """Spherical linear interpolation of unit quaternions (4,) at s ∈ [0, 1]: the rotation
+    q0 ⊗ exp(s·θ), θ the rotation vector of q0⁻¹ ⊗ q1 taken the short way
+    (:func:`relative_rotation`; Shoemake, SIGGRAPH 1985): constant angular velocity about
+    a fixed axis between the two."""
+    return quat_multiply(q0, quat_exp(s * relative_rotation(q0, q1)))
 
 
 @numba.njit(cache=True, inline="always")

@@ -26,6 +26,7 @@ from .boundary import BoundaryRows
 from .contact import SelfContact, close_node_pairs, swept_min_distance
 from .energies import distributed_power, end_loads, end_power, energies
 from .kinematics import (quat_exp, quat_from_matrix, quat_multiply, quat_slerp,
+                         relative_rotation,
                          quat_to_matrix, space_route)
 from .loads import LoadModel
 from .properties import RodProperties
@@ -183,6 +184,7 @@ class RodRun:
         self.r = props.s[:, None] * tangent[None, :]
         self.q_time = self.q.copy()                       # time-route pose (diagnostic)
         self.r_time = self.r.copy()
+        self.bc_offset = None                             # end_correction of the last step
         self.v_global = np.zeros((n1, 3))
         self.v_global_time = np.zeros((n1, 3))
         self.phi = np.zeros(2)                            # end rotations about a3, rad
@@ -269,6 +271,9 @@ class RodRun:
         t_new = self.t + h if t_new is None else t_new
         bc = BoundaryRows(self.case, self.props, t_new, sysm.n)
         switched = bc.key != self.bc.key
+        offset = self.end_correction(h, bc, restart)
+        if offset is not None:
+            bc.values = bc.values + offset
         params = BACKWARD_EULER if (restart or switched) else self.params
         predictions = None if restart else self._predictions(h)
         if predictions is None:
@@ -351,7 +356,9 @@ class RodRun:
         # time route of every node (a diagnostic: its distance to the space route is a
         # discretisation-error indicator) and the end rotations (linking number)
         q_t, _, vg_t, r_t = self._time_step(h, Y, self.q_time, self.r_time,
-                                              self.v_global_time)
+                                              self.v_global_time,
+                                              offsets=((self.bc_offset, self.bc.cols),
+                                                       (offset, bc.cols)))
         nrm = np.linalg.norm(q_t, axis=1)
         q_t /= nrm[:, None]
         if self.contact is not None:
@@ -407,6 +414,7 @@ class RodRun:
         self.Y, self.Ydot, self.F_old = Y, Ydot, Fn
         self.t = t_new
         self.bc = bc
+        self.bc_offset = offset
         if self.contact is not None:
             self.q = pose[0] / np.linalg.norm(pose[0], axis=1)[:, None]
             self.r = pose[2]
@@ -459,16 +467,67 @@ class RodRun:
             return math.inf
         return self.growth_guard / self.guard_sigma
 
-    def _time_step(self, h, Y, q, r, v_global):
+    def _time_step(self, h, Y, q, r, v_global, offsets=None):
         """Nodes advanced one step h (s) in time, each on its own (the time route):
         q' = q ⊗ exp(½h(ω^n + ω)), r' = r + ½h(ṙ^n + R' v), with ω, v from Y (N+1, 12),
         q (N+1, 4), r and ṙ^n = v_global (N+1, 3) m, m/s. Returns (q' unnormalised,
-        R' (N+1, 3, 3), ṙ' = R' v (N+1, 3), r' (N+1, 3))."""
-        theta = 0.5 * h * (self.Y[:, 3:6] + Y[:, 3:6])
+        R' (N+1, 3, 3), ṙ' = R' v (N+1, 3), r' (N+1, 3)). ``offsets``: ((old-level
+        offsets (12,) or None, their columns (12,)), (the same at the new level)): the
+        boundary offsets of :meth:`end_correction`, taken out of both levels' unknowns
+        first, so that the end node's time route is its prescribed motion."""
+        Y_old = self.Y
+        if offsets is not None and any(o is not None for o, _ in offsets):
+            (old, old_cols), (new, new_cols) = offsets
+            Y_old, Y = Y_old.copy(), Y.copy()
+            if old is not None:
+                Y_old.reshape(-1)[old_cols] -= old
+            if new is not None:
+                Y.reshape(-1)[new_cols] -= new
+        theta = 0.5 * h * (Y_old[:, 3:6] + Y[:, 3:6])
         q_new = quat_multiply(q, quat_exp(theta))
         R_new = quat_to_matrix(q_new)
         vg = np.einsum("nij,nj->ni", R_new, Y[:, 0:3])
         return q_new, R_new, vg, r + 0.5 * h * (v_global + vg)
+
+    #: the share of the s = L end's drift that each step's boundary values correct
+    #: (:meth:`end_correction`; None: no correction). The correction enters the step's
+    #: end motion through the trapezoid ½h(v^n + v^{n+1}), so the drift obeys
+    #: e_{n+1} = e_n − ½g(e_{n−1} + e_n) + (the step's new route difference), whose
+    #: roots have modulus √(g/2): g = 0.5 halves it per step (a damped oscillation).
+    #: Measured with 0.25, 0.5 and 1 alike (docs/contact.md § 4, session 15)
+    DRIFT_GAIN = 0.5
+    #: the boundary offsets of the last accepted step (12,), or None (a class default,
+    #: so that runs pickled before it existed resume)
+    bc_offset = None
+
+    def end_correction(self, h, bc, restart):
+        """Offsets (12,) of the boundary values of a step of h (s) that keep the carried
+        centreline's s = L end on its prescribed motion, or None (no self-contact: the
+        centreline is not carried; a restart step; DRIFT_GAIN None).
+
+        Why: with self-contact the centreline carried from step to step is the space
+        route, integrated along s from κ and anchored at node 0 (docs/contact.md, "One
+        geometry"). Node 0 is exact by construction, but the s = L end is wherever the
+        integral of κ puts it: each step adds the difference between the two routes, and
+        on PyElastica's plectoneme case (N = 25, Δt = 0.05 s) a laterally held end had
+        drifted 25 mm off its axis and tilted 2.6° by the end of the collapse, and at
+        Δt = 0.1 s the collapse pressed it onto the clamped end (docs/contact.md § 4).
+        The end's own time route (its prescribed velocities integrated in time; the
+        carried ``r_time``, ``q_time`` of node N, which the offsets do not enter) is
+        where it should be. Each step prescribes, on top of the case's values, the
+        velocity DRIFT_GAIN·e/h and angular velocity DRIFT_GAIN·θ/h toward it
+        (:meth:`solver.boundary.BoundaryRows.end_drift_offsets`; e and θ the position
+        and tilt of the time route relative to the carried end, in the end's body frame):
+        a Baumgarte stabilisation of the end's constraint at velocity level. The offset
+        is O(route difference / h) = O(h²) on a smooth motion, so second order is kept,
+        and it vanishes as Δt → 0 (measured: docs/contact.md § 4, session 15).
+        """
+        if self.contact is None or self.DRIFT_GAIN is None or restart:
+            return None
+        R = quat_to_matrix(self.q[-1:])[0]
+        e = R.T @ (self.r_time[-1] - self.r[-1])
+        theta = relative_rotation(self.q[-1], self.q_time[-1])
+        return bc.end_drift_offsets(self.props.s.size - 1, e, theta, self.DRIFT_GAIN / h)
 
     def _local_error(self, h, Y, r_new) -> float:
         """Local error indicator of a step (m): the largest distance between the new

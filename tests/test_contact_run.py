@@ -234,3 +234,86 @@ def test_fixed_contact_steps_take_their_size_from_the_route_ratio(monkeypatch):
     early = [a for a in attempts if a["ok"] and a["t0"] < 5.0]
     assert not any(a["cand"] or a["pi"] for a in early)
     assert sum(1 for a in early if abs(a["h"] - 0.1) < 1e-9) >= 45
+
+
+def plectoneme_case(n_segments, dt, t_end=9.0):
+    """PyElastica's plectoneme example as benchmarks/pyelastica_compare.py sets it up: a
+    1-m rod, clamped at s = 0, its s = L end held laterally, free to slide axially and
+    turned at 1.257 rad/s; Morison drag, a 1e-4 N/m imperfection, the seed's contact law.
+    It buckles at 6.7 s and collapses into a plectoneme at 7.2 s."""
+    zero, still = {"velocity": 0.0}, {"angular_velocity": 0.0}
+    omega = 2.0 * np.pi * 10 / 50.0
+    radius = 0.025
+    area = np.pi * radius**2
+    spec = {
+        "schema_version": 1, "name": "plectoneme",
+        "rod": {"length": 1.0, "youngs_modulus": 1e6, "shear_modulus": 1e6 / 1.5,
+                "density": 1.0 / area, "diameter": 2 * radius},
+        "distributed_forces": [{"value": [1e-4, 0.0, 0.0]}],
+        "fluid": {"density": 1000.0, "added_mass_coefficient": 0.0,
+                  "drag_coefficient_normal": 0.04,
+                  "drag_coefficient_tangential": 0.04 / np.pi},
+        "contact": {"aperture": 90.0, "tolerance": 0.1, "k1": 1e-7, "k2": 3.0, "k3": 5.0,
+                    "k4": 0.0},
+        "boundary": {
+            "start": {"translation": [zero] * 3, "rotation": [still] * 3},
+            "end": {"translation": [zero, zero, {"force": 0.0}],
+                    "rotation": [still, still, {"angular_velocity": {
+                        "t": [0.0, 0.5], "value": [0.0, omega]}}]}},
+        "numerics": {"n_segments": n_segments, "dt": dt, "t_end": t_end, "rho_inf": 0.5},
+        "output": {"every": 1, "fields": ["position", "topology", "contact"]},
+    }
+    return Case.model_validate(spec)
+
+
+def _end_offset(ds):
+    """Distance (m) of the s = L end from the axis it is held on, at every output (T,)."""
+    return np.linalg.norm(ds.position.values[:, -1, :2], axis=1)
+
+
+def test_held_end_stays_on_its_axis_through_the_collapse(monkeypatch):
+    """With self-contact the carried centreline is integrated along s from κ, so its far
+    end goes wherever the integral puts it; RodRun.end_correction steers it back onto
+    the end's prescribed motion. Without the correction the laterally held end of the
+    plectoneme drifts 26 mm off its axis at Δt = 0.05 s, and at Δt = 0.1 s the collapse
+    presses it onto the clamped end and the run stops at 7.6 s (measured, session 15:
+    docs/contact.md § 4). With it the coarse run completes and the end stays within a
+    step's route difference of its axis (observed: 14 mm at most in the collapse, 2.9 mm
+    after it)."""
+    ds = simulate(plectoneme_case(25, 0.1))
+    assert ds.attrs["hockle_status"] == "completed"
+    t, off = ds.time.values, _end_offset(ds)
+    assert off.max() < 0.025
+    assert off[t > 7.5].max() < 0.006
+    assert float(ds.topology_error.max()) < 0.06
+    # the same case at Δt = 0.05 s without the correction: the drift it removes
+    monkeypatch.setattr(RodRun, "DRIFT_GAIN", None)
+    ds = simulate(plectoneme_case(25, 0.05))
+    t, off = ds.time.values, _end_offset(ds)
+    assert off[t > 7.5].max() > 0.02
+
+
+def test_end_correction_targets_the_kinematic_rows_only():
+    """BoundaryRows.end_drift_offsets: the end's position error on its velocity rows and
+    its tilt on the ω1, ω2 rows, nothing on force or moment rows, on ω3 or at s = 0."""
+    from solver.boundary import BoundaryRows
+    from solver.properties import RodProperties
+
+    case = plectoneme_case(4, 0.1)
+    props = RodProperties.from_case(case)
+    bc = BoundaryRows(case, props, 1.0, 12 * 5)
+    off = bc.end_drift_offsets(4, np.array([1.0, 2.0, 3.0]), np.array([0.1, 0.2, 0.3]), 10.0)
+    # rows 6-8: v1, v2 held (corrected), f3 = 0 (not); rows 9-11: ω1, ω2 (corrected), ω3
+    np.testing.assert_allclose(off, [0] * 6 + [10.0, 20.0, 0.0, 1.0, 2.0, 0.0])
+
+
+def test_relative_rotation_inverts_the_body_frame_increment():
+    from solver.kinematics import quat_exp, quat_multiply, relative_rotation
+
+    rng = np.random.default_rng(3)
+    q0 = quat_exp(rng.normal(size=3))
+    for theta in (rng.normal(size=3), np.array([0.0, 0.0, 1e-9]), np.zeros(3)):
+        q1 = quat_multiply(q0, quat_exp(theta))
+        np.testing.assert_allclose(relative_rotation(q0, q1), theta, atol=1e-12)
+        # the same rotation by the other sign of the quaternion
+        np.testing.assert_allclose(relative_rotation(q0, -q1), theta, atol=1e-12)
