@@ -676,10 +676,11 @@ FULL = {
     "stiff_plectoneme": {"n": 50, "shear": 10.0},
     # hockle's settings: Δt = 0.01 s and its refinements, and the coarser 0.02 and 0.05 s
     # (a user picks the cheapest step that is accurate enough; an implicit step may be
-    # far above PyElastica's stability limit, and contact cuts it where it must)
-    "hockle": [(25, 0.05, 3), (25, 0.02, 3), (25, 0.01, 3), (50, 0.05, 3), (50, 0.02, 3),
-               (50, 0.01, 3), (50, 0.005, 1), (100, 0.02, 1), (100, 0.01, 1),
-               (100, 0.005, 1), (200, 0.0025, 1)],
+    # far above PyElastica's stability limit, and contact cuts it where it must); N = 20
+    # and 25 at 0.1 s complete since session 15's end correction (docs/contact.md § 4)
+    "hockle": [(20, 0.1, 3), (25, 0.1, 3), (25, 0.05, 3), (25, 0.02, 3), (25, 0.01, 3),
+               (50, 0.05, 3), (50, 0.02, 3), (50, 0.01, 3), (50, 0.005, 1), (100, 0.02, 1),
+               (100, 0.01, 1), (100, 0.005, 1), (200, 0.0025, 1)],
     # references one doubling finer than the finest setting, so that every setting's
     # error is measured (session 14: with n = 200 as PyElastica's reference its n = 100
     # was 0.21 % off and the 0.1-% ratio only a bound; against n = 400, n = 200 is
@@ -1015,7 +1016,7 @@ def render_section(res, names):
              f"aperture {CONTACT['aperture']:g}° |")
     L.append("| time step | 0.0025·Δs s/m (about 1/8 of the stability limit) | PyElastica "
              "0.011·Δs s/m (measured blow-up between 0.015 and 0.020·Δs at n = 50, between "
-             "0.021 and 0.024·Δs at n = 150); hockle 0.05, 0.02, 0.01 s and refinements |")
+             "0.021 and 0.024·Δs at n = 150); hockle 0.1, 0.05, 0.02, 0.01 s and refinements |")
     L.append("")
     L.append("Choices and why. *Scaled down*: 10 turns and 100 s of position-Verlet steps do "
              f"not fit the budget; {cfg['t_end']} s still covers the twist up to buckling "
