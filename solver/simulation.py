@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .banded import BandLayout
+from .banded import NV, BandLayout
 from .boundary import BoundaryRows
 from .contact import SelfContact, close_node_pairs, swept_min_distance
 from .energies import distributed_power, end_loads, end_power, energies
@@ -413,12 +413,14 @@ class RodRun:
             self.Y_prev, self.h_prev = self.Y, h
         self.Y, self.Ydot, self.F_old = Y, Ydot, Fn
         self.t = t_new
-        self.bc = bc
+        prev_bc, self.bc = self.bc, bc
         self.bc_offset = offset
         if self.contact is not None:
             self.q = pose[0] / np.linalg.norm(pose[0], axis=1)[:, None]
             self.r = pose[2]
             self.v_global = np.einsum("nij,nj->ni", quat_to_matrix(self.q), self.Y[:, 0:3])
+            if switched:
+                self._hold_from_here(prev_bc, bc)
         elif sysm.needs_pose:
             self.update_space_route()
         self.last_iterations, self.last_residual = its, res
@@ -515,7 +517,7 @@ class RodRun:
         The end's own time route (its prescribed velocities integrated in time; the
         carried ``r_time``, ``q_time`` of node N, which the offsets do not enter) is
         where it should be. Each step prescribes, on top of the case's values, the
-        velocity DRIFT_GAIN·e/h and angular velocity DRIFT_GAIN·θ/h toward it
+        velocity g·e/h and angular velocity g·θ/h toward it (g = DRIFT_GAIN)
         (:meth:`solver.boundary.BoundaryRows.end_drift_offsets`; e and θ the position
         and tilt of the time route relative to the carried end, in the end's body frame):
         a Baumgarte stabilisation of the end's constraint at velocity level. The offset
@@ -528,6 +530,27 @@ class RodRun:
         e = R.T @ (self.r_time[-1] - self.r[-1])
         theta = relative_rotation(self.q[-1], self.q_time[-1])
         return bc.end_drift_offsets(self.props.s.size - 1, e, theta, self.DRIFT_GAIN / h)
+
+    def _hold_from_here(self, prev_bc, bc) -> None:
+        """A degree of freedom of the s = L end that has just become kinematic (a sliding
+        end held, as the seed's at 30 s) is held where the carried end is, not where the
+        end's time route had got to while it was free (the two differ by the route
+        differences of the free motion, which :meth:`end_correction` does not touch): the
+        end's time route is moved onto the carried end along each such translation axis
+        a_i, and its frame set to the carried frame when ω1 or ω2 becomes prescribed."""
+        n_last = self.props.s.size - 1
+        R = quat_to_matrix(self.q[-1:])[0]
+        for j in range(6, 12):
+            if not bc.kinematic[j] or (prev_bc.kinematic[j] and prev_bc.cols[j] == bc.cols[j]):
+                continue
+            idx = int(bc.cols[j]) - NV * n_last
+            if idx < 3:
+                a = R[:, idx]
+                self.r_time = self.r_time.copy()
+                self.r_time[-1] += a * float(a @ (self.r[-1] - self.r_time[-1]))
+            elif idx < 5:
+                self.q_time = self.q_time.copy()
+                self.q_time[-1] = self.q[-1]
 
     def _local_error(self, h, Y, r_new) -> float:
         """Local error indicator of a step (m): the largest distance between the new

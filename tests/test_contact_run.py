@@ -317,3 +317,28 @@ def test_relative_rotation_inverts_the_body_frame_increment():
         np.testing.assert_allclose(relative_rotation(q0, q1), theta, atol=1e-12)
         # the same rotation by the other sign of the quaternion
         np.testing.assert_allclose(relative_rotation(q0, -q1), theta, atol=1e-12)
+
+
+def test_an_end_held_midway_is_held_where_it_is():
+    """A sliding end held from t = 0.3 s on (the seed's end at 30 s) is held where the
+    carried end is then, not where the end's time route had got to while it slid: the
+    end correction leaves the time route's lead along the free axis behind
+    (RodRun._hold_from_here). Here a 1-mm lead is planted before the switch; without the
+    rule the correction would pull the held end 1 mm along its axis."""
+    case = plectoneme_case(10, 0.05, t_end=0.6)
+    spec = case.model_dump(mode="json")
+    spec["boundary"]["end"]["translation"][2] = [{"until": 0.3, "force": 0.0},
+                                                 {"velocity": 0.0}]
+    run = RodRun(Case.model_validate(spec))
+    for k in range(1, 5):                       # to 0.2 s, sliding
+        run.advance(0.05 * k)
+    a3 = np.array([0.0, 0.0, 1.0])
+    run.r_time = run.r_time.copy()
+    run.r_time[-1] += 1e-3 * a3                 # the time route's lead along the free axis
+    for k in range(5, 8):                       # past the switch at 0.3 s
+        run.advance(0.05 * k)
+    z_held = float(run.r[-1] @ a3)
+    np.testing.assert_allclose(float(run.r_time[-1] @ a3), z_held, atol=1e-9)
+    for k in range(8, 13):                      # held to 0.6 s
+        run.advance(0.05 * k)
+    assert abs(float(run.r[-1] @ a3) - z_held) < 1e-5
