@@ -517,9 +517,9 @@ class RodRun:
         The end's own time route (its prescribed velocities integrated in time; the
         carried ``r_time``, ``q_time`` of node N, which the offsets do not enter) is
         where it should be. Each step prescribes, on top of the case's values, the
-        velocity g·e/h and angular velocity g·θ/h toward it (g = DRIFT_GAIN)
-        (:meth:`solver.boundary.BoundaryRows.end_drift_offsets`; e and θ the position
-        and tilt of the time route relative to the carried end, in the end's body frame):
+        velocity g·e/h and angular velocity g·θ/h toward it (g = DRIFT_GAIN; e and θ the
+        position and tilt of the time route relative to the carried end, in the end's
+        body frame; :meth:`solver.boundary.BoundaryRows.end_drift_offsets`):
         a Baumgarte stabilisation of the end's constraint at velocity level. The offset
         is O(route difference / h) = O(h²) on a smooth motion, so second order is kept,
         and it vanishes as Δt → 0 (measured: docs/contact.md § 4, session 15).
