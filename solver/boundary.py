@@ -82,15 +82,19 @@ class BoundaryRows:
         rate: 1/s. A velocity-level (Baumgarte) stabilisation of the end's position
         constraint: Baumgarte, Comput. Methods Appl. Mech. Eng. 1 (1972) 1-16."""
         off = np.zeros(self.rows.size)
-        for j in range(6, 12):                    # the s = L rows
-            if not self.kinematic[j]:
-                continue
-            idx = int(self.cols[j]) - NV * n_last     # 0-2: v_i, 3-5: ω_i
+        for j, idx in self.end_kinematic_dofs(n_last):
             if idx < 3:
                 off[j] = rate * float(position_error[idx])
             elif idx < 5:
                 off[j] = rate * float(rotation_error[idx - 3])
         return off
+
+    def end_kinematic_dofs(self, n_last: int):
+        """The kinematic conditions at s = L as (row j in 6..11 of these 12 rows, degree of
+        freedom 0-5: v1, v2, v3, ω1, ω2, ω3) pairs, a list. n_last: index N of the s = L
+        node."""
+        return [(j, int(self.cols[j]) - NV * n_last) for j in range(6, 12)
+                if self.kinematic[j]]
 
     def residual(self, Y: np.ndarray, R: np.ndarray) -> None:
         """Write the 12 boundary residuals coef·Y − value into R (n,) in place."""

@@ -119,8 +119,9 @@ def quat_exp(theta: np.ndarray) -> np.ndarray:
 
 def relative_rotation(q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
     """Rotation vector θ (3,) rad, components in q0's body frame, with q1 = q0 ⊗ exp(θ):
-    the logarithm of q0⁻¹ ⊗ q1 taken the short way (|θ| ≤ π). q0, q1: unit quaternions
-    (4,), (w, x, y, z)."""
+    the logarithm of q0⁻¹ ⊗ q1 taken the short way (|θ| ≤ π; either sign of q1 gives the
+    same θ). q0, q1: unit quaternions (4,), (w, x, y, z); raises nothing (θ = 0 for equal
+    rotations). The inverse of q0 ⊗ exp(θ), :func:`quat_exp`; Shoemake, SIGGRAPH 1985."""
     q0 = np.asarray(q0, float)
     q1 = np.asarray(q1, float)
     rel = quat_multiply(q0 * np.array([1.0, -1.0, -1.0, -1.0]), q1)

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .banded import NV, BandLayout
+from .banded import BandLayout
 from .boundary import BoundaryRows
 from .contact import SelfContact, close_node_pairs, swept_min_distance
 from .energies import distributed_power, end_loads, end_power, energies
@@ -538,12 +538,10 @@ class RodRun:
         differences of the free motion, which :meth:`end_correction` does not touch): the
         end's time route is moved onto the carried end along each such translation axis
         a_i, and its frame set to the carried frame when ω1 or ω2 becomes prescribed."""
-        n_last = self.props.s.size - 1
         R = quat_to_matrix(self.q[-1:])[0]
-        for j in range(6, 12):
-            if not bc.kinematic[j] or (prev_bc.kinematic[j] and prev_bc.cols[j] == bc.cols[j]):
-                continue
-            idx = int(bc.cols[j]) - NV * n_last
+        for j, idx in bc.end_kinematic_dofs(self.props.s.size - 1):
+            if prev_bc.kinematic[j] and prev_bc.cols[j] == bc.cols[j]:
+                continue                          # held before: its reference stays
             if idx < 3:
                 a = R[:, idx]
                 self.r_time = self.r_time.copy()
