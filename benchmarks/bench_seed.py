@@ -9,8 +9,9 @@ perturbed by 0.1 % steps: median and range, for comparing versions; see
 :func:`repeated`; the last two: the case with another bound on its contact steps'
 position error and another Δt cut, docs/seed-example.md, results in
 bench_seed_position.json). The timers wrap
-the contact search (SelfContact.may_touch / find_pairs) and the writhe from here; the
-solver itself is not changed.
+the contact search (``SelfContact.search``: the pre-test, the k-d tree and the runs), the
+tunnelling test of accepted contact steps (``RodRun._no_tunnelling``) and the writhe from
+here; the solver itself is not changed.
 """
 from __future__ import annotations
 
@@ -26,6 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from seed_events import events  # noqa: E402
 
 import solver.contact as contact_mod  # noqa: E402
+import solver.simulation as sim_mod  # noqa: E402
 import solver.topology as topology_mod  # noqa: E402
 from solver import Case, SolverDivergence, simulate  # noqa: E402
 
@@ -70,8 +72,8 @@ def run(t_end: float = 45.0, out: str | None = None, newton_scale: float = 1.0,
     ``numerics.dt_cut_factor``, with ``max_dt_cuts`` raised so that the smallest step
     stays the case's (dt / 4⁶ for the default 6 cuts by 4)."""
     TIMERS.update(contact_search=0.0, writhe=0.0)
-    timed(contact_mod.SelfContact, "candidates", "contact_search")
-    timed(contact_mod.SelfContact, "may_touch", "contact_search")
+    timed(contact_mod.SelfContact, "search", "contact_search")
+    timed(sim_mod.RodRun, "_no_tunnelling", "contact_search")
     timed(topology_mod, "writhe", "writhe")
     try:
         spec = Case.from_file(ROOT / "cases" / "goyal-writhing.yaml").model_dump(mode="json")
@@ -92,7 +94,6 @@ def run(t_end: float = 45.0, out: str | None = None, newton_scale: float = 1.0,
             last[1] = fact
 
         # the factorisation count is read from the run the simulation creates
-        import solver.simulation as sim_mod
 
         original_init = sim_mod.RodRun.__init__
 
@@ -112,8 +113,8 @@ def run(t_end: float = 45.0, out: str | None = None, newton_scale: float = 1.0,
         wall = time.perf_counter() - t0
     finally:
         sim_mod.RodRun.__init__ = original_init
-        for owner, name in ((contact_mod.SelfContact, "candidates"),
-                            (contact_mod.SelfContact, "may_touch"), (topology_mod, "writhe")):
+        for owner, name in ((contact_mod.SelfContact, "search"),
+                            (sim_mod.RodRun, "_no_tunnelling"), (topology_mod, "writhe")):
             fn = getattr(owner, name)
             setattr(owner, name, getattr(fn, "__wrapped__", fn))
     with_c = [st[0] for st in steps if st[1]]

@@ -11,6 +11,10 @@ from __future__ import annotations
 
 __version__ = "0.1.0"
 
+from ._kernel_cache import purge_stale as _purge_stale
+
+_purge_stale()   # compiled kernels cached for other sources are stale (_kernel_cache)
+
 _LAZY = {
     "Case": ("solver.case", "Case"),
     "CaseError": ("solver.case", "CaseError"),

@@ -16,9 +16,46 @@ import numpy as np
 
 from .banded import NV
 
-__all__ = ["BoundaryRows"]
+__all__ = ["BoundaryRows", "boundary_plan"]
 
 _GROUPS = ("translation", "rotation")
+
+
+def boundary_plan(case, props, n: int):
+    """The 12 boundary rows of a case as (row, choices) pairs, each choice (until (s) or
+    None, column, Jacobian entry, kinematic, value: a float or the table's (t, value)
+    arrays), in the case's order, so that :class:`BoundaryRows` finds the condition in
+    force at t without going through the case's models (the first choice whose until is
+    None or ≥ t, ``EndCondition.active``'s rule). Built once per (case, grid) and kept
+    on the case object."""
+    key = (id(props), n)
+    memo = getattr(case, "_hockle_boundary_plan", None)
+    if memo is not None and memo[0] == key:
+        return memo[1]
+    from .case import UNTIL_RTOL, Table
+
+    n_last = props.s.size - 1
+    plan = []
+    for end, node, row0 in (("start", 0, 0), ("end", n_last, n - 6)):
+        ec = getattr(case.boundary, end)
+        for g, group in enumerate(_GROUPS):
+            for i in range(3):
+                choices = []
+                for cond in getattr(ec, group)[i]:
+                    kinematic = bool(cond.kinematic)
+                    if group == "translation":
+                        idx = (0 if kinematic else 6) + i
+                        c = 1.0
+                    else:
+                        idx = (3 if kinematic else 9) + i
+                        c = 1.0 if kinematic else float(props.stiffness[node, i])
+                    value = cond.value
+                    value = ((np.asarray(value.t, float), np.asarray(value.value, float))
+                             if isinstance(value, Table) else float(value))
+                    until = None if cond.until is None else cond.until * (1.0 + UNTIL_RTOL)
+                    choices.append((until, NV * node + idx, c, kinematic, value))
+                plan.append((row0 + 3 * g + i, choices))
+    return plan
 
 
 class BoundaryRows:
@@ -30,6 +67,7 @@ class BoundaryRows:
     props : RodProperties
     t : float, s
     n : int, number of unknowns 12(N+1)
+    plan : :func:`boundary_plan` of (case, props, n), or None to build it here
 
     Attributes
     ----------
@@ -40,34 +78,25 @@ class BoundaryRows:
     key : hashable description of which kind of condition holds on each DOF
     """
 
-    def __init__(self, case, props, t: float, n: int):
-        n_last = props.s.size - 1
+    def __init__(self, case, props, t: float, n: int, plan=None):
+        plan = boundary_plan(case, props, n) if plan is None else plan
         rows, cols, coef, vals, kin = [], [], [], [], []
-        for e, (end, node, row0) in enumerate(
-            (("start", 0, 0), ("end", n_last, n - 6))
-        ):
-            ec = getattr(case.boundary, end)
-            for g, group in enumerate(_GROUPS):
-                for i in range(3):
-                    cond = ec.active(group, i, t)
-                    kinematic = bool(cond.kinematic)
-                    if group == "translation":
-                        idx = (0 if kinematic else 6) + i
-                        c = 1.0
-                    else:
-                        idx = (3 if kinematic else 9) + i
-                        c = 1.0 if kinematic else float(props.stiffness[node, i])
-                    rows.append(row0 + 3 * g + i)
-                    cols.append(NV * node + idx)
-                    coef.append(c)
-                    vals.append(float(cond.value_at(t)))
-                    kin.append(kinematic)
+        for row, choices in plan:
+            for until, col, c, kinematic, value in choices:
+                if until is None or t <= until:
+                    break
+            rows.append(row)
+            cols.append(col)
+            coef.append(c)
+            vals.append(value if isinstance(value, float)
+                        else float(np.interp(float(t), value[0], value[1])))
+            kin.append(kinematic)
         self.rows = np.array(rows)
         self.cols = np.array(cols)
         self.coef = np.array(coef)
         self.values = np.array(vals)
         self.kinematic = np.array(kin)
-        self.key = tuple(self.cols.tolist())
+        self.key = tuple(cols)
 
     def end_drift_offsets(self, n_last: int, position_error, rotation_error, rate: float):
         """Offsets (12,) to the prescribed values that steer the s = L end back onto its

@@ -22,72 +22,72 @@ __all__ = ["warm_up"]
 
 
 def warm_up() -> None:
-    """Call every compiled kernel once on small arrays of the types the solver passes,
-    so that later calls in this process run at once. Pure (no I/O of its own besides
-    numba's cache). Raises nothing on a working installation."""
-    from .contact.geometry import (candidate_pairs, point_curve, point_segment, run_closest,
-                                   run_minima)
-    from .contact.model import _force_derivatives, _relative_motion
-    from .kinematics import quat_exp, quat_to_matrix, right_jacobian, space_route
-    from .loads import _drag_kernel
-    from .newton import _NO_LOAD_ROWS, _matvec_kernel, _scale_blocks_kernel
-    from .scheme import (_NO_PAIRS, _add_inertia_kernel, _apply_M_kernel, _cell_blocks_kernel,
-                         _cells_kernel, _contact_band_kernel, _contact_loads_kernel,
-                         _exact_frames_kernel, _exact_loads_kernel, _flux_kernel,
-                         _node_forces_kernel, _node_jacobian_kernel)
+    """Load every compiled kernel once, through the code paths a run takes: a few steps
+    of a small rod with fluid, a distributed force and self-contact configured, and one
+    contact-coupled Newton solve with candidates set by hand. Later calls in this process
+    then run at once. Pure (no I/O of its own besides numba's cache). Raises nothing on
+    a working installation."""
+    from .case import Case
+    from .contact import point_curve, point_segment, smoothstep_off, swept_min_distance
+    from .contact.geometry import run_minima
+    from .kinematics import quat_slerp, right_jacobian
+    from .simulation import RodRun
     from .topology import writhe
 
-    n = 8
-    rng = np.random.default_rng(0)
-    kappa = rng.normal(size=(n, 3))
-    q, r = space_route(quat_exp(np.array([0.1, 0.2, 0.3])), np.zeros(3), kappa, 0.1)
-    writhe(r)
-    quat_to_matrix(q)
-    J = right_jacobian(kappa)
-    j = np.arange(n - 1, dtype=np.intp)
-    point_segment(r[:-1], r[:-1], r[1:])
-    point_curve(r[:-1], r, j)
-    run_minima(r, np.zeros(n - 1, dtype=np.intp), j, np.array([0, 3], dtype=np.intp))
-    candidate_pairs(r, r, 1.0, np.arange(n, dtype=float), 0.5, 0.7)
-    run_closest(r, np.zeros(n - 1, dtype=np.intp), j, np.array([0, 3], dtype=np.intp))
-    run_closest(r, np.zeros(n - 1, dtype=np.intp), j, np.array([0, 3], dtype=np.intp),
-                np.array([1, 4], dtype=np.intp))
-    Y = rng.normal(size=(n, 12))
-    ones = np.ones((n, 3))
-    dF = np.empty((n, 12, 12))
-    _node_jacobian_kernel(Y, ones, ones, ones, dF)
-    Fn = np.empty((n, 12))
-    _node_forces_kernel(Y, ones, ones, ones, Fn)
-    _cells_kernel(Y, Fn, Fn, Fn, ones, ones, ones, 1.0, 0.5, 0.1, np.empty((n - 1, 12)))
-    _apply_M_kernel(Y, ones, ones, np.empty((n, 12)))
-    _flux_kernel(Y, ones, np.empty((n, 12)))
-    blocks = np.empty((n - 1, 12, 24))
-    _cell_blocks_kernel(dF, ones, ones, ones, 1.0, 0.5, 0.1, blocks)
-    _add_inertia_kernel(blocks, 1.0, ones, ones)
-    _scale_blocks_kernel(blocks, np.ones(12 * n), np.ones(12), np.empty_like(blocks))
-    x = np.ones(12 * n)
-    _matvec_kernel(blocks, x, np.ones((n - 1, 3)), np.ones((n, 3)), np.empty(12 * n))
-    _matvec_kernel(blocks, x, _NO_LOAD_ROWS, _NO_LOAD_ROWS, np.empty(12 * n))
-    _drag_kernel(Y[:, :3].copy(), np.ones(n), np.ones(n), np.empty((n, 3)),
-                 np.empty((n, 3, 3)), True)
-    R = np.ascontiguousarray(np.broadcast_to(np.eye(3), (n, 3, 3)))
-    args = (Y, np.eye(3), J[1:].copy(), J[1:].copy(), R, r.copy(), r[1:].copy(), r.copy(),
-            np.zeros((n, 3, 6)), 0.1, 0.1)
-    _exact_loads_kernel(*args, *_NO_PAIRS)
-    _exact_frames_kernel(R, Y, kappa, 0.1, 0.1, np.empty((n - 1, 3, 3)),
-                         np.empty((n - 1, 3, 3)), np.empty((n - 1, 3)), np.empty((n, 3)),
-                         np.empty((3, 3)))
-    p = 2
-    _exact_loads_kernel(*args, np.zeros((p, 5), np.intp), np.zeros((p, 3, 30)),
-                        np.zeros((p, 15)), np.zeros((p, 3)), np.zeros((p, 5)),
-                        np.zeros((p, 5)))
-    # the contact's relative motion, force derivatives and node loads: two pairs, 5 nodes
-    nodes = np.array([[0, 2, 3, 4, 5], [1, 3, 4, 5, 6]], dtype=np.intp)
-    c5 = np.ones((p, 5))
-    x3 = np.ones((p, 3))
-    one = np.ones(p)
-    n3, u3, ddot, ut = _relative_motion(x3, one, c5, c5, nodes, r)
-    out = _force_derivatives(n3, u3, ddot, ut, one, one, one, one, c5, c5, x3, x3, one,
-                             0.5 * one, np.ones(n), nodes)
-    _contact_loads_kernel(nodes, out[4], out[0], np.zeros((n, 3)))
-    _contact_band_kernel(nodes, out[4], out[1], out[2], R, Y, J, 0.1, np.zeros((n, 3, 6)))
+    spec = {
+        "schema_version": 1, "name": "warm-up",
+        "rod": {"length": 1.0, "youngs_modulus": 1.25e7, "shear_modulus": 5.0e6,
+                "density": 1500.0, "diameter": 0.02},
+        "fluid": {"density": 1000.0, "added_mass_coefficient": 1.0,
+                  "drag_coefficient_normal": 1.2, "drag_coefficient_tangential": 0.02},
+        "distributed_forces": [{"value": [1e-5, 0.0, 0.0], "start": 0.0, "end": 1.0}],
+        "boundary": {
+            "start": {"translation": [{"velocity": 0}] * 3,
+                      "rotation": [{"angular_velocity": 0}, {"angular_velocity": 0},
+                                   {"angular_velocity": 1.0}]},
+            "end": {"translation": [{"velocity": 0}, {"velocity": 0}, {"force": 0}],
+                    "rotation": [{"angular_velocity": 0}] * 3}},
+        "contact": {"aperture": 180.0, "tolerance": 0.04, "k1": 1e-7, "k2": 3.0,
+                    "k3": 1e-6, "k4": 1.0},
+        "numerics": {"n_segments": 8, "dt": 0.01, "t_end": 0.03, "growth_guard": 0.5},
+    }
+    run = RodRun(Case.model_validate(spec))
+    for k in range(1, 4):
+        run.advance(0.01 * k)
+    # a contact-coupled solve (candidates by hand: the contact kernels and GMRES)
+    contact = run.contact
+    cand = contact._runs(np.array([0, 0, 8], np.intp), np.array([3, 4, 4], np.intp))
+    sysm = run.system
+    sysm.begin_step(0.01, run.params, run.t + 0.01, run.Y, run.Ydot, run.F_old, run.bc,
+                    q_old=run.q, r_old=run.r, v_old_global=run.v_global, candidates=cand)
+    run.newton.feasible_start(run.Y)
+    run.newton.solve(run.Y)
+    sysm.residual(run.Y, want_jacobian=True)
+    sysm.candidate_gaps(run.Y)
+    contact.evaluate(cand, run.r, run.v_global)
+    contact.closest(cand, run.r)
+    contact.closest(cand, run.r, np.zeros(cand.runs, np.intp))
+    writhe(run.r)
+    # the search on a hairpin (a k-d tree's pairs, the cones, the runs, merge, coverage)
+    s = np.linspace(0.0, 1.0, 9)
+    hairpin = np.column_stack([np.where(s < 0.5, s, 1.0 - s), np.where(s < 0.5, 0.0, 0.03),
+                               np.zeros(9)])
+    tangents = np.gradient(hairpin, axis=0)
+    found = contact.candidates(hairpin, tangents, 0.01)
+    if contact.may_touch(hairpin, tangents) and found.runs:
+        contact.covers(contact.merge(found, cand), found)
+    contact.search(hairpin, tangents, 0.01)
+    swept_min_distance(hairpin, hairpin, np.array([0], np.intp), np.array([8], np.intp))
+    # the Python faces of the kernels that runs without contact or with dense output use
+    run.update_space_route()
+    quat_slerp(run.q[0], run.q[-1], 0.5)
+    right_jacobian(np.ones((2, 3)))
+    point_segment(run.r[:2], run.r[1:3], run.r[2:4])
+    point_curve(run.r[:2], run.r, np.array([2, 3], np.intp))
+    run_minima(run.r, cand.owner, cand.segment, cand.run_start)
+    law = contact.law
+    d = np.array([0.021, 0.03])
+    law(d, np.zeros(2), np.full(2, 0.02), np.ones(2))
+    law.repulsion(d - 0.02)
+    law.cutoff(np.full(2, 0.02))
+    smoothstep_off(d, np.full(2, 0.02), np.full(2, 0.04))

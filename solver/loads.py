@@ -95,25 +95,16 @@ class LoadModel:
                 out = contrib.copy() if out is None else out + contrib
         return out
 
-    def drag(self, v: np.ndarray, want_jacobian: bool):
-        """Morison drag (N+1, 3) N/m for body-frame velocities v (N+1, 3) m/s.
-
-        Returns (B, dB/dv (N+1, 3, 3) or None). Compiled (numba): one pass over the
-        nodes (21 → ~3 µs at 51 nodes with the Jacobian).
-        """
-        v = np.ascontiguousarray(v, dtype=float)
-        b = np.empty_like(v)
-        jac = np.zeros(v.shape + (3,)) if want_jacobian else np.zeros((0, 3, 3))
-        _drag_kernel(v, self.cdn, self.cdt, b, jac, want_jacobian)
-        return b, (jac if want_jacobian else None)
-
 
 @numba.njit(cache=True)
 def _drag_kernel(v, cdn, cdt, b, jac, want_jacobian):
-    """B_d = −c_n |v_n| v_n − c_t |v_t| v_t (c_n = ½ρ_f D C_dn, c_t = ½ρ_f πD C_dt per
-    node) into b (N+1, 3), and with ``want_jacobian`` its derivative into jac
-    (N+1, 3, 3): −c_n (v_n v_nᵀ/|v_n| + |v_n| I) on the normal block (0 at v_n = 0),
-    −2 c_t |v_t| on a3."""
+    """The Morison drag of the module docstring, as the compiled residual evaluates it
+    (:func:`solver.scheme.node_terms_into`, when the case has a fluid with drag):
+    B_d = −c_n |v_n| v_n − c_t |v_t| v_t (c_n = ½ρ_f D C_dn, c_t = ½ρ_f πD C_dt per
+    node) for body-frame velocities v (N+1, 3) m/s into b (N+1, 3) N/m, and with
+    ``want_jacobian`` its derivative into jac (N+1, 3, 3): −c_n (v_n v_nᵀ/|v_n| + |v_n| I)
+    on the normal block (0 at v_n = 0), −2 c_t |v_t| on a3; the other entries are left
+    as they are (the caller zeroes jac)."""
     for k in range(v.shape[0]):
         v0, v1, vt = v[k, 0], v[k, 1], v[k, 2]
         speed = math.sqrt(v0 * v0 + v1 * v1)

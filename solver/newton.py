@@ -1,7 +1,12 @@
 """Newton's method for one time step: iteration, safeguards and the linear solver.
 
 The difference equations of a step (:class:`solver.scheme.RodSystem`) are solved for all
-12(N+1) unknowns at once. The strategy, in one place:
+12(N+1) unknowns at once. The whole iteration of a step is one compiled kernel
+(:func:`_newton_kernel`): residual and Jacobian (:func:`solver.scheme.residual_into`,
+contact included), equilibration, LAPACK's band LU, GMRES with the exact operator, the
+feasibility filter and the line search, with no Python between them (session 17: a
+Newton iteration of PyElastica's plectoneme at N = 20 made ~840 Python-level calls,
+docs/contact.md § 4). The strategy, in one place:
 
 * **Jacobian and factorisation.** The analytic Jacobian in LAPACK band storage
   (kl = ku = 17, :mod:`solver.banded`), equilibrated by a column scale (characteristic
@@ -12,11 +17,11 @@ The difference equations of a step (:class:`solver.scheme.RodSystem`) are solved
 * **Self-contact.** The pose is the space route (:meth:`RodSystem.pose_new`), so the
   contact forces depend on κ upstream of each node: the exact Jacobian is not banded.
   GMRES (right-preconditioned, Saad & Schultz 1986) solves with the exact operator
-  applied matrix-free (:meth:`RodSystem._exact_loads`), preconditioned by the band LU
-  of the node-local (time-route) approximation with its contact blocks weighted by
-  ``CONTACT_BAND_WEIGHT`` (:meth:`_preconditioner_band`). That LU is kept across iterates while
-  GMRES converges in at most ``GMRES_REFACTOR`` iterations and refactored when it needs
-  more: about one factorisation per contact step (docs/contact.md).
+  applied matrix-free (:func:`solver.scheme.exact_loads_product`), preconditioned by the
+  band LU of the node-local (time-route) approximation with its contact blocks weighted
+  by ``CONTACT_BAND_WEIGHT``. That LU is kept across iterates while GMRES converges in at
+  most ``GMRES_REFACTOR`` iterations and refactored when it needs more: about one
+  factorisation per contact step (docs/contact.md).
 * **Feasible iterates.** A correction may close no candidate gap to less than
   ``GAP_KEEP`` of itself (halving; an IPC-like filter), then an Armijo backtracking on
   the scaled residual, whose evaluation with its Jacobian is reused as the next iterate.
@@ -31,12 +36,18 @@ import math
 
 import numba
 import numpy as np
-from scipy.linalg import lapack
 
-from .banded import BandFactorError, BandLayout, NV
-from .scheme import E3
+from .banded import LDAB, NV, assemble_band, band_factor, band_solve, copy_into, fill
+from .contact.model import candidate_gaps_into
+from .scheme import E3, exact_loads_product, pose_into, residual_into
 
-__all__ = ["Newton", "equilibrate", "scale_blocks"]
+__all__ = ["Newton", "equilibrate", "scale_blocks", "FAILURES"]
+
+#: why a solve failed, by the kernel's code: None (converged, or iterations exhausted),
+#: a singular Jacobian, a stall, GMRES failing with a fresh factorisation, a non-finite
+#: residual
+FAILURES = (None, "singular", "stalled", "gmres", None)
+_SINGULAR, _STALLED, _GMRES, _NONFINITE = 1, 2, 3, 4
 
 
 def equilibrate(system, Y, blocks):
@@ -45,21 +56,44 @@ def equilibrate(system, Y, blocks):
     Columns: the characteristic size of each kind of unknown (``RodSystem.column_scale``,
     (12,) per node); rows: 1 / Σ_j |J_ij| s_j over the row's entries (cell blocks
     (N, 12, 24) and the boundary rows), 1 where a row is empty. Returns
-    (row_scale (n,), s12 (12,)). docs/numerics.md § 3 ("Scaling").
+    (row_scale (n,), s12 (12,)). docs/numerics.md § 3 ("Scaling"). The same scales as
+    the compiled :func:`_equilibrate`, which Newton uses.
     """
-    s12 = system.column_scale(Y)
-    bc_rows, bc_cols, bc_vals = system.bc.jacobian_entries()
     rs = np.empty(system.n)
-    rs[6:6 + NV * system.n_cells] = (np.abs(blocks) @ np.tile(s12, 2)).ravel()
-    rs[bc_rows] = np.abs(bc_vals) * s12[bc_cols % NV]
-    return 1.0 / np.where(rs > 0, rs, 1.0), s12
+    s12 = np.empty(NV)
+    bc = system.bc
+    _equilibrate(np.ascontiguousarray(Y, dtype=float), np.ascontiguousarray(blocks), bc.rows,
+                 bc.cols, bc.coef.astype(float), system.floor, rs, s12)
+    return rs, s12
+
+
+@numba.njit(cache=True)
+def _equilibrate(Y, blocks, bc_rows, bc_cols, bc_coef, floor, rs, s12):
+    """The scales of :func:`equilibrate` into rs (n,) and s12 (12,)."""
+    for kind in range(4):
+        m = 0.0
+        for k in range(Y.shape[0]):
+            for c in range(3):
+                a = abs(Y[k, 3 * kind + c])
+                if a > m:
+                    m = a
+        for c in range(3):
+            s12[3 * kind + c] = max(m, floor[3 * kind + c])
+    for c in range(blocks.shape[0]):
+        for i in range(NV):
+            acc = 0.0
+            for j in range(2 * NV):
+                acc += abs(blocks[c, i, j]) * s12[j % NV]
+            rs[6 + NV * c + i] = 1.0 / acc if acc > 0.0 else 1.0
+    for m in range(bc_rows.shape[0]):
+        v = abs(bc_coef[m]) * s12[bc_cols[m] % NV]
+        rs[bc_rows[m]] = 1.0 / v if v > 0.0 else 1.0
 
 
 @numba.njit(cache=True)
 def _scale_blocks_kernel(blocks, row_scale, s12, out):
     """out[c, i, j] = blocks[c, i, j] · (r_{6 + 12c + i} s_{j mod 12}) for cell blocks
-    (N, 12, 24): the product of :func:`scale_blocks` in one pass, without numpy's
-    broadcast temporaries (0.49 → ~0.05 ms at 1000 cells), the same values."""
+    (N, 12, 24): the product of :func:`scale_blocks` in one pass."""
     for c in range(blocks.shape[0]):
         for i in range(NV):
             r = row_scale[6 + NV * c + i]
@@ -79,17 +113,13 @@ def scale_blocks(system, blocks, row_scale, s12):
     return scaled, bc_vals * row_scale[bc_rows] * s12[bc_cols % NV]
 
 
-#: the load arguments of _matvec_kernel without exact load terms
-_NO_LOAD_ROWS = np.zeros((0, 3))
-
-
 @numba.njit(cache=True)
 def _matvec_kernel(blocks, x, load_weight, dB, out):
     """The cell rows of a scaled Jacobian-vector product into out (n,): cell c's rows
     6 + 12c + i are blocks[c] (12, 24) times x on nodes (c, c + 1); with loads (dB
     (N+1, 3) non-empty) its E3 rows also get load_weight[c] (N, 3) times dB_c + dB_{c+1}
-    (the cell average of a node load). One pass, no (N, 12) temporaries (0.24 → ~0.16 ms
-    at 1000 cells with the loads). The boundary rows are left to the caller."""
+    (the cell average of a node load). One pass, no (N, 12) temporaries. The boundary
+    rows are left to the caller."""
     add_loads = dB.shape[0] > 0
     for c in range(blocks.shape[0]):
         base = NV * c
@@ -110,22 +140,512 @@ def _matvec_kernel(blocks, x, load_weight, dB, out):
                 out[6 + base + E3 + i] += load_weight[c, i] * (dB[c, i] + dB[c + 1, i])
 
 
-def _back_substitute(R, g):
-    """y with R y = g for the upper triangular (k, k) R of GMRES's rotated Hessenberg
-    matrix (a zero pivot, a breakdown, gives the least-squares solution instead).
-    LAPACK's ``dtrtrs`` directly (what scipy's solve_triangular calls, without its
-    ~6 µs of argument handling, once per GMRES solve)."""
-    if R.shape[0] == 0:
-        return np.zeros(0)
-    y, info = lapack.dtrtrs(R, g)
-    if info == 0:
-        return y
-    return np.linalg.lstsq(R, g, rcond=None)[0]
+# ----------------------------------------------------------------------------- kernels
+# The persistent state of a Newton object, as the kernels take it (allocated by
+# Newton._allocate):
+#   lin = (abT (n, LDAB), piv (n,) int32, iw (8,) int32, row scale (n,), s12 (12,),
+#          column scale (n,))
+#   op  = (scaled band blocks (N, 12, 24), scaled boundary values (12,), load row weight
+#          (N, 3), exact product data (R, C, D, tmid, rdot, A0, G, L, contact pairs, scal,
+#          scratch: exact_loads_product's ``op``), flags (2,) int: [coupled, pairs])
+#   gm  = (V (m+1, n), Z (m, n), H (m+1, m), cs, sn (m,), g (m+1,), w, x, r (n,),
+#          dY (N+1, 12), dB (N+1, 3))
+#   ws  = (Y, Ytrial (N+1, 12), delta, rhs, stall scale (n,), history (max_it + 1,),
+#          gaps g0, g1 (runs,), frozen (runs,) int, pose scratch q (N+1, 4), R (N+1, 3, 3),
+#          r, θ (N+1, 3), trace (max_it + 2, 4): per iteration the scaled residual, the
+#          feasibility fraction, the line-search fraction, GMRES's iterations)
+#   ctr = (factorisations, GMRES iterations, GMRES failures, factor valid) int64
 
 
-def _norm(x):
-    """2-norm of a vector (n,); inf or NaN where x has one (a diverging trial point)."""
-    return math.sqrt(float(x @ x))
+@numba.njit(cache=True)
+def _set_operator(buf, ev, lin, op, step, weight, af):
+    """The (scaled) Jacobian at the last residual evaluation with its Jacobian as GMRES's
+    operator: its band part in the scales of the last factorisation, with only
+    ``weight`` of the node-local contact blocks (the rest moves to the exact load
+    product's node-local term L, so band + exact product is still the Jacobian; the
+    row scale stays that of the full blocks), and the exact product's data."""
+    rs, s12 = lin[3], lin[4]
+    blocks, bc_scaled, lrw, ex, flags = op
+    _scale_blocks_kernel(buf[4], rs, s12, blocks)
+    bc_rows, bc_cols, bc_coef = step[7], step[8], step[9]
+    for m in range(bc_rows.shape[0]):
+        bc_scaled[m] = bc_coef[m] * rs[bc_rows[m]] * s12[bc_cols[m] % NV]
+    nc = blocks.shape[0]
+    for c in range(nc):
+        for i in range(3):
+            lrw[c, i] = 0.5 * (1.0 - af) * rs[6 + NV * c + E3 + i]
+    bflags = buf[-1]
+    if bflags[3] == 0:
+        flags[0] = 0
+        flags[1] = 0
+        return
+    P = bflags[1]
+    (R, C, D, tmid, rdot, A0, G, L, nodes, w, Fp, d_dr, d_dv, dtdr, dwdt, scal, dphi, dr,
+     dG) = ex
+    copy_into(R, buf[6])
+    copy_into(C, buf[14])
+    copy_into(D, buf[15])
+    copy_into(tmid, buf[16])
+    copy_into(rdot, buf[17])
+    copy_into(A0, buf[18])
+    copy_into(G, buf[10])
+    copy_into(L, buf[19])
+    scal[0] = step[11][0]
+    for p in range(P):
+        for b in range(5):
+            nodes[p, b] = ev[4][p, b]
+            w[p, b] = ev[5][p, b]
+            dwdt[p, b] = ev[11][p, b]
+            for i in range(3):
+                dtdr[p, b, i] = ev[10][p, b, i]
+                for j in range(3):
+                    d_dr[p, b, i, j] = ev[8][p, b, i, j]
+                    d_dv[p, b, i, j] = ev[9][p, b, i, j]
+        for i in range(3):
+            Fp[p, i] = ev[7][p, i]
+    if P > 0 and weight != 1.0:
+        diag = buf[11]
+        cut = 1.0 - weight
+        for c in range(nc):
+            for i in range(3):
+                row = cut * lrw[c, i]
+                for j in range(6):
+                    blocks[c, E3 + i, j] -= row * diag[c, i, j] * s12[j]
+                    blocks[c, E3 + i, NV + j] -= row * diag[c + 1, i, j] * s12[j]
+        for k in range(L.shape[0]):
+            for i in range(3):
+                for j in range(6):
+                    L[k, i, j] -= cut * diag[k, i, j]
+    flags[0] = 1
+    flags[1] = P
+
+
+@numba.njit(cache=True)
+def _factor(Y, buf, ev, lin, op, rod, step, weight, ctr):
+    """Scale, assemble and LU-factorise the Jacobian whose cell blocks the last residual
+    evaluation left in buf at the iterate Y (:func:`equilibrate`), and make it (with the
+    exact load data) GMRES's operator. Returns False for a singular Jacobian."""
+    abT, piv, iw, rs, s12, cs = lin
+    _equilibrate(Y, buf[4], step[7], step[8], step[9], rod[5], rs, s12)
+    n1 = Y.shape[0]
+    for k in range(n1):
+        for j in range(NV):
+            cs[NV * k + j] = s12[j]
+    _set_operator(buf, ev, lin, op, step, weight, step[11][2])
+    assemble_band(abT, op[0], step[7], step[8], op[1])
+    if band_factor(abT, piv, iw) != 0:
+        return False
+    ctr[0] += 1
+    ctr[3] = 1
+    return True
+
+
+@numba.njit(cache=True)
+def _matvec(x, out, lin, op, step, gm):
+    """The scaled Jacobian times x (n,) into out (n,): band cells and boundary rows of
+    the operator, plus (self-contact configured) the exact load terms of the space-route
+    pose in place of their node-local part (:func:`solver.scheme.exact_loads_product`)."""
+    blocks, bc_scaled, lrw, ex, flags = op
+    cs = lin[5]
+    if flags[0]:
+        dY, dB = gm[9], gm[10]
+        n1 = dY.shape[0]
+        for k in range(n1):
+            for j in range(NV):
+                dY[k, j] = x[NV * k + j] * cs[NV * k + j]
+        exact_loads_product(dY, ex, flags[1], dB)
+        _matvec_kernel(blocks, x, lrw, dB, out)
+    else:
+        _matvec_kernel(blocks, x, lrw[:0], gm[10][:0], out)
+    bc_rows, bc_cols = step[7], step[8]
+    for m in range(bc_rows.shape[0]):
+        out[bc_rows[m]] = bc_scaled[m] * x[bc_cols[m]]
+
+
+@numba.njit(cache=True)
+def _dot(a, b):
+    acc = 0.0
+    for i in range(a.shape[0]):
+        acc += a[i] * b[i]
+    return acc
+
+
+@numba.njit(cache=True)
+def _gmres(rhs, out, rtol, m, lin, op, step, gm, ctr):
+    """Solve the contact-coupled (scaled) system by right-preconditioned GMRES into out.
+
+    The operator is :func:`_matvec` (the exact Jacobian); the preconditioner the band LU
+    of the node-local approximation, possibly from an earlier iterate. Arnoldi with
+    classical Gram-Schmidt and one reorthogonalisation (two products with the basis per
+    iteration); the Hessenberg matrix is reduced by Givens rotations as it grows, so the
+    least-squares residual is known at every iteration without solving for it (Saad &
+    Schultz 1986, § 3). Stops at a relative residual rtol (an inexact Newton step;
+    Newton's own test is on the nonlinear residual; 1e-3 against 1e-4, replayed from the
+    seed's states at 18 and 32 s over 3 s each: Newton iterations 547 / 568 and
+    144 / 143, GMRES iterations −21 % and −18 %; 1e-2 took 15-20 % more Newton
+    iterations). Counts its iterations and failures (m iterations without reaching
+    rtol) in ctr. Source: Saad & Schultz, SIAM J. Sci. Stat. Comput. 7 (1986) 856-869.
+    Returns the number of iterations."""
+    abT, piv, iw = lin[0], lin[1], lin[2]
+    V, Z, H, cs, sn, g, w, x0, r = gm[0], gm[1], gm[2], gm[3], gm[4], gm[5], gm[6], gm[7], gm[8]
+    n = rhs.shape[0]
+    for i in range(n):
+        x0[i] = rhs[i]
+    band_solve(abT, piv, x0, iw)
+    _matvec(x0, r, lin, op, step, gm)
+    for i in range(n):
+        r[i] = rhs[i] - r[i]
+    bnorm = math.sqrt(_dot(rhs, rhs))
+    beta = math.sqrt(_dot(r, r))
+    if beta <= rtol * bnorm or beta == 0.0:
+        copy_into(out, x0)
+        return 0
+    fill(H, 0.0)
+    fill(g, 0.0)
+    g[0] = beta
+    hb = np.empty(m + 1)
+    for i in range(n):
+        V[0, i] = r[i] / beta
+    k = 0
+    converged = False
+    for k in range(m):
+        Zk = Z[k]
+        copy_into(Zk, V[k])
+        band_solve(abT, piv, Zk, iw)
+        _matvec(Zk, w, lin, op, step, gm)
+        # classical Gram-Schmidt and one reorthogonalisation
+        for _ in range(2):
+            for i in range(k + 1):
+                hb[i] = _dot(V[i], w)
+            for i in range(k + 1):
+                hi = hb[i]
+                Vi = V[i]
+                for j in range(n):
+                    w[j] -= hi * Vi[j]
+                H[i, k] += hi
+        hnext = math.sqrt(_dot(w, w))
+        # apply the earlier rotations to the new column, then annihilate H[k+1, k]
+        for i in range(k):
+            a = H[i, k]
+            b = H[i + 1, k]
+            H[i, k] = cs[i] * a + sn[i] * b
+            H[i + 1, k] = -sn[i] * a + cs[i] * b
+        a = H[k, k]
+        rho = math.hypot(a, hnext)
+        if rho == 0.0:
+            cs[k] = 1.0
+            sn[k] = 0.0
+        else:
+            cs[k] = a / rho
+            sn[k] = hnext / rho
+        H[k, k] = rho
+        g[k + 1] = -sn[k] * g[k]
+        g[k] = cs[k] * g[k]
+        if abs(g[k + 1]) <= rtol * bnorm or hnext <= 1e-14 * beta:
+            converged = True
+            break
+        for i in range(n):
+            V[k + 1, i] = w[i] / hnext
+    if not converged:
+        ctr[2] += 1
+    kk = k + 1
+    ctr[1] += kk
+    y = _back_substitute(H, g, kk)
+    for i in range(n):
+        acc = x0[i]
+        for j in range(kk):
+            acc += y[j] * Z[j, i]
+        out[i] = acc
+    return kk
+
+
+@numba.njit(cache=True)
+def _back_substitute(H, g, k):
+    """y (k,) with T y = g[:k] for the upper triangle T of H[:k, :k] (GMRES's rotated
+    Hessenberg matrix). A zero pivot (a breakdown: the Krylov space holds the solution
+    already) leaves its component at zero."""
+    y = np.empty(k)
+    for i in range(k - 1, -1, -1):
+        acc = g[i]
+        for j in range(i + 1, k):
+            acc -= H[i, j] * y[j]
+        y[i] = acc / H[i, i] if H[i, i] != 0.0 else 0.0
+    return y
+
+
+@numba.njit(cache=True)
+def _norm_scaled(R, rs):
+    """‖R ∘ rs‖₂ (inf or NaN where the product has one)."""
+    acc = 0.0
+    for i in range(R.shape[0]):
+        x = R[i] * rs[i]
+        acc += x * x
+    return math.sqrt(acc)
+
+
+@numba.njit(cache=True)
+def _max_scaled(R, rs):
+    """max_i |R_i| rs_i."""
+    m = 0.0
+    for i in range(R.shape[0]):
+        x = abs(R[i]) * rs[i]
+        if x > m or x != x:
+            m = x
+    return m
+
+
+@numba.njit(cache=True)
+def _trial_gaps(Yt, step, rod, cand, cdata, ws, out):
+    """The candidate gaps (R,) at the trial iterate Yt (:meth:`RodSystem.candidate_gaps`):
+    its space-route positions, −inf everywhere when they are not finite."""
+    q, Rm, r, th = ws[9], ws[10], ws[11], ws[12]
+    pose_into(Yt, step[0], step[11][0], True, step[4], step[5], step[6], True, rod[6][0],
+              q, Rm, r, th)
+    for k in range(r.shape[0]):
+        for c in range(3):
+            if not np.isfinite(r[k, c]):
+                fill(out, -np.inf)
+                return
+    candidate_gaps_into(r, cand, cdata, out)
+
+
+@numba.njit(cache=True)
+def _feasible_fraction(Y, delta, gap_keep, buf, step, rod, cand, cdata, ws):
+    """Largest fraction 2^−k (k ≤ 10) of a Newton correction delta (N+1, 12) that keeps
+    every candidate gap at least gap_keep of its current value (a filter in the manner of
+    IPC's CCD-bounded line search: Li et al., ACM TOG 39(4), 2020, §4); delta is scaled
+    by it in place. Gaps are the closest-point gaps of the step's candidates re-selected
+    at each trial, so a correction cannot carry a strand through one it was not pressed
+    against. The current positions are those of the last residual evaluation (at Y)."""
+    Yt, g0, g1 = ws[1], ws[6], ws[7]
+    nr = cand[2].shape[0]
+    g0 = g0[:nr]
+    g1 = g1[:nr]
+    r = buf[7]
+    finite = True
+    for k in range(r.shape[0]):
+        for c in range(3):
+            if not np.isfinite(r[k, c]):
+                finite = False
+    if not finite:
+        return 1.0
+    candidate_gaps_into(r, cand, cdata, g0)
+    for q in range(nr):
+        if np.isnan(g0[q]) or g0[q] == -np.inf:
+            return 1.0
+    alpha = 1.0
+    for _ in range(10):
+        for k in range(Y.shape[0]):
+            for j in range(NV):
+                Yt[k, j] = Y[k, j] + alpha * delta[k, j]
+        _trial_gaps(Yt, step, rod, cand, cdata, ws, g1)
+        ok = True
+        for q in range(nr):
+            if np.isnan(g1[q]):
+                ok = False
+                break
+            if np.isfinite(g0[q]):
+                floor = gap_keep * g0[q] if g0[q] > 0.0 else 2.0 * g0[q]
+                if not g1[q] >= floor:
+                    ok = False
+                    break
+        if ok:
+            break
+        alpha *= 0.5
+    if alpha != 1.0:
+        for k in range(Y.shape[0]):
+            for j in range(NV):
+                delta[k, j] *= alpha
+    return alpha
+
+
+@numba.njit(cache=True)
+def _feasible_start(Y_old, guess, step, rod, cand, cdata, ws, out):
+    """A Newton start whose contact gaps are open, into out (N+1, 12): the
+    zero-displacement state (v, ω) = −(v^n, ω^n) keeps every node where it is (the
+    trapezoidal position update), and the start is blended from it toward ``guess`` by
+    the largest 2^−k (k ≤ 7) that keeps every candidate gap at least half its old value
+    (else the zero-displacement state). Why: the replay of the seed example's first
+    contact, where an extrapolated start penetrated and Newton died at the barrier
+    (docs/contact.md § 2). Returns the blend factor."""
+    nr = cand[2].shape[0]
+    g_old, g = ws[6][:nr], ws[7][:nr]
+    n1 = Y_old.shape[0]
+    still = ws[1]
+    copy_into(still, Y_old)
+    for k in range(n1):
+        for j in range(6):
+            still[k, j] = -Y_old[k, j]
+    _trial_gaps(still, step, rod, cand, cdata, ws, g_old)
+    beta = 1.0
+    for _ in range(8):
+        for k in range(n1):
+            for j in range(NV):
+                out[k, j] = still[k, j] + beta * (guess[k, j] - still[k, j])
+        _trial_gaps(out, step, rod, cand, cdata, ws, g)
+        ok = True
+        for q in range(nr):
+            if np.isfinite(g_old[q]) and not g[q] >= 0.5 * max(g_old[q], 0.0):
+                ok = False
+                break
+        if ok:
+            return beta
+        beta *= 0.5
+    copy_into(out, still)
+    return 0.0
+
+
+@numba.njit(cache=True)
+def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ctr):
+    """Newton's iterations for one step (the module docstring's strategy), compiled
+    whole. Y0 (N+1, 12): the start; prm: tolerance, iteration limit, least iterations,
+    the iterate from which the selection is frozen, GAP_KEEP, GMRES_REFACTOR, GMRES's
+    relative residual and iteration limit, CONTACT_BAND_WEIGHT; rod, step, cand, cdata:
+    :meth:`solver.scheme.RodSystem.kernel_args`; buf, ev: the residual's buffers; lin,
+    op, gm, ws, ctr: the Newton object's state (module comment above). The solution is
+    left in ws[0], its residual evaluation in buf. Returns (iterations, scaled residual
+    max_i |R_i| r_i, converged, failure code (:data:`FAILURES`))."""
+    tol = prm[0]
+    max_it = int(prm[1])
+    min_it = int(prm[2])
+    freeze_after = int(prm[3])
+    gap_keep = prm[4]
+    gm_refactor = int(prm[5])
+    gm_rtol = prm[6]
+    gm_max = int(prm[7])
+    weight = prm[8]
+    R, Fn = buf[0], buf[2]
+    Y, Yt, delta_flat, rhs, stall_scale, history, frozen = ws[0], ws[1], ws[2], ws[3], ws[4], ws[5], ws[8]
+    rs, cs = lin[3], lin[5]
+    abT, piv, iw = lin[0], lin[1], lin[2]
+    n1 = Y.shape[0]
+    delta = delta_flat.reshape(n1, NV)
+    nr = cand[2].shape[0]
+    contact = nr > 0
+    copy_into(Y, Y0)
+    refactor = ctr[3] == 0 or contact
+    res_prev = np.inf
+    res = np.inf
+    tiny = 0
+    nh = 0
+    gmres_last = 0
+    cached = False
+    frozen_on = False
+    for it in range(max_it + 1):
+        if not cached:
+            residual_into(Y, refactor or contact, rod, step, cand,
+                          frozen[:nr] if frozen_on else frozen[:0], cdata, buf, ev)
+        cached = False
+        for i in range(R.shape[0]):
+            if not np.isfinite(R[i]):
+                return it, np.inf, False, _NONFINITE
+        fresh = refactor
+        if refactor:
+            if not _factor(Y, buf, ev, lin, op, rod, step, weight, ctr):
+                return it, np.inf, False, _SINGULAR
+            refactor = False
+        elif contact:
+            # the operator becomes the Jacobian at this iterate; the older band LU stays
+            # the preconditioner
+            _set_operator(buf, ev, lin, op, step, weight, step[11][2])
+        res = _max_scaled(R, rs)
+        trace = ws[13]
+        trace[it, 0] = res
+        trace[it, 1] = 1.0
+        trace[it, 2] = 1.0
+        trace[it, 3] = 0.0
+        if res <= tol and it >= min_it:
+            return it, res, True, 0
+        if it == max_it:
+            break
+        if contact:
+            # stalls are judged in one scale (the row scale changes with the contact
+            # stiffness from one factorisation to the next)
+            if nh == 0:
+                copy_into(stall_scale, rs)
+            history[nh] = _max_scaled(R, stall_scale)
+            nh += 1
+            if it >= 6 and history[nh - 1] > 0.5 * history[nh - 5]:
+                # less than a halving in four iterations: Δt is too large
+                return it, res, False, _STALLED
+        elif not fresh and res > 0.25 * res_prev:
+            # the reused factor converges slowly: refactor at this iterate
+            residual_into(Y, True, rod, step, cand, frozen[:0], cdata, buf, ev)
+            if not _factor(Y, buf, ev, lin, op, rod, step, weight, ctr):
+                return it, np.inf, False, _SINGULAR
+            res = _max_scaled(R, rs)
+        res_prev = res
+        for i in range(rhs.shape[0]):
+            rhs[i] = -R[i] * rs[i]
+        if op[4][0]:
+            failures = ctr[2]
+            gmres_last = _gmres(rhs, delta_flat, gm_rtol, gm_max, lin, op, step, gm, ctr)
+            if ctr[2] > failures:
+                if not fresh:
+                    # a stale preconditioner: refactor here and solve again
+                    if not contact:
+                        residual_into(Y, True, rod, step, cand, frozen[:0], cdata, buf, ev)
+                    if not _factor(Y, buf, ev, lin, op, rod, step, weight, ctr):
+                        return it, np.inf, False, _SINGULAR
+                    for i in range(rhs.shape[0]):
+                        rhs[i] = -R[i] * rs[i]
+                    failures = ctr[2]
+                    if op[4][0]:
+                        gmres_last = _gmres(rhs, delta_flat, gm_rtol, gm_max, lin, op, step,
+                                            gm, ctr)
+                    else:
+                        copy_into(delta_flat, rhs)
+                        band_solve(abT, piv, delta_flat, iw)
+                if ctr[2] > failures:
+                    # the contact coupling is too strong for the band preconditioner at
+                    # this Δt: the correction is unreliable. Fail now; the caller cuts Δt.
+                    return it + 1, res, False, _GMRES
+        else:
+            copy_into(delta_flat, rhs)
+            band_solve(abT, piv, delta_flat, iw)
+        for i in range(delta_flat.shape[0]):
+            delta_flat[i] *= cs[i]
+        if contact:
+            if it + 1 == freeze_after:
+                # from here on each contact keeps its partner segment (see
+                # SelfContact.closest): no switching between iterates
+                for q in range(nr):
+                    frozen[q] = ev[0][q]
+                frozen_on = True
+            alpha = _feasible_fraction(Y, delta, gap_keep, buf, step, rod, cand, cdata, ws)
+            trace[it, 1] = alpha
+            trace[it, 3] = gmres_last
+            # corrections cut to 1/64 or less three times in a row: the iterate sits
+            # against the barrier and Newton stalls
+            tiny = tiny + 1 if alpha <= 1.0 / 64.0 else 0
+            if tiny >= 3:
+                return it + 1, res, False, _STALLED
+            # backtracking on the row-scaled residual 2-norm: halve the correction, at
+            # most 4 times, until the residual decreases (Armijo, c = 1e-4); the last
+            # evaluation (with its Jacobian) is the next iterate's
+            f0 = _norm_scaled(R, rs)
+            step_frac = 1.0
+            for _ in range(4):
+                for k in range(n1):
+                    for j in range(NV):
+                        Yt[k, j] = Y[k, j] + step_frac * delta[k, j]
+                residual_into(Yt, True, rod, step, cand,
+                              frozen[:nr] if frozen_on else frozen[:0], cdata, buf, ev)
+                f1 = _norm_scaled(R, rs)
+                if np.isfinite(f1) and f1 <= (1.0 - 1e-4 * step_frac) * f0:
+                    break
+                step_frac *= 0.5
+            trace[it, 2] = step_frac
+            # the last trial point (Y + step_frac·delta, doubled back when none was
+            # accepted) is the next iterate
+            copy_into(Y, Yt)
+            cached = True
+            refactor = gmres_last > gm_refactor
+        else:
+            for k in range(n1):
+                for j in range(NV):
+                    Y[k, j] = Y[k, j] + delta[k, j]
+    return max_it, res, False, 0
 
 
 class Newton:
@@ -162,6 +682,13 @@ class Newton:
     #: contact steps: from this iterate on, the closest-point selection is frozen
     FREEZE_AFTER = 6
 
+    #: a Newton correction may close no candidate gap to less than this fraction of itself
+    GAP_KEEP = 0.2
+
+    #: GMRES: relative residual at which a solve stops, and its iteration limit
+    GMRES_RTOL = 1e-3
+    GMRES_MAX = 40
+
     #: iterations taken even when the start passes the test (a class default, so that
     #: runs pickled before it existed resume; the run sets 1 under error control)
     min_iterations = 0
@@ -170,300 +697,220 @@ class Newton:
         self.system = system
         self.tol = float(tolerance)
         self.max_iterations = int(max_iterations)
-        self.layout = BandLayout(system.n_cells)
-        self.factor_valid = False
         self.factor_key = None
-        self.factorizations = 0
-        self.gmres_failures = 0
-        self.gmres_iterations = 0
         self.last_failure = None
-        self._row_scale = None
-        self._col_scale = None
-        self._coupled = None
         self._factored_with_contact = False
+        self._state = None
+        self.last_trace = None
 
-    def _coupled_matvec(self, x):
-        """Scaled Jacobian times x: band cells and boundary rows, plus (self-contact
-        configured) the exact load terms of the space-route pose in place of their
-        node-local approximation (:meth:`_exact_loads`)."""
-        blocks, bc_rows, bc_cols, bc_vals, ex = self._coupled
-        system = self.system
-        out = np.empty(system.n)
-        x = np.ascontiguousarray(x)
-        if ex is not None:
-            dB = system._exact_loads(ex, (x * self._col_scale).reshape(system.n_nodes, NV))
-            _matvec_kernel(blocks, x, self._load_row_weight(), dB, out)
+    # ------------------------------------------------------------------ state
+    def _allocate(self, runs):
+        """The kernels' persistent state (module comment) for up to ``runs`` candidate
+        runs; a factorisation and its operator survive a reallocation for more runs."""
+        sysm = self.system
+        n, n1, nc = sysm.n, sysm.n_nodes, sysm.n_cells
+        old = self._state
+        cap = max(int(runs), 1)
+        if old is not None and old["cap"] >= cap:
+            return
+        if old is not None:
+            cap = max(cap, 2 * old["cap"])
+        m = self.GMRES_MAX
+        if old is None:
+            lin = (np.zeros((n, LDAB)), np.zeros(n, np.int32), np.zeros(8, np.int32),
+                   np.ones(n), np.ones(NV), np.ones(n))
+            ctr = np.zeros(4, np.int64)
+            gm = (np.zeros((m + 1, n)), np.zeros((m, n)), np.zeros((m + 1, m)), np.zeros(m),
+                  np.zeros(m), np.zeros(m + 1), np.zeros(n), np.zeros(n), np.zeros(n),
+                  np.zeros((n1, NV)), np.zeros((n1, 3)))
         else:
-            _matvec_kernel(blocks, x, _NO_LOAD_ROWS, _NO_LOAD_ROWS, out)
-        out[bc_rows] = bc_vals * x[bc_cols]
-        return out
-
-    def _load_row_weight(self):
-        """The weight (N, 3) of a node load in the scaled E3 rows of its two cells,
-        ½(1 − αf)·row scale (the cell average of the loads at the α-level)."""
-        n_cells = self.system.n_cells
-        rs = self._row_scale[6:6 + NV * n_cells].reshape(n_cells, NV)[:, E3:E3 + 3]
-        return (0.5 * (1.0 - self.system.params.alpha_f)) * rs
-
-    def _coupled_solve(self, rhs, rtol=1e-3, max_iterations=40):
-        """Solve the contact-coupled (scaled) system by right-preconditioned GMRES.
-
-        The operator is :meth:`_coupled_matvec` (the exact Jacobian); the preconditioner
-        the band LU of the node-local approximation, possibly from an earlier iterate.
-        Arnoldi with classical Gram-Schmidt and one reorthogonalisation (two products
-        with the basis per iteration); the Hessenberg matrix is reduced by Givens
-        rotations as it grows, so the least-squares residual is known at every
-        iteration without solving for it (Saad & Schultz 1986, § 3). Stops at a relative
-        residual rtol (an inexact Newton step; Newton's own test is on the nonlinear
-        residual; 1e-4 took the same Newton iterations as 1e-7 and 14 % fewer GMRES
-        iterations on the seed example at 30 s; 1e-3 against 1e-4, replayed from the seed's
-        states at 18 and 32 s over 3 s each: Newton iterations 547 / 568 and 144 / 143,
-        GMRES iterations −21 % and −18 %; 1e-2 took 15-20 % more Newton iterations).
-        Source: Saad & Schultz, SIAM J. Sci. Stat. Comput. 7 (1986) 856-869.
-        """
-        n = self.system.n
-        precond = self.layout.solve
-        x0 = precond(rhs)
-        r = rhs - self._coupled_matvec(x0)
-        bnorm = _norm(rhs)
-        beta = _norm(r)
-        if beta <= rtol * bnorm or beta == 0.0:
-            return x0
-        m = max_iterations
-        V, Z = self._krylov_basis(m, n)
-        H = np.zeros((m + 1, m))
-        cs = np.zeros(m)
-        sn = np.zeros(m)
-        g = np.zeros(m + 1)            # the rotated right-hand side β e1
-        g[0] = beta
-        V[0] = r / beta
-        k = 0
-        for k in range(m):
-            Z[k] = precond(V[k])
-            w = self._coupled_matvec(Z[k])
-            h = V[:k + 1] @ w
-            w -= h @ V[:k + 1]
-            h2 = V[:k + 1] @ w
-            w -= h2 @ V[:k + 1]
-            col = h + h2
-            hnext = _norm(w)
-            H[:k + 1, k] = col
-            # apply the earlier rotations to the new column, then annihilate H[k+1, k]
-            for i in range(k):
-                a, b = H[i, k], H[i + 1, k]
-                H[i, k] = cs[i] * a + sn[i] * b
-                H[i + 1, k] = -sn[i] * a + cs[i] * b
-            a = H[k, k]
-            rho = float(np.hypot(a, hnext))
-            cs[k], sn[k] = (1.0, 0.0) if rho == 0.0 else (a / rho, hnext / rho)
-            H[k, k] = rho
-            g[k + 1] = -sn[k] * g[k]
-            g[k] = cs[k] * g[k]
-            if abs(g[k + 1]) <= rtol * bnorm or hnext <= 1e-14 * beta:
-                break
-            V[k + 1] = w / hnext
+            lin, ctr, gm = old["lin"], old["ctr"], old["gm"]
+        pairs = (np.zeros((cap, 5), np.intp), np.zeros((cap, 5)), np.zeros((cap, 3)),
+                 np.zeros((cap, 5, 3, 3)), np.zeros((cap, 5, 3, 3)), np.zeros((cap, 5, 3)),
+                 np.zeros((cap, 5)))
+        if old is not None:
+            for new, prev in zip(pairs, old["op"][3][8:15]):
+                new[:prev.shape[0]] = prev
+            frame = old["op"][3][:8]
+            head = old["op"][:3]
+            flags = old["op"][4]
         else:
-            self.gmres_failures += 1
-        self.gmres_iterations += k + 1
-        y = _back_substitute(H[:k + 1, :k + 1], g[:k + 1])
-        return x0 + y @ Z[:k + 1]
-
-    def _krylov_basis(self, m, n):
-        """GMRES's work arrays V (m+1, n) and Z (m, n), allocated once and kept between
-        solves instead of afresh at every solve (8 MB at 1000 segments, m = 40). Not
-        pickled (:meth:`__getstate__`)."""
-        work = getattr(self, "_work", None)
-        if work is None or work[0].shape != (m + 1, n):
-            work = (np.empty((m + 1, n)), np.empty((m, n)))
-            self._work = work
-        return work
+            frame = (np.zeros((n1, 3, 3)), np.zeros((nc, 3, 3)), np.zeros((nc, 3, 3)),
+                     np.zeros((nc, 3)), np.zeros((n1, 3)), np.zeros((3, 3)),
+                     np.zeros((n1, 3)), np.zeros((n1, 3, 6)))
+            head = (np.zeros((nc, NV, 2 * NV)), np.zeros(12), np.zeros((nc, 3)))
+            flags = np.zeros(2, np.int64)
+        ex = frame + pairs + (np.array([0.0, sysm.p.ds]), np.zeros((n1, 3)),
+                              np.zeros((n1, 3)), np.zeros((n1, 3)))
+        op = head + (ex, flags)
+        ws = (np.zeros((n1, NV)), np.zeros((n1, NV)), np.zeros(n), np.zeros(n), np.zeros(n),
+              np.zeros(self.max_iterations + 2), np.zeros(cap), np.zeros(cap),
+              np.zeros(cap, np.intp), np.zeros((n1, 4)), np.zeros((n1, 3, 3)),
+              np.zeros((n1, 3)), np.zeros((n1, 3)), np.zeros((self.max_iterations + 2, 4)))
+        self._state = {"cap": cap, "lin": lin, "op": op, "gm": gm, "ws": ws, "ctr": ctr}
 
     def __getstate__(self):
+        # the factorisation, its operator and the counters travel with a checkpoint (a
+        # resumed run reuses the factor as the uninterrupted one does); the work arrays
+        # are made afresh
         state = self.__dict__.copy()
-        state.pop("_work", None)
+        st = state.pop("_state", None)
+        state["_saved"] = None if st is None else {k: st[k] for k in ("cap", "lin", "op", "ctr")}
         return state
 
-    def factor(self, Y, blocks):
-        """Scale, assemble and factorise the Jacobian at Y (N+1, 12) from its cell blocks
-        (N, 12, 24) (sets the row and column scales), and set the operator for the
-        coupled solve when self-contact is configured. Raises BandFactorError when the
-        band LU meets a zero pivot (a singular Jacobian)."""
-        rs, s12 = equilibrate(self.system, Y, blocks)
-        self._row_scale = rs
-        self._col_scale = np.tile(s12, self.system.n_nodes)
-        self._s12 = s12
-        bc_rows, bc_cols, _ = self.system.bc.jacobian_entries()
-        # the band part (with a share of the node-local contact blocks) is always
-        # LU-factorised; with self-contact the correction is solved by GMRES with the
-        # exact operator, preconditioned by the band LU
-        scaled, bc_scaled, ex = self._preconditioner_band(blocks)
-        self.layout.factor(scaled, bc_rows, bc_cols, bc_scaled)
-        self._set_operator(scaled, bc_scaled, ex)
-        self.factor_valid = True
-        self._factored_with_contact = self.system.candidates is not None
-        self.factorizations += 1
+    def __setstate__(self, state):
+        saved = state.pop("_saved", None)
+        self.__dict__.update(state)
+        self._state = None
+        if saved is not None:
+            self._allocate(saved["cap"])
+            self._state.update(saved)
 
-    def _scaled(self, blocks):
-        """Cell blocks and boundary values in the scales of the last factorisation."""
-        return scale_blocks(self.system, blocks, self._row_scale, self._s12)
+    @property
+    def factorizations(self) -> int:
+        return 0 if self._state is None else int(self._state["ctr"][0])
 
-    def _preconditioner_band(self, blocks):
-        """The scaled cell blocks (N, 12, 24) and boundary values of the band that
-        preconditions GMRES, and the exact load data of the operator that goes with it.
+    @property
+    def gmres_iterations(self) -> int:
+        return 0 if self._state is None else int(self._state["ctr"][1])
 
-        The band holds the node-local contact blocks (``RodSystem.contact_band``) only with
-        the weight CONTACT_BAND_WEIGHT; the operator's node-local part is weighted alike,
-        so band + exact product is still the exact Jacobian. The row scale is that of the
-        full blocks (:func:`equilibrate`), so the residual test does not change."""
-        system = self.system
-        ex = system._exact if system.contact is not None else None
-        scaled, bc_scaled = self._scaled(blocks)
-        diag = getattr(system, "contact_band", None)
-        if diag is None or ex is None or self.CONTACT_BAND_WEIGHT == 1.0:
-            return scaled, bc_scaled, ex
-        cut = 1.0 - self.CONTACT_BAND_WEIGHT
-        rows = cut * self._load_row_weight()
-        cols = self._s12[0:6]
-        scaled[:, E3:E3 + 3, 0:6] -= rows[:, :, None] * diag[:-1] * cols
-        scaled[:, E3:E3 + 3, NV:NV + 6] -= rows[:, :, None] * diag[1:] * cols
-        return scaled, bc_scaled, dict(ex, L=ex["L"] - cut * diag)
+    @property
+    def gmres_failures(self) -> int:
+        return 0 if self._state is None else int(self._state["ctr"][2])
 
-    def _set_operator(self, scaled, bc_scaled, ex, stale=False):
-        """The (scaled) Jacobian for GMRES: band cells, boundary rows and the exact load
-        terms ``ex`` of the space-route pose (:meth:`_preconditioner_band`); None when
-        the band LU is the exact Jacobian."""
-        if ex is None and not stale:
-            self._coupled = None
-            return
-        bc_rows, bc_cols, _ = self.system.bc.jacobian_entries()
-        # ``scaled`` is a fresh array (scale_blocks), used by nothing else afterwards
-        self._coupled = (scaled, bc_rows, bc_cols, bc_scaled, ex)
+    @property
+    def factor_valid(self) -> bool:
+        return self._state is not None and bool(self._state["ctr"][3])
 
-    def update_operator(self, blocks):
-        """Contact steps between factorisations: the GMRES operator becomes the Jacobian
-        at the current iterate (cell blocks (N, 12, 24) and the system's exact load data)
-        while the (older) band LU stays the preconditioner."""
-        scaled, bc_scaled, ex = self._preconditioner_band(blocks)
-        self._set_operator(scaled, bc_scaled, ex, stale=True)
+    @factor_valid.setter
+    def factor_valid(self, value: bool) -> None:
+        if self._state is not None:
+            self._state["ctr"][3] = int(bool(value))
 
+    def _params(self):
+        return np.array([self.tol, self.max_iterations, self.min_iterations, self.FREEZE_AFTER,
+                         self.GAP_KEEP, self.GMRES_REFACTOR, self.GMRES_RTOL, self.GMRES_MAX,
+                         self.CONTACT_BAND_WEIGHT])
+
+    # ------------------------------------------------------------------ solve
     def solve(self, Y_guess):
         """Newton iterations for the step set up by :meth:`RodSystem.begin_step`.
 
         Y_guess: (N+1, 12) start. Returns (Y (N+1, 12), F_nodes (N+1, 12), iterations,
         residual_norm, converged, pose or None); the scaled residual norm is
-        max_i |R_i| r_i with r_i the row scale of the last factorisation. A failure is
-        returned, not raised (``last_failure`` says why); floating-point warnings of a
-        diverging trial are silenced. The module docstring gives the strategy.
+        max_i |R_i| r_i with r_i the row scale of the last factorisation; the pose
+        (:meth:`RodSystem.pose_new`) is that of Y where the iterations computed one
+        (global-frame loads or contact candidates), else None. A failure is returned,
+        not raised (``last_failure`` says why). The module docstring gives the strategy;
+        the iterations are one compiled call (:func:`_newton_kernel`).
         """
         system = self.system
         contact = system.candidates is not None
+        runs = system.candidates.runs if contact else 0
+        self._allocate(max(runs, system.ev[0].shape[0]))
+        st = self._state
         if (system.step_key != self.factor_key or contact or self._factored_with_contact):
-            self.factor_valid = False
+            st["ctr"][3] = 0
         self.factor_key = system.step_key
-        # a trial step that blows up is an expected event (the caller cuts Δt): no warnings
-        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            return self._newton(Y_guess)
-
-    def _newton(self, Y_guess):
-        self.last_failure = None
-        Y = Y_guess.copy()
-        contact = self.system.candidates is not None
-        res_prev = np.inf
-        refactor = not self.factor_valid or contact
-        res = np.inf
+        rod, step, cand, cdata = system.kernel_args()
+        factorizations = st["ctr"][0]
+        its, res, ok, code = _newton_kernel(
+            np.ascontiguousarray(Y_guess, dtype=float), self._params(), rod, step, cand, cdata,
+            system.buf, system.ev, st["lin"], st["op"], st["gm"], st["ws"], st["ctr"])
+        if st["ctr"][0] != factorizations:
+            self._factored_with_contact = contact
+        self.last_failure = FAILURES[code]
+        #: per iteration of the last solve: the scaled residual, the feasibility filter's
+        #: fraction, the line search's fraction and GMRES's iterations (diagnostics)
+        self.last_trace = st["ws"][13][:its + 1].copy()
+        buf = system.buf
+        flags = buf[-1]
         pose = None
-        tiny = 0
-        history = []
-        stall_scale = None
-        cached = None
-        gmres_last = 0
-        for it in range(self.max_iterations + 1):
-            if cached is not None:
-                R, Fn, blocks, pose = cached
-                cached = None
-            else:
-                R, Fn, blocks, pose = self.system.residual(Y, want_jacobian=refactor or contact)
-            if not np.all(np.isfinite(R)):
-                return Y, Fn, it, np.inf, False, pose
-            fresh = refactor
-            if refactor:
-                try:
-                    self.factor(Y, blocks)
-                except BandFactorError:
-                    self.last_failure = "singular"
-                    return Y, Fn, it, np.inf, False, pose
-                refactor = False
-            elif contact:
-                self.update_operator(blocks)
-            res = float(np.max(np.abs(R) * self._row_scale))
-            if res <= self.tol and it >= self.min_iterations:
-                return Y, Fn, it, res, True, pose
-            if it == self.max_iterations:
-                break
-            if contact:
-                # stalls are judged in one scale (the row scale changes with the contact
-                # stiffness from one factorisation to the next)
-                if stall_scale is None:
-                    stall_scale = self._row_scale.copy()
-                history.append(float(np.max(np.abs(R) * stall_scale)))
-                if it >= 6 and history[-1] > 0.5 * history[-5]:
-                    # less than a halving in four iterations: Δt is too large
-                    self.last_failure = "stalled"
-                    return Y, Fn, it, res, False, pose
-            elif not fresh and res > 0.25 * res_prev:
-                # the reused factor converges slowly: refactor at this iterate
-                R, Fn, blocks, pose = self.system.residual(Y, want_jacobian=True)
-                try:
-                    self.factor(Y, blocks)
-                except BandFactorError:
-                    self.last_failure = "singular"
-                    return Y, Fn, it, np.inf, False, pose
-                res = float(np.max(np.abs(R) * self._row_scale))
-            res_prev = res
-            rhs = -R * self._row_scale
-            if self._coupled is not None:
-                failures, g0 = self.gmres_failures, self.gmres_iterations
-                delta = self._coupled_solve(rhs) * self._col_scale
-                gmres_last = self.gmres_iterations - g0
-                if self.gmres_failures > failures:
-                    if not fresh:
-                        # a stale preconditioner: refactor here and solve again
-                        try:
-                            self.factor(Y, blocks)
-                        except BandFactorError:
-                            self.last_failure = "singular"
-                            return Y, Fn, it, np.inf, False, pose
-                        rhs = -R * self._row_scale
-                        failures = self.gmres_failures
-                        if self._coupled is None:
-                            delta = self.layout.solve(rhs) * self._col_scale
-                        else:
-                            delta = self._coupled_solve(rhs) * self._col_scale
-                    if self.gmres_failures > failures:
-                        # the contact coupling is too strong for the band preconditioner
-                        # at this Δt: the correction is unreliable. Fail now; the caller
-                        # cuts Δt.
-                        self.last_failure = "gmres"
-                        return Y, Fn, it + 1, res, False, pose
-            else:
-                delta = self.layout.solve(rhs) * self._col_scale
-            delta = delta.reshape(Y.shape)
-            if contact:
-                if it + 1 == self.FREEZE_AFTER and self.system.selection is not None:
-                    # from here on each contact keeps its partner segment (see
-                    # SelfContact.closest): no switching between iterates
-                    self.system.frozen_selection = self.system.selection
-                delta, alpha = self._feasible_step(Y, delta)
-                # corrections cut to 1/64 or less three times in a row: the iterate
-                # sits against the barrier and Newton stalls
-                tiny = tiny + 1 if alpha <= 1.0 / 64.0 else 0
-                if tiny >= 3:
-                    self.last_failure = "stalled"
-                    return Y, Fn, it + 1, res, False, pose
-                delta, cached = self._line_search(Y, delta, R)
-                refactor = gmres_last > self.GMRES_REFACTOR
-            Y = Y + delta
-        return Y, Fn, self.max_iterations, res, False, pose
+        if flags[2] and np.isfinite(res):
+            has_r = system.contact is not None or bool(system.step_data[11][4])
+            pose = (buf[5].copy(), buf[6].copy(), buf[7].copy() if has_r else None,
+                    buf[8].copy())
+        return st["ws"][0].copy(), buf[2].copy(), int(its), float(res), bool(ok), pose
+
+    def feasible_start(self, guess):
+        """A Newton start for the step set up by :meth:`RodSystem.begin_step` (with
+        contact candidates) whose candidate gaps are open: blended from the
+        zero-displacement state toward ``guess`` (N+1, 12) (:func:`_feasible_start`).
+        Returns (N+1, 12)."""
+        system = self.system
+        self._allocate(system.candidates.runs)
+        rod, step, cand, cdata = system.kernel_args()
+        out = np.empty((system.n_nodes, NV))
+        _feasible_start(step[0], np.ascontiguousarray(guess, dtype=float), step, rod, cand,
+                        cdata, self._state["ws"], out)
+        return out
+
+    # ------------------------------------------------------------------ linear algebra
+    def linearize(self, Y, refactor=True):
+        """Make the Jacobian at the iterate Y (N+1, 12) of the current step GMRES's
+        operator as a Newton iteration does: factorised afresh (equilibrated, the
+        preconditioner band with its share of the contact blocks), or with
+        ``refactor=False`` in the scales and with the band LU of the last factorisation
+        (a stale preconditioner, as between refactorisations in contact steps). For tests
+        and diagnostics: :meth:`operator` and :meth:`gmres` are then those of that
+        iterate. Raises BandFactorError for a singular Jacobian."""
+        from .banded import BandFactorError
+        system = self.system
+        self._allocate(system.candidates.runs if system.candidates is not None else 1)
+        st = self._state
+        system.evaluate(Y, True)
+        rod, step, cand, cdata = system.kernel_args()
+        if not refactor:
+            _set_operator(system.buf, system.ev, st["lin"], st["op"], step,
+                          self.CONTACT_BAND_WEIGHT, float(step[11][2]))
+            return
+        if not _factor(np.ascontiguousarray(Y, dtype=float), system.buf, system.ev, st["lin"],
+                       st["op"], rod, step, self.CONTACT_BAND_WEIGHT, st["ctr"]):
+            raise BandFactorError("singular Jacobian")
+        self.factor_key = system.step_key
+        self._factored_with_contact = system.candidates is not None
+
+    @property
+    def row_scale(self):
+        """The row scale (n,) of the last factorisation."""
+        return self._state["lin"][3]
+
+    @property
+    def col_scale(self):
+        """The column scale (n,) of the last factorisation."""
+        return self._state["lin"][5]
+
+    @property
+    def coupled(self) -> bool:
+        """Whether the last operator has exact load terms (GMRES solves with it)."""
+        return self._state is not None and bool(self._state["op"][4][0])
+
+    def operator(self, x):
+        """The scaled Jacobian of the last factorisation or iterate times x (n,)."""
+        st = self._state
+        out = np.empty(self.system.n)
+        _matvec(np.ascontiguousarray(x, dtype=float), out, st["lin"], st["op"],
+                self.system.step_data, st["gm"])
+        return out
+
+    def gmres(self, rhs, rtol=None):
+        """GMRES's solution (n,) of the scaled system with the operator of
+        :meth:`operator`, preconditioned by the last band LU, to relative residual rtol
+        (default GMRES_RTOL). Returns (x, iterations, converged)."""
+        st = self._state
+        rtol = self.GMRES_RTOL if rtol is None else float(rtol)
+        out = np.empty(self.system.n)
+        failures = int(st["ctr"][2])
+        its = _gmres(np.ascontiguousarray(rhs, dtype=float), out, rtol, self.GMRES_MAX,
+                     st["lin"], st["op"], self.system.step_data, st["gm"], st["ctr"])
+        return out, int(its), int(st["ctr"][2]) == failures
+
+    def band_solve(self, rhs):
+        """The last band LU's solution (n,) of rhs (n,) (the preconditioner)."""
+        lin = self._state["lin"]
+        x = np.array(rhs, dtype=float)
+        band_solve(lin[0], lin[1], x, lin[2])
+        return x
 
     def filtered(self, e):
         """The error filter of stiff integrators, J⁻¹(c M_b e) (Shampine's for RADAU5,
@@ -475,45 +922,5 @@ class Newton:
         The result satisfies the linearised constraints (its f and E2 rows are
         consistent). Returns (N+1, 12); needs a factorisation of the current step."""
         rhs = self.system.cm * self.system.cell_inertia(e)
-        x = self.layout.solve(rhs * self._row_scale) * self._col_scale
+        x = self.band_solve(rhs * self.row_scale) * self.col_scale
         return x.reshape(e.shape)
-
-    def _line_search(self, Y, delta, R0):
-        """Backtracking on the row-scaled residual 2-norm (contact steps only): halve the
-        correction, at most 4 times, until the residual decreases (Armijo, c = 1e-4).
-        Returns (correction, the residual tuple with Jacobian at the accepted point, to be
-        reused as the next iterate's)."""
-        f0 = _norm(R0 * self._row_scale)
-        alpha = 1.0
-        out = None
-        for _ in range(4):
-            out = self.system.residual(Y + alpha * delta, want_jacobian=True)
-            f1 = _norm(out[0] * self._row_scale)
-            if np.isfinite(f1) and f1 <= (1.0 - 1e-4 * alpha) * f0:
-                return alpha * delta, out
-            alpha *= 0.5
-        return 2.0 * alpha * delta, out
-
-    #: a Newton correction may close no candidate gap to less than this fraction of itself
-    GAP_KEEP = 0.2
-
-    def _feasible_step(self, Y, delta):
-        """Largest fraction 2^−k (k ≤ 10) of a Newton correction that keeps every
-        candidate gap at least GAP_KEEP of its current value (a filter in the manner of
-        IPC's CCD-bounded line search: Li et al., ACM TOG 39(4), 2020, §4). Gaps are the
-        closest-point gaps of the step's candidates re-selected at each trial, so a
-        correction cannot carry a strand through one it was not pressed against.
-        Returns (limited correction, fraction)."""
-        g0 = self.system.candidate_gaps(Y)
-        if g0.size == 0 or np.any(np.isnan(g0)) or np.any(g0 == -np.inf):
-            return delta, 1.0
-        finite = np.isfinite(g0)
-        floor = np.where(g0 > 0.0, self.GAP_KEEP * g0, 2.0 * g0)
-        alpha = 1.0
-        for _ in range(10):
-            g1 = self.system.candidate_gaps(Y + alpha * delta)
-            ok = ~finite | (g1 >= floor)
-            if np.all(ok) and not np.any(np.isnan(g1)):
-                break
-            alpha *= 0.5
-        return alpha * delta, alpha

@@ -34,9 +34,11 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from .banded import NV
-from .kinematics import (_exp_one, _matrix_into, _right_jacobian_into, quat_exp,
-                         quat_multiply, quat_to_matrix, right_jacobian, skew, space_route)
+from .banded import NV, copy_into, fill
+from .contact.model import evaluate_into, evaluation_arrays
+from .kinematics import (_exp_one, _matrix_into, _right_jacobian_into, _space_route_kernel,
+                         quat_to_matrix)
+from .loads import _drag_kernel
 
 __all__ = ["alpha_parameters", "StepParameters", "RodSystem", "BACKWARD_EULER"]
 
@@ -267,18 +269,6 @@ def _cell_blocks_kernel(dF, mass_t, stiffness, inertia, cm, af, ds, blocks):
 
 
 @numba.njit(cache=True)
-def _contact_loads_kernel(nodes, weights, force, out):
-    """Node loads (N+1, 3) N/m added into out: node nodes[p, a] receives
-    weights[p, a] · force[p] (:class:`solver.contact.ContactEvaluation`)."""
-    for p in range(nodes.shape[0]):
-        for a in range(nodes.shape[1]):
-            b = nodes[p, a]
-            w = weights[p, a]
-            for c in range(3):
-                out[b, c] += w * force[p, c]
-
-
-@numba.njit(cache=True)
 def _contact_band_kernel(nodes, weights, d_dr, d_dv, R, Y, Jr, dt, diag):
     """The node-local approximation of the contact loads' Jacobian (the band
     preconditioner's part, :meth:`RodSystem._contact_terms`) added into diag (N+1, 3, 6):
@@ -362,21 +352,20 @@ def _exact_frames_kernel(R, Y, theta, ds, dt, C, D, tmid, rdot, A0):
                                    + R[0, i, 2] * J[0, 2, j])
 
 
-#: the contact arguments of _exact_loads_kernel when no pair is active
-_NO_PAIRS = (np.zeros((0, 5), np.intp), np.zeros((0, 3, 30)), np.zeros((0, 15)),
-             np.zeros((0, 3)), np.zeros((0, 5)), np.zeros((0, 5)))
-
-
 @numba.njit(cache=True)
-def _exact_loads_kernel(dY, A0, C, D, R, rdot, tmid, G, L, ds, dt, nodes, A, dtdr, Fp, w,
-                        dwdt):
-    """Compiled body of :meth:`RodSystem._exact_loads` (its docstring has the formulas):
-    the prefix sums along the rod, the pairs' load changes and the body-frame rotation
-    in one pass each; returns dB (N+1, 3)."""
+def exact_loads_product(dY, op, P, dB):
+    """The body-frame load change dB (N+1, 3) for a change dY (N+1, 12) of the unknowns,
+    exact for the space-route pose, minus the node-local part the band holds
+    (:meth:`RodSystem.linearization` gives the formulas); ``op``: the pose and contact
+    data of :func:`residual_into` at the linearisation point (R, C, D, tmid, rdot, A0,
+    G, L and the first P contacts' nodes, weights, force, ∂F/∂r, ∂F/∂v, ∂t/∂r, ∂w/∂t;
+    (Δt, Δs) s, m; and scratch dφ, dr, dG (N+1, 3)).
+    Prefix sums along the rod, the pairs' load changes and the body-frame rotation in
+    one pass each: O(N + P)."""
+    R, C, D, tmid, rdot, A0, G, L, nodes, w, Fp, d_dr, d_dv, dtdr, dwdt, scal, dphi, dr, dG = op
     n1 = dY.shape[0]
-    dphi = np.empty((n1, 3))
-    dr = np.empty((n1, 3))
-    dG = np.empty((n1, 3))
+    dt = scal[0]
+    ds = scal[1]
     for i in range(3):
         dphi[0, i] = A0[i, 0] * dY[0, W] + A0[i, 1] * dY[0, W + 1] + A0[i, 2] * dY[0, W + 2]
     # dr_0 = ½Δt(δφ_0 × ṙ_0 + R_0 δv_0)
@@ -407,49 +396,240 @@ def _exact_loads_kernel(dY, A0, C, D, R, rdot, tmid, G, L, ds, dt, nodes, A, dtd
         dG[k, 0] = G[k, 1] * dphi[k, 2] - G[k, 2] * dphi[k, 1]
         dG[k, 1] = G[k, 2] * dphi[k, 0] - G[k, 0] * dphi[k, 2]
         dG[k, 2] = G[k, 0] * dphi[k, 1] - G[k, 1] * dphi[k, 0]
-    n_p = nodes.shape[0]
-    n_b = nodes.shape[1]
-    z = np.empty(6 * n_b)
-    for p in range(n_p):
-        for b in range(n_b):
-            a = nodes[p, b]
-            # δr_b and δṙ_b = δφ × ṙ + R δv
-            for i in range(3):
-                z[3 * b + i] = dr[a, i]
-            q0, q1, q2 = dphi[a, 0], dphi[a, 1], dphi[a, 2]
-            o = 3 * n_b + 3 * b
-            z[o] = q1 * rdot[a, 2] - q2 * rdot[a, 1]
-            z[o + 1] = q2 * rdot[a, 0] - q0 * rdot[a, 2]
-            z[o + 2] = q0 * rdot[a, 1] - q1 * rdot[a, 0]
-            for i in range(3):
-                z[o + i] += (R[a, i, 0] * dY[a, V] + R[a, i, 1] * dY[a, V + 1]
-                             + R[a, i, 2] * dY[a, V + 2])
-        dtp = 0.0
-        for m in range(3 * n_b):
-            dtp += dtdr[p, m] * z[m]
+    for p in range(P):
         f0 = 0.0
         f1 = 0.0
         f2 = 0.0
-        for m in range(6 * n_b):
-            f0 += A[p, 0, m] * z[m]
-            f1 += A[p, 1, m] * z[m]
-            f2 += A[p, 2, m] * z[m]
-        for b in range(n_b):
+        dtp = 0.0
+        for b in range(5):
+            a = nodes[p, b]
+            # δr_b and δṙ_b = δφ × ṙ + R δv
+            q0, q1, q2 = dphi[a, 0], dphi[a, 1], dphi[a, 2]
+            z0 = q1 * rdot[a, 2] - q2 * rdot[a, 1]
+            z1 = q2 * rdot[a, 0] - q0 * rdot[a, 2]
+            z2 = q0 * rdot[a, 1] - q1 * rdot[a, 0]
+            va0, va1, va2 = dY[a, V], dY[a, V + 1], dY[a, V + 2]
+            z0 += R[a, 0, 0] * va0 + R[a, 0, 1] * va1 + R[a, 0, 2] * va2
+            z1 += R[a, 1, 0] * va0 + R[a, 1, 1] * va1 + R[a, 1, 2] * va2
+            z2 += R[a, 2, 0] * va0 + R[a, 2, 1] * va1 + R[a, 2, 2] * va2
+            r0, r1, r2 = dr[a, 0], dr[a, 1], dr[a, 2]
+            dtp += dtdr[p, b, 0] * r0 + dtdr[p, b, 1] * r1 + dtdr[p, b, 2] * r2
+            f0 += (d_dr[p, b, 0, 0] * r0 + d_dr[p, b, 0, 1] * r1 + d_dr[p, b, 0, 2] * r2
+                   + d_dv[p, b, 0, 0] * z0 + d_dv[p, b, 0, 1] * z1 + d_dv[p, b, 0, 2] * z2)
+            f1 += (d_dr[p, b, 1, 0] * r0 + d_dr[p, b, 1, 1] * r1 + d_dr[p, b, 1, 2] * r2
+                   + d_dv[p, b, 1, 0] * z0 + d_dv[p, b, 1, 1] * z1 + d_dv[p, b, 1, 2] * z2)
+            f2 += (d_dr[p, b, 2, 0] * r0 + d_dr[p, b, 2, 1] * r1 + d_dr[p, b, 2, 2] * r2
+                   + d_dv[p, b, 2, 0] * z0 + d_dv[p, b, 2, 1] * z1 + d_dv[p, b, 2, 2] * z2)
+        for b in range(5):
             a = nodes[p, b]
             wb = w[p, b]
             tb = dwdt[p, b] * dtp
             dG[a, 0] += wb * f0 + tb * Fp[p, 0]
             dG[a, 1] += wb * f1 + tb * Fp[p, 1]
             dG[a, 2] += wb * f2 + tb * Fp[p, 2]
-    out = np.empty((n1, 3))
     for k in range(n1):
         for i in range(3):
             acc = R[k, 0, i] * dG[k, 0] + R[k, 1, i] * dG[k, 1] + R[k, 2, i] * dG[k, 2]
             for j in range(6):
                 acc -= L[k, i, j] * dY[k, j]
-            out[k, i] = acc
-    return out
+            dB[k, i] = acc
 
+
+@numba.njit(cache=True, inline="always")
+def _qmul(pw, px, py, pz, qw, qx, qy, qz):
+    """Hamilton product p ⊗ q of two quaternions (w, x, y, z), as four floats."""
+    return (pw * qw - px * qx - py * qy - pz * qz, pw * qx + px * qw + py * qz - pz * qy,
+            pw * qy - px * qz + py * qw + pz * qx, pw * qz + px * qy - py * qx + pz * qw)
+
+
+@numba.njit(cache=True)
+def pose_into(Y, Y_old, dt, space, q_old, r_old, vg_old, with_r, ds, q, Rm, r, theta):
+    """The new-level pose of an iterate Y (N+1, 12) (:meth:`RodSystem.pose_new`) into
+    q (N+1, 4), Rm (N+1, 3, 3), r (N+1, 3) and θ (N+1, 3): θ = ½Δt(ω^n + ω^{n+1}) per
+    node; with ``space`` the shape integrated along s from κ (:func:`space_route`)
+    anchored at node 0's time-route pose, else each node's time route q^n ⊗ exp(θ),
+    r^n + ½Δt(ṙ^n + R v) (r only ``with_r``)."""
+    n1 = Y.shape[0]
+    for k in range(n1):
+        for c in range(3):
+            theta[k, c] = 0.5 * dt * (Y_old[k, W + c] + Y[k, W + c])
+    if space:
+        hw, hx, hy, hz = _exp_one(theta[0, 0], theta[0, 1], theta[0, 2])
+        w0, x0, y0, z0 = _qmul(q_old[0, 0], q_old[0, 1], q_old[0, 2], q_old[0, 3],
+                               hw, hx, hy, hz)
+        nrm = np.sqrt(w0 * w0 + x0 * x0 + y0 * y0 + z0 * z0)
+        q0 = np.empty(4)
+        q0[0], q0[1], q0[2], q0[3] = w0 / nrm, x0 / nrm, y0 / nrm, z0 / nrm
+        _matrix_into(q0[0], q0[1], q0[2], q0[3], Rm, 0)
+        r0 = np.empty(3)
+        for i in range(3):
+            r0[i] = r_old[0, i] + 0.5 * dt * (vg_old[0, i] + (
+                Rm[0, i, 0] * Y[0, V] + Rm[0, i, 1] * Y[0, V + 1] + Rm[0, i, 2] * Y[0, V + 2]))
+        _space_route_kernel(q0, r0, Y[:, K:K + 3], ds, q, r)
+        for k in range(n1):
+            _matrix_into(q[k, 0], q[k, 1], q[k, 2], q[k, 3], Rm, k)
+        return
+    for k in range(n1):
+        hw, hx, hy, hz = _exp_one(theta[k, 0], theta[k, 1], theta[k, 2])
+        q[k, 0], q[k, 1], q[k, 2], q[k, 3] = _qmul(q_old[k, 0], q_old[k, 1], q_old[k, 2],
+                                                   q_old[k, 3], hw, hx, hy, hz)
+        _matrix_into(q[k, 0], q[k, 1], q[k, 2], q[k, 3], Rm, k)
+        if with_r:
+            for i in range(3):
+                r[k, i] = r_old[k, i] + 0.5 * dt * (vg_old[k, i] + (
+                    Rm[k, i, 0] * Y[k, V] + Rm[k, i, 1] * Y[k, V + 1]
+                    + Rm[k, i, 2] * Y[k, V + 2]))
+
+
+@numba.njit(cache=True)
+def node_terms_into(Y, want_jac, mass_t, stiffness, inertia, has_drag, cdn, cdt, rotate,
+                    Rm, theta, half_dt, G, add_diag, diag, Fn, dF, loadrot, brot, drag_b,
+                    drag_j, Jr):
+    """F(Y) per node (N+1, 12) into Fn with the loads, and with ``want_jac`` its
+    Jacobian (N+1, 12, 12) into dF (:meth:`RodSystem.node_terms` has the terms): seed
+    eqs. 2-5's node terms, the Morison drag (``has_drag``), the global load G (N+1, 3)
+    rotated to the body frame B = Rᵀ G (``rotate``; into brot) with ∂B/∂ω^{n+1} =
+    ½Δt [B]× J_r(θ) (into loadrot), and the node-local contact block diag (N+1, 3, 6)
+    (``add_diag``). drag_b, drag_j, Jr: scratch (N+1, 3), (N+1, 3, 3) ×2."""
+    n1 = Y.shape[0]
+    _node_forces_kernel(Y, mass_t, stiffness, inertia, Fn)
+    if has_drag:
+        if want_jac:
+            fill(drag_j, 0.0)
+        _drag_kernel(Y[:, V:V + 3], cdn, cdt, drag_b, drag_j, want_jac)
+        for k in range(n1):
+            for c in range(3):
+                Fn[k, E3 + c] += drag_b[k, c]
+    if rotate:
+        for k in range(n1):
+            for i in range(3):
+                brot[k, i] = Rm[k, 0, i] * G[k, 0] + Rm[k, 1, i] * G[k, 1] + Rm[k, 2, i] * G[k, 2]
+            for c in range(3):
+                Fn[k, E3 + c] += brot[k, c]
+    if not want_jac:
+        return
+    _node_jacobian_kernel(Y, mass_t, stiffness, inertia, dF)
+    if has_drag:
+        for k in range(n1):
+            for a in range(3):
+                for b in range(3):
+                    dF[k, E3 + a, V + b] += drag_j[k, a, b]
+    if add_diag:
+        for k in range(n1):
+            for a in range(3):
+                for b in range(6):
+                    dF[k, E3 + a, V + b] += diag[k, a, b]
+    if rotate:
+        for k in range(n1):
+            _right_jacobian_into(theta[k, 0], theta[k, 1], theta[k, 2], Jr, k)
+            b0, b1, b2 = brot[k, 0], brot[k, 1], brot[k, 2]
+            for j in range(3):
+                # [b]× J_r column j, times ½Δt
+                loadrot[k, 0, j] = half_dt * (-b2 * Jr[k, 1, j] + b1 * Jr[k, 2, j])
+                loadrot[k, 1, j] = half_dt * (b2 * Jr[k, 0, j] - b0 * Jr[k, 2, j])
+                loadrot[k, 2, j] = half_dt * (-b1 * Jr[k, 0, j] + b0 * Jr[k, 1, j])
+            for a in range(3):
+                for b in range(3):
+                    dF[k, E3 + a, W + b] += loadrot[k, a, b]
+
+
+@numba.njit(cache=True)
+def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
+    """The residual (n,) of a step's difference equations at the iterate Y (N+1, 12),
+    and with ``want_jac`` its Jacobian's cell blocks (N, 12, 24), the node-local contact
+    block and the data of the exact load product (:func:`exact_loads_product`), written
+    into the buffers of :meth:`RodSystem.buffers` (module docstring for the equations;
+    :meth:`RodSystem.residual` for what is computed when). rod, step: the run's and the
+    step's constant data (:meth:`RodSystem.kernel_args`); cand: the step's contact
+    candidates (:attr:`solver.contact.ContactCandidates.arrays`, empty without);
+    frozen: each run's frozen combination or empty; cdata: the contact model's
+    :attr:`~solver.contact.SelfContact.kernel_data`; ev: the contact evaluation arrays.
+    Writes flags (4,): [0: 0 ok, 1 non-finite positions, 2 coincident contact points
+    (the residual is NaN then), 1: active contacts P, 2: pose computed, 3: exact load
+    data computed]. The one implementation of the residual: Newton's compiled
+    iterations and the Python method both call it."""
+    mass_t, stiffness, inertia, cdn, cdt, floor, rscal = rod
+    ds = rscal[0]
+    has_drag = rscal[1] != 0.0
+    space = rscal[2] != 0.0
+    (Y_old, zconst, flux_const, glob, q_old, r_old, vg_old, bc_rows, bc_cols, bc_coef,
+     bc_vals, sscal) = step
+    dt, cm, af = sscal[0], sscal[1], sscal[2]
+    has_glob = sscal[3] != 0.0
+    has_r_old = sscal[4] != 0.0
+    (R, cells, Fn, dF, blocks, q, Rm, r, theta, vg, G, diag, loadrot, brot, C, D, tmid,
+     rdot, A0, L, drag_b, drag_j, Jr, flags) = buf
+    n1 = Y.shape[0]
+    contact = cand[2].shape[0] > 0
+    need_pose = has_glob or contact
+    for i in range(4):
+        flags[i] = 0
+    P = 0
+    if need_pose:
+        pose_into(Y, Y_old, dt, space and has_r_old, q_old, r_old, vg_old, has_r_old, ds,
+                  q, Rm, r, theta)
+        flags[2] = 1
+    have_G = False
+    if contact:
+        finite = True
+        for k in range(n1):
+            for i in range(3):
+                vg[k, i] = (Rm[k, i, 0] * Y[k, V] + Rm[k, i, 1] * Y[k, V + 1]
+                            + Rm[k, i, 2] * Y[k, V + 2])
+                if not (np.isfinite(vg[k, i]) and np.isfinite(r[k, i])):
+                    finite = False
+        if finite:
+            P = evaluate_into(r, vg, cand, frozen, cdata, ev)
+        if not finite or P < 0:
+            # a diverging iterate: a non-finite residual, so that Δt is cut
+            fill(R, np.nan)
+            flags[0] = 1 if not finite else 2
+            return
+        nodes, weights, force = ev[4], ev[5], ev[7]
+        fill(G, 0.0)
+        for p in range(P):
+            for a in range(5):
+                b = nodes[p, a]
+                wa = weights[p, a]
+                for c in range(3):
+                    G[b, c] += wa * force[p, c]
+        if has_glob:
+            for k in range(n1):
+                for c in range(3):
+                    G[k, c] = G[k, c] + glob[k, c]
+        have_G = True
+        if want_jac and P > 0:
+            fill(diag, 0.0)
+            for k in range(n1):
+                _right_jacobian_into(theta[k, 0], theta[k, 1], theta[k, 2], Jr, k)
+            _contact_band_kernel(nodes[:P], weights[:P], ev[8][:P], ev[9][:P], Rm, Y, Jr,
+                                 dt, diag)
+    elif has_glob:
+        copy_into(G, glob)
+        have_G = True
+    rotate = need_pose and have_G
+    add_diag = contact and want_jac and P > 0
+    node_terms_into(Y, want_jac, mass_t, stiffness, inertia, has_drag, cdn, cdt, rotate, Rm,
+                    theta, 0.5 * dt, G, add_diag, diag, Fn, dF, loadrot, brot, drag_b, drag_j,
+                    Jr)
+    if want_jac and space and need_pose and have_G:
+        # the exact load product's data (self-contact configured: the pose is the space
+        # route, so every node's position and frame depends on κ upstream of it)
+        _exact_frames_kernel(Rm, Y, theta, ds, dt, C, D, tmid, rdot, A0)
+        for k in range(n1):
+            for a in range(3):
+                for b in range(6):
+                    L[k, a, b] = diag[k, a, b] if add_diag else 0.0
+                for b in range(3):
+                    L[k, a, 3 + b] += loadrot[k, a, b]
+        flags[3] = 1
+    _cells_kernel(Y, Fn, zconst, flux_const, mass_t, stiffness, inertia, cm, af, ds, cells)
+    for m in range(bc_rows.shape[0]):
+        col = bc_cols[m]
+        R[bc_rows[m]] = bc_coef[m] * Y[col // NV, col % NV] - bc_vals[m]
+    if want_jac:
+        _cell_blocks_kernel(dF, mass_t, stiffness, inertia, cm, af, ds, blocks)
+    flags[1] = P
 
 
 class RodSystem:
@@ -461,8 +641,9 @@ class RodSystem:
     loads : LoadModel
     contact : optional self-contact model (see :mod:`solver.contact`) or None
 
-    Newton's method for the step (iteration, line search, linear solver) is
-    :class:`solver.newton.Newton`.
+    The residual is one compiled kernel (:func:`residual_into`); Newton's method for the
+    step (iteration, line search, linear solver) is :class:`solver.newton.Newton`, which
+    calls that kernel from its own compiled iterations with :meth:`kernel_args`.
     """
 
     def __init__(self, props, loads, contact=None):
@@ -481,14 +662,58 @@ class RodSystem:
         self.tc = float(tc)       # bending time scale L²√(ρA/EJ), s
         self.floor = np.repeat([length / tc, 1.0 / tc, b0 / length**2, 1.0 / length], 3)
         self.step_key = None
-        # buffers
-        n1 = self.n_nodes
-        self._dF = np.zeros((n1, NV, NV))
         self.candidates = None
-        self._blocks = np.empty((self.n_cells, NV, 2 * NV))
-        self._exact = None
-        self.contact_band = None
-        self._load_rotation = None        # node_terms' ½Δt [Rᵀ G]× J_r(θ) (N+1, 3, 3)
+        self.frozen_selection = None
+        cdn = loads.cdn if loads.has_drag else np.zeros(self.n_nodes)
+        cdt = loads.cdt if loads.has_drag else np.zeros(self.n_nodes)
+        #: the run's constant data as the compiled kernels take it (:func:`residual_into`)
+        self.rod_data = (props.mass_t, props.stiffness, props.inertia,
+                         np.ascontiguousarray(cdn, dtype=float),
+                         np.ascontiguousarray(cdt, dtype=float), self.floor,
+                         np.array([props.ds, float(loads.has_drag), float(contact is not None)]))
+        if contact is not None:
+            self.contact_data = contact.kernel_data
+        else:
+            z = np.zeros(0)
+            self.contact_data = (np.zeros((0, 4), np.intp), np.zeros((0, 4, 4)), z, z.copy(),
+                                 z.copy(), np.zeros(9))
+        self.buf = self.buffers()
+        self.ev = evaluation_arrays(0)
+        self._no_candidates = (np.zeros(0, np.intp), np.zeros(0, np.intp),
+                               np.zeros(0, np.intp), np.zeros(0, np.bool_),
+                               np.zeros(0, np.bool_))
+        self._no_frozen = np.zeros(0, np.intp)
+        self.cand_arrays = self._no_candidates
+
+    def __getstate__(self):
+        # the buffers (one of them a view of another) are made afresh on loading
+        state = self.__dict__.copy()
+        state.pop("buf", None)
+        state.pop("ev", None)
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self.buf = self.buffers()
+        self.ev = evaluation_arrays(self.candidates.runs if self.candidates is not None else 0)
+
+    def buffers(self):
+        """Fresh output buffers of :func:`residual_into` for this grid: R (n,) and its cell
+        rows as an (N, 12) view, F (N+1, 12), ∂F/∂Y (N+1, 12, 12), cell blocks
+        (N, 12, 24), the pose q (N+1, 4), R (N+1, 3, 3), r, θ, ṙ (N+1, 3), the global
+        load G (N+1, 3), the node-local contact block (N+1, 3, 6), the load rotation's
+        block (N+1, 3, 3), the body-frame load (N+1, 3), the exact product's C, D
+        (N, 3, 3), mid-cell tangents (N, 3), ṙ (N+1, 3), A0 (3, 3), L (N+1, 3, 6), scratch
+        (N+1, 3), (N+1, 3, 3) ×2 and the flags (4,) int."""
+        n1, nc = self.n_nodes, self.n_cells
+        R = np.zeros(self.n)
+        return (R, R[6:6 + NV * nc].reshape(nc, NV), np.zeros((n1, NV)), np.zeros((n1, NV, NV)),
+                np.zeros((nc, NV, 2 * NV)), np.zeros((n1, 4)), np.zeros((n1, 3, 3)),
+                np.zeros((n1, 3)), np.zeros((n1, 3)), np.zeros((n1, 3)), np.zeros((n1, 3)),
+                np.zeros((n1, 3, 6)), np.zeros((n1, 3, 3)), np.zeros((n1, 3)),
+                np.zeros((nc, 3, 3)), np.zeros((nc, 3, 3)), np.zeros((nc, 3)),
+                np.zeros((n1, 3)), np.zeros((3, 3)), np.zeros((n1, 3, 6)), np.zeros((n1, 3)),
+                np.zeros((n1, 3, 3)), np.zeros((n1, 3, 3)), np.zeros(4, np.int64))
 
     # ------------------------------------------------------------------ per step setup
     def begin_step(self, dt, params: StepParameters, t_new, Y_old, Ydot_old, F_old,
@@ -517,13 +742,33 @@ class RodSystem:
         self._glob_force = (self.loads.global_force(t_new, left=left_limit)
                              if self.loads.has_global else None)
         self.candidates = candidates if (candidates is not None and candidates.runs > 0) else None
-        self.last_contact = None
         self.frozen_selection = None      # set by Newton (see SelfContact.closest)
-        self._pose_memo = None            # (Y, pose) of the last pose_new call this step
-        self.selection = None
+        if self.candidates is not None:
+            self.cand_arrays = self.candidates.arrays
+            if self.ev[0].shape[0] < self.candidates.runs:
+                self.ev = evaluation_arrays(2 * self.candidates.runs)
+        else:
+            self.cand_arrays = self._no_candidates
+        n1 = self.n_nodes
+        glob = self._glob_force
+        has_r = r_old is not None and v_old_global is not None
+        self.step_data = (
+            np.ascontiguousarray(Y_old, dtype=float), zc, self._flux_const,
+            np.zeros((0, 3)) if glob is None else np.ascontiguousarray(glob, dtype=float),
+            np.zeros((n1, 4)) if q_old is None else np.ascontiguousarray(q_old, dtype=float),
+            np.ascontiguousarray(r_old, dtype=float) if has_r else np.zeros((n1, 3)),
+            np.ascontiguousarray(v_old_global, dtype=float) if has_r else np.zeros((n1, 3)),
+            bc.rows.astype(np.intp), bc.cols.astype(np.intp), bc.coef.astype(float),
+            np.asarray(bc.values, dtype=float),
+            np.array([dt, self.cm, af, float(glob is not None), float(has_r)]))
         # what the Jacobian's band part depends on besides the iterate (solver.newton
         # keeps a factorisation across steps while this is unchanged)
         self.step_key = (dt, params, bc.key)
+
+    def kernel_args(self):
+        """(rod, step, candidates, contact data): what :func:`residual_into` takes of this
+        run and step (:meth:`begin_step` must have been called)."""
+        return self.rod_data, self.step_data, self.cand_arrays, self.contact_data
 
     # ------------------------------------------------------------------ node pieces
     def _apply_M(self, Y):
@@ -567,212 +812,93 @@ class RodSystem:
         node 0's time-route pose: the one centreline that is carried forward, output and
         checked, so the contact forces act on it (docs/contact.md, "One geometry").
         Returns (q (N+1, 4), R (N+1, 3, 3), r (N+1, 3) or None, θ (N+1, 3)); θ is the
-        time-route rotation increment in both cases (used by the Jacobian).
+        time-route rotation increment in both cases (used by the Jacobian). Compiled
+        (:func:`pose_into`).
         """
-        memo = getattr(self, "_pose_memo", None)
-        if memo is not None and np.array_equal(memo[0], Y):
-            # the same iterate again (the feasibility filter and the residual of one trial
-            # point): the space route is integrated once
-            return memo[1]
-        pose = self._pose_new(Y)
-        self._pose_memo = (Y.copy(), pose)
-        return pose
+        n1 = self.n_nodes
+        q, R, r, theta = np.empty((n1, 4)), np.empty((n1, 3, 3)), np.empty((n1, 3)), np.empty((n1, 3))
+        has_r = bool(self.step_data[11][4])
+        space = self.contact is not None and self.r_old is not None
+        pose_into(np.ascontiguousarray(Y, dtype=float), self.step_data[0], float(self.dt), space,
+                  self.step_data[4], self.step_data[5], self.step_data[6], has_r,
+                  float(self.p.ds), q, R, r, theta)
+        return q, R, (r if (space or has_r) else None), theta
 
-    def _pose_new(self, Y):
-        theta = 0.5 * self.dt * (self.Y_old[:, W:W + 3] + Y[:, W:W + 3])
-        if self.contact is not None and self.r_old is not None:
-            q0 = quat_multiply(self.q_old[:1], quat_exp(theta[:1]))
-            q0 /= np.linalg.norm(q0)
-            R0 = quat_to_matrix(q0)[0]
-            r0 = self.r_old[0] + 0.5 * self.dt * (self.v_old_global[0] + R0 @ Y[0, V:V + 3])
-            q, r = space_route(q0[0], r0, Y[:, K:K + 3], self.p.ds)
-            return q, quat_to_matrix(q), r, theta
-        q = quat_multiply(self.q_old, quat_exp(theta))
-        R = quat_to_matrix(q)
-        r = None
-        if self.r_old is not None and self.v_old_global is not None:
-            vg = np.einsum("nij,nj->ni", R, Y[:, V:V + 3])
-            r = self.r_old + 0.5 * self.dt * (self.v_old_global + vg)
-        return q, R, r, theta
+    def node_terms(self, Y, want_jacobian, pose=None, glob_force=None):
+        """F(Y) per node (N+1, 12) and, if asked, its Jacobian (N+1, 12, 12) (a copy).
 
-    def node_terms(self, Y, want_jacobian, pose=None, glob_force=None, extra=None):
-        """F(Y) per node (N+1, 12) and, if asked, its Jacobian (N+1, 12, 12).
-
+        The node terms of seed eqs. 2-5 (E1 κ×ω, E2 κ×v + a3×ω, E3 κ×f − M_t(ω×v) + B,
+        E4 κ×Bκ − ω×Iω + a3×f) with the distributed load B: the Morison drag, and the
+        global-frame force glob_force (N+1, 3) N/m rotated into the body frame,
+        B = Rᵀ F_global, with ∂B/∂ω^{n+1} = c [B]× J_r(θ).
         pose: (R (N+1, 3, 3), θ (N+1, 3), c) for orientation-dependent loads: R the
         new-level rotation R^n exp(θ) and c = ∂θ/∂ω^{n+1} = ½Δt; None when the case has
-        none. The load B = Rᵀ F_global then has ∂B/∂ω^{n+1} = c [B]× J_r(θ).
-        glob_force: (N+1, 3) global-frame distributed force (N/m) or None.
-        extra: (B (N+1, 3), dB/d(v, ω) (N+1, 3, 6)) an additional body-frame load and its
-        node-local Jacobian in (v, ω) (self-contact), or None.
+        none. Compiled (:func:`node_terms_into`, which the residual uses too).
         """
         p = self.p
-        Y = np.ascontiguousarray(Y)
-        Fv = np.empty_like(Y)
-        _node_forces_kernel(Y, p.mass_t, p.stiffness, p.inertia, Fv)
-        dB_dv = None
-        if self.loads.has_drag:
-            bd, dB_dv = self.loads.drag(Y[:, V:V + 3], want_jacobian)
-            Fv[:, E3:E3 + 3] += bd
-        b_rot = None
-        if pose is not None and glob_force is not None:
-            R = pose[0]
-            b_rot = np.einsum("nji,nj->ni", R, glob_force)
-            Fv[:, E3:E3 + 3] += b_rot
-        if extra is not None and extra[0] is not None:
-            Fv[:, E3:E3 + 3] += extra[0]
-        if not want_jacobian:
-            return Fv, None
-        d = self._dF
-        # E1 κ×ω, E2 κ×v + a3×ω, E3 κ×f − M_t(ω×v), E4 κ×Bκ − ω×Iω + a3×f (compiled)
-        _node_jacobian_kernel(Y, p.mass_t, p.stiffness, p.inertia, d)
-        # E3: + B (drag, contact, rotated global loads)
-        if dB_dv is not None:
-            d[:, E3:E3 + 3, V:V + 3] += dB_dv
-        if extra is not None and extra[1] is not None:
-            d[:, E3:E3 + 3, V:V + 6] += extra[1]
-        # the rotated loads' node-local block, kept for the exact load product
-        # (:meth:`_exact_data`, which the band's node-local part is subtracted from)
-        self._load_rotation = None
-        if b_rot is not None:
-            self._load_rotation = pose[2] * (skew(b_rot) @ right_jacobian(pose[1]))
-            d[:, E3:E3 + 3, W:W + 3] += self._load_rotation
-        return Fv, d
+        Y = np.ascontiguousarray(Y, dtype=float)
+        buf = self.buf
+        n1 = self.n_nodes
+        rotate = pose is not None and glob_force is not None
+        if rotate:
+            Rm = np.ascontiguousarray(pose[0], dtype=float)
+            theta = np.ascontiguousarray(pose[1], dtype=float)
+            half = float(pose[2])
+            G = np.ascontiguousarray(glob_force, dtype=float)
+        else:
+            Rm, theta, half, G = np.zeros((n1, 3, 3)), np.zeros((n1, 3)), 0.0, np.zeros((n1, 3))
+        Fn = np.empty((n1, NV))
+        dF = np.empty((n1, NV, NV))
+        node_terms_into(Y, bool(want_jacobian), p.mass_t, p.stiffness, p.inertia,
+                        bool(self.loads.has_drag), self.rod_data[3], self.rod_data[4], rotate,
+                        Rm, theta, half, G, False, buf[11], Fn, dF, np.empty((n1, 3, 3)),
+                        np.empty((n1, 3)), np.empty((n1, 3)), np.empty((n1, 3, 3)),
+                        np.empty((n1, 3, 3)))
+        return Fn, (dF if want_jacobian else None)
 
     # ------------------------------------------------------------------ global system
+    def evaluate(self, Y, want_jacobian=False, frozen=None, buf=None):
+        """Run :func:`residual_into` at the iterate Y (N+1, 12) into ``buf`` (default the
+        system's own buffers) and return the flags (4,) (its docstring)."""
+        buf = self.buf if buf is None else buf
+        fz = self._no_frozen if frozen is None else np.ascontiguousarray(frozen, np.intp)
+        residual_into(np.ascontiguousarray(Y, dtype=float), bool(want_jacobian), self.rod_data,
+                      self.step_data, self.cand_arrays, fz, self.contact_data, buf, self.ev)
+        return buf[-1]
+
     def residual(self, Y, want_jacobian=False):
         """Residual (n,) of the step's difference equations at the iterate Y (N+1, 12).
 
         Returns (R, F_nodes, blocks or None, pose or None); blocks (N, 12, 24) are the
-        unscaled cell Jacobian blocks on [node k-1 | node k].
+        unscaled cell Jacobian blocks on [node k-1 | node k] (a buffer reused by the next
+        call). The new-level pose (:meth:`pose_new`) is computed when global-frame loads
+        or contact candidates need it; with contact candidates the contacts are
+        re-selected and evaluated at this iterate (with the frozen selection, if Newton
+        has set one). One compiled call (:func:`residual_into`).
         """
-        p = self.p
-        af = self.params.alpha_f
+        buf = self.buf
+        flags = self.evaluate(Y, want_jacobian, self.frozen_selection)
         pose = None
-        pose_arg = None
-        # the new-level pose is needed inside Newton only by global-frame loads and by
-        # active contact pairs; with contact configured but no pair in this step it is
-        # computed once after convergence (RodRun.try_step), not at every iterate
-        if self.loads.has_global or self.candidates is not None:
-            pose = self.pose_new(Y)
-            pose_arg = (pose[1], pose[3], 0.5 * self.dt)
-        extra = None
-        glob = self._glob_force
-        ev = None
-        if self.candidates is not None:
-            contact_global, diag, ev = self._contact_terms(Y, pose, want_jacobian)
-            glob = contact_global if glob is None else glob + contact_global
-            extra = (None, diag)
-        Fn, dF = self.node_terms(Y, want_jacobian, pose_arg, glob, extra)
-        if want_jacobian:
-            # the node-local contact blocks (N+1, 3, 6) now in the band, or None: Newton
-            # weights them in its preconditioner (Newton.CONTACT_BAND_WEIGHT)
-            self.contact_band = extra[1] if extra is not None else None
-            self._exact = None
-            if self.contact is not None and pose is not None and glob is not None:
-                self._exact = self._exact_data(Y, pose, glob, ev, self.contact_band)
-        R = np.empty(self.n)
-        cells = R[6:6 + NV * self.n_cells].reshape(self.n_cells, NV)   # a view
-        Y = np.ascontiguousarray(Y)
-        _cells_kernel(Y, Fn, self._zconst, self._flux_const, p.mass_t, p.stiffness,
-                      p.inertia, float(self.cm), float(af), float(p.ds), cells)
-        self.bc.residual(Y, R)
-        blocks = None
-        if want_jacobian:
-            blocks = self._blocks
-            _cell_blocks_kernel(dF, p.mass_t, p.stiffness, p.inertia, float(self.cm),
-                                float(af), float(p.ds), blocks)
-        return R, Fn, blocks, pose
+        if flags[2]:
+            has_r = self.contact is not None or bool(self.step_data[11][4])
+            pose = (buf[5].copy(), buf[6].copy(), buf[7].copy() if has_r else None,
+                    buf[8].copy())
+        return buf[0].copy(), buf[2].copy(), (buf[4] if want_jacobian else None), pose
 
-    def _contact_terms(self, Y, pose, want_jacobian):
-        """Self-contact load at the new level (global frame, N/m) and the node-local
-        approximation of its Jacobian (the band preconditioner's part).
-
-        The contacts are re-selected from the step's candidates on this iterate's pose
-        (the space route). The exact Jacobian of the load, which is not banded, is applied
-        matrix-free by :meth:`_exact_loads`; the band holds the approximation in which a
-        node moves by its own time route, r_a ≈ r_a^n + ½Δt(ṙ_a^n + R_a v_a).
-        Returns (F (N+1, 3) global, ∂(RᵀF)/∂(v, ω) (N+1, 3, 6) body frame or None,
-        the ContactEvaluation or None).
-        """
-        q, R, r, theta = pose
-        vg = np.einsum("nij,nj->ni", R, Y[:, V:V + 3])
-        n1 = self.n_nodes
-        if not (np.all(np.isfinite(r)) and np.all(np.isfinite(vg))):
-            # a diverging iterate: make the residual non-finite so that Δt is cut
-            return np.full((n1, 3), np.nan), None, None
-        try:
-            ev = self.contact.evaluate(self.candidates, r, vg, self.frozen_selection)
-            self.selection = ev.selection
-        except ValueError:
-            return np.full((n1, 3), np.nan), None, None
-        self.last_contact = ev
-        force = np.zeros((n1, 3))
-        if ev.count == 0:
-            return force, None, ev
-        if not want_jacobian:
-            _contact_loads_kernel(ev.nodes, ev.weights, ev.force, force)
-            return force, None, ev
-        diag = np.zeros((n1, 3, 6))
-        _contact_loads_kernel(ev.nodes, ev.weights, ev.force, force)
-        _contact_band_kernel(ev.nodes, ev.weights, ev.d_force_d_r, ev.d_force_d_v, R,
-                             np.ascontiguousarray(Y), right_jacobian(theta), float(self.dt),
-                             diag)
-        return force, diag, ev
-
-    def _exact_data(self, Y, pose, glob, ev, diag):
-        """What the exact Jacobian-vector product of the load terms needs (self-contact
-        configured: the pose is the space route, so every node's position and frame
-        depends on κ upstream of it and on node 0's motion; see :meth:`_exact_loads`)."""
-        q, R, r, theta = pose
-        n1, n_cells = self.n_nodes, self.n_cells
-        glob = np.ascontiguousarray(glob, dtype=float)
-        C = np.empty((n_cells, 3, 3))
-        D = np.empty((n_cells, 3, 3))
-        tmid = np.empty((n_cells, 3))
-        rdot = np.empty((n1, 3))
-        A0 = np.empty((3, 3))
-        _exact_frames_kernel(R, np.ascontiguousarray(Y), np.ascontiguousarray(theta),
-                             float(self.p.ds), float(self.dt), C, D, tmid, rdot, A0)
-        # the node-local terms the band holds (subtracted in the operator): the contact
-        # approximation and node_terms' rotation of the global load (computed there)
-        L = np.zeros((n1, 3, 6)) if diag is None else diag.copy()
-        L[:, :, 3:] += self._load_rotation
-        out = dict(R=R, C=C, D=D, tmid=tmid, A0=A0, rdot=rdot, G=glob, L=L)
-        if ev is not None and ev.count:
-            n_p, n_b = ev.nodes.shape
-            # dF_p = A_p [δr_b; δṙ_b]_(b = 1..K): (P, 3, 6K)
-            A = np.concatenate([ev.d_force_d_r.transpose(0, 2, 1, 3).reshape(n_p, 3, 3 * n_b),
-                                ev.d_force_d_v.transpose(0, 2, 1, 3).reshape(n_p, 3, 3 * n_b)],
-                               axis=2)
-            out.update(nodes=np.ascontiguousarray(ev.nodes), A=np.ascontiguousarray(A),
-                       F=np.ascontiguousarray(ev.force),
-                       dtdr=np.ascontiguousarray(ev.d_t_d_r.reshape(n_p, 3 * n_b)),
-                       w=np.ascontiguousarray(ev.weights),
-                       dwdt=np.ascontiguousarray(ev.d_weights_d_t))
-        return out
-
-    def _exact_loads(self, ex, dY):
-        """Body-frame load change (N+1, 3) for a change dY (N+1, 12) of the unknowns,
-        exact for the space-route pose, minus the node-local part the band holds.
-
-        With δφ_k the global rotation of frame k (space route: R_k = R_{k−1} exp(Δs κ̄_k),
-        mid-cell frame M_k = R_{k−1} exp(½Δs κ̄_k), r_k = r_{k−1} + Δs M_k a3):
-        δφ_0 = R_0 J_r(θ_0) ½Δt δω_0, δφ_k = δφ_{k−1} + R_k J_r(Δs κ̄_k) Δs δκ̄_k,
-        δr_0 = ½Δt(δφ_0 × ṙ_0 + R_0 δv_0), δr_k = δr_{k−1} + Δs (δφ_{k−1} +
-        M_k J_r(½Δs κ̄_k) ½Δs δκ̄_k) × M_k a3, δṙ_k = δφ_k × ṙ_k + R_k δv_k (prefix
-        sums: O(N)). The contact force F_p of each pair changes by Σ_b ∂F/∂r_b δr_b +
-        ∂F/∂ṙ_b δṙ_b, its load w_a F_p on node a by w_a δF_p + F_p (∂w_a/∂t) δt, and the
-        body-frame load B_a = R_aᵀ G_a (G the global force on a) by R_aᵀ(δG_a + G_a × δφ_a).
-        """
-        if "nodes" in ex:
-            nodes, A, dtdr, F, w, dwdt = (ex["nodes"], ex["A"], ex["dtdr"], ex["F"], ex["w"],
-                                          ex["dwdt"])
-        else:
-            nodes, A, dtdr, F, w, dwdt = _NO_PAIRS
-        return _exact_loads_kernel(np.ascontiguousarray(dY), ex["A0"], ex["C"], ex["D"],
-                                   ex["R"], ex["rdot"], ex["tmid"], ex["G"], ex["L"],
-                                   float(self.p.ds), float(self.dt), nodes, A, dtdr, F, w,
-                                   dwdt)
+    def contact_state(self):
+        """The contact evaluation of the last :meth:`evaluate` as a
+        :class:`solver.contact.ContactEvaluation` (copies), or None without candidates."""
+        if self.candidates is None:
+            return None
+        p = int(self.buf[-1][1])
+        sel, i, j, t, nodes, weights, coef, force, d_dr, d_dv, dt_dr, dw_dt, gap, dist = self.ev
+        from .contact.model import ContactEvaluation
+        return ContactEvaluation(i[:p].copy(), j[:p].copy(), t[:p].copy(), nodes[:p].copy(),
+                                 weights[:p].copy(), coef[:p].copy(), force[:p].copy(),
+                                 d_dr[:p].copy(), d_dv[:p].copy(), dt_dr[:p].copy(),
+                                 dw_dt[:p].copy(), gap[:p].copy(), dist[:p].copy(),
+                                 float(gap[:p].min()) if p else float("inf"), p,
+                                 sel[:self.candidates.runs].copy())
 
     def column_scale(self, Y):
         """Scale of each unknown (n,): max(|Y| of its kind over the grid, its floor)."""
@@ -789,4 +915,3 @@ class RodSystem:
         if not np.all(np.isfinite(r)):
             return np.full(self.candidates.runs, -np.inf)
         return self.contact.gaps(self.candidates, r)
-

@@ -22,16 +22,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from .banded import BandLayout
-from .boundary import BoundaryRows
+from .boundary import BoundaryRows, boundary_plan
 from .contact import SelfContact, close_node_pairs, swept_min_distance
 from .energies import distributed_power, end_loads, end_power, energies
-from .kinematics import (quat_exp, quat_from_matrix, quat_multiply, quat_slerp,
-                         relative_rotation,
-                         quat_to_matrix, space_route)
+from .kinematics import (quat_from_matrix, quat_slerp, quat_to_matrix, relative_rotation,
+                         space_route)
 from .loads import LoadModel
 from .properties import RodProperties
 from .newton import Newton
-from .scheme import BACKWARD_EULER, RodSystem, alpha_parameters
+from .scheme import BACKWARD_EULER, RodSystem, alpha_parameters, pose_into
 from .stepping import (RESTART_FRACTION, RESTART_STEPS, ErrorControl, PIController,
                        breakpoints, extrapolate,
                        growth_rate, hermite)
@@ -194,7 +193,8 @@ class RodRun:
         self.xdot_nodes = np.zeros((n1, 3))               # node displacement rates, m/s
         # (advanced only where distributed loads do work: loads.has_global)
         self.quat_norm_error = 0.0
-        self.bc = BoundaryRows(case, props, 0.0, self.system.n)
+        self.bc_plan = boundary_plan(case, props, self.system.n)
+        self.bc = BoundaryRows(case, props, 0.0, self.system.n, self.bc_plan)
         self.breakpoints = breakpoints(case)
         # error-controlled steps (numerics.tolerance): the estimator and controller, the
         # error ratio of the last estimated step, the next step size; why the last
@@ -269,7 +269,7 @@ class RodRun:
         sysm = self.system
         self.last_route_ratio = math.nan
         t_new = self.t + h if t_new is None else t_new
-        bc = BoundaryRows(self.case, self.props, t_new, sysm.n)
+        bc = BoundaryRows(self.case, self.props, t_new, sysm.n, self.bc_plan)
         switched = bc.key != self.bc.key
         offset = self.end_correction(h, bc, restart)
         if offset is not None:
@@ -301,6 +301,9 @@ class RodRun:
             if pose is None:
                 pose = sysm.pose_new(Y)
             # every combination within reach of the new positions must have been searched
+            # (the kept search holds them while the nodes stay within half its skin)
+            if self._verlet_covers(pose[2]):
+                break
             found = self._search(pose[2], pose[1], 0.0)
             if found is None or self.contact.covers(cand, found):
                 break
@@ -485,11 +488,15 @@ class RodRun:
                 Y_old.reshape(-1)[old_cols] -= old
             if new is not None:
                 Y.reshape(-1)[new_cols] -= new
-        theta = 0.5 * h * (Y_old[:, 3:6] + Y[:, 3:6])
-        q_new = quat_multiply(q, quat_exp(theta))
-        R_new = quat_to_matrix(q_new)
+        n1 = Y.shape[0]
+        q_new, R_new, r_new = np.empty((n1, 4)), np.empty((n1, 3, 3)), np.empty((n1, 3))
+        pose_into(np.ascontiguousarray(Y, dtype=float), np.ascontiguousarray(Y_old, dtype=float),
+                  float(h), False, np.ascontiguousarray(q, dtype=float),
+                  np.ascontiguousarray(r, dtype=float),
+                  np.ascontiguousarray(v_global, dtype=float), True, 0.0, q_new, R_new, r_new,
+                  np.empty((n1, 3)))
         vg = np.einsum("nij,nj->ni", R_new, Y[:, 0:3])
-        return q_new, R_new, vg, r + 0.5 * h * (v_global + vg)
+        return q_new, R_new, vg, r_new
 
     #: the share of the s = L end's drift that each step's boundary values correct
     #: (:meth:`end_correction`; None: no correction). The correction enters the step's
@@ -570,10 +577,10 @@ class RodRun:
         # a pair can come closer than ½D within the step only if it ends closer than
         # ½D + its relative displacement
         radius = 0.5 * float(np.max(self.props.diameter)) + 2.0 * float(
-            np.max(np.linalg.norm(disp, axis=1)))
+            np.sqrt(np.max(np.einsum("ij,ij->i", disp, disp))))
         tangents = np.diff(r_new, axis=0)
         tangents = np.vstack([tangents, tangents[-1:]])
-        if not c.may_touch(r_new, tangents, radius - c.tolerance):
+        if not c.may_touch_unchecked(r_new, tangents, radius - c.tolerance):
             return True
         a, b = close_node_pairs(r_new, radius, self.props.s, c.separation_cut)
         if a.size == 0:
@@ -585,53 +592,61 @@ class RodRun:
     def _search(self, positions, R, reach):
         """Contact candidates near the given positions (N+1, 3) and rotations (N+1, 3, 3)
         within tolerance + reach (m), or None when none is possible (the O(N) pre-test
-        skips the k-d tree)."""
-        tangents = R[:, :, 2]
-        if not self.contact.may_touch(positions, tangents, reach):
-            return None
-        cand = self.contact.candidates(positions, tangents, reach)
-        return cand if cand.runs else None
+        skips the k-d tree) or none is found (:meth:`SelfContact.search`)."""
+        return self.contact.search(positions, R[:, :, 2], reach)
+
+    #: the contact search's skin (a share of ``tolerance − D_max``, m): candidates are
+    #: searched within tolerance + skin of the old positions and kept over the following
+    #: steps while no node has moved more than half the skin from where they were
+    #: searched (a Verlet list: Verlet, Phys. Rev. 159 (1967) 98-103); every pair within
+    #: the tolerance is then among them, so neither a new search nor the coverage check
+    #: after Newton is needed (docs/contact.md § 2)
+    VERLET_SKIN = 0.25
+    #: (candidates or None, the positions (N+1, 3) they were searched at) or None (a class
+    #: default: runs pickled before it existed search afresh)
+    verlet = None
+
+    def _skin(self) -> float:
+        """The search skin (m): VERLET_SKIN × (tolerance − D_max)."""
+        return self.VERLET_SKIN * (self.contact.tolerance - float(np.max(self.props.diameter)))
+
+    def _verlet_covers(self, positions) -> bool:
+        """Whether the kept candidates (:attr:`verlet`) hold every pair within the
+        tolerance at these positions (N+1, 3): no node more than half the skin from where
+        they were searched."""
+        if self.verlet is None:
+            return False
+        d = positions - self.verlet[1]
+        return bool(np.max(np.einsum("ij,ij->i", d, d)) <= (0.5 * self._skin()) ** 2)
 
     def _candidates(self, h, guess):
-        """Candidates for a step of h (s) from the Newton start ``guess`` (N+1, 12): node
-        pairs within tolerance + m of each other at the old positions or at the positions
-        the start predicts, m = min(¼(tolerance − D_max), 2h max|ṙ^n|). Pairs that come
+        """Candidates for a step of h (s) from the Newton start ``guess`` (N+1, 12): the
+        kept ones (:attr:`verlet`) while they cover the old positions and those the start
+        predicts, else node pairs within tolerance + skin of the old positions (and of the
+        predicted ones, when those lie more than half the skin away). Pairs that come
         within the tolerance beyond that are added by the coverage check after Newton,
         and the step is solved again."""
-        margin = 0.25 * (self.contact.tolerance - float(np.max(self.props.diameter)))
-        margin = min(margin, 2.0 * h * float(np.max(np.linalg.norm(self.v_global, axis=1))))
-        old = self._search(self.r, quat_to_matrix(self.q), margin)
         _, R_new, _, r_new = self._time_step(h, guess, self.q, self.r, self.v_global)
-        if not np.all(np.isfinite(r_new)):
-            return old
-        new = self._search(r_new, R_new, margin)
-        if old is None or new is None:
-            return new if old is None else old
-        return self.contact.merge(old, new)
+        finite = bool(np.all(np.isfinite(r_new)))
+        if self._verlet_covers(self.r) and (not finite or self._verlet_covers(r_new)):
+            return self.verlet[0]
+        skin = self._skin()
+        cand = self._search(self.r, quat_to_matrix(self.q), skin)
+        self.verlet = (cand, self.r)
+        if finite and not self._verlet_covers(r_new):
+            new = self._search(r_new, R_new, skin)
+            if new is not None:
+                cand = new if cand is None else self.contact.merge(cand, new)
+        return cand
 
     def _feasible_guess(self, guess):
-        """A Newton start whose contact gaps are open (the replay of the seed example's
-        first contact: an extrapolated start penetrated and Newton died at the barrier).
-
-        The zero-displacement state (v, ω) = −(v^n, ω^n) keeps every node where it is (the
-        trapezoidal position update); the start is blended from it toward ``guess`` by the
-        largest 2^−k that keeps every candidate gap at least half its old value. The step
-        (with its candidates) must have been set up by ``system.begin_step``."""
+        """A Newton start whose contact gaps are open (:meth:`Newton.feasible_start`: the
+        replay of the seed example's first contact, where an extrapolated start penetrated
+        and Newton died at the barrier), unless ``guess`` is the old level itself. The
+        step (with its candidates) must have been set up by ``system.begin_step``."""
         if guess is self.Y:
             return guess
-        sysm = self.system
-        still = self.Y.copy()
-        still[:, 0:6] = -self.Y[:, 0:6]
-        g_old = sysm.candidate_gaps(still)
-        finite = np.isfinite(g_old)
-        beta = 1.0
-        for _ in range(8):
-            trial = still + beta * (guess - still)
-            g = sysm.candidate_gaps(trial)
-            if np.all(~finite | (g >= 0.5 * np.maximum(g_old, 0.0))):
-                return trial
-            beta *= 0.5
-        return still
+        return self.newton.feasible_start(guess)
 
     def update_space_route(self):
         """Recompute pose along the rod from κ, anchored at node 0's time-route pose."""

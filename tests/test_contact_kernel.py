@@ -530,14 +530,70 @@ def test_closest_point_is_continuous_on_the_concave_side_of_a_bend():
     assert np.all(np.diff(feet) > 0.0) and np.diff(feet).max() < 0.1
 
 
-def test_unique_keys_equals_numpy_unique_through_the_table_and_the_fallback(monkeypatch):
-    from solver.contact import model
+def _reference_runs(sc, own, par):
+    """Runs of node pairs as sets: per owner, the partners sorted and split where they
+    jump by more than 3, each run widened by one node where that node is in the rod and
+    beyond the exclusion; (owner, first node, last node) triples."""
+    n = sc.n_nodes
+    pairs = sorted(set(zip(own.tolist(), par.tolist())))
+    runs = []
+    for o in sorted({p[0] for p in pairs}):
+        mine = [p for q, p in pairs if q == o]
+        groups = [[mine[0]]]
+        for p in mine[1:]:
+            if p > groups[-1][-1] + 3:
+                groups.append([p])
+            else:
+                groups[-1].append(p)
+        for g in groups:
+            lo, hi = g[0], g[-1]
+            if lo - 1 >= 0 and abs(sc.s[o] - sc.s[lo - 1]) > sc.separation_cut:
+                lo -= 1
+            if hi + 1 < n and abs(sc.s[o] - sc.s[hi + 1]) > sc.separation_cut:
+                hi += 1
+            if hi > lo:
+                runs.append((o, lo, hi))
+    return runs
+
+
+def _runs_of(cand):
+    out = []
+    bounds = list(cand.run_start) + [cand.owner.size]
+    for q in range(cand.runs):
+        seg = cand.segment[bounds[q]:bounds[q + 1]]
+        assert np.all(cand.owner[bounds[q]:bounds[q + 1]] == cand.owner[bounds[q]])
+        assert np.array_equal(seg, np.arange(seg[0], seg[-1] + 1))
+        out.append((int(cand.owner[bounds[q]]), int(seg[0]), int(seg[-1]) + 1))
+        assert cand.first_vertex_is_end[q] == (seg[0] == 0)
+        assert cand.last_vertex_is_end[q] == (seg[-1] + 1 == _N_REF - 1)
+    return out
+
+
+_N_REF = 60
+
+
+def test_runs_merge_and_covers_against_set_reference():
+    """The compiled run building (deduplication, splitting, widening), merging and the
+    coverage test against a plain set-based reference on random node pairs."""
+    n = _N_REF
+    s = np.linspace(0.0, 1.0, n)
+    sc = SelfContact(dict(aperture=90.0, tolerance=0.04, k1=1e-7, k2=3.0, k3=0.0, k4=0.0),
+                     s, np.full(n, 0.01), np.full(n, 0.1))
     rng = np.random.default_rng(3)
-    size = 1001 * 1001
-    keys = rng.integers(0, size, 50_000)
-    keys[:100] = keys[100:200]                     # repeats
-    expected = np.unique(keys)
-    np.testing.assert_array_equal(model._unique_keys(keys, size), expected)
-    monkeypatch.setattr(model, "_TABLE_KEYS", 10)  # the np.unique branch
-    np.testing.assert_array_equal(model._unique_keys(keys, size), expected)
-    assert model._unique_keys(np.zeros(0, np.int64), size).size == 0
+    made = []
+    for _ in range(200):
+        m = int(rng.integers(0, 40))
+        own, par = rng.integers(0, n, m), rng.integers(0, n, m)
+        ok = np.abs(s[own] - s[par]) > sc.separation_cut
+        own, par = own[ok], par[ok]
+        cand = sc._runs(own, par)
+        assert _runs_of(cand) == _reference_runs(sc, own, par)
+        made.append(cand)
+    for a, b in zip(made[::2], made[1::2]):
+        merged = sc.merge(a, b)
+        combos = set(zip(merged.owner.tolist(), merged.segment.tolist()))
+        for c in (a, b):
+            assert set(zip(c.owner.tolist(), c.segment.tolist())) <= combos
+            assert sc.covers(merged, c)
+        extra = combos - set(zip(a.owner.tolist(), a.segment.tolist()))
+        assert sc.covers(a, merged) == (not extra)

@@ -7,7 +7,6 @@ output: |Tw + Wr − Lk| < 0.05 (Lk from the end rotations, Wr from the centreli
 κ3: three independent routes), surfaces never interpenetrate, and Lk follows the prescribed
 end rotation.
 """
-import inspect
 from pathlib import Path
 
 import numpy as np
@@ -71,93 +70,101 @@ def test_no_contact_machinery_without_contact():
     assert run.contact is None
     for k in range(3):
         run.advance(0.1 * (k + 1))
-    assert run.system.candidates is None and run.newton._coupled is None
-
-
-def test_gmres_solves_the_exact_contact_operator(monkeypatch):
-    """The contact steps' GMRES (right-preconditioned by the band LU, its least-squares
-    problem reduced by Givens rotations) against a dense solve of the same operator, taken
-    column by column from the matrix-free product at the first Newton iterate with active
-    contacts: to 1e-10 it agrees with the dense solution, and at the default relative
-    residual (1e-3) the residual it stops on is the true one."""
-    from solver.newton import Newton
-
-    run = RodRun(fast_writhing_case(6.8))
-    captured = {}
-    solve = Newton._coupled_solve
-
-    def spy(self, rhs, *args, **kwargs):
-        ex = self._coupled[4]
-        if not captured and ex is not None and "nodes" in ex and len(ex["nodes"]) >= 5:
-            failures, its = self.gmres_failures, self.gmres_iterations
-            default = solve(self, rhs)
-            if self.gmres_iterations - its > 2:      # a solve that GMRES has to work for
-                captured["default"] = default
-                captured["converged"] = self.gmres_failures == failures
-                captured["iterations"] = self.gmres_iterations - its
-                n = rhs.size
-                captured["A"] = np.column_stack([self._coupled_matvec(e) for e in np.eye(n)])
-                captured["rhs"] = rhs.copy()
-                captured["tight"] = solve(self, rhs, rtol=1e-10)
-        return solve(self, rhs, *args, **kwargs)
-
-    monkeypatch.setattr(Newton, "_coupled_solve", spy)
-    k = 0
-    while not captured and run.t < 6.8 - 1e-9:
-        k += 1
-        run.advance(0.1 * k)
-    assert captured, "no GMRES solve of > 2 iterations with five pairs before 6.8 s"
-    A, rhs = captured["A"], captured["rhs"]
-    exact = np.linalg.solve(A, rhs)
-    assert captured["converged"] and captured["iterations"] > 2
-    assert np.linalg.norm(captured["tight"] - exact) <= 1e-7 * np.linalg.norm(exact)
-    r = np.linalg.norm(A @ captured["default"] - rhs) / np.linalg.norm(rhs)
-    default = inspect.signature(solve).parameters["rtol"].default
-    assert r <= default * (1 + 1e-6)
+    assert run.system.candidates is None and not run.newton.coupled
 
 
 class _Captured(Exception):
     pass
 
 
-def test_contact_operator_is_the_jacobian_of_the_residual(monkeypatch):
-    """The operator GMRES solves with in a contact step (the band, which holds only a
-    share of the node-local contact blocks, plus the matrix-free exact load product) is
-    the Jacobian of the step's residual: against central differences along random
-    directions at the first iterate with five pairs (N = 100)."""
+def _linearized_contact_iterate(monkeypatch, min_pairs=5, accept=None):
+    """Run the fast writhing case (N = 100) to the first Newton start with at least
+    ``min_pairs`` active contacts, linearise Newton there (:meth:`Newton.linearize`)
+    and return (run, the iterate Y (N+1, 12)); given ``accept(run, Y)``, the iterate it
+    returns instead, the first that is not None."""
     from solver.newton import Newton
 
     run = RodRun(fast_writhing_case(6.8))
-    assert 0.0 < Newton.CONTACT_BAND_WEIGHT < 1.0
     captured = {}
-    solve = Newton._coupled_solve
+    solve = Newton.solve
 
-    def spy(self, rhs, *args, **kwargs):
-        ex = self._coupled[4]
-        if ex is not None and "nodes" in ex and len(ex["nodes"]) >= 5:
-            system = self.system
-            Y = system._pose_memo[0].copy()           # the iterate of this solve
-            rng = np.random.default_rng(1)
-            rows = []
-            for _ in range(3):
-                x = rng.standard_normal(rhs.size)
-                dY = (x * self._col_scale).reshape(Y.shape)
-                eps = 1e-6
-                Rp = system.residual(Y + eps * dY)[0]
-                Rm = system.residual(Y - eps * dY)[0]
-                rows.append((self._coupled_matvec(x),
-                             self._row_scale * (Rp - Rm) / (2.0 * eps)))
-            captured["pairs"] = rows
-            raise _Captured
-        return solve(self, rhs, *args, **kwargs)
+    def spy(self, Y_guess):
+        system = self.system
+        if system.candidates is not None and system.evaluate(Y_guess, True)[1] >= min_pairs:
+            self.linearize(Y_guess)
+            Y = np.array(Y_guess, dtype=float)
+            if accept is not None:
+                Y = accept(run, Y)
+            if Y is not None:
+                captured["Y"] = Y
+                raise _Captured
+        return solve(self, Y_guess)
 
-    monkeypatch.setattr(Newton, "_coupled_solve", spy)
+    monkeypatch.setattr(Newton, "solve", spy)
     k = 0
     with pytest.raises(_Captured):
         while run.t < 6.8 - 1e-9:
             k += 1
             run.advance(0.1 * k)
-    for product, central in captured["pairs"]:
+    monkeypatch.setattr(Newton, "solve", solve)
+    return run, captured["Y"]
+
+
+def _gmres_works(run, Y):
+    """Move from the linearised Newton start Y by its Newton correction to the next
+    iterate and make that iterate's Jacobian the operator with the start's band LU
+    (stale, as between refactorisations): that iterate if GMRES then needs more than two
+    iterations, else None."""
+    newton, system = run.newton, run.system
+    delta, _, _ = newton.gmres(-system.buf[0] * newton.row_scale)
+    Y1 = Y + (delta * newton.col_scale).reshape(Y.shape)
+    newton.linearize(Y1, refactor=False)
+    return Y1 if newton.gmres(-system.buf[0] * newton.row_scale)[1] > 2 else None
+
+
+def test_gmres_solves_the_exact_contact_operator(monkeypatch):
+    """The contact steps' GMRES (right-preconditioned by the band LU, its least-squares
+    problem reduced by Givens rotations) against a dense solve of the same operator, taken
+    column by column from the matrix-free product at a Newton start with active contacts
+    where GMRES needs more than two iterations:
+    to 1e-10 it agrees with the dense solution, and at the default relative residual
+    (1e-3) the residual it stops on is the true one."""
+    run, Y = _linearized_contact_iterate(monkeypatch, accept=_gmres_works)
+    newton = run.newton
+    assert newton.coupled
+    rhs = -run.system.buf[0] * newton.row_scale
+    n = rhs.size
+    A = np.column_stack([newton.operator(e) for e in np.eye(n)])
+    exact = np.linalg.solve(A, rhs)
+    default, its, converged = newton.gmres(rhs)
+    assert converged and its > 2
+    tight, _, _ = newton.gmres(rhs, rtol=1e-10)
+    assert np.linalg.norm(tight - exact) <= 1e-7 * np.linalg.norm(exact)
+    r = np.linalg.norm(A @ default - rhs) / np.linalg.norm(rhs)
+    assert r <= newton.GMRES_RTOL * (1 + 1e-6)
+    # the band LU alone (the preconditioner) is not the operator's inverse
+    assert np.linalg.norm(newton.band_solve(rhs) - exact) > 1e-3 * np.linalg.norm(exact)
+
+
+def test_contact_operator_is_the_jacobian_of_the_residual(monkeypatch):
+    """The operator GMRES solves with in a contact step (the band, which holds only a
+    share of the node-local contact blocks, plus the matrix-free exact load product) is
+    the Jacobian of the step's residual: against central differences along random
+    directions at a Newton start with five pairs (N = 100)."""
+    from solver.newton import Newton
+
+    assert 0.0 < Newton.CONTACT_BAND_WEIGHT < 1.0
+    run, Y = _linearized_contact_iterate(monkeypatch)
+    newton, system = run.newton, run.system
+    rng = np.random.default_rng(1)
+    for _ in range(3):
+        x = rng.standard_normal(system.n)
+        dY = (x * newton.col_scale).reshape(Y.shape)
+        eps = 1e-6
+        Rp = system.residual(Y + eps * dY)[0]
+        Rm = system.residual(Y - eps * dY)[0]
+        central = newton.row_scale * (Rp - Rm) / (2.0 * eps)
+        product = newton.operator(x)
         assert np.max(np.abs(product - central)) <= 1e-6 * np.max(np.abs(central))
 
 

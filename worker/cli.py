@@ -73,6 +73,12 @@ def run(args: argparse.Namespace) -> int:
         return 1
     from worker.app import app  # pins BLAS threads before numpy is imported
 
+    # load the solver's compiled kernels before the pool forks, so that no job pays for
+    # them (the first start after an installation compiles them into numba's cache, about
+    # a minute on 2 cores; later starts load them in about a second)
+    from solver import warm_up
+
+    warm_up()
     app.worker_main(argv=argv)
     return 0
 

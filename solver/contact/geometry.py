@@ -257,13 +257,46 @@ def _point_curve_kernel(p, r, iterations, idx, mats, t_out, x_out, d_out, c1_out
 
 
 @numba.njit(cache=True)
+def _run_point(r, own, seg, lo, hi, frozen_k, iterations, seg_nodes, seg_mats, tb0, tb1):
+    """The closest point of one run (combinations lo .. hi inclusive) on its partner
+    curve: the combination ``frozen_k`` if it is ≥ 0, else the best of the polyline's
+    closest segment and its two neighbours in the run (the first on a tie). Writes β, β'
+    of the candidates into rows 0-2 of tb0, tb1 (3, 4) and returns (k, t, x0, x1, x2, d,
+    c'0, c'1, c'2, g, row of tb0/tb1 that holds the chosen one's basis)."""
+    if frozen_k >= 0:
+        trio = (frozen_k, frozen_k, frozen_k)
+        count = 1
+    else:
+        k0 = _run_minimum(r, own, seg, lo, hi + 1)
+        trio = (max(k0 - 1, lo), k0, min(k0 + 1, hi))
+        count = 3
+    best = np.inf
+    bk = trio[0]
+    bt = bx0 = bx1 = bx2 = bd = bc0 = bc1 = bc2 = bg = 0.0
+    brow = 0
+    for c in range(count):
+        kc = trio[c]
+        j = seg[kc]
+        i = own[kc]
+        t, x0, x1, x2, d0, d1, d2, g = _curve_point(r[i, 0], r[i, 1], r[i, 2], r,
+                                                    seg_nodes[j], seg_mats[j],
+                                                    iterations, tb0, tb1, c)
+        d = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+        if c == 0 or d < best:
+            best = d
+            bk, bt, bx0, bx1, bx2, bd = kc, t, x0, x1, x2, d
+            bc0, bc1, bc2, bg, brow = d0, d1, d2, g, c
+    return bk, bt, bx0, bx1, bx2, bd, bc0, bc1, bc2, bg, brow
+
+
+@numba.njit(cache=True)
 def _run_closest_kernel(r, own, seg, start, frozen, iterations, seg_nodes, seg_mats, k_out,
                         t_out, x_out, d_out, c1_out, g_out, idx_out, b0_out, b1_out):
     """Compiled body of :func:`run_closest`: per run q, the combination k (frozen[q] if
     ``frozen`` is non-empty, else the best of the polyline's closest segment and its two
-    neighbours in the run, the first on a tie) and its closest point on the curve;
-    seg_nodes (N−1, 4) and seg_mats (N−1, 4, 4) every segment's nodes and matrix
-    (:func:`_segment_nodes`, :func:`_segment_matrices`)."""
+    neighbours in the run, the first on a tie) and its closest point on the curve
+    (:func:`_run_point`); seg_nodes (N−1, 4) and seg_mats (N−1, 4, 4) every segment's
+    nodes and matrix (:func:`_segment_nodes`, :func:`_segment_matrices`)."""
     n_runs = start.shape[0]
     total = own.shape[0]
     tb0 = np.empty((3, 4))
@@ -271,38 +304,24 @@ def _run_closest_kernel(r, own, seg, start, frozen, iterations, seg_nodes, seg_m
     for q in range(n_runs):
         lo = start[q]
         hi = (start[q + 1] if q + 1 < n_runs else total) - 1
-        if frozen.shape[0]:
-            trio = (frozen[q], frozen[q], frozen[q])
-            count = 1
-        else:
-            k0 = _run_minimum(r, own, seg, lo, hi + 1)
-            trio = (max(k0 - 1, lo), k0, min(k0 + 1, hi))
-            count = 3
-        best = np.inf
-        for c in range(count):
-            kc = trio[c]
-            j = seg[kc]
-            i = own[kc]
-            t, x0, x1, x2, d0, d1, d2, g = _curve_point(r[i, 0], r[i, 1], r[i, 2], r,
-                                                        seg_nodes[j], seg_mats[j],
-                                                        iterations, tb0, tb1, c)
-            d = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
-            if c == 0 or d < best:
-                best = d
-                k_out[q] = kc
-                t_out[q] = t
-                x_out[q, 0] = x0
-                x_out[q, 1] = x1
-                x_out[q, 2] = x2
-                d_out[q] = d
-                c1_out[q, 0] = d0
-                c1_out[q, 1] = d1
-                c1_out[q, 2] = d2
-                g_out[q] = g
-                for b in range(4):
-                    idx_out[q, b] = seg_nodes[j, b]
-                    b0_out[q, b] = tb0[c, b]
-                    b1_out[q, b] = tb1[c, b]
+        fk = frozen[q] if frozen.shape[0] else -1
+        k, t, x0, x1, x2, d, c0, c1, c2, g, row = _run_point(
+            r, own, seg, lo, hi, fk, iterations, seg_nodes, seg_mats, tb0, tb1)
+        k_out[q] = k
+        t_out[q] = t
+        x_out[q, 0] = x0
+        x_out[q, 1] = x1
+        x_out[q, 2] = x2
+        d_out[q] = d
+        c1_out[q, 0] = c0
+        c1_out[q, 1] = c1
+        c1_out[q, 2] = c2
+        g_out[q] = g
+        j = seg[k]
+        for b in range(4):
+            idx_out[q, b] = seg_nodes[j, b]
+            b0_out[q, b] = tb0[row, b]
+            b1_out[q, b] = tb1[row, b]
 
 
 def run_closest(positions, owner, segment, run_start, frozen=None, iterations=3):
@@ -449,12 +468,36 @@ def candidate_pairs(positions, tangents, radius, s, separation_cut, sin_half_ape
 
 def swept_min_distance(r0, r1, a, b):
     """Closest approach of node pairs (a, b) whose relative position moves linearly from
-    r0[a] − r0[b] to r1[a] − r1[b] over the step. r0, r1: (N, 3) m; returns (P,) m."""
-    x0 = r0[a] - r0[b]
-    dx = (r1[a] - r1[b]) - x0
-    dd = np.einsum("ij,ij->i", dx, dx)
-    tmin = np.clip(-np.einsum("ij,ij->i", x0, dx) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-    return np.linalg.norm(x0 + tmin[:, None] * dx, axis=1)
+    r0[a] − r0[b] to r1[a] − r1[b] over the step. r0, r1: (N, 3) m; returns (P,) m.
+    Compiled (:func:`_swept_kernel`)."""
+    out = np.empty(len(a))
+    _swept_kernel(np.ascontiguousarray(r0, dtype=float), np.ascontiguousarray(r1, dtype=float),
+                  np.ascontiguousarray(a, dtype=np.intp), np.ascontiguousarray(b, dtype=np.intp),
+                  out)
+    return out
+
+
+@numba.njit(cache=True)
+def _swept_kernel(r0, r1, a, b, out):
+    """:func:`swept_min_distance` into out (P,): per pair, x0 = r0_a − r0_b, its change
+    dx over the step and the distance at the clamped minimiser t = −x0·dx/|dx|²."""
+    for p in range(a.shape[0]):
+        i = a[p]
+        j = b[p]
+        x0 = r0[i, 0] - r0[j, 0]
+        x1 = r0[i, 1] - r0[j, 1]
+        x2 = r0[i, 2] - r0[j, 2]
+        d0 = (r1[i, 0] - r1[j, 0]) - x0
+        d1 = (r1[i, 1] - r1[j, 1]) - x1
+        d2 = (r1[i, 2] - r1[j, 2]) - x2
+        dd = d0 * d0 + d1 * d1 + d2 * d2
+        t = 0.0
+        if dd > 0.0:
+            t = min(max(-(x0 * d0 + x1 * d1 + x2 * d2) / dd, 0.0), 1.0)
+        y0 = x0 + t * d0
+        y1 = x1 + t * d1
+        y2 = x2 + t * d2
+        out[p] = math.sqrt(y0 * y0 + y1 * y1 + y2 * y2)
 
 
 def segment_segment(p0, p1, q0, q1):

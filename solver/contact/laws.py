@@ -28,9 +28,125 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 
+import math
+
+import numba
 import numpy as np
 
-__all__ = ["SeedLaw", "BarrierLaw", "smoothstep_off"]
+__all__ = ["SeedLaw", "BarrierLaw", "smoothstep_off", "law_force", "SEED", "BARRIER"]
+
+#: the law kinds of a parameter vector (:attr:`_Law.params`)
+SEED, BARRIER = 0, 1
+#: the layout of a law's parameter vector as the compiled kernels take it
+_KIND, _K1, _K2, _K3, _K4, _TOL, _FLOOR, _DHAT, _KAPPA = range(9)
+
+
+@numba.njit(cache=True, inline="always")
+def _smoothstep(d, d_on, d_off):
+    """φ(d), φ'(d) of the C² cut-off (:func:`smoothstep_off`) for one distance."""
+    w = d_off - d_on
+    x = min(max((d - d_on) / w, 0.0), 1.0)
+    x2 = x * x
+    return 1.0 - x2 * x * (10.0 - 15.0 * x + 6.0 * x2), -30.0 * x2 * (1.0 - x) ** 2 / w
+
+
+@numba.njit(cache=True, inline="always")
+def _barrier_p(kappa, h, g):
+    """IPC's barrier pressure P(g) = κ[2(g − ĝ) ln(g/ĝ) + (g − ĝ)²/g] and P'(g) for one
+    gap 0 < g ≤ ĝ (module doc)."""
+    lg = math.log(g / h)
+    val = kappa * (2.0 * (g - h) * lg + (g - h) ** 2 / g)
+    slope = kappa * (2.0 * lg + 4.0 * (g - h) / g - ((g - h) / g) ** 2)
+    return val, slope
+
+
+@numba.njit(cache=True, inline="always")
+def _repulsion(law, gap):
+    """P(g) (m/s²) and P'(g) (1/s²) of the law ``law`` (its parameter vector) for one gap
+    (m), with the linear continuation below the gap floor (module doc)."""
+    gf = law[_FLOOR]
+    if law[_KIND] == SEED:
+        g = max(gap, gf)
+        val = law[_K1] * g ** (-law[_K2])
+        slope = -law[_K2] * val / g
+        if gap < gf:
+            val = val + slope * (gap - gf)
+        return val, slope
+    h = law[_DHAT]
+    if gap >= h:
+        return 0.0, 0.0
+    val, slope = _barrier_p(law[_KAPPA], h, min(max(gap, gf), h))
+    if gap < gf:
+        val = val + slope * (gap - gf)
+    return val, slope
+
+
+@numba.njit(cache=True, inline="always")
+def law_cutoff(law, mean_diameter):
+    """(d_on, d_off) (m) of the law's cut-off φ for a pair of mean diameter D̄ (m): the
+    seed's ½(D̄ + tolerance) and tolerance, the barrier's D̄ + ½ĝ and D̄ + ĝ."""
+    if law[_KIND] == SEED:
+        return 0.5 * (mean_diameter + law[_TOL]), law[_TOL]
+    return mean_diameter + 0.5 * law[_DHAT], mean_diameter + law[_DHAT]
+
+
+@numba.njit(cache=True, inline="always")
+def law_force(law, d, ddot, mean_diameter, rho):
+    """The force per unit length of one pair and its derivatives (module doc):
+    f = ρĀ φ(d)[P(g) − (k3/d) ḋ|ḋ|^k4] (the barrier's P not cut off), for centreline
+    distance d (m), approach rate ḋ (m/s), mean diameter D̄ (m) and ρĀ (kg/m). ``law``:
+    the parameter vector (:attr:`_Law.params`). Returns (f (N/m), ∂f/∂d (N/m²),
+    ∂f/∂ḋ (N·s/m²), gap g = d − D̄ (m)). The one implementation of both laws: the
+    classes below and the contact kernels of :mod:`solver.contact.model` call it."""
+    gap = d - mean_diameter
+    rep, rep_slope = _repulsion(law, gap)
+    d_on, d_off = law_cutoff(law, mean_diameter)
+    phi, dphi = _smoothstep(d, d_on, d_off)
+    k3 = law[_K3]
+    k4 = law[_K4]
+    absd = abs(ddot)
+    powk = absd ** k4 if k4 != 0.0 else 1.0
+    damp = k3 * ddot * powk / d
+    if law[_KIND] == SEED:
+        core = rep - damp
+        f = rho * phi * core
+        f_d = rho * (dphi * core + phi * (rep_slope + damp / d))
+    else:
+        f = rho * (rep - phi * damp)
+        f_d = rho * (rep_slope - dphi * damp + phi * damp / d)
+    f_dd = -rho * phi * k3 * (1.0 + k4) * powk / d
+    return f, f_d, f_dd, gap
+
+
+@numba.njit(cache=True)
+def _law_kernel(law, d, ddot, mean_diameter, rho, out):
+    for m in range(d.shape[0]):
+        out[0, m], out[1, m], out[2, m], out[3, m] = law_force(law, d[m], ddot[m],
+                                                               mean_diameter[m], rho[m])
+
+
+@numba.njit(cache=True)
+def _repulsion_kernel(law, gap, out):
+    for m in range(gap.shape[0]):
+        out[0, m], out[1, m] = _repulsion(law, gap[m])
+
+
+@numba.njit(cache=True)
+def _cutoff_kernel(law, mean_diameter, out):
+    for m in range(mean_diameter.shape[0]):
+        out[0, m], out[1, m] = law_cutoff(law, mean_diameter[m])
+
+
+@numba.njit(cache=True)
+def _smoothstep_kernel(d, d_on, d_off, out):
+    for m in range(d.shape[0]):
+        out[0, m], out[1, m] = _smoothstep(d[m], d_on[m], d_off[m])
+
+
+def _flat(*arrays):
+    shape = np.broadcast_shapes(*(np.shape(a) for a in arrays))
+    return shape, [np.ascontiguousarray(np.broadcast_to(np.asarray(a, float), shape)).ravel()
+                   for a in arrays]
 
 
 def smoothstep_off(d, d_on, d_off):
@@ -39,50 +155,45 @@ def smoothstep_off(d, d_on, d_off):
 
     d, d_on, d_off: arrays of one shape (m). Returns (φ, dφ/dd (1/m)).
     """
-    w = d_off - d_on
-    x = np.clip((d - d_on) / w, 0.0, 1.0)
-    x2 = x * x
-    phi = 1.0 - x2 * x * (10.0 - 15.0 * x + 6.0 * x2)
-    dphi = -30.0 * x2 * (1.0 - x) ** 2 / w
-    return phi, dphi
+    shape, (d, d_on, d_off) = _flat(d, d_on, d_off)
+    out = np.empty((2, d.size))
+    _smoothstep_kernel(d, d_on, d_off, out)
+    return out[0].reshape(shape), out[1].reshape(shape)
 
 
 class _Law(ABC):
-    """Shared damping and cut-off; subclasses give the repulsion P(g) and P'(g)."""
-
-    #: whether φ multiplies the repulsion too (the seed's law) or only the damping (the
-    #: barrier, already C² at its activation gap)
-    cut_repulsion = True
+    """Shared damping and cut-off; subclasses give the parameter vector ``params`` (9,)
+    that the compiled :func:`law_force` reads: kind, k1, k2, k3, k4, tolerance,
+    gap_floor, ĝ, κ."""
 
     def __init__(self, k3: float, k4: float):
         self.k3, self.k4 = float(k3), float(k4)
 
+    @property
     @abstractmethod
+    def params(self) -> np.ndarray:
+        """The law as the compiled kernels take it, (9,) float."""
+
     def cutoff(self, mean_diameter):
         """(d_on, d_off) (m), each shaped like mean_diameter: where φ leaves 1 and reaches 0."""
+        shape, (dbar,) = _flat(mean_diameter)
+        out = np.empty((2, dbar.size))
+        _cutoff_kernel(self.params, dbar, out)
+        return out[0].reshape(shape), out[1].reshape(shape)
 
-    @abstractmethod
     def repulsion(self, gap):
         """P(g) (m/s²) and P'(g) (1/s²) for gaps g (m), same shape."""
+        shape, (g,) = _flat(gap)
+        out = np.empty((2, g.size))
+        _repulsion_kernel(self.params, g, out)
+        return out[0].reshape(shape), out[1].reshape(shape)
 
     def __call__(self, d, ddot, mean_diameter, rho):
-        """f, ∂f/∂d, ∂f/∂ḋ per pair; d, ddot, mean_diameter (m), rho (kg/m): (P,)."""
-        gap = d - mean_diameter
-        rep, rep_slope = self.repulsion(gap)
-        d_on, d_off = self.cutoff(mean_diameter)
-        phi, dphi = smoothstep_off(d, d_on, d_off)
-        absd = np.abs(ddot)
-        powk = absd ** self.k4 if self.k4 != 0.0 else np.ones_like(absd)
-        damp = self.k3 * ddot * powk / d
-        if self.cut_repulsion:
-            core = rep - damp
-            f = rho * phi * core
-            f_d = rho * (dphi * core + phi * (rep_slope + damp / d))
-        else:
-            f = rho * (rep - phi * damp)
-            f_d = rho * (rep_slope - dphi * damp + phi * damp / d)
-        f_dd = -rho * phi * self.k3 * (1.0 + self.k4) * powk / d
-        return f, f_d, f_dd, gap
+        """f, ∂f/∂d, ∂f/∂ḋ, gap per pair; d, ddot, mean_diameter (m), rho (kg/m): (P,)."""
+        shape, (d, ddot, dbar, rho) = _flat(d, ddot, mean_diameter, rho)
+        out = np.empty((4, d.size))
+        _law_kernel(self.params, d, ddot, dbar, rho, out)
+        return tuple(o.reshape(shape) for o in out)
 
 
 class SeedLaw(_Law):
@@ -99,19 +210,12 @@ class SeedLaw(_Law):
         self.k1, self.k2 = float(k1), float(k2)
         self.tolerance = float(tolerance)
         self.gap_floor = float(gap_floor)
+        self._params = np.array([SEED, self.k1, self.k2, self.k3, self.k4, self.tolerance,
+                                 self.gap_floor, 0.0, 0.0])
 
-    def cutoff(self, mean_diameter):
-        return 0.5 * (mean_diameter + self.tolerance), np.full_like(mean_diameter, self.tolerance)
-
-    def repulsion(self, gap):
-        """P(g) (m/s²) and P'(g) (1/s²): k1/g^k2 above the floor, linear below."""
-        gap = np.asarray(gap, dtype=float)
-        gf = self.gap_floor
-        g = np.maximum(gap, gf)
-        val = self.k1 * g ** (-self.k2)
-        slope = -self.k2 * val / g
-        below = gap < gf
-        return np.where(below, val + slope * (gap - gf), val), slope
+    @property
+    def params(self):
+        return self._params
 
     def equilibrium_gap(self, pressure):
         """The gap g (m) at which P(g) equals ``pressure`` (m/s²), inverting k1/g^k2."""
@@ -123,38 +227,24 @@ class BarrierLaw(_Law):
     damping k3, k4 as the seed's; gap_floor (m): below it P continues linearly."""
 
     name = "barrier"
-    cut_repulsion = False
 
     def __init__(self, d_hat, stiffness, k3, k4, gap_floor):
         super().__init__(k3, k4)
         self.d_hat, self.kappa = float(d_hat), float(stiffness)
         self.gap_floor = float(gap_floor)
+        self._params = np.array([BARRIER, 0.0, 0.0, self.k3, self.k4, 0.0, self.gap_floor,
+                                 self.d_hat, self.kappa])
 
-    def cutoff(self, mean_diameter):
-        return mean_diameter + 0.5 * self.d_hat, mean_diameter + self.d_hat
-
-    def _p(self, g):
-        h = self.d_hat
-        lg = np.log(g / h)
-        val = self.kappa * (2.0 * (g - h) * lg + (g - h) ** 2 / g)
-        slope = self.kappa * (2.0 * lg + 4.0 * (g - h) / g - ((g - h) / g) ** 2)
-        return val, slope
-
-    def repulsion(self, gap):
-        gap = np.asarray(gap, dtype=float)
-        gf = self.gap_floor
-        inside = gap < self.d_hat
-        g = np.clip(gap, gf, self.d_hat)
-        val, slope = self._p(g)
-        val = np.where(gap < gf, val + slope * (gap - gf), val)
-        return np.where(inside, val, 0.0), np.where(inside, slope, 0.0)
+    @property
+    def params(self):
+        return self._params
 
     def equilibrium_gap(self, pressure):
         """The gap g (m) with P(g) = pressure (m/s²), by bisection on (0, ĝ)."""
         lo, hi = 1e-12 * self.d_hat, self.d_hat
         for _ in range(200):
             mid = 0.5 * (lo + hi)
-            if self._p(np.array(mid))[0] > pressure:
+            if _barrier_p(self.kappa, self.d_hat, mid)[0] > pressure:
                 lo = mid
             else:
                 hi = mid

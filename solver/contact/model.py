@@ -31,8 +31,9 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from .geometry import candidate_pairs, run_closest
-from .laws import BarrierLaw, SeedLaw
+from .geometry import (_candidate_pairs_kernel, _run_point, _segment_matrices,
+                       _segment_nodes, candidate_pairs, close_node_pairs, run_closest)
+from .laws import BarrierLaw, SeedLaw, law_cutoff, law_force
 
 __all__ = ["SelfContact", "ContactCandidates", "ContactEvaluation", "assemble_nodal",
            "nodal_weights", "GAP_FLOOR_FRACTION", "EXCLUSION_DIAMETERS"]
@@ -70,6 +71,13 @@ class ContactCandidates:
     @property
     def runs(self) -> int:
         return int(self.run_start.size)
+
+    @property
+    def arrays(self):
+        """(owner, segment, run_start, first_vertex_is_end, last_vertex_is_end): the
+        candidates as the compiled kernels take them."""
+        return (self.owner, self.segment, self.run_start, self.first_vertex_is_end,
+                self.last_vertex_is_end)
 
     def __len__(self) -> int:
         return self.runs
@@ -145,23 +153,6 @@ def assemble_nodal(ev: ContactEvaluation, n_nodes: int) -> np.ndarray:
     for a in range(ev.nodes.shape[1]):
         np.add.at(out, ev.nodes[:, a], ev.weights[:, a, None] * ev.force)
     return out
-
-
-#: largest key range (n_nodes²) deduplicated through a boolean table (bytes) rather than
-#: np.unique: 1001² = 1e6 for the seed example, 16e6 at 4000 nodes
-_TABLE_KEYS = 16_000_000
-
-
-def _unique_keys(keys: np.ndarray, size: int) -> np.ndarray:
-    """Sorted unique values of integer ``keys`` (M,) in [0, size): the same result as
-    np.unique, through a boolean table when size ≤ _TABLE_KEYS (O(M + size); np.unique
-    hashed and sorted the node-pair keys of a contact search in 2-3 ms a call, about 7 %
-    of the intertwined seed example's time at 34-35 s)."""
-    if size > _TABLE_KEYS:
-        return np.unique(keys)
-    seen = np.zeros(size, dtype=bool)
-    seen[keys] = True
-    return np.flatnonzero(seen)
 
 
 def _spec_value(spec, name, default=None):
@@ -264,6 +255,12 @@ class SelfContact:
         self.min_separation = float(sep.min()) if sep.size else float("inf")
         self.sin_half_aperture = 1.0 if self.aperture >= 180.0 else float(
             np.sin(np.radians(self.aperture) / 2.0))
+        every = np.arange(s.size - 1)
+        #: what the compiled kernels take of this contact model, constant over a run:
+        #: every segment's curve nodes (N−1, 4) and matrix (N−1, 4, 4), the diameters,
+        #: ρA and nodal weights (N,), the law's parameter vector (9,)
+        self.kernel_data = (_segment_nodes(every, s.size), _segment_matrices(every, s.size),
+                            diameter, rho_a, self.weights, self.law.params)
 
     # ------------------------------------------------------------------ checks
     def _check_field(self, name, arr) -> np.ndarray:
@@ -286,13 +283,14 @@ class SelfContact:
         """
         r = self._check_field("positions", positions)
         t = self._check_field("tangents", tangents)
-        e = t.mean(axis=0)
-        norm = float(np.linalg.norm(e))
-        if norm == 0.0:
-            return True
-        e = e / norm
-        c = float(np.min((np.diff(r, axis=0) @ e) / np.diff(self.s)))
-        return not (c > 0.0 and c * self.min_separation >= self.tolerance + reach)
+        return bool(_may_touch_kernel(r, t, self.s, self.min_separation, self.tolerance + reach))
+
+    def may_touch_unchecked(self, positions, tangents, reach: float = 0.0) -> bool:
+        """:meth:`may_touch` without its input checks, for the solver's own finite
+        (N, 3) arrays."""
+        return bool(_may_touch_kernel(np.ascontiguousarray(positions, dtype=float),
+                                      np.ascontiguousarray(tangents, dtype=float), self.s,
+                                      self.min_separation, self.tolerance + reach))
 
     # ------------------------------------------------------------------ candidates
     def candidates(self, positions, tangents, reach: float = 0.0) -> ContactCandidates:
@@ -314,21 +312,36 @@ class SelfContact:
                                    self.separation_cut, self.sin_half_aperture)
         return self._runs(own, par, sorted_unique=True)
 
+    def search(self, positions, tangents, reach: float = 0.0):
+        """The run's search (:meth:`candidates` behind the :meth:`may_touch` pre-test),
+        without the input validation of the public methods: positions and tangents
+        (N, 3) from the solver (tangents need not be unit). Returns the candidates, or
+        None where no pair can be within tolerance + reach (m) or none is. Non-finite
+        positions give None (the step that made them fails in Newton)."""
+        r = np.ascontiguousarray(positions, dtype=float)
+        t = np.ascontiguousarray(tangents, dtype=float)
+        radius = self.tolerance + reach
+        if not self.may_touch_unchecked(r, t, reach):
+            return None
+        if not np.isfinite(r).all():
+            return None
+        a, b = close_node_pairs(r, radius, self.s, self.separation_cut)
+        arrays = _search_kernel(r, t, a, b, self.s, self.separation_cut,
+                                self.sin_half_aperture)
+        return ContactCandidates(*arrays) if arrays[2].size else None
+
     def merge(self, c1: ContactCandidates, c2: ContactCandidates) -> ContactCandidates:
         """Candidates covering both sets (runs rebuilt from the union of their nodes)."""
-        own, par = [], []
-        for c in (c1, c2):
-            if c is None or not c.runs:
-                continue
-            own.append(c.owner)
-            par.append(c.segment)
-            own.append(c.owner)
-            par.append(c.segment + 1)
-        if not own:
+        sets = [c for c in (c1, c2) if c is not None and c.runs]
+        if not sets:
             return self._runs(np.zeros(0, np.intp), np.zeros(0, np.intp))
-        own, par = np.concatenate(own), np.concatenate(par)
-        ok = np.abs(self.s[own] - self.s[par]) > self.separation_cut
-        return self._runs(own[ok], par[ok])
+        none = np.zeros(0, np.intp)
+        other = sets[1] if len(sets) > 1 else None
+        own, par = _merge_nodes_kernel(sets[0].owner, sets[0].segment,
+                                       none if other is None else other.owner,
+                                       none if other is None else other.segment,
+                                       self.s, self.separation_cut)
+        return self._runs(own, par)
 
     def covers(self, cand: ContactCandidates, other: ContactCandidates) -> bool:
         """Whether every owner/segment combination of ``other`` is in ``cand``."""
@@ -336,47 +349,19 @@ class SelfContact:
             return True
         if cand is None or not cand.runs:
             return False
-        n = self.n_nodes
-        have = _unique_keys(cand.owner * n + cand.segment, n * n)
-        need = _unique_keys(other.owner * n + other.segment, n * n)
-        return bool(np.all(np.isin(need, have, assume_unique=True)))
+        return bool(_covers_kernel(cand.owner, cand.segment, other.owner, other.segment,
+                                   self.n_nodes))
 
     def _runs(self, own, par, sorted_unique=False) -> ContactCandidates:
         """Runs of the node pairs (own (M,), par (M,)): per owner, partners closer than 3
-        nodes apart form one run, extended by one node each side. ``sorted_unique``: the
-        pairs are already unique and sorted by owner, then partner."""
-        n = self.n_nodes
-        if own.size == 0:
-            z = np.zeros(0, dtype=np.intp)
-            zb = np.zeros(0, dtype=bool)
-            return ContactCandidates(z, z.copy(), z.copy(), zb, zb.copy())
-        if not sorted_unique:
-            key = _unique_keys(own.astype(np.int64) * n + par, n * n)
-            own, par = key // n, key % n
-        new = np.ones(own.size, dtype=bool)
-        new[1:] = (own[1:] != own[:-1]) | (par[1:] > par[:-1] + 3)
-        start = np.flatnonzero(new)
-        stop = np.append(start[1:], own.size) - 1
-        ro = own[start]
-        lo, hi = par[start], par[stop]
-        # extend by one node each side where that node is in the rod and beyond the
-        # exclusion from the owner
-        lo_ext = lo - 1
-        ok = (lo_ext >= 0)
-        ok[ok] &= np.abs(self.s[ro[ok]] - self.s[lo_ext[ok]]) > self.separation_cut
-        lo = np.where(ok, lo_ext, lo)
-        hi_ext = hi + 1
-        ok = hi_ext < n
-        ok[ok] &= np.abs(self.s[ro[ok]] - self.s[hi_ext[ok]]) > self.separation_cut
-        hi = np.where(ok, hi_ext, hi)
-        nseg = hi - lo                               # segments lo .. hi-1
-        keep = nseg > 0
-        ro, lo, hi, nseg = ro[keep], lo[keep], hi[keep], nseg[keep]
-        run_start = np.concatenate([[0], np.cumsum(nseg)[:-1]]).astype(np.intp)
-        owner = np.repeat(ro, nseg).astype(np.intp)
-        offs = np.arange(int(nseg.sum())) - np.repeat(run_start, nseg)
-        segment = (np.repeat(lo, nseg) + offs).astype(np.intp)
-        return ContactCandidates(owner, segment, run_start, lo == 0, hi == n - 1)
+        nodes apart form one run, extended by one node each side (where that node is in
+        the rod and beyond the exclusion from the owner). ``sorted_unique``: the pairs
+        are already unique and sorted by owner, then partner. Compiled
+        (:func:`_runs_kernel`)."""
+        owner, segment, start, first, last = _runs_kernel(
+            np.ascontiguousarray(own, dtype=np.intp), np.ascontiguousarray(par, dtype=np.intp),
+            self.s, self.separation_cut, self.n_nodes, bool(sorted_unique))
+        return ContactCandidates(owner, segment, start, first, last)
 
     # ------------------------------------------------------------------ closest points
     def closest(self, cand: ContactCandidates, positions, frozen=None):
@@ -389,18 +374,6 @@ class SelfContact:
         keeps that segment (the closest point still slides along it): Newton freezes the
         selection after a few iterates so that a minimum near a node cannot move back and
         forth between the two segments that meet there."""
-        memo = getattr(self, "_closest_memo", None)
-        if (memo is not None and memo[0] is cand and memo[1] is frozen
-                and np.array_equal(memo[2], positions)):
-            return memo[3]                # the same positions again (one Newton trial point)
-        out = self._closest(cand, positions, frozen)
-        self._closest_memo = (cand, frozen, np.array(positions, copy=True), out)
-        return out
-
-    def _closest(self, cand, positions, frozen):
-        # the polyline's closest segment of each run, then the curve on it and its two
-        # neighbours in the run (the curve departs from the chords by O(Δs² κ), so its
-        # closest point lies on one of them); or the frozen combination of each run
         k, *geo = run_closest(positions, cand.owner, cand.segment, cand.run_start, frozen)
         start = cand.run_start
         last = np.append(start[1:], cand.owner.size) - 1
@@ -413,15 +386,10 @@ class SelfContact:
         """Surface gaps (R,) m of the runs' closest points (inf for run edges)."""
         if cand is None or not cand.runs:
             return np.zeros(0)
-        k, t, x, d, *_, valid = self.closest(cand, positions)
-        i, j = cand.owner[k], cand.segment[k]
-        return np.where(valid, d - self._at_contact(self.diameter, i, j, t), np.inf)
-
-    @staticmethod
-    def _at_contact(prop, i, j, t):
-        """Mean of a nodal property (N,) between owner i and the partner point at t on
-        segment (j, j+1): ½(p_i + (1 − t) p_j + t p_{j+1}), shape (P,)."""
-        return 0.5 * (prop[i] + (1.0 - t) * prop[j] + t * prop[j + 1])
+        out = np.empty(cand.runs)
+        candidate_gaps_into(np.ascontiguousarray(positions, dtype=float), cand.arrays,
+                            self.kernel_data, out)
+        return out
 
     def evaluate(self, cand: ContactCandidates, positions, velocities,
                  frozen=None) -> ContactEvaluation:
@@ -429,14 +397,8 @@ class SelfContact:
 
         positions (N, 3) m and velocities (N, 3) m/s, global; frozen: see
         :meth:`closest` (``selection`` of the result is the one used). Derivatives with the
-        closest point sliding along the partner curve. With G = ∂F/∂x|_u = n (f_d nᵀ +
-        f_ḋ (u − ḋ n)ᵀ/d) + (f/d)(I − n nᵀ), G_u = ∂F/∂u = f_ḋ n nᵀ, x = Σ c_a r_a,
-        u = Σ c_a v_a (c_a = 1 for the owner, −β_a(t) for the curve's nodes) and, for
-        0 < t < 1, the stationarity c'·x = 0 differentiated: g dt = Σ_a (c_a c' − ∂c_a/∂t
-        x)·dr_a with g = |c'|² − x·c'', dx = Σ c_a dr_a − c' dt, du = Σ c_a dv_a +
-        (Σ ∂c_a/∂t v_a) dt. The mean diameter and ρA at the contact are interpolated
-        linearly on segment (j, j + 1); how they move with t is left out of the
-        derivatives.
+        closest point sliding along the partner curve (:func:`evaluate_into`, the compiled
+        kernel that Newton calls at every iterate).
 
         Raises ValueError on bad shapes or values, or coincident centreline points.
         """
@@ -444,112 +406,327 @@ class SelfContact:
         v = self._check_field("velocities", velocities)
         if cand is None or not cand.runs:
             return _empty_evaluation()
-        k, t, x, d, c1, g, idx, beta, dbeta, valid = self.closest(cand, r, frozen)
-        i, j = cand.owner[k], cand.segment[k]
-        dbar = self._at_contact(self.diameter, i, j, t)
-        d_off = self.law.cutoff(dbar)[1]
-        keep = valid & (d < d_off)
-        if not np.any(keep):
-            return _empty_evaluation(k)
-        i, j, t, x, d, dbar = i[keep], j[keep], t[keep], x[keep], d[keep], dbar[keep]
-        c1, g, idx, beta, dbeta = c1[keep], g[keep], idx[keep], beta[keep], dbeta[keep]
-        if np.any(d == 0.0):
+        ev = evaluation_arrays(cand.runs)
+        fz = (np.full(0, -1, np.intp) if frozen is None
+              else np.ascontiguousarray(frozen, dtype=np.intp))
+        p = evaluate_into(r, v, cand.arrays, fz, self.kernel_data, ev)
+        if p < 0:
             raise ValueError("SelfContact.evaluate: coincident centreline points in a pair")
-        p = i.size
-        # the contact's nodes: the owner and the partner curve's four; x = Σ c_a r_a
-        nodes = np.concatenate([i[:, None], idx], axis=1)                 # (P, 5)
-        coef = np.concatenate([np.ones((p, 1)), -beta], axis=1)
-        dcoef = np.concatenate([np.zeros((p, 1)), -dbeta], axis=1)       # ∂c_a/∂t
-        x, c1 = np.ascontiguousarray(x), np.ascontiguousarray(c1)
-        n, u, ddot, u_t = _relative_motion(x, d, coef, dcoef, nodes, np.ascontiguousarray(v))
-        rho = self._at_contact(self.rho_a, i, j, t)
-        f, f_d, f_dd, gap = self.law(d, ddot, dbar, rho)
-        force, d_dr, d_dv, dt_dr, weights, dw_dt = _force_derivatives(
-            n, u, ddot, u_t, d, f, f_d, f_dd, coef, dcoef, c1, x, g, t, self.weights,
-            nodes)
-        return ContactEvaluation(i, j, t, nodes, weights, coef, force, d_dr, d_dv, dt_dr,
-                                 dw_dt, gap, d, float(gap.min()), int(p), k)
+        sel, i, j, t, nodes, weights, coef, force, d_dr, d_dv, dt_dr, dw_dt, gap, dist = ev
+        if p == 0:
+            return _empty_evaluation(sel)
+        return ContactEvaluation(i[:p], j[:p], t[:p], nodes[:p], weights[:p], coef[:p],
+                                 force[:p], d_dr[:p], d_dv[:p], dt_dr[:p], dw_dt[:p],
+                                 gap[:p], dist[:p], float(gap[:p].min()), int(p), sel)
 
 
 @numba.njit(cache=True)
-def _relative_motion(x, d, coef, dcoef, nodes, v):
-    """Per contact (P,): the normal n = x/d (P, 3), the relative velocity u = Σ c_a v_a
-    (P, 3), the approach rate ḋ = n·u (P,) and u_t = Σ ∂c_a/∂t v_a (P, 3) (how u moves
-    with the closest point's parameter); v (N, 3) global node velocities, m/s."""
-    p = x.shape[0]
-    n = np.empty((p, 3))
-    u = np.zeros((p, 3))
-    u_t = np.zeros((p, 3))
-    ddot = np.empty(p)
-    for q in range(p):
-        for a in range(nodes.shape[1]):
-            b = nodes[q, a]
-            for c in range(3):
-                u[q, c] += coef[q, a] * v[b, c]
-                u_t[q, c] += dcoef[q, a] * v[b, c]
-        acc = 0.0
+def _may_touch_kernel(r, t, s, min_separation, reach):
+    """:meth:`SelfContact.may_touch`'s test: with e the normalised mean tangent and c the
+    smallest (r_{k+1} − r_k)·e/(s_{k+1} − s_k), False only when c > 0 and
+    c·min_separation ≥ reach (tolerance + reach, m). r, t (N, 3), s (N,)."""
+    n = r.shape[0]
+    e0 = e1 = e2 = 0.0
+    for k in range(n):
+        e0 += t[k, 0]
+        e1 += t[k, 1]
+        e2 += t[k, 2]
+    e0 /= n
+    e1 /= n
+    e2 /= n
+    norm = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+    if norm == 0.0:
+        return True
+    e0 /= norm
+    e1 /= norm
+    e2 /= norm
+    c = np.inf
+    for k in range(n - 1):
+        v = ((r[k + 1, 0] - r[k, 0]) * e0 + (r[k + 1, 1] - r[k, 1]) * e1
+             + (r[k + 1, 2] - r[k, 2]) * e2) / (s[k + 1] - s[k])
+        if v < c:
+            c = v
+    return not (c > 0.0 and c * min_separation >= reach)
+
+
+@numba.njit(cache=True)
+def _runs_kernel(own, par, s, cut, n, sorted_unique):
+    """The body of :meth:`SelfContact._runs`: node pairs (own, par) (M,) into runs, as
+    (owner (K,), segment (K,), run_start (R,), first_vertex_is_end, last_vertex_is_end
+    (R,) bool). Unsorted pairs are deduplicated and sorted by owner, then partner."""
+    m = own.shape[0]
+    if not sorted_unique and m:
+        keys = np.sort(own * n + par)
+        uniq = 1
+        for q in range(1, m):
+            if keys[q] != keys[uniq - 1]:
+                keys[uniq] = keys[q]
+                uniq += 1
+        m = uniq
+        own = keys[:m] // n
+        par = keys[:m] % n
+    if m == 0:
+        return (np.zeros(0, np.intp), np.zeros(0, np.intp), np.zeros(0, np.intp),
+                np.zeros(0, np.bool_), np.zeros(0, np.bool_))
+    # runs: a new one where the owner changes or the partner jumps by more than 3
+    n_runs = 1
+    for q in range(1, m):
+        if own[q] != own[q - 1] or par[q] > par[q - 1] + 3:
+            n_runs += 1
+    ro = np.empty(n_runs, np.intp)
+    lo = np.empty(n_runs, np.intp)
+    hi = np.empty(n_runs, np.intp)
+    r = 0
+    ro[0] = own[0]
+    lo[0] = par[0]
+    for q in range(1, m):
+        if own[q] != own[q - 1] or par[q] > par[q - 1] + 3:
+            hi[r] = par[q - 1]
+            r += 1
+            ro[r] = own[q]
+            lo[r] = par[q]
+    hi[r] = par[m - 1]
+    # extend by one node each side where that node is in the rod and beyond the
+    # exclusion from the owner; keep runs of at least one segment
+    total = 0
+    keep = 0
+    for q in range(n_runs):
+        o = ro[q]
+        if lo[q] - 1 >= 0 and abs(s[o] - s[lo[q] - 1]) > cut:
+            lo[q] -= 1
+        if hi[q] + 1 < n and abs(s[o] - s[hi[q] + 1]) > cut:
+            hi[q] += 1
+        if hi[q] - lo[q] > 0:
+            ro[keep] = o
+            lo[keep] = lo[q]
+            hi[keep] = hi[q]
+            keep += 1
+            total += hi[q] - lo[q]
+    owner = np.empty(total, np.intp)
+    segment = np.empty(total, np.intp)
+    start = np.empty(keep, np.intp)
+    first = np.empty(keep, np.bool_)
+    last = np.empty(keep, np.bool_)
+    k = 0
+    for q in range(keep):
+        start[q] = k
+        first[q] = lo[q] == 0
+        last[q] = hi[q] == n - 1
+        for j in range(lo[q], hi[q]):
+            owner[k] = ro[q]
+            segment[k] = j
+            k += 1
+    return owner, segment, start, first, last
+
+
+@numba.njit(cache=True)
+def _search_kernel(r, t, a, b, s, cut, sin_half_aperture):
+    """Node pairs (a, b) of a k-d tree search into the candidates' arrays
+    (:meth:`SelfContact.search`): the tangents t (N, 3) normalised, the aperture cones
+    and the ordering (:func:`~.geometry._candidate_pairs_kernel`), then the runs
+    (:func:`_runs_kernel`)."""
+    n = r.shape[0]
+    tu = np.empty((n, 3))
+    for k in range(n):
+        nrm = np.sqrt(t[k, 0] ** 2 + t[k, 1] ** 2 + t[k, 2] ** 2)
         for c in range(3):
-            n[q, c] = x[q, c] / d[q]
-            acc += n[q, c] * u[q, c]
-        ddot[q] = acc
-    return n, u, ddot, u_t
+            tu[k, c] = t[k, c] / nrm if nrm > 0.0 else 0.0
+    own, par = _candidate_pairs_kernel(r, tu, a, b, sin_half_aperture)
+    return _runs_kernel(own, par, s, cut, n, True)
 
 
 @numba.njit(cache=True)
-def _force_derivatives(n, u, ddot, u_t, d, f, f_d, f_dd, coef, dcoef, c1, x, g, t, w,
-                       nodes):
-    """Force F = f n (P, 3) and its derivatives per contact (formulas in
-    :meth:`SelfContact.evaluate`): G = n (f_d nᵀ + f_ḋ (u − ḋ n)ᵀ/d) + (f/d)(I − n nᵀ),
-    G_u = f_ḋ n nᵀ, ∂t/∂r_a = (c_a c' − ∂c_a/∂t x)/g for 0 < t < 1 (else 0; g ≤ 0 as
-    g = ∞), H = G_u u_t − G c', ∂F/∂r_a = c_a G + H (∂t/∂r_a)ᵀ, ∂F/∂v_a = c_a G_u; the
-    load weights w_a = ½ c_a Δs_i/Δs_a and ∂w_a/∂t = ½ ∂c_a/∂t Δs_i/Δs_a (w: (N,)
-    nodal quadrature weights). Returns (force, d_dr (P, 5, 3, 3), d_dv (P, 5, 3, 3),
-    dt_dr (P, 5, 3), weights (P, 5), dw_dt (P, 5))."""
-    p = n.shape[0]
-    m = nodes.shape[1]
-    force = np.empty((p, 3))
-    d_dr = np.empty((p, m, 3, 3))
-    d_dv = np.empty((p, m, 3, 3))
-    dt_dr = np.zeros((p, m, 3))
-    weights = np.empty((p, m))
-    dw_dt = np.empty((p, m))
+def _merge_nodes_kernel(own1, seg1, own2, seg2, s, cut):
+    """The node pairs of :meth:`SelfContact.merge`: (owner, segment) and (owner,
+    segment + 1) of both sets, those further apart in arclength than ``cut`` (m)."""
+    m = 2 * (own1.shape[0] + own2.shape[0])
+    own = np.empty(m, np.intp)
+    par = np.empty(m, np.intp)
+    k = 0
+    for oa, sa in ((own1, seg1), (own2, seg2)):
+        for q in range(oa.shape[0]):
+            for d in range(2):
+                o = oa[q]
+                p = sa[q] + d
+                if abs(s[o] - s[p]) > cut:
+                    own[k] = o
+                    par[k] = p
+                    k += 1
+    return own[:k], par[:k]
+
+
+@numba.njit(cache=True)
+def _covers_kernel(own1, seg1, own2, seg2, n):
+    """Whether every (owner, segment) combination of the second set is in the first."""
+    have = np.sort(own1 * n + seg1)
+    for q in range(own2.shape[0]):
+        key = own2[q] * n + seg2[q]
+        j = np.searchsorted(have, key)
+        if j >= have.shape[0] or have[j] != key:
+            return False
+    return True
+
+
+def evaluation_arrays(capacity: int):
+    """Work arrays for :func:`evaluate_into` with room for ``capacity`` runs (one contact
+    at most per run): selection (R,) int, i, j (R,) int, t (R,), nodes (R, 5) int,
+    weights, coef (R, 5), force (R, 3), d_dr, d_dv (R, 5, 3, 3), dt_dr (R, 5, 3), dw_dt
+    (R, 5), gap, distance (R,)."""
+    r = int(capacity)
+    return (np.empty(r, np.intp), np.empty(r, np.intp), np.empty(r, np.intp), np.empty(r),
+            np.empty((r, 5), np.intp), np.empty((r, 5)), np.empty((r, 5)), np.empty((r, 3)),
+            np.empty((r, 5, 3, 3)), np.empty((r, 5, 3, 3)), np.empty((r, 5, 3)),
+            np.empty((r, 5)), np.empty(r), np.empty(r))
+
+
+@numba.njit(cache=True, inline="always")
+def _run_bounds(cand, q):
+    """(first, last) combination index of run q and whether its outer vertices are rod
+    ends, from the candidates' arrays (owner, segment, run_start, first_is_end,
+    last_is_end)."""
+    own, seg, start, first_end, last_end = cand
+    lo = start[q]
+    hi = (start[q + 1] if q + 1 < start.shape[0] else own.shape[0]) - 1
+    return lo, hi, first_end[q], last_end[q]
+
+
+@numba.njit(cache=True, inline="always")
+def _at_contact(prop, i, j, t):
+    """½(p_i + (1 − t) p_j + t p_{j+1}): a nodal property (N,) between owner i and the
+    partner point at t on segment (j, j+1)."""
+    return 0.5 * (prop[i] + (1.0 - t) * prop[j] + t * prop[j + 1])
+
+
+@numba.njit(cache=True)
+def candidate_gaps_into(r, cand, data, out):
+    """Surface gaps (R,) m of the candidates' closest points at positions r (N, 3), inf
+    for a minimum at an interior run edge (:meth:`SelfContact.gaps`), into out; the
+    selection is made afresh (not frozen). cand: :attr:`ContactCandidates.arrays`; data:
+    :attr:`SelfContact.kernel_data`. Returns nothing."""
+    own, seg = cand[0], cand[1]
+    seg_nodes, seg_mats, diameter = data[0], data[1], data[2]
+    tb0 = np.empty((3, 4))
+    tb1 = np.empty((3, 4))
+    for q in range(out.shape[0]):
+        lo, hi, first_end, last_end = _run_bounds(cand, q)
+        k, t, x0, x1, x2, d, c0, c1, c2, g, row = _run_point(
+            r, own, seg, lo, hi, -1, 3, seg_nodes, seg_mats, tb0, tb1)
+        if (k == lo and t == 0.0 and not first_end) or (k == hi and t == 1.0
+                                                        and not last_end):
+            out[q] = np.inf
+        else:
+            out[q] = d - _at_contact(diameter, own[k], seg[k], t)
+
+
+@numba.njit(cache=True)
+def evaluate_into(r, v, cand, frozen, data, ev):
+    """The compiled body of :meth:`SelfContact.evaluate`: the active contacts of the
+    candidates at positions r and velocities v (N, 3) (global, m and m/s) written into
+    the arrays ev of :func:`evaluation_arrays`; returns their number P (the first P
+    entries of each array after the selection), or −1 when a kept pair has coincident
+    centreline points.
+
+    Per run: the closest point on the partner curve (:func:`~.geometry._run_point`; the
+    combination frozen[q] when ``frozen`` is non-empty), kept when it is not an interior
+    run edge and closer than the law's cut-off. Per contact, with x = Σ c_a r_a
+    (c_a = 1 for the owner, −β_a(t) for the curve's nodes), d = |x|, n = x/d,
+    u = Σ c_a v_a, ḋ = n·u, u_t = Σ ∂c_a/∂t v_a and f, f_d, f_ḋ from
+    :func:`~.laws.law_force`: F = f n, G = ∂F/∂x|_u = n (f_d nᵀ + f_ḋ (u − ḋ n)ᵀ/d) +
+    (f/d)(I − n nᵀ), G_u = f_ḋ n nᵀ; for 0 < t < 1 the stationarity c'·x = 0
+    differentiated, g dt = Σ_a (c_a c' − ∂c_a/∂t x)·dr_a (g = |c'|² − x·c''), gives
+    ∂t/∂r_a = (c_a c' − ∂c_a/∂t x)/g; with H = G_u u_t − G c', ∂F/∂r_a = c_a G +
+    H (∂t/∂r_a)ᵀ and ∂F/∂v_a = c_a G_u; load weights w_a = ½ c_a Δs_i/Δs_a and
+    ∂w_a/∂t = ½ ∂c_a/∂t Δs_i/Δs_a (docs/contact.md § 1). The mean diameter and ρA at
+    the contact are interpolated linearly on the segment; how they move with t is left
+    out of the derivatives."""
+    sel, pi, pj, pt, nodes, weights, coef, force, d_dr, d_dv, dt_dr, dw_dt, gap, dist = ev
+    own, seg = cand[0], cand[1]
+    seg_nodes, seg_mats, diameter, rho_a, w, law = data
+    tb0 = np.empty((3, 4))
+    tb1 = np.empty((3, 4))
+    dcoef = np.empty(5)
     G = np.empty((3, 3))
     Gu = np.empty((3, 3))
-    tang = np.empty(3)
+    n = np.empty(3)
+    u = np.empty(3)
+    ut = np.empty(3)
+    c1 = np.empty(3)
+    xv = np.empty(3)
     H = np.empty(3)
-    for q in range(p):
-        fq = f[q]
-        fd = f_d[q]
-        fdd = f_dd[q]
-        dq = d[q]
+    tang = np.empty(3)
+    p = 0
+    for q in range(cand[2].shape[0]):
+        lo, hi, first_end, last_end = _run_bounds(cand, q)
+        fk = frozen[q] if frozen.shape[0] else -1
+        k, t, x0, x1, x2, d, c10, c11, c12, g, row = _run_point(
+            r, own, seg, lo, hi, fk, 3, seg_nodes, seg_mats, tb0, tb1)
+        sel[q] = k
+        if (k == lo and t == 0.0 and not first_end) or (k == hi and t == 1.0
+                                                        and not last_end):
+            continue
+        i = own[k]
+        j = seg[k]
+        dbar = _at_contact(diameter, i, j, t)
+        if not d < law_cutoff(law, dbar)[1]:
+            continue
+        if d == 0.0:
+            return -1
+        nodes[p, 0] = i
+        coef[p, 0] = 1.0
+        dcoef[0] = 0.0
+        for b in range(4):
+            nodes[p, b + 1] = seg_nodes[j, b]
+            coef[p, b + 1] = -tb0[row, b]
+            dcoef[b + 1] = -tb1[row, b]
+        xv[0], xv[1], xv[2] = x0, x1, x2
+        c1[0], c1[1], c1[2] = c10, c11, c12
         for c in range(3):
-            force[q, c] = fq * n[q, c]
-            tang[c] = (u[q, c] - ddot[q] * n[q, c]) / dq
+            u[c] = 0.0
+            ut[c] = 0.0
+        for a in range(5):
+            b = nodes[p, a]
+            for c in range(3):
+                u[c] += coef[p, a] * v[b, c]
+                ut[c] += dcoef[a] * v[b, c]
+        ddot = 0.0
+        for c in range(3):
+            n[c] = xv[c] / d
+            ddot += n[c] * u[c]
+        rho = _at_contact(rho_a, i, j, t)
+        f, fd, fdd, gp = law_force(law, d, ddot, dbar, rho)
+        for c in range(3):
+            force[p, c] = f * n[c]
+            tang[c] = (u[c] - ddot * n[c]) / d
         for a in range(3):
             for b in range(3):
-                nn = n[q, a] * n[q, b]
+                nn = n[a] * n[b]
                 eye = 1.0 if a == b else 0.0
-                G[a, b] = n[q, a] * (fd * n[q, b] + fdd * tang[b]) + (fq / dq) * (eye - nn)
+                G[a, b] = n[a] * (fd * n[b] + fdd * tang[b]) + (f / d) * (eye - nn)
                 Gu[a, b] = fdd * nn
-        interior = 0.0 < t[q] < 1.0
-        gs = g[q] if g[q] > 0.0 else np.inf
+        interior = 0.0 < t < 1.0
+        gs = g if g > 0.0 else np.inf
         for a in range(3):
-            H[a] = (Gu[a, 0] * u_t[q, 0] + Gu[a, 1] * u_t[q, 1] + Gu[a, 2] * u_t[q, 2]) - (
-                G[a, 0] * c1[q, 0] + G[a, 1] * c1[q, 1] + G[a, 2] * c1[q, 2])
-        wi = w[nodes[q, 0]]
-        for k in range(m):
-            ck = coef[q, k]
-            if interior:
-                for c in range(3):
-                    dt_dr[q, k, c] = (ck * c1[q, c] - dcoef[q, k] * x[q, c]) / gs
+            H[a] = (Gu[a, 0] * ut[0] + Gu[a, 1] * ut[1] + Gu[a, 2] * ut[2]) - (
+                G[a, 0] * c1[0] + G[a, 1] * c1[1] + G[a, 2] * c1[2])
+        wi = w[i]
+        for m in range(5):
+            ck = coef[p, m]
+            for c in range(3):
+                dt_dr[p, m, c] = (ck * c1[c] - dcoef[m] * xv[c]) / gs if interior else 0.0
             for a in range(3):
                 for b in range(3):
-                    d_dr[q, k, a, b] = ck * G[a, b] + H[a] * dt_dr[q, k, b]
-                    d_dv[q, k, a, b] = ck * Gu[a, b]
-            ratio = wi / w[nodes[q, k]]
-            weights[q, k] = 0.5 * ck * ratio
-            dw_dt[q, k] = 0.5 * dcoef[q, k] * ratio
-    return force, d_dr, d_dv, dt_dr, weights, dw_dt
+                    d_dr[p, m, a, b] = ck * G[a, b] + H[a] * dt_dr[p, m, b]
+                    d_dv[p, m, a, b] = ck * Gu[a, b]
+            ratio = wi / w[nodes[p, m]]
+            weights[p, m] = 0.5 * ck * ratio
+            dw_dt[p, m] = 0.5 * dcoef[m] * ratio
+        pi[p] = i
+        pj[p] = j
+        pt[p] = t
+        gap[p] = gp
+        dist[p] = d
+        p += 1
+    return p
 
 
 def _empty_evaluation(selection=None) -> ContactEvaluation:
