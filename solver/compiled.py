@@ -32,7 +32,8 @@ def warm_up() -> None:
     from .contact.geometry import run_minima
     from .kinematics import quat_slerp, right_jacobian
     from .simulation import RodRun
-    from .topology import writhe
+    from .energies import energies
+    from .topology import PARALLEL_SEGMENTS, twist, writhe
 
     spec = {
         "schema_version": 1, "name": "warm-up",
@@ -68,6 +69,11 @@ def warm_up() -> None:
     contact.closest(cand, run.r)
     contact.closest(cand, run.r, np.zeros(cand.runs, np.intp))
     writhe(run.r)
+    twist(run.Y[:, 11], run.props.s)
+    energies(run.Y, run.props)
+    # the writhe of a long rod sums its pairs on all cores (solver.topology)
+    writhe(np.column_stack([np.cos(np.arange(PARALLEL_SEGMENTS + 1.0)), np.sin(
+        np.arange(PARALLEL_SEGMENTS + 1.0)), np.arange(PARALLEL_SEGMENTS + 1.0)]))
     # the search on a hairpin (a k-d tree's pairs, the cones, the runs, merge, coverage)
     s = np.linspace(0.0, 1.0, 9)
     hairpin = np.column_stack([np.where(s < 0.5, s, 1.0 - s), np.where(s < 0.5, 0.0, 0.03),

@@ -122,13 +122,21 @@ def relative_rotation(q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
     the logarithm of q0⁻¹ ⊗ q1 taken the short way (|θ| ≤ π; either sign of q1 gives the
     same θ). q0, q1: unit quaternions (4,), (w, x, y, z); raises nothing (θ = 0 for equal
     rotations). The inverse of q0 ⊗ exp(θ), :func:`quat_exp`; Shoemake, SIGGRAPH 1985."""
-    q0 = np.asarray(q0, float)
-    q1 = np.asarray(q1, float)
-    rel = quat_multiply(q0 * np.array([1.0, -1.0, -1.0, -1.0]), q1)
-    if rel[0] < 0.0:
-        rel = -rel
-    vn = float(np.linalg.norm(rel[1:]))
-    return (2.0 * math.atan2(vn, rel[0]) / vn) * rel[1:] if vn > 0.0 else np.zeros(3)
+    aw, ax, ay, az = (float(c) for c in q0)
+    bw, bx, by, bz = (float(c) for c in q1)
+    # rel = conj(q0) ⊗ q1, component by component (four numbers: plain floats are faster
+    # than numpy's small-array calls, ~3 against ~30 µs)
+    w = aw * bw + ax * bx + ay * by + az * bz
+    x = aw * bx - ax * bw - ay * bz + az * by
+    y = aw * by + ax * bz - ay * bw - az * bx
+    z = aw * bz - ax * by + ay * bx - az * bw
+    if w < 0.0:
+        w, x, y, z = -w, -x, -y, -z
+    vn = math.sqrt(x * x + y * y + z * z)
+    if vn == 0.0:
+        return np.zeros(3)
+    f = 2.0 * math.atan2(vn, w) / vn
+    return np.array([f * x, f * y, f * z])
 
 
 def quat_slerp(q0: np.ndarray, q1: np.ndarray, s: float) -> np.ndarray:

@@ -153,7 +153,8 @@ def _matvec_kernel(blocks, x, load_weight, dB, out):
 #   ws  = (Y, Ytrial (N+1, 12), delta, rhs, stall scale (n,), history (max_it + 1,),
 #          gaps g0, g1 (runs,), frozen (runs,) int, pose scratch q (N+1, 4), R (N+1, 3, 3),
 #          r, θ (N+1, 3), trace (max_it + 2, 4): per iteration the scaled residual, the
-#          feasibility fraction, the line-search fraction, GMRES's iterations)
+#          feasibility fraction, the line-search fraction, GMRES's iterations; ṙ scratch
+#          (N+1, 3))
 #   ctr = (factorisations, GMRES iterations, GMRES failures, factor valid) int64
 
 
@@ -400,7 +401,7 @@ def _trial_gaps(Yt, step, rod, cand, cdata, ws, out):
     its space-route positions, −inf everywhere when they are not finite."""
     q, Rm, r, th = ws[9], ws[10], ws[11], ws[12]
     pose_into(Yt, step[0], step[11][0], True, step[4], step[5], step[6], True, rod[6][0],
-              q, Rm, r, th)
+              q, Rm, r, th, ws[14])
     for k in range(r.shape[0]):
         for c in range(3):
             if not np.isfinite(r[k, c]):
@@ -746,7 +747,8 @@ class Newton:
         ws = (np.zeros((n1, NV)), np.zeros((n1, NV)), np.zeros(n), np.zeros(n), np.zeros(n),
               np.zeros(self.max_iterations + 2), np.zeros(cap), np.zeros(cap),
               np.zeros(cap, np.intp), np.zeros((n1, 4)), np.zeros((n1, 3, 3)),
-              np.zeros((n1, 3)), np.zeros((n1, 3)), np.zeros((self.max_iterations + 2, 4)))
+              np.zeros((n1, 3)), np.zeros((n1, 3)), np.zeros((self.max_iterations + 2, 4)),
+              np.zeros((n1, 3)))
         self._state = {"cap": cap, "lin": lin, "op": op, "gm": gm, "ws": ws, "ctr": ctr}
 
     def __getstate__(self):

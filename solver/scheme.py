@@ -443,12 +443,12 @@ def _qmul(pw, px, py, pz, qw, qx, qy, qz):
 
 
 @numba.njit(cache=True)
-def pose_into(Y, Y_old, dt, space, q_old, r_old, vg_old, with_r, ds, q, Rm, r, theta):
+def pose_into(Y, Y_old, dt, space, q_old, r_old, vg_old, with_r, ds, q, Rm, r, theta, vg):
     """The new-level pose of an iterate Y (N+1, 12) (:meth:`RodSystem.pose_new`) into
-    q (N+1, 4), Rm (N+1, 3, 3), r (N+1, 3) and θ (N+1, 3): θ = ½Δt(ω^n + ω^{n+1}) per
-    node; with ``space`` the shape integrated along s from κ (:func:`space_route`)
-    anchored at node 0's time-route pose, else each node's time route q^n ⊗ exp(θ),
-    r^n + ½Δt(ṙ^n + R v) (r only ``with_r``)."""
+    q (N+1, 4), Rm (N+1, 3, 3), r (N+1, 3), θ (N+1, 3) and the global velocities
+    ṙ = R v (N+1, 3) into vg: θ = ½Δt(ω^n + ω^{n+1}) per node; with ``space`` the shape
+    integrated along s from κ (:func:`space_route`) anchored at node 0's time-route pose,
+    else each node's time route q^n ⊗ exp(θ), r^n + ½Δt(ṙ^n + R v) (r only ``with_r``)."""
     n1 = Y.shape[0]
     for k in range(n1):
         for c in range(3):
@@ -468,17 +468,20 @@ def pose_into(Y, Y_old, dt, space, q_old, r_old, vg_old, with_r, ds, q, Rm, r, t
         _space_route_kernel(q0, r0, Y[:, K:K + 3], ds, q, r)
         for k in range(n1):
             _matrix_into(q[k, 0], q[k, 1], q[k, 2], q[k, 3], Rm, k)
-        return
+    else:
+        for k in range(n1):
+            hw, hx, hy, hz = _exp_one(theta[k, 0], theta[k, 1], theta[k, 2])
+            q[k, 0], q[k, 1], q[k, 2], q[k, 3] = _qmul(q_old[k, 0], q_old[k, 1], q_old[k, 2],
+                                                       q_old[k, 3], hw, hx, hy, hz)
+            _matrix_into(q[k, 0], q[k, 1], q[k, 2], q[k, 3], Rm, k)
     for k in range(n1):
-        hw, hx, hy, hz = _exp_one(theta[k, 0], theta[k, 1], theta[k, 2])
-        q[k, 0], q[k, 1], q[k, 2], q[k, 3] = _qmul(q_old[k, 0], q_old[k, 1], q_old[k, 2],
-                                                   q_old[k, 3], hw, hx, hy, hz)
-        _matrix_into(q[k, 0], q[k, 1], q[k, 2], q[k, 3], Rm, k)
-        if with_r:
+        for i in range(3):
+            vg[k, i] = (Rm[k, i, 0] * Y[k, V] + Rm[k, i, 1] * Y[k, V + 1]
+                        + Rm[k, i, 2] * Y[k, V + 2])
+    if with_r and not space:
+        for k in range(n1):
             for i in range(3):
-                r[k, i] = r_old[k, i] + 0.5 * dt * (vg_old[k, i] + (
-                    Rm[k, i, 0] * Y[k, V] + Rm[k, i, 1] * Y[k, V + 1]
-                    + Rm[k, i, 2] * Y[k, V + 2]))
+                r[k, i] = r_old[k, i] + 0.5 * dt * (vg_old[k, i] + vg[k, i])
 
 
 @numba.njit(cache=True)
@@ -567,15 +570,13 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
     P = 0
     if need_pose:
         pose_into(Y, Y_old, dt, space and has_r_old, q_old, r_old, vg_old, has_r_old, ds,
-                  q, Rm, r, theta)
+                  q, Rm, r, theta, vg)
         flags[2] = 1
     have_G = False
     if contact:
         finite = True
         for k in range(n1):
             for i in range(3):
-                vg[k, i] = (Rm[k, i, 0] * Y[k, V] + Rm[k, i, 1] * Y[k, V + 1]
-                            + Rm[k, i, 2] * Y[k, V + 2])
                 if not (np.isfinite(vg[k, i]) and np.isfinite(r[k, i])):
                     finite = False
         if finite:
@@ -758,8 +759,8 @@ class RodSystem:
             np.zeros((n1, 4)) if q_old is None else np.ascontiguousarray(q_old, dtype=float),
             np.ascontiguousarray(r_old, dtype=float) if has_r else np.zeros((n1, 3)),
             np.ascontiguousarray(v_old_global, dtype=float) if has_r else np.zeros((n1, 3)),
-            bc.rows.astype(np.intp), bc.cols.astype(np.intp), bc.coef.astype(float),
-            np.asarray(bc.values, dtype=float),
+            np.asarray(bc.rows, dtype=np.intp), np.asarray(bc.cols, dtype=np.intp),
+            np.asarray(bc.coef, dtype=float), np.asarray(bc.values, dtype=float),
             np.array([dt, self.cm, af, float(glob is not None), float(has_r)]))
         # what the Jacobian's band part depends on besides the iterate (solver.newton
         # keeps a factorisation across steps while this is unchanged)
@@ -821,7 +822,7 @@ class RodSystem:
         space = self.contact is not None and self.r_old is not None
         pose_into(np.ascontiguousarray(Y, dtype=float), self.step_data[0], float(self.dt), space,
                   self.step_data[4], self.step_data[5], self.step_data[6], has_r,
-                  float(self.p.ds), q, R, r, theta)
+                  float(self.p.ds), q, R, r, theta, np.empty((n1, 3)))
         return q, R, (r if (space or has_r) else None), theta
 
     def node_terms(self, Y, want_jacobian, pose=None, glob_force=None):

@@ -24,6 +24,7 @@ import numpy as np
 from .banded import BandLayout
 from .boundary import BoundaryRows, boundary_plan
 from .contact import SelfContact, close_node_pairs, swept_min_distance
+from .contact.geometry import max_distance
 from .energies import distributed_power, end_loads, end_power, energies
 from .kinematics import (quat_from_matrix, quat_slerp, quat_to_matrix, relative_rotation,
                          space_route)
@@ -489,13 +490,13 @@ class RodRun:
             if new is not None:
                 Y.reshape(-1)[new_cols] -= new
         n1 = Y.shape[0]
-        q_new, R_new, r_new = np.empty((n1, 4)), np.empty((n1, 3, 3)), np.empty((n1, 3))
+        q_new, R_new, r_new, vg = (np.empty((n1, 4)), np.empty((n1, 3, 3)), np.empty((n1, 3)),
+                                   np.empty((n1, 3)))
         pose_into(np.ascontiguousarray(Y, dtype=float), np.ascontiguousarray(Y_old, dtype=float),
                   float(h), False, np.ascontiguousarray(q, dtype=float),
                   np.ascontiguousarray(r, dtype=float),
                   np.ascontiguousarray(v_global, dtype=float), True, 0.0, q_new, R_new, r_new,
-                  np.empty((n1, 3)))
-        vg = np.einsum("nij,nj->ni", R_new, Y[:, 0:3])
+                  np.empty((n1, 3)), vg)
         return q_new, R_new, vg, r_new
 
     #: the share of the s = L end's drift that each step's boundary values correct
@@ -565,7 +566,7 @@ class RodRun:
         the same positions, so their difference is O(h³) per step and measures the step's
         position error (docs/contact.md, "Step control")."""
         r_t = self._time_step(h, Y, self.q, self.r, self.v_global)[3]
-        return float(np.max(np.linalg.norm(r_t - r_new, axis=1)))
+        return max_distance(r_t, np.ascontiguousarray(r_new, dtype=float))
 
     def _no_tunnelling(self, r_new) -> bool:
         """Collision check of an accepted Newton solution (docs/contact.md): False when
@@ -573,11 +574,9 @@ class RodRun:
         positions, come closer than a quarter of the sum of their diameters within the
         step (a strand passed through another between the candidate searches)."""
         c = self.contact
-        disp = r_new - self.r
         # a pair can come closer than ½D within the step only if it ends closer than
         # ½D + its relative displacement
-        radius = 0.5 * float(np.max(self.props.diameter)) + 2.0 * float(
-            np.sqrt(np.max(np.einsum("ij,ij->i", disp, disp))))
+        radius = 0.5 * float(np.max(self.props.diameter)) + 2.0 * max_distance(r_new, self.r)
         tangents = np.diff(r_new, axis=0)
         tangents = np.vstack([tangents, tangents[-1:]])
         if not c.may_touch_unchecked(r_new, tangents, radius - c.tolerance):
@@ -608,7 +607,11 @@ class RodRun:
 
     def _skin(self) -> float:
         """The search skin (m): VERLET_SKIN × (tolerance − D_max)."""
-        return self.VERLET_SKIN * (self.contact.tolerance - float(np.max(self.props.diameter)))
+        skin = getattr(self, "_skin_m", None)
+        if skin is None:
+            skin = self._skin_m = self.VERLET_SKIN * (
+                self.contact.tolerance - float(np.max(self.props.diameter)))
+        return skin
 
     def _verlet_covers(self, positions) -> bool:
         """Whether the kept candidates (:attr:`verlet`) hold every pair within the
@@ -616,8 +619,7 @@ class RodRun:
         they were searched."""
         if self.verlet is None:
             return False
-        d = positions - self.verlet[1]
-        return bool(np.max(np.einsum("ij,ij->i", d, d)) <= (0.5 * self._skin()) ** 2)
+        return max_distance(positions, self.verlet[1]) <= 0.5 * self._skin()
 
     def _candidates(self, h, guess):
         """Candidates for a step of h (s) from the Newton start ``guess`` (N+1, 12): the
@@ -1048,7 +1050,7 @@ class RodRun:
             return view.snapshot(fields, route_current=True)
         out = view.snapshot(fields, route_current=True)
         out["position_route_difference"] = float(
-            np.max(np.linalg.norm(self.r_time - self.r, axis=1)))
+            max_distance(self.r_time, self.r))
         return out
 
     def snapshot(self, fields: set, route_current: bool = False) -> dict:
@@ -1100,7 +1102,7 @@ class RodRun:
         out["newton_iterations"] = self.last_iterations
         out["residual_norm"] = self.last_residual
         out["dt"] = self.last_dt
-        out["position_route_difference"] = float(np.max(np.linalg.norm(self.r_time - self.r, axis=1)))
+        out["position_route_difference"] = max_distance(self.r_time, self.r)
         out["quaternion_norm_error"] = self.quat_norm_error
         return out
 

@@ -43,6 +43,7 @@ by ±2 when one strand passes through another); this convention gives the coplan
 from __future__ import annotations
 
 import math
+import threading
 
 import numba
 import numpy as np
@@ -100,12 +101,28 @@ def twist(kappa3, s) -> float:
         raise ValueError(f"twist: kappa3 {k.shape} and s {x.shape} must have the same shape")
     if k.size == 0:
         raise ValueError("twist: need at least one node")
-    if not (np.all(np.isfinite(k)) and np.all(np.isfinite(x))):
+    total, problem = _twist_kernel(k, x)
+    if problem == 1:
         raise ValueError("twist: kappa3 and s must be finite")
-    ds = np.diff(x)
-    if np.any(ds <= 0.0):
+    if problem == 2:
         raise ValueError("twist: s must be strictly increasing")
-    return float(np.sum(0.5 * (k[1:] + k[:-1]) * ds) / _TWO_PI)
+    return total / _TWO_PI
+
+
+@numba.njit(cache=True)
+def _twist_kernel(k, s):
+    """(∫ κ3 ds by the trapezoid rule, 0) for kappa3 k and arclength s (N,), or (NaN, 1)
+    for a non-finite value and (NaN, 2) for s not strictly increasing."""
+    total = 0.0
+    for i in range(k.shape[0]):
+        if not (np.isfinite(k[i]) and np.isfinite(s[i])):
+            return np.nan, 1
+    for i in range(k.shape[0] - 1):
+        ds = s[i + 1] - s[i]
+        if not ds > 0.0:
+            return np.nan, 2
+        total += 0.5 * (k[i + 1] + k[i]) * ds
+    return total, 0
 
 
 # --------------------------------------------------------------------------- writhe
@@ -184,9 +201,9 @@ def _row_terms(qx, qy, qz, sx, sy, sz, ux, uy, uz, i, j0, j1, T, D1, D2):
 
 
 @numba.njit(cache=True)
-def _pair_sum_kernel(q, closed):
-    """Σ_{i<j, j ≥ i+2} Ω_ij of the (already centred) polyline q (M+1, 3)."""
-    m = q.shape[0] - 1
+def _pair_setup(q):
+    """Per-segment data of the polyline q (M+1, 3) for :func:`_row_sum`: the coordinate
+    columns, segments, U_k = q_k × seg_k, segment lengths and the larger end radius."""
     qx = np.ascontiguousarray(q[:, 0])
     qy = np.ascontiguousarray(q[:, 1])
     qz = np.ascontiguousarray(q[:, 2])
@@ -200,27 +217,75 @@ def _pair_sum_kernel(q, closed):
     seg_len = np.sqrt(sx * sx + sy * sy + sz * sz)
     radius = np.sqrt(qx * qx + qy * qy + qz * qz)
     rho = np.maximum(radius[:-1], radius[1:])
+    return qx, qy, qz, sx, sy, sz, ux, uy, uz, seg_len, rho
+
+
+@numba.njit(cache=True)
+def _row_sum(data, i, closed, T, D1, D2):
+    """Σ_j Ω_ij over the row of segment i (j ≥ i + 2) of :func:`_pair_sum_kernel`."""
+    qx, qy, qz, sx, sy, sz, ux, uy, uz, seg_len, rho = data
+    m = seg_len.shape[0]
+    j0 = i + 2
+    j1 = m - 1 if (closed and i == 0) else m   # closed: (0, M−1) are adjacent
+    _row_terms(qx, qy, qz, sx, sy, sz, ux, uy, uz, i, j0, j1, T, D1, D2)
+    thr_a = _EPS64 * seg_len[i] * rho[i]
+    thr_b = _EPS64 * seg_len[i]
+    row = 0.0
+    for j in range(j0, j1):
+        t = T[j]
+        d1 = D1[j]
+        d2 = D2[j]
+        # degenerate pairs (coplanar to working precision, module docstring)
+        if min(d1, d2) <= 0.0 and abs(t) <= (thr_a + thr_b * rho[j]) * seg_len[j]:
+            continue
+        row += _atan2_fast(t, d1) + _atan2_fast(t, d2)
+    return row
+
+
+@numba.njit(cache=True)
+def _pair_sum_kernel(q, closed):
+    """Σ_{i<j, j ≥ i+2} Ω_ij of the (already centred) polyline q (M+1, 3), one row after
+    the other."""
+    data = _pair_setup(q)
+    m = q.shape[0] - 1
     T = np.empty(m)
     D1 = np.empty(m)
     D2 = np.empty(m)
     total = 0.0
     for i in range(m - 2):
-        j0 = i + 2
-        j1 = m - 1 if (closed and i == 0) else m   # closed: (0, M−1) are adjacent
-        _row_terms(qx, qy, qz, sx, sy, sz, ux, uy, uz, i, j0, j1, T, D1, D2)
-        thr_a = _EPS64 * seg_len[i] * rho[i]
-        thr_b = _EPS64 * seg_len[i]
-        row = 0.0
-        for j in range(j0, j1):
-            t = T[j]
-            d1 = D1[j]
-            d2 = D2[j]
-            # degenerate pairs (coplanar to working precision, module docstring)
-            if min(d1, d2) <= 0.0 and abs(t) <= (thr_a + thr_b * rho[j]) * seg_len[j]:
-                continue
-            row += _atan2_fast(t, d1) + _atan2_fast(t, d2)
-        total += row
+        total += _row_sum(data, i, closed, T, D1, D2)
     return 2.0 * total
+
+
+@numba.njit(cache=True, parallel=True)
+def _pair_sum_parallel(q, closed):
+    """:func:`_pair_sum_kernel` on all cores: the rows folded in pairs (i, m − 3 − i), so
+    that every parallel iteration holds the same number of segment pairs and a static
+    split of the iterations balances the cores. The sum's rounding then depends on the
+    number of threads (to ~1e-16 relative), not on anything else."""
+    data = _pair_setup(q)
+    m = q.shape[0] - 1
+    rows = m - 2
+    half = (rows + 1) // 2
+    total = 0.0
+    for k in numba.prange(half):
+        T = np.empty(m)
+        D1 = np.empty(m)
+        D2 = np.empty(m)
+        part = _row_sum(data, k, closed, T, D1, D2)
+        other = rows - 1 - k
+        if other != k:
+            part += _row_sum(data, other, closed, T, D1, D2)
+        total += part
+    return 2.0 * total
+
+
+#: polylines of at least this many segments sum their pairs on all cores
+#: (:func:`_pair_sum_parallel`): the writhe at every output of the seed example's 1000
+#: segments took ~6 % of its run on one core, and waking the threads costs more than the
+#: sum below a few hundred segments
+PARALLEL_SEGMENTS = 400
+_PARALLEL_LOCK = threading.Lock()
 
 
 def _pair_sum(q: np.ndarray, closed: bool, center: np.ndarray | None = None) -> float:
@@ -234,16 +299,29 @@ def _pair_sum(q: np.ndarray, closed: bool, center: np.ndarray | None = None) -> 
 
     Compiled (numba): one row of pairs at a time, a vectorised pass for the triple
     products and denominators and a second for the arctangents; about 9-12 ms for 1000
-    segments on the 2-core development machine, against 50-60 ms for the former numpy
-    version in row blocks (same values to rounding).
+    segments on one core of the 2-core development machine, against 50-60 ms for the
+    former numpy version in row blocks (same values to rounding); from
+    :data:`PARALLEL_SEGMENTS` segments on all cores (5.1 against 9.7 ms at 1000 on 2
+    cores, session 17).
     """
-    m = q.shape[0] - 1  # number of segments
-    if m < 3:
-        return 0.0
     if center is None:
         center = q.mean(axis=0)
     # translation invariance; keeps the products well scaled
-    return float(_pair_sum_kernel(np.ascontiguousarray(q - center), bool(closed)))
+    return _centred_pair_sum(np.ascontiguousarray(q - center), closed)
+
+
+def _centred_pair_sum(q: np.ndarray, closed: bool) -> float:
+    """:func:`_pair_sum` of an already centred polyline q (M+1, 3), C-contiguous: on one
+    core, or from :data:`PARALLEL_SEGMENTS` segments on all."""
+    m = q.shape[0] - 1  # number of segments
+    if m < 3:
+        return 0.0
+    if m >= PARALLEL_SEGMENTS:
+        # numba's default threading layer (workqueue) takes one parallel launch at a
+        # time: calls from several Python threads wait for each other here
+        with _PARALLEL_LOCK:
+            return float(_pair_sum_parallel(q, bool(closed)))
+    return float(_pair_sum_kernel(q, bool(closed)))
 
 
 def writhe_polyline(points) -> float:
@@ -316,23 +394,66 @@ def writhe(points, extension=None) -> float:
     about 10 ms for 1000 segments on the 2-core development machine (compiled).
     """
     p = _as_points(points, "writhe", 2)
-    seg = p[1:] - p[:-1]
-    length = float(np.sum(np.linalg.norm(seg, axis=1)))
     if extension is None:
-        ell = DEFAULT_EXTENSION_FACTOR * length
+        ell = -1.0
     else:
         ell = float(extension)
         if not np.isfinite(ell) or ell < 0.0:
             raise ValueError(f"writhe: extension must be a finite length >= 0, got {extension!r}")
-    t0 = _end_direction(seg, from_start=True)
-    if t0 is None:
+    q = _extended(np.ascontiguousarray(p), ell, DEFAULT_EXTENSION_FACTOR)
+    if q.shape[0] == 0:
         return 0.0
-    t1 = _end_direction(seg, from_start=False)
-    if ell > 0.0:
-        q = np.vstack([p[0] - ell * t0, p, p[-1] + ell * t1])
-    else:
-        q = p
-    return _pair_sum(q, closed=False, center=p.mean(axis=0)) / _TWO_PI
+    return _centred_pair_sum(q, closed=False) / _TWO_PI
+
+
+@numba.njit(cache=True)
+def _extended(p, ell, factor):
+    """The polyline p (N, 3) with :func:`writhe`'s end extensions of length ell (m; −1:
+    ``factor`` × the polyline's length, 0: none), centred on p's mean; empty (0, 3) when
+    all points coincide. The end directions are those of the first and last segment
+    longer than 1e-12 of the longest."""
+    n = p.shape[0]
+    longest = 0.0
+    length = 0.0
+    for k in range(n - 1):
+        d = math.sqrt((p[k + 1, 0] - p[k, 0]) ** 2 + (p[k + 1, 1] - p[k, 1]) ** 2
+                      + (p[k + 1, 2] - p[k, 2]) ** 2)
+        length += d
+        longest = max(longest, d)
+    if longest == 0.0:
+        return np.zeros((0, 3))
+    if ell < 0.0:
+        ell = factor * length
+    first = last = -1
+    for k in range(n - 1):
+        d = math.sqrt((p[k + 1, 0] - p[k, 0]) ** 2 + (p[k + 1, 1] - p[k, 1]) ** 2
+                      + (p[k + 1, 2] - p[k, 2]) ** 2)
+        if d > 1e-12 * longest:
+            if first < 0:
+                first = k
+            last = k
+    center = np.zeros(3)
+    for k in range(n):
+        for c in range(3):
+            center[c] += p[k, c]
+    for c in range(3):
+        center[c] /= n
+    extra = 1 if ell > 0.0 else 0
+    q = np.empty((n + 2 * extra, 3))
+    for k in range(n):
+        for c in range(3):
+            q[k + extra, c] = p[k, c] - center[c]
+    if extra:
+        d0 = math.sqrt((p[first + 1, 0] - p[first, 0]) ** 2 + (p[first + 1, 1] - p[first, 1]) ** 2
+                       + (p[first + 1, 2] - p[first, 2]) ** 2)
+        d1 = math.sqrt((p[last + 1, 0] - p[last, 0]) ** 2 + (p[last + 1, 1] - p[last, 1]) ** 2
+                       + (p[last + 1, 2] - p[last, 2]) ** 2)
+        for c in range(3):
+            t0 = (p[first + 1, c] - p[first, c]) / d0
+            t1 = (p[last + 1, c] - p[last, c]) / d1
+            q[0, c] = (p[0, c] - ell * t0) - center[c]
+            q[n + 1, c] = (p[n - 1, c] + ell * t1) - center[c]
+    return q
 
 
 def writhe_closed(points) -> float:

@@ -158,7 +158,7 @@ def test_warm_up_loads_every_compiled_kernel():
         kernels = []
         for name in ("solver.topology", "solver.kinematics", "solver.scheme", "solver.loads",
                      "solver.newton", "solver.contact.geometry", "solver.contact.model",
-                     "solver.contact.laws", "solver.banded"):
+                     "solver.contact.laws", "solver.banded", "solver.energies"):
             module = importlib.import_module(name)
             kernels += [(name, k, bool(v.signatures)) for k, v in vars(module).items()
                         if isinstance(v, CPUDispatcher) and v.py_func.__module__ == name]
@@ -171,6 +171,7 @@ def test_warm_up_loads_every_compiled_kernel():
     # the cache they have no signatures of their own); Newton's linear-algebra kernels
     # are called from Python only by its test hooks (Newton.linearize, operator, gmres)
     helpers = {"solver.topology._atan2_fast", "solver.topology._row_terms",
+               "solver.topology._pair_setup", "solver.topology._row_sum",
                "solver.scheme._skew_into", "solver.scheme._mass_row", "solver.scheme._flux_row",
                "solver.scheme._mat3", "solver.scheme._qmul", "solver.scheme._node_jacobian_kernel",
                "solver.scheme._node_forces_kernel", "solver.scheme._cells_kernel",
