@@ -11,9 +11,23 @@ from __future__ import annotations
 
 __version__ = "0.1.0"
 
+import os as _os
+import sys as _sys
+
 from ._kernel_cache import purge_stale as _purge_stale
 
 _purge_stale()   # compiled kernels cached for other sources are stale (_kernel_cache)
+
+if "NUMBA_THREADING_LAYER" not in _os.environ:
+    # numba's own work queue for the parallel kernels (the writhe's pair sum): unlike
+    # GNU OpenMP, which numba picks where libgomp is installed, it survives a fork, and
+    # the service's Celery pool and the sweeps' process pool fork after the parent has
+    # run them (session 17: every job of an OpenMP-warmed worker ended in "fork() called
+    # from a process already using GNU OpenMP"). Set before numba reads its environment
+    # (numba is not imported here: the service's API process never loads the numerics)
+    _os.environ["NUMBA_THREADING_LAYER"] = "workqueue"
+    if "numba" in _sys.modules:
+        _sys.modules["numba"].config.THREADING_LAYER = "workqueue"
 
 _LAZY = {
     "Case": ("solver.case", "Case"),

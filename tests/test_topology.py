@@ -292,3 +292,29 @@ def test_writhe_of_1000_segments_is_fast():
         writhe(pts)
         times.append(time.perf_counter() - t0)
     assert min(times) < 0.1
+
+
+def _writhe_in_child(points, queue):
+    queue.put(writhe(points))
+
+
+def test_parallel_writhe_in_a_process_forked_after_it():
+    """The writhe's pair sum runs on all cores from PARALLEL_SEGMENTS segments; a process
+    forked after the parent ran it (the service's Celery pool, the sweeps' process pool)
+    must run it too. With GNU OpenMP as numba's threading layer the child aborted
+    ("fork() called from a process already using GNU OpenMP"); solver sets numba's own
+    work queue, which survives a fork."""
+    import multiprocessing
+
+    from solver.topology import PARALLEL_SEGMENTS
+
+    k = np.arange(PARALLEL_SEGMENTS + 50, dtype=float)
+    points = np.column_stack([np.cos(0.3 * k), np.sin(0.3 * k), 0.05 * k])
+    here = writhe(points)
+    ctx = multiprocessing.get_context("fork")
+    queue = ctx.Queue()
+    child = ctx.Process(target=_writhe_in_child, args=(points, queue))
+    child.start()
+    child.join(60)
+    assert child.exitcode == 0
+    assert queue.get(timeout=5) == pytest.approx(here, rel=1e-12)
