@@ -1,38 +1,41 @@
-"""Block-banded Jacobian of the box scheme, in LAPACK band storage.
+"""The LU factorisation of the step's Jacobian, an almost-block-diagonal matrix.
 
 Unknown ordering: node-major, 12 unknowns per node (v, ω, f, κ), n = 12(N+1).
-Row ordering: the 6 boundary rows of s = 0, then 12 rows per cell (E1..E4 of seed eqs.
-2-5), then the 6 boundary rows of s = L. A cell couples two neighbouring nodes (24
-columns), so the half-bandwidths are kl = ku = 17 (numerics-notes §9).
+Row ordering: the 6 boundary rows of s = 0 (on node 0's unknowns), then 12 rows per cell
+k = 0 … N−1 (E1..E4 of seed eqs. 2-5, on nodes k and k + 1), then the 6 boundary rows of
+s = L (on node N's). Every cell's rows span 24 columns and consecutive cells overlap by
+12: the matrix is almost block diagonal (a two-point boundary-value problem's
+collocation matrix), a band with kl = ku = 17 (numerics-notes §9) in which most of the
+band is structurally zero.
 
-LAPACK general band storage (``dgbtrf``): ``ab[kl + ku + i - j, j] = A[i, j]`` with
-``2 kl + ku + 1`` rows, the top kl rows being workspace for the fill-in of pivoting.
+Gaussian elimination with partial (row) pivoting meets the structure exactly: the
+unknowns of node k occur only in the 6 rows left over from node k − 1 and the 12 rows of
+cell k, so node k's 12 columns are eliminated in a window of 18 rows × 24 columns (node k
+and node k + 1); 12 rows become U's, the other 6 carry over to the next window with fill
+on node k + 1 only, and the last window is the 6 carried rows with the 6 boundary rows of
+s = L (12 × 12). The pivots are those of LAPACK's band LU (``dgbtrf``: partial pivoting
+over the rows that have an entry in the column, the first of equal maxima), with a third
+of its flops: per node ~5,300 against ~14,000 (measured at N = 1000: 1.0 ms against
+2.9 ms for the assembly and ``dgbtrf``, the solve 0.26 ms against 0.39 ms for
+``dgbtrs``; session 17). The elimination order and pivots being the band LU's, so is
+its stability (Golub & Van Loan, *Matrix Computations*, § 4.3 on band LU with partial
+pivoting).
+
+The factor's storage (a tuple, :func:`block_storage`): LW (N, 18, 12) the windows' first
+12 columns after elimination (U's upper triangle in rows 0-11, the multipliers below),
+UR (N, 12, 12) U's entries on node k + 1, piv (N, 12) the row interchanges, LF (12, 12)
+and pivf (12,) the last window's LU, and work arrays W (18, 24) and w (18,).
 """
 from __future__ import annotations
 
-import llvmlite.binding as _llvm
 import numba
 import numpy as np
-from numba import types as _types
-from numba.extending import get_cython_function_address
 
-__all__ = ["BandLayout", "BandFactorError", "band_factor", "band_solve", "assemble_band",
-           "copy_into", "fill"]
+__all__ = ["BlockLU", "BandFactorError", "block_storage", "block_factor", "block_solve",
+           "copy_into", "fill", "NV"]
 
-KL = 17
-KU = 17
 NV = 12  # unknowns per node
-LDAB = 2 * KL + KU + 1
-
-# LAPACK's band LU (dgbtrf) and solve (dgbtrs) as scipy ships them
-# (scipy.linalg.cython_lapack), bound by symbol name so that the compiled kernels that call
-# them can be cached on disk (a ctypes pointer held as a global cannot be).
-for _name in ("dgbtrf", "dgbtrs"):
-    _llvm.add_symbol("hockle_" + _name,
-                     get_cython_function_address("scipy.linalg.cython_lapack", _name))
-_vp = _types.voidptr
-_dgbtrf = _types.ExternalFunction("hockle_dgbtrf", _types.void(*([_vp] * 8)))
-_dgbtrs = _types.ExternalFunction("hockle_dgbtrs", _types.void(*([_vp] * 11)))
+_WIN = 18  # rows of a window: 6 carried + 12 of a cell
 
 
 @numba.njit(cache=True)
@@ -54,64 +57,163 @@ def fill(dst, value):
 
 
 class BandFactorError(ArithmeticError):
-    """The band LU factorisation met an exactly singular pivot (``info > 0``)."""
+    """The LU factorisation met an exactly singular pivot."""
+
+
+def block_storage(n_cells: int):
+    """The factor's storage for N = n_cells cells (module docstring): (LW (N, 18, 12),
+    UR (N, 12, 12), piv (N, 12) int, LF (12, 12), pivf (12,) int, W (18, 24), w (18,))."""
+    n = int(n_cells)
+    return (np.zeros((n, _WIN, NV)), np.zeros((n, NV, NV)), np.zeros((n, NV), np.intp),
+            np.zeros((NV, NV)), np.zeros(NV, np.intp), np.zeros((_WIN, 2 * NV)),
+            np.zeros(_WIN))
 
 
 @numba.njit(cache=True)
-def band_factor(abT, piv, iw):
-    """LU-factorise in place (LAPACK ``dgbtrf``, partial pivoting) the band matrix whose
-    LAPACK storage (LDAB, n), Fortran order, is abT (n, LDAB) in C order; piv (n,) int32
-    receives the pivots, iw (8,) int32 is scratch. Returns LAPACK's info (> 0: an exactly
-    singular pivot)."""
-    n = abT.shape[0]
-    iw[0] = n
-    iw[1] = n
-    iw[2] = KL
-    iw[3] = KU
-    iw[4] = abT.shape[1]
-    iw[5] = 0
-    _dgbtrf(iw[0:].ctypes, iw[1:].ctypes, iw[2:].ctypes, iw[3:].ctypes, abT.ctypes,
-            iw[4:].ctypes, piv.ctypes, iw[5:].ctypes)
-    return iw[5]
+def _eliminate(W, rows, cols, j, piv_row):
+    """Partial pivoting on column j of W (rows j .. rows−1) and elimination below it in
+    columns j+1 .. cols−1: the multipliers are stored in column j; the interchange is
+    applied to columns j .. cols−1 only (earlier multipliers stay with the row they were
+    computed for, so the solve interchanges and eliminates column by column, as LINPACK's
+    dgesl). Records the pivot row in piv_row[j]; returns False for an exactly zero
+    pivot."""
+    p = j
+    big = abs(W[j, j])
+    for i in range(j + 1, rows):
+        a = abs(W[i, j])
+        if a > big:
+            big = a
+            p = i
+    if big == 0.0:
+        return False
+    piv_row[j] = p
+    if p != j:
+        for c in range(j, cols):
+            tmp = W[j, c]
+            W[j, c] = W[p, c]
+            W[p, c] = tmp
+    inv = 1.0 / W[j, j]
+    for i in range(j + 1, rows):
+        m = W[i, j] * inv
+        W[i, j] = m
+        if m != 0.0:
+            for c in range(j + 1, cols):
+                W[i, c] -= m * W[j, c]
+    return True
 
 
 @numba.njit(cache=True)
-def band_solve(abT, piv, b, iw):
-    """Solve in place with the factor of :func:`band_factor` (LAPACK ``dgbtrs``): b (n,)
-    becomes the solution. iw (8,) int32 scratch. Returns LAPACK's info."""
-    n = abT.shape[0]
-    iw[0] = n
-    iw[1] = KL
-    iw[2] = KU
-    iw[3] = 1
-    iw[4] = abT.shape[1]
-    iw[5] = n
-    iw[6] = 0
-    iw[7] = 78                      # 'N': no transpose
-    _dgbtrs(iw[7:].ctypes, iw[0:].ctypes, iw[1:].ctypes, iw[2:].ctypes, iw[3:].ctypes,
-            abT.ctypes, iw[4:].ctypes, piv.ctypes, b.ctypes, iw[5:].ctypes, iw[6:].ctypes)
-    return iw[6]
-
-
-@numba.njit(cache=True)
-def assemble_band(abT, cell_blocks, bc_rows, bc_cols, bc_vals):
-    """Write the Jacobian into band storage abT (n, LDAB) (zeroed first): cell c's blocks
-    (12, 24) at rows 6 + 12c + i, columns 12c + j, and the boundary entries (12,) at
-    (bc_rows, bc_cols); A[i, j] is abT[j, KL + KU + i − j] (the module docstring)."""
-    fill(abT, 0.0)
-    off = KL + KU
-    for c in range(cell_blocks.shape[0]):
-        for i in range(NV):
-            row = 6 + NV * c + i
-            for j in range(2 * NV):
-                col = NV * c + j
-                abT[col, off + row - col] = cell_blocks[c, i, j]
+def block_factor(blocks, bc_rows, bc_cols, bc_vals, lu):
+    """LU-factorise the Jacobian with cell blocks (N, 12, 24) on [node k | node k + 1]
+    (already scaled) and the boundary entries (bc_rows, bc_cols, bc_vals) (12,) each,
+    rows 0-5 at s = 0 and n−6 … n−1 at s = L, into the storage ``lu``
+    (:func:`block_storage`). Returns 0, or 1 + the unknown whose pivot is exactly zero
+    (a singular Jacobian)."""
+    LW, UR, piv, LF, pivf, W, w = lu
+    n_cells = blocks.shape[0]
+    n = NV * (n_cells + 1)
+    # the first window's carried rows: the boundary rows of s = 0
+    for i in range(6):
+        for c in range(2 * NV):
+            W[i, c] = 0.0
     for m in range(bc_rows.shape[0]):
-        abT[bc_cols[m], off + bc_rows[m] - bc_cols[m]] = bc_vals[m]
+        r = bc_rows[m]
+        if r < 6:
+            W[r, bc_cols[m]] = bc_vals[m]
+    for k in range(n_cells):
+        for i in range(NV):
+            for c in range(2 * NV):
+                W[6 + i, c] = blocks[k, i, c]
+        for j in range(NV):
+            if not _eliminate(W, _WIN, 2 * NV, j, piv[k]):
+                return NV * k + j + 1
+        for i in range(_WIN):
+            for c in range(NV):
+                LW[k, i, c] = W[i, c]
+        for i in range(NV):
+            for c in range(NV):
+                UR[k, i, c] = W[i, NV + c]
+        # the 6 rows left carry over, on node k + 1's columns
+        for i in range(6):
+            for c in range(NV):
+                W[i, c] = W[NV + i, NV + c]
+            for c in range(NV, 2 * NV):
+                W[i, c] = 0.0
+    # the last window: the carried rows and the boundary rows of s = L, on node N
+    for i in range(6):
+        for c in range(NV):
+            LF[i, c] = W[i, c]
+            LF[6 + i, c] = 0.0
+    for m in range(bc_rows.shape[0]):
+        r = bc_rows[m]
+        if r >= n - 6:
+            LF[r - (n - 6) + 6, bc_cols[m] - NV * n_cells] = bc_vals[m]
+    for j in range(NV):
+        if not _eliminate(LF, NV, NV, j, pivf):
+            return NV * n_cells + j + 1
+    return 0
 
 
-class BandLayout:
-    """The band storage of the step's Jacobian and its LU factor.
+@numba.njit(cache=True)
+def block_solve(lu, x):
+    """Solve in place with the factor of :func:`block_factor`: x (n,) holds the right-hand
+    side in the residual's row order and becomes the solution in the unknowns' order
+    (the forward pass writes node k's entries only after it has read cell k's rows, so
+    the two orders can share one array)."""
+    LW, UR, piv, LF, pivf, W, w = lu
+    n_cells = LW.shape[0]
+    n = NV * (n_cells + 1)
+    for i in range(6):
+        w[i] = x[i]
+    for k in range(n_cells):
+        for i in range(NV):
+            w[6 + i] = x[6 + NV * k + i]
+        for j in range(NV):
+            p = piv[k, j]
+            if p != j:
+                tmp = w[j]
+                w[j] = w[p]
+                w[p] = tmp
+            wj = w[j]
+            if wj != 0.0:
+                for i in range(j + 1, _WIN):
+                    w[i] -= LW[k, i, j] * wj
+        for i in range(NV):
+            x[NV * k + i] = w[i]
+        for i in range(6):
+            w[i] = w[NV + i]
+    for i in range(6):
+        w[6 + i] = x[n - 6 + i]
+    for j in range(NV):
+        p = pivf[j]
+        if p != j:
+            tmp = w[j]
+            w[j] = w[p]
+            w[p] = tmp
+        wj = w[j]
+        for i in range(j + 1, NV):
+            w[i] -= LF[i, j] * wj
+    base = NV * n_cells
+    for j in range(NV - 1, -1, -1):
+        acc = w[j]
+        for c in range(j + 1, NV):
+            acc -= LF[j, c] * x[base + c]
+        x[base + j] = acc / LF[j, j]
+    for k in range(n_cells - 1, -1, -1):
+        b0 = NV * k
+        nb = b0 + NV
+        for j in range(NV - 1, -1, -1):
+            acc = x[b0 + j]
+            for c in range(NV):
+                acc -= UR[k, j, c] * x[nb + c]
+            for c in range(j + 1, NV):
+                acc -= LW[k, j, c] * x[b0 + c]
+            x[b0 + j] = acc / LW[k, j, j]
+
+
+class BlockLU:
+    """The LU factor of a step's Jacobian (module docstring), for callers outside
+    Newton's compiled iterations (the growth guard, :func:`solver.stepping.growth_rate`).
 
     Parameters
     ----------
@@ -122,33 +224,25 @@ class BandLayout:
     def __init__(self, n_cells: int):
         self.n_cells = n_cells
         self.n = NV * (n_cells + 1)
-        self.ldab = LDAB
-        # C-ordered (n, LDAB): the same memory as LAPACK's Fortran-ordered (LDAB, n)
-        self.abT = np.zeros((self.n, self.ldab))
-        self.piv = np.zeros(self.n, np.int32)
-        self.iw = np.zeros(8, np.int32)
+        self.lu = block_storage(n_cells)
 
     def factor(self, cell_blocks: np.ndarray, bc_rows: np.ndarray, bc_cols: np.ndarray,
                bc_vals: np.ndarray) -> None:
-        """Assemble and LU-factorise the (already scaled) Jacobian.
+        """LU-factorise the (already scaled) Jacobian.
 
         cell_blocks: (N, 12, 24) blocks of the cell rows on [node k-1 | node k] columns;
         bc_rows, bc_cols, bc_vals: (12,) the boundary-condition entries.
         Raises BandFactorError on an exactly singular matrix.
         """
-        assemble_band(self.abT, np.ascontiguousarray(cell_blocks, dtype=float),
-                      np.asarray(bc_rows, np.intp), np.asarray(bc_cols, np.intp),
-                      np.asarray(bc_vals, dtype=float))
-        info = band_factor(self.abT, self.piv, self.iw)
+        info = block_factor(np.ascontiguousarray(cell_blocks, dtype=float),
+                            np.asarray(bc_rows, np.intp), np.asarray(bc_cols, np.intp),
+                            np.asarray(bc_vals, dtype=float), self.lu)
         if info > 0:
             raise BandFactorError(f"singular Jacobian (zero pivot at unknown {info - 1})")
-        if info < 0:  # pragma: no cover - an argument error is a programming error
-            raise ValueError(f"dgbtrf argument {-info} invalid")
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
-        """Solve with the current factor (``dgbtrs``); rhs (n,) -> (n,)."""
+        """Solve with the current factor; rhs (n,) in the residual's row order -> the
+        solution (n,) in the unknowns' order (a new array)."""
         x = np.array(rhs, dtype=float)
-        info = band_solve(self.abT, self.piv, x, self.iw)
-        if info != 0:  # pragma: no cover
-            raise ValueError(f"dgbtrs argument {-info} invalid")
+        block_solve(self.lu, x)
         return x

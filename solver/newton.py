@@ -3,13 +3,14 @@
 The difference equations of a step (:class:`solver.scheme.RodSystem`) are solved for all
 12(N+1) unknowns at once. The whole iteration of a step is one compiled kernel
 (:func:`_newton_kernel`): residual and Jacobian (:func:`solver.scheme.residual_into`,
-contact included), equilibration, LAPACK's band LU, GMRES with the exact operator, the
+contact included), equilibration, the Jacobian's LU, GMRES with the exact operator, the
 feasibility filter and the line search, with no Python between them (session 17: a
 Newton iteration of PyElastica's plectoneme at N = 20 made ~840 Python-level calls,
 docs/contact.md § 4). The strategy, in one place:
 
-* **Jacobian and factorisation.** The analytic Jacobian in LAPACK band storage
-  (kl = ku = 17, :mod:`solver.banded`), equilibrated by a column scale (characteristic
+* **Jacobian and factorisation.** The analytic Jacobian, almost block diagonal (a band,
+  kl = ku = 17), LU-factorised by node windows (:mod:`solver.banded`), equilibrated by a
+  column scale (characteristic
   size of each unknown) and a row scale (size of the terms of each row). Without contact
   the LU is reused across iterations and steps (chord) while the step size, the scheme's
   weights and the boundary rows are unchanged, and refactored when the residual falls
@@ -37,7 +38,7 @@ import math
 import numba
 import numpy as np
 
-from .banded import LDAB, NV, assemble_band, band_factor, band_solve, copy_into, fill
+from .banded import NV, block_factor, block_solve, block_storage, copy_into, fill
 from .contact.model import candidate_gaps_into
 from .scheme import E3, exact_loads_product, pose_into, residual_into
 
@@ -143,7 +144,7 @@ def _matvec_kernel(blocks, x, load_weight, dB, out):
 # ----------------------------------------------------------------------------- kernels
 # The persistent state of a Newton object, as the kernels take it (allocated by
 # Newton._allocate):
-#   lin = (abT (n, LDAB), piv (n,) int32, iw (8,) int32, row scale (n,), s12 (12,),
+#   lin = (the LU's storage (solver.banded.block_storage), row scale (n,), s12 (12,),
 #          column scale (n,))
 #   op  = (scaled band blocks (N, 12, 24), scaled boundary values (12,), load row weight
 #          (N, 3), exact product data (R, C, D, tmid, rdot, A0, G, L, contact pairs, scal,
@@ -165,7 +166,7 @@ def _set_operator(buf, ev, lin, op, step, weight, af):
     ``weight`` of the node-local contact blocks (the rest moves to the exact load
     product's node-local term L, so band + exact product is still the Jacobian; the
     row scale stays that of the full blocks), and the exact product's data."""
-    rs, s12 = lin[3], lin[4]
+    rs, s12 = lin[1], lin[2]
     blocks, bc_scaled, lrw, ex, flags = op
     _scale_blocks_kernel(buf[4], rs, s12, blocks)
     bc_rows, bc_cols, bc_coef = step[7], step[8], step[9]
@@ -226,15 +227,14 @@ def _factor(Y, buf, ev, lin, op, rod, step, weight, ctr):
     """Scale, assemble and LU-factorise the Jacobian whose cell blocks the last residual
     evaluation left in buf at the iterate Y (:func:`equilibrate`), and make it (with the
     exact load data) GMRES's operator. Returns False for a singular Jacobian."""
-    abT, piv, iw, rs, s12, cs = lin
+    lu, rs, s12, cs = lin
     _equilibrate(Y, buf[4], step[7], step[8], step[9], rod[5], rs, s12)
     n1 = Y.shape[0]
     for k in range(n1):
         for j in range(NV):
             cs[NV * k + j] = s12[j]
     _set_operator(buf, ev, lin, op, step, weight, step[11][2])
-    assemble_band(abT, op[0], step[7], step[8], op[1])
-    if band_factor(abT, piv, iw) != 0:
+    if block_factor(op[0], step[7], step[8], op[1], lu) != 0:
         return False
     ctr[0] += 1
     ctr[3] = 1
@@ -247,7 +247,7 @@ def _matvec(x, out, lin, op, step, gm):
     the operator, plus (self-contact configured) the exact load terms of the space-route
     pose in place of their node-local part (:func:`solver.scheme.exact_loads_product`)."""
     blocks, bc_scaled, lrw, ex, flags = op
-    cs = lin[5]
+    cs = lin[3]
     if flags[0]:
         dY, dB = gm[9], gm[10]
         n1 = dY.shape[0]
@@ -287,12 +287,12 @@ def _gmres(rhs, out, rtol, m, lin, op, step, gm, ctr):
     iterations). Counts its iterations and failures (m iterations without reaching
     rtol) in ctr. Source: Saad & Schultz, SIAM J. Sci. Stat. Comput. 7 (1986) 856-869.
     Returns the number of iterations."""
-    abT, piv, iw = lin[0], lin[1], lin[2]
+    lu = lin[0]
     V, Z, H, cs, sn, g, w, x0, r = gm[0], gm[1], gm[2], gm[3], gm[4], gm[5], gm[6], gm[7], gm[8]
     n = rhs.shape[0]
     for i in range(n):
         x0[i] = rhs[i]
-    band_solve(abT, piv, x0, iw)
+    block_solve(lu, x0)
     _matvec(x0, r, lin, op, step, gm)
     for i in range(n):
         r[i] = rhs[i] - r[i]
@@ -312,7 +312,7 @@ def _gmres(rhs, out, rtol, m, lin, op, step, gm, ctr):
     for k in range(m):
         Zk = Z[k]
         copy_into(Zk, V[k])
-        band_solve(abT, piv, Zk, iw)
+        block_solve(lu, Zk)
         _matvec(Zk, w, lin, op, step, gm)
         # classical Gram-Schmidt and one reorthogonalisation
         for _ in range(2):
@@ -517,8 +517,8 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
     weight = prm[8]
     R, Fn = buf[0], buf[2]
     Y, Yt, delta_flat, rhs, stall_scale, history, frozen = ws[0], ws[1], ws[2], ws[3], ws[4], ws[5], ws[8]
-    rs, cs = lin[3], lin[5]
-    abT, piv, iw = lin[0], lin[1], lin[2]
+    rs, cs = lin[1], lin[3]
+    lu = lin[0]
     n1 = Y.shape[0]
     delta = delta_flat.reshape(n1, NV)
     nr = cand[2].shape[0]
@@ -596,14 +596,14 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
                                             gm, ctr)
                     else:
                         copy_into(delta_flat, rhs)
-                        band_solve(abT, piv, delta_flat, iw)
+                        block_solve(lu, delta_flat)
                 if ctr[2] > failures:
                     # the contact coupling is too strong for the band preconditioner at
                     # this Δt: the correction is unreliable. Fail now; the caller cuts Δt.
                     return it + 1, res, False, _GMRES
         else:
             copy_into(delta_flat, rhs)
-            band_solve(abT, piv, delta_flat, iw)
+            block_solve(lu, delta_flat)
         for i in range(delta_flat.shape[0]):
             delta_flat[i] *= cs[i]
         if contact:
@@ -718,8 +718,7 @@ class Newton:
             cap = max(cap, 2 * old["cap"])
         m = self.GMRES_MAX
         if old is None:
-            lin = (np.zeros((n, LDAB)), np.zeros(n, np.int32), np.zeros(8, np.int32),
-                   np.ones(n), np.ones(NV), np.ones(n))
+            lin = (block_storage(nc), np.ones(n), np.ones(NV), np.ones(n))
             ctr = np.zeros(4, np.int64)
             gm = (np.zeros((m + 1, n)), np.zeros((m, n)), np.zeros((m + 1, m)), np.zeros(m),
                   np.zeros(m), np.zeros(m + 1), np.zeros(n), np.zeros(n), np.zeros(n),
@@ -875,12 +874,12 @@ class Newton:
     @property
     def row_scale(self):
         """The row scale (n,) of the last factorisation."""
-        return self._state["lin"][3]
+        return self._state["lin"][1]
 
     @property
     def col_scale(self):
         """The column scale (n,) of the last factorisation."""
-        return self._state["lin"][5]
+        return self._state["lin"][3]
 
     @property
     def coupled(self) -> bool:
@@ -908,10 +907,10 @@ class Newton:
         return out, int(its), int(st["ctr"][2]) == failures
 
     def band_solve(self, rhs):
-        """The last band LU's solution (n,) of rhs (n,) (the preconditioner)."""
-        lin = self._state["lin"]
+        """The last LU's solution (n,) of rhs (n,) (the preconditioner; the node-local
+        band of the Jacobian, :mod:`solver.banded`)."""
         x = np.array(rhs, dtype=float)
-        band_solve(lin[0], lin[1], x, lin[2])
+        block_solve(self._state["lin"][0], x)
         return x
 
     def filtered(self, e):

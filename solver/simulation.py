@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .banded import BandLayout
+from .banded import BlockLU
 from .boundary import BoundaryRows, boundary_plan
 from .contact import SelfContact, close_node_pairs, swept_min_distance
 from .contact.geometry import max_distance
@@ -450,7 +450,7 @@ class RodRun:
         if (math.isnan(self.guard_sigma) or self.guard_since >= every
                 or h > 2.0 * self.guard_h or h > 0.1 * self.system.tc):
             if self._guard_layout is None:
-                self._guard_layout = BandLayout(self.system.n_cells)
+                self._guard_layout = BlockLU(self.system.n_cells)
             sigma, vec = growth_rate(self.system, Y, 2.0 * g / h, self._guard_layout,
                                      self.guard_v0)
             # further out (16g/h) at new largest steps, and when a growth known from the

@@ -173,7 +173,7 @@ def growth_rate(system, Y, shift: float, layout, v0=None):
     eigenvalues μ of T = J(c_s)⁻¹ M_b give σ = shift − 1/((1 − αf) μ); those nearest the
     shift have the largest |μ|, found by ARPACK's implicitly restarted Arnoldi
     (scipy.sparse.linalg.eigs; Lehoucq, Sorensen & Yang 1998) on T in the scaled
-    coordinates of the band LU (one banded factorisation, a few tens of solves). Every
+    coordinates of the Jacobian's LU (one factorisation, a few tens of solves). Every
     eigenvalue with Re σ > 0 and |σ − shift| < shift has |μ|(1 − αf) > 1/shift, larger
     than that of any oscillatory or damped mode.
 
@@ -182,7 +182,7 @@ def growth_rate(system, Y, shift: float, layout, v0=None):
     system : solver.scheme.RodSystem with the step set up (``begin_step``)
     Y : (N+1, 12) the converged new level
     shift : float, 1/s (> 0)
-    layout : solver.banded.BandLayout used as the workspace (not Newton's)
+    layout : solver.banded.BlockLU used as the workspace (not Newton's)
     v0 : (12(N+1),) start vector or None
 
     Returns
