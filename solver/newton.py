@@ -703,6 +703,7 @@ class Newton:
         self._factored_with_contact = False
         self._state = None
         self.last_trace = None
+        self.last_frozen = False
 
     # ------------------------------------------------------------------ state
     def _allocate(self, runs):
@@ -821,6 +822,10 @@ class Newton:
         if st["ctr"][0] != factorizations:
             self._factored_with_contact = contact
         self.last_failure = FAILURES[code]
+        #: whether the last solve's final residual used a frozen contact selection
+        #: (FREEZE_AFTER iterations or more); if not, its contact evaluation
+        #: (RodSystem.contact_state) is that of a fresh selection at the solution
+        self.last_frozen = contact and its >= self.FREEZE_AFTER
         #: per iteration of the last solve: the scaled residual, the feasibility filter's
         #: fraction, the line search's fraction and GMRES's iterations (diagnostics)
         self.last_trace = st["ws"][13][:its + 1].copy()

@@ -316,8 +316,12 @@ class RodRun:
         if self.contact is not None:
             ev = None
             if cand is not None and cand.runs:
-                vg = np.einsum("nij,nj->ni", pose[1], Y[:, 0:3])
-                ev = self.contact.evaluate(cand, pose[2], vg)
+                if self.newton.last_frozen:
+                    vg = np.einsum("nij,nj->ni", pose[1], Y[:, 0:3])
+                    ev = self.contact.evaluate(cand, pose[2], vg)
+                else:
+                    # Newton's last residual evaluated these contacts at this very state
+                    ev = sysm.contact_state()
             if ev is not None and ev.min_gap < 0.0:
                 # the surfaces interpenetrate: reject, the caller cuts Δt
                 self.last_reject = "contact"
