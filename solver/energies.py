@@ -95,3 +95,65 @@ def distributed_power(Y: np.ndarray, body_force: np.ndarray | None, props) -> fl
     if body_force is None:
         return 0.0
     return float(np.dot(props.quad_weights, np.einsum("ni,ni->n", body_force, Y[:, 0:3])))
+
+
+@numba.njit(cache=True)
+def end_work_into(Y, Y_old, h, gamma, am, af, xdot_old, load_old, stiffness, xdot, loads):
+    """One accepted step's bookkeeping at the two end sections: the end loads (2, 6) of
+    Y into ``loads`` (:func:`end_loads`), the displacement rates (2, 6) of the end
+    sections by the scheme's generalized-α relation, ẋ^{n+1} = ((1 − αf) y^{n+1} +
+    αf y^n − αm ẋ^n)/(1 − αm) with y the end nodes' (v, ω), into ``xdot``, and their
+    increments Δx = h((1 − γ) ẋ^n + γ ẋ^{n+1}). Returns (the work put in over the step,
+    Σ ½(F^n + F^{n+1})·Δx (J); the end power Σ F^{n+1}·y^{n+1} (W); Δφ at s = 0 and at
+    s = L (rad), the a3 components of Δx). Y, Y_old (N+1, 12); stiffness (N+1, 3).
+    The one home of the end terms of :meth:`solver.simulation.RodRun.try_step`."""
+    work = 0.0
+    power = 0.0
+    dphi0 = 0.0
+    dphi1 = 0.0
+    for e in range(2):
+        k = 0 if e == 0 else Y.shape[0] - 1
+        sign = -1.0 if e == 0 else 1.0
+        for i in range(3):
+            loads[e, i] = sign * Y[k, 6 + i]
+            loads[e, 3 + i] = sign * stiffness[k, i] * Y[k, 9 + i]
+        for i in range(6):
+            rate = (1.0 - af) * Y[k, i] + af * Y_old[k, i]
+            xdot[e, i] = (rate - am * xdot_old[e, i]) / (1.0 - am)
+            dx = h * ((1.0 - gamma) * xdot_old[e, i] + gamma * xdot[e, i])
+            work += 0.5 * (load_old[e, i] + loads[e, i]) * dx
+            power += loads[e, i] * Y[k, i]
+            if i == 5:
+                if e == 0:
+                    dphi0 = dx
+                else:
+                    dphi1 = dx
+    return work, power, dphi0, dphi1
+
+
+@numba.njit(cache=True)
+def distributed_work_into(Y, Y_old, h, gamma, am, af, vdot_old, body_old, has_old, body,
+                          has_new, weights, vdot):
+    """The same bookkeeping for distributed body-frame loads (N+1, 3) N/m at every node
+    (nodal quadrature weights (N+1,) m): the nodes' rates by the generalized-α relation
+    into ``vdot``, and (the work Σ_n w_n ½(B^n + B^{n+1})·Δx_n over the step, a load
+    absent at one level counting as zero (J); the power Σ_n w_n B^{n+1}·v_n (W))."""
+    work = 0.0
+    power = 0.0
+    for k in range(Y.shape[0]):
+        acc = 0.0
+        pk = 0.0
+        for i in range(3):
+            rate = (1.0 - af) * Y[k, i] + af * Y_old[k, i]
+            vdot[k, i] = (rate - am * vdot_old[k, i]) / (1.0 - am)
+            dx = h * ((1.0 - gamma) * vdot_old[k, i] + gamma * vdot[k, i])
+            b = 0.0
+            if has_old:
+                b += body_old[k, i]
+            if has_new:
+                b += body[k, i]
+                pk += body[k, i] * Y[k, i]
+            acc += 0.5 * b * dx
+        work += weights[k] * acc
+        power += weights[k] * pk
+    return work, power

@@ -323,3 +323,27 @@ def right_jacobian(theta: np.ndarray) -> np.ndarray:
     out = np.empty((flat.shape[0], 3, 3))
     _right_jacobian_kernel(flat, out)
     return out.reshape(theta.shape[:-1] + (3, 3))
+
+
+@numba.njit(cache=True)
+def normalize_quaternions(q):
+    """Normalise the quaternions q (N, 4) in place; returns max |‖q‖ − 1| before (the
+    drift of an integrated rotation from the unit sphere)."""
+    worst = 0.0
+    for k in range(q.shape[0]):
+        nrm = math.sqrt(q[k, 0] ** 2 + q[k, 1] ** 2 + q[k, 2] ** 2 + q[k, 3] ** 2)
+        worst = max(worst, abs(nrm - 1.0))
+        for c in range(4):
+            q[k, c] /= nrm
+    return worst
+
+
+@numba.njit(cache=True)
+def rotate_rows(q, v, out):
+    """out_k = R(q_k) v_k for unit quaternions q (N, 4) and vectors v (N, 3) (body to
+    global), into out (N, 3)."""
+    R = np.empty((1, 3, 3))
+    for k in range(q.shape[0]):
+        _matrix_into(q[k, 0], q[k, 1], q[k, 2], q[k, 3], R, 0)
+        for i in range(3):
+            out[k, i] = R[0, i, 0] * v[k, 0] + R[0, i, 1] * v[k, 1] + R[0, i, 2] * v[k, 2]

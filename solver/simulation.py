@@ -25,9 +25,10 @@ from .banded import BlockLU
 from .boundary import BoundaryRows, boundary_plan
 from .contact import SelfContact, close_node_pairs, swept_min_distance
 from .contact.geometry import max_distance
-from .energies import distributed_power, end_loads, end_power, energies
-from .kinematics import (quat_from_matrix, quat_slerp, quat_to_matrix, relative_rotation,
-                         space_route)
+from .energies import (distributed_power, distributed_work_into, end_loads, end_power,
+                       end_work_into, energies)
+from .kinematics import (normalize_quaternions, quat_from_matrix, quat_slerp,
+                         quat_to_matrix, relative_rotation, rotate_rows, space_route)
 from .loads import LoadModel
 from .properties import RodProperties
 from .newton import Newton
@@ -367,8 +368,7 @@ class RodRun:
                                               self.v_global_time,
                                               offsets=((self.bc_offset, self.bc.cols),
                                                        (offset, bc.cols)))
-        nrm = np.linalg.norm(q_t, axis=1)
-        q_t /= nrm[:, None]
+        drift = normalize_quaternions(q_t)
         if self.contact is not None:
             self.contact_count, self.min_gap = contact_count, min_gap
         if self.errctl is not None:
@@ -376,37 +376,32 @@ class RodRun:
                 self.errctl.reset(t_new, Y)
             else:
                 self.errctl.push(t_new, Y)
-        self.quat_norm_error = max(self.quat_norm_error, float(np.max(np.abs(nrm - 1.0))))
+        self.quat_norm_error = max(self.quat_norm_error, drift)
         self.r_time, self.q_time, self.v_global_time = r_t, q_t, vg_t
         # displacement increments of the end sections (v, ω components, body frame) with
         # the scheme's own generalized-α relation (the one κ obeys through E1). Their
         # a3 rotations are the end rotations φ of the linking number, so Lk and the
         # discrete twist advance consistently; with the end loads they give the work.
         am, af = params.alpha_m, params.alpha_f
-        rate = (1.0 - af) * Y[[0, -1], 0:6] + af * self.Y[[0, -1], 0:6]
-        xdot = (rate - am * self.xdot_end) / (1.0 - am)
-        dx = h * ((1.0 - g) * self.xdot_end + g * xdot)
-        self.phi = self.phi + dx[:, 5]
-        # work put in: the mean load of the step times the increment of its conjugate
-        # displacement. At ρ∞ = 1 this is the box scheme's discrete work, ½(Fⁿ + Fⁿ⁺¹)·
-        # ½(ẋⁿ + ẋⁿ⁺¹)Δt, which the energy then equals; a trapezoid of the power (mean of
-        # the products) differs from it by O(Δt²) (10 % at Δt = 1 s, docs/numerics.md § 6).
         glob = sysm._glob_force
         body = self._body_force(glob, None if pose is None else (pose[1],))
-        loads = end_loads(Y, props)
-        power = end_power(Y, props, loads) + distributed_power(Y, body, props)
-        self.work_in += float(np.sum(0.5 * (self.end_load + loads) * dx))
+        loads, xdot = np.empty((2, 6)), np.empty((2, 6))
+        work, power, dphi0, dphi1 = end_work_into(Y, self.Y, float(h), float(g), float(am),
+                                                  float(af), self.xdot_end, self.end_load,
+                                                  props.stiffness, xdot, loads)
+        self.phi = self.phi + np.array([dphi0, dphi1])
+        self.work_in += work
         self.xdot_end, self.end_load = xdot, loads
         if self.loads.has_global:
             # distributed global-frame loads: the same per node, with the quadrature weights
-            rate = (1.0 - af) * Y[:, 0:3] + af * self.Y[:, 0:3]
-            vdot = (rate - am * self.xdot_nodes) / (1.0 - am)
-            dx = h * ((1.0 - g) * self.xdot_nodes + g * vdot)
-            loaded = [b for b in (self.body_force, body) if b is not None]
-            if loaded:                                    # None: no load at that level
-                b_mean = 0.5 * sum(loaded)
-                self.work_in += float(np.dot(props.quad_weights,
-                                             np.einsum("ni,ni->n", b_mean, dx)))
+            vdot = np.empty_like(self.xdot_nodes)
+            none = np.zeros((0, 3))
+            work, dpower = distributed_work_into(
+                Y, self.Y, float(h), float(g), float(am), float(af), self.xdot_nodes,
+                none if self.body_force is None else self.body_force, self.body_force is not None,
+                none if body is None else body, body is not None, props.quad_weights, vdot)
+            self.work_in += work
+            power += dpower
             self.xdot_nodes = vdot
         self.power, self.body_force = power, body
         if not restart:
@@ -424,9 +419,11 @@ class RodRun:
         prev_bc, self.bc = self.bc, bc
         self.bc_offset = offset
         if self.contact is not None:
-            self.q = pose[0] / np.linalg.norm(pose[0], axis=1)[:, None]
+            self.q = pose[0].copy()
+            normalize_quaternions(self.q)
             self.r = pose[2]
-            self.v_global = np.einsum("nij,nj->ni", quat_to_matrix(self.q), self.Y[:, 0:3])
+            self.v_global = np.empty_like(self.r)
+            rotate_rows(self.q, self.Y[:, 0:3], self.v_global)
             if switched:
                 self._hold_from_here(prev_bc, bc)
         elif sysm.needs_pose:
