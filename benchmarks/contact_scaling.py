@@ -6,8 +6,8 @@ the case's Δt to its first contact, then on for ``--window`` seconds of contact
 
 * per N: the time of first contact, the wall time per simulated second of the contact
   window, per nominal step and per Newton iteration, the mean number of active contacts,
-  factorisations and Newton iterations per nominal step; the exponent of the wall time per
-  Newton iteration against N (1 = linear);
+  factorisations and Newton iterations per nominal step, GMRES iterations per Newton
+  iteration; the exponent of the wall time per Newton iteration against N (1 = linear);
 * per contact-count bin (all N together): the wall time per Newton iteration divided by
   N, which should not grow with the number of contacts faster than the O(N + P) work of
   the matrix-free product.
@@ -47,6 +47,7 @@ def measure(n: int, window: float) -> dict:
     t_first = run.t
     steps = []
     f0, it0 = run.newton.factorizations, 0
+    g0 = run.newton.gmres_iterations
     t0 = time.perf_counter()
     end = min(case.numerics.t_end, t_first + window)
     while run.t < end - 1e-9:
@@ -63,6 +64,7 @@ def measure(n: int, window: float) -> dict:
             "wall_per_step_s": wall / n_steps, "wall_per_iteration_s": wall / max(it0, 1),
             "iterations_per_step": it0 / n_steps,
             "factorizations_per_step": (run.newton.factorizations - f0) / n_steps,
+            "gmres_per_iteration": (run.newton.gmres_iterations - g0) / max(it0, 1),
             "mean_contacts": float(np.mean([c for _, _, c in steps])) if steps else 0.0,
             "steps": steps}
 
@@ -85,6 +87,7 @@ def main() -> None:
                   f"{r['wall_per_iteration_s'] * 1e3:.1f} ms/iteration, "
                   f"{r['iterations_per_step']:.1f} its and "
                   f"{r['factorizations_per_step']:.1f} factorisations per step, "
+                  f"{r['gmres_per_iteration']:.1f} GMRES iterations per Newton iteration, "
                   f"{r['mean_contacts']:.0f} contacts", flush=True)
     ns = np.array([r["n_segments"] for r in rows], float)
     per_it = np.array([r["wall_per_iteration_s"] for r in rows])

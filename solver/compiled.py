@@ -29,7 +29,7 @@ def warm_up() -> None:
     a working installation."""
     from .case import Case
     from .contact import point_curve, point_segment, smoothstep_off, swept_min_distance
-    from .contact.geometry import run_minima
+    from .contact.geometry import ALL_PAIRS_NODES, close_node_pairs, run_minima
     from .kinematics import quat_slerp, right_jacobian
     from .simulation import RodRun
     from .energies import energies
@@ -84,6 +84,11 @@ def warm_up() -> None:
         contact.covers(contact.merge(found, cand), found)
     contact.search(hairpin, tangents, 0.01)
     swept_min_distance(hairpin, hairpin, np.array([0], np.intp), np.array([8], np.intp))
+    # the blocked k-d tree search of a longer grid (a helix, blocks of 5 nodes)
+    nh = ALL_PAIRS_NODES + 72
+    sh = np.linspace(0.0, 1.0, nh)
+    helix = np.column_stack([0.02 * np.cos(40.0 * sh), 0.02 * np.sin(40.0 * sh), 0.05 * sh])
+    close_node_pairs(helix, 5.5 * (sh[1] - sh[0]), sh, 0.1)
     # the Python faces of the kernels that runs without contact or with dense output use
     run.update_space_route()
     quat_slerp(run.q[0], run.q[-1], 0.5)

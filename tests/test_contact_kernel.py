@@ -597,3 +597,53 @@ def test_runs_merge_and_covers_against_set_reference():
             assert sc.covers(merged, c)
         extra = combos - set(zip(a.owner.tolist(), a.segment.tolist()))
         assert sc.covers(a, merged) == (not extra)
+
+
+def _tree_pairs(r, radius, s, cut):
+    """The reference: scipy's k-d tree on the nodes, filtered by the arclength rule."""
+    from scipy.spatial import cKDTree
+    p = cKDTree(r).query_pairs(r=radius, output_type="ndarray")
+    keep = np.abs(s[p[:, 0]] - s[p[:, 1]]) > cut
+    return {(int(a), int(b)) for a, b in p[keep]}
+
+
+@pytest.mark.parametrize("n, radius, cut, path", [
+    (1001, 0.04, 0.04, "blocks"), (2001, 0.045, 0.04, "blocks"), (400, 0.02, 0.005, "blocks"),
+    (400, 0.1, 0.3, "blocks"), (300, 0.013, 0.01, "nodes"), (100, 0.05, 0.05, "all pairs"),
+    (21, 0.2, 0.1, "all pairs")])
+def test_blocked_tree_search_finds_the_pairs_of_a_tree_on_the_nodes(n, radius, cut, path):
+    """close_node_pairs over blocks of radius/Δs nodes (with fewer than BLOCK_MIN_NODES
+    per block, a tree on the nodes; on small grids, the compiled loop over all pairs)
+    returns exactly the pairs of a k-d tree built on every node, on a tight helix whose turns lie within the radius of each
+    other (pairs across turns and, for the long radius, across two and three turns),
+    with a non-uniform grid and a last block shorter than the others."""
+    from solver.contact.geometry import ALL_PAIRS_NODES, BLOCK_MIN_NODES, close_node_pairs
+    rng = np.random.default_rng(n)
+    s = np.sort(np.concatenate([[0.0, 1.0], rng.uniform(0.0, 1.0, n - 2)]))
+    turns = 25.0
+    r = np.column_stack([0.015 * np.cos(2 * np.pi * turns * s),
+                         0.015 * np.sin(2 * np.pi * turns * s), 0.3 * s])
+    r += 1e-4 * rng.standard_normal(r.shape)
+    a, b = close_node_pairs(r, radius, s, cut)
+    assert np.all(a < b)
+    got = {(int(i), int(j)) for i, j in zip(a, b)}
+    assert len(got) == len(a)            # no pair twice
+    want = _tree_pairs(r, radius, s, cut)
+    assert want and got == want
+    # each path is exercised
+    if path == "all pairs":
+        assert n <= ALL_PAIRS_NODES
+    else:
+        assert n > ALL_PAIRS_NODES
+        assert (int(radius * (n - 1)) >= BLOCK_MIN_NODES) == (path == "blocks")
+
+
+def test_blocked_tree_search_with_a_non_finite_node_raises_like_the_tree():
+    """A non-finite position is refused by scipy's tree as before (callers test
+    finiteness first: SelfContact.search)."""
+    from solver.contact.geometry import close_node_pairs
+    s = np.linspace(0.0, 1.0, 500)
+    r = np.column_stack([s, np.zeros(500), np.zeros(500)])
+    r[250, 0] = np.nan
+    with pytest.raises(ValueError):
+        close_node_pairs(r, 0.05, s, 0.1)
