@@ -507,6 +507,16 @@ class RodRun:
     #: roots have modulus √(g/2): g = 0.5 halves it per step (a damped oscillation).
     #: Measured with 0.25, 0.5 and 1 alike (docs/contact.md § 4, session 15)
     DRIFT_GAIN = 0.5
+    #: the correction's rate is DRIFT_GAIN / max(h, DRIFT_STEP_FLOOR · numerics.dt): on
+    #: substeps shorter than a hundredth of the case's Δt it moves the end by a share
+    #: ∝ h of its drift, not by DRIFT_GAIN of it. Why: at a fixed drift e the end moved
+    #: by ~g·e in every step however small, and the route rule read a part of that as
+    #: the step's position error, so no Δt could pass once g·e outgrew the tolerance
+    #: (PyElastica's plectoneme, N = 25, Δt = 0.1 s, ρ∞ = 0.8: a 44-mm drift in the
+    #: collapse, the route error 14.5-15.8 mm at h = 5e-5 s against 12.5 mm, the run
+    #: stopped at 7.50 s; docs/contact.md § 4, session 17). Steps at or above the floor
+    #: are unchanged (the seed example's smallest is 1.1 ms = dt/90)
+    DRIFT_STEP_FLOOR = 0.01
     #: the boundary offsets of the last accepted step (12,), or None (a class default,
     #: so that runs pickled before it existed resume)
     bc_offset = None
@@ -531,14 +541,18 @@ class RodRun:
         body frame; :meth:`solver.boundary.BoundaryRows.end_drift_offsets`):
         a Baumgarte stabilisation of the end's constraint at velocity level. The offset
         is O(route difference / h) = O(h²) on a smooth motion, so second order is kept,
-        and it vanishes as Δt → 0 (measured: docs/contact.md § 4, session 15).
+        and it vanishes as Δt → 0 (measured: docs/contact.md § 4, session 15); on
+        substeps below DRIFT_STEP_FLOOR · numerics.dt the rate is that of the floor, so
+        that the end's correction within a step vanishes with h even where the drift
+        does not.
         """
         if self.contact is None or self.DRIFT_GAIN is None or restart:
             return None
         R = quat_to_matrix(self.q[-1:])[0]
         e = R.T @ (self.r_time[-1] - self.r[-1])
         theta = relative_rotation(self.q[-1], self.q_time[-1])
-        return bc.end_drift_offsets(self.props.s.size - 1, e, theta, self.DRIFT_GAIN / h)
+        h_rate = max(h, self.DRIFT_STEP_FLOOR * self.case.numerics.dt)
+        return bc.end_drift_offsets(self.props.s.size - 1, e, theta, self.DRIFT_GAIN / h_rate)
 
     def _hold_from_here(self, prev_bc, bc) -> None:
         """A degree of freedom of the s = L end that has just become kinematic (a sliding

@@ -314,6 +314,33 @@ def test_end_correction_targets_the_kinematic_rows_only():
     np.testing.assert_allclose(off, [0] * 6 + [10.0, 20.0, 0.0, 1.0, 2.0, 0.0])
 
 
+def test_end_correction_within_a_step_vanishes_with_the_step():
+    """RodRun.end_correction moves the end by DRIFT_GAIN of its drift in a step of the
+    case's Δt (velocity offsets × h = g·e), and on substeps below DRIFT_STEP_FLOOR · Δt by
+    a share ∝ h: with a fixed drift the correction within a step goes to zero with h, so
+    the route rule can always pass a small enough step (a 44-mm drift had stopped
+    PyElastica's plectoneme at ρ∞ = 0.8: docs/contact.md § 4, session 17)."""
+    from solver.boundary import BoundaryRows
+
+    case = plectoneme_case(8, 0.1)
+    run = RodRun(case)
+    drift = np.array([0.03, -0.04, 0.0])            # global; the end's frame is the identity
+    run.r_time = run.r_time.copy()
+    run.r_time[-1] = run.r[-1] + drift
+    bc = BoundaryRows(case, run.props, 0.1, run.system.n, run.bc_plan)
+    floor = run.DRIFT_STEP_FLOOR * case.numerics.dt
+    moved = {}
+    for h in (0.1, 0.01, floor, floor / 10, floor / 1000):
+        off = run.end_correction(h, bc, restart=False)
+        moved[h] = np.linalg.norm(off[6:8]) * h       # the held v1, v2 rows, times h
+    g_e = run.DRIFT_GAIN * np.linalg.norm(drift)
+    for h in (0.1, 0.01, floor):
+        assert moved[h] == pytest.approx(g_e, rel=1e-9)
+    assert moved[floor / 10] == pytest.approx(g_e / 10, rel=1e-9)
+    assert moved[floor / 1000] == pytest.approx(g_e / 1000, rel=1e-9)
+    assert run.end_correction(0.01, bc, restart=True) is None
+
+
 def test_relative_rotation_inverts_the_body_frame_increment():
     from solver.kinematics import quat_exp, quat_multiply, relative_rotation
 
