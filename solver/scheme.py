@@ -892,7 +892,7 @@ class RodSystem:
         if self.candidates is None:
             return None
         p = int(self.buf[-1][1])
-        sel, i, j, t, nodes, weights, coef, force, d_dr, d_dv, dt_dr, dw_dt, gap, dist = self.ev
+        sel, i, j, t, nodes, weights, coef, force, d_dr, d_dv, dt_dr, dw_dt, gap, dist, _ = self.ev
         from .contact.model import ContactEvaluation
         return ContactEvaluation(i[:p].copy(), j[:p].copy(), t[:p].copy(), nodes[:p].copy(),
                                  weights[:p].copy(), coef[:p].copy(), force[:p].copy(),

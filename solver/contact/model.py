@@ -412,7 +412,7 @@ class SelfContact:
         p = evaluate_into(r, v, cand.arrays, fz, self.kernel_data, ev)
         if p < 0:
             raise ValueError("SelfContact.evaluate: coincident centreline points in a pair")
-        sel, i, j, t, nodes, weights, coef, force, d_dr, d_dv, dt_dr, dw_dt, gap, dist = ev
+        sel, i, j, t, nodes, weights, coef, force, d_dr, d_dv, dt_dr, dw_dt, gap, dist, _ = ev
         if p == 0:
             return _empty_evaluation(sel)
         return ContactEvaluation(i[:p], j[:p], t[:p], nodes[:p], weights[:p], coef[:p],
@@ -571,12 +571,14 @@ def evaluation_arrays(capacity: int):
     """Work arrays for :func:`evaluate_into` with room for ``capacity`` runs (one contact
     at most per run): selection (R,) int, i, j (R,) int, t (R,), nodes (R, 5) int,
     weights, coef (R, 5), force (R, 3), d_dr, d_dv (R, 5, 3, 3), dt_dr (R, 5, 3), dw_dt
-    (R, 5), gap, distance (R,)."""
+    (R, 5), gap, distance (R,); and per run (not per contact) the surface gap of its
+    closest point (R,) m, inf at an interior run edge (:func:`candidate_gaps_into`'s
+    value when the selection was made afresh)."""
     r = int(capacity)
     return (np.empty(r, np.intp), np.empty(r, np.intp), np.empty(r, np.intp), np.empty(r),
             np.empty((r, 5), np.intp), np.empty((r, 5)), np.empty((r, 5)), np.empty((r, 3)),
             np.empty((r, 5, 3, 3)), np.empty((r, 5, 3, 3)), np.empty((r, 5, 3)),
-            np.empty((r, 5)), np.empty(r), np.empty(r))
+            np.empty((r, 5)), np.empty(r), np.empty(r), np.empty(r))
 
 
 @numba.njit(cache=True, inline="always")
@@ -639,7 +641,8 @@ def evaluate_into(r, v, cand, frozen, data, ev):
     ∂w_a/∂t = ½ ∂c_a/∂t Δs_i/Δs_a (docs/contact.md § 1). The mean diameter and ρA at
     the contact are interpolated linearly on the segment; how they move with t is left
     out of the derivatives."""
-    sel, pi, pj, pt, nodes, weights, coef, force, d_dr, d_dv, dt_dr, dw_dt, gap, dist = ev
+    (sel, pi, pj, pt, nodes, weights, coef, force, d_dr, d_dv, dt_dr, dw_dt, gap, dist,
+     run_gap) = ev
     own, seg = cand[0], cand[1]
     seg_nodes, seg_mats, diameter, rho_a, w, law = data
     tb0 = np.empty((3, 4))
@@ -663,10 +666,12 @@ def evaluate_into(r, v, cand, frozen, data, ev):
         sel[q] = k
         if (k == lo and t == 0.0 and not first_end) or (k == hi and t == 1.0
                                                         and not last_end):
+            run_gap[q] = np.inf
             continue
         i = own[k]
         j = seg[k]
         dbar = _at_contact(diameter, i, j, t)
+        run_gap[q] = d - dbar
         if not d < law_cutoff(law, dbar)[1]:
             continue
         if d == 0.0:
