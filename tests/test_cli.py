@@ -296,8 +296,10 @@ def test_ctrl_c_stops_cleanly_and_writes_partial_file(tmp_path):
     spec["output"] = {"every": 50, "fields": ["position", "energies"]}
     case = write_case(tmp_path / "long.yaml", spec)
     out = tmp_path / "long.nc"
+    ckpt = tmp_path / "long.ckpt"
     proc = subprocess.Popen(
-        [sys.executable, "-m", "hockle", "run", str(case), "-o", str(out)],
+        [sys.executable, "-m", "hockle", "run", str(case), "-o", str(out),
+         "--checkpoint", str(ckpt), "--checkpoint-every", "0.1"],
         cwd=tmp_path,
         env=_env(),
         stdout=subprocess.PIPE,
@@ -307,7 +309,14 @@ def test_ctrl_c_stops_cleanly_and_writes_partial_file(tmp_path):
     try:
         first = proc.stderr.readline()  # printed once the interrupt handler is in place
         assert "running" in first, first
-        time.sleep(1.0)
+        # Interrupt only once steps are being taken: on a fresh clone the first step
+        # compiles the kernels (a minute or more), and an interrupt then stops at t = 0.
+        # The first checkpoint is written after the first accepted step past 0.1 s wall.
+        deadline = time.monotonic() + 600.0
+        while not ckpt.exists() and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert ckpt.exists(), "no step was accepted before the deadline"
+        time.sleep(0.5)
         proc.send_signal(signal.SIGINT)
         stdout, stderr = proc.communicate(timeout=60)
     finally:
