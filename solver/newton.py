@@ -841,7 +841,7 @@ class Newton:
         self.last_failure = FAILURES[code]
         #: whether the last solve's final residual used a frozen contact selection
         #: (FREEZE_AFTER iterations or more); if not, its contact evaluation
-        #: (RodSystem.contact_state) is that of a fresh selection at the solution
+        #: (RodSystem.contact_summary) is that of a fresh selection at the solution
         self.last_frozen = contact and its >= self.FREEZE_AFTER
         #: per iteration of the last solve: the scaled residual, the feasibility filter's
         #: fraction, the line search's fraction and GMRES's iterations (diagnostics)

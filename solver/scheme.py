@@ -29,6 +29,7 @@ the LU factor is reused across iterations (chord) and refactored when convergenc
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numba
@@ -886,20 +887,25 @@ class RodSystem:
                     buf[8].copy())
         return buf[0].copy(), buf[2].copy(), (buf[4] if want_jacobian else None), pose
 
-    def contact_state(self):
-        """The contact evaluation of the last :meth:`evaluate` as a
-        :class:`solver.contact.ContactEvaluation` (copies), or None without candidates."""
+    def contact_summary(self, r, v, fresh: bool):
+        """(number of active contacts, smallest surface gap (m), inf without any) at the
+        positions r and global velocities v (N+1, 3) of the last :meth:`evaluate`, or
+        None without candidates. ``fresh``: that evaluation selected the closest points
+        afresh, and its own numbers are returned; else (a frozen selection, see
+        :meth:`solver.contact.SelfContact.closest`) the contacts are evaluated again with
+        a fresh selection (:func:`solver.contact.model.evaluate_into`, into this step's
+        arrays). Coincident centreline points in a pair give a gap of −inf."""
         if self.candidates is None:
             return None
-        p = int(self.buf[-1][1])
-        sel, i, j, t, nodes, weights, coef, force, d_dr, d_dv, dt_dr, dw_dt, gap, dist, _ = self.ev
-        from .contact.model import ContactEvaluation
-        return ContactEvaluation(i[:p].copy(), j[:p].copy(), t[:p].copy(), nodes[:p].copy(),
-                                 weights[:p].copy(), coef[:p].copy(), force[:p].copy(),
-                                 d_dr[:p].copy(), d_dv[:p].copy(), dt_dr[:p].copy(),
-                                 dw_dt[:p].copy(), gap[:p].copy(), dist[:p].copy(),
-                                 float(gap[:p].min()) if p else float("inf"), p,
-                                 sel[:self.candidates.runs].copy())
+        if fresh:
+            p = int(self.buf[-1][1])
+        else:
+            p = evaluate_into(np.ascontiguousarray(r, dtype=float),
+                              np.ascontiguousarray(v, dtype=float), self.cand_arrays,
+                              np.full(0, -1, np.intp), self.contact_data, self.ev)
+            if p < 0:
+                return 0, -math.inf
+        return p, (float(self.ev[12][:p].min()) if p else math.inf)
 
     def column_scale(self, Y):
         """Scale of each unknown (n,): max(|Y| of its kind over the grid, its floor)."""

@@ -14,6 +14,7 @@ restart the scheme consistently (:mod:`solver.stepping`, docs/numerics.md § 7).
 from __future__ import annotations
 
 import copy
+import functools
 import math
 import pickle
 import time as _time
@@ -23,7 +24,7 @@ import numpy as np
 
 from .banded import BlockLU
 from .boundary import BoundaryRows, boundary_plan
-from .contact import SelfContact, close_node_pairs, swept_min_distance
+from .contact import SelfContact
 from .contact.geometry import max_distance
 from .energies import (distributed_power, distributed_work_into, end_loads, end_power,
                        end_work_into, energies)
@@ -315,20 +316,17 @@ class RodRun:
             return False, its_total, res, False
         its = its_total
         if self.contact is not None:
-            ev = None
+            contact_count, min_gap = 0, math.inf
             if cand is not None and cand.runs:
-                if self.newton.last_frozen:
-                    vg = np.einsum("nij,nj->ni", pose[1], Y[:, 0:3])
-                    ev = self.contact.evaluate(cand, pose[2], vg)
-                else:
-                    # Newton's last residual evaluated these contacts at this very state
-                    ev = sysm.contact_state()
-            if ev is not None and ev.min_gap < 0.0:
+                # unless Newton froze the selection, its last residual evaluated these
+                # contacts at this very state
+                frozen = self.newton.last_frozen
+                vg = np.einsum("nij,nj->ni", pose[1], Y[:, 0:3]) if frozen else None
+                contact_count, min_gap = sysm.contact_summary(pose[2], vg, not frozen)
+            if min_gap < 0.0:
                 # the surfaces interpenetrate: reject, the caller cuts Δt
                 self.last_reject = "contact"
                 return False, its, res, False
-            contact_count = 0 if ev is None else int(ev.count)
-            min_gap = math.inf if ev is None else float(ev.min_gap)
         # local error: the route rule where strands may meet (a node's trapezoidal step
         # in time against the κ-integrated centreline) and, with numerics.tolerance, the
         # estimate of solver.stepping.ErrorControl; their ratios to their tolerances. In
@@ -351,7 +349,8 @@ class RodRun:
             if ratio > 1.0:
                 self.last_reject = "error"
                 return False, its, res, False
-        if self.contact is not None and not self._no_tunnelling(pose[2]):
+        if self.contact is not None and self.contact.passes_through(self.r, pose[2]):
+            # a strand passed through another within the step
             self.last_reject = "contact"
             return False, its, res, False
         if self.growth_guard is not None and not restart and cand is None:
@@ -582,26 +581,6 @@ class RodRun:
         position error (docs/contact.md, "Step control")."""
         r_t = self._time_step(h, Y, self.q, self.r, self.v_global)[3]
         return max_distance(r_t, np.ascontiguousarray(r_new, dtype=float))
-
-    def _no_tunnelling(self, r_new) -> bool:
-        """Collision check of an accepted Newton solution (docs/contact.md): False when
-        two nodes beyond the exclusion, moving linearly from their old to their new
-        positions, come closer than a quarter of the sum of their diameters within the
-        step (a strand passed through another between the candidate searches)."""
-        c = self.contact
-        # a pair can come closer than ½D within the step only if it ends closer than
-        # ½D + its relative displacement
-        radius = 0.5 * float(np.max(self.props.diameter)) + 2.0 * max_distance(r_new, self.r)
-        tangents = np.diff(r_new, axis=0)
-        tangents = np.vstack([tangents, tangents[-1:]])
-        if not c.may_touch_unchecked(r_new, tangents, radius - c.tolerance):
-            return True
-        a, b = close_node_pairs(r_new, radius, self.props.s, c.separation_cut)
-        if a.size == 0:
-            return True
-        closest = swept_min_distance(self.r, r_new, a, b)
-        radii = 0.5 * (self.props.diameter[a] + self.props.diameter[b])
-        return not np.any(closest < 0.5 * radii)
 
     def _search(self, positions, R, reach):
         """Contact candidates near the given positions (N+1, 3) and rotations (N+1, 3, 3)
@@ -1169,13 +1148,23 @@ def simulate(case, progress=None, should_stop=None, checkpoint=None,
     solver.checkpoint.CheckpointError
         when ``resume`` belongs to another case.
     """
-    from threadpoolctl import threadpool_limits
-
     # the linear algebra is band LU and small dense blocks: BLAS threads only add
     # overhead and oversubscribe shared cores (measured 3.8x slower in contact phases)
-    with threadpool_limits(limits=1, user_api="blas"):
+    with _blas_controller().limit(limits=1, user_api="blas"):
         return _simulate(case, progress, should_stop, checkpoint, checkpoint_interval,
                          resume, observer, extra_force)
+
+
+@functools.cache
+def _blas_controller():
+    """threadpoolctl's view of the BLAS libraries this process has loaded, made once:
+    finding them scans every loaded library (~3 ms, 1 % of a 0.3-s run of PyElastica's
+    plectoneme at N = 20), setting their limits then costs ~0.1 ms."""
+    import scipy.linalg  # noqa: F401  (loads scipy's own BLAS before the scan)
+    import scipy.sparse.linalg  # noqa: F401
+    from threadpoolctl import ThreadpoolController
+
+    return ThreadpoolController()
 
 
 def _simulate(case, progress, should_stop, checkpoint=None, checkpoint_interval=300.0,

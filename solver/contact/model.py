@@ -32,7 +32,8 @@ import numba
 import numpy as np
 
 from .geometry import (_candidate_pairs_kernel, _run_point, _segment_matrices,
-                       _segment_nodes, candidate_pairs, close_node_pairs, run_closest)
+                       _segment_nodes, _swept_kernel, candidate_pairs, close_node_pairs,
+                       max_distance, run_closest)
 from .laws import BarrierLaw, SeedLaw, law_cutoff, law_force
 
 __all__ = ["SelfContact", "ContactCandidates", "ContactEvaluation", "assemble_nodal",
@@ -292,6 +293,26 @@ class SelfContact:
                                       np.ascontiguousarray(tangents, dtype=float), self.s,
                                       self.min_separation, self.tolerance + reach))
 
+    # ------------------------------------------------------------------ tunnelling
+    def passes_through(self, r_old, r_new) -> bool:
+        """Collision check of a step from node positions r_old to r_new (N, 3) m
+        (docs/contact.md): True when two nodes beyond the exclusion, moving linearly from
+        their old to their new positions, come closer than a quarter of the sum of their
+        diameters within the step (a strand passed through another between the candidate
+        searches). A pair can come that close only if it ends closer than ½D_max plus
+        twice the largest node displacement, so the O(N) pre-test of :meth:`may_touch`
+        at that reach (tangents: the chords of r_new) rules most steps out at once, and
+        the swept distances are computed for the node pairs within it
+        (:func:`~.geometry.close_node_pairs`, :func:`~.geometry.swept_min_distance`).
+        Compiled in two passes (:func:`_swept_reach`, :func:`_swept_any_within`)."""
+        r0 = np.ascontiguousarray(r_old, dtype=float)
+        r1 = np.ascontiguousarray(r_new, dtype=float)
+        radius = _swept_reach(r0, r1, self.s, self.diameter, self.min_separation)
+        if radius < 0.0:
+            return False
+        a, b = close_node_pairs(r1, radius, self.s, self.separation_cut)
+        return a.size > 0 and bool(_swept_any_within(r0, r1, a, b, self.diameter))
+
     # ------------------------------------------------------------------ candidates
     def candidates(self, positions, tangents, reach: float = 0.0) -> ContactCandidates:
         """Owner/segment combinations for a step whose nodes may move by up to ``reach``
@@ -418,6 +439,37 @@ class SelfContact:
         return ContactEvaluation(i[:p], j[:p], t[:p], nodes[:p], weights[:p], coef[:p],
                                  force[:p], d_dr[:p], d_dv[:p], dt_dr[:p], dw_dt[:p],
                                  gap[:p], dist[:p], float(gap[:p].min()), int(p), sel)
+
+
+@numba.njit(cache=True)
+def _swept_reach(r0, r1, s, diameter, min_separation):
+    """:meth:`SelfContact.passes_through`'s pre-test: the reach ½D_max + 2 max_k |r1_k −
+    r0_k| (m) within which a pair of r1 (N, 3) must lie to come closer than ½D over the
+    step, or −1 when the test of :func:`_may_touch_kernel` (tangents: the chords of r1,
+    the last one repeated) rules every pair out at that distance."""
+    n = r1.shape[0]
+    radius = 0.5 * np.max(diameter) + 2.0 * max_distance(r1, r0)
+    t = np.empty((n, 3))
+    for k in range(n):
+        lo = min(k, n - 2)
+        for c in range(3):
+            t[k, c] = r1[lo + 1, c] - r1[lo, c]
+    if not _may_touch_kernel(r1, t, s, min_separation, radius):
+        return -1.0
+    return radius
+
+
+@numba.njit(cache=True)
+def _swept_any_within(r0, r1, a, b, diameter):
+    """Whether any node pair (a, b) (P,) moving linearly from r0 to r1 (N, 3) comes
+    closer than ½ · ½(D_a + D_b) within the step (:func:`~.geometry._swept_kernel`'s
+    closest approach)."""
+    closest = np.empty(a.shape[0])
+    _swept_kernel(r0, r1, a, b, closest)
+    for p in range(a.shape[0]):
+        if closest[p] < 0.5 * (0.5 * (diameter[a[p]] + diameter[b[p]])):
+            return True
+    return False
 
 
 @numba.njit(cache=True)
