@@ -647,3 +647,25 @@ def test_blocked_tree_search_with_a_non_finite_node_raises_like_the_tree():
     r[250, 0] = np.nan
     with pytest.raises(ValueError):
         close_node_pairs(r, 0.05, s, 0.1)
+
+
+def test_passes_through_tells_a_strand_crossing_another_within_a_step():
+    """SelfContact.passes_through: a leg of a hairpin moved through the other leg in
+    one step is caught (its nodes sweep within a quarter of the two diameters of the
+    other leg's nodes), while the same leg moved away, or the whole rod translated far,
+    is not; the O(N) pre-test alone rules out a straight rod moving sideways."""
+    s, r, _ = hairpin(n_straight=60)
+    sc = make(spec(aperture=180.0), s)
+    leg_b = r[:, 1] > 0.02                        # the leg at y = d0 = 0.025 m
+    through = r.copy()
+    through[leg_b, 1] = -0.025                    # across leg a (y = 0) to y = −d0
+    away = r.copy()
+    away[leg_b, 1] = 0.05
+    assert sc.passes_through(r, through)
+    assert not sc.passes_through(r, away)
+    assert not sc.passes_through(r, r + [1.0, 0.5, 0.0])
+    # a straight rod moved sideways by many diameters: nothing to check
+    s2 = np.arange(200) * DS
+    line = np.c_[s2, np.zeros(200), np.zeros(200)]
+    sc2 = make(spec(aperture=180.0), s2)
+    assert not sc2.passes_through(line, line + [0.0, 0.3, 0.0])
