@@ -10,7 +10,7 @@ perturbed by 0.1 % steps: median and range, for comparing versions; see
 position error and another Δt cut, docs/seed-example.md, results in
 bench_seed_position.json). The timers wrap
 the contact search (``SelfContact.search``: the pre-test, the k-d tree and the runs), the
-tunnelling test of accepted contact steps (``RodRun._no_tunnelling``) and the writhe from
+tunnelling test of accepted contact steps (``SelfContact.passes_through``) and the writhe from
 here; the solver itself is not changed.
 """
 from __future__ import annotations
@@ -73,7 +73,7 @@ def run(t_end: float = 45.0, out: str | None = None, newton_scale: float = 1.0,
     stays the case's (dt / 4⁶ for the default 6 cuts by 4)."""
     TIMERS.update(contact_search=0.0, writhe=0.0)
     timed(contact_mod.SelfContact, "search", "contact_search")
-    timed(sim_mod.RodRun, "_no_tunnelling", "contact_search")
+    timed(contact_mod.SelfContact, "passes_through", "contact_search")
     timed(topology_mod, "writhe", "writhe")
     try:
         spec = Case.from_file(ROOT / "cases" / "goyal-writhing.yaml").model_dump(mode="json")
@@ -114,7 +114,7 @@ def run(t_end: float = 45.0, out: str | None = None, newton_scale: float = 1.0,
     finally:
         sim_mod.RodRun.__init__ = original_init
         for owner, name in ((contact_mod.SelfContact, "search"),
-                            (sim_mod.RodRun, "_no_tunnelling"), (topology_mod, "writhe")):
+                            (contact_mod.SelfContact, "passes_through"), (topology_mod, "writhe")):
             fn = getattr(owner, name)
             setattr(owner, name, getattr(fn, "__wrapped__", fn))
     with_c = [st[0] for st in steps if st[1]]
