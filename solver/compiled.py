@@ -84,6 +84,7 @@ def warm_up() -> None:
         contact.covers(contact.merge(found, cand), found)
     contact.search(hairpin, tangents, 0.01)
     swept_min_distance(hairpin, hairpin, np.array([0], np.intp), np.array([8], np.intp))
+    contact.passes_through(hairpin, hairpin * [1.0, -1.0, 1.0])   # one leg through the other
     # the blocked k-d tree search of a longer grid (a helix, blocks of 5 nodes)
     nh = ALL_PAIRS_NODES + 72
     sh = np.linspace(0.0, 1.0, nh)
