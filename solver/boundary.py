@@ -118,6 +118,13 @@ class BoundaryRows:
                 off[j] = rate * float(rotation_error[idx - 3])
         return off
 
+    def project(self, Y: np.ndarray) -> np.ndarray:
+        """A copy of Y (N+1, 12) that satisfies these 12 rows: each prescribed unknown set
+        to value/coef (a Newton start that meets the step's linear boundary rows)."""
+        out = np.array(Y, dtype=float)
+        out.reshape(-1)[self.cols] = self.values / self.coef
+        return out
+
     def end_kinematic_dofs(self, n_last: int):
         """The kinematic conditions at s = L as (row j in 6..11 of these 12 rows, degree of
         freedom 0-5: v1, v2, v3, ω1, ω2, ω3) pairs, a list. n_last: index N of the s = L

@@ -294,6 +294,13 @@ class RodRun:
                             candidates=cand, left_limit=left_limit)
             if attempt == 0 and cand is not None:
                 guess = self._feasible_guess(guess)
+            if offset is not None:
+                # the end correction moves the s = L values in every step, which no
+                # extrapolation of earlier levels knows (nor the feasible start's blend):
+                # the Newton start takes the step's boundary values (PyElastica's
+                # plectoneme, N = 25, Δt = 0.1 s: 1066 against 1245 Newton iterations;
+                # docs/contact.md § 4, session 18)
+                guess = bc.project(guess)
             Y, Fn, its, res, ok, pose = self.newton.solve(guess)
             its_total += its
             if not ok:

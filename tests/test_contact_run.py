@@ -341,6 +341,30 @@ def test_end_correction_within_a_step_vanishes_with_the_step():
     assert run.end_correction(0.01, bc, restart=True) is None
 
 
+def test_newton_start_takes_the_corrected_boundary_values():
+    """BoundaryRows.project: the start of a step with end-correction offsets meets the
+    step's 12 boundary rows (each unknown set to value/coef), and leaves every other
+    unknown as it was; the caller's array is not changed. RodRun.try_step starts Newton
+    from it (docs/contact.md § 4, session 18)."""
+    from solver.boundary import BoundaryRows
+
+    case = plectoneme_case(8, 0.1)
+    run = RodRun(case)
+    bc = BoundaryRows(case, run.props, 0.1, run.system.n, run.bc_plan)
+    bc.values = bc.values + np.linspace(0.1, 1.2, 12)       # offsets on every row
+    Y = np.random.default_rng(3).normal(size=run.Y.shape)
+    before = Y.copy()
+    P = bc.project(Y)
+    R = np.zeros(run.system.n)
+    bc.residual(P, R)
+    np.testing.assert_allclose(R[bc.rows], 0.0, atol=1e-12)
+    keep = np.ones(Y.size, bool)
+    keep[bc.cols] = False
+    np.testing.assert_array_equal(P.reshape(-1)[keep], Y.reshape(-1)[keep])
+    np.testing.assert_array_equal(Y, before)
+    assert not np.allclose(P.reshape(-1)[bc.cols], Y.reshape(-1)[bc.cols])
+
+
 def test_relative_rotation_inverts_the_body_frame_increment():
     from solver.kinematics import quat_exp, quat_multiply, relative_rotation
 
