@@ -120,7 +120,8 @@ class BoundaryRows:
 
     def project(self, Y: np.ndarray) -> np.ndarray:
         """A copy of Y (N+1, 12) that satisfies these 12 rows: each prescribed unknown set
-        to value/coef (a Newton start that meets the step's linear boundary rows)."""
+        to value/coef (a Newton start that meets the step's linear boundary rows). Raises
+        nothing (coef is 1, or a bending/torsional stiffness > 0, by construction)."""
         out = np.array(Y, dtype=float)
         out.reshape(-1)[self.cols] = self.values / self.coef
         return out

@@ -304,7 +304,10 @@ class SelfContact:
         at that reach (tangents: the chords of r_new) rules most steps out at once, and
         the swept distances are computed for the node pairs within it
         (:func:`~.geometry.close_node_pairs`, :func:`~.geometry.swept_min_distance`).
-        Compiled in two passes (:func:`_swept_reach`, :func:`_swept_any_within`)."""
+        Compiled in two passes (:func:`_swept_reach`, :func:`_swept_any_within`).
+        Raises ValueError (from :func:`~.geometry.close_node_pairs`) for non-finite
+        positions on grids of more than ``ALL_PAIRS_NODES`` nodes; the solver passes only
+        converged, finite ones."""
         r0 = np.ascontiguousarray(r_old, dtype=float)
         r1 = np.ascontiguousarray(r_new, dtype=float)
         radius = _swept_reach(r0, r1, self.s, self.diameter, self.min_separation)
