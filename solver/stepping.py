@@ -309,9 +309,19 @@ class DisplacementWeight:
 
 
 def _group_sq(X: np.ndarray, groups) -> np.ndarray:
-    """Squared Euclidean norm of each group's columns at every node: (N+1, len(groups))."""
+    """Squared Euclidean norm of each group's columns at every node: (N+1, len(groups)).
+    groups: (start, stop) column ranges, increasing and disjoint; one ``reduceat`` over
+    their bounds (the gaps between groups are summed too and dropped)."""
+    bounds, keep = [], []
+    for a, b in groups:
+        if not bounds or bounds[-1] != a:
+            bounds.append(a)
+        keep.append(len(bounds) - 1)
+        bounds.append(b)
+    if bounds[-1] >= X.shape[1]:
+        bounds.pop()
     sq = X * X
-    return np.stack([sq[:, a:b].sum(axis=1) for a, b in groups], axis=1)
+    return np.add.reduceat(sq, bounds, axis=1)[:, keep]
 
 
 class PIController:
