@@ -11,9 +11,9 @@ Events, on each run's outputs: t_b, the buckling time of the work-precision prob
 (bending energy 1 % of the torsional energy, interpolated in log between outputs:
 ``work_precision.seed_observables``); first contact (contact_count > 0); the first
 outputs with |Wr| ≥ 1, ≥ 1.5 and ≥ 2. A run "keeps the events" when first contact and
-the writhe events the reference reaches lie within 0.1 s of the reference's output times. The cheapest fixed Δt
-that keeps them is taken by the work-precision rule: it and every smaller Δt run must
-keep them (so that a Δt that lands by luck does not count).
+the writhe events the reference reaches lie within 0.1 s of the reference's output
+times. The cheapest fixed Δt that keeps them is taken by the work-precision rule: it and
+every smaller Δt run must keep them (so that a Δt that lands by luck does not count).
 
 Printed and written to ``benchmarks/results/seed_tolerance.json``: per run wall time,
 steps, Newton iterations, the events and whether they are kept; the wall-time ratio of the
@@ -136,7 +136,8 @@ def main() -> None:
         done = {k: [] for k in settings}
         for round_ in range(args.repeats):
             for kind, x in settings:
-                spec = spec_for(args.t_end, dt=x) if kind == "fixed" else spec_for(args.t_end, tol=x)
+                spec = (spec_for(args.t_end, dt=x) if kind == "fixed"
+                        else spec_for(args.t_end, tol=x))
                 r = measure(spec)
                 done[(kind, x)].append(r)
                 print(f"round {round_ + 1}: {kind} {x:g}: {r}", flush=True)

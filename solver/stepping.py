@@ -47,6 +47,7 @@ the local error of a step, the PI controller of Δt and the growth guard.
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -308,20 +309,28 @@ class DisplacementWeight:
         return u
 
 
-def _group_sq(X: np.ndarray, groups) -> np.ndarray:
-    """Squared Euclidean norm of each group's columns at every node: (N+1, len(groups)).
-    groups: (start, stop) column ranges, increasing and disjoint; one ``reduceat`` over
-    their bounds (the gaps between groups are summed too and dropped)."""
+@functools.cache
+def _group_bounds(groups: tuple, n_cols: int) -> tuple:
+    """``reduceat`` indices over the (start, stop) column ranges ``groups`` (increasing,
+    disjoint) of an array with n_cols columns, and which of the sums are the groups' (the
+    gaps between groups are summed too and dropped). Computed once per groups."""
     bounds, keep = [], []
     for a, b in groups:
         if not bounds or bounds[-1] != a:
             bounds.append(a)
         keep.append(len(bounds) - 1)
         bounds.append(b)
-    if bounds[-1] >= X.shape[1]:
+    if bounds[-1] >= n_cols:
         bounds.pop()
-    sq = X * X
-    return np.add.reduceat(sq, bounds, axis=1)[:, keep]
+    return np.array(bounds), np.array(keep)
+
+
+def _group_sq(X: np.ndarray, groups: tuple) -> np.ndarray:
+    """Squared Euclidean norm of each group's columns at every node: (N+1, len(groups)).
+    groups: (start, stop) column ranges, increasing and disjoint (a tuple); one
+    ``reduceat`` over their bounds (:func:`_group_bounds`)."""
+    bounds, keep = _group_bounds(groups, X.shape[1])
+    return np.add.reduceat(X * X, bounds, axis=1)[:, keep]
 
 
 class PIController:
