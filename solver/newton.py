@@ -29,7 +29,7 @@ docs/contact.md § 4). The strategy, in one place:
 * **Fail fast.** A contact step that halves its residual less than once in four
   iterations, whose corrections are cut to 1/64 three times, or whose GMRES does not
   converge even with a fresh factorisation, fails at once: the step control
-  (:mod:`solver.simulation`) cuts Δt.
+  (:mod:`solver.stepping.control`) cuts Δt.
 """
 from __future__ import annotations
 
