@@ -2,7 +2,7 @@
  *
  * Plain JavaScript, no build step. Safe by construction: every string from the API or the
  * user enters the page through el() as a text node (textContent) or as an attribute value
- * through setAttribute with a fixed attribute name; nothing is ever assigned to innerHTML.
+ * through setAttribute with a fixed attribute name; no markup is ever parsed from a string.
  * The API key lives in sessionStorage (this tab's session) and travels only in the
  * Authorization header.
  */
@@ -43,6 +43,12 @@
     if (child === null || child === undefined || child === false) return;
     if (Array.isArray(child)) { child.forEach(function (c) { append(node, c); }); return; }
     node.appendChild(child instanceof Node ? child : document.createTextNode(String(child)));
+  }
+  /** Replace the children of node by the rest of the arguments (as el() appends them). */
+  function fill(node) {
+    node.replaceChildren();
+    for (var i = 1; i < arguments.length; i++) append(node, arguments[i]);
+    return node;
   }
   function $(id) { return document.getElementById(id); }
   function banner(text, kind) {
@@ -140,7 +146,7 @@
   }
   function showLogin(message) {
     if (state.cleanup) { state.cleanup(); state.cleanup = null; }
-    $("main").replaceChildren();
+    fill($("main"));
     $("login").hidden = false;
     $("login-message").textContent = message || "";
     $("forget").hidden = true;
@@ -176,7 +182,7 @@
     if (state.cleanup) { state.cleanup(); state.cleanup = null; }
     if (state.auth && !state.key) { showLogin(""); return; }
     var hash = location.hash.replace(/^#\/?/, ""), parts = hash.split("/"), main = $("main");
-    main.replaceChildren();
+    fill(main);
     document.querySelectorAll("[data-nav]").forEach(function (a) {
       a.classList.toggle("active", a.dataset.nav === (parts[0] === "job" ? "jobs" : parts[0] === "sweep" ? "sweeps" : parts[0] || "jobs"));
     });
@@ -239,7 +245,7 @@
         if (same) return;
         nextToken = data.next_page_token;
         next.disabled = !nextToken;
-        tbody.replaceChildren.apply(tbody, data.jobs.map(row));
+        fill(tbody, data.jobs.map(row));
         if (!data.jobs.length) tbody.appendChild(el("tr", el("td", { colspan: 10, text: "No jobs." })));
       }, function (err) { info.textContent = "could not refresh: " + err.message; });
     }
@@ -344,7 +350,7 @@
       caseBox.dataset.loaded = "1";
       state.caseSpec = r.data;
       head.dataset.case = "1";
-    }).catch(function (err) { caseBox.replaceChildren(problemNode(err)); });
+    }).catch(function (err) { fill(caseBox, problemNode(err)); });
 
     function renderHead(job) {
       var buttons = el("div.toolbar");
@@ -373,7 +379,7 @@
         el("dt", { text: "worker" }), el("dd", { text: job.worker || "—" }),
         el("dt", { text: "id" }), el("dd.mono", { text: job.id }));
       var msg = job.error ? el("p.error", { text: (job.error.reason || "") + ": " + (job.error.message || "") }) : null;
-      head.replaceChildren(el("h1", { id: "job-name", text: job.name || job.id }), kv, msg, buttons);
+      fill(head, el("h1", { id: "job-name", text: job.name || job.id }), kv, msg, buttons);
       head.dataset.state = job.state;
     }
 
@@ -381,11 +387,11 @@
       if (same || !job) return;
       renderHead(job);
       if (job.result_available && !loaded && !ACTIVE[job.state]) { loaded = true; loadResults(job); }
-    }, function (err) { head.replaceChildren(problemNode(err)); }));
+    }, function (err) { fill(head, problemNode(err)); }));
 
     function loadResults(job) {
       api("ui/jobs/" + enc + "/events").then(function (r) { renderEvents(r.data.events); })
-        .catch(function (err) { eventsBox.replaceChildren(problemNode(err)); });
+        .catch(function (err) { fill(eventsBox, problemNode(err)); });
       Promise.all([api("jobs/" + enc + "/summary"), api("jobs/" + enc + "/results/variables")]).then(function (rs) {
         var summary = rs[0].data, vars = {};
         rs[1].data.variables.forEach(function (v) { vars[v.name] = v; });
@@ -397,7 +403,7 @@
           drawPlots(summary.time, series);
           setup3d(summary.time, series, vars);
         });
-      }).catch(function (err) { plotsBox.replaceChildren(problemNode(err)); });
+      }).catch(function (err) { fill(plotsBox, problemNode(err)); });
     }
 
     function renderEvents(events) {
@@ -409,11 +415,11 @@
             el("td.num", { text: fmtNum(e.twist) }), el("td.num", { text: fmtNum(e.writhe) }),
             el("td.num", { text: fmtNum(e.linking_number) }), el("td.num", { text: fmtNum(e.energy_total) }));
         })));
-      eventsBox.replaceChildren(table, el("p.muted", { text: happened.length + " of " + events.length + " events happened (onset: the centreline a diameter off its chord; Wr k: |Wr| reaches k turns)." }));
+      fill(eventsBox, table, el("p.muted", { text: happened.length + " of " + events.length + " events happened (onset: the centreline a diameter off its chord; Wr k: |Wr| reaches k turns)." }));
     }
 
     function drawPlots(time, series) {
-      plotsBox.replaceChildren();
+      fill(plotsBox);
       PLOTS.forEach(function (p) {
         var have = {};
         p.names.forEach(function (n) { if (series[n]) have[n] = series[n]; });
@@ -474,7 +480,7 @@
           view3dInfo.textContent = pts.length + " of " + vars.s.shape[0] + " grid points shown (a decimated slice of position), " +
             (count === null ? "" : count + " contact pair(s) at this time" + (sites.length ? ", sites estimated from the points shown" : "") + "; ") +
             "drag to turn, wheel to zoom.";
-        }).catch(function (err) { view3dInfo.replaceChildren(problemNode(err)); });
+        }).catch(function (err) { fill(view3dInfo, problemNode(err)); });
       }
       api("jobs/" + enc + "/results/variables/s").then(function (r) {
         var all = r.data.data, n = all.length, m = Math.min(n, MAX_3D_POINTS), idx = [];
@@ -487,7 +493,7 @@
           timer = setTimeout(function () { show(index); }, 60);
         });
         show(time.length - 1);
-      }).catch(function (err) { view3dInfo.replaceChildren(problemNode(err)); });
+      }).catch(function (err) { fill(view3dInfo, problemNode(err)); });
     }
 
     return function () {
@@ -543,13 +549,13 @@
         dl.addEventListener("click", function () { download("sweeps/" + enc + "/results", "sweep-" + sw.id + ".nc", dl); });
         buttons.appendChild(dl);
       }
-      head.replaceChildren(el("h1", { text: "Sweep " + (sw.name || sw.id) }),
+      fill(head, el("h1", { text: "Sweep " + (sw.name || sw.id) }),
         el("p", stateBadge(sw.state), " ", progressBar(sw.progress), " ",
           el("span.muted", { text: Object.keys(sw.counts).map(function (k) { return sw.counts[k] + " " + k; }).join(", ") + " · " + sw.combine + " over " + sw.parameters.map(function (p) { return p.path; }).join(", ") })),
         buttons);
       head.dataset.state = sw.state;
       var paths = sw.parameters.map(function (p) { return p.path; });
-      membersBox.replaceChildren(el("h2", { text: "Members (" + sw.members.length + ")" }),
+      fill(membersBox, el("h2", { text: "Members (" + sw.members.length + ")" }),
         el("table", { id: "members" }, el("thead", el("tr", [el("th.num", { text: "#" })].concat(paths.map(function (p) { return el("th.mono", { text: p }); }), ["state", "progress", "job"].map(function (h) { return el("th", { text: h }); })))),
           el("tbody", sw.members.map(function (m) {
             return el("tr", { dataset: { state: m.state } }, el("td.num", { text: m.index }),
@@ -561,7 +567,7 @@
       if (counts !== lastCounts) {
         lastCounts = counts;
         api("ui/sweeps/" + enc + "/map").then(function (r) { mapData = r.data; drawMap(r.data); })
-          .catch(function (err) { mapBox.replaceChildren(el("h2", { text: "Threshold map" }), problemNode(err)); });
+          .catch(function (err) { fill(mapBox, el("h2", { text: "Threshold map" }), problemNode(err)); });
       }
       if (!(sw.state === "accepted" || sw.state === "running") && stop) { stop(); stop = null; }
     }
@@ -569,7 +575,7 @@
     function drawMap(map) {
       var names = map.events.length ? map.events : ["buckling_onset"];
       var chosen = eventSel.value || "buckling_onset";
-      eventSel.replaceChildren.apply(eventSel, names.map(function (n) { return el("option", n === chosen ? { value: n, text: n, selected: true } : { value: n, text: n }); }));
+      fill(eventSel, names.map(function (n) { return el("option", n === chosen ? { value: n, text: n, selected: true } : { value: n, text: n }); }));
       var event = eventSel.value, params = map.parameters;
       var rows, cols, rowLabel, colLabel;
       if (map.combine === "grid" && params.length === 2) {
@@ -579,7 +585,7 @@
       } else if (map.combine === "zip") {
         rows = [""]; cols = map.members.map(function (m) { return m.index; }); rowLabel = ""; colLabel = "member";
       } else {
-        mapBox.replaceChildren(el("h2", { text: "Threshold map" }), el("p.muted", { text: "A map is drawn for one or two parameters; this sweep has " + params.length + ". The members' event times are in the table and in the combined dataset (event_time)." }));
+        fill(mapBox, el("h2", { text: "Threshold map" }), el("p.muted", { text: "A map is drawn for one or two parameters; this sweep has " + params.length + ". The members' event times are in the table and in the combined dataset (event_time)." }));
         return;
       }
       var values = map.members.map(function (m) { return m.event_time[event]; });
@@ -615,14 +621,14 @@
         ctx.fillStyle = "#1d232b";
         ctx.fillText(fmtNum(hi) + " s", bx + 22, top + 2); ctx.fillText(fmtNum(lo) + " s", bx + 22, top + 119);
       }
-      mapBox.replaceChildren(el("h2", { text: "Threshold map" }),
+      fill(mapBox, el("h2", { text: "Threshold map" }),
         el("div.toolbar", el("label", { text: "event " }), eventSel, el("span.muted", { text: "time of the event per member; grey: it did not happen; outlined: not finished." })),
         canvas);
       mapBox.dataset.members = String(finite.length);
     }
 
     stop = poller("sweeps/" + enc, function (sw, same) { if (!same && sw) render(sw); },
-      function (err) { head.replaceChildren(problemNode(err)); });
+      function (err) { fill(head, problemNode(err)); });
     return function () { if (stop) stop(); };
   }
 
@@ -689,15 +695,15 @@
         }
         return item;
       });
-      result.replaceChildren(el("p.error", { text: (p.title || "Error") + " (" + err.status + ")" + (p.detail ? ": " + p.detail : "") }), items);
+      fill(result, el("p.error", { text: (p.title || "Error") + " (" + err.status + ")" + (p.detail ? ": " + p.detail : "") }), items);
       result.dataset.state = "invalid";
     }
     function validate() {
-      if (!area.value.trim()) { result.replaceChildren(); delete result.dataset.state; return Promise.resolve(false); }
+      if (!area.value.trim()) { fill(result); delete result.dataset.state; return Promise.resolve(false); }
       var mine = ++seq;
       return api("ui/validate", { method: "POST", body: area.value, headers: { "Content-Type": mediaType() } }).then(function (r) {
         if (mine !== seq) return false;
-        result.replaceChildren(el("p.ok", { text: "Valid: " + (r.data.name || "(no name)") + ", " + r.data.grid_points + " grid points × " + r.data.n_steps + " steps to t = " + r.data.t_end + " s." }));
+        fill(result, el("p.ok", { text: "Valid: " + (r.data.name || "(no name)") + ", " + r.data.grid_points + " grid points × " + r.data.n_steps + " steps to t = " + r.data.t_end + " s." }));
         result.dataset.state = "valid";
         return true;
       }).catch(function (err) { if (mine === seq) showErrors(err); return false; });
