@@ -169,6 +169,8 @@ _EVENT_CACHE: OrderedDict[tuple[str, int, int], dict] = OrderedDict()
 _EVENT_CACHE_SIZE = 2048
 _EVENT_LOCK = threading.Lock()
 _AT_EVENT = ("twist", "writhe", "linking_number", "energy_total")
+# netCDF4/HDF5 are not thread-safe and these routes run in the thread pool: one read at a time
+_READ_LOCK = threading.Lock()
 
 
 def result_events(path: str) -> dict[str, Any]:
@@ -187,7 +189,7 @@ def result_events(path: str) -> dict[str, Any]:
     import xarray as xr
     from solver.results import run_events
 
-    with xr.open_dataset(path, engine="netcdf4", cache=False) as ds:
+    with _READ_LOCK, xr.open_dataset(path, engine="netcdf4", cache=False) as ds:
         found = run_events(ds)
         time = np.asarray(ds["time"].values, dtype=float) if "time" in ds.coords else np.array([])
         at = {name: np.asarray(ds[name].values, dtype=float) for name in _AT_EVENT if name in ds}

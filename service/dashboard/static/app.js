@@ -66,7 +66,8 @@
   }
   function fmtDuration(sec) {
     if (sec === null || sec === undefined || !isFinite(sec)) return "—";
-    sec = Math.max(0, Math.round(sec));
+    if (sec < 10) return Math.max(0, sec).toFixed(1) + " s";
+    sec = Math.round(sec);
     if (sec < 60) return sec + " s";
     if (sec < 3600) return Math.floor(sec / 60) + " min " + (sec % 60) + " s";
     return Math.floor(sec / 3600) + " h " + Math.floor((sec % 3600) / 60) + " min";
@@ -113,6 +114,17 @@
         return { status: resp.status, data: data, etag: resp.headers.get("ETag"), headers: resp.headers };
       });
     });
+  }
+  /**
+   * Reads of result files one at a time: the API opens NetCDF files in a thread pool, and
+   * concurrent reads of one file in one API process have crashed it (netCDF4/HDF5 are not
+   * thread-safe), so this page never has two of them in flight.
+   */
+  var resultChain = Promise.resolve();
+  function apiResult(path, opts) {
+    var p = resultChain.then(function () { return api(path, opts); });
+    resultChain = p.catch(function () { return null; });
+    return p;
   }
   function problemNode(err) {
     var p = err.problem || {}, box = el("div.card.error", { role: "alert" },
@@ -246,6 +258,7 @@
         nextToken = data.next_page_token;
         next.disabled = !nextToken;
         fill(tbody, data.jobs.map(row));
+        performance.mark("hockle:jobs-rendered");
         if (!data.jobs.length) tbody.appendChild(el("tr", el("td", { colspan: 10, text: "No jobs." })));
       }, function (err) { info.textContent = "could not refresh: " + err.message; });
     }
@@ -272,28 +285,35 @@
     return /^[A-Za-z_][\w .\-\/]*$/.test(s) && !/^(true|false|null|yes|no|on|off|~)$/i.test(s) && s.trim() === s ? s : JSON.stringify(s);
   }
   function isScalar(v) { return v === null || typeof v !== "object"; }
+  /** Flow style ({a: 1}, [1, 2], [{velocity: 0}]) for small values of scalars, else null. */
+  function flow(v) {
+    if (isScalar(v)) return yamlScalar(v);
+    var parts = [];
+    if (Array.isArray(v)) {
+      for (var i = 0; i < v.length; i++) { var f = flow(v[i]); if (f === null) return null; parts.push(f); }
+      var text = "[" + parts.join(", ") + "]";
+    } else {
+      var keys = Object.keys(v);
+      for (i = 0; i < keys.length; i++) { f = flow(v[keys[i]]); if (f === null) return null; parts.push(yamlScalar(keys[i]) + ": " + f); }
+      text = "{" + parts.join(", ") + "}";
+    }
+    return text.length <= 90 ? text : null;
+  }
   function toYaml(v, indent) {
     indent = indent || "";
-    if (isScalar(v)) return yamlScalar(v);
+    var inline = flow(v);
+    if (inline !== null) return inline;
     var out = [];
     if (Array.isArray(v)) {
-      if (!v.length) return "[]";
-      if (v.every(isScalar)) return "[" + v.map(yamlScalar).join(", ") + "]";
       v.forEach(function (item) {
-        var body = toYaml(item, indent + "  ");
-        out.push(indent + "- " + (isScalar(item) || (Array.isArray(item) && item.every(isScalar)) ? body : body.replace(/^\s+/, "")));
+        var body = flow(item);
+        out.push(indent + "- " + (body !== null ? body : toYaml(item, indent + "  ").replace(/^\s+/, "")));
       });
       return out.join("\n");
     }
-    var keys = Object.keys(v);
-    if (!keys.length) return "{}";
-    keys.forEach(function (k) {
-      var item = v[k], key = yamlScalar(k);
-      if (isScalar(item) || (Array.isArray(item) && (item.every(isScalar) || !item.length)) || (!Array.isArray(item) && !Object.keys(item).length)) {
-        out.push(indent + key + ": " + toYaml(item, indent + "  "));
-      } else {
-        out.push(indent + key + ":\n" + toYaml(item, indent + "  "));
-      }
+    Object.keys(v).forEach(function (k) {
+      var item = v[k], body = flow(item);
+      out.push(indent + yamlScalar(k) + ":" + (body !== null ? " " + body : "\n" + toYaml(item, indent + "  ")));
     });
     return out.join("\n");
   }
@@ -308,13 +328,14 @@
     { id: "newton", title: "Newton iterations", names: ["newton_iterations"] }
   ];
   var COLORS = ["#1f5fa8", "#c0392b", "#27ae60", "#8e44ad", "#d68910", "#17a589"];
+  function tick(v) { return v === null ? "" : String(+v.toPrecision(3)); }
   function makePlot(host, title, time, series, cursor) {
     var names = Object.keys(series);
     var width = Math.max(300, host.clientWidth - 4);
     var opts = {
       width: width, height: 220, title: "",
       scales: { x: { time: false } },
-      axes: [{ label: "time (s)" }, { size: 60 }],
+      axes: [{ label: "time (s)" }, { size: 64, values: function (u, splits) { return splits.map(tick); } }],
       series: [{ label: "t (s)" }].concat(names.map(function (n, i) {
         return { label: n, stroke: COLORS[i % COLORS.length], width: 1.5, spanGaps: false };
       })),
@@ -390,13 +411,13 @@
     }, function (err) { fill(head, problemNode(err)); }));
 
     function loadResults(job) {
-      api("ui/jobs/" + enc + "/events").then(function (r) { renderEvents(r.data.events); })
+      apiResult("ui/jobs/" + enc + "/events").then(function (r) { renderEvents(r.data.events); })
         .catch(function (err) { fill(eventsBox, problemNode(err)); });
-      Promise.all([api("jobs/" + enc + "/summary"), api("jobs/" + enc + "/results/variables")]).then(function (rs) {
+      Promise.all([apiResult("jobs/" + enc + "/summary"), apiResult("jobs/" + enc + "/results/variables")]).then(function (rs) {
         var summary = rs[0].data, vars = {};
         rs[1].data.variables.forEach(function (v) { vars[v.name] = v; });
         var extra = ["dt", "newton_iterations"].filter(function (n) { return vars[n] && vars[n].dims.join() === "time"; });
-        return Promise.all(extra.map(function (n) { return api("jobs/" + enc + "/results/variables/" + n); })).then(function (more) {
+        return Promise.all(extra.map(function (n) { return apiResult("jobs/" + enc + "/results/variables/" + n); })).then(function (more) {
           var series = {};
           Object.keys(summary.series).forEach(function (n) { series[n] = summary.series[n].values; });
           more.forEach(function (r) { series[r.data.name] = r.data.data; });
@@ -429,6 +450,7 @@
         plots.push(makePlot(host, p.title, time, have, cursor));
       });
       plotsBox.dataset.count = String(plots.length);
+      performance.mark("hockle:plots-drawn");
       if (!plots.length) plotsBox.appendChild(el("p.muted", { text: "This result has no scalar series." }));
     }
 
@@ -456,7 +478,7 @@
         timeLabel.textContent = "t = " + fmtNum(t) + " s (" + (index + 1) + " of " + time.length + ")";
         var key = String(index), t0 = performance.now();
         var get = cache.has(key) ? Promise.resolve(cache.get(key)) :
-          api("jobs/" + enc + "/results/variables/position?time=" + encodeURIComponent(t) + "&s=" + sNodes.map(String).join(",")).then(function (r) {
+          apiResult("jobs/" + enc + "/results/variables/position?time=" + encodeURIComponent(t) + "&s=" + sNodes.map(String).join(",")).then(function (r) {
             var d = r.data, pts = d.data;
             if (d.dims[0] !== "s") pts = pts[0].map(function (_, i) { return pts.map(function (row) { return row[i]; }); });
             cache.set(key, pts);
@@ -474,6 +496,7 @@
           }
           view.setShape(pts, radii, sites, false);
           canvas.dataset.frame = String(index);
+          performance.mark("hockle:view3d-drawn");
           canvas.dataset.points = String(pts.length);
           canvas.dataset.loadMs = fetched.toFixed(1);
           canvas.dataset.drawMs = view.lastDrawMs.toFixed(1);
@@ -482,7 +505,7 @@
             "drag to turn, wheel to zoom.";
         }).catch(function (err) { fill(view3dInfo, problemNode(err)); });
       }
-      api("jobs/" + enc + "/results/variables/s").then(function (r) {
+      apiResult("jobs/" + enc + "/results/variables/s").then(function (r) {
         var all = r.data.data, n = all.length, m = Math.min(n, MAX_3D_POINTS), idx = [];
         for (var i = 0; i < m; i++) idx.push(Math.round(i * (n - 1) / Math.max(1, m - 1)));
         sNodes = idx.filter(function (v, i) { return i === 0 || v !== idx[i - 1]; }).map(function (i) { return all[i]; });
@@ -566,7 +589,7 @@
       var counts = JSON.stringify(sw.counts);
       if (counts !== lastCounts) {
         lastCounts = counts;
-        api("ui/sweeps/" + enc + "/map").then(function (r) { mapData = r.data; drawMap(r.data); })
+        apiResult("ui/sweeps/" + enc + "/map").then(function (r) { mapData = r.data; drawMap(r.data); })
           .catch(function (err) { fill(mapBox, el("h2", { text: "Threshold map" }), problemNode(err)); });
       }
       if (!(sw.state === "accepted" || sw.state === "running") && stop) { stop(); stop = null; }
@@ -593,7 +616,7 @@
       var lo = Math.min.apply(null, finite), hi = Math.max.apply(null, finite);
       var cell = Math.max(26, Math.min(70, Math.floor(640 / cols.length))), left = rowLabel ? 110 : 20, top = 20;
       var canvas = el("canvas", { id: "map-canvas", "aria-label": "threshold map" });
-      var w = left + cols.length * cell + 170, h = top + rows.length * cell + 60, dpr = window.devicePixelRatio || 1;
+      var w = Math.max(left + cols.length * cell + 170, left + 8 * colLabel.length + 20), h = Math.max(top + rows.length * cell + 44, top + 130), dpr = window.devicePixelRatio || 1;
       canvas.width = w * dpr; canvas.height = h * dpr; canvas.style.width = w + "px"; canvas.style.height = h + "px";
       var ctx = canvas.getContext("2d"); ctx.scale(dpr, dpr);
       ctx.font = "12px sans-serif"; ctx.textBaseline = "middle";
@@ -611,9 +634,11 @@
         } else { ctx.strokeStyle = "#bbb"; ctx.strokeRect(x + 0.5, y + 0.5, cell - 3, cell - 3); ctx.fillStyle = "#999"; ctx.fillText("…", x + cell / 2 - 4, y + cell / 2); }
       });
       ctx.fillStyle = "#1d232b";
-      cols.forEach(function (v, c) { ctx.save(); ctx.translate(left + c * cell + cell / 2, top + rows.length * cell + 6); ctx.rotate(Math.PI / 4); ctx.fillText(String(v), 0, 0); ctx.restore(); });
+      ctx.textAlign = "center";
+      cols.forEach(function (v, c) { ctx.fillText(String(v), left + c * cell + cell / 2, top + rows.length * cell + 10); });
+      ctx.textAlign = "left";
       rows.forEach(function (v, r) { ctx.fillText(String(v), 4, top + r * cell + cell / 2); });
-      ctx.fillText(colLabel, left, h - 8);
+      ctx.fillText(colLabel, left, top + rows.length * cell + 32);
       if (rowLabel) { ctx.save(); ctx.translate(10, top - 10); ctx.fillText(rowLabel, 0, 0); ctx.restore(); }
       var bx = left + cols.length * cell + 20;
       if (finite.length) {

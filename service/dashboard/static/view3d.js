@@ -122,7 +122,7 @@
     ctx.clearRect(0, 0, w, h);
     if (!this.points || this.points.length < 2) return;
     var cy = Math.cos(this.yaw), sy = Math.sin(this.yaw), cp = Math.cos(this.pitch), sp = Math.sin(this.pitch);
-    var c = this.center, scale = 0.85 * Math.min(w, h) / this.extent * this.zoom;
+    var c = this.center, scale = 1.1 * Math.min(w, h) / this.extent * this.zoom;
     // view coordinates: x right, y up, z towards the viewer; world z is up
     function view(v) {
       var x = v[0] - c[0], y = v[1] - c[1], z = v[2] - c[2];
