@@ -213,6 +213,28 @@ def job_round(driver, url: str, job_id: str, n_times: int, rng) -> dict:
             })();""", index)
         slider.append(ms)
     out["slider"] = statistics.median(slider)
+    # one frame drawn from the 200 points shown and from all the grid points, in turn
+    out["draw_200"], out["draw_all"] = driver.execute_async_script("""
+        var done = arguments[arguments.length - 1], id = arguments[0];
+        var headers = {Authorization: 'Bearer ' + sessionStorage.getItem('hockle.apiKey')};
+        fetch('../v1/jobs/' + id + '/results/variables/position?time=45', {headers: headers})
+          .then(function (r) { return r.json(); }).then(function (d) {
+            var all = d.data, n = all.length, few = [];
+            for (var i = 0; i < 200; i++) few.push(all[Math.round(i * (n - 1) / 199)]);
+            var c = document.createElement('canvas');
+            c.style.width = '1100px'; c.style.height = '460px';
+            document.body.appendChild(c);
+            var view = new window.HockleView3D.RodView(c), times = {few: [], all: []};
+            for (var k = 0; k < 5; k++) {
+              [['few', few], ['all', all]].forEach(function (p) {
+                view.setShape(p[1], p[1].map(function () { return 0.01; }), [], true);
+                times[p[0]].push(view.lastDrawMs);
+              });
+            }
+            c.remove();
+            function med(a) { a.sort(function (x, y) { return x - y; }); return a[2]; }
+            done([med(times.few), med(times.all)]);
+          });""", job_id)
     out["draw"] = float(driver.execute_script("return document.getElementById('rod3d').dataset.drawMs"))
     return out
 
@@ -304,6 +326,9 @@ def main(argv=None) -> int:
         print(f"  first 3-D frame drawn                      {med([j['view3d'] for j in job]):8.0f} ms from navigation start")
         print(f"  3-D slice fetch, in the page               {med([j['slice_ms'] for j in job]):8.0f} ms")
         print(f"  3-D frame draw (canvas)                    {med([j['draw'] for j in job]):8.1f} ms")
+        print(f"  3-D frame draw, 200 / all {n_s} points      {med([j['draw_200'] for j in job]):8.1f} / "
+              f"{med([j['draw_all'] for j in job]):.1f} ms (ratio "
+              f"{med([j['draw_all'] / j['draw_200'] for j in job]):.2f}; each drag of the view redraws)")
         print(f"  new output time from the slider            {med([j['slider'] for j in job]):8.0f} ms "
               f"(input to frame drawn, 60-ms debounce included)")
         print(f"3-D slice from the API: {len(idx)} of {n_s} points {med(dec):.0f} ms "
@@ -317,7 +342,7 @@ def main(argv=None) -> int:
             mark(driver, "hockle:jobs-rendered")
             driver.set_window_size(1400, 1000)
             driver.save_screenshot(str(args.screenshots / "dashboard-jobs-1000.png"))
-            driver.set_window_size(1400, 2200)
+            driver.set_window_size(1400, 2600)
             load(driver, url, f"/job/{seed_id}")
             mark(driver, "hockle:plots-drawn")
             mark(driver, "hockle:view3d-drawn")

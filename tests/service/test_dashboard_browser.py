@@ -98,7 +98,11 @@ def _shot(driver, name: str) -> None:
     target = os.environ.get("HOCKLE_UI_SCREENSHOTS")
     if target:
         Path(target).mkdir(parents=True, exist_ok=True)
+        height = driver.execute_script("return document.documentElement.scrollHeight")
+        driver.set_window_size(1400, max(900, min(int(height) + 20, 3000)))
+        time.sleep(0.5)
         driver.save_screenshot(str(Path(target) / f"dashboard-{name}.png"))
+        driver.set_window_size(1400, 1500)
 
 
 def _paste(driver, area, text: str) -> None:
@@ -286,3 +290,21 @@ def test_no_resource_from_another_origin(browser, stack):
     assert blocked.startswith("blocked")
     logs = " ".join(e["message"] for e in browser.get_log("browser"))
     assert "Content Security Policy" in logs
+
+
+def test_without_keys_the_page_says_so(browser, tmp_path_factory, redis_server):
+    from selenium.webdriver.common.by import By
+
+    _browser_paths()
+    open_stack = make_stack(tmp_path_factory, "ui-open", {"HOCKLE_BROKER_URL": redis_server.url})
+    try:
+        open_stack.start_api(timeout=120)
+        browser.get(f"{open_stack.url}/ui/#/jobs")
+        browser.refresh()
+        banner = browser.find_element(By.ID, "banner")
+        _wait(browser, lambda d: "no API keys configured" in banner.text, what="the banner")
+        _wait(browser, lambda d: d.find_elements(By.ID, "jobs"), what="the job list")
+        assert not browser.find_element(By.ID, "login").is_displayed()
+        assert browser.find_element(By.ID, "who").text == "no API keys configured"
+    finally:
+        open_stack.close()

@@ -492,7 +492,7 @@
           var count = series.contact_count ? series.contact_count[index] : null;
           if (contact && count) {
             var dmax = 2 * Math.max.apply(null, radii);
-            sites = window.HockleView3D.contactSites(pts, sNodes, radii, Math.max(3 * dmax, contact.min_separation || 0), 0.15);
+            sites = window.HockleView3D.contactSites(pts, sNodes, radii, Math.max(3 * dmax, contact.exclusion || 0), 0.15);
           }
           view.setShape(pts, radii, sites, false);
           canvas.dataset.frame = String(index);

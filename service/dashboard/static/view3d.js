@@ -159,7 +159,7 @@
     }
     for (i = 0; i < this.sites.length; i++) {
       var sv = view(this.sites[i].at);
-      items.push({ z: sv[2] + this.sites[i].r * 1.5, site: sv, r: this.sites[i].r });
+      items.push({ z: sv[2] + this.sites[i].r * 1.05, site: sv, r: this.sites[i].r });
     }
     items.sort(function (u, v) { return u.z - v.z; });
     var ox = w / 2, oy = h / 2;
@@ -178,7 +178,7 @@
       } else {
         ctx.fillStyle = "rgba(200, 30, 30, 0.9)";
         ctx.beginPath();
-        ctx.arc(ox + it.site[0] * scale, oy - it.site[1] * scale, Math.max(3, it.r * scale * 1.2), 0, 2 * Math.PI);
+        ctx.arc(ox + it.site[0] * scale, oy - it.site[1] * scale, Math.max(2, it.r * scale * 0.6), 0, 2 * Math.PI);
         ctx.fill();
       }
     }
