@@ -25,6 +25,18 @@ XSS_NAME = '<script>window.__xss=1</script><img src=x onerror="window.__xss=2">'
 WORKER_READY_S = 400     # a fresh worker compiles the numba kernels first on a loaded machine
 
 
+def buckling_case(name: str, force: float = -10.0, angular_velocity: float = 0.0,
+                  n_segments: int = 24) -> dict:
+    """The tiny rod, clamped at both ends, pushed along its axis past its Euler load (4 pi^2
+    EI / L^2 = 3.9 N) and twisted, with a small sideways load that starts the buckling:
+    buckles within 1 s (onset 0.6-0.9 s for 6-10 N), ~1 s of solve."""
+    case = tiny_case(name, n_segments=n_segments, dt=0.01, t_end=1.0)
+    case["boundary"]["end"]["translation"][2] = {"force": force}
+    case["boundary"]["start"]["rotation"][2] = {"angular_velocity": angular_velocity}
+    case["distributed_forces"] = [{"value": [1e-3, 0.0, 0.0], "start": 0.0, "end": 0.2}]
+    return case
+
+
 def _browser_paths() -> tuple[str, str]:
     pytest.importorskip("selenium")
     binary = next((shutil.which(n) for n in ("chromium", "chromium-browser", "google-chrome")
@@ -192,9 +204,7 @@ def test_job_page_draws_plots_and_the_rod(browser, stack):
     from PIL import Image
     from selenium.webdriver.common.by import By
 
-    case = tiny_case("rod in 3-D", n_segments=24, dt=0.01, t_end=0.3)
-    case["boundary"]["start"]["rotation"][2] = {"angular_velocity": 6.0}
-    case["boundary"]["end"]["translation"][2] = {"force": -2.0}
+    case = buckling_case("rod in 3-D", force=-10.0, angular_velocity=4.0)
     job_id = _successful_job(stack, case)
     _open(browser, stack, f"/job/{job_id}")
     plots = browser.find_element(By.ID, "plots")
@@ -249,18 +259,22 @@ def test_sweep_page_shows_members_and_the_threshold_map(browser, stack):
     from selenium.webdriver.common.by import By
 
     _ensure_worker(stack)
-    base = tiny_case("sweep", n_segments=8, t_end=0.1)
+    base = buckling_case("sweep", n_segments=16)
     sweep = stack.http.post("/v1/sweeps", params={"fresh": "true"}, json={
-        "base": base, "parameters": {"boundary.end.translation.2.force": [0.0, -1.0],
-                                     "boundary.start.rotation.2.angular_velocity": [1.0, 4.0]}})
+        "base": base, "parameters": {
+            "boundary.end.translation.2.force": [-4.0, -6.0, -10.0],
+            "boundary.start.rotation.2.angular_velocity": [0.0, 2.0, 4.0]}})
     assert sweep.status_code == 201, sweep.text
     sweep_id = sweep.json()["id"]
-    wait_until(lambda: stack.http.get(f"/v1/sweeps/{sweep_id}").json()["state"] == "successful",
-               300, 0.5, "the sweep")
+    final = wait_until(lambda: stack.http.get(f"/v1/sweeps/{sweep_id}").json()["state"]
+                       in ("successful", "failed", "dismissed"), 300, 0.5, "the sweep")
+    assert stack.http.get(f"/v1/sweeps/{sweep_id}").json()["state"] == "successful", final
     _open(browser, stack, f"/sweep/{sweep_id}")
     _wait(browser, lambda d: d.find_elements(By.ID, "map-canvas"), 60, "the map")
     rows = browser.find_elements(By.CSS_SELECTOR, "#members tbody tr")
-    assert [r.get_attribute("data-state") for r in rows] == ["successful"] * 4
+    assert [r.get_attribute("data-state") for r in rows] == ["successful"] * 9
+    # the members that buckled are coloured cells (6 and 10 N are past the Euler load, 3.9 N)
+    assert int(browser.find_element(By.ID, "sweep-map").get_attribute("data-members")) >= 6
     _shot(browser, "sweep")
 
 

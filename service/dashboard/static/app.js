@@ -297,7 +297,7 @@
       for (i = 0; i < keys.length; i++) { f = flow(v[keys[i]]); if (f === null) return null; parts.push(yamlScalar(keys[i]) + ": " + f); }
       text = "{" + parts.join(", ") + "}";
     }
-    return text.length <= 90 ? text : null;
+    return text.length <= 64 ? text : null;
   }
   function toYaml(v, indent) {
     indent = indent || "";
@@ -328,14 +328,23 @@
     { id: "newton", title: "Newton iterations", names: ["newton_iterations"] }
   ];
   var COLORS = ["#1f5fa8", "#c0392b", "#27ae60", "#8e44ad", "#d68910", "#17a589"];
-  function tick(v) { return v === null ? "" : String(+v.toPrecision(3)); }
+  /** Tick labels with the decimals their spacing needs (uPlot's default rounds 1e-4 steps to 0). */
+  function ticks(splits) {
+    var step = splits.length > 1 ? Math.abs(splits[1] - splits[0]) : Math.abs(splits[0]) || 1;
+    var dec = Math.max(0, Math.ceil(-Math.log10(step) - 1e-9));
+    var mag = Math.max.apply(null, splits.map(function (v) { return Math.abs(v || 0); }));
+    var sig = Math.min(8, Math.max(1, Math.ceil(Math.log10(mag / step) - 1e-9)));
+    return splits.map(function (v) {
+      return v === null ? "" : dec > 4 ? v.toExponential(sig) : v.toFixed(dec);
+    });
+  }
   function makePlot(host, title, time, series, cursor) {
     var names = Object.keys(series);
     var width = Math.max(300, host.clientWidth - 4);
     var opts = {
       width: width, height: 220, title: "",
       scales: { x: { time: false } },
-      axes: [{ label: "time (s)" }, { size: 64, values: function (u, splits) { return splits.map(tick); } }],
+      axes: [{ label: "time (s)" }, { size: 64, values: function (u, splits) { return ticks(splits); } }],
       series: [{ label: "t (s)" }].concat(names.map(function (n, i) {
         return { label: n, stroke: COLORS[i % COLORS.length], width: 1.5, spanGaps: false };
       })),
@@ -627,7 +636,11 @@
       map.members.forEach(function (m, k) {
         var r = rows.length === 1 ? 0 : Math.floor(k / cols.length), c = rows.length === 1 ? k : k % cols.length;
         var x = left + c * cell, y = top + r * cell, v = m.event_time[event];
-        if (v !== null && v !== undefined) { ctx.fillStyle = colour(v); ctx.fillRect(x, y, cell - 2, cell - 2); }
+        if (v !== null && v !== undefined) {
+          ctx.fillStyle = colour(v); ctx.fillRect(x, y, cell - 2, cell - 2);
+          ctx.fillStyle = hi > lo && (v - lo) / (hi - lo) > 0.5 ? "#1d232b" : "#fff";
+          ctx.fillText(fmtNum(v), x + 3, y + cell / 2);
+        }
         else if (m.state === "successful" || m.state === "failed" || m.state === "dismissed") {
           ctx.fillStyle = "#e4e6ea"; ctx.fillRect(x, y, cell - 2, cell - 2);
           ctx.fillStyle = "#777"; ctx.fillText("none", x + 3, y + cell / 2);

@@ -108,6 +108,7 @@
     this.center = mul(add(lo, hi), 0.5);
     this.extent = Math.max(norm(sub(hi, lo)), 4 * Math.max.apply(null, this.radii), 1e-9);
     this.fitted = true;
+    this.scaleBase = null;        // set by the next draw from the shape as it is seen
   };
 
   RodView.prototype.draw = function () {
@@ -122,7 +123,7 @@
     ctx.clearRect(0, 0, w, h);
     if (!this.points || this.points.length < 2) return;
     var cy = Math.cos(this.yaw), sy = Math.sin(this.yaw), cp = Math.cos(this.pitch), sp = Math.sin(this.pitch);
-    var c = this.center, scale = 1.1 * Math.min(w, h) / this.extent * this.zoom;
+    var c = this.center, scale;
     // view coordinates: x right, y up, z towards the viewer; world z is up
     function view(v) {
       var x = v[0] - c[0], y = v[1] - c[1], z = v[2] - c[2];
@@ -134,6 +135,15 @@
       return [x1, cp * v[2] - sp * y1, sp * v[2] + cp * y1];
     }
     var p = this.points, r = this.radii, n = p.length, f = frames(p);
+    if (!this.scaleBase) {        // fit: the projected shape fills 90 % of the canvas
+      var mx = 1e-12, my = 1e-12, rmax = Math.max.apply(null, r);
+      for (var j = 0; j < n; j++) {
+        var vj = view(p[j]);
+        mx = Math.max(mx, Math.abs(vj[0]) + rmax); my = Math.max(my, Math.abs(vj[1]) + rmax);
+      }
+      this.scaleBase = 0.45 * Math.min(w / mx, h / my);
+    }
+    scale = this.scaleBase * this.zoom;
     var rings = [], normals = [];
     for (var i = 0; i < n; i++) {
       var ring = [], nr = [];
