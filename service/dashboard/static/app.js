@@ -331,7 +331,8 @@
   /** Tick labels with the decimals their spacing needs (uPlot's default rounds 1e-4 steps to 0). */
   function ticks(splits) {
     var step = splits.length > 1 ? Math.abs(splits[1] - splits[0]) : Math.abs(splits[0]) || 1;
-    var dec = Math.max(0, Math.ceil(-Math.log10(step) - 1e-9));
+    var dec = 0;                  // the decimals of the spacing: 2.5 -> 1, 0.002 -> 3
+    while (dec < 12 && Math.abs(Math.round(step * Math.pow(10, dec)) - step * Math.pow(10, dec)) > 1e-6 * step * Math.pow(10, dec)) dec++;
     var mag = Math.max.apply(null, splits.map(function (v) { return Math.abs(v || 0); }));
     var sig = Math.min(8, Math.max(1, Math.ceil(Math.log10(mag / step) - 1e-9)));
     return splits.map(function (v) {
