@@ -14,6 +14,7 @@ import shutil
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from svc_support import make_stack, tiny_case, wait_until
@@ -218,12 +219,13 @@ def test_job_page_draws_plots_and_the_rod(browser, stack):
     assert "youngs_modulus" in browser.find_element(By.ID, "case-yaml").text
     assert browser.find_elements(By.CSS_SELECTOR, "#events-table tr[data-event='buckling_onset']")
     # a non-blank drawing: many pixels off the background, in several shades
-    image = Image.open(io.BytesIO(canvas.screenshot_as_png)).convert("RGB")
-    pixels = list(image.getdata())
-    background = max(set(pixels), key=pixels.count)
-    drawn = sum(1 for p in pixels if sum(abs(a - b) for a, b in zip(p, background)) > 30)
+    pixels = np.asarray(Image.open(io.BytesIO(canvas.screenshot_as_png)).convert("RGB"),
+                        dtype=int).reshape(-1, 3)
+    colours, counts = np.unique(pixels, axis=0, return_counts=True)
+    background = colours[np.argmax(counts)]
+    drawn = int((np.abs(pixels - background).sum(axis=1) > 30).sum())
     assert drawn > 0.005 * len(pixels), (drawn, len(pixels))
-    assert len(set(pixels)) > 20
+    assert len(colours) > 20
     # the slider picks another output time: a new slice is fetched and drawn
     slider = browser.find_element(By.ID, "time-slider")
     browser.execute_script("arguments[0].value = 0; arguments[0].dispatchEvent(new Event('input'))",
@@ -263,7 +265,7 @@ def test_sweep_page_shows_members_and_the_threshold_map(browser, stack):
     sweep = stack.http.post("/v1/sweeps", params={"fresh": "true"}, json={
         "base": base, "parameters": {
             "boundary.end.translation.2.force": [-4.0, -6.0, -10.0],
-            "boundary.start.rotation.2.angular_velocity": [0.0, 2.0, 4.0]}})
+            "boundary.start.rotation.2.angular_velocity": [0.0, 4.0]}})
     assert sweep.status_code == 201, sweep.text
     sweep_id = sweep.json()["id"]
     final = wait_until(lambda: stack.http.get(f"/v1/sweeps/{sweep_id}").json()["state"]
@@ -272,9 +274,9 @@ def test_sweep_page_shows_members_and_the_threshold_map(browser, stack):
     _open(browser, stack, f"/sweep/{sweep_id}")
     _wait(browser, lambda d: d.find_elements(By.ID, "map-canvas"), 60, "the map")
     rows = browser.find_elements(By.CSS_SELECTOR, "#members tbody tr")
-    assert [r.get_attribute("data-state") for r in rows] == ["successful"] * 9
+    assert [r.get_attribute("data-state") for r in rows] == ["successful"] * 6
     # the members that buckled are coloured cells (6 and 10 N are past the Euler load, 3.9 N)
-    assert int(browser.find_element(By.ID, "sweep-map").get_attribute("data-members")) >= 6
+    assert int(browser.find_element(By.ID, "sweep-map").get_attribute("data-members")) >= 4
     _shot(browser, "sweep")
 
 
@@ -287,7 +289,7 @@ def test_no_resource_from_another_origin(browser, stack):
     browser.get_log("performance")     # start afresh
     for fragment in ("/jobs", f"/job/{job_id}", "/submit", "/sweeps"):
         _open(browser, stack, fragment)
-        time.sleep(1.5)
+        time.sleep(0.7)
     _wait(browser, lambda d: d.find_elements(By.ID, "job-name") or True, what="pages")
     urls = []
     for entry in browser.get_log("performance"):
