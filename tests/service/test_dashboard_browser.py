@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from svc_support import make_stack, tiny_case, wait_until
+from svc_support import long_case, make_stack, tiny_case, wait_until
 
 pytestmark = pytest.mark.service
 
@@ -238,6 +238,20 @@ def test_job_page_draws_plots_and_the_rod(browser, stack):
     _wait(browser, lambda d: canvas.get_attribute("data-frame") == slider.get_attribute("max"),
           30, "the last frame")
     _shot(browser, "job")
+
+
+def test_a_running_job_is_dismissed_from_the_list(browser, stack):
+    from selenium.webdriver.common.by import By
+
+    _ensure_worker(stack)
+    job_id = stack.submit(long_case("to dismiss", t_end=60.0), params={"fresh": "true"}).json()["id"]
+    _open(browser, stack, "/jobs")
+    _wait(browser, lambda d: _row_state(d, job_id) == "running", 120, "the job running")
+    browser.find_element(By.CSS_SELECTOR, f'button[data-dismiss="{job_id}"]').click()
+    _wait(browser, lambda d: _row_state(d, job_id) == "dismissed", 60, "the job dismissed")
+    assert "stopping" in browser.find_element(By.ID, "banner").text
+    job = stack.job(job_id)
+    assert job["reason"] == "cancelled_by_user" and job["progress"] < 100
 
 
 def test_markup_in_a_case_name_is_shown_as_text(browser, stack):
