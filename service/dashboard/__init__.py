@@ -134,8 +134,8 @@ def ui_list_jobs(
     page_token: Annotated[str | None, Query()] = None,
 ) -> Response:
     """``GET /v1/jobs`` (newest first, keyset pages) with an ETag of the page's body: an
-    unchanged page answers 304 with no body. ``counts``: the caller's jobs per state on this
-    page's filter are not computed (a count would scan the table at every poll)."""
+    unchanged page answers 304 with no body. ``status``: states, comma-separated; 422 naming
+    ``query.status`` or ``query.page_token`` as ``GET /v1/jobs`` does."""
     from ..registry import STATES
     from ..routers.jobs import _exists, job_status
 

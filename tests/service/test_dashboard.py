@@ -152,3 +152,17 @@ def test_events_and_sweep_map(client, settings):
     assert [m["state"] for m in mapped["members"]] == ["successful", "successful"]
     assert all("buckling_onset" in m["event_time"] for m in mapped["members"])
     assert client.get("/v1/ui/sweeps/nope/map", headers=AUTH).status_code == 404
+
+
+def test_package_data_ships_every_static_file():
+    """A wheel holds what pyproject's package-data names: every file of the dashboard."""
+    import tomllib
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    patterns = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"][
+        "package-data"]["service.dashboard"]
+    package = STATIC_DIR.parent
+    shipped = {p for pattern in patterns for p in package.glob(pattern) if p.is_file()}
+    files = {p for p in STATIC_DIR.rglob("*") if p.is_file()}
+    assert files and files <= shipped, sorted(str(p) for p in files - shipped)
