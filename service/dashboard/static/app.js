@@ -414,11 +414,14 @@
       head.dataset.state = job.state;
     }
 
-    stops.push(poller("jobs/" + enc, function (job, same) {
+    var stopStatus = poller("jobs/" + enc, function (job, same) {
       if (same || !job) return;
       renderHead(job);
-      if (job.result_available && !loaded && !ACTIVE[job.state]) { loaded = true; loadResults(job); }
-    }, function (err) { fill(head, problemNode(err)); }));
+      if (ACTIVE[job.state]) return;
+      stopStatus();                // finished: its status no longer changes
+      if (job.result_available && !loaded) { loaded = true; loadResults(job); }
+    }, function (err) { fill(head, problemNode(err)); });
+    stops.push(stopStatus);
 
     function loadResults(job) {
       apiResult("ui/jobs/" + enc + "/events").then(function (r) { renderEvents(r.data.events); })
