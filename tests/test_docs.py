@@ -100,9 +100,33 @@ def test_health_reports_the_version(tmp_path, monkeypatch):
 # --------------------------------------------------------------------------- the README
 
 
-def test_readme_is_short_and_has_no_diary():
+# what `grep -rniE "<this pattern>" --include='*.md' --include='*.py' .` looks for; spelled
+# in pieces so that this file does not match it itself
+DIARY = re.compile("sess" "ion [0-9]+|sit" "ting", re.I)
+#: modules whose comments are being rewritten on another branch (the refactoring of the
+#: step loop); remove them here once that has landed
+DIARY_PENDING = {"solver/simulation.py", "solver/stepping.py", "solver/newton.py",
+                 "solver/checkpoint.py", "solver/results.py"}
+
+
+def test_readme_is_short():
     assert len(README.splitlines()) <= 150
-    assert not re.search(r"session \d+|sitting", README, re.I)
+
+
+def test_no_diary_outside_the_changelog():
+    """The repository describes the software as it is: what changed and when goes to
+    CHANGELOG.md (and dated rows of docs/benchmarks-history.md), not into prose."""
+    found = []
+    for path in sorted([*ROOT.rglob("*.md"), *ROOT.rglob("*.py")]):
+        rel = path.relative_to(ROOT).as_posix()
+        if (rel == "CHANGELOG.md" or rel in DIARY_PENDING
+                or rel.split("/")[0] in {".venv", "build", "dist", ".git"}
+                or "/_build/" in rel or rel.startswith(("docs/_generated/", "docs/auto_examples/"))):
+            continue
+        for n, line in enumerate(path.read_text(errors="replace").splitlines(), 1):
+            if DIARY.search(line):
+                found.append(f"{rel}:{n}: {line.strip()[:80]}")
+    assert not found, "\n".join(found)
 
 
 def test_readme_test_command_is_what_ci_runs():
