@@ -1,18 +1,18 @@
 """The ``hockle`` command: validate, run, plot, animate, export and sweep cases; serve,
 worker, submit and db.
 
-Exit status
------------
-0    success
-1    an internal error, a file that could not be written, or nothing to plot
-2    bad usage or an invalid case (each error printed as ``path: reason``), a result
-     file that cannot be read, or an animation format this machine cannot write
-     (``.mp4`` without ffmpeg)
-3    the solver diverged (``SolverDivergence``); the partial results are written
-4    the run stopped before t_end for another reason (e.g. its wall-clock budget);
-     the partial results are written
-130  interrupted by Ctrl-C; the run stops at the next step and the partial results are
-     written (a second Ctrl-C aborts without writing)
+Exit status::
+
+    0    success
+    1    an internal error, a file that could not be written, or nothing to plot
+    2    bad usage or an invalid case (each error printed as "path: reason"), a result
+         file that cannot be read, or an animation format this machine cannot write
+         (.mp4 without ffmpeg)
+    3    the solver diverged (SolverDivergence); the partial results are written
+    4    the run stopped before t_end for another reason (e.g. its wall-clock budget);
+         the partial results are written
+    130  interrupted by Ctrl-C; the run stops at the next step and the partial results
+         are written (a second Ctrl-C aborts without writing)
 """
 from __future__ import annotations
 
@@ -21,6 +21,7 @@ import importlib
 import math
 import signal
 import sys
+import textwrap
 import threading
 import time
 from pathlib import Path
@@ -481,13 +482,19 @@ def build_parser() -> tuple[argparse.ArgumentParser, str | None]:
         prog="hockle",
         description="Dynamics of twisted elastic rods with self-contact "
         "(Goyal, Perkins & Lee).",
-        epilog=__doc__.split("Exit status", 1)[1].join(["Exit status", ""]),
+        epilog="Exit status:\n" + textwrap.dedent(__doc__.split("Exit status::", 1)[1]).strip(),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"hockle {_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
 
-    p = sub.add_parser("validate", help="check a case file and summarise it")
+    p = sub.add_parser(
+        "validate", help="check a case file and summarise it",
+        description="Check a case file against the case spec (schema_version 1) without "
+        "running it: every bad field is printed as 'path: reason' (an unknown field with "
+        "the fields allowed there) and the exit status is 2; a valid case prints its grid, "
+        "steps and spec hash.",
+    )
     p.add_argument("case", metavar="CASE", help="case spec, .yaml/.yml or .json")
     p.set_defaults(func=cmd_validate)
 
