@@ -54,7 +54,8 @@ suppress_warnings = ["myst.header", "myst.xref_missing", "config.cache",
 
 html_theme = "pydata_sphinx_theme"
 html_title = f"hockle {release}"
-html_theme_options = {"navigation_with_keys": False, "show_toc_level": 2}
+html_theme_options = {"navigation_with_keys": False, "show_toc_level": 2,
+                      "header_links_before_dropdown": 4}
 html_static_path: list[str] = []
 
 # --------------------------------------------------------------------------- API reference

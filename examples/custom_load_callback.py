@@ -4,6 +4,8 @@
 Your own forces and observers, as in PyElastica: a distributed load written as a Python
 function, a state-aware load, callbacks at a cadence, and a callback that ends the run.
 
+::
+
     python examples/custom_load_callback.py            # 100 segments
     python examples/custom_load_callback.py --quick    # 30 segments: seconds
     python examples/custom_load_callback.py --quick --plot   # with the deflections

@@ -6,6 +6,8 @@ data collection: one VTK file per output time, the centreline as line cells with
 per-node field (v, omega, f, kappa, moment, orientation, s) as point data. ParaView opens
 the ``.pvd`` as a time series; a Tube filter with the rod's radius draws the cable.
 
+::
+
     python examples/paraview_export.py --quick --plot      # a small plectoneme, seconds
     python examples/paraview_export.py --result goyal.nc --time 32.7 --plot-file frame.png
 

@@ -6,6 +6,8 @@ along the axis, then is held (at 6.5 s, as the rod starts to bend); past the buc
 loops, the loop wraps onto itself and the writhe climbs turn after turn, the strands held apart
 by self-contact.
 
+::
+
     python examples/plectoneme.py              # 200 segments, 30 s
     python examples/plectoneme.py --quick      # 40 segments, 10 s: a few seconds
     python examples/plectoneme.py --quick --plot   # with the final shape and the writhe

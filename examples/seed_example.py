@@ -4,6 +4,8 @@
 The seed paper's example (Goyal, Perkins & Lee, section 4): a cable in water, twisted at one
 end while the other slides, buckles, loops and writhes into contact with itself.
 
+::
+
     python examples/seed_example.py            # the paper's resolution: 1000 segments, 45 s
     python examples/seed_example.py --quick    # 50 segments to 22 s: a few seconds
     python examples/seed_example.py -o goyal.nc && hockle plot goyal.nc

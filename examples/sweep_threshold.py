@@ -3,6 +3,8 @@
 
 When does a twisted rod buckle, against the tension on its end?
 
+::
+
     python examples/sweep_threshold.py                 # 8 tensions, 100 segments, here
     python examples/sweep_threshold.py --quick         # 3 tensions, 30 segments: seconds
     python examples/sweep_threshold.py --url http://127.0.0.1:8000   # on a hockle service
