@@ -162,6 +162,24 @@ def test_readme_hockle_commands_parse(tmp_path, monkeypatch):
             "submit"} <= seen
 
 
+def test_readme_python_blocks_import_what_exists():
+    """The README's Python blocks parse, and every name they import exists."""
+    import ast
+
+    blocks = re.findall(r"```python\n(.*?)```", README, re.S)
+    assert blocks
+    for block in blocks:
+        for node in ast.walk(ast.parse(block)):
+            if isinstance(node, ast.ImportFrom):
+                module = importlib.import_module(node.module)
+                for alias in node.names:
+                    assert hasattr(module, alias.name), f"{node.module}.{alias.name}"
+    from service.client import HockleClient
+
+    for method in ("submit", "wait", "dataset"):
+        assert callable(getattr(HockleClient, method))
+
+
 def test_readme_compose_and_kubernetes_secrets():
     """The compose lines create every variable docker-compose.yml requires (`${VAR:?}`),
     and the kubectl lines every secret the manifests read."""
