@@ -57,6 +57,7 @@ html_title = f"hockle {release}"
 html_theme_options = {"navigation_with_keys": False, "show_toc_level": 2,
                       "header_links_before_dropdown": 4}
 html_static_path: list[str] = []
+templates_path = ["_templates"]
 
 # --------------------------------------------------------------------------- API reference
 autosummary_generate = True
