@@ -157,10 +157,20 @@ DEVELOPER_MARK = ":caption: Developers\n"
 
 
 def _toctree_extras(app, docname, source):
-    """The developer guide (docs/developer.md) joins the site's toctree where the tree
-    has one; the Developers caption is an empty toctree otherwise."""
-    if docname == "index" and (DOCS / "developer.md").exists():
-        source[0] = source[0].replace(DEVELOPER_MARK, DEVELOPER_MARK + "\ndeveloper\n", 1)
+    """Pages that the index does not list yet join its toctree: the developer guide
+    (docs/developer.md) under Developers, any other top-level page (a new guide from
+    another change) under More, so that no page is left outside the site."""
+    if docname != "index":
+        return
+    text = source[0]
+    listed = set(re.findall(r"^([\w./-]+)$", text, re.M))
+    extra = sorted(p.stem for p in DOCS.glob("*.md")
+                   if p.stem not in listed and p.stem not in ("index", "developer"))
+    if (DOCS / "developer.md").exists() and "developer" not in listed:
+        text = text.replace(DEVELOPER_MARK, DEVELOPER_MARK + "\ndeveloper\n", 1)
+    if extra:
+        text += "\n```{toctree}\n:caption: More\n:maxdepth: 1\n\n" + "\n".join(extra) + "\n```\n"
+    source[0] = text
 
 
 # The docstrings are written to be read as plain text first (|x| for a norm, aligned
