@@ -17,6 +17,7 @@ import base64
 import datetime as dt
 import hashlib
 import json
+import math
 import uuid
 from dataclasses import dataclass
 from typing import Any, Iterable
@@ -232,17 +233,32 @@ class SweepRecord(Base):
 class Registry:
     """Data access to the registry; one per process (holds the connection pool)."""
 
-    def __init__(self, url: str, *, echo: bool = False, busy_timeout: float = 30.0):
+    def __init__(self, url: str, *, echo: bool = False, busy_timeout: float = 30.0,
+                 request_timeout: float | None = None):
         """``busy_timeout``: SQLite only, seconds a statement waits for another connection's
-        lock before it fails with ``database is locked`` (an ``OperationalError``)."""
+        lock before it fails with ``database is locked`` (an ``OperationalError``).
+
+        ``request_timeout`` (the API's ``HOCKLE_REGISTRY_REQUEST_TIMEOUT``; None for workers,
+        which wait and retry instead): the most seconds any one wait on the registry may take,
+        so that a locked or slow registry answers an error (mapped to 503) instead of holding
+        the request: PostgreSQL ``statement_timeout`` and ``lock_timeout``, the wait for a
+        pooled connection and the connection attempt; SQLite the busy time-out (the smaller
+        of the two). Each raises one of :data:`REGISTRY_UNAVAILABLE`."""
         self.url = url
-        self.busy_timeout = float(busy_timeout)
+        self.busy_timeout = self.migration_busy_timeout = float(busy_timeout)
+        if request_timeout is not None:
+            self.busy_timeout = min(self.busy_timeout, float(request_timeout))
         kwargs: dict[str, Any] = {"echo": echo, "pool_pre_ping": True}
         if url.startswith("sqlite"):
             kwargs["connect_args"] = {"check_same_thread": False, "timeout": self.busy_timeout}
         else:
             # the API serves requests from a thread pool: enough connections for it
             kwargs.update(pool_size=10, max_overflow=20, pool_timeout=30)
+            if request_timeout is not None:
+                ms = max(1, int(request_timeout * 1000))
+                kwargs.update(pool_timeout=request_timeout, connect_args={
+                    "connect_timeout": max(1, math.ceil(request_timeout)),
+                    "options": f"-c statement_timeout={ms} -c lock_timeout={ms}"})
         self.engine: Engine = create_engine(url, **kwargs)
         if url.startswith("sqlite"):
             busy_ms = int(self.busy_timeout * 1000)
@@ -266,12 +282,16 @@ class Registry:
             from service.settings import get_settings
 
             auto_migrate = get_settings().auto_migrate
+        # a migration at start-up may wait for a lock as long as a worker would
         migrations.ensure_schema(self.url, auto_migrate=auto_migrate,
-                                 busy_timeout=self.busy_timeout)
+                                 busy_timeout=self.migration_busy_timeout)
 
     def ping(self) -> None:
+        """Read one row of ``hockle_jobs``: raises one of :data:`REGISTRY_UNAVAILABLE` when the
+        server is down, and also when the table is locked (a migration, ``LOCK TABLE``), which
+        a bare ``SELECT 1`` would not notice."""
         with self.engine.connect() as conn:
-            conn.execute(text("SELECT 1"))
+            conn.execute(select(Job.id).limit(1)).first()
 
     def dispose(self) -> None:
         self.engine.dispose()

@@ -214,6 +214,15 @@ class Settings(DatasetMetadata):
         description="SQLite registry: seconds a statement waits for another connection's lock "
         "before it fails with 'database is locked' (then retried as above).",
     )
+    registry_request_timeout: float = Field(
+        5.0,
+        gt=0,
+        description="API: seconds one request waits on the registry (a PostgreSQL statement "
+        "or lock, a connection from the pool, a SQLite lock, a connection to the server) "
+        "before it answers 503 registry-unavailable with Retry-After; well below the clients' "
+        "and the probes' time-outs. Workers wait longer (registry_busy_timeout, "
+        "registry_retry_timeout).",
+    )
     auto_migrate: bool = Field(
         True,
         description="At start-up the API and each worker bring the registry's schema to the "
