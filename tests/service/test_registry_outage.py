@@ -1,0 +1,108 @@
+"""A locked PostgreSQL registry, as a migration or an administrator's transaction holds it: the
+API process (real `python -m service`, Redis broker) keeps answering liveness at once, its
+readiness reports the registry, and every request that needs the registry answers 503 with
+Retry-After within HOCKLE_REGISTRY_REQUEST_TIMEOUT instead of waiting for the lock (or a 500
+from the connection pool). Skipped where no PostgreSQL server answers on 127.0.0.1:5432.
+"""
+from __future__ import annotations
+
+import statistics
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+
+import httpx
+import pytest
+
+from svc_support import empty_database_url, make_stack, tiny_case
+
+pytestmark = pytest.mark.service
+
+TIMEOUT = 2.0        # HOCKLE_REGISTRY_REQUEST_TIMEOUT of the API under test
+LOCK_HELD = 12.0     # seconds the table lock is held
+CONCURRENT = 60      # GET /v1/jobs/{id} sent at once while it is held
+
+
+@pytest.fixture(scope="module")
+def stack(tmp_path_factory, redis_server):
+    root = tmp_path_factory.mktemp("outage-db")
+    with empty_database_url("postgresql", root, "hockle_outage") as url:
+        stack = make_stack(tmp_path_factory, "outage", {
+            "HOCKLE_DATABASE_URL": url, "HOCKLE_BROKER_URL": redis_server.url,
+            "HOCKLE_REGISTRY_REQUEST_TIMEOUT": str(TIMEOUT)})
+        stack.database_url = url
+        stack.start_api()
+        try:
+            yield stack
+        finally:
+            stack.close()
+
+
+def test_a_locked_registry_leaves_liveness_alone_and_answers_503(stack):
+    import psycopg
+
+    response = stack.submit(tiny_case("outage"))
+    assert response.status_code == 201, response.text
+    job_id = response.json()["id"]
+
+    locker = psycopg.connect(stack.database_url.replace("postgresql+psycopg", "postgresql"))
+    locker.execute("LOCK TABLE hockle_jobs IN ACCESS EXCLUSIVE MODE")   # in a transaction
+    locked_at = time.monotonic()
+    release = threading.Timer(LOCK_HELD, locker.rollback)   # whatever the API does
+    release.start()
+    stop = threading.Event()
+    live: list[tuple[float, int]] = []
+
+    def probe_liveness():
+        with httpx.Client(base_url=stack.url, timeout=30) as http:
+            while not stop.is_set():
+                start = time.monotonic()
+                code = http.get("/v1/health", params={"live": "true"}).status_code
+                live.append((time.monotonic() - start, code))
+                time.sleep(0.05)
+
+    def get_job(_):
+        with httpx.Client(base_url=stack.url, timeout=60) as http:
+            start = time.monotonic()
+            answer = http.get(f"/v1/jobs/{job_id}")
+            return answer.status_code, time.monotonic() - start, answer
+
+    prober = threading.Thread(target=probe_liveness, daemon=True)
+    prober.start()
+    try:
+        with ThreadPoolExecutor(CONCURRENT) as pool:
+            answers = list(pool.map(get_job, range(CONCURRENT)))
+        with httpx.Client(base_url=stack.url, timeout=30) as http:
+            ready = http.get("/v1/health")
+        held = time.monotonic() - locked_at
+        time.sleep(max(0.0, 1.0 - held))
+    finally:
+        stop.set()
+        prober.join(timeout=30)
+        release.cancel()
+        locker.rollback()
+        locker.close()
+    codes = [code for code, _, _ in answers]
+    slowest = max(took for _, took, _ in answers)
+    latencies = sorted(took for took, _ in live)
+    print(f"\n{CONCURRENT} GETs under the lock: {dict((c, codes.count(c)) for c in set(codes))},"
+          f" slowest {slowest:.2f} s; liveness {len(latencies)} probes, median "
+          f"{1000 * statistics.median(latencies):.1f} ms, max {1000 * latencies[-1]:.1f} ms; "
+          f"readiness {ready.status_code}")
+    assert held < LOCK_HELD, f"the answers took {held:.1f} s: they waited for the lock"
+    assert set(codes) == {503}, codes
+    for _, _, answer in answers[:3]:
+        assert answer.headers["content-type"].startswith("application/problem+json")
+        assert answer.json()["type"] == "urn:hockle:problem:registry-unavailable"
+        assert int(answer.headers["retry-after"]) >= 1
+    # each waits at most for a pooled connection and then for the lock
+    assert slowest < 2 * TIMEOUT + 3.0, slowest
+    assert ready.status_code == 503 and not ready.json()["registry"]["ok"], ready.text
+    assert ready.json()["broker"]["ok"]
+    assert latencies and {code for _, code in live} == {200}
+    assert latencies[-1] < 0.5, latencies[-5:]
+
+    # the lock gone, everything answers again
+    assert stack.http.get(f"/v1/jobs/{job_id}").status_code == 200
+    assert stack.http.get("/v1/health").status_code == 200
+    assert "Traceback" not in stack.log("api.log")
