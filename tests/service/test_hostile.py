@@ -276,3 +276,22 @@ def test_an_unexpected_error_is_one_500_logged_once_and_the_connection_is_kept(s
         thread.join(timeout=10)
     tracebacks = [r for r in caplog.records if r.exc_info and "boom" in str(r.exc_info[1])]
     assert len(tracebacks) == 1, [(r.name, r.getMessage()) for r in tracebacks]
+
+
+# --- metrics --------------------------------------------------------------------------------------
+def test_metrics_export_job_counts_and_queue_depth(client):
+    from prometheus_client.parser import text_string_to_metric_families
+
+    counts = client.get("/v1/health").json()["jobs"]
+    response = client.get("/metrics")
+    assert response.status_code == 200
+    assert response.headers["content-type"].startswith("text/plain")
+    samples = {(s.name, tuple(sorted(s.labels.items()))): s.value
+               for family in text_string_to_metric_families(response.text)
+               for s in family.samples}
+    for state in ("accepted", "running", "successful", "failed", "dismissed"):
+        assert samples[("hockle_jobs", (("state", state),))] == counts.get(state, 0)
+    assert samples[("hockle_registry_up", ())] == 1
+    assert samples[("hockle_broker_up", ())] == 1
+    assert ("hockle_queue_depth", (("queue", "hockle"),)) in samples
+    assert client.get("/metrics", params={"x": "1"}).status_code == 200   # not a /v1 route

@@ -38,6 +38,20 @@ def stack(tmp_path_factory, redis_server):
             stack.close()
 
 
+def test_metrics_report_the_redis_queue_depth(stack, redis_server):
+    """hockle_queue_depth is the Redis list KEDA scales the workers on (no worker runs here,
+    so each job's message waits in it)."""
+    import redis
+
+    for k in range(2):
+        assert stack.submit(tiny_case(f"queued-{k}")).status_code == 201
+    waiting = redis.Redis(port=redis_server.port).llen("hockle")
+    assert waiting >= 2
+    text = stack.http.get("/metrics").text
+    assert f'hockle_queue_depth{{queue="hockle"}} {float(waiting)}' in text, text
+    assert 'hockle_jobs{state="accepted"}' in text
+
+
 def test_a_locked_registry_leaves_liveness_alone_and_answers_503(stack):
     import psycopg
 
