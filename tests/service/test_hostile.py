@@ -295,3 +295,27 @@ def test_metrics_export_job_counts_and_queue_depth(client):
     assert samples[("hockle_broker_up", ())] == 1
     assert ("hockle_queue_depth", (("queue", "hockle"),)) in samples
     assert client.get("/metrics", params={"x": "1"}).status_code == 200   # not a /v1 route
+
+
+def test_hockle_submit_says_when_it_reused_a_result(client, finished_job, tmp_path,
+                                                    monkeypatch, capsys):
+    import argparse
+
+    import service.client
+    from hockle.service_commands import submit
+
+    transport = client._transport       # the in-process app behind the test client
+
+    class InProcess(service.client.HockleClient):
+        def __init__(self, base_url=None, **kwargs):
+            super().__init__("http://testserver", transport=transport, api_key="")
+
+    monkeypatch.setattr(service.client, "HockleClient", InProcess)
+    path = tmp_path / "case.json"
+    path.write_text(json.dumps(tiny_case("hostile-finished")))
+    args = argparse.Namespace(url=None, case=str(path), idempotency_key=None, fresh=False,
+                              time_limit=None, wait=False, api_key=None, output=None)
+    assert submit(args) == 0
+    out = capsys.readouterr().out
+    assert f"job {finished_job} successful" in out
+    assert f"reused the result of job {finished_job}" in out and "--fresh" in out
