@@ -1103,13 +1103,12 @@ class Case(BaseModel):
             errors.append(_err(("rod", "diameter"), "out_of_range",
                                f"a diameter of {d_max!r} m exceeds the rod's length ({length!r} m): "
                                "not a slender rod", d_max))
-        if (numerics.tolerance is None and numerics.dt <= numerics.t_end
-                and self.output.every > math.ceil(numerics.t_end / numerics.dt - 1e-9)):
+        steps = numerics.t_end / numerics.dt
+        if numerics.tolerance is None and 1 <= steps <= MAX_STEPS and self.output.every > math.ceil(steps - 1e-9):
             errors.append(_err(("output", "every"), "out_of_range",
                                f"keeping every {self.output.every}-th step of a run of "
-                               f"{math.ceil(numerics.t_end / numerics.dt - 1e-9)} steps keeps only the "
-                               "first and last states; at most the number of steps", self.output.every))
-        steps = numerics.t_end / numerics.dt
+                               f"{math.ceil(steps - 1e-9)} steps keeps only the first and last "
+                               "states; at most the number of steps", self.output.every))
         if not steps <= MAX_STEPS:
             errors.append(_err(("numerics", "dt"), "too_many_steps",
                                f"t_end / dt = {steps:.3g} steps (t_end = {numerics.t_end!r} s): "
