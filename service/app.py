@@ -160,7 +160,7 @@ def _openapi(app: FastAPI) -> dict:
 
 def _document_auth(schema: dict) -> None:
     """Bearer authentication in the OpenAPI document (Swagger UI's Authorize button), with the
-    401 and 429 answers, on every operation but the health check."""
+    401 and 429 answers, on every operation but the health check and the metrics."""
     schema["components"].setdefault("securitySchemes", {})["apiKey"] = {
         "type": "http", "scheme": "bearer",
         "description": "An API key of this service (HOCKLE_API_KEYS): "
@@ -169,7 +169,8 @@ def _document_auth(schema: dict) -> None:
                429: "The key's rate limit is reached: retry after Retry-After seconds"}
     for item in schema["paths"].values():
         for operation in item.values():
-            if not isinstance(operation, dict) or operation.get("operationId") == "get_health":
+            if not isinstance(operation, dict) or operation.get("operationId") in (
+                    "get_health", "get_metrics"):   # public, as the probes and scrapers are
                 continue
             operation["security"] = [{"apiKey": []}]
             responses = operation.setdefault("responses", {})
