@@ -13,6 +13,7 @@ from fastapi import Depends, FastAPI
 from fastapi.openapi.utils import get_openapi
 
 from .auth import AuthMiddleware
+from .dashboard import UI_URL, install_dashboard
 from .deps import Services, known_query_only, services
 from .docs import ASSETS_URL, DOCS_URL, OAUTH2_REDIRECT_URL, REDOC_URL, install_docs
 from .problems import CatchAllMiddleware, install_handlers
@@ -82,8 +83,8 @@ def create_app(settings: Settings | None = None, *, enqueuer: Enqueuer | None = 
     app.add_middleware(
         AuthMiddleware, keys=api_keys, rate=settings.rate_limit, burst=settings.rate_limit_burst,
         public_paths=("/v1/health", metrics.PATH, app.openapi_url, DOCS_URL, REDOC_URL,
-                      OAUTH2_REDIRECT_URL),
-        public_prefixes=(ASSETS_URL + "/",))
+                      OAUTH2_REDIRECT_URL, UI_URL),
+        public_prefixes=(ASSETS_URL + "/", UI_URL + "/"))
     app.add_middleware(CatchAllMiddleware)  # outermost: the last word on an unexpected error
 
     checked = [Depends(known_query_only)]  # a misspelt query parameter is a 422, not ignored
@@ -92,6 +93,7 @@ def create_app(settings: Settings | None = None, *, enqueuer: Enqueuer | None = 
     app.include_router(sweeps.router, prefix="/v1", dependencies=checked)
     app.include_router(health.router, prefix="/v1", dependencies=checked)
     app.include_router(metrics.router)
+    install_dashboard(app)  # /ui/ (static, public) and its /v1/ui routes
     app.openapi = lambda: _openapi(app)  # type: ignore[method-assign]
     return app
 
