@@ -212,12 +212,14 @@ def run_load(base: str, n_jobs: int, rate: float, submit_concurrency: int) -> di
 
 @contextlib.contextmanager
 def service_stack(root: Path, registry: str, workers: int, name: str,
-                  worker_env: dict[str, str] | None = None):
+                  worker_env: dict[str, str] | None = None,
+                  worker_procs: list | None = None):
     """The distributed service on this machine for a benchmark: a redis-server on a free
     port, the registry (a fresh PostgreSQL database on 127.0.0.1:5432, dropped afterwards,
     or SQLite under ``root``), the API and ``workers`` Celery worker processes (concurrency
     1, hostnames ``<name><i>@host``, ``worker_env`` added to their environment). Yields (the
-    API's base URL, the services' environment); stops every process on exit. Raises RuntimeError when a process does not
+    API's base URL, the services' environment); stops every process on exit. The workers'
+    processes are appended to ``worker_procs`` when given (a benchmark that kills one). Raises RuntimeError when a process does not
     come up in time."""
     procs = Processes(root)
     admin = db_name = None
@@ -251,9 +253,11 @@ def service_stack(root: Path, registry: str, workers: int, name: str,
         procs.spawn([sys.executable, "-m", "service"], "api.log", env)
         wait_for(lambda: httpx.get(f"{base}/v1/health").status_code == 200, 60, "the API")
         for i in range(workers):
-            procs.spawn([sys.executable, "-m", "worker", "--concurrency", "1", "--hostname",
-                         f"{name}{i}@%h", "--loglevel", "WARNING"], f"worker{i}.log",
-                        {**env, **(worker_env or {})})
+            proc = procs.spawn([sys.executable, "-m", "worker", "--concurrency", "1",
+                                "--hostname", f"{name}{i}@%h", "--loglevel", "WARNING"],
+                               f"worker{i}.log", {**env, **(worker_env or {})})
+            if worker_procs is not None:
+                worker_procs.append(proc)
         wait_for(lambda: len(httpx.get(f"{base}/v1/health").json()["workers"]) >= workers,
                  90, "the workers")
         yield base, env

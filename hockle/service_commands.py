@@ -99,6 +99,16 @@ def db(args: argparse.Namespace) -> int:
     return run(args)
 
 
+# what `hockle submit` says when the service answered with an earlier job (JobStatus.reused)
+_REUSED = {
+    "identical_case": "reused the result of job {id}, an identical case that already ran "
+                      "successfully (finished {finished}); nothing was run now (--fresh runs "
+                      "it again)",
+    "idempotency_key": "the Idempotency-Key was used before: this is job {id}, submitted "
+                       "then; nothing new was queued",
+}
+
+
 def submit(args: argparse.Namespace) -> int:
     import httpx
 
@@ -110,6 +120,10 @@ def submit(args: argparse.Namespace) -> int:
             job = client.submit(args.case, idempotency_key=args.idempotency_key, fresh=args.fresh,
                                 time_limit=getattr(args, "time_limit", None))
             print(f"job {job.id} {job.state} ({client.base_url}/v1/jobs/{job.id})", file=out)
+            reused = _REUSED.get(job.reused or "")
+            if reused:
+                print(f"hockle submit: {reused.format(id=job.id, finished=job.finished)}",
+                      file=out)
             if not args.wait:
                 return 0
             last = [None]

@@ -8,16 +8,18 @@ from __future__ import annotations
 import logging
 import threading
 from contextlib import asynccontextmanager
-from dataclasses import dataclass
 
-from fastapi import FastAPI, Request
+from fastapi import Depends, FastAPI
 from fastapi.openapi.utils import get_openapi
 
 from .auth import AuthMiddleware
+from .dashboard import UI_URL, install_dashboard
+from .deps import Services, known_query_only, services
 from .docs import ASSETS_URL, DOCS_URL, OAUTH2_REDIRECT_URL, REDOC_URL, install_docs
-from .problems import install_handlers
+from .problems import CatchAllMiddleware, install_handlers
 from .queue import Enqueuer
 from .registry import REGISTRY_UNAVAILABLE, Registry
+from .routers import health, jobs, metrics, results, sweeps
 from .settings import Settings, get_settings
 from .store import ResultStore
 
@@ -32,16 +34,7 @@ dismiss it, and query its time histories. Errors are RFC 9457 problem details
 """
 
 
-@dataclass
-class Services:
-    settings: Settings
-    registry: Registry
-    store: ResultStore
-    enqueuer: Enqueuer
-
-
-def services(request: Request) -> Services:
-    return request.app.state.services
+__all__ = ["create_app", "Services", "services"]
 
 
 def create_app(settings: Settings | None = None, *, enqueuer: Enqueuer | None = None) -> FastAPI:
@@ -51,7 +44,9 @@ def create_app(settings: Settings | None = None, *, enqueuer: Enqueuer | None = 
     settings = settings or get_settings()
     api_keys = settings.load_api_keys()
     settings.data_dir.mkdir(parents=True, exist_ok=True)
-    registry = Registry(settings.registry_url, busy_timeout=settings.registry_busy_timeout)
+    # a request waits on the registry at most registry_request_timeout (then 503)
+    registry = Registry(settings.registry_url, busy_timeout=settings.registry_busy_timeout,
+                        request_timeout=settings.registry_request_timeout)
     registry.create_schema(auto_migrate=settings.auto_migrate)
     store = ResultStore(settings.results_dir)
     store.ensure()
@@ -85,20 +80,19 @@ def create_app(settings: Settings | None = None, *, enqueuer: Enqueuer | None = 
     app.state.auth_enabled = bool(api_keys)
     install_handlers(app)
     install_docs(app)
-    from .dashboard import UI_URL, install_dashboard
-
     app.add_middleware(
         AuthMiddleware, keys=api_keys, rate=settings.rate_limit, burst=settings.rate_limit_burst,
-        public_paths=("/v1/health", app.openapi_url, DOCS_URL, REDOC_URL, OAUTH2_REDIRECT_URL,
-                      UI_URL),
+        public_paths=("/v1/health", metrics.PATH, app.openapi_url, DOCS_URL, REDOC_URL,
+                      OAUTH2_REDIRECT_URL, UI_URL),
         public_prefixes=(ASSETS_URL + "/", UI_URL + "/"))
+    app.add_middleware(CatchAllMiddleware)  # outermost: the last word on an unexpected error
 
-    from .routers import health, jobs, results, sweeps
-
-    app.include_router(jobs.router, prefix="/v1")
-    app.include_router(results.router, prefix="/v1")
-    app.include_router(sweeps.router, prefix="/v1")
-    app.include_router(health.router, prefix="/v1")
+    checked = [Depends(known_query_only)]  # a misspelt query parameter is a 422, not ignored
+    app.include_router(jobs.router, prefix="/v1", dependencies=checked)
+    app.include_router(results.router, prefix="/v1", dependencies=checked)
+    app.include_router(sweeps.router, prefix="/v1", dependencies=checked)
+    app.include_router(health.router, prefix="/v1", dependencies=checked)
+    app.include_router(metrics.router)
     install_dashboard(app)  # /ui/ (static, public) and its /v1/ui routes
     app.openapi = lambda: _openapi(app)  # type: ignore[method-assign]
     return app
@@ -168,7 +162,7 @@ def _openapi(app: FastAPI) -> dict:
 
 def _document_auth(schema: dict) -> None:
     """Bearer authentication in the OpenAPI document (Swagger UI's Authorize button), with the
-    401 and 429 answers, on every operation but the health check."""
+    401 and 429 answers, on every operation but the health check and the metrics."""
     schema["components"].setdefault("securitySchemes", {})["apiKey"] = {
         "type": "http", "scheme": "bearer",
         "description": "An API key of this service (HOCKLE_API_KEYS): "
@@ -177,7 +171,8 @@ def _document_auth(schema: dict) -> None:
                429: "The key's rate limit is reached: retry after Retry-After seconds"}
     for item in schema["paths"].values():
         for operation in item.values():
-            if not isinstance(operation, dict) or operation.get("operationId") == "get_health":
+            if not isinstance(operation, dict) or operation.get("operationId") in (
+                    "get_health", "get_metrics"):   # public, as the probes and scrapers are
                 continue
             operation["security"] = [{"apiKey": []}]
             responses = operation.setdefault("responses", {})

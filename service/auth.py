@@ -136,9 +136,10 @@ def _bearer(header: str | None) -> str | None:
     return token
 
 
-def caller(request: Request) -> str | None:
+async def caller(request: Request) -> str | None:
     """FastAPI dependency: the owner id of the request's API key, or ``None`` when the service
-    runs without keys (then every job is everyone's)."""
+    runs without keys (then every job is everyone's). A coroutine: resolving it takes no
+    thread from the pool that blocking routes use."""
     return getattr(request.state, "owner", None)
 
 

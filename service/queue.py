@@ -85,6 +85,21 @@ class Enqueuer:
         with self.app.connection_for_write() as conn:
             conn.ensure_connection(max_retries=1, timeout=3)
 
+    def queue_depth(self) -> int:
+        """Messages waiting in the job queue (the Redis list ``HOCKLE_QUEUE``, which KEDA's
+        ``redis`` scaler reads too; the SQL broker's table in embedded mode). Raises when the
+        broker cannot be reached."""
+        from kombu.exceptions import ChannelError
+
+        with self.app.connection_for_write() as conn:
+            conn.ensure_connection(max_retries=1, timeout=3)
+            channel = conn.default_channel
+            try:
+                return int(channel.queue_declare(queue=self.settings.queue,
+                                                 passive=True).message_count)
+            except ChannelError:   # Redis: an empty list does not exist
+                return 0
+
     def close(self) -> None:
         self.app.close()
 

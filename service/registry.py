@@ -17,17 +17,12 @@ import base64
 import datetime as dt
 import hashlib
 import json
+import math
 import uuid
 from dataclasses import dataclass
 from typing import Any, Iterable
 
 from sqlalchemy import (
-    Boolean,
-    DateTime,
-    Float,
-    Integer,
-    String,
-    Text,
     and_,
     create_engine,
     event,
@@ -45,7 +40,10 @@ from sqlalchemy.exc import (
     OperationalError,
 )
 from sqlalchemy.exc import TimeoutError as PoolTimeoutError
-from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column, sessionmaker
+from sqlalchemy.orm import sessionmaker
+
+# the tables live in service/models.py (also read by the migrations); imported from here too
+from .models import Base, Job, JobEvent, SweepRecord, WorkerBeat  # noqa: F401
 
 __all__ = [
     "ACTIVE_STATES",
@@ -82,86 +80,6 @@ REGISTRY_UNAVAILABLE = (OperationalError, InterfaceError, DisconnectionError, Po
 def utcnow() -> dt.datetime:
     """Naive UTC (both SQLite and PostgreSQL columns are ``timestamp without time zone``)."""
     return dt.datetime.now(dt.timezone.utc).replace(tzinfo=None)
-
-
-class Base(DeclarativeBase):
-    pass
-
-
-class Job(Base):
-    __tablename__ = "hockle_jobs"
-
-    id: Mapped[str] = mapped_column(String(36), primary_key=True)
-    name: Mapped[str | None] = mapped_column(String(200))
-    state: Mapped[str] = mapped_column(String(16), index=True)
-    reason: Mapped[str | None] = mapped_column(String(32))
-    message: Mapped[str | None] = mapped_column(Text)
-
-    spec_json: Mapped[str] = mapped_column(Text)
-    spec_hash: Mapped[str] = mapped_column(String(64), index=True)
-    solver_version: Mapped[str] = mapped_column(String(32))
-    grid_points: Mapped[int] = mapped_column(Integer)
-    n_steps: Mapped[int] = mapped_column(Integer)
-    t_end: Mapped[float] = mapped_column(Float)
-
-    # as stored: scoped to the owner (scoped_idempotency_key), unique
-    idempotency_key: Mapped[str | None] = mapped_column(String(200), unique=True)
-    request_fingerprint: Mapped[str | None] = mapped_column(String(64))
-    # service.auth.owner_id of the API key that submitted the job (a hash, never the key);
-    # None when the service ran without keys
-    owner: Mapped[str | None] = mapped_column(String(64), index=True)
-
-    created_at: Mapped[dt.datetime] = mapped_column(DateTime, index=True)
-    updated_at: Mapped[dt.datetime] = mapped_column(DateTime)
-    started_at: Mapped[dt.datetime | None] = mapped_column(DateTime)
-    finished_at: Mapped[dt.datetime | None] = mapped_column(DateTime)
-    deadline_at: Mapped[dt.datetime | None] = mapped_column(DateTime, index=True)
-
-    progress: Mapped[float] = mapped_column(Float, default=0.0)
-    sim_time: Mapped[float] = mapped_column(Float, default=0.0)
-    step: Mapped[int] = mapped_column(Integer, default=0)
-    wall_time: Mapped[float | None] = mapped_column(Float)
-    eta_seconds: Mapped[float | None] = mapped_column(Float)
-    failed_time: Mapped[float | None] = mapped_column(Float)
-    failed_step: Mapped[int | None] = mapped_column(Integer)
-
-    worker: Mapped[str | None] = mapped_column(String(200))
-    attempts: Mapped[int] = mapped_column(Integer, default=0)
-    # written every heartbeat_interval by the process solving the job (its attempt)
-    heartbeat_at: Mapped[dt.datetime | None] = mapped_column(DateTime)
-    # when the job's latest message was sent, and how many were sent (re-queues included)
-    enqueued_at: Mapped[dt.datetime | None] = mapped_column(DateTime)
-    dispatches: Mapped[int | None] = mapped_column(Integer, default=1)
-    cancel_requested: Mapped[bool] = mapped_column(Boolean, default=False)
-
-    time_limit: Mapped[float] = mapped_column(Float)
-    soft_time_limit: Mapped[float] = mapped_column(Float)
-    wall_clock_budget: Mapped[float] = mapped_column(Float)
-
-    result_path: Mapped[str | None] = mapped_column(Text)
-    result_partial: Mapped[bool] = mapped_column(Boolean, default=False)
-
-
-class JobEvent(Base):
-    """Append-only history of a job: submitted, started, solve_finished, finished, ..."""
-
-    __tablename__ = "hockle_job_events"
-
-    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
-    job_id: Mapped[str] = mapped_column(String(36), index=True)
-    at: Mapped[dt.datetime] = mapped_column(DateTime)
-    kind: Mapped[str] = mapped_column(String(32))
-    attempt: Mapped[int | None] = mapped_column(Integer)
-    worker: Mapped[str | None] = mapped_column(String(200))
-    detail: Mapped[str | None] = mapped_column(Text)
-
-
-class WorkerBeat(Base):
-    __tablename__ = "hockle_workers"
-
-    name: Mapped[str] = mapped_column(String(200), primary_key=True)
-    last_seen: Mapped[dt.datetime] = mapped_column(DateTime)
-    current_job: Mapped[str | None] = mapped_column(String(36))
 
 
 def scoped_idempotency_key(owner: str | None, key: str) -> str:
@@ -202,47 +120,35 @@ def decode_page_token(token: str) -> tuple[dt.datetime, str]:
         raise ValueError("page_token is not one this server issued") from exc
 
 
-class SweepRecord(Base):
-    """A parameter sweep (service/sweeps.py): its members are ordinary jobs, listed here in
-    member order; the sweep's state is derived from theirs."""
-
-    __tablename__ = "hockle_sweeps"
-
-    id: Mapped[str] = mapped_column(String(36), primary_key=True)
-    name: Mapped[str | None] = mapped_column(String(200))
-    combine: Mapped[str] = mapped_column(String(8))
-    # JSON: [{"path": ..., "values": [...]}, ...] in the request's order
-    parameters_json: Mapped[str] = mapped_column(Text)
-    # JSON: the member's job id for each member index (a job may serve several members)
-    member_job_ids: Mapped[str] = mapped_column(Text)
-    base_json: Mapped[str] = mapped_column(Text)
-    owner: Mapped[str | None] = mapped_column(String(64), index=True)
-    created_at: Mapped[dt.datetime] = mapped_column(DateTime, index=True)
-    dismissed_at: Mapped[dt.datetime | None] = mapped_column(DateTime)
-
-    @property
-    def parameters(self) -> dict[str, list]:
-        return {p["path"]: p["values"] for p in json.loads(self.parameters_json)}
-
-    @property
-    def job_ids(self) -> list[str]:
-        return list(json.loads(self.member_job_ids))
-
-
 class Registry:
     """Data access to the registry; one per process (holds the connection pool)."""
 
-    def __init__(self, url: str, *, echo: bool = False, busy_timeout: float = 30.0):
+    def __init__(self, url: str, *, echo: bool = False, busy_timeout: float = 30.0,
+                 request_timeout: float | None = None):
         """``busy_timeout``: SQLite only, seconds a statement waits for another connection's
-        lock before it fails with ``database is locked`` (an ``OperationalError``)."""
+        lock before it fails with ``database is locked`` (an ``OperationalError``).
+
+        ``request_timeout`` (the API's ``HOCKLE_REGISTRY_REQUEST_TIMEOUT``; None for workers,
+        which wait and retry instead): the most seconds any one wait on the registry may take,
+        so that a locked or slow registry answers an error (mapped to 503) instead of holding
+        the request: PostgreSQL ``statement_timeout`` and ``lock_timeout``, the wait for a
+        pooled connection and the connection attempt; SQLite the busy time-out (the smaller
+        of the two). Each raises one of :data:`REGISTRY_UNAVAILABLE`."""
         self.url = url
-        self.busy_timeout = float(busy_timeout)
+        self.busy_timeout = self.migration_busy_timeout = float(busy_timeout)
+        if request_timeout is not None:
+            self.busy_timeout = min(self.busy_timeout, float(request_timeout))
         kwargs: dict[str, Any] = {"echo": echo, "pool_pre_ping": True}
         if url.startswith("sqlite"):
             kwargs["connect_args"] = {"check_same_thread": False, "timeout": self.busy_timeout}
         else:
             # the API serves requests from a thread pool: enough connections for it
             kwargs.update(pool_size=10, max_overflow=20, pool_timeout=30)
+            if request_timeout is not None:
+                ms = max(1, int(request_timeout * 1000))
+                kwargs.update(pool_timeout=request_timeout, connect_args={
+                    "connect_timeout": max(1, math.ceil(request_timeout)),
+                    "options": f"-c statement_timeout={ms} -c lock_timeout={ms}"})
         self.engine: Engine = create_engine(url, **kwargs)
         if url.startswith("sqlite"):
             busy_ms = int(self.busy_timeout * 1000)
@@ -266,12 +172,16 @@ class Registry:
             from service.settings import get_settings
 
             auto_migrate = get_settings().auto_migrate
+        # a migration at start-up may wait for a lock as long as a worker would
         migrations.ensure_schema(self.url, auto_migrate=auto_migrate,
-                                 busy_timeout=self.busy_timeout)
+                                 busy_timeout=self.migration_busy_timeout)
 
     def ping(self) -> None:
+        """Read one row of ``hockle_jobs``: raises one of :data:`REGISTRY_UNAVAILABLE` when the
+        server is down, and also when the table is locked (a migration, ``LOCK TABLE``), which
+        a bare ``SELECT 1`` would not notice."""
         with self.engine.connect() as conn:
-            conn.execute(text("SELECT 1"))
+            conn.execute(select(Job.id).limit(1)).first()
 
     def dispose(self) -> None:
         self.engine.dispose()

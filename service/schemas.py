@@ -55,6 +55,12 @@ class JobStatus(BaseModel):
     result_available: bool = Field(..., description="A NetCDF result (maybe partial) can be fetched.")
     result_partial: bool = Field(..., description="The result stops before t_end.")
     error: JobError | None = Field(None, description="Set on failed and dismissed jobs.")
+    reused: Literal["identical_case", "idempotency_key"] | None = Field(
+        None, description="Set only on the answer to a submission that created no job: "
+        "identical_case, the result of an earlier successful job with the same case and "
+        "solver version is reused (submit with ?fresh=true to run it again); "
+        "idempotency_key, a retry of an earlier request with the same Idempotency-Key. Also "
+        "in the Hockle-Reused header.")
     links: JobLinks
 
     @property

@@ -189,11 +189,20 @@ class Settings(DatasetMetadata):
         "its last attempt fails with reason internal_error.",
     )
     checkpoint_interval: float = Field(
-        120.0,
+        30.0,
         ge=0,
         description="Wall-clock seconds between checkpoints of a running job in the result store "
-        "(<id>.ckpt; also written when a solve stops or fails); a re-run after a lost worker "
-        "continues from the last one instead of from t = 0. 0 turns checkpoints off.",
+        "(<id>.ckpt; also written after the first step in contact and when the worker stops a "
+        "solve); a re-run after a lost worker continues from the last one instead of from "
+        "t = 0. 0 turns checkpoints off.",
+    )
+    checkpoint_progress: float = Field(
+        0.1,
+        ge=0,
+        le=1,
+        description="A checkpoint is also written when the simulated time has advanced this "
+        "fraction of t_end since the last one (whichever of this and checkpoint_interval "
+        "comes first); 0: by wall time only.",
     )
     requeue_after: float = Field(
         300.0,
@@ -213,6 +222,15 @@ class Settings(DatasetMetadata):
         gt=0,
         description="SQLite registry: seconds a statement waits for another connection's lock "
         "before it fails with 'database is locked' (then retried as above).",
+    )
+    registry_request_timeout: float = Field(
+        5.0,
+        gt=0,
+        description="API: seconds one request waits on the registry (a PostgreSQL statement "
+        "or lock, a connection from the pool, a SQLite lock, a connection to the server) "
+        "before it answers 503 registry-unavailable with Retry-After; well below the clients' "
+        "and the probes' time-outs. Workers wait longer (registry_busy_timeout, "
+        "registry_retry_timeout).",
     )
     auto_migrate: bool = Field(
         True,

@@ -547,58 +547,115 @@ def combine_results(members: Sequence[MemberResult], parameters: Mapping[str, Se
     A failed member is marked, never fatal. Raises :class:`SweepError` for an unknown or
     inconsistent field (``loc`` ``query.fields``) and for members that do not match the
     parameters.
+
+    Built in parts, each by what it makes: the layout (:class:`_Layout`), the scalar series
+    and the fields (:func:`_series_vars`, :func:`_field_vars`), the members' bookkeeping
+    (:func:`_member_vars`), the events (:func:`_event_vars`), the coordinates
+    (:func:`_coords`) and the attributes (:func:`_attrs`).
     """
     import xarray as xr
 
-    parameters = normalize_parameters(parameters)
-    paths = list(parameters)
-    lists = [list(parameters[p]) for p in paths]
-    if combine == "grid":
-        shape = tuple(len(v) for v in lists)
-        sweep_dims = tuple(paths)
-    elif combine == "zip":
-        shape = (len(lists[0]),)
-        sweep_dims = ("member",)
-    else:
-        raise SweepError([_e("combine", f"must be one of {', '.join(COMBINES)}", "enum")])
-    n = math.prod(shape)
-    by_index = {m.index: m for m in members}
-    if sorted(by_index) != list(range(n)):
-        raise SweepError([_e("members", f"the members are numbered {sorted(by_index)[:5]}..., "
-                             f"the parameters make {n}", "member_mismatch")])
-    ordered = [by_index[i] for i in range(n)]
-    datasets = [m.dataset if m.dataset is not None and m.dataset.sizes.get("time", 0) > 0
-                else None for m in ordered]
+    layout = _Layout.of(members, parameters, combine)
+    series, data_vars = _series_vars(layout)
+    field_vars, coords = _field_vars(layout, fields)
+    data_vars.update(field_vars)
+    data_vars.update(_member_vars(layout))
+    events = [member_events(ds) for ds in layout.datasets]
+    names = _event_names(events)
+    data_vars.update(_event_vars(layout, series, events, names))
+    coords.update(_coords(layout, names))
+    ds_out = xr.Dataset(
+        {k: xr.Variable(d, v, a) for k, (d, v, a) in data_vars.items()},
+        coords={k: xr.Variable(d, v, a) for k, (d, v, a) in coords.items()},
+    )
+    ds_out.attrs.update(_attrs(layout, fields, attrs))
+    return ds_out
 
-    # the union of times
-    times = [np.asarray(ds["time"].values, dtype=float) if ds is not None else np.zeros(0)
-             for ds in datasets]
-    t_union, common = _union_times(times)
 
-    def sweep_array(flat: np.ndarray) -> np.ndarray:
-        return flat.reshape(shape + flat.shape[1:])
+@dataclass
+class _Layout:
+    """What every part of :func:`combine_results` shares: the parameters (canonical paths and
+    value lists), the combination, the sweep dimensions and their shape, the members in
+    order with their datasets (None without a result), their output times and the union."""
 
-    data_vars: dict[str, Any] = {}
-    # the scalar series
+    combine: str
+    paths: list[str]
+    lists: list[list]
+    shape: tuple[int, ...]
+    sweep_dims: tuple[str, ...]
+    ordered: list[MemberResult]
+    datasets: list[Any]
+    times: list[np.ndarray]
+    t_union: np.ndarray
+    common: bool
+
+    @property
+    def n(self) -> int:
+        return len(self.ordered)
+
+    def sweep_array(self, flat: np.ndarray) -> np.ndarray:
+        """(members, ...) -> (sweep dims..., ...)."""
+        return flat.reshape(self.shape + flat.shape[1:])
+
+    @classmethod
+    def of(cls, members: Sequence[MemberResult], parameters: Mapping[str, Sequence[Any]],
+           combine: str) -> "_Layout":
+        parameters = normalize_parameters(parameters)
+        paths = list(parameters)
+        lists = [list(parameters[p]) for p in paths]
+        if combine == "grid":
+            shape = tuple(len(v) for v in lists)
+            sweep_dims = tuple(paths)
+        elif combine == "zip":
+            shape = (len(lists[0]),)
+            sweep_dims = ("member",)
+        else:
+            raise SweepError([_e("combine", f"must be one of {', '.join(COMBINES)}", "enum")])
+        n = math.prod(shape)
+        by_index = {m.index: m for m in members}
+        if sorted(by_index) != list(range(n)):
+            raise SweepError([_e("members", f"the members are numbered "
+                                 f"{sorted(by_index)[:5]}..., the parameters make {n}",
+                                 "member_mismatch")])
+        ordered = [by_index[i] for i in range(n)]
+        datasets = [m.dataset if m.dataset is not None and m.dataset.sizes.get("time", 0) > 0
+                    else None for m in ordered]
+        times = [np.asarray(ds["time"].values, dtype=float) if ds is not None else np.zeros(0)
+                 for ds in datasets]
+        t_union, common = _union_times(times)
+        return cls(combine, paths, lists, shape, sweep_dims, ordered, datasets, times,
+                   t_union, common)
+
+
+def _series_vars(layout: _Layout) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Every (time,) variable of the members over (sweep dims..., time): returns the
+    prototypes by name and the variables."""
     series: dict[str, Any] = {}
-    for ds in datasets:
+    for ds in layout.datasets:
         if ds is None:
             continue
         for name, var in ds.data_vars.items():
             if var.dims == ("time",) and name not in series:
                 series[name] = var
+    data_vars: dict[str, Any] = {}
     for name, proto in series.items():
         step = proto.dtype.kind in "iu"
-        flat = np.full((n, t_union.size), np.nan)
-        for k, (ds, t) in enumerate(zip(datasets, times)):
+        flat = np.full((layout.n, layout.t_union.size), np.nan)
+        for k, (ds, t) in enumerate(zip(layout.datasets, layout.times)):
             if ds is None or name not in ds:
                 continue
             values = np.asarray(ds[name].values, dtype=float)
-            flat[k] = values if common else _onto(t_union, t, values, step)
-        data_vars[name] = (sweep_dims + ("time",), sweep_array(flat), _var_attrs(proto))
+            flat[k] = values if layout.common else _onto(layout.t_union, t, values, step)
+        data_vars[name] = (layout.sweep_dims + ("time",), layout.sweep_array(flat),
+                           _var_attrs(proto))
+    return series, data_vars
 
-    # full fields on request
-    coords: dict[str, Any] = {}
+
+def _field_vars(layout: _Layout, fields: Sequence[str]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The requested (time, s, ...) fields over (sweep dims..., time, s, ...) and the
+    coordinates of their inner dimensions; :class:`SweepError` (``query.fields``) for a field
+    no member has, one that is not a field, or members on different grids."""
+    datasets, data_vars, coords = layout.datasets, {}, {}
     for name in fields:
         proto = next((ds[name] for ds in datasets if ds is not None and name in ds), None)
         if proto is None:
@@ -615,117 +672,143 @@ def combine_results(members: Sequence[MemberResult], parameters: Mapping[str, Se
         for dim in inner:
             if dim in proto.coords:
                 ref = np.asarray(proto[dim].values)
-                for k, ds in enumerate(datasets):
-                    if ds is None or name not in ds:
-                        continue
-                    other = np.asarray(ds[dim].values)
-                    if other.shape != ref.shape or (ref.dtype.kind == "f" and not np.allclose(
-                            other, ref, rtol=1e-12, atol=0)) or (
-                            ref.dtype.kind != "f" and not np.array_equal(other, ref)):
-                        raise SweepError([_e("query.fields", f"member {k} stores {name} on "
-                                             f"another {dim} grid ({other.shape[0]} points "
-                                             f"against {ref.shape[0]}); full fields combine "
-                                             "only members with the same grid (the scalar "
-                                             "series always combine)", "grid_mismatch")])
+                _check_same_grid(datasets, name, dim, ref)
                 if dim not in coords:
                     coords[dim] = (dim, ref, dict(proto[dim].attrs))
-        flat = np.full((n, t_union.size) + proto.shape[1:], np.nan)
-        for k, (ds, t) in enumerate(zip(datasets, times)):
+        flat = np.full((layout.n, layout.t_union.size) + proto.shape[1:], np.nan)
+        for k, (ds, t) in enumerate(zip(datasets, layout.times)):
             if ds is None or name not in ds:
                 continue
             values = np.asarray(ds[name].transpose(*proto.dims).values, dtype=float)
-            flat[k] = values if common else _onto(t_union, t, values, False)
-        attrs_f = _var_attrs(proto)
-        data_vars[name] = (sweep_dims + ("time",) + inner, sweep_array(flat), attrs_f)
+            flat[k] = values if layout.common else _onto(layout.t_union, t, values, False)
+        data_vars[name] = (layout.sweep_dims + ("time",) + inner, layout.sweep_array(flat),
+                           _var_attrs(proto))
+    return data_vars, coords
 
-    # the members' bookkeeping
+
+def _check_same_grid(datasets: Sequence[Any], name: str, dim: str, ref: np.ndarray) -> None:
+    for k, ds in enumerate(datasets):
+        if ds is None or name not in ds:
+            continue
+        other = np.asarray(ds[dim].values)
+        if other.shape != ref.shape or (ref.dtype.kind == "f" and not np.allclose(
+                other, ref, rtol=1e-12, atol=0)) or (
+                ref.dtype.kind != "f" and not np.array_equal(other, ref)):
+            raise SweepError([_e("query.fields", f"member {k} stores {name} on "
+                                 f"another {dim} grid ({other.shape[0]} points "
+                                 f"against {ref.shape[0]}); full fields combine "
+                                 "only members with the same grid (the scalar "
+                                 "series always combine)", "grid_mismatch")])
+
+
+def _member_vars(layout: _Layout) -> dict[str, Any]:
+    """The members' bookkeeping: number, job state, job id, message, last stored time."""
+    ordered, dims, arr = layout.ordered, layout.sweep_dims, layout.sweep_array
     status = np.asarray([m.state for m in ordered], dtype=object)
-    data_vars["member_index"] = (sweep_dims, sweep_array(np.arange(n, dtype=np.int32)),
-                           {"long_name": "member number of the sweep (row-major over the "
-                            "grid, or the zip position)", "units": "1"})
-    data_vars["member_status"] = (sweep_dims, sweep_array(status), {
-        "long_name": "state of the member's job (accepted running successful failed "
-                     "dismissed); a member without a result has NaN in every variable"})
-    data_vars["job_id"] = (sweep_dims, sweep_array(np.asarray(
-        [m.job_id or "" for m in ordered], dtype=object)), {"long_name": "job id of the member"})
-    data_vars["member_message"] = (sweep_dims, sweep_array(np.asarray(
-        [m.message or "" for m in ordered], dtype=object)),
-        {"long_name": "why the member failed or stopped (empty when it succeeded)"})
-    reached = np.asarray([t[-1] if t.size else np.nan for t in times], dtype=float)
-    data_vars["member_t_reached"] = (sweep_dims, sweep_array(reached), {
-        "long_name": "last stored time of the member's result", "units": "s"})
+    reached = np.asarray([t[-1] if t.size else np.nan for t in layout.times], dtype=float)
+    return {
+        "member_index": (dims, arr(np.arange(layout.n, dtype=np.int32)), {
+            "long_name": "member number of the sweep (row-major over the grid, or the zip "
+                         "position)", "units": "1"}),
+        "member_status": (dims, arr(status), {
+            "long_name": "state of the member's job (accepted running successful failed "
+                         "dismissed); a member without a result has NaN in every variable"}),
+        "job_id": (dims, arr(np.asarray([m.job_id or "" for m in ordered], dtype=object)),
+                   {"long_name": "job id of the member"}),
+        "member_message": (dims, arr(np.asarray([m.message or "" for m in ordered],
+                                                dtype=object)),
+                           {"long_name": "why the member failed or stopped (empty when it "
+                                         "succeeded)"}),
+        "member_t_reached": (dims, arr(reached), {
+            "long_name": "last stored time of the member's result", "units": "s"}),
+    }
 
-    # events
-    events = [member_events(ds) for ds in datasets]
+
+_EVENT_QUANTITIES = (("linking_number", "1"), ("twist", "1"), ("writhe", "1"),
+                     ("energy_total", "J"))
+
+
+def _event_names(events: Sequence[Mapping[str, Any]]) -> list[str]:
     levels = max((int(k.split("_")[1]) for ev in events for k in ev if k.startswith("writhe_")),
                  default=0)
-    names = ["buckling_onset", "first_contact"] + [f"writhe_{k}" for k in range(1, levels + 1)]
-    at = {"time": np.full((n, len(names)), np.nan)}
-    for quantity in ("linking_number", "twist", "writhe", "energy_total"):
-        at[quantity] = np.full((n, len(names)), np.nan)
-    for k, (ds, ev, t) in enumerate(zip(datasets, events, times)):
+    return ["buckling_onset", "first_contact"] + [f"writhe_{k}" for k in range(1, levels + 1)]
+
+
+def _event_vars(layout: _Layout, series: Mapping[str, Any],
+                events: Sequence[Mapping[str, Any]], names: Sequence[str]) -> dict[str, Any]:
+    """The time of each member's ``events`` (:func:`member_events`, in member order) and the
+    stored topology and energy at them, over (sweep dims..., event ``names``); NaN where an
+    event did not happen."""
+    at = {q: np.full((layout.n, len(names)), np.nan) for q in ("time",) + tuple(
+        q for q, _ in _EVENT_QUANTITIES)}
+    for k, (ds, ev, t) in enumerate(zip(layout.datasets, events, layout.times)):
         for j, name in enumerate(names):
             i = ev.get(name)
             if i is None:
                 continue
             at["time"][k, j] = t[i]
-            for quantity in ("linking_number", "twist", "writhe", "energy_total"):
+            for quantity, _ in _EVENT_QUANTITIES:
                 if quantity in ds:
                     at[quantity][k, j] = float(ds[quantity].values[i])
-    data_vars["event_time"] = (sweep_dims + ("event",), sweep_array(at["time"]), {
+    dims = layout.sweep_dims + ("event",)
+    out = {"event_time": (dims, layout.sweep_array(at["time"]), {
         "long_name": "time of the event in the member's run", "units": "s",
-        "comment": EVENT_RULES})
-    for quantity, units in (("linking_number", "1"), ("twist", "1"), ("writhe", "1"),
-                            ("energy_total", "J")):
+        "comment": EVENT_RULES})}
+    for quantity, units in _EVENT_QUANTITIES:
         if quantity in series:
-            data_vars[f"event_{quantity}"] = (sweep_dims + ("event",),
-                                              sweep_array(at[quantity]), {
+            out[f"event_{quantity}"] = (dims, layout.sweep_array(at[quantity]), {
                 "long_name": f"{quantity} at the event (the member's stored value)",
                 "units": units})
+    return out
 
-    # coordinates
-    if combine == "grid":
-        for p, v in zip(paths, lists):
+
+def _coords(layout: _Layout, names: Sequence[str]) -> dict[str, Any]:
+    """The parameters (a dimension each, or on ``member``), ``time`` and ``event``."""
+    coords: dict[str, Any] = {}
+    if layout.combine == "grid":
+        for p, v in zip(layout.paths, layout.lists):
             coords[p] = (p, _coord_values(v), _param_attrs(p))
     else:
-        coords["member"] = ("member", np.arange(n, dtype=np.int32),
+        coords["member"] = ("member", np.arange(layout.n, dtype=np.int32),
                             {"long_name": "member of the zipped sweep", "units": "1"})
-        for p, v in zip(paths, lists):
+        for p, v in zip(layout.paths, layout.lists):
             coords[p] = ("member", _coord_values(v), _param_attrs(p))
     time_attrs = {"standard_name": "time", "long_name": "time", "units": "s", "axis": "T"}
-    if not common:
+    if not layout.common:
         time_attrs["comment"] = ("the union of the members' output times; a member's series "
                                  "is interpolated onto it within its own stored span and NaN "
                                  "outside")
-    coords["time"] = ("time", t_union, time_attrs)
+    coords["time"] = ("time", layout.t_union, time_attrs)
     coords["event"] = ("event", np.asarray(names, dtype=object),
                        {"long_name": "event of the run", "comment": EVENT_RULES})
+    return coords
 
-    ds_out = xr.Dataset(
-        {k: xr.Variable(d, v, a) for k, (d, v, a) in data_vars.items()},
-        coords={k: xr.Variable(d, v, a) for k, (d, v, a) in coords.items()},
-    )
-    n_ok = int(sum(1 for m in ordered if m.state == "successful"))
-    ds_out.attrs.update({
+
+def _attrs(layout: _Layout, fields: Sequence[str],
+           attrs: Mapping[str, Any] | None) -> dict[str, Any]:
+    """The dataset's global attributes (CF, the sweep's description, ``attrs`` last)."""
+    n, paths = layout.n, layout.paths
+    n_ok = int(sum(1 for m in layout.ordered if m.state == "successful"))
+    out = {
         "Conventions": "CF-1.12",
         "title": f"sweep of {n} member(s) over {', '.join(paths)}",
-        "summary": f"hockle parameter sweep ({combine}): {n} member(s), {n_ok} successful; "
-                   "the members' scalar time series and event times",
+        "summary": f"hockle parameter sweep ({layout.combine}): {n} member(s), {n_ok} "
+                   "successful; the members' scalar time series and event times",
         "hockle_sweep": 1,
-        "hockle_sweep_combine": combine,
+        "hockle_sweep_combine": layout.combine,
         "hockle_sweep_parameters": json.dumps([{"path": p, "values": v}
-                                               for p, v in zip(paths, lists)]),
-        "hockle_sweep_time_grid": "common" if common else "union_interpolated",
+                                               for p, v in zip(paths, layout.lists)]),
+        "hockle_sweep_time_grid": "common" if layout.common else "union_interpolated",
         "hockle_sweep_fields": ",".join(fields),
         "history": f"{dt.datetime.now(dt.timezone.utc).isoformat(timespec='seconds')} "
                    f"combined by hockle",
-    })
-    first_case = next((ds.attrs.get("case") for ds in datasets if ds is not None), None)
+    }
+    first_case = next((ds.attrs.get("case") for ds in layout.datasets if ds is not None), None)
     if first_case is not None:
-        ds_out.attrs["hockle_first_member_case"] = first_case
+        out["hockle_first_member_case"] = first_case
     if attrs:
-        ds_out.attrs.update({k: v for k, v in attrs.items() if v is not None})
-    return ds_out
+        out.update({k: v for k, v in attrs.items() if v is not None})
+    return out
 
 
 def _var_attrs(var) -> dict:

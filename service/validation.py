@@ -15,6 +15,10 @@ from solver.case import allowed_fields  # noqa: F401  (its home is solver.case)
 from .problems import ProblemError
 
 MAX_BODY_BYTES = 4 * 1024 * 1024
+#: the deepest nesting of lists and mappings a body may have (the deepest a case spec needs
+#: is 9 levels: a sweep's base, boundary, end, translation, an item, a list of conditions, a
+#: condition, a table, its times)
+MAX_NESTING = 32
 YAML_TYPES = ("application/yaml", "application/x-yaml", "text/yaml", "text/x-yaml")
 
 
@@ -59,22 +63,55 @@ def parse_body(body: bytes, content_type: str | None) -> Any:
         from solver.case import CaseError, parse_text
 
         try:
-            return parse_text(body, "yaml", "request body")
+            return check_nesting(parse_text(body, "yaml", "request body"))
         except CaseError as exc:
+            if any(e.get("type") == "too_deep" for e in exc.errors):
+                raise too_deep("") from None
             raise ProblemError(400, "malformed-body", "Malformed request body",
                                "the body is not valid YAML", errors=list(exc.errors)) from None
     if media not in ("application/json", "text/json") and not media.endswith("+json"):
         raise ProblemError(415, "unsupported-media-type", "Unsupported media type",
                            f"send the case as application/json or application/yaml, not {media}")
     try:
-        return json.loads(body)
+        data = json.loads(body)
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise ProblemError(400, "malformed-body", "Malformed request body",
                            f"the body is not valid JSON: {exc}") from None
     except RecursionError:
-        raise ProblemError(400, "malformed-body", "Malformed request body",
-                           "the body nests arrays or objects too deeply to parse (a case "
-                           "spec nests at most a few levels)") from None
+        raise too_deep("") from None
+    return check_nesting(data)
+
+
+def too_deep(loc: str) -> ProblemError:
+    """The 422 problem of a body nested deeper than MAX_NESTING (at ``loc``)."""
+    msg = (f"lists and mappings nested more than {MAX_NESTING} deep here; a case spec or "
+           "a sweep nests at most about 10 levels")
+    return ProblemError(422, "nesting-too-deep", "Body nested too deeply",
+                        f"the body nests lists or mappings more than {MAX_NESTING} deep",
+                        errors=[{"loc": loc, "msg": msg, "type": "nesting_too_deep"}])
+
+
+def check_nesting(data: Any, limit: int = MAX_NESTING) -> Any:
+    """``data`` unchanged, or a 422 ``nesting_too_deep`` problem naming the first place where
+    lists and mappings nest deeper than ``limit``. Iterative: no recursion limit to meet, and
+    nothing deeper reaches the validation (a sweep value 500 deep ended in a RecursionError
+    in ``copy.deepcopy``)."""
+    stack: list[tuple[Any, int, tuple]] = [(data, 1, ())]
+    while stack:
+        node, depth, path = stack.pop()
+        if isinstance(node, dict):
+            items = node.items()
+        elif isinstance(node, list):
+            items = enumerate(node)
+        else:
+            continue
+        if depth > limit:
+            from .problems import _loc
+
+            raise too_deep(_loc(path))
+        stack.extend((value, depth + 1, path + (key,)) for key, value in items
+                     if isinstance(value, (dict, list)))
+    return data
 
 
 def validate_case(data: Any, max_case_size: int):
@@ -97,10 +134,12 @@ def validate_case(data: Any, max_case_size: int):
     if size > max_case_size:
         msg = (f"case too large: {case.grid_points} grid points x {case.n_steps} time steps = "
                f"{size} exceeds this service's limit of {max_case_size}; lower numerics.n_segments "
-               f"(or raise numerics.ds), or numerics.t_end / numerics.dt")
+               f"(or raise numerics.ds), or the steps t_end / dt (lower numerics.t_end or raise "
+               f"numerics.dt)")
         raise ProblemError(422, "case-too-large", "Case too large", msg, errors=[
             {"loc": "numerics.n_segments", "msg": msg, "type": "case_too_large"},
             {"loc": "numerics.t_end", "msg": msg, "type": "case_too_large"},
+            {"loc": "numerics.dt", "msg": msg, "type": "case_too_large"},
         ])
     return case
 

@@ -292,7 +292,11 @@ def _as_float(value: Any) -> float:
     """A finite float from a real number; raises the pydantic error types otherwise."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise PydanticCustomError("float_type", "Input should be a number or a table/profile mapping")
-    value = float(value)
+    try:
+        value = float(value)
+    except OverflowError:   # an integer literal beyond the largest float, ~1.8e308
+        raise PydanticCustomError("finite_number", "Input should be a finite number (this integer "
+                                  "is too large for a float)") from None
     if not math.isfinite(value):
         raise PydanticCustomError("finite_number", "Input should be a finite number")
     return value
@@ -1133,7 +1137,22 @@ class Case(BaseModel):
                 "inextensible rod at t = 0, which leaves its tension undetermined; give one "
                 "end an axial force instead (force: 0 lets it slide freely)", None))
         numerics = self.numerics
+        if numerics.dt > numerics.t_end:
+            errors.append(_err(("numerics", "dt"), "out_of_range",
+                               f"the time step must not exceed the run, t_end = {numerics.t_end!r} s",
+                               numerics.dt))
+        d = self.rod.diameter
+        d_max = max(d.value) if isinstance(d, Profile) else float(d)
+        if d_max > length:
+            errors.append(_err(("rod", "diameter"), "out_of_range",
+                               f"a diameter of {d_max!r} m exceeds the rod's length ({length!r} m): "
+                               "not a slender rod", d_max))
         steps = numerics.t_end / numerics.dt
+        if numerics.tolerance is None and 1 <= steps <= MAX_STEPS and self.output.every > math.ceil(steps - 1e-9):
+            errors.append(_err(("output", "every"), "out_of_range",
+                               f"keeping every {self.output.every}-th step of a run of "
+                               f"{math.ceil(steps - 1e-9)} steps keeps only the first and last "
+                               "states; at most the number of steps", self.output.every))
         if not steps <= MAX_STEPS:
             errors.append(_err(("numerics", "dt"), "too_many_steps",
                                f"t_end / dt = {steps:.3g} steps (t_end = {numerics.t_end!r} s): "

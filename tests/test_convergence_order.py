@@ -24,7 +24,7 @@ def tip_case(n_segments, dt, rho_inf):
                           {"angular_velocity": smooth_pulse_table(1.0, 1.0)}]}
     return make_case(n_segments=n_segments, dt=dt, t_end=1.0, rho_inf=rho_inf,
                      start=start, end=free_end(), fluid=FLUID, fields=("position",),
-                     every=10_000, tolerance=1e-12)
+                     every=max(1, round(1.0 / dt)), tolerance=1e-12)  # the ends only
 
 
 def final_positions(n_segments, dt, rho_inf):

@@ -12,10 +12,12 @@ is locked or unreachable at the claim (or at the finish) is retried with backoff
 a thread of the solving process writes the job's heartbeat every ``HOCKLE_HEARTBEAT_INTERVAL``
 s; when the registry says the attempt no longer holds the job (given up as lost and queued
 again), the solve stops and writes nothing. Each attempt writes its own result file, so an old
-attempt can never replace the result of the attempt that finished the job. Every
-``HOCKLE_CHECKPOINT_INTERVAL`` s (and when a solve stops or fails) the solver's checkpoint goes to
-the result store (``<id>.ckpt``); the next attempt continues from it bit for bit instead of from
-t = 0, and the job's terminal state removes it.
+attempt can never replace the result of the attempt that finished the job. The solver's
+checkpoint goes to the result store (``<id>.ckpt``) by :class:`CheckpointPolicy`: every
+``HOCKLE_CHECKPOINT_INTERVAL`` s of wall time, every ``HOCKLE_CHECKPOINT_PROGRESS`` of the
+simulated run, after the first accepted step in contact, and when the worker stops the solve;
+the next attempt continues from it bit for bit instead of from t = 0, and the job's terminal
+state removes it.
 
 Shutdown: when the worker shuts down warm (SIGTERM to its main process: ``docker stop``,
 Kubernetes, ``hockle serve`` stopping its worker; or SIGTERM to the whole process group), the
@@ -123,6 +125,46 @@ class _ProcessState:
 _process = _ProcessState()
 
 
+#: how often (wall seconds) the solver hands the worker a checkpoint to consider: the
+#: granularity of CheckpointPolicy (building one costs a hash of the case, no copy)
+CHECKPOINT_OFFER_INTERVAL = 1.0
+
+
+@dataclass
+class CheckpointPolicy:
+    """When a running job's checkpoint is stored: the first of ``interval`` wall seconds and
+    ``progress`` (a fraction of ``t_end``) of simulated time since the last one stored, and the
+    first accepted step in contact (where a run's pace drops most; docs/contact.md). With the
+    defaults (30 s, 10 %) a worker killed at any moment loses at most about 30 s of solving
+    (plus one time step and the checkpoint offer interval), and a short job is saved several
+    times before its first 30 s are up. The solver offers a checkpoint every
+    :data:`CHECKPOINT_OFFER_INTERVAL` s; this policy picks the ones worth writing."""
+
+    interval: float
+    progress: float
+    t_end: float
+    last_wall: float = field(default_factory=time.monotonic)
+    last_t: float = 0.0
+    in_contact: bool = False
+
+    def due(self, t: float, contact_count: int, now: float | None = None) -> str | None:
+        """Why a checkpoint at simulated time ``t`` (s) should be stored now, or None."""
+        now = time.monotonic() if now is None else now
+        if now - self.last_wall >= self.interval:
+            return "wall_time"
+        # (relative slack: ten steps of 0.01 s make 0.1 s only to rounding)
+        if self.progress > 0 and t - self.last_t >= self.progress * self.t_end * (1 - 1e-9):
+            return "progress"
+        if contact_count and not self.in_contact:
+            return "first_contact"
+        return None
+
+    def stored(self, t: float, contact_count: int, now: float | None = None) -> None:
+        self.last_wall = time.monotonic() if now is None else now
+        self.last_t = t
+        self.in_contact = self.in_contact or bool(contact_count)
+
+
 @dataclass
 class JobRun:
     """One attempt at one job inside a worker process."""
@@ -142,6 +184,8 @@ class JobRun:
     last_check: float = -math.inf
     last_info: object | None = None
     superseded: bool = False
+    stopping: bool = False
+    checkpoints: CheckpointPolicy | None = None
     _beat_stop: threading.Event = field(default_factory=threading.Event)
     _beat_thread: threading.Thread | None = None
 
@@ -200,6 +244,14 @@ class JobRun:
             log.warning("progress write for %s failed", self.job_id, exc_info=True)
 
     def should_stop(self):
+        """The solver asks before every step: a reason to stop (the last checkpoint of the
+        stopped solve is then stored whatever the policy says), or False."""
+        reason = self._stop_reason()
+        if reason:
+            self.stopping = True
+        return reason
+
+    def _stop_reason(self):
         if self.superseded:
             return "superseded"
         now = time.monotonic()
@@ -266,14 +318,23 @@ class JobRun:
         return ck
 
     def write_checkpoint(self, ck) -> None:
-        """Store a checkpoint handed out by the solver (an attempt that was given up writes
-        none; a store that cannot be written costs the checkpoint, never the solve)."""
+        """Store a checkpoint handed out by the solver when :attr:`checkpoints` says it is due,
+        and always the last one of a solve the worker stopped (a shutdown hands the job back
+        from it). An attempt that was given up writes none; a store that cannot be written
+        costs the checkpoint, never the solve."""
         if self.superseded:
+            return
+        contact = int(getattr(self.last_info, "contact_count", 0) or 0)
+        policy = self.checkpoints
+        if policy is not None and not self.stopping and policy.due(ck.t, contact) is None:
             return
         try:
             self.store.write_checkpoint(self.job_id, ck.dumps())
         except OSError:
             log.warning("job %s: checkpoint not written", self.job_id, exc_info=True)
+            return
+        if policy is not None:
+            policy.stored(ck.t, contact)
 
     def drop_checkpoint(self) -> None:
         """Remove the job's checkpoint (its terminal state is recorded)."""
@@ -392,9 +453,13 @@ def _solve(run: JobRun, case) -> str:
     interval = run.settings.checkpoint_interval
     try:
         resume = run.load_checkpoint(case)
+        run.checkpoints = CheckpointPolicy(interval, run.settings.checkpoint_progress,
+                                           float(case.numerics.t_end),
+                                           last_t=resume.t if resume is not None else 0.0)
         ds = simulate(case, progress=run.progress, should_stop=run.should_stop,
                       checkpoint=run.write_checkpoint if interval else None,
-                      checkpoint_interval=interval or math.inf, resume=resume)
+                      checkpoint_interval=(min(interval, CHECKPOINT_OFFER_INTERVAL) if interval
+                                           else math.inf), resume=resume)
         if run.superseded:
             return _superseded(run)
         if (ds.attrs.get("hockle_status") == "stopped"

@@ -40,7 +40,7 @@ from fastapi.responses import JSONResponse, RedirectResponse
 from fastapi.staticfiles import StaticFiles
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from ..app import Services, services
+from ..deps import Services, services
 from ..auth import caller
 from ..problems import ProblemError
 from ..validation import parse_body, read_body, validate_case

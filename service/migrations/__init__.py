@@ -185,7 +185,7 @@ def include_name(name: str | None, type_: str, _parent_names: dict[str, Any]) ->
     """Autogenerate looks at hockle's tables only: a shared database may hold others (the
     Celery/kombu broker tables of the SQL transport, another application's)."""
     if type_ == "table":
-        from service.registry import Base
+        from service.models import Base
 
         return name in Base.metadata.tables
     return True
@@ -198,7 +198,7 @@ def check(url: str) -> list[Any]:
     from alembic.autogenerate import compare_metadata
     from alembic.runtime.migration import MigrationContext
 
-    from service.registry import Base
+    from service.models import Base
 
     engine = create_engine(url, poolclass=NullPool)
     try:

@@ -8,7 +8,7 @@ from sqlalchemy import create_engine
 from sqlalchemy.pool import NullPool
 
 from service.migrations import VERSION_TABLE, include_name
-from service.registry import Base
+from service.models import Base
 
 config = context.config
 target_metadata = Base.metadata

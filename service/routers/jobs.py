@@ -9,7 +9,7 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, Header, Query, Request, Response
 from fastapi.concurrency import run_in_threadpool
 
-from ..app import Services, services
+from ..deps import Services, services
 from ..auth import caller
 from ..problems import ProblemError, problem_responses
 from ..registry import (
@@ -102,9 +102,16 @@ def _check_time_limit(time_limit: float | None, maximum: float) -> None:
              "type": "time_limit_out_of_range"}])
 
 
+#: the Hockle-Reused header of an answer that created no job (JobStatus.reused)
+REUSED_HEADER = "Hockle-Reused"
+
+
 def _submit(svc: Services, body: bytes, content_type: str | None, idempotency_key: str | None,
             fresh: bool, time_limit: float | None = None,
-            owner: str | None = None) -> tuple[Job, int]:
+            owner: str | None = None) -> tuple[Job, int, str | None]:
+    """Validate, record and queue a case: ``(job, status, reused)``; ``reused`` is None for a
+    new job (201), else why an earlier job answers (200): ``identical_case`` or
+    ``idempotency_key``."""
     import solver
 
     _check_time_limit(time_limit, svc.settings.time_limit_max)
@@ -123,11 +130,11 @@ def _submit(svc: Services, body: bytes, content_type: str | None, idempotency_ke
         if earlier is not None:
             if earlier.request_fingerprint != fingerprint:
                 raise _reuse_problem(earlier.id)
-            return earlier, 200
+            return earlier, 200, "idempotency_key"
     if not fresh:
         cached = svc.registry.find_successful(spec_hash, version, owner=owner)
         if cached is not None and _exists(cached.result_path):
-            return cached, 200
+            return cached, 200, "identical_case"
     hard, soft, budget = svc.settings.time_limits(case.grid_points, case.n_steps,
                                                   contact=case.contact is not None,
                                                   t_end=float(case.numerics.t_end),
@@ -149,7 +156,7 @@ def _submit(svc: Services, body: bytes, content_type: str | None, idempotency_ke
     except IdempotencyConflict as exc:
         raise _reuse_problem(exc.job_id) from None
     if not created:
-        return job, 200
+        return job, 200, "idempotency_key"
     # the record is committed: only now may a worker see the job
     try:
         svc.enqueuer.enqueue(job.id, time_limit=hard, soft_time_limit=soft)
@@ -158,7 +165,7 @@ def _submit(svc: Services, body: bytes, content_type: str | None, idempotency_ke
         raise ProblemError(503, "broker-unavailable", "Queue unavailable",
                            "the job was recorded but could not be queued; submit it again later",
                            headers={"Retry-After": "10"}) from None
-    return job, 201
+    return job, 201, None
 
 
 def _reuse_problem(job_id: str) -> ProblemError:
@@ -185,8 +192,11 @@ def _submit_slots(request: Request) -> asyncio.Semaphore:
     status_code=201,
     response_model=JobStatus,
     responses={
-        200: {"model": JobStatus, "description": "Replay of an Idempotency-Key, or an identical "
-              "spec answered from an earlier successful job"},
+        200: {"model": JobStatus, "description": "No job created: a replay of an "
+              "Idempotency-Key, or an identical spec answered from an earlier successful job "
+              "(the body's `reused` and the Hockle-Reused header say which)",
+              "headers": {REUSED_HEADER: {"description": "identical_case or idempotency_key",
+                                          "schema": {"type": "string"}}}},
         **problem_responses(400, 413, 415, 422, 503),
     },
 )
@@ -205,17 +215,21 @@ async def submit_job(
         "HOCKLE_TIME_LIMIT_MAX; default: derived from the case's size and contact (the solver "
         "stops itself before it, keeping the partial result).")] = None,
 ) -> JobStatus:
-    """Validate the case and queue it; answers at once (201), never runs a solve itself."""
+    """Validate the case and queue it; answers at once (201), never runs a solve itself. An
+    identical case that already succeeded (or a retried Idempotency-Key) is answered 200 with
+    the earlier job, marked ``reused``."""
     body = await read_body(request)
     # a burst of submissions waits here, not in the thread pool that status polls need
     async with _submit_slots(request):
-        job, status = await run_in_threadpool(
+        job, status, reused = await run_in_threadpool(
             _submit, svc, body, request.headers.get("content-type"), idempotency_key, fresh,
             time_limit, owner
         )
     response.status_code = status
     response.headers["Location"] = f"/v1/jobs/{job.id}"
-    return job_status(job, _exists)
+    if reused is not None:
+        response.headers[REUSED_HEADER] = reused
+    return job_status(job, _exists).model_copy(update={"reused": reused})
 
 
 @router.get("/jobs", operation_id="list_jobs", summary="List jobs", response_model=JobList,

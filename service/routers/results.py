@@ -11,7 +11,7 @@ import orjson
 from fastapi import APIRouter, Depends, Query, Request, Response
 from fastapi.responses import FileResponse
 
-from ..app import Services, services
+from ..deps import Services, services
 from ..auth import caller
 from ..problems import ProblemError, problem_responses
 from ..registry import Job
@@ -113,8 +113,8 @@ def _attr(var, key) -> str | None:
     return None if value is None else str(value)
 
 
-_SELECTOR_HELP = ("a value (nearest for time and s), a range 'a:b' (inclusive, either end may be "
-                  "left out) or a list 'a,b,c'")
+_SELECTOR_HELP = ("a value (nearest for time and s, within the stored span), a range 'a:b' "
+                  "(inclusive, low to high, either end may be left out) or a list 'a,b,c'")
 
 
 @router.get(
@@ -203,7 +203,10 @@ def get_result_variable(
 
 
 def _select(var, dim: str, raw: str):
-    """Apply one selector; returns (selected var, scalar label or None)."""
+    """Apply one selector; returns (selected var, scalar label or None). Raises ValueError
+    (a 422 naming ``query.<dim>``) for a label outside the stored ones (beyond the first or
+    last stored value by more than half a spacing for time and s), a reversed range, and a
+    selection that keeps nothing."""
     index = var.indexes.get(dim) if dim in var.coords else None
     kind = "int"
     if index is not None:
@@ -216,22 +219,49 @@ def _select(var, dim: str, raw: str):
         if text in named:           # "x" for xyz = 1, "w" for quaternion = 0 (flag_meanings)
             return named[text]
         try:
-            return convert(text)
+            value = convert(text)
         except ValueError:
             hint = f" or one of {', '.join(named)}" if named else ""
             raise ValueError(f"{text!r} is not a {kind} label{hint}") from None
+        if kind == "float" and not np.isfinite(value):
+            raise ValueError(f"{text!r} is not a finite number")
+        return value
+
+    def within(value):
+        """A float label must lie within the stored span (nearest is for between values)."""
+        if kind != "float" or not len(index):
+            return value
+        values = np.asarray(index.values, dtype=float)
+        lo, hi = float(values.min()), float(values.max())
+        slack = 0.5 * float(np.median(np.diff(np.sort(values)))) if values.size > 1 else 0.0
+        if not lo - slack <= value <= hi + slack:
+            raise ValueError(f"{value!r} is outside the stored {dim} values, {lo:.6g} to "
+                             f"{hi:.6g}")
+        return value
 
     raw = raw.strip()
     if index is None:  # a dim without coordinate: positions
         if ":" in raw or "," in raw:
             raise ValueError(f"{dim} has no coordinate; give one position")
-        return var.isel({dim: conv(raw)}), int(raw)
+        position = conv(raw)
+        if not 0 <= position < var.sizes[dim]:
+            raise ValueError(f"position {position} is outside 0 to {var.sizes[dim] - 1}")
+        return var.isel({dim: position}), int(raw)
     if ":" in raw:
         lo, _, hi = raw.partition(":")
-        sl = slice(conv(lo) if lo.strip() else None, conv(hi) if hi.strip() else None)
-        return var.sel({dim: sl}), None
+        start = conv(lo) if lo.strip() else None
+        stop = conv(hi) if hi.strip() else None
+        if start is not None and stop is not None and start > stop:
+            raise ValueError(f"the range {raw!r} is reversed: give 'low:high'")
+        out = var.sel({dim: slice(start, stop)})
+        if out.sizes[dim] == 0:
+            raise ValueError(f"the range {raw!r} selects no stored {dim} value; labels: "
+                             f"{_label_hint(index)}")
+        return out, None
     if "," in raw:
-        labels = [conv(x) for x in raw.split(",") if x.strip()]
+        labels = [within(conv(x)) for x in raw.split(",") if x.strip()]
+        if not labels:
+            raise ValueError(f"the list {raw!r} names no {dim} value")
         try:
             if kind == "float":
                 return var.sel({dim: labels}, method="nearest"), None
@@ -239,7 +269,7 @@ def _select(var, dim: str, raw: str):
         except KeyError:
             raise ValueError(f"not all of {labels} are {dim} labels; labels: "
                              f"{_label_hint(index)}") from None
-    label = conv(raw)
+    label = within(conv(raw))
     try:
         out = var.sel({dim: label}, method="nearest") if kind == "float" else var.sel({dim: label})
     except KeyError:

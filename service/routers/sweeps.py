@@ -21,7 +21,8 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import FileResponse
 
 from .. import sweeps as sw
-from ..app import Services, services
+from ..auth import caller
+from ..deps import Services, services
 from ..problems import ProblemError, problem_responses
 from ..registry import ACTIVE_STATES, RUNNING, Job, SweepRecord
 from ..validation import parse_body, read_body, validate_case
@@ -29,12 +30,6 @@ from . import jobs as jobs_router
 from .results import NETCDF_MEDIA_TYPE, _etag, _not_modified
 
 router = APIRouter(tags=["sweeps"])
-
-
-def _owner(request: Request) -> str | None:
-    """The caller's owner id that the authentication middleware put in the request's state
-    (None on a service without API keys: every sweep is everyone's)."""
-    return getattr(request.state, "owner", None)
 
 
 def _invalid(exc: sw.SweepError) -> ProblemError:
@@ -65,7 +60,7 @@ def _create(svc: Services, data, fresh: bool, time_limit: float | None,
                 job_ids.append(known)
                 continue
             extra = {"owner": owner} if owner is not None else {}
-            job, _ = jobs_router._submit(svc, body=case.canonical_json().encode(),
+            job, _, _ = jobs_router._submit(svc, body=case.canonical_json().encode(),
                                          content_type="application/json", idempotency_key=None,
                                          fresh=fresh, time_limit=time_limit, **extra)
             by_hash[case.spec_hash()] = job.id
@@ -134,7 +129,7 @@ async def submit_sweep(
     request: Request,
     response: Response,
     svc: Annotated[Services, Depends(services)],
-    owner: Annotated[str | None, Depends(_owner)],
+    owner: Annotated[str | None, Depends(caller)],
     fresh: Annotated[bool, Query(
         description="Run every member even if an identical case already succeeded.")] = False,
     time_limit: Annotated[float | None, Query(
@@ -157,7 +152,7 @@ async def submit_sweep(
 @router.get("/sweeps/{sweep_id}", operation_id="get_sweep", summary="Sweep status",
             response_model=sw.SweepStatus, responses=problem_responses(404))
 def get_sweep(sweep_id: str, svc: Annotated[Services, Depends(services)],
-              owner: Annotated[str | None, Depends(_owner)]) -> sw.SweepStatus:
+              owner: Annotated[str | None, Depends(caller)]) -> sw.SweepStatus:
     """State (the job states' vocabulary), progress, counts per state, each member's state."""
     sweep = _sweep_or_404(svc, sweep_id, owner)
     return sweep_status(sweep, svc.registry.get_many(sweep.job_ids))
@@ -174,7 +169,7 @@ def get_sweep(sweep_id: str, svc: Annotated[Services, Depends(services)],
 )
 def dismiss_sweep(sweep_id: str, response: Response,
                   svc: Annotated[Services, Depends(services)],
-                  owner: Annotated[str | None, Depends(_owner)]) -> sw.SweepStatus:
+                  owner: Annotated[str | None, Depends(caller)]) -> sw.SweepStatus:
     """Queued members never start, running ones stop within one time step (202); finished
     members keep their results. 409 when every member had already finished."""
     sweep = _sweep_or_404(svc, sweep_id, owner)
@@ -220,7 +215,7 @@ def download_sweep_results(
     sweep_id: str,
     request: Request,
     svc: Annotated[Services, Depends(services)],
-    owner: Annotated[str | None, Depends(_owner)],
+    owner: Annotated[str | None, Depends(caller)],
     fields: Annotated[str | None, Query(
         description="Full (time, s, ...) fields to add, comma-separated (position, kappa, "
         "...); the scalar series and event times are always there.")] = None,

@@ -76,7 +76,7 @@ BAD_INPUTS = {
         _bad(boundary__start__translation=[{"velocity": 0}, {"velocity": 0}]),
         ["boundary.start.translation"]),
     "case too large": (_bad(numerics__n_segments=1000, numerics__t_end=50.0),
-                       ["numerics.n_segments", "numerics.t_end"]),
+                       ["numerics.n_segments", "numerics.t_end", "numerics.dt"]),
     "not an object": ([1, 2, 3], [""]),
 }
 
@@ -125,15 +125,17 @@ def test_malformed_and_unsupported_bodies(client):
     assert response.json()["name"] == "as-yaml"
 
 
-def test_deeply_nested_bodies_are_400_problems(client):
+def test_deeply_nested_bodies_are_422_problems(client):
     # the audit's bodies: JSON nested 2,000 deep and YAML 5,000 deep raised RecursionError
-    # (500; one reset the connection). Each is a 400 problem now, and the API still answers
+    # (500; one reset the connection). Each is a 422 nesting_too_deep problem now (as any body
+    # nested beyond service.validation.MAX_NESTING), and the API still answers
     for body, media in ((b"[" * 2000 + b"]" * 2000, "application/json"),
                         (b"{\"a\": " * 1500 + b"1" + b"}" * 1500, "application/json"),
                         (b"[" * 5000 + b"]" * 5000, "application/yaml")):
         response = client.post("/v1/jobs", content=body, headers={"content-type": media})
-        assert response.status_code == 400, (media, response.status_code, response.text[:200])
+        assert response.status_code == 422, (media, response.status_code, response.text[:200])
         assert response.headers["content-type"] == PROBLEM
+        assert response.json()["errors"][0]["type"] == "nesting_too_deep"
     assert client.post("/v1/jobs", json=tiny_case("after-deep")).status_code == 201
 
 

@@ -82,7 +82,7 @@ def test_wrong_or_malformed_key_is_401(client, header):
 def test_health_and_docs_need_no_key(client):
     assert client.get("/v1/health").status_code == 200
     assert client.get("/v1/health", params={"live": "true"}).status_code == 200
-    for path in ("/docs", "/redoc", "/openapi.json"):
+    for path in ("/docs", "/redoc", "/openapi.json", "/metrics"):
         assert client.get(path).status_code == 200, path
 
 
@@ -183,7 +183,7 @@ def test_openapi_documents_bearer_auth(client):
     schema = client.get("/openapi.json").json()
     assert schema["components"]["securitySchemes"]["apiKey"]["scheme"] == "bearer"
     ops = {op["operationId"]: op for item in schema["paths"].values() for op in item.values()}
-    assert "security" not in ops["get_health"]
+    assert "security" not in ops["get_health"] and "security" not in ops["get_metrics"]
     for name in ("submit_job", "get_job", "download_results", "dismiss_job"):
         assert ops[name]["security"] == [{"apiKey": []}]
         assert {"401", "429"} <= set(ops[name]["responses"])

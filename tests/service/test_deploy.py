@@ -320,3 +320,64 @@ def test_set_image_refuses_bad_references(tmp_path, args, why):
                           *args], capture_output=True, text=True)
     assert out.returncode == 2 and why in out.stderr
     assert kust.read_text() == (REPO / "deploy" / "k8s" / "kustomization.yaml").read_text()
+
+
+AUTOSCALING = REPO / "deploy" / "k8s-autoscaling"
+
+
+def test_worker_autoscaling_reads_the_queue_the_workers_take_jobs_from():
+    """The KEDA ScaledObject scales the worker Deployment on the Redis list that holds the
+    waiting job messages: the broker Service, database and queue name the code uses."""
+    (scaled,) = [d for d in yaml.safe_load_all(
+        (AUTOSCALING / "worker-scaledobject.yaml").read_text()) if d]
+    assert (scaled["apiVersion"], scaled["kind"]) == ("keda.sh/v1alpha1", "ScaledObject")
+    spec = scaled["spec"]
+    assert spec["scaleTargetRef"]["name"] in _by_kind("Deployment")
+    assert spec["scaleTargetRef"]["name"] == "hockle-worker"
+    assert 1 <= spec["minReplicaCount"] <= spec["maxReplicaCount"]
+    (trigger,) = spec["triggers"]
+    assert trigger["type"] == "redis"
+    config = _by_kind("ConfigMap")["hockle-config"]["data"]
+    settings = _settings_from({**config, "HOCKLE_DATABASE_URL": "postgresql://u:p@db/h"})
+    broker = urlparse(settings.broker_url)
+    meta = trigger["metadata"]
+    assert meta["listName"] == settings.queue
+    host, port = meta["address"].rsplit(":", 1)
+    assert host.split(".")[0] == broker.hostname and int(port) == broker.port
+    assert host.endswith(".svc.cluster.local")   # KEDA connects from its own namespace
+    assert int(meta["databaseIndex"]) == int(broker.path.strip("/") or 0)
+    kustomization = yaml.safe_load((AUTOSCALING / "kustomization.yaml").read_text())
+    assert "../k8s" in kustomization["resources"]
+    assert "worker-scaledobject.yaml" in kustomization["resources"]
+
+
+@pytest.mark.parametrize("directory", [K8S, AUTOSCALING], ids=["base", "autoscaling"])
+def test_kustomize_builds_the_manifests(directory):
+    """`kubectl kustomize` (kustomize is built into kubectl) renders both; with autoscaling the
+    worker Deployment has no fixed replica count (KEDA's HPA sets it) and the ScaledObject is
+    there. kubeconform validates the output where it is installed (with its schemas)."""
+    import shutil
+    import subprocess
+
+    kubectl = shutil.which("kubectl")
+    if kubectl is None:
+        pytest.skip("kubectl is not on PATH")
+    rendered = subprocess.run([kubectl, "kustomize", str(directory)], check=True,
+                              capture_output=True, text=True, timeout=60).stdout
+    docs = [d for d in yaml.safe_load_all(rendered) if d]
+    kinds = {(d["kind"], d["metadata"]["name"]) for d in docs}
+    assert ("Deployment", "hockle-worker") in kinds and ("Deployment", "hockle-api") in kinds
+    worker = next(d for d in docs if (d["kind"], d["metadata"]["name"]) ==
+                  ("Deployment", "hockle-worker"))
+    if directory == AUTOSCALING:
+        assert ("ScaledObject", "hockle-worker") in kinds
+        assert "replicas" not in worker["spec"]
+    else:
+        assert not any(kind == "ScaledObject" for kind, _ in kinds)
+        assert worker["spec"]["replicas"] >= 2
+    kubeconform = shutil.which("kubeconform")
+    if kubeconform is not None:
+        result = subprocess.run([kubeconform, "-strict", "-summary", "-ignore-missing-schemas",
+                                 "-"], input=rendered, capture_output=True, text=True,
+                                timeout=120)
+        assert result.returncode == 0, result.stdout + result.stderr

@@ -1,0 +1,321 @@
+"""Hostile and absurd input, in-process (SQLite registry, in-memory broker, the worker's task
+code and the real solver in this process): every refusal is a 422 (or 400/503) problem naming
+the field or parameter, never a 500; a locked registry answers 503 with Retry-After; a reused
+result says so. The table of these inputs and their answers is in docs/service.md
+("Hostile input").
+"""
+from __future__ import annotations
+
+import json
+import sqlite3
+import threading
+import time
+
+import pytest
+from fastapi import Request
+from fastapi.testclient import TestClient
+
+from service.app import create_app
+from service.settings import Settings
+from svc_support import tiny_case
+
+PROBLEM = "application/problem+json"
+
+
+@pytest.fixture(scope="module")
+def settings(tmp_path_factory):
+    root = tmp_path_factory.mktemp("hostile")
+    return Settings(data_dir=root, broker_url="memory://", progress_interval=0.0,
+                    max_case_size=2_000_000, registry_busy_timeout=1.0)
+
+
+@pytest.fixture(scope="module")
+def client(settings):
+    with TestClient(create_app(settings), raise_server_exceptions=False) as c:
+        yield c
+
+
+@pytest.fixture(scope="module")
+def finished_job(client, settings):
+    """A successful tiny job (run with the worker's task code in this process)."""
+    from worker.tasks import run_job
+
+    response = client.post("/v1/jobs", json=tiny_case("hostile-finished"))
+    assert response.status_code == 201, response.text
+    job_id = response.json()["id"]
+    run_job(job_id, "hostile@test", settings)
+    assert client.get(f"/v1/jobs/{job_id}").json()["state"] == "successful"
+    return job_id
+
+
+def _locs(response) -> list[str]:
+    return [e["loc"] for e in response.json().get("errors") or []]
+
+
+def _case_with(path: str, value) -> dict:
+    case = tiny_case("absurd")
+    node = case
+    *parents, last = path.split(".")
+    for key in parents:
+        node = node.setdefault(key, {})
+    node[last] = value
+    return case
+
+
+# --- sizes beyond sense ---------------------------------------------------------------------
+ABSURD = {
+    "dt larger than the run": ("numerics.dt", 1e308, "numerics.dt"),
+    "dt a little larger than t_end": ("numerics.dt", 0.06, "numerics.dt"),
+    "diameter larger than the rod": ("rod.diameter", 1e300, "rod.diameter"),
+    "output cadence beyond the run": ("output.every", 1e12, "output.every"),
+    "steps over the case-size limit": ("numerics.dt", 1e-9, "numerics.dt"),
+}
+
+
+@pytest.mark.parametrize("path,value,loc", ABSURD.values(), ids=list(ABSURD))
+def test_absurd_sizes_are_refused_naming_the_field(client, path, value, loc):
+    response = client.post("/v1/jobs", json=_case_with(path, value))
+    assert response.status_code == 422, response.text
+    assert response.headers["content-type"].startswith(PROBLEM)
+    assert loc in _locs(response), response.text
+
+
+def test_a_dt_equal_to_the_run_is_still_accepted(client):
+    response = client.post("/v1/jobs", json=_case_with("numerics.dt", 0.05))
+    assert response.status_code == 201, response.text
+    assert response.json()["n_steps"] == 1
+
+
+# --- integers too large for a float -----------------------------------------------------------
+@pytest.mark.parametrize("field", ["youngs_modulus", "length"])
+@pytest.mark.parametrize("media", ["application/json", "application/yaml"])
+def test_an_integer_too_large_for_a_float_is_a_422(client, field, media):
+    case = tiny_case("overflow")
+    case["rod"][field] = 12345
+    huge = "1" + "0" * 400
+    text = json.dumps(case).replace("12345", huge)      # JSON is YAML too
+    response = client.post("/v1/jobs", content=text, headers={"content-type": media})
+    assert response.status_code == 422, response.text
+    assert f"rod.{field}" in _locs(response)
+
+
+# --- nesting ------------------------------------------------------------------------------------
+def _deep(depth: int):
+    value = 1.0
+    for _ in range(depth):
+        value = [value]
+    return value
+
+
+def _yaml_deep(depth: int) -> str:
+    return "[" * depth + "1" + "]" * depth
+
+
+NESTED = {
+    "job JSON": ("/v1/jobs", "application/json",
+                 lambda d: json.dumps({**tiny_case("deep"), "name": _deep(d)})),
+    "job YAML": ("/v1/jobs", "application/yaml",
+                 lambda d: json.dumps(tiny_case("deep"))[:-1] + f', "deep": {_yaml_deep(d)}}}'),
+    "sweep JSON": ("/v1/sweeps", "application/json",
+                   lambda d: json.dumps({"base": tiny_case("deep"),
+                                         "parameters": {"rod.length": [_deep(d)]}})),
+    "sweep YAML": ("/v1/sweeps", "application/yaml",
+                   lambda d: json.dumps({"base": tiny_case("deep")})[:-1]
+                   + f', "parameters": {{"rod.length": [{_yaml_deep(d)}]}}}}'),
+}
+
+
+@pytest.mark.parametrize("depth", [40, 500])
+@pytest.mark.parametrize("route,media,make", NESTED.values(), ids=list(NESTED))
+def test_nesting_beyond_the_fixed_depth_is_a_422_in_every_body(client, route, media, make,
+                                                               depth):
+    response = client.post(route, content=make(depth), headers={"content-type": media})
+    assert response.status_code == 422, response.text[:500]
+    assert response.headers["content-type"].startswith(PROBLEM)
+    errors = response.json()["errors"]
+    assert any(e["type"] == "nesting_too_deep" for e in errors), errors
+
+
+# --- a registry that does not answer ------------------------------------------------------------
+def test_a_locked_sqlite_registry_answers_503_with_retry_after(client, settings):
+    """SQLite ``BEGIN EXCLUSIVE`` held by another connection: POST /v1/jobs gives up after the
+    busy timeout (1 s here) with a 503 problem naming the registry and Retry-After, not a 500."""
+    path = settings.registry_url.split("///", 1)[1]
+    holder = sqlite3.connect(path, timeout=1, isolation_level=None)
+    holder.execute("BEGIN EXCLUSIVE")
+    try:
+        start = time.monotonic()
+        response = client.post("/v1/jobs", json=tiny_case("while-locked"))
+        took = time.monotonic() - start
+    finally:
+        holder.execute("ROLLBACK")
+        holder.close()
+    assert response.status_code == 503, response.text
+    assert response.headers["content-type"].startswith(PROBLEM)
+    assert response.json()["type"] == "urn:hockle:problem:registry-unavailable"
+    assert int(response.headers["retry-after"]) >= 1
+    assert took < 10, took
+    # and it answers again once the lock is gone
+    assert client.post("/v1/jobs", json=tiny_case("after-lock")).status_code == 201
+
+
+# --- query parameters ---------------------------------------------------------------------------
+@pytest.mark.parametrize("method,route,param", [
+    ("GET", "/v1/jobs", "colour"),
+    ("GET", "/v1/jobs", "page-size"),
+    ("GET", "/v1/health", "liv"),
+    ("POST", "/v1/jobs", "fersh"),
+])
+def test_an_unknown_query_parameter_is_a_422_naming_it(client, method, route, param):
+    kwargs = {"json": tiny_case("query")} if method == "POST" else {}
+    response = client.request(method, route, params={param: "1"}, **kwargs)
+    assert response.status_code == 422, response.text
+    assert f"query.{param}" in _locs(response)
+
+
+def test_unknown_query_parameters_on_job_routes(client, finished_job):
+    for route in ("", "/spec", "/results", "/results/variables", "/results/variables/kappa",
+                  "/summary"):
+        response = client.get(f"/v1/jobs/{finished_job}{route}", params={"tiem": "0.01"})
+        assert response.status_code == 422, (route, response.text)
+        assert "query.tiem" in _locs(response)
+
+
+@pytest.mark.parametrize("query,loc", [
+    ({"time": "5"}, "query.time"),            # t_end is 0.05 s
+    ({"time": "-1"}, "query.time"),
+    ({"time": "0.04:0.01"}, "query.time"),    # reversed
+    ({"time": "0.01,7"}, "query.time"),
+    ({"time": "1:2"}, "query.time"),          # a range that selects nothing
+    ({"s": "2"}, "query.s"),                  # the rod is 1 m
+    ({"s": "0.9:0.1"}, "query.s"),
+    ({"component": "3:1"}, "query.component"),
+    ({"component": "7"}, "query.component"),
+    ({"time": "nan"}, "query.time"),
+])
+def test_slice_selectors_out_of_range_or_reversed_are_a_422(client, finished_job, query, loc):
+    response = client.get(f"/v1/jobs/{finished_job}/results/variables/kappa", params=query)
+    assert response.status_code == 422, response.text
+    assert loc in _locs(response)
+
+
+def test_slice_selectors_in_range_still_answer(client, finished_job):
+    response = client.get(f"/v1/jobs/{finished_job}/results/variables/kappa",
+                          params={"time": "0.02", "s": "0:0.5", "component": "1,3"})
+    assert response.status_code == 200, response.text
+    body = response.json()
+    assert body["selected"]["time"] == pytest.approx(0.02)
+    assert body["shape"] == [5, 2]
+
+
+# --- a reused result says so --------------------------------------------------------------------
+def test_a_reused_result_is_reported_as_reused(client, finished_job):
+    case = tiny_case("hostile-finished")
+    response = client.post("/v1/jobs", json=case)
+    assert response.status_code == 200, response.text
+    body = response.json()
+    assert body["id"] == finished_job
+    assert body["reused"] == "identical_case"
+    assert response.headers["hockle-reused"] == "identical_case"
+    fresh = client.post("/v1/jobs", json=case, params={"fresh": "true"})
+    assert fresh.status_code == 201
+    assert fresh.json()["reused"] is None and "hockle-reused" not in fresh.headers
+    replay = client.post("/v1/jobs", json=case, params={"fresh": "true"},
+                         headers={"Idempotency-Key": "hostile-key-1"})
+    again = client.post("/v1/jobs", json=case, params={"fresh": "true"},
+                        headers={"Idempotency-Key": "hostile-key-1"})
+    assert replay.status_code == 201 and again.status_code == 200
+    assert again.json()["reused"] == "idempotency_key"
+    assert client.get(f"/v1/jobs/{finished_job}").json()["reused"] is None
+
+
+# --- the catch-all error path -------------------------------------------------------------------
+def test_an_unexpected_error_is_one_500_logged_once_and_the_connection_is_kept(settings,
+                                                                             caplog):
+    """A real server (uvicorn, as `hockle serve` runs it) and a keep-alive client: after a
+    route raises, the 500 problem comes once, one log record carries the traceback, and the
+    client's next request goes over the same connection."""
+    import logging
+
+    import httpx
+    import uvicorn
+
+    from svc_support import free_port
+
+    app = create_app(settings)
+
+    @app.get("/v1/test-boom")
+    def boom():
+        raise RuntimeError("boom for the test")
+
+    @app.get("/v1/test-peer")
+    def peer(request: Request):
+        return {"port": request.client.port}
+
+    port = free_port()
+    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="info",
+                                           timeout_keep_alive=30))
+    thread = threading.Thread(target=server.run, daemon=True)
+    caplog.set_level(logging.INFO)
+    thread.start()
+    try:
+        deadline = time.monotonic() + 30
+        while not server.started:
+            assert time.monotonic() < deadline, "the server did not start"
+            time.sleep(0.05)
+        with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=10) as http:
+            first = http.get("/v1/test-peer").json()["port"]
+            response = http.get("/v1/test-boom")
+            assert response.status_code == 500
+            assert response.headers["content-type"].startswith(PROBLEM)
+            assert response.json()["type"] == "urn:hockle:problem:internal-error"
+            assert "boom for the test" not in response.text
+            assert http.get("/v1/test-peer").json()["port"] == first
+    finally:
+        server.should_exit = True
+        thread.join(timeout=10)
+    tracebacks = [r for r in caplog.records if r.exc_info and "boom" in str(r.exc_info[1])]
+    assert len(tracebacks) == 1, [(r.name, r.getMessage()) for r in tracebacks]
+
+
+# --- metrics --------------------------------------------------------------------------------------
+def test_metrics_export_job_counts_and_queue_depth(client):
+    from prometheus_client.parser import text_string_to_metric_families
+
+    counts = client.get("/v1/health").json()["jobs"]
+    response = client.get("/metrics")
+    assert response.status_code == 200
+    assert response.headers["content-type"].startswith("text/plain")
+    samples = {(s.name, tuple(sorted(s.labels.items()))): s.value
+               for family in text_string_to_metric_families(response.text)
+               for s in family.samples}
+    for state in ("accepted", "running", "successful", "failed", "dismissed"):
+        assert samples[("hockle_jobs", (("state", state),))] == counts.get(state, 0)
+    assert samples[("hockle_registry_up", ())] == 1
+    assert samples[("hockle_broker_up", ())] == 1
+    assert ("hockle_queue_depth", (("queue", "hockle"),)) in samples
+    assert client.get("/metrics", params={"x": "1"}).status_code == 200   # not a /v1 route
+
+
+def test_hockle_submit_says_when_it_reused_a_result(client, finished_job, tmp_path,
+                                                    monkeypatch, capsys):
+    import argparse
+
+    import service.client
+    from hockle.service_commands import submit
+
+    transport = client._transport       # the in-process app behind the test client
+
+    class InProcess(service.client.HockleClient):
+        def __init__(self, base_url=None, **kwargs):
+            super().__init__("http://testserver", transport=transport, api_key="")
+
+    monkeypatch.setattr(service.client, "HockleClient", InProcess)
+    path = tmp_path / "case.json"
+    path.write_text(json.dumps(tiny_case("hostile-finished")))
+    args = argparse.Namespace(url=None, case=str(path), idempotency_key=None, fresh=False,
+                              time_limit=None, wait=False, api_key=None, output=None)
+    assert submit(args) == 0
+    out = capsys.readouterr().out
+    assert f"job {finished_job} successful" in out
+    assert f"reused the result of job {finished_job}" in out and "--fresh" in out
