@@ -44,6 +44,7 @@ from pydantic import (
     BeforeValidator,
     ConfigDict,
     Field,
+    StrictBool,
     ValidationError,
     WrapValidator,
     field_validator,
@@ -68,6 +69,7 @@ __all__ = [
     "Rod",
     "Fluid",
     "DistributedForce",
+    "PointLoad",
     "Initial",
     "Condition",
     "EndCondition",
@@ -469,6 +471,48 @@ class DistributedForce(BaseModel):
     def is_active(self, t: float) -> bool:
         """Whether the force acts at time ``t`` (s): ``start <= t < end``."""
         return self.start <= t and (self.end is None or t < self.end)
+
+    def scale_at(self, t: float) -> float:
+        """The ``factor`` table at time ``t`` (s), 1 without one (dimensionless)."""
+        return 1.0 if self.factor is None else self.factor.value_at(t)
+
+
+class PointLoad(BaseModel):
+    """A concentrated force (N) at one arclength ``s`` (m), applied for ``start <= t < end``.
+
+    ``value`` is N in the global frame (a dead load: its direction is fixed in space),
+    or with ``body: true`` components along the directors (a1, a2, a3) at ``s`` (a
+    follower load, turning with the rod). ``s`` must lie within ``[0, rod.length]``
+    (checked by :class:`Case`). ``factor`` scales it in time like a distributed force's
+    (:class:`DistributedForce`). The solver places the load as a jump of the internal
+    force at a node (exact), or, between nodes, splits it over the two nodes of its cell
+    by the lever rule (:mod:`solver.loads`).
+    """
+
+    model_config = _MODEL_CONFIG
+
+    s: Finite = Field(..., description="Arclength at which the load acts, m; within [0, rod.length].")
+    value: Vector3 = Field(
+        ..., description="Force, N: global-frame components [x, y, z], or with body: true "
+        "components along the directors a1, a2, a3 at s.")
+    body: StrictBool = Field(False, description="true: a follower load (value in the body frame); "
+                       "false: a dead load (value in the global frame).")
+    start: Finite = Field(0.0, ge=0, description="Time the load is switched on, s; >= 0.")
+    end: Optional[Finite] = Field(
+        None, description="Time the load is switched off (exclusive), s; > start; null: never switched off."
+    )
+    factor: Optional[Table] = Field(
+        None,
+        description="Dimensionless multiplier of value in time: a table {t: [s], value: [-]}, piecewise "
+        "linear, held constant outside its knots; null: 1.",
+    )
+
+    @model_validator(mode="after")
+    def _check(self) -> "PointLoad":
+        if self.end is not None and not self.end > self.start:
+            _raise("PointLoad", [_err(("end",), "greater_than", f"must be > start = {self.start!r} s",
+                                      self.end)])
+        return self
 
     def scale_at(self, t: float) -> float:
         """The ``factor`` table at time ``t`` (s), 1 without one (dimensionless)."""
@@ -1019,6 +1063,10 @@ class Case(BaseModel):
     distributed_forces: list[DistributedForce] = Field(
         default_factory=list, description="Uniform forces per unit length, N/m, global frame, each on [start, end) s."
     )
+    point_loads: list[PointLoad] = Field(
+        default_factory=list, description="Concentrated forces, N, each at one arclength s (m) on [start, end) s; "
+        "global frame (dead) or body frame (follower, body: true)."
+    )
     initial: Initial = Field(default_factory=Initial, description="Initial straight configuration (global directions).")
     boundary: Boundary = Field(..., description="Boundary conditions at s = 0 and s = L, body-frame components.")
     contact: Optional[Contact] = Field(None, description="Self-contact parameters; null: no self-contact search.")
@@ -1052,6 +1100,10 @@ class Case(BaseModel):
     def _cross_checks(self) -> "Case":
         errors = []
         length = self.rod.length
+        for k, load in enumerate(self.point_loads):
+            if not 0.0 <= load.s <= length:
+                errors.append(_err(("point_loads", k, "s"), "out_of_range",
+                                   f"must be within [0, rod.length] = [0, {length!r}] m", load.s))
         for k, force in enumerate(self.distributed_forces):
             if force.s_range is not None:
                 for j, s in enumerate(force.s_range):
@@ -1136,6 +1188,15 @@ class Case(BaseModel):
         _raise("Case", errors)
         self.numerics = numerics.model_copy(update={"n_segments": n_segments, "ds": length / n_segments})
         return self
+
+    @model_serializer(mode="wrap")
+    def _drop_empty(self, handler: Any) -> dict:
+        # fields added after schema 1's first release are written only when used, so that
+        # a case without them keeps its canonical JSON and spec_hash
+        out = handler(self)
+        if not self.point_loads:
+            out.pop("point_loads", None)
+        return out
 
     # ----------------------------------------------------------------- loading
 
