@@ -248,3 +248,20 @@ def test_interior_node_load_is_a_jump_not_smeared():
     x_ref, z_ref = tip_elastica(4.0, a=0.5)      # P = 4 EI/L² on a length L/2
     pos = ds.position.values[-1, k]
     assert abs(pos[0] / x_ref - 1) < 1e-3 and abs(pos[2] / z_ref - 1) < 1e-3, pos
+
+
+def test_service_refuses_a_point_load_outside_the_rod_with_422():
+    """The service's 422 comes from the same validation (service/validation.py), with
+    the field's path and the allowed fields of a point load for a misspelt key."""
+    pytest.importorskip("fastapi")
+    from service.problems import ProblemError
+    from service.validation import validate_case
+
+    with pytest.raises(ProblemError) as info:
+        validate_case(_spec(point_loads=[{"s": 2.0, "value": [1, 0, 0]}]), 10**9)
+    assert info.value.status == 422
+    assert [e["loc"] for e in info.value.errors] == ["point_loads[0].s"]
+    with pytest.raises(ProblemError) as info:
+        validate_case(_spec(point_loads=[{"s": 0.5, "valeu": [1, 0, 0]}]), 10**9)
+    msgs = " ".join(e["msg"] for e in info.value.errors)
+    assert "allowed here: s, value, body, start, end, factor" in msgs, msgs
