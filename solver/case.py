@@ -70,6 +70,7 @@ __all__ = [
     "Fluid",
     "DistributedForce",
     "PointLoad",
+    "Centreline",
     "Initial",
     "Condition",
     "EndCondition",
@@ -527,16 +528,65 @@ def _unit(v: list[float]) -> list[float]:
     return [x / norm for x in v]
 
 
+def _straight(centreline: Optional["Centreline"]) -> bool:
+    """Whether an initial centreline (None: the default straight rod) is a straight
+    line: every point within 1e-9 of its span from the line through its ends."""
+    if centreline is None:
+        return True
+    P = np.asarray(centreline.points, float)
+    d = P[-1] - P[0]
+    span = float(np.linalg.norm(d))
+    if span == 0.0:
+        return False
+    off = np.cross(P - P[0], d / span)
+    return bool(np.linalg.norm(off, axis=1).max() <= 1e-9 * span)
+
+
+class Centreline(BaseModel):
+    """An initial centreline: ``points`` (m, global), at least 2, no two consecutive
+    ones equal (``zero_segment``). The run resamples it by arclength
+    (:mod:`solver.initial`); its length must match ``rod.length`` (checked by
+    :class:`Case`)."""
+
+    model_config = _MODEL_CONFIG
+
+    points: list[Vector3] = Field(..., min_length=2, description="Points along the centreline, m, "
+                                  "global frame, from s = 0 to s = L.")
+
+    @model_validator(mode="after")
+    def _check(self) -> "Centreline":
+        errors = []
+        for k in range(1, len(self.points)):
+            if self.points[k] == self.points[k - 1]:
+                errors.append(_err(("points", k), "zero_segment",
+                                   f"equals points[{k - 1}]: a zero-length segment", self.points[k]))
+        _raise("Centreline", errors)
+        return self
+
+
 class Initial(BaseModel):
-    """The initial configuration: a straight, stress-free rod with its start at the origin.
+    """The initial configuration: by default a straight, stress-free rod with its start
+    at the origin; or a given ``centreline``, and an initial ``twist_rate``.
 
     ``tangent`` is the global direction of a3 along the rod, ``normal`` that of a1.
     Both must be non-zero and, once normalised, orthogonal within |cos| <= 1e-9. After
     validation both are unit vectors (plain lists of floats) and ``normal`` is exactly
     orthogonal to ``tangent`` (projected, to round-off). ``binormal`` gives a2.
+
+    With a ``centreline``, ``tangent`` is its tangent at the first point (left out, it
+    is set to it; given, it must agree within 1e-6 rad) and ``normal`` (a1 at s = 0) is
+    projected onto the plane normal to it (refused when within 1e-3 rad of parallel;
+    left out, the default [1, 0, 0], or where that is within 25° of the tangent the
+    global axis least aligned with it). ``twist_rate`` (rad/m)
+    is κ3 along the whole rod at t = 0. Both new fields are written to the canonical
+    JSON only when used.
     """
 
     model_config = _MODEL_CONFIG
+
+    centreline: Optional[Centreline] = Field(
+        None, description="Initial centreline points, m, resampled by arclength; null: straight.")
+    twist_rate: Finite = Field(0.0, description="Initial twist rate kappa_3, rad/m, along the whole rod.")
 
     tangent: Vector3 = Field(
         default_factory=lambda: [0.0, 0.0, 1.0],
@@ -549,6 +599,8 @@ class Initial(BaseModel):
 
     @model_validator(mode="after")
     def _normalise(self) -> "Initial":
+        if self.centreline is not None:
+            return self._along_centreline()
         errors = []
         for name in ("tangent", "normal"):
             if math.hypot(*getattr(self, name)) == 0.0:
@@ -574,6 +626,44 @@ class Initial(BaseModel):
         self.tangent = t
         self.normal = n
         return self
+
+    def _along_centreline(self) -> "Initial":
+        from .initial import Curve
+
+        t0 = Curve(self.centreline.points).start_tangent()
+        given = self.model_fields_set
+        if "tangent" in given:
+            norm = math.hypot(*self.tangent)
+            cos = float(np.dot(t0, self.tangent) / norm) if norm > 0 else -1.0
+            if not cos >= math.cos(1e-6):
+                _raise("Initial", [_err(("tangent",), "inconsistent",
+                                        f"must be the centreline's tangent at its first point "
+                                        f"({', '.join(f'{x:.6g}' for x in t0)}), or be left out",
+                                        self.tangent)])
+        if "normal" in given:
+            n = np.asarray(self.normal, float)
+            norm = float(np.linalg.norm(n))
+            if norm == 0.0 or abs(float(np.dot(n, t0))) / norm > math.cos(1e-3):
+                _raise("Initial", [_err(("normal",), "not_orthogonal",
+                                        "must not be parallel to the centreline's tangent at "
+                                        "its first point", self.normal)])
+        else:
+            n = np.asarray(self.normal, float)     # the default, unless nearly parallel
+            if abs(float(np.dot(n, t0))) > 0.9:
+                n = np.eye(3)[int(np.argmin(np.abs(t0)))]
+        n = n - float(np.dot(n, t0)) * t0
+        self.tangent = [float(x) for x in t0]
+        self.normal = [float(x) for x in n / np.linalg.norm(n)]
+        return self
+
+    @model_serializer(mode="wrap")
+    def _drop_unused(self, handler: Any):  # no return type: keeps the JSON schema
+        out = handler(self)
+        if self.centreline is None:
+            out.pop("centreline", None)
+        if self.twist_rate == 0.0:
+            out.pop("twist_rate", None)
+        return out
 
     @property
     def binormal(self) -> list[float]:
@@ -1067,7 +1157,8 @@ class Case(BaseModel):
         default_factory=list, description="Concentrated forces, N, each at one arclength s (m) on [start, end) s; "
         "global frame (dead) or body frame (follower, body: true)."
     )
-    initial: Initial = Field(default_factory=Initial, description="Initial straight configuration (global directions).")
+    initial: Initial = Field(default_factory=Initial, description="Initial configuration: straight "
+                             "(global directions) or a given centreline, and a twist rate.")
     boundary: Boundary = Field(..., description="Boundary conditions at s = 0 and s = L, body-frame components.")
     contact: Optional[Contact] = Field(None, description="Self-contact parameters; null: no self-contact search.")
     numerics: Numerics = Field(..., description="Grid (m), time step (s) and solver controls.")
@@ -1100,6 +1191,15 @@ class Case(BaseModel):
     def _cross_checks(self) -> "Case":
         errors = []
         length = self.rod.length
+        if self.initial.centreline is not None:
+            from .initial import LENGTH_RTOL, Curve
+
+            got = Curve(self.initial.centreline.points).length
+            if abs(got - length) > LENGTH_RTOL * length:
+                errors.append(_err(("initial", "centreline", "points"), "length_mismatch",
+                                   f"the centreline is {got:.6g} m long but rod.length is "
+                                   f"{length!r} m (they must agree within "
+                                   f"{LENGTH_RTOL:g} relative)", None))
         for k, load in enumerate(self.point_loads):
             if not 0.0 <= load.s <= length:
                 errors.append(_err(("point_loads", k, "s"), "out_of_range",
@@ -1132,9 +1232,11 @@ class Case(BaseModel):
                 )
         # a straight inextensible rod whose two ends both prescribe the axial velocity has
         # an undetermined tension (the step's Jacobian is exactly singular); the rod is
-        # straight at t = 0, so the conditions in force then decide (issue 11, item 5)
+        # straight at t = 0 unless a curved initial.centreline is given, so the
+        # conditions in force then decide (issue 11, item 5)
         if (self.boundary.start.active("translation", 2, 0.0).kinematic
-                and self.boundary.end.active("translation", 2, 0.0).kinematic):
+                and self.boundary.end.active("translation", 2, 0.0).kinematic
+                and _straight(self.initial.centreline)):
             errors.append(_err(
                 ("boundary", "end", "translation", 2), "ill_posed",
                 "both ends prescribe the axial velocity (translation[2]) of the straight "
@@ -1190,7 +1292,7 @@ class Case(BaseModel):
         return self
 
     @model_serializer(mode="wrap")
-    def _drop_empty(self, handler: Any) -> dict:
+    def _drop_empty(self, handler: Any):  # no return type: keeps the JSON schema
         # fields added after schema 1's first release are written only when used, so that
         # a case without them keeps its canonical JSON and spec_hash
         out = handler(self)

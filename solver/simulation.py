@@ -28,7 +28,8 @@ from .contact import SelfContact
 from .contact.geometry import max_distance
 from .energies import (distributed_power, distributed_work_into, end_loads, end_power,
                        end_work_into, energies)
-from .kinematics import (normalize_quaternions, quat_from_matrix, quat_slerp,
+from .initial import initial_pose
+from .kinematics import (normalize_quaternions, quat_slerp,
                          quat_to_matrix, relative_rotation, rotate_rows, space_route)
 from .loads import LoadModel
 from .properties import RodProperties
@@ -175,15 +176,8 @@ class RodRun:
         self.Ydot = np.zeros((n1, 12))
         self.Y_prev = None
         self.h_prev = None
-        tangent = np.asarray(case.initial.tangent, float)
-        tangent = tangent / np.linalg.norm(tangent)
-        normal = np.asarray(case.initial.normal, float)
-        normal = normal - np.dot(normal, tangent) * tangent
-        normal = normal / np.linalg.norm(normal)
-        R0 = np.column_stack([normal, np.cross(tangent, normal), tangent])
-        q0 = quat_from_matrix(R0)
-        self.q = np.tile(q0, (n1, 1))                     # space-route pose
-        self.r = props.s[:, None] * tangent[None, :]
+        self.q, self.r, kappa0 = initial_pose(case, props.s)   # space-route pose
+        self.Y[:, 9:12] = kappa0
         self.q_time = self.q.copy()                       # time-route pose (diagnostic)
         self.r_time = self.r.copy()
         self.bc_offset = None                             # end_correction of the last step
