@@ -109,10 +109,13 @@ DEFAULT_OUTPUT_FIELDS: tuple[str, ...] = (
 #: Rod properties that may be a number or a :class:`Profile`.
 MATERIAL_PROPERTIES: tuple[str, ...] = ("youngs_modulus", "shear_modulus", "density", "diameter")
 #: Condition keys allowed in a ``translation`` item and in a ``rotation`` item.
-TRANSLATION_KEYS: tuple[str, ...] = ("velocity", "force")
+TRANSLATION_KEYS: tuple[str, ...] = ("velocity", "force", "position")
 ROTATION_KEYS: tuple[str, ...] = ("angular_velocity", "moment")
 _CONDITION_KEYS = TRANSLATION_KEYS + ROTATION_KEYS
-_KINEMATIC_KEYS = frozenset({"velocity", "angular_velocity"})
+_KINEMATIC_KEYS = frozenset({"velocity", "angular_velocity", "position"})
+#: relative tolerance (of rod.length) with which a prescribed position at t = 0 must be
+#: where the end starts
+POSITION_RTOL = 1e-3
 
 #: Relative slack when comparing a time with a condition's ``until``.
 UNTIL_RTOL = 1e-12
@@ -695,6 +698,8 @@ class Condition(BaseModel):
         None, description="Prescribed angular velocity component, rad/s, body frame (rotation only)."
     )
     moment: Optional[NumberOrTable] = Field(None, description="Applied moment component, N m, body frame (rotation only).")
+    position: Optional[NumberOrTable] = Field(
+        None, description="Prescribed position component, m, global frame (translation of an end with frame: global only).")
     until: Optional[Finite] = Field(None, gt=0, description="Last time this condition is in force (t <= until), s; > 0.")
 
     @model_validator(mode="after")
@@ -774,10 +779,80 @@ class EndCondition(BaseModel):
     rotation: Annotated[list[DOFConditions], Field(min_length=3, max_length=3)] = Field(
         ..., description="Conditions on the 3 body-frame rotation DOFs: angular_velocity (rad/s) or moment (N m)."
     )
+    frame: Literal["body", "global"] = Field(
+        "body", description="body: items are components along a1, a2, a3 of the end; global: translation "
+        "items are global x, y, z components (velocity m/s, position m, force N) and the rotation is "
+        "held fixed in space (angular_velocity 0) or free (moment 0).")
+
+    @model_serializer(mode="wrap")
+    def _drop_body_frame(self, handler: Any):  # no return type: keeps the JSON schema
+        out = handler(self)
+        if self.frame == "body":
+            out.pop("frame", None)
+        return out
+
+    @property
+    def rotation_mode(self) -> Optional[str]:
+        """With ``frame: global``: ``"fixed"`` (every rotation item angular_velocity 0) or
+        ``"free"`` (every one moment 0); None otherwise."""
+        if self.frame != "global":
+            return None
+        kinds = {c[0].kind for c in self.rotation}
+        return "fixed" if kinds == {"angular_velocity"} else "free"
+
+    def _check_global(self) -> list[dict]:
+        """The rules of ``frame: global`` (docs/case-spec.md, "Global-frame ends")."""
+        errors = []
+        for group in ("translation", "rotation"):
+            for i, conditions in enumerate(getattr(self, group)):
+                if len(conditions) > 1:
+                    errors.append(_err((group, i), "unsupported",
+                                       "switching in time (a list with until) is not supported with "
+                                       "frame: global; give one condition per item", None))
+        if errors:
+            return errors
+        rot = [c[0] for c in self.rotation]
+        fixed = all(c.kind == "angular_velocity" and not isinstance(c.value, Table)
+                    and c.value == 0.0 for c in rot)
+        free = all(c.kind == "moment" and not isinstance(c.value, Table) and c.value == 0.0
+                   for c in rot)
+        if not (fixed or free):
+            errors.append(_err(("rotation",), "unsupported",
+                               "with frame: global the rotation is held fixed in space (every item "
+                               "angular_velocity: 0) or free (every item moment: 0)", None))
+            return errors
+        kinds = [c[0].kind for c in self.translation]
+        if set(kinds) <= {"velocity", "position"}:
+            if free:
+                for i, c in enumerate(self.translation):
+                    held = not isinstance(c[0].value, Table) and (
+                        c[0].kind == "position" or c[0].value == 0.0)
+                    if not held:
+                        errors.append(_err(("translation", i, 0, c[0].kind), "unsupported",
+                                           "an end free to turn (moment: 0) can be held at a point "
+                                           "(position: a number, or velocity: 0) but not moved: "
+                                           "its body frame would be needed to impose the motion; "
+                                           "hold its rotation fixed (angular_velocity: 0) to move it",
+                                           None))
+        elif set(kinds) != {"force"}:
+            errors.append(_err(("translation",), "mixed_frame_conditions",
+                               f"with frame: global the three translation items must all be "
+                               f"kinematic (velocity/position) or all force, got {', '.join(kinds)}: "
+                               "a mixed set would tie the end's body components together", None))
+        return errors
 
     @model_validator(mode="after")
     def _check(self) -> "EndCondition":
         errors = []
+        if self.frame == "global":
+            _raise("EndCondition", self._check_global())
+        else:
+            for i, conditions in enumerate(self.translation):
+                for j, cond in enumerate(conditions):
+                    if cond.kind == "position":
+                        errors.append(_err(("translation", i, j, "position"), "wrong_frame",
+                                           "position is a global-frame condition: give the end "
+                                           "frame: global", None))
         for group, allowed in (("translation", TRANSLATION_KEYS), ("rotation", ROTATION_KEYS)):
             for i, conditions in enumerate(getattr(self, group)):
                 for j, cond in enumerate(conditions):
@@ -1200,6 +1275,7 @@ class Case(BaseModel):
                                    f"the centreline is {got:.6g} m long but rod.length is "
                                    f"{length!r} m (they must agree within "
                                    f"{LENGTH_RTOL:g} relative)", None))
+        errors.extend(self._check_positions())
         for k, load in enumerate(self.point_loads):
             if not 0.0 <= load.s <= length:
                 errors.append(_err(("point_loads", k, "s"), "out_of_range",
@@ -1290,6 +1366,47 @@ class Case(BaseModel):
         _raise("Case", errors)
         self.numerics = numerics.model_copy(update={"n_segments": n_segments, "ds": length / n_segments})
         return self
+
+    def _check_positions(self) -> list[dict]:
+        """Global ``position`` conditions: at t = 0 where the end starts (within
+        POSITION_RTOL × rod.length), and with both ends' positions prescribed, never
+        farther apart than the inextensible rod is long. Both tables are piecewise linear,
+        so their difference is linear between the union of their knots and its length
+        convex there: checking the knots suffices."""
+        length = self.rod.length
+        ini = self.initial
+        if ini.centreline is not None:
+            where = {"start": np.asarray(ini.centreline.points[0], float),
+                     "end": np.asarray(ini.centreline.points[-1], float)}
+        else:
+            where = {"start": np.zeros(3), "end": length * np.asarray(ini.tangent, float)}
+        errors = []
+        tables = {}
+        for name in ("start", "end"):
+            ec = getattr(self.boundary, name)
+            items = [c[0] for c in ec.translation]
+            if ec.frame != "global" or any(c.kind != "position" for c in items):
+                continue
+            tables[name] = items
+            p0 = np.array([c.value_at(0.0) for c in items])
+            if np.linalg.norm(p0 - where[name]) > POSITION_RTOL * length:
+                errors.append(_err(("boundary", name, "translation"), "inconsistent",
+                                   f"the position at t = 0 ({', '.join(f'{x:.6g}' for x in p0)}) m "
+                                   f"is not where the rod's {name} is "
+                                   f"({', '.join(f'{x:.6g}' for x in where[name])}) m", None))
+        if len(tables) == 2:
+            times = sorted({0.0, *(t for items in tables.values() for c in items
+                                   if isinstance(c.value, Table) for t in c.value.t)})
+            for t in times:
+                gap = np.linalg.norm([a.value_at(t) - b.value_at(t)
+                                      for a, b in zip(tables["start"], tables["end"])])
+                if gap > length * (1.0 + 1e-9):
+                    errors.append(_err(("boundary", "end", "translation"), "stretches_rod",
+                                       f"the prescribed positions put the ends {gap:.6g} m apart "
+                                       f"at t = {t:.6g} s, farther than rod.length = {length!r} m: "
+                                       "the rod is inextensible", None))
+                    break
+        return errors
 
     @model_serializer(mode="wrap")
     def _drop_empty(self, handler: Any):  # no return type: keeps the JSON schema

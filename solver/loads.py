@@ -39,6 +39,27 @@ __all__ = ["LoadModel", "PointLoads", "point_loads_into"]
 NODE_SNAP = 1e-9
 
 
+class _EndForce:
+    """A global dead force on an end free to turn, as a point-load entry: ``at(t)`` the
+    global vector (3,) N, sign × the three conditions' values."""
+
+    body = False
+
+    def __init__(self, conditions, sign):
+        self.conditions = conditions
+        self.sign = sign
+        self.value = [1.0, 1.0, 1.0]       # non-zero: the entry is kept
+
+    def at(self, t):
+        return self.sign * np.array([c.value_at(t) for c in self.conditions])
+
+
+def _has_end_force(case):
+    return any(getattr(ec, "frame", "body") == "global" and ec.rotation_mode == "free"
+               and ec.translation[0][0].kind == "force"
+               for ec in (case.boundary.start, case.boundary.end))
+
+
 class PointLoads:
     """The case's ``point_loads`` placed on the grid (module docstring, "Point loads").
 
@@ -65,6 +86,16 @@ class PointLoads:
         n_last = s.size - 1
         ds = float(s[1] - s[0])
         nodes, weights, loads = [], [], []
+        # a dead force on an end that is free to turn (frame: global, moment 0): a point
+        # load at the end, the internal force's value there (so −F at s = 0: the load
+        # applied to the end s = 0 is −f(0), boundary.py)
+        for name, node, sign in (("start", 0, -1.0), ("end", n_last, 1.0)):
+            ec = getattr(case.boundary, name)
+            if (getattr(ec, "frame", "body") == "global" and ec.rotation_mode == "free"
+                    and ec.translation[0][0].kind == "force"):
+                nodes.append(node)
+                weights.append(1.0)
+                loads.append(_EndForce([c[0] for c in ec.translation], sign))
         for load in case.point_loads:
             if not np.any(np.asarray(load.value, float) != 0):
                 continue
@@ -99,6 +130,9 @@ class PointLoads:
         ``start < t <= end``, the left limit at a breakpoint), else 0."""
         out = np.zeros((len(self), 3))
         for j, load in enumerate(self.loads):
+            if isinstance(load, _EndForce):
+                out[j] = load.at(t)
+                continue
             end = math.inf if load.end is None else load.end
             if (load.start < t <= end) if left else (load.start <= t < end):
                 out[j] = (self.weight[j] * load.scale_at(t)) * self.base[j]
@@ -242,7 +276,8 @@ class LoadModel:
             self.forces.append((float(df.start), float(end), mask.astype(float), val, df))
         self.has_global = self.gravity is not None or bool(self.forces) or extra is not None
         #: the point loads on the grid, or None without any
-        self.points = PointLoads(case, props.s) if case.point_loads else None
+        self.points = (PointLoads(case, props.s)
+                       if case.point_loads or _has_end_force(case) else None)
         if self.points is not None and len(self.points) == 0:
             self.points = None
 
