@@ -96,6 +96,7 @@ OUTPUT_FIELDS: tuple[str, ...] = (
     "energies",
     "topology",
     "contact",
+    "reactions",
 )
 DEFAULT_OUTPUT_FIELDS: tuple[str, ...] = (
     "v",
@@ -1067,7 +1068,8 @@ def _check_output_field(value: Any, handler: Any) -> str:
 
 
 OutputField = Annotated[
-    Literal["v", "omega", "f", "kappa", "moment", "position", "orientation", "energies", "topology", "contact"],
+    Literal["v", "omega", "f", "kappa", "moment", "position", "orientation", "energies", "topology", "contact",
+            "reactions"],
     WrapValidator(_check_output_field),
 ]
 

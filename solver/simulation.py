@@ -31,7 +31,7 @@ from .energies import (distributed_power, distributed_work_into, end_loads, end_
 from .initial import initial_pose
 from .kinematics import (normalize_quaternions, quat_slerp,
                          quat_to_matrix, relative_rotation, rotate_rows, space_route)
-from .loads import LoadModel
+from .loads import LoadModel, end_reactions
 from .properties import RodProperties
 from .newton import Newton
 from .scheme import BACKWARD_EULER, RodSystem, alpha_parameters, pose_into
@@ -1091,6 +1091,8 @@ class RodRun:
             out.update(twist=tw, writhe=wr + 2.0 * k, linking_number=lk,
                        topology_error=abs(tw + wr + 2.0 * k - lk),
                        writhe_closure_passages=float(k))
+        if "reactions" in fields:
+            out.update(end_reactions(Y, self.q, self.props.stiffness))
         if "contact" in fields:
             out["contact_count"] = self.contact_count
             out["min_surface_gap"] = self.min_gap

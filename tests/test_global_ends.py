@@ -98,12 +98,16 @@ def test_towed_end_tension_is_the_integrated_morison_drag():
                  fluid={"density": rho_f, "added_mass_coefficient": 1.0,
                         "drag_coefficient_normal": 1.2, "drag_coefficient_tangential": cdt},
                  initial={"tangent": d.tolist(), "normal": [d[2], 0.0, -d[0]]},
-                 output={"fields": ["f", "position"]})
+                 output={"fields": ["f", "position", "reactions"]})
     spec["numerics"] = {"n_segments": 20, "dt": 0.05, "t_end": 3.0, "rho_inf": 0.5}
     ds = simulate(Case.model_validate(spec))
     expected = 0.5 * rho_f * math.pi * D * cdt * U**2 * L
     f0 = ds.f.values[-1, 0]
     assert abs(f0[2] / expected - 1) < 0.01 and np.abs(f0[:2]).max() < 1e-6 * expected
+    # the tow line's pull in the global frame, along the tow: the reaction output
+    pull = ds.reaction_force_start.values[-1]
+    assert np.allclose(pull, -expected * d, rtol=0.01, atol=1e-6 * expected), pull
+    assert np.allclose(ds.reaction_force_end.values[-1], 0.0, atol=1e-9)
     # the towed end went where the velocity table takes it: U (t_end − ½ s) along −d
     assert np.allclose(ds.position.values[-1, 0], V * (3.0 - 0.5), atol=1e-9)
 
@@ -135,7 +139,7 @@ def test_hanging_cable_settles_on_the_catenary():
                  fluid={"density": rho_f, "added_mass_coefficient": 1.0,
                         "drag_coefficient_normal": 1.2},
                  initial={"centreline": {"points": _arc_points(L, X)}},
-                 output={"fields": ["f", "position"]})
+                 output={"fields": ["f", "position", "reactions"]})
     spec["rod"].update({"youngs_modulus": 1e5, "shear_modulus": 1e5 / 2.6, "density": rho,
                         "diameter": D})
     spec["numerics"] = {"n_segments": 40, "dt": 0.2, "t_end": 16.0, "rho_inf": 0.0,
@@ -151,6 +155,10 @@ def test_hanging_cable_settles_on_the_catenary():
     f = ds.f.values[-1]
     for node in (0, -1):
         assert abs(np.linalg.norm(f[node]) / tension - 1) < 5e-3, np.linalg.norm(f[node])
+    # the pins carry the weight half each and pull apart with H = w a (global frame)
+    a_start, a_end = ds.reaction_force_start.values[-1], ds.reaction_force_end.values[-1]
+    assert abs((a_start[2] + a_end[2]) / (w * L) - 1) < 1e-3     # measured 1.6e-4
+    assert abs(-a_start[0] / (w * a) - 1) < 5e-3 and abs(a_end[0] / (w * a) - 1) < 5e-3
 
 
 def test_dead_end_force_on_an_end_free_to_turn_is_the_tip_load():
