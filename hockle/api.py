@@ -349,6 +349,10 @@ def simulate(case, callbacks: Iterable[Any] = (), loads: Iterable[Any] = (),
         if key in solver_options:
             raise ValueError(f"{key}: given by hockle.api.simulate itself (use callbacks= "
                              "and loads=)")
+    if (case.initial.from_result is not None and "start" not in solver_options
+            and solver_options.get("resume") is None):
+        from .io import read_start_state
+        solver_options["start"] = read_start_state(case)    # CaseError naming the field
     ds = solver_simulate(case, progress=progress, should_stop=should_stop,
                          observer=_CallbackSet(callbacks) if callbacks else None,
                          extra_force=_LoadSum(loads) if loads else None, **solver_options)

@@ -71,6 +71,7 @@ __all__ = [
     "DistributedForce",
     "PointLoad",
     "Centreline",
+    "FromResult",
     "Initial",
     "Condition",
     "EndCondition",
@@ -568,6 +569,18 @@ class Centreline(BaseModel):
         return self
 
 
+class FromResult(BaseModel):
+    """Start from the state of an earlier result: ``file`` (a result NetCDF written by
+    hockle, read by the CLI and the Python API; over HTTP not accepted) and ``time`` (s,
+    one of its output times). The solver itself reads nothing: the caller reads the state
+    (:func:`hockle.io.read_start_state`) and hands it to :func:`solver.simulate`."""
+
+    model_config = _MODEL_CONFIG
+
+    file: str = Field(..., min_length=1, max_length=4096, description="Path of the earlier result (NetCDF).")
+    time: Finite = Field(..., ge=0, description="Output time of the earlier result to start from, s.")
+
+
 class Initial(BaseModel):
     """The initial configuration: by default a straight, stress-free rod with its start
     at the origin; or a given ``centreline``, and an initial ``twist_rate``.
@@ -591,6 +604,8 @@ class Initial(BaseModel):
     centreline: Optional[Centreline] = Field(
         None, description="Initial centreline points, m, resampled by arclength; null: straight.")
     twist_rate: Finite = Field(0.0, description="Initial twist rate kappa_3, rad/m, along the whole rod.")
+    from_result: Optional[FromResult] = Field(
+        None, description="Start from an earlier result's state at one of its output times; null: no.")
 
     tangent: Vector3 = Field(
         default_factory=lambda: [0.0, 0.0, 1.0],
@@ -603,6 +618,10 @@ class Initial(BaseModel):
 
     @model_validator(mode="after")
     def _normalise(self) -> "Initial":
+        if self.from_result is not None and (self.centreline is not None or self.twist_rate != 0.0):
+            _raise("Initial", [_err(("from_result",), "inconsistent",
+                                    "from_result gives the whole start state: leave out centreline "
+                                    "and twist_rate", None)])
         if self.centreline is not None:
             return self._along_centreline()
         errors = []
@@ -667,6 +686,8 @@ class Initial(BaseModel):
             out.pop("centreline", None)
         if self.twist_rate == 0.0:
             out.pop("twist_rate", None)
+        if self.from_result is None:
+            out.pop("from_result", None)
         return out
 
     @property
@@ -1278,6 +1299,18 @@ class Case(BaseModel):
                                    f"{length!r} m (they must agree within "
                                    f"{LENGTH_RTOL:g} relative)", None))
         errors.extend(self._check_positions())
+        start = self.initial.from_result
+        if start is not None:
+            num = self.numerics
+            k = start.time / num.dt
+            if num.tolerance is not None:
+                errors.append(_err(("initial", "from_result"), "unsupported",
+                                   "a start from an earlier result runs fixed steps only: "
+                                   "leave out numerics.tolerance", None))
+            elif abs(k - round(k)) > 1e-9 * max(1.0, k) or not start.time < num.t_end:
+                errors.append(_err(("initial", "from_result", "time"), "out_of_range",
+                                   f"must be a multiple of numerics.dt = {num.dt!r} s before "
+                                   f"numerics.t_end = {num.t_end!r} s", start.time))
         for k, load in enumerate(self.point_loads):
             if not 0.0 <= load.s <= length:
                 errors.append(_err(("point_loads", k, "s"), "out_of_range",

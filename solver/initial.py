@@ -22,9 +22,11 @@ is not modelled: the rod is straight when unstressed), so a curved rod set free 
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-__all__ = ["Curve", "initial_pose", "LENGTH_RTOL"]
+__all__ = ["Curve", "StartState", "initial_pose", "initial_state", "LENGTH_RTOL"]
 
 #: relative tolerance with which a centreline's length must match rod.length
 LENGTH_RTOL = 1e-3
@@ -180,3 +182,70 @@ def initial_pose(case, s):
     q0 = quat_from_matrix(R[0])
     q, r = space_route(q0, np.asarray(r0, float), kappa, float(s[1] - s[0]))
     return q, r, kappa
+
+
+@dataclass
+class StartState:
+    """The state a run starts from instead of its case's initial configuration
+    (``initial.from_result``), read by the caller from an earlier result
+    (:func:`hockle.io.read_start_state`): time ``t`` (s) and per node v, ω, f, κ
+    (N+1, 3) body frame (m/s, rad/s, N, rad/m), ``q`` (N+1, 4) unit quaternions, ``r``
+    (N+1, 3) m; ``phi`` (2,) the end rotations about a3 (rad) of the linking number and
+    ``work_in`` (J), or None where the result did not store them."""
+
+    t: float
+    v: np.ndarray
+    omega: np.ndarray
+    f: np.ndarray
+    kappa: np.ndarray
+    q: np.ndarray
+    r: np.ndarray
+    phi: object = None
+    work_in: object = None
+
+
+def initial_state(case, s, start=None):
+    """(q (N+1, 4), r (N+1, 3), Y (N+1, 12), t0 (s)): the pose, unknowns and time a run
+    starts from: :func:`initial_pose` with v = ω = f = 0 at t = 0, or the
+    :class:`StartState` ``start`` as it is. Raises ValueError when the start's arrays do
+    not match the grid."""
+    n1 = np.asarray(s).size
+    Y = np.zeros((n1, 12))
+    if start is None:
+        q, r, kappa = initial_pose(case, s)
+        Y[:, 9:12] = kappa
+        return q, r, Y, 0.0
+    for name in ("v", "omega", "f", "kappa", "r"):
+        if np.shape(getattr(start, name)) != (n1, 3):
+            raise ValueError(f"start state: {name} has shape {np.shape(getattr(start, name))}, "
+                             f"expected ({n1}, 3)")
+    if np.shape(start.q) != (n1, 4):
+        raise ValueError(f"start state: q has shape {np.shape(start.q)}, expected ({n1}, 4)")
+    Y[:, 0:3], Y[:, 3:6], Y[:, 6:9], Y[:, 9:12] = start.v, start.omega, start.f, start.kappa
+    return (np.array(start.q, dtype=float), np.array(start.r, dtype=float), Y,
+            float(start.t))
+
+
+def apply_start(run, start) -> None:
+    """Set the rest of a run's state from a :class:`StartState` (after
+    :func:`initial_state` set the pose, the unknowns and the time): the time route of
+    every node is the start's pose, the global velocities R v, and the end rotations and
+    the work put in where the start has them."""
+    from .kinematics import rotate_rows
+
+    run.q_time, run.r_time = run.q.copy(), run.r.copy()
+    run.v_global = np.empty_like(run.r)
+    rotate_rows(np.ascontiguousarray(run.q), np.ascontiguousarray(run.Y[:, 0:3]), run.v_global)
+    run.v_global_time = run.v_global.copy()
+    if start.phi is not None:
+        run.phi = np.array(start.phi, dtype=float)
+    if start.work_in is not None:
+        run.work_in = float(start.work_in)
+
+
+def start_step(case, start) -> int:
+    """The first fixed step of a run: 1, or after a start at t (a multiple of
+    numerics.dt, :class:`solver.case.FromResult`) the step that follows it."""
+    if start is None:
+        return 1
+    return int(round(start.t / case.numerics.dt)) + 1

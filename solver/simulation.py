@@ -28,7 +28,7 @@ from .contact import SelfContact
 from .contact.geometry import max_distance
 from .energies import (distributed_power, distributed_work_into, end_loads, end_power,
                        end_work_into, energies)
-from .initial import initial_pose
+from .initial import apply_start, initial_state, start_step
 from .kinematics import (normalize_quaternions, quat_slerp,
                          quat_to_matrix, relative_rotation, rotate_rows, space_route)
 from .loads import LoadModel, end_reactions
@@ -145,7 +145,7 @@ class RodRun:
     #: whichever predicted the last accepted step better (:meth:`_better_predictor`)
     predictor = "linear"
 
-    def __init__(self, case, extra_force=None):
+    def __init__(self, case, extra_force=None, start=None):
         self.case = case
         num = case.numerics
         self.props = props = RodProperties.from_case(case)
@@ -176,8 +176,9 @@ class RodRun:
         self.Ydot = np.zeros((n1, 12))
         self.Y_prev = None
         self.h_prev = None
-        self.q, self.r, kappa0 = initial_pose(case, props.s)   # space-route pose
-        self.Y[:, 9:12] = kappa0
+        # space-route pose and unknowns at the start (solver.initial: the case's initial
+        # configuration, or a StartState from an earlier result)
+        self.q, self.r, self.Y, self.t = initial_state(case, props.s, start)
         self.q_time = self.q.copy()                       # time-route pose (diagnostic)
         self.r_time = self.r.copy()
         self.bc_offset = None                             # end_correction of the last step
@@ -185,13 +186,15 @@ class RodRun:
         self.v_global_time = np.zeros((n1, 3))
         self.phi = np.zeros(2)                            # end rotations about a3, rad
         self.work_in = 0.0
+        if start is not None:
+            apply_start(self, start)
         # end displacement rates (2, 6) of the α-relation, m/s and rad/s; [:, 5] is φ̇
         self.xdot_end = np.zeros((2, 6))
         self.xdot_nodes = np.zeros((n1, 3))               # node displacement rates, m/s
         # (advanced only where distributed loads do work: loads.has_global)
         self.quat_norm_error = 0.0
         self.bc_plan = boundary_plan(case, props, self.system.n)
-        self.bc = BoundaryRows(case, props, 0.0, self.system.n, self.bc_plan)
+        self.bc = BoundaryRows(case, props, self.t, self.system.n, self.bc_plan)
         self.breakpoints = breakpoints(case)
         # error-controlled steps (numerics.tolerance): the estimator and controller, the
         # error ratio of the last estimated step, the next step size; why the last
@@ -239,7 +242,7 @@ class RodRun:
         self.contact_count = 0
         self.min_gap = math.inf
         # the loads at t = 0, last: an extra_force sees a complete run
-        glob = self.loads.global_force(0.0) if self.loads.has_global else None
+        glob = self.loads.global_force(self.t) if self.loads.has_global else None
         pose = ((quat_to_matrix(self.q), np.zeros((n1, 3)), 0.0)
                 if self.system.needs_pose else None)
         self.F_old, _ = self.system.node_terms(self.Y, False, pose, glob)
@@ -1105,7 +1108,8 @@ class RodRun:
 
 
 def simulate(case, progress=None, should_stop=None, checkpoint=None,
-             checkpoint_interval=300.0, resume=None, observer=None, extra_force=None):
+             checkpoint_interval=300.0, resume=None, observer=None, extra_force=None,
+             start=None):
     """Run a case and return its result dataset (docs/interfaces.md, "Result dataset").
 
     Parameters
@@ -1155,7 +1159,7 @@ def simulate(case, progress=None, should_stop=None, checkpoint=None,
     # overhead and oversubscribe shared cores (measured 3.8x slower in contact phases)
     with _blas_controller().limit(limits=1, user_api="blas"):
         return _simulate(case, progress, should_stop, checkpoint, checkpoint_interval,
-                         resume, observer, extra_force)
+                         resume, observer, extra_force, start)
 
 
 @functools.cache
@@ -1171,7 +1175,7 @@ def _blas_controller():
 
 
 def _simulate(case, progress, should_stop, checkpoint=None, checkpoint_interval=300.0,
-              resume=None, observer=None, extra_force=None):
+              resume=None, observer=None, extra_force=None, start=None):
     from .checkpoint import Checkpoint, CheckpointError, resume_key
     from .results import build_dataset
 
@@ -1181,12 +1185,12 @@ def _simulate(case, progress, should_stop, checkpoint=None, checkpoint_interval=
     every = case.output.every
     n_steps = max(1, int(math.ceil(num.t_end / num.dt - 1e-9)))
     if resume is None:
-        run = RodRun(case, extra_force)
+        run = RodRun(case, extra_force, start)
         times, records = [], []
         diag = {"step_time": [], "step_dt": [], "step_newton_iterations": [],
                 "step_residual_norm": [], "step_growth_rate": [],
                 "step_rejected_attempts": []}
-        first_step, wall_before = 1, 0.0
+        first_step, wall_before = start_step(case, start), 0.0
     else:
         if resume.case_hash != resume_key(case):
             raise CheckpointError("the checkpoint belongs to another case (resume key "
