@@ -118,6 +118,8 @@ class RodRun:
     case : solver.case.Case (validated)
     extra_force : callable(t, run) -> (N+1, 3) or None, optional
         A further global-frame distributed force, N/m (:class:`solver.loads.LoadModel`).
+    start : solver.initial.StartState or None, optional
+        The state to start from (:func:`simulate`); None: the case's initial one.
     """
 
     GROW_AFTER = 3   # accepted substeps at one Δt level before Δt is allowed to grow
@@ -1142,6 +1144,11 @@ def simulate(case, progress=None, should_stop=None, checkpoint=None,
         run's last accepted state, so a state-dependent force is explicit: lagged by one
         step). In-process runs only (the service takes data, never code); with
         ``checkpoint`` it must be picklable (a module-level function).
+    start : solver.initial.StartState or None
+        Start from this state at its time instead of the case's initial configuration
+        (``initial.from_result``; :func:`hockle.io.read_start_state` reads it from an
+        earlier result): the first output is that state, the fixed steps continue from
+        the one after it.
 
     Returns
     -------
