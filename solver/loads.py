@@ -297,6 +297,23 @@ class LoadModel:
         if self.points is not None and len(self.points) == 0:
             self.points = None
 
+    def with_points(self, body, t: float, R=None, left: bool = False):
+        """The body-frame distributed load body (N+1, 3) N/m (or None) with the point
+        loads at time t added as loads per node length, P/w_k at node k (w the nodal
+        quadrature weights, so that Σ w_k B_k·Δx_k is each load's work P·Δx_k): the loads'
+        work and power in ``work_in``/``power_in``. R (N+1, 3, 3): the frames that turn
+        dead loads into the body frame (None: followers only). Returns body itself
+        without point loads."""
+        pts = self.points
+        if pts is None:
+            return body
+        out = np.zeros((self.props.s.size, 3)) if body is None else np.array(body, dtype=float)
+        if R is None and pts.any_dead:
+            return out
+        P = pts.body_values(pts.values(t, left=left), R=R) if pts.any_dead else pts.values(t, left=left)
+        np.add.at(out, pts.nodes, P / self.props.quad_weights[pts.nodes, None])
+        return out
+
     def global_force(self, t: float, left: bool = False):
         """Global-frame distributed force (N+1, 3) N/m at time t, or None if zero.
 

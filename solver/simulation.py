@@ -248,7 +248,8 @@ class RodRun:
         pose = ((quat_to_matrix(self.q), np.zeros((n1, 3)), 0.0)
                 if self.system.needs_pose else None)
         self.F_old, _ = self.system.node_terms(self.Y, False, pose, glob)
-        self.body_force = self._body_force(glob, pose)
+        self.body_force = self.loads.with_points(self._body_force(glob, pose), self.t,
+                                                 None if pose is None else pose[0])
         self.power = end_power(self.Y, props) + distributed_power(self.Y, self.body_force, props)
         self.end_load = end_loads(self.Y, props)
 
@@ -390,6 +391,8 @@ class RodRun:
         am, af = params.alpha_m, params.alpha_f
         glob = sysm._glob_force
         body = self._body_force(glob, None if pose is None else (pose[1],))
+        body = self.loads.with_points(body, t_new, None if pose is None else pose[1],
+                                      left_limit)
         loads, xdot = np.empty((2, 6)), np.empty((2, 6))
         work, power, dphi0, dphi1 = end_work_into(Y, self.Y, float(h), float(g), float(am),
                                                   float(af), self.xdot_end, self.end_load,
@@ -397,8 +400,9 @@ class RodRun:
         self.phi = self.phi + np.array([dphi0, dphi1])
         self.work_in += work
         self.xdot_end, self.end_load = xdot, loads
-        if self.loads.has_global:
-            # distributed global-frame loads: the same per node, with the quadrature weights
+        if self.loads.has_global or self.loads.points is not None:
+            # distributed global-frame loads (and point loads, as loads per node length):
+            # the same per node, with the quadrature weights
             vdot = np.empty_like(self.xdot_nodes)
             none = np.zeros((0, 3))
             work, dpower = distributed_work_into(
