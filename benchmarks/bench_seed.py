@@ -191,7 +191,7 @@ def repeated(k: int, t_end: float = 45.0) -> dict:
 def report(res: dict) -> None:
     print(f"== seed example, {res['n_segments']} segments, Δt = {res['dt']} s, "
           f"to {res['t_reached']:.1f} s ({res['message']})")
-    if "dt_cut_factor" in res:          # results stored before session 8 lack them
+    if "dt_cut_factor" in res:          # results stored by older versions lack them
         print(f"  contact.position_tolerance {res['position_tolerance']} m (None: the "
               f"default), Δt cut by {res['dt_cut_factor']:g} up to {res['max_dt_cuts']} times")
     print(f"  wall time: {res['wall_s']:.1f} s  (bar 120 s: {res['wall_s'] / 120:.2f} of it; "
@@ -217,7 +217,7 @@ def report(res: dict) -> None:
 
 
 #: the comparison run of the section: the contact steps' position error bounded at
-#: 0.3 mm, as the case was in sessions 11-12; the case's 0.05 mm keeps the writhe within
+#: 0.3 mm, as the case was until 2026-11-23; the case's 0.05 mm keeps the writhe within
 #: 1 % of a converged reference over the whole contact phase (0.3 mm: the first loop's
 #: 21-25 s and the wrap phase 1.4 and 1.1 % off; docs/seed-example.md), this shows what
 #: that costs
@@ -292,7 +292,7 @@ def render_section(res: dict, var: dict | None = None) -> str:
                       "contact phase (`benchmarks/seed_accuracy.py`; docs/seed-example.md). "
                       "Second column: the same case with "
                       f"`contact.position_tolerance: {var['position_tolerance']:g}` (as the "
-                      "case was in sessions 11-12: its loop after 21 s and its wrap phase "
+                      "case was until 2026-11-23: its loop after 21 s and its wrap phase "
                       "1.4 and 1.1 % off), for the cost of that accuracy.")
         lines += ["| quantity | as the case is "
                   f"(position error ≤ {1e3 * res['position_tolerance']:g} mm) | "

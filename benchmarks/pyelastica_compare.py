@@ -677,12 +677,12 @@ FULL = {
     # hockle's settings: Δt = 0.01 s and its refinements, and the coarser 0.02 and 0.05 s
     # (a user picks the cheapest step that is accurate enough; an implicit step may be
     # far above PyElastica's stability limit, and contact cuts it where it must); N = 20
-    # and 25 at 0.1 s complete since session 15's end correction (docs/contact.md § 4)
+    # and 25 at 0.1 s complete since the end correction (docs/contact.md § 4)
     "hockle": [(20, 0.1, 3), (25, 0.1, 3), (25, 0.05, 3), (25, 0.02, 3), (25, 0.01, 3),
                (50, 0.05, 3), (50, 0.02, 3), (50, 0.01, 3), (50, 0.005, 1), (100, 0.02, 1),
                (100, 0.01, 1), (100, 0.005, 1), (200, 0.0025, 1)],
     # references one doubling finer than the finest setting, so that every setting's
-    # error is measured (session 14: with n = 200 as PyElastica's reference its n = 100
+    # error is measured (with n = 200 as PyElastica's reference its n = 100
     # was 0.21 % off and the 0.1-% ratio only a bound; against n = 400, n = 200 is
     # 0.11 % off)
     "hockle_ref": (400, 0.00125),

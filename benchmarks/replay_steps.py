@@ -15,7 +15,7 @@ machine's moods; the counts are what to compare first).
 
 A variant is a set of class attributes of :class:`solver.newton.Newton` (the solver's
 tuning constants), e.g. ``CONTACT_BAND_WEIGHT=1.0`` (all node-local contact blocks in the
-preconditioner, the setting before session 4) or ``GAP_KEEP=0.1``.
+preconditioner, the earlier setting) or ``GAP_KEEP=0.1``.
 
 Run: ``python benchmarks/replay_steps.py [--windows 18:21 26:29 34:36 41:44]
 [--variant NAME:ATTR=VALUE[,ATTR=VALUE...]] ...``; without ``--variant`` the baseline and

@@ -22,7 +22,7 @@ the same state with error-controlled steps (``numerics.tolerance`` = {relative: 
 absolute: 1e-6·tol}, first step and dt_max 0.1 s, steps landing on the 0.1-s outputs; the
 estimator's field peaks start from the 18-s state), each once with the route rule's
 tolerance tied to the tolerance (``RodRun.ROUTE_RELATIVE``, the default) and once with the
-search margin's quarter alone ("untied", as before session 6): rows ``tolerance <tol>``
+search margin's quarter alone ("untied", the rule before it followed the tolerance): rows ``tolerance <tol>``
 and ``tolerance <tol> untied``.
 
 With ``--position-tolerances`` (m, default none) the window is also run with
@@ -45,8 +45,8 @@ written to ``seed_accuracy_<t0>-<t1>.json``; ``--fixed-steps`` adds rows at othe
 nominal steps with the case's step control (rows ``nominal <h>``: how the window's error
 converges with the step), ``--windows`` the writhe error of every row over sub-windows
 (``by_window``), and the events include the writhe's first crossings of 1.5 and 2.0 (the
-second collapse, the plies wrapped). The whole contact phase, as in docs/contact.md § 4
-(session 13): ``--t0 18 --t1 45 --tolerances '' --fixed-steps 0.025
+second collapse, the plies wrapped). The whole contact phase, as in docs/contact.md § 4:
+``--t0 18 --t1 45 --tolerances '' --fixed-steps 0.025
 --windows 18-21,21-25,25-26,26-30,30-35,35-45``.
 
 Run: ``python benchmarks/seed_accuracy.py [--t0 18.0] [--t1 21.0] [--quick]

@@ -18,12 +18,12 @@ every smaller Δt run must keep them (so that a Δt that lands by luck does not 
 Printed and written to ``benchmarks/results/seed_tolerance.json``: per run wall time,
 steps, Newton iterations, the events and whether they are kept; the wall-time ratio of the
 cheapest tolerance that keeps the events to the cheapest fixed Δt that does (by the rule),
-and to the fixed 0.1 s. All in one sitting: wall times move by ~15 % between runs on a
+and to the fixed 0.1 s. All in one run of the script: wall times move by ~15 % between runs on a
 shared machine, steps and events do not (``--repeats``).
 
 Run: ``python benchmarks/seed_tolerance.py [--t-end 26] [--recompute-reference]
 [--repeats K]`` (K rounds over all settings, interleaved, wall times their medians; one
-round to 26 s took about 2 min on 2 cores in session 19, plus 20 s for the reference).
+round to 26 s took about 2 min on 2 cores (2026-11-24), plus 20 s for the reference).
 Past ~30 s (the end held) the event |Wr| ≥ 2 is compared too where the reference
 reaches it.
 """

@@ -1,8 +1,14 @@
-"""Your own forces and observers, as in PyElastica: a distributed load written as a Python
+"""Custom loads and callbacks
+============================
+
+Your own forces and observers, as in PyElastica: a distributed load written as a Python
 function, a state-aware load, callbacks at a cadence, and a callback that ends the run.
+
+::
 
     python examples/custom_load_callback.py            # 100 segments
     python examples/custom_load_callback.py --quick    # 30 segments: seconds
+    python examples/custom_load_callback.py --quick --plot   # with the deflections
 
 A twisted rod is pushed sideways by a "finger" (a Gaussian load at mid-span for the first
 second) and rests on an elastic foundation that pulls it back to its axis (a load that reads
@@ -46,9 +52,11 @@ def run(quick: bool, loads: list) -> tuple:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=(__doc__ or "").partition("\n")[0])
     parser.add_argument("--quick", action="store_true", help="30 segments")
+    parser.add_argument("--plot", action="store_true", help="draw a figure (matplotlib)")
     args = parser.parse_args()
+    curves = []
     for label, loads in (("finger only", [finger]),
                          ("finger + foundation", [finger, foundation(2.0)])):
         ds, rec = run(args.quick, loads)
@@ -60,6 +68,16 @@ def main() -> None:
               f"{ds.attrs['hockle_custom_loads']}")
         print("   mid-span deflection (mm) every 0.5 s: "
               + " ".join(f"{1e3 * d:.1f}" for d in deflection))
+        curves.append((label, rec["time"], deflection))
+    if args.plot:
+        import matplotlib.pyplot as plt
+
+        fig, ax = plt.subplots(figsize=(7, 4))
+        for label, t, d in curves:
+            ax.plot(t, 1e3 * d, "o-", label=label)
+        ax.set_xlabel("t (s)")
+        ax.set_ylabel("mid-span deflection (mm)")
+        ax.legend()
 
 
 if __name__ == "__main__":

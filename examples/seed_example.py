@@ -1,9 +1,15 @@
-"""The seed paper's example (Goyal, Perkins & Lee, section 4): a cable in water, twisted at one
+"""The seed example: a twisted cable buckles, loops and writhes
+==============================================================
+
+The seed paper's example (Goyal, Perkins & Lee, section 4): a cable in water, twisted at one
 end while the other slides, buckles, loops and writhes into contact with itself.
+
+::
 
     python examples/seed_example.py            # the paper's resolution: 1000 segments, 45 s
     python examples/seed_example.py --quick    # 50 segments to 22 s: a few seconds
     python examples/seed_example.py -o goyal.nc && hockle plot goyal.nc
+    python examples/seed_example.py --quick --plot   # with a figure of Tw, Wr, Lk and energies
 
 It loads cases/goyal-writhing.yaml, prints the simulated time every 5 s of it (a callback),
 then the run's events: onset of buckling, first contact, each turn of writhe.
@@ -17,13 +23,18 @@ from hockle.api import Callback, simulate
 from service.sweeps import member_events
 from solver import Case
 
-CASE = Path(__file__).resolve().parents[1] / "cases" / "goyal-writhing.yaml"
+try:
+    HERE = Path(__file__).resolve().parent
+except NameError:  # the docs' gallery runs the script from examples/ without __file__
+    HERE = Path.cwd()
+CASE = HERE.parent / "cases" / "goyal-writhing.yaml"
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=(__doc__ or "").partition("\n")[0])
     parser.add_argument("--quick", action="store_true", help="50 segments to 22 s")
     parser.add_argument("-o", "--output", help="write the result dataset (NetCDF) here")
+    parser.add_argument("--plot", action="store_true", help="draw a figure (matplotlib)")
     args = parser.parse_args()
 
     case = Case.from_file(CASE)
@@ -49,6 +60,20 @@ def main() -> None:
         from hockle.io import write_netcdf
 
         print(f"wrote {write_netcdf(ds, args.output)}")
+    if args.plot:
+        import matplotlib.pyplot as plt
+
+        fig, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(7, 6))
+        for name, label in (("twist", "Tw"), ("writhe", "Wr"), ("linking_number", "Lk")):
+            top.plot(t, ds[name], label=label)
+        top.set_ylabel("turns")
+        top.legend()
+        for name in ("energy_torsion", "energy_bending", "energy_kinetic"):
+            bottom.plot(t, ds[name], label=name.removeprefix("energy_"))
+        bottom.set_xlabel("t (s)")
+        bottom.set_ylabel("energy (J)")
+        bottom.legend()
+        top.set_title(f"{case.name}: {case.numerics.n_segments} segments")
 
 
 if __name__ == "__main__":

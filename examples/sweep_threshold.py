@@ -1,9 +1,15 @@
-"""A parameter sweep: when does a twisted rod buckle, against the tension on its end?
+"""A parameter sweep: buckling against end tension
+=================================================
+
+When does a twisted rod buckle, against the tension on its end?
+
+::
 
     python examples/sweep_threshold.py                 # 8 tensions, 100 segments, here
     python examples/sweep_threshold.py --quick         # 3 tensions, 30 segments: seconds
     python examples/sweep_threshold.py --url http://127.0.0.1:8000   # on a hockle service
     python examples/sweep_threshold.py -o sweep.nc && hockle plot sweep.nc
+    python examples/sweep_threshold.py --quick --plot  # with the threshold curve
 
 The base case is a rod turned at one end at a steady rate while its other end slides under a
 tension; the sweep varies the tension (the dotted path boundary.end.translation.2.force).
@@ -34,10 +40,11 @@ def build(quick: bool):
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=(__doc__ or "").partition("\n")[0])
     parser.add_argument("--quick", action="store_true", help="3 tensions, 30 segments")
     parser.add_argument("--url", help="run the members on this hockle service")
     parser.add_argument("-o", "--output", help="write the combined dataset (NetCDF) here")
+    parser.add_argument("--plot", action="store_true", help="draw a figure (matplotlib)")
     args = parser.parse_args()
 
     tensions = [0.0, 0.5, 1.0] if args.quick else list(np.round(np.linspace(0.0, 1.4, 8), 3))
@@ -63,6 +70,17 @@ def main() -> None:
         from hockle.io import write_netcdf
 
         print(f"wrote {write_netcdf(ds, args.output)}")
+    if args.plot:
+        import matplotlib.pyplot as plt
+
+        fig, (left, right) = plt.subplots(1, 2, figsize=(9, 4))
+        left.plot(ds[TENSION], onset, "o-")
+        left.set_xlabel("end tension (N)")
+        left.set_ylabel("buckling onset (s)")
+        right.plot(ds[TENSION], np.abs(lk), "o-")
+        right.set_xlabel("end tension (N)")
+        right.set_ylabel("|Lk| at onset (turns)")
+        fig.tight_layout()
 
 
 if __name__ == "__main__":

@@ -1,17 +1,18 @@
-"""The ``hockle`` command: run, validate and plot cases; serve, worker, submit and db.
+"""The ``hockle`` command: validate, run, plot, animate, export and sweep cases; serve,
+worker, submit and db.
 
-Exit status
------------
-0    success
-1    an internal error, a file that could not be written, or nothing to plot
-2    bad usage or an invalid case (each error printed as ``path: reason``), a result
-     file that cannot be read, or an animation format this machine cannot write
-     (``.mp4`` without ffmpeg)
-3    the solver diverged (``SolverDivergence``); the partial results are written
-4    the run stopped before t_end for another reason (e.g. its wall-clock budget);
-     the partial results are written
-130  interrupted by Ctrl-C; the run stops at the next step and the partial results are
-     written (a second Ctrl-C aborts without writing)
+Exit status::
+
+    0    success
+    1    an internal error, a file that could not be written, or nothing to plot
+    2    bad usage or an invalid case (each error printed as "path: reason"), a result
+         file that cannot be read, or an animation format this machine cannot write
+         (.mp4 without ffmpeg)
+    3    the solver diverged (SolverDivergence); the partial results are written
+    4    the run stopped before t_end for another reason (e.g. its wall-clock budget);
+         the partial results are written
+    130  interrupted by Ctrl-C; the run stops at the next step and the partial results
+         are written (a second Ctrl-C aborts without writing)
 """
 from __future__ import annotations
 
@@ -20,6 +21,7 @@ import importlib
 import math
 import signal
 import sys
+import textwrap
 import threading
 import time
 from pathlib import Path
@@ -218,6 +220,41 @@ def _write(ds: Any, out: Path) -> bool:
     return True
 
 
+def _kernels_cached() -> bool:
+    """Whether numba's on-disk cache holds compiled solver kernels. Importing
+    :mod:`solver` first purges a cache written for other sources
+    (``solver/_kernel_cache.py``), so after an installation or a change of the solver's
+    sources this is False until the kernels have been compiled once."""
+    import os
+
+    import solver
+
+    root = Path(solver.__file__).resolve().parent
+    dirs = list(root.rglob("__pycache__"))
+    user = os.environ.get("NUMBA_CACHE_DIR")
+    if user and Path(user).is_dir():
+        dirs.append(Path(user))
+    return any(next(d.rglob("*.nbi"), None) is not None for d in dirs)
+
+
+def _compile_kernels_first(quiet: bool) -> None:
+    """Compile the solver's kernels up front, saying so, when none are cached: otherwise
+    the first run's progress bar would stand still at step 0 for a minute or more while
+    numba compiles them at their first call."""
+    if _kernels_cached():
+        return
+    from solver.compiled import warm_up
+
+    if not quiet:
+        _err("hockle: compiling the solver's kernels (once after installing or changing "
+             "the solver; about a minute, longer on a busy machine) ...")
+    t0 = time.perf_counter()
+    warm_up()
+    if not quiet:
+        _err(f"hockle: kernels compiled in {time.perf_counter() - t0:.0f} s; later runs "
+             "load them from the cache")
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     case = _load_case(args.case)
     if case is None:
@@ -260,6 +297,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         except OSError as exc:
             _err(f"hockle: cannot write checkpoint {ck_path}: {exc}")
 
+    _compile_kernels_first(args.quiet)
     wall0 = time.perf_counter()
     # The handler stays in place while the result is written, so a Ctrl-C then does not
     # tear the write apart (write_netcdf is atomic in any case).
@@ -381,6 +419,42 @@ def cmd_animate(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+# --------------------------------------------------------------------------- export
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from hockle.export import ExportError, export_vtk
+    from hockle.io import open_result
+
+    path = Path(args.result)
+    out = Path(args.output) if args.output else path.with_suffix(".pvd")
+    try:
+        ds = open_result(path)
+    except (OSError, ValueError) as exc:
+        _err(f"hockle: cannot read {path}: {exc}")
+        return EXIT_INVALID
+    reported = [-1]
+
+    def progress(done: int, total: int) -> None:
+        decile = (10 * done) // total
+        if decile > reported[0]:
+            reported[0] = decile
+            _err(f"hockle: export: frame {done}/{total}")
+
+    try:
+        files = export_vtk(ds, out, stride=args.stride, window=args.times,
+                           progress=None if args.quiet else progress)
+    except ExportError as exc:
+        _err(f"hockle: cannot export {path}: {exc}")
+        return EXIT_INVALID
+    except OSError as exc:
+        _err(f"hockle: cannot write {out}: {exc}")
+        return EXIT_ERROR
+    print(f"{files[0]} ({len(files) - (out.suffix == '.pvd')} frame"
+          f"{'s' if len(files) > 2 else ''})")
+    return EXIT_OK
+
+
 # --------------------------------------------------------------------------- parser
 
 
@@ -419,13 +493,19 @@ def build_parser() -> tuple[argparse.ArgumentParser, str | None]:
         prog="hockle",
         description="Dynamics of twisted elastic rods with self-contact "
         "(Goyal, Perkins & Lee).",
-        epilog=__doc__.split("Exit status", 1)[1].join(["Exit status", ""]),
+        epilog="Exit status:\n" + textwrap.dedent(__doc__.split("Exit status::", 1)[1]).strip(),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"hockle {_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
 
-    p = sub.add_parser("validate", help="check a case file and summarise it")
+    p = sub.add_parser(
+        "validate", help="check a case file and summarise it",
+        description="Check a case file against the case spec (schema_version 1) without "
+        "running it: every bad field is printed as 'path: reason' (an unknown field with "
+        "the fields allowed there) and the exit status is 2; a valid case prints its grid, "
+        "steps and spec hash.",
+    )
     p.add_argument("case", metavar="CASE", help="case spec, .yaml/.yml or .json")
     p.set_defaults(func=cmd_validate)
 
@@ -513,6 +593,26 @@ def build_parser() -> tuple[argparse.ArgumentParser, str | None]:
                    "window")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=cmd_animate)
+
+    p = sub.add_parser(
+        "export",
+        help="a VTK time series (.pvd + .vtu frames) of the rod for ParaView",
+        description="Write a result file as a ParaView data collection: one VTK file per "
+        "output time with the centreline as line cells and every per-node field (v, "
+        "omega, f, kappa, moment, orientation, s) as point data. Open the .pvd in "
+        "ParaView (a Tube filter draws the cable).",
+    )
+    p.add_argument("result", metavar="OUT.nc", help="result file written by hockle run")
+    p.add_argument("-o", "--output", metavar="FILE.pvd",
+                   help="collection to write; the frames go to <stem>/ beside it (default: "
+                   "<result stem>.pvd next to the result; FILE.vtu writes the first frame "
+                   "only)")
+    p.add_argument("--stride", type=int, default=1, metavar="K",
+                   help="every K-th output time, the last one included (default 1: all)")
+    p.add_argument("--times", nargs=2, type=float, metavar=("T0", "T1"),
+                   help="only the outputs with T0 <= t <= T1 (s)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(func=cmd_export)
 
     from hockle import sweep_command
 

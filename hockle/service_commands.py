@@ -45,7 +45,7 @@ def register(subparsers) -> None:
         "submit", help="submit a case to a running service",
         description="Submit a case file to a hockle service; with --wait, follow its progress.",
     )
-    p.add_argument("case", help="case file (.yaml, .yml or .json)")
+    p.add_argument("case", metavar="CASE", help="case spec, .yaml/.yml or .json")
     p.add_argument("--url", default=None,
                    help="service base URL (default HOCKLE_PUBLIC_URL or http://HOST:PORT)")
     p.add_argument("--api-key", default=None, metavar="KEY",
@@ -53,22 +53,29 @@ def register(subparsers) -> None:
                    "HOCKLE_API_KEY, which other users of the machine cannot see in the process "
                    "list as they can an argument)")
     p.add_argument("--wait", action="store_true", help="wait for the job, printing progress")
-    p.add_argument("-o", "--output", default=None,
+    p.add_argument("-o", "--output", default=None, metavar="OUT.nc",
                    help="with --wait: save the NetCDF result here (partial results too)")
-    p.add_argument("--idempotency-key", default=None, help="makes a retried submit safe")
+    p.add_argument("--idempotency-key", default=None, metavar="ID",
+                   help="any string naming this submission: a retried submit with the same "
+                   "ID returns the same job instead of a second one")
     p.add_argument("--fresh", action="store_true",
                    help="run even if an identical case already succeeded")
     p.add_argument("--time-limit", type=float, default=None, metavar="S",
                    help="hard time limit of the job in seconds, up to the service's "
                    "HOCKLE_TIME_LIMIT_MAX (default: derived from the case's size and contact)")
-    p.add_argument("--timeout", type=float, default=None, help="with --wait: give up after S s")
-    p.add_argument("--poll", type=float, default=1.0, help="seconds between status polls")
+    p.add_argument("--timeout", type=float, default=None, metavar="S",
+                   help="with --wait: give up after S seconds (default: wait as long as it "
+                   "takes)")
+    p.add_argument("--poll", type=float, default=1.0, metavar="S",
+                   help="with --wait: seconds between status polls (default 1)")
     p.set_defaults(func=submit)
 
     p = subparsers.add_parser(
         "db", help="the job registry's schema migrations (current, upgrade, check, ...)",
-        description=db_cli.__doc__.split("\n\n")[0] + " See docs/service.md, Schema "
-                    "migrations.",
+        description=db_cli.__doc__.split("\n\n")[0].replace("``", "") + " See "
+                    "docs/service.md, Schema migrations.",
+        epilog="\n\n".join(db_cli.__doc__.split("\n\n")[1:]).replace("``", ""),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     db_cli.add_arguments(p)
     p.set_defaults(func=db)

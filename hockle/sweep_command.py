@@ -3,15 +3,18 @@
     hockle sweep BASE --set PATH=v1,v2,... [--set PATH=...] [--zip] [-o sweep.nc]
                       [--fields position,kappa] [--workers N]                  # here
     hockle sweep BASE --set ... --url URL [--wait] [-o sweep.nc] [--fresh]
-                      [--time-limit S] [--api-key K]                          # on a service
+                      [--time-limit S] [--api-key KEY]                        # on a service
 
 A value list is comma-separated (each value read as JSON, else kept as text), a range
 ``start:stop:count`` (``count`` values from ``start`` to ``stop``, both included) or a JSON
 list (``[0, {"t": [0, 1], "value": [0, 2]}]``).
 
+A path given one value (``--set numerics.n_segments=100``) is set in every member instead
+of becoming an axis of one value.
+
 Exit status: 0 every member succeeded (or, with --url and no --wait, the sweep was
 accepted); 1 some members failed or stopped (the combined file is still written, with
-``member_status``); 2 an invalid sweep or case (each problem printed as ``path: reason``);
+its member_status); 2 an invalid sweep or case (each problem printed as "path: reason");
 3 the sweep was dismissed; 4 the service cannot be reached.
 """
 from __future__ import annotations
@@ -23,7 +26,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-__all__ = ["register", "parse_values", "parse_sets", "cmd_sweep"]
+__all__ = ["register", "parse_values", "parse_sets", "split_fixed", "cmd_sweep"]
 
 
 def _err(msg: str) -> None:
@@ -75,6 +78,32 @@ def parse_sets(items: list[str]) -> dict[str, list]:
     return out
 
 
+def split_fixed(parameters: dict[str, list]) -> tuple[dict[str, list], dict[str, Any]]:
+    """``(varied, fixed)``: a path given one value is a fixed override of the base case for
+    every member, not an axis of the sweep (an axis of one value would make the threshold
+    map a stack of one-row maps). When no path has more than one value, all stay as they
+    are: a sweep of one member."""
+    varied = {p: v for p, v in parameters.items() if len(v) > 1}
+    if not varied:
+        return dict(parameters), {}
+    return varied, {p: v[0] for p, v in parameters.items() if len(v) == 1}
+
+
+def _base_with(base: str, fixed: dict[str, Any]) -> Any:
+    """The base case file, or its document with the fixed overrides set (raises
+    service.sweeps.SweepError for a path that cannot be followed, OSError/ValueError for
+    a file that cannot be read)."""
+    if not fixed:
+        return base
+    from service.client import case_document
+    from service.sweeps import set_path
+
+    doc = case_document(base)
+    for path, value in fixed.items():
+        set_path(doc, path, value)
+    return doc
+
+
 def register(subparsers) -> None:
     """Add ``sweep`` to the ``hockle`` command's subparsers."""
     p = subparsers.add_parser(
@@ -91,7 +120,8 @@ def register(subparsers) -> None:
     p.add_argument("--set", dest="sets", action="append", default=[], metavar="PATH=VALUES",
                    required=True,
                    help="a dotted path into the case (list indices as numbers) and its values: "
-                   "v1,v2,... or start:stop:count or a JSON list; repeat for more paths")
+                   "v1,v2,... or start:stop:count or a JSON list; repeat for more paths. A "
+                   "path given one value is set in every member, not swept")
     p.add_argument("--zip", action="store_true",
                    help="pair the i-th values of every --set instead of every combination")
     p.add_argument("-o", "--output", metavar="OUT.nc",
@@ -103,7 +133,7 @@ def register(subparsers) -> None:
     p.add_argument("--workers", type=int, default=None, metavar="N",
                    help="here: processes (default: as many as cores)")
     p.add_argument("--url", default=None, help="run on this hockle service instead")
-    p.add_argument("--api-key", default=None,
+    p.add_argument("--api-key", default=None, metavar="KEY",
                    help="with --url: the service's API key (default HOCKLE_API_KEY)")
     p.add_argument("--wait", action="store_true",
                    help="with --url: wait for every member, printing progress")
@@ -111,8 +141,11 @@ def register(subparsers) -> None:
                    help="with --url: run members even if an identical case succeeded before")
     p.add_argument("--time-limit", type=float, default=None, metavar="S",
                    help="with --url: hard time limit of each member job, s")
-    p.add_argument("--timeout", type=float, default=None, help="with --wait: give up after S s")
-    p.add_argument("--poll", type=float, default=1.0, help="seconds between status polls")
+    p.add_argument("--timeout", type=float, default=None, metavar="S",
+                   help="with --wait: give up after S seconds (default: wait as long as it "
+                   "takes)")
+    p.add_argument("--poll", type=float, default=1.0, metavar="S",
+                   help="with --wait: seconds between status polls (default 1)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=cmd_sweep)
 
@@ -130,11 +163,25 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     except ValueError as exc:
         _err(f"hockle sweep: {exc}")
         return 2
+    parameters, fixed = split_fixed(parameters)
+    try:
+        from service.sweeps import SweepError
+
+        base = _base_with(args.base, fixed)
+    except SweepError as exc:
+        _print_errors(exc.errors, f"hockle sweep: {exc.detail}")
+        return 2
+    except (OSError, ValueError) as exc:
+        _err(f"hockle sweep: cannot read {args.base}: {exc}")
+        return 2
+    if fixed and not args.quiet:
+        _err("hockle sweep: for every member (one value, not an axis): "
+             + ", ".join(f"{p} = {json.dumps(v)}" for p, v in fixed.items()))
     combine = "zip" if args.zip else "grid"
     fields = [f.strip() for f in args.fields.split(",") if f.strip()]
     if args.url:
-        return _on_service(args, parameters, combine, fields)
-    return _here(args, parameters, combine, fields)
+        return _on_service(args, base, parameters, combine, fields)
+    return _here(args, base, parameters, combine, fields)
 
 
 def _exit_for(states: list[str], dismissed: bool = False) -> int:
@@ -143,7 +190,7 @@ def _exit_for(states: list[str], dismissed: bool = False) -> int:
     return 0 if all(s == "successful" for s in states) else 1
 
 
-def _here(args, parameters, combine, fields) -> int:
+def _here(args, base, parameters, combine, fields) -> int:
     import os
 
     from hockle.api import sweep
@@ -161,7 +208,7 @@ def _here(args, parameters, combine, fields) -> int:
                  f"{time.perf_counter() - t0:.1f} s")
 
     try:
-        ds = sweep(args.base, parameters, combine, workers=workers, fields=fields,
+        ds = sweep(base, parameters, combine, workers=workers, fields=fields,
                    on_member=show)
     except SweepError as exc:
         _print_errors(exc.errors, f"hockle sweep: {exc.detail}")
@@ -184,14 +231,14 @@ def _here(args, parameters, combine, fields) -> int:
     return _exit_for(states)
 
 
-def _on_service(args, parameters, combine, fields) -> int:
+def _on_service(args, base, parameters, combine, fields) -> int:
     import httpx
 
     from service.client import HockleAPIError, HockleClient
 
     try:
         with HockleClient(args.url, api_key=args.api_key) as client:
-            status = client.sweep(args.base, parameters, combine=combine, fresh=args.fresh,
+            status = client.sweep(base, parameters, combine=combine, fresh=args.fresh,
                                   time_limit=args.time_limit)
             print(f"sweep {status.id} {status.state}: {len(status.members)} members "
                   f"({client.base_url}/v1/sweeps/{status.id})")

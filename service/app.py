@@ -85,10 +85,13 @@ def create_app(settings: Settings | None = None, *, enqueuer: Enqueuer | None = 
     app.state.auth_enabled = bool(api_keys)
     install_handlers(app)
     install_docs(app)
+    from .dashboard import UI_URL, install_dashboard
+
     app.add_middleware(
         AuthMiddleware, keys=api_keys, rate=settings.rate_limit, burst=settings.rate_limit_burst,
-        public_paths=("/v1/health", app.openapi_url, DOCS_URL, REDOC_URL, OAUTH2_REDIRECT_URL),
-        public_prefixes=(ASSETS_URL + "/",))
+        public_paths=("/v1/health", app.openapi_url, DOCS_URL, REDOC_URL, OAUTH2_REDIRECT_URL,
+                      UI_URL),
+        public_prefixes=(ASSETS_URL + "/", UI_URL + "/"))
 
     from .routers import health, jobs, results, sweeps
 
@@ -96,6 +99,7 @@ def create_app(settings: Settings | None = None, *, enqueuer: Enqueuer | None = 
     app.include_router(results.router, prefix="/v1")
     app.include_router(sweeps.router, prefix="/v1")
     app.include_router(health.router, prefix="/v1")
+    install_dashboard(app)  # /ui/ (static, public) and its /v1/ui routes
     app.openapi = lambda: _openapi(app)  # type: ignore[method-assign]
     return app
 

@@ -6,11 +6,11 @@ its path (``rod.youngs_modulus``) and say what is allowed; unknown fields list t
 from __future__ import annotations
 
 import json
-import types
-import typing
-from typing import Any, Union
+from typing import Any
 
-from pydantic import BaseModel, ValidationError
+from pydantic import ValidationError
+
+from solver.case import allowed_fields  # noqa: F401  (its home is solver.case)
 
 from .problems import ProblemError
 
@@ -89,12 +89,7 @@ def validate_case(data: Any, max_case_size: int):
     try:
         case = Case.model_validate(data)
     except ValidationError as exc:
-        errors = format_validation_errors(exc)
-        for raw, err in zip(exc.errors(include_url=False), errors):
-            if err["type"] == "extra_forbidden":
-                allowed = allowed_fields(Case, raw.get("loc", ())[:-1])
-                if allowed:
-                    err["msg"] = f"{err['msg']}; allowed here: {', '.join(allowed)}"
+        errors = format_validation_errors(exc)   # unknown fields list the allowed ones
         raise ProblemError(422, "invalid-case", "Invalid case spec",
                            f"{len(errors)} field(s) of the case spec are not valid",
                            errors=errors) from None
@@ -116,38 +111,3 @@ def validate_case(data: Any, max_case_size: int):
         ])
     return case
 
-
-def allowed_fields(model: type[BaseModel], loc: tuple) -> list[str]:
-    """Field names of the model(s) found at ``loc`` inside ``model`` (best effort)."""
-    candidates: list[type[BaseModel]] = [model]
-    for part in loc:
-        if isinstance(part, int):
-            continue
-        following: list[type[BaseModel]] = []
-        for cand in candidates:
-            field = cand.model_fields.get(part)
-            if field is not None:
-                following.extend(_models_in(field.annotation))
-        if following:
-            candidates = following
-        # an unmatched part is a union tag (e.g. 'function-wrap[...]'): stay on the candidates
-    names: list[str] = []
-    for cand in candidates:
-        for name in cand.model_fields:
-            if name not in names:
-                names.append(name)
-    return names
-
-
-def _models_in(annotation: Any) -> list[type[BaseModel]]:
-    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
-        return [annotation]
-    origin = typing.get_origin(annotation)
-    if origin is typing.Annotated:
-        return _models_in(typing.get_args(annotation)[0])
-    if origin in (Union, types.UnionType, list, tuple, typing.Union):
-        found: list[type[BaseModel]] = []
-        for arg in typing.get_args(annotation):
-            found.extend(_models_in(arg))
-        return found
-    return []

@@ -9,7 +9,14 @@ API process does) does not import the numerics.
 """
 from __future__ import annotations
 
-__version__ = "0.1.0"
+from importlib.metadata import PackageNotFoundError as _NotInstalled
+from importlib.metadata import version as _dist_version
+
+try:
+    # written once, in pyproject.toml; the installed distribution's metadata carries it
+    __version__ = _dist_version("hockle")
+except _NotInstalled:  # pragma: no cover - a source tree that was never installed
+    __version__ = "0+unknown"
 
 import os as _os
 import sys as _sys
@@ -22,8 +29,8 @@ if "NUMBA_THREADING_LAYER" not in _os.environ:
     # numba's own work queue for the parallel kernels (the writhe's pair sum): unlike
     # GNU OpenMP, which numba picks where libgomp is installed, it survives a fork, and
     # the service's Celery pool and the sweeps' process pool fork after the parent has
-    # run them (session 17: every job of an OpenMP-warmed worker ended in "fork() called
-    # from a process already using GNU OpenMP"). Set before numba reads its environment
+    # run them (with OpenMP every job of a warmed worker ended in "fork() called from a
+    # process already using GNU OpenMP"). Set before numba reads its environment
     # (numba is not imported here: the service's API process never loads the numerics)
     _os.environ["NUMBA_THREADING_LAYER"] = "workqueue"
     if "numba" in _sys.modules:

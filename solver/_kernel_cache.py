@@ -4,7 +4,7 @@ numba keys a cached kernel (``cache=True``) on its own source file only. A kerne
 calls a kernel of another module (the residual calls the contact evaluation, Newton
 calls the residual) compiles the callee into itself, so after the callee's file changes
 the caller's cache still holds the old callee: it loads and runs stale machine code
-(session 17: an out-of-bounds loop fixed in ``solver/contact/model.py`` went on running
+(seen once: an out-of-bounds loop fixed in ``solver/contact/model.py`` went on running
 inside ``solver/scheme.py``'s cached residual). :func:`purge_stale` fingerprints every
 source file of the package and deletes the package's cache files (``*.nbi``, ``*.nbc``
 in its ``__pycache__`` folders, and under ``NUMBA_CACHE_DIR`` when that is set) when the

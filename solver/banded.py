@@ -17,7 +17,7 @@ s = L (12 × 12). The pivots are those of LAPACK's band LU (``dgbtrf``: partial 
 over the rows that have an entry in the column, the first of equal maxima), with a third
 of its flops: per node ~5,300 against ~14,000 (measured at N = 1000: 1.0 ms against
 2.9 ms for the assembly and ``dgbtrf``, the solve 0.26 ms against 0.39 ms for
-``dgbtrs``; session 17). The elimination order and pivots being the band LU's, so is
+``dgbtrs``; 2026-11-23, 2 cores). The elimination order and pivots being the band LU's, so is
 its stability (Golub & Van Loan, *Matrix Computations*, § 4.3 on band LU with partial
 pivoting).
 

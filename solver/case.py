@@ -173,8 +173,52 @@ def format_validation_errors(exc: ValidationError) -> list[dict]:
         etype = str(err.get("type", "value_error"))
         if etype == "extra_forbidden":
             msg = "unknown field (not part of case spec schema v1)"
+            if getattr(exc, "title", None) == "Case":
+                allowed = allowed_fields(Case, tuple(err.get("loc", ()))[:-1])
+                if allowed:
+                    msg += f"; allowed here: {', '.join(allowed)}"
         result.append({"loc": format_loc(err.get("loc", ())), "msg": msg, "type": etype})
     return result
+
+
+def allowed_fields(model: type, loc: tuple) -> list[str]:
+    """Field names of the model(s) found at ``loc`` (a pydantic error location, e.g.
+    ``("rod",)``) inside ``model`` (best effort: through unions, lists and Annotated)."""
+    candidates: list[type] = [model]
+    for part in loc:
+        if isinstance(part, int):
+            continue
+        following: list[type] = []
+        for cand in candidates:
+            field = cand.model_fields.get(part)
+            if field is not None:
+                following.extend(_models_in(field.annotation))
+        if following:
+            candidates = following
+        # an unmatched part is a union tag (e.g. 'function-wrap[...]'): stay on the candidates
+    names: list[str] = []
+    for cand in candidates:
+        for name in cand.model_fields:
+            if name not in names:
+                names.append(name)
+    return names
+
+
+def _models_in(annotation: Any) -> list[type]:
+    import types
+    import typing
+
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return [annotation]
+    origin = typing.get_origin(annotation)
+    if origin is typing.Annotated:
+        return _models_in(typing.get_args(annotation)[0])
+    if origin in (Union, types.UnionType, list, tuple, typing.Union):
+        found: list[type] = []
+        for arg in typing.get_args(annotation):
+            found.extend(_models_in(arg))
+        return found
+    return []
 
 
 class CaseError(ValueError):

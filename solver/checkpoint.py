@@ -1,7 +1,8 @@
 """Checkpoints of a run: everything :func:`solver.simulate` needs to continue bit for bit.
 
-A :class:`Checkpoint` holds the :class:`~solver.simulation.RodRun` (state, step control,
-Newton's factorisation and counters), the output records and step diagnostics kept so far,
+A :class:`Checkpoint` holds the run (:class:`solver.run.RodRun`: its state, step control,
+Newton's factorisation and counters, pickled whole, so that this module needs to know
+nothing of the step logic and imports nothing of the solver), the output records and step diagnostics kept so far,
 the number of accepted steps, and the case it belongs to. :meth:`Checkpoint.dumps` /
 :meth:`Checkpoint.loads` turn it into bytes and back; the solver itself does no I/O: the
 caller of ``simulate(..., checkpoint=...)`` decides where the bytes go (``hockle run
@@ -50,11 +51,11 @@ class Checkpoint:
         :func:`resume_key` of the run's case; a resume with another case is refused.
     step : int
         Accepted (nominal or error-controlled) steps so far.
-    run : solver.simulation.RodRun
+    run : solver.run.RodRun
     times : list of float
         Output times so far, s.
     records : list of dict
-        Output records so far (``RodRun.snapshot``).
+        Output records so far (:func:`solver.recording.snapshot`).
     diag : dict of lists
         Per-step diagnostics so far (``step_time``, ``step_dt``, ...).
     wall_time : float
@@ -114,9 +115,9 @@ class Checkpoint:
         if not isinstance(obj, cls):
             raise CheckpointError("checkpoint does not hold a run")
         if case is not None:
-            from .simulation import RodRun
-
-            missing = sorted(_layout(RodRun(case)) - _layout(obj.run))
+            # a fresh run of the case, of the class the pickle names: what this code's
+            # runs hold
+            missing = sorted(_layout(type(obj.run)(case)) - _layout(obj.run))
             if missing:
                 raise CheckpointError("the checkpoint was written by another version of the "
                                       f"solver (its state lacks {', '.join(missing[:4])}"
@@ -126,12 +127,19 @@ class Checkpoint:
 
 
 def _layout(run) -> set:
-    """``Class.attribute`` names of a run and the objects it holds (loads, system, Newton,
-    contact, error control): what a checkpoint must provide to continue."""
+    """``Class.attribute`` names of a run and of the solver objects it holds, two levels
+    deep (its state, step control, loads, system, Newton, contact, error control ...):
+    what a checkpoint must provide to continue."""
     names = set()
-    for obj in (run, getattr(run, "loads", None), getattr(run, "system", None),
-                getattr(run, "newton", None), getattr(run, "contact", None),
-                getattr(run, "errctl", None)):
-        if obj is not None and hasattr(obj, "__dict__"):
+    level = [run]
+    for _ in range(3):
+        deeper = []
+        for obj in level:
+            if obj is None or not hasattr(obj, "__dict__"):
+                continue
             names.update(f"{type(obj).__name__}.{key}" for key in vars(obj))
+            deeper += [v for v in vars(obj).values()
+                       if type(v).__module__.startswith("solver.") and hasattr(v, "__dict__")
+                       and v is not run]
+        level = deeper
     return names

@@ -31,28 +31,11 @@ def warm_up() -> None:
     from .contact import point_curve, point_segment, smoothstep_off, swept_min_distance
     from .contact.geometry import ALL_PAIRS_NODES, close_node_pairs, run_minima
     from .kinematics import quat_slerp, right_jacobian
-    from .simulation import RodRun
+    from .run import RodRun
     from .energies import energies
     from .topology import PARALLEL_SEGMENTS, twist, writhe
 
-    spec = {
-        "schema_version": 1, "name": "warm-up",
-        "rod": {"length": 1.0, "youngs_modulus": 1.25e7, "shear_modulus": 5.0e6,
-                "density": 1500.0, "diameter": 0.02},
-        "fluid": {"density": 1000.0, "added_mass_coefficient": 1.0,
-                  "drag_coefficient_normal": 1.2, "drag_coefficient_tangential": 0.02},
-        "distributed_forces": [{"value": [1e-5, 0.0, 0.0], "start": 0.0, "end": 1.0}],
-        "boundary": {
-            "start": {"translation": [{"velocity": 0}] * 3,
-                      "rotation": [{"angular_velocity": 0}, {"angular_velocity": 0},
-                                   {"angular_velocity": 1.0}]},
-            "end": {"translation": [{"velocity": 0}, {"velocity": 0}, {"force": 0}],
-                    "rotation": [{"angular_velocity": 0}] * 3}},
-        "contact": {"aperture": 180.0, "tolerance": 0.04, "k1": 1e-7, "k2": 3.0,
-                    "k3": 1e-6, "k4": 1.0},
-        "numerics": {"n_segments": 8, "dt": 0.01, "t_end": 0.03, "growth_guard": 0.5},
-    }
-    run = RodRun(Case.model_validate(spec))
+    run = RodRun(Case.model_validate(_warm_up_spec()))
     for k in range(1, 4):
         run.advance(0.01 * k)
     # a contact-coupled solve (candidates by hand: the contact kernels and GMRES)
@@ -103,3 +86,25 @@ def warm_up() -> None:
     law.repulsion(d - 0.02)
     law.cutoff(np.full(2, 0.02))
     smoothstep_off(d, np.full(2, 0.02), np.full(2, 0.04))
+
+
+def _warm_up_spec() -> dict:
+    """The small case :func:`warm_up` runs: 8 segments with fluid, a distributed force,
+    a twisted start, a sliding end, self-contact and the growth guard."""
+    return {
+        "schema_version": 1, "name": "warm-up",
+        "rod": {"length": 1.0, "youngs_modulus": 1.25e7, "shear_modulus": 5.0e6,
+                "density": 1500.0, "diameter": 0.02},
+        "fluid": {"density": 1000.0, "added_mass_coefficient": 1.0,
+                  "drag_coefficient_normal": 1.2, "drag_coefficient_tangential": 0.02},
+        "distributed_forces": [{"value": [1e-5, 0.0, 0.0], "start": 0.0, "end": 1.0}],
+        "boundary": {
+            "start": {"translation": [{"velocity": 0}] * 3,
+                      "rotation": [{"angular_velocity": 0}, {"angular_velocity": 0},
+                                   {"angular_velocity": 1.0}]},
+            "end": {"translation": [{"velocity": 0}, {"velocity": 0}, {"force": 0}],
+                    "rotation": [{"angular_velocity": 0}] * 3}},
+        "contact": {"aperture": 180.0, "tolerance": 0.04, "k1": 1e-7, "k2": 3.0,
+                    "k3": 1e-6, "k4": 1.0},
+        "numerics": {"n_segments": 8, "dt": 0.01, "t_end": 0.03, "growth_guard": 0.5},
+    }

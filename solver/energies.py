@@ -106,7 +106,7 @@ def end_work_into(Y, Y_old, h, gamma, am, af, xdot_old, load_old, stiffness, xdo
     increments Δx = h((1 − γ) ẋ^n + γ ẋ^{n+1}). Returns (the work put in over the step,
     Σ ½(F^n + F^{n+1})·Δx (J); the end power Σ F^{n+1}·y^{n+1} (W); Δφ at s = 0 and at
     s = L (rad), the a3 components of Δx). Y, Y_old (N+1, 12); stiffness (N+1, 3).
-    The one home of the end terms of :meth:`solver.simulation.RodRun.try_step`."""
+    The one home of the end terms of :meth:`solver.run.RodRun.try_step`."""
     work = 0.0
     power = 0.0
     dphi0 = 0.0

@@ -4,7 +4,7 @@ The difference equations of a step (:class:`solver.scheme.RodSystem`) are solved
 12(N+1) unknowns at once. The whole iteration of a step is one compiled kernel
 (:func:`_newton_kernel`): residual and Jacobian (:func:`solver.scheme.residual_into`,
 contact included), equilibration, the Jacobian's LU, GMRES with the exact operator, the
-feasibility filter and the line search, with no Python between them (session 17: a
+feasibility filter and the line search, with no Python between them (measured: a
 Newton iteration of PyElastica's plectoneme at N = 20 made ~840 Python-level calls,
 docs/contact.md § 4). The strategy, in one place:
 
@@ -29,7 +29,7 @@ docs/contact.md § 4). The strategy, in one place:
 * **Fail fast.** A contact step that halves its residual less than once in four
   iterations, whose corrections are cut to 1/64 three times, or whose GMRES does not
   converge even with a fresh factorisation, fails at once: the step control
-  (:mod:`solver.simulation`) cuts Δt.
+  (:mod:`solver.stepping.control`) cuts Δt.
 """
 from __future__ import annotations
 
@@ -268,7 +268,7 @@ def _dot(a, b):
     """a · b for (n,) arrays. Reassociation allowed (only here) so that the sum is
     vectorised: a single accumulator waits on each addition's latency (9.9 against 2.0 µs
     at n = 12,012; GMRES's Gram-Schmidt takes ~100 of these per solve at the seed
-    example's 1000 segments; session 17). No NaN or infinity assumptions: a non-finite
+    example's 1000 segments). No NaN or infinity assumptions: a non-finite
     product still propagates."""
     acc = 0.0
     for i in range(a.shape[0]):
@@ -425,7 +425,7 @@ def _feasible_fraction(Y, delta, gap_keep, buf, ev, fresh, step, rod, cand, cdat
     against. The current positions are those of the last residual evaluation (at Y);
     ``fresh``: that evaluation selected afresh, so its per-run gaps (ev[14]) are the
     current gaps and are not computed again (0.6 of a contact Newton iteration's ~8 ms at
-    the seed example's 1000 segments; session 17)."""
+    the seed example's 1000 segments)."""
     Yt, g0, g1 = ws[1], ws[6], ws[7]
     nr = cand[2].shape[0]
     g0 = g0[:nr]

@@ -436,8 +436,20 @@ def build_dataset(
         Unknown status, field or diagnostic; a shape that does not match; non-numeric
         values; an attribute that is neither a string nor a number.
     """
-    from solver import __version__
+    _check_inputs(status, s, times, fields, diagnostics)
+    s = np.asarray(s, dtype=np.float64)
+    times = np.asarray(times, dtype=np.float64)
+    data_vars = _field_variables(fields, times.size, s.size)
+    used = {d for var in data_vars.values() for d in var.dims}
+    coords = _coordinates(times, s, used)
+    if diagnostics:
+        _diagnostic_variables(diagnostics, coords, data_vars)
+    global_attrs = _global_attributes(case, s.size, times, status, message, attrs)
+    return xr.Dataset(data_vars=data_vars, coords=coords, attrs=global_attrs)
 
+
+def _check_inputs(status, s, times, fields, diagnostics) -> None:
+    """The checks of :func:`build_dataset`'s arguments; raises ValueError with the reason."""
     if status not in STATUSES:
         raise ValueError(f"status must be one of {STATUSES}, got {status!r}")
     s = np.asarray(s, dtype=np.float64)
@@ -455,9 +467,12 @@ def build_dataset(
             f"unknown diagnostic(s) {unknown}; known: {sorted(DIAGNOSTIC_VARIABLES)}"
         )
 
-    n_t, n_s = times.size, s.size
-    sizes = {"time": n_t, "s": n_s, "component": 3, "xyz": 3, "quaternion": 4}
 
+def _field_variables(fields: Mapping[str, np.ndarray], n_t: int,
+                     n_s: int) -> dict[str, xr.Variable]:
+    """The (time, ...) field variables of :func:`build_dataset` with their CF attributes
+    and compression encoding; raises ValueError for a shape that does not match."""
+    sizes = {"time": n_t, "s": n_s, "component": 3, "xyz": 3, "quaternion": 4}
     data_vars: dict[str, xr.Variable] = {}
     for name, values in fields.items():
         dims, units, long_name, comment = FIELD_VARIABLES[name]
@@ -475,8 +490,12 @@ def build_dataset(
         var = xr.Variable(dims, arr, var_attrs)
         var.encoding = _encoding(arr, dims)
         data_vars[name] = var
+    return data_vars
 
-    used = {d for var in data_vars.values() for d in var.dims}
+
+def _coordinates(times: np.ndarray, s: np.ndarray, used: set) -> dict[str, xr.Variable]:
+    """The coordinates of :func:`build_dataset`: time (always), s and the index labels
+    of the dimensions in ``used``."""
     coords: dict[str, xr.Variable] = {
         "time": xr.Variable(
             "time",
@@ -508,40 +527,54 @@ def build_dataset(
     for dim in INDEX_LABELS:
         if dim in used:
             coords[dim] = _index_coordinate(dim)
+    return coords
 
-    if diagnostics:
-        lengths = {np.shape(v) for v in diagnostics.values()}
-        if len(lengths) != 1 or len(next(iter(lengths))) != 1:
-            raise ValueError(
-                f"diagnostics: expected equal shapes (K,), got "
-                f"{ {k: np.shape(v) for k, v in diagnostics.items()} }"
-            )
-        (n_steps,) = next(iter(lengths))
-        coords["step"] = xr.Variable(
-            "step",
-            np.arange(1, n_steps + 1, dtype=np.int32),
-            {
-                "units": "1",
-                "long_name": "accepted solver step number",
-                "coverage_content_type": "coordinate",
-            },
+
+def _diagnostic_variables(diagnostics: Mapping[str, np.ndarray], coords: dict,
+                          data_vars: dict) -> None:
+    """The per-step diagnostics of :func:`build_dataset`: the ``step`` coordinate and
+    ``step_time`` into ``coords``, the others into ``data_vars`` (both changed in place).
+    Raises ValueError for unequal or non-(K,) shapes."""
+    lengths = {np.shape(v) for v in diagnostics.values()}
+    if len(lengths) != 1 or len(next(iter(lengths))) != 1:
+        raise ValueError(
+            f"diagnostics: expected equal shapes (K,), got "
+            f"{ {k: np.shape(v) for k, v in diagnostics.items()} }"
         )
-        coords["step"].encoding = {"_FillValue": None}
-        for name, values in diagnostics.items():
-            units, long_name = DIAGNOSTIC_VARIABLES[name]
-            arr = _as_values(name, values, (n_steps,))
-            ctype = "coordinate" if name == "step_time" else COVERAGE_CONTENT_TYPES.get(
-                name, "modelResult")
-            var = xr.Variable(
-                ("step",),
-                arr,
-                {"units": units, "long_name": long_name, "coverage_content_type": ctype},
-            )
-            var.encoding = _encoding(arr, ("step",))
-            if name == "step_time":
-                coords[name] = var  # coordinate-like: the time axis of the step dimension
-            else:
-                data_vars[name] = var
+    (n_steps,) = next(iter(lengths))
+    coords["step"] = xr.Variable(
+        "step",
+        np.arange(1, n_steps + 1, dtype=np.int32),
+        {
+            "units": "1",
+            "long_name": "accepted solver step number",
+            "coverage_content_type": "coordinate",
+        },
+    )
+    coords["step"].encoding = {"_FillValue": None}
+    for name, values in diagnostics.items():
+        units, long_name = DIAGNOSTIC_VARIABLES[name]
+        arr = _as_values(name, values, (n_steps,))
+        ctype = "coordinate" if name == "step_time" else COVERAGE_CONTENT_TYPES.get(
+            name, "modelResult")
+        var = xr.Variable(
+            ("step",),
+            arr,
+            {"units": units, "long_name": long_name, "coverage_content_type": ctype},
+        )
+        var.encoding = _encoding(arr, ("step",))
+        if name == "step_time":
+            coords[name] = var  # coordinate-like: the time axis of the step dimension
+        else:
+            data_vars[name] = var
+
+
+def _global_attributes(case: Any, n_s: int, times: np.ndarray, status: str, message: str,
+                       attrs: Mapping[str, str | int | float] | None) -> dict[str, Any]:
+    """The global attributes of :func:`build_dataset` (CF-1.12, ACDD-1.3, the case and
+    the run's status), ``attrs`` applied last; raises ValueError for an attribute that is
+    neither a string nor a number."""
+    from solver import __version__
 
     now = _utc_now()
     global_attrs: dict[str, Any] = {
@@ -576,7 +609,7 @@ def build_dataset(
             raise ValueError(f"attribute {key!r}: expected a string or number, got {value!r}")
         global_attrs[key] = value
 
-    return xr.Dataset(data_vars=data_vars, coords=coords, attrs=global_attrs)
+    return global_attrs
 
 
 def apply_metadata(

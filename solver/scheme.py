@@ -641,15 +641,16 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
 class RodSystem:
     """Residual and Jacobian of one time step of the box/generalized-α scheme.
 
+    The residual is one compiled kernel (:func:`residual_into`); Newton's method for the
+    step (iteration, line search, linear solver) is :class:`solver.newton.Newton`, which
+    calls that kernel from its own compiled iterations with :meth:`kernel_args`.
+
     Parameters
     ----------
     props : RodProperties
     loads : LoadModel
-    contact : optional self-contact model (see :mod:`solver.contact`) or None
-
-    The residual is one compiled kernel (:func:`residual_into`); Newton's method for the
-    step (iteration, line search, linear solver) is :class:`solver.newton.Newton`, which
-    calls that kernel from its own compiled iterations with :meth:`kernel_args`.
+    contact : SelfContact or None
+        The self-contact model (:mod:`solver.contact`); None without self-contact.
     """
 
     def __init__(self, props, loads, contact=None):

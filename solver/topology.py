@@ -302,7 +302,7 @@ def _pair_sum(q: np.ndarray, closed: bool, center: np.ndarray | None = None) -> 
     segments on one core of the 2-core development machine, against 50-60 ms for the
     former numpy version in row blocks (same values to rounding); from
     :data:`PARALLEL_SEGMENTS` segments on all cores (5.1 against 9.7 ms at 1000 on 2
-    cores, session 17).
+    cores, measured 2026-11-23).
     """
     if center is None:
         center = q.mean(axis=0)

@@ -283,7 +283,7 @@ def test_held_end_stays_on_its_axis_through_the_collapse(monkeypatch):
     end goes wherever the integral puts it; RodRun.end_correction steers it back onto
     the end's prescribed motion. Without the correction the laterally held end of the
     plectoneme drifts 26 mm off its axis at Δt = 0.05 s, and at Δt = 0.1 s the collapse
-    presses it onto the clamped end and the run stops at 7.6 s (measured, session 15:
+    presses it onto the clamped end and the run stops at 7.6 s (measured 2026-11-23:
     docs/contact.md § 4). With it the coarse run completes and the end stays within a
     step's route difference of its axis (observed: 14 mm at most in the collapse, 2.9 mm
     after it)."""
@@ -319,7 +319,7 @@ def test_end_correction_within_a_step_vanishes_with_the_step():
     case's Δt (velocity offsets × h = g·e), and on substeps below DRIFT_STEP_FLOOR · Δt by
     a share ∝ h: with a fixed drift the correction within a step goes to zero with h, so
     the route rule can always pass a small enough step (a 44-mm drift had stopped
-    PyElastica's plectoneme at ρ∞ = 0.8: docs/contact.md § 4, session 17)."""
+    PyElastica's plectoneme at ρ∞ = 0.8: docs/contact.md § 4)."""
     from solver.boundary import BoundaryRows
 
     case = plectoneme_case(8, 0.1)
@@ -345,7 +345,7 @@ def test_newton_start_takes_the_corrected_boundary_values():
     """BoundaryRows.project: the start of a step with end-correction offsets meets the
     step's 12 boundary rows (each unknown set to value/coef), and leaves every other
     unknown as it was; the caller's array is not changed. RodRun.try_step starts Newton
-    from it (docs/contact.md § 4, session 18)."""
+    from it (docs/contact.md § 2)."""
     from solver.boundary import BoundaryRows
 
     case = plectoneme_case(8, 0.1)

@@ -14,6 +14,7 @@ EXAMPLES = {
     "plectoneme.py": ["contacts", "completed at t = 10.0 s"],
     "sweep_threshold.py": ["tension (N)", "successful"],
     "custom_load_callback.py": ["finger + foundation: stopped", "writhe past half a turn"],
+    "paraview_export.py": ["run.pvd:", "frame at t = 10 s: 41 points, point data"],
 }
 
 

@@ -53,7 +53,7 @@ def test_tension_case_validates_and_differs_only_at_the_sliding_end():
     tension = flatten(parse_text(TENSION.read_text()))
     assert seed.keys() == tension.keys()
     diff = {k for k in seed if seed[k] != tension[k]}
-    # and the contact steps' position bound: the seed case's 0.05 mm (session 13) was
+    # and the contact steps' position bound: the seed case's 0.05 mm was
     # measured on the seed case only; the tension reading keeps the 0.3 mm its figures
     # were measured with (docs/seed-example.md, "The tension reading")
     assert diff == {

@@ -15,6 +15,7 @@ import pytest
 
 import solver.contact as contact_mod
 import solver.contact.geometry as geometry_mod
+import solver.recording as recording_mod
 import solver.simulation as sim_mod
 import solver.topology as topology_mod
 from solver import Case, simulate
@@ -86,7 +87,7 @@ def test_topology_only_at_output_steps(monkeypatch):
 
 
 def test_fields_nobody_asked_for_are_neither_computed_nor_stored(monkeypatch):
-    monkeypatch.setattr(sim_mod, "energies", Trap(fail=True))
+    monkeypatch.setattr(recording_mod, "energies", Trap(fail=True))
     monkeypatch.setattr(topology_mod, "writhe", Trap(fail=True))
     monkeypatch.setattr(topology_mod, "twist", Trap(fail=True))
     ds = simulate(Case.model_validate(seed_spec(fields=("kappa",))))

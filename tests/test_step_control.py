@@ -330,7 +330,7 @@ def test_the_doubled_step_after_a_restart_keeps_both_halves():
     h/2; when each half is within the tolerance both are kept, so the run advances by h
     and the next step has three levels (the quadratic predictor) instead of two (a
     linear predictor whose conservative estimate refused the Greenhill benchmark's
-    second step twice and cut it 7×; docs/numerics.md § 7, session 19)."""
+    second step twice and cut it 7×; docs/numerics.md § 7)."""
     from solver.simulation import RodRun
 
     run = RodRun(pulse_case(1e-3, dt=0.2))
@@ -568,10 +568,10 @@ def test_steps_grow_out_of_a_start_from_rest_in_fewer_steps(monkeypatch):
     """The seed case's first 2 s (100 segments, no contact, tolerance 3e-3): the twist
     ramp and the perturbation start from rest, and after every breakpoint (1 s) the
     error ratio stays far below the target while the step is small. With the
-    elementary controller there the run takes 153 steps (measured, session 19), with the
+    elementary controller there the run takes 153 steps (measured 2026-11-24), with the
     PI controller alone 160, with no more refused attempts (6 and 7). At tolerance 1e-2
     the two took 56 and 61 steps until the doubled step after a restart kept both its
-    halves (session 19): since then its successor has the quadratic predictor, is no
+    halves: since then its successor has the quadratic predictor, is no
     longer refused and cut 7×, and both take 42."""
     from solver.stepping import ErrorControl
 

@@ -390,7 +390,7 @@ def point_curve(p, positions, j, iterations=3):
 #: grids of at most this many nodes find their close node pairs by a compiled loop over
 #: all pairs instead of a k-d tree: building and querying scipy's tree costs ~50 µs at 21
 #: nodes, the loop ~1 µs; at 1001 nodes the tree takes ~0.4 ms and the loop would take ~1 ms
-#: (measured in session 17)
+#: (measured 2026-11-23 on the 2-core development machine)
 ALL_PAIRS_NODES = 128
 
 #: the k-d tree is built on blocks of consecutive nodes, each about ``radius`` long in
@@ -411,7 +411,7 @@ def close_node_pairs(positions, radius, s, separation_cut):
     same pairs as the tree's ``query_pairs`` on the nodes (distance ≤ radius), whose
     output grows as N·radius/Δs with the pairs along the rod that the arclength rule then
     drops (43,000 pairs for 4,300 kept at the seed example's 1000 segments, 199,000 for
-    43,000 at 2000: 0.8 and 7.8 ms against 0.23 and 1.06 ms over blocks; session 17).
+    43,000 at 2000: 0.8 and 7.8 ms against 0.23 and 1.06 ms over blocks, measured 2026-11-23).
     With fewer than :data:`BLOCK_MIN_NODES` nodes per block the tree is built on the
     nodes. positions (N, 3) m, s (N,) m non-decreasing. Raises ValueError for non-finite
     positions beyond :data:`ALL_PAIRS_NODES` nodes (as scipy's tree does).

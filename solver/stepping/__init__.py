@@ -1,7 +1,10 @@
 """Step control in one place: where steps must land, how a step restarts after a jump,
 the local error of a step, the PI controller of Δt and the growth guard.
 
-:class:`solver.simulation.RodRun` drives the steps; the rules it follows are here.
+:class:`solver.stepping.control.StepControl` drives the steps by these rules (sizes,
+levels, landing on stops, restarts, refusals), :class:`solver.stepping.guard.GrowthGuard`
+keeps what the growth guard has learnt; a step itself is tried by
+:meth:`solver.run.RodRun.try_step`.
 
 * **Breakpoints** (:func:`breakpoints`): the times at which the case changes (a
   distributed force switched on or off, a boundary condition's ``until``, the knots of
@@ -206,8 +209,8 @@ def growth_rate(system, Y, shift: float, layout, v0=None):
     """
     from scipy.sparse.linalg import ArpackNoConvergence, LinearOperator, eigs
 
-    from .banded import BandFactorError
-    from .newton import equilibrate, scale_blocks
+    from ..banded import BandFactorError
+    from ..newton import equilibrate, scale_blocks
 
     af = system.params.alpha_f
     _, _, blocks, _ = system.residual(Y, want_jacobian=True)

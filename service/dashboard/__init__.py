@@ -1,0 +1,285 @@
+"""The browser dashboard at ``/ui/``: jobs, a job's results, sweeps and submission.
+
+The pages are static files shipped in this package (``static/``: HTML, CSS and plain
+JavaScript, no build step) and one vendored library, uPlot (MIT, ``static/vendor/``); they
+talk to the REST API with the API key the user types once per browser session (kept in
+``sessionStorage``, sent as ``Authorization: Bearer``). The files are public, as the API docs
+are; every piece of data they show comes from authenticated routes.
+
+Served with a Content-Security-Policy (:data:`CSP`) that allows scripts, styles, images and
+connections from this origin only and no inline script, so a job name holding markup can
+neither run nor load anything even if a page bug rendered it as HTML (the pages render every
+user string with ``textContent``).
+
+The few routes the pages need beyond ``/v1`` live here, under ``/v1/ui/`` (authenticated
+and owner-filtered like every ``/v1`` route, left out of the OpenAPI document):
+
+* ``GET /v1/ui/jobs``: ``GET /v1/jobs`` with an ``ETag`` of the page, answering 304 to
+  ``If-None-Match`` (the jobs page polls it every few seconds);
+* ``GET /v1/ui/jobs/{id}/events``: the run's events (:func:`solver.results.run_events`)
+  with their times and Tw, Wr, Lk there;
+* ``POST /v1/ui/validate``: the case validated as ``POST /v1/jobs`` validates it (the same
+  422 problem), nothing recorded or queued;
+* ``GET /v1/ui/sweeps/{id}/map``: each member's parameter values, state and event times, the
+  threshold map of a sweep while members still run.
+
+``GET /ui/config`` (public) says whether the service has API keys.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import threading
+from collections import OrderedDict
+from pathlib import Path
+from typing import Annotated, Any
+
+import orjson
+from fastapi import APIRouter, Depends, FastAPI, Query, Request, Response
+from fastapi.responses import JSONResponse, RedirectResponse
+from fastapi.staticfiles import StaticFiles
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+from ..app import Services, services
+from ..auth import caller
+from ..problems import ProblemError
+from ..validation import parse_body, read_body, validate_case
+
+__all__ = ["UI_URL", "UI_API_PREFIX", "CSP", "STATIC_DIR", "install_dashboard"]
+
+UI_URL = "/ui"
+UI_API_PREFIX = "/v1/ui"
+STATIC_DIR = Path(__file__).resolve().parent / "static"
+
+#: Content-Security-Policy of every /ui/ response: this origin only, no inline script or
+#: style element, no plugins, no framing, no <base> rewriting.
+CSP = ("default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' data: blob:; "
+       "connect-src 'self'; font-src 'self'; manifest-src 'self'; base-uri 'none'; "
+       "form-action 'self'; frame-ancestors 'none'; object-src 'none'")
+SECURITY_HEADERS = (
+    (b"content-security-policy", CSP.encode()),
+    (b"x-content-type-options", b"nosniff"),
+    (b"referrer-policy", b"no-referrer"),
+    (b"x-frame-options", b"DENY"),
+    (b"cache-control", b"no-cache"),
+)
+
+router = APIRouter(include_in_schema=False)
+
+
+class _SecurityHeaders:
+    """ASGI wrapper: add :data:`SECURITY_HEADERS` to every response of the wrapped app."""
+
+    def __init__(self, app: ASGIApp):
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        async def send_with_headers(message: Message) -> None:
+            if message["type"] == "http.response.start":
+                names = {name for name, _ in SECURITY_HEADERS}
+                headers = [(k, v) for k, v in message.get("headers", []) if k.lower() not in names]
+                message = {**message, "headers": headers + list(SECURITY_HEADERS)}
+            await send(message)
+
+        await self.app(scope, receive, send_with_headers)
+
+
+def install_dashboard(app: FastAPI) -> None:
+    """Add the dashboard to ``app``: the ``/v1/ui`` routes, ``GET /ui/config`` and the static
+    pages under ``/ui/`` (public: add ``UI_URL + "/"`` to the auth middleware's public
+    prefixes). Raises ``RuntimeError`` when the package lacks its static files."""
+    index = STATIC_DIR / "index.html"
+    if not index.is_file():
+        raise RuntimeError(f"the dashboard's files are missing from {STATIC_DIR}: reinstall hockle")
+    app.include_router(router)
+
+    @app.get(UI_URL, include_in_schema=False)
+    def _ui_root(request: Request) -> RedirectResponse:
+        root = request.scope.get("root_path", "")
+        return RedirectResponse(f"{root}{UI_URL}/", status_code=307)
+
+    @app.get(f"{UI_URL}/config", include_in_schema=False)
+    def _ui_config(request: Request) -> Response:
+        body = {"auth": bool(getattr(request.app.state, "auth_enabled", False)),
+                "api": "/v1", "version": request.app.version}
+        return Response(orjson.dumps(body), media_type="application/json",
+                        headers={k.decode(): v.decode() for k, v in SECURITY_HEADERS})
+
+    app.mount(UI_URL, _SecurityHeaders(StaticFiles(directory=STATIC_DIR, html=True)),
+              name="dashboard")
+
+
+# --------------------------------------------------------------------------- jobs, polled
+
+
+def _etag_of(body: bytes) -> str:
+    return '"' + hashlib.sha256(body).hexdigest()[:32] + '"'
+
+
+def _matches(request: Request, etag: str) -> bool:
+    header = request.headers.get("if-none-match")
+    if not header:
+        return False
+    tags = [t.strip() for t in header.split(",")]
+    return "*" in tags or etag in tags or f"W/{etag}" in tags
+
+
+@router.get(f"{UI_API_PREFIX}/jobs")
+def ui_list_jobs(
+    request: Request,
+    svc: Annotated[Services, Depends(services)],
+    owner: Annotated[str | None, Depends(caller)],
+    status: Annotated[str | None, Query()] = None,
+    page_size: Annotated[int, Query(ge=1, le=500)] = 50,
+    page_token: Annotated[str | None, Query()] = None,
+) -> Response:
+    """``GET /v1/jobs`` (newest first, keyset pages) with an ETag of the page's body: an
+    unchanged page answers 304 with no body. ``status``: states, comma-separated; 422 naming
+    ``query.status`` or ``query.page_token`` as ``GET /v1/jobs`` does."""
+    from ..registry import STATES
+    from ..routers.jobs import _exists, job_status
+
+    states = [s.strip() for s in (status or "").split(",") if s.strip()]
+    bad = [s for s in states if s not in STATES]
+    if bad:
+        raise ProblemError(422, "invalid-request", "Invalid request", errors=[
+            {"loc": "query.status", "msg": f"unknown state {s!r}; allowed: {', '.join(STATES)}",
+             "type": "enum"} for s in bad])
+    try:
+        page = svc.registry.list(states=states, page_size=page_size, page_token=page_token,
+                                 owner=owner)
+    except ValueError as exc:
+        raise ProblemError(422, "invalid-request", "Invalid request", errors=[
+            {"loc": "query.page_token", "msg": str(exc), "type": "value_error"}]) from None
+    jobs = [job_status(j, _exists).model_dump(mode="json") for j in page.jobs]
+    for item in jobs:  # the ETA counts down between polls; whole seconds keep 304s possible
+        if item.get("eta_seconds") is not None:
+            item["eta_seconds"] = round(item["eta_seconds"])
+    body = orjson.dumps({"jobs": jobs, "next_page_token": page.next_token})
+    etag = _etag_of(body)
+    headers = {"ETag": etag, "Cache-Control": "private, no-cache"}
+    if _matches(request, etag):
+        return Response(status_code=304, headers=headers)
+    return Response(body, media_type="application/json", headers=headers)
+
+
+# --------------------------------------------------------------------------- events
+
+_EVENT_CACHE: OrderedDict[tuple[str, int, int], dict] = OrderedDict()
+_EVENT_CACHE_SIZE = 2048
+_EVENT_LOCK = threading.Lock()
+_AT_EVENT = ("twist", "writhe", "linking_number", "energy_total")
+# netCDF4/HDF5 are not thread-safe and these routes run in the thread pool: one read at a time
+_READ_LOCK = threading.Lock()
+
+
+def result_events(path: str) -> dict[str, Any]:
+    """The events of the result file at ``path``: ``{"time": [...], "events": [{"name",
+    "index", "time" (s), "twist", "writhe", "linking_number", "energy_total"}, ...]}`` (an
+    event that did not happen has ``index`` and ``time`` None), by
+    :func:`solver.results.run_events` (the rules of ``hockle plot`` and of a sweep's
+    ``event_time``). Cached per file (path, size, mtime)."""
+    st = os.stat(path)
+    key = (path, st.st_size, st.st_mtime_ns)
+    with _EVENT_LOCK:
+        if key in _EVENT_CACHE:
+            _EVENT_CACHE.move_to_end(key)
+            return _EVENT_CACHE[key]
+    import numpy as np
+    import xarray as xr
+    from solver.results import run_events
+
+    with _READ_LOCK, xr.open_dataset(path, engine="netcdf4", cache=False) as ds:
+        found = run_events(ds)
+        time = np.asarray(ds["time"].values, dtype=float) if "time" in ds.coords else np.array([])
+        at = {name: np.asarray(ds[name].values, dtype=float) for name in _AT_EVENT if name in ds}
+    events = []
+    for name, index in found.items():
+        item: dict[str, Any] = {"name": name, "index": index,
+                                "time": None if index is None else _num(time[index])}
+        for var, values in at.items():
+            item[var] = None if index is None else _num(values[index])
+        events.append(item)
+    out = {"events": events, "n_times": int(time.size)}
+    with _EVENT_LOCK:
+        _EVENT_CACHE[key] = out
+        while len(_EVENT_CACHE) > _EVENT_CACHE_SIZE:
+            _EVENT_CACHE.popitem(last=False)
+    return out
+
+
+def _num(value) -> float | None:
+    import math
+
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+@router.get(f"{UI_API_PREFIX}/jobs/{{job_id}}/events")
+def ui_job_events(job_id: str, svc: Annotated[Services, Depends(services)],
+                  owner: Annotated[str | None, Depends(caller)]) -> JSONResponse:
+    """The events of the job's result (404 ``result-not-ready`` before there is one)."""
+    from ..routers.jobs import get_job_or_404
+
+    job = get_job_or_404(svc, job_id, owner)
+    if not job.result_path or not os.path.exists(job.result_path):
+        raise ProblemError(404, "result-not-ready", "Result not ready",
+                           f"job {job.id} is {job.state} and has no result file")
+    return JSONResponse({"job_id": job.id, **result_events(job.result_path)})
+
+
+# --------------------------------------------------------------------------- validation
+
+
+@router.post(f"{UI_API_PREFIX}/validate")
+async def ui_validate(request: Request, svc: Annotated[Services, Depends(services)]) -> Response:
+    """Validate a case as ``POST /v1/jobs`` does (JSON, or YAML by Content-Type) without
+    recording or queueing anything: 200 with its name and size, or the same 400/413/415/422
+    problem the submission would get."""
+    from fastapi.concurrency import run_in_threadpool
+
+    body = await read_body(request)
+
+    def check():
+        case = validate_case(parse_body(body, request.headers.get("content-type")),
+                             svc.settings.max_case_size)
+        return {"valid": True, "name": case.name, "grid_points": case.grid_points,
+                "n_steps": case.n_steps, "t_end": float(case.numerics.t_end)}
+
+    return Response(orjson.dumps(await run_in_threadpool(check)), media_type="application/json")
+
+
+# --------------------------------------------------------------------------- sweeps
+
+
+@router.get(f"{UI_API_PREFIX}/sweeps/{{sweep_id}}/map")
+def ui_sweep_map(sweep_id: str, svc: Annotated[Services, Depends(services)],
+                 owner: Annotated[str | None, Depends(caller)]) -> JSONResponse:
+    """The sweep's parameters and, per member, its values, job, state and event times (None
+    where the member has no result yet or the event did not happen): the threshold map
+    (``event_time`` of the combined dataset) available while members still run."""
+    from .. import sweeps as sw
+
+    sweep = svc.registry.get_sweep(sweep_id)
+    if sweep is None or (owner is not None and sweep.owner != owner):
+        raise ProblemError(404, "sweep-not-found", "Sweep not found", f"no sweep with id {sweep_id}")
+    jobs = svc.registry.get_many(sweep.job_ids)
+    values = sw.member_values(sweep.parameters, sweep.combine)
+    members, names = [], []
+    for index, (member, job_id) in enumerate(zip(values, sweep.job_ids)):
+        job = jobs.get(job_id)
+        times: dict[str, float | None] = {}
+        if job is not None and job.result_path and os.path.exists(job.result_path):
+            for event in result_events(job.result_path)["events"]:
+                times[event["name"]] = event["time"]
+                if event["name"] not in names:
+                    names.append(event["name"])
+        members.append({"index": index, "values": member, "job_id": job_id,
+                        "state": job.state if job is not None else "failed",
+                        "event_time": times})
+    shape = ([len(v) for v in sweep.parameters.values()] if sweep.combine == "grid"
+             else [len(values)])
+    return JSONResponse({
+        "sweep_id": sweep.id, "name": sweep.name, "combine": sweep.combine, "shape": shape,
+        "parameters": [{"path": p, "values": v} for p, v in sweep.parameters.items()],
+        "events": names, "members": members})

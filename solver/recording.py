@@ -1,0 +1,326 @@
+"""What a run keeps: the output records, the per-step diagnostics, progress and checkpoints.
+
+:class:`Recorder` is the output side of :func:`solver.simulation.simulate`: it takes the
+run's state at the output times (:func:`snapshot`, or inside an error-controlled step its
+dense output, :func:`interpolated_snapshot`), the diagnostics of every accepted step, calls
+the caller's progress, checkpoint and observer hooks, and builds the result dataset
+(:func:`solver.results.build_dataset`) when the run completes, stops or fails. No I/O: the
+hooks decide where anything goes.
+"""
+from __future__ import annotations
+
+import copy
+import time as _time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .checkpoint import Checkpoint, resume_key
+from .contact.geometry import max_distance
+from .energies import energies
+from .loads import end_reactions
+from .results import build_dataset
+from .stepping import hermite
+from .kinematics import quat_slerp
+
+__all__ = ["Progress", "RateEstimate", "Recorder", "snapshot", "interpolated_snapshot",
+           "dense_state"]
+
+
+@dataclass(frozen=True)
+class Progress:
+    """What the progress callback receives after every accepted nominal step.
+
+    t, t_end, dt: s; step: number of nominal steps done; newton_iterations: of the last
+    step; residual_norm: scaled (dimensionless); wall_time: s since the start;
+    fraction: t / t_end in [0, 1]; eta_seconds: wall seconds left at the recent pace
+    (:class:`RateEstimate`), None until known.
+    """
+
+    t: float
+    t_end: float
+    step: int
+    dt: float
+    newton_iterations: int
+    residual_norm: float
+    wall_time: float
+    fraction: float
+    contact_count: int = 0
+    eta_seconds: float | None = None
+
+
+class RateEstimate:
+    """Wall-clock seconds left, from the recent rate of simulated time per wall second.
+
+    The rate is taken over the last ``max(window_s, share × elapsed)`` wall seconds, so a
+    run that slows down (the seed example: 60 ms per 0.1 s before contact, seconds after)
+    is extrapolated at its current pace, not at its average since the start (which
+    promised a minute against ~21 min). Returns None until two samples exist.
+    """
+
+    def __init__(self, window_s: float = 30.0, share: float = 0.2):
+        self.window_s = window_s
+        self.share = share
+        self.samples: list = []          # (wall s, simulated s)
+
+    def update(self, wall: float, t: float, t_end: float):
+        """Record a sample (wall: s since the start; t, t_end: simulated s) and return the
+        wall seconds left at the recent pace, or None while the pace is unknown."""
+        self.samples.append((wall, t))
+        span = max(self.window_s, self.share * wall)
+        while len(self.samples) > 2 and self.samples[1][0] < wall - span:
+            self.samples.pop(0)
+        (w0, t0), (w1, t1) = self.samples[0], self.samples[-1]
+        if t1 <= t0 or w1 <= w0:
+            return None
+        return max(0.0, (t_end - t1) * (w1 - w0) / (t1 - t0))
+
+
+# ------------------------------------------------------------------------- output records
+def snapshot(run, fields: set, route_current: bool = False) -> dict:
+    """Output quantities of the current state of ``run`` (:class:`solver.run.RodRun`) for
+    the requested field groups (``route_current``: the space route is already that of the
+    current κ; otherwise it is recomputed where the steps do not keep it,
+    ``system.needs_pose`` False). Shapes and units: :func:`solver.results.build_dataset`."""
+    out = {}
+    Y = run.Y
+    if not run.system.needs_pose and not route_current:
+        run.update_space_route()
+    if "v" in fields:
+        out["v"] = Y[:, 0:3].copy()
+    if "omega" in fields:
+        out["omega"] = Y[:, 3:6].copy()
+    if "f" in fields:
+        out["f"] = Y[:, 6:9].copy()
+    if "kappa" in fields:
+        out["kappa"] = Y[:, 9:12].copy()
+    if "moment" in fields:
+        out["moment"] = run.props.stiffness * Y[:, 9:12]
+    if "position" in fields:
+        out["position"] = run.r.copy()
+    if "orientation" in fields:
+        out["orientation"] = run.q.copy()
+    if "energies" in fields:
+        out.update(energies(Y, run.props))
+        out["work_in"] = run.work_in
+        out["power_in"] = run.power
+    if "topology" in fields:
+        out.update(_topology(run))
+    if "reactions" in fields:
+        out.update(end_reactions(Y, run.q, run.props.stiffness))
+    if "contact" in fields:
+        out["contact_count"] = run.contact_count
+        out["min_surface_gap"] = run.min_gap
+    out["newton_iterations"] = run.last_iterations
+    out["residual_norm"] = run.last_residual
+    out["dt"] = run.last_dt
+    out["position_route_difference"] = max_distance(run.r_time, run.r)
+    out["quaternion_norm_error"] = run.quat_norm_error
+    return out
+
+
+def _topology(run) -> dict:
+    """Twist, writhe and linking number of the run's state (turns; docs/topology.md)."""
+    from .topology import linking_number, twist, writhe
+
+    tw = twist(run.Y[:, 11], run.props.s)
+    wr = writhe(run.r)
+    lk = linking_number(run.phi[0], run.phi[1])
+    # the open rod's writhe is that of the curve closed by its end tangents'
+    # extensions; a passage of the rod through them changes it by ±2 with no
+    # self-crossing. With self-contact, true crossings are refused by the step
+    # control (swept test of every accepted step), so a jump of 2 against
+    # Lk − Tw is a closure passage: count it and keep Wr continuous. Without
+    # contact strands may pass through each other, and a jump stays visible in
+    # topology_error (docs/topology.md).
+    k = round((lk - tw - wr) / 2.0) if run.contact is not None else 0
+    return dict(twist=tw, writhe=wr + 2.0 * k, linking_number=lk,
+                topology_error=abs(tw + wr + 2.0 * k - lk),
+                writhe_closure_passages=float(k))
+
+
+def dense_state(run):
+    """What :func:`interpolated_snapshot` needs of the level a step starts from (the
+    accepted-step path rebinds every array it changes, so references suffice)."""
+    return (run.t, run.Y, run.Ydot, run.q_time, run.r_time, run.v_global_time,
+            run.phi, run.xdot_end[:, 5], run.work_in, run.power)
+
+
+def interpolated_snapshot(run, fields: set, t: float, start) -> dict:
+    """:func:`snapshot` at a time t (s) inside the last accepted step, which began at
+    the :func:`dense_state` ``start``: the dense output of error-controlled steps.
+
+    Y (v, ω, f, κ), the time-route positions, the end rotations φ (linking number)
+    and the work put in by cubic Hermite interpolation between the step's levels with
+    their rates (Ẏ of the scheme, the global node velocities, φ̇, the power:
+    :func:`solver.stepping.hermite`); the anchor's orientation by slerp; the centreline
+    and frames then by the space route from the interpolated κ, as at a step. The
+    contact count and smallest gap, Newton's figures and Δt are the step's (the
+    interpolated state is not itself checked for contact). Where no field needs the
+    centreline (``run.POSE_FIELDS``) and the steps keep it (``system.needs_pose``)
+    the space route is not integrated and ``position_route_difference`` is the
+    step's too (measured: 5 % of an adaptive run of the seed problem that keeps only
+    energies). Returns the snapshot dict.
+    """
+    t0, Y0, D0, q0, r0, v0, phi0, dphi0, w0, p0 = start
+    h = run.t - t0
+    s = (t - t0) / h
+    view = copy.copy(run)
+    view.state = copy.copy(run.state)
+    view.t = t
+    view.Y = hermite(s, h, Y0, D0, run.Y, run.Ydot)
+    view.r_time = hermite(s, h, r0, v0, run.r_time, run.v_global_time)
+    view.q_time = run.q_time.copy()
+    view.q_time[0] = quat_slerp(q0[0], run.q_time[0], s)
+    view.phi = hermite(s, h, phi0, dphi0, run.phi, run.xdot_end[:, 5])
+    view.work_in = float(hermite(s, h, w0, p0, run.work_in, run.power))
+    view.power = (1.0 - s) * p0 + s * run.power
+    if fields & run.POSE_FIELDS or not run.system.needs_pose:
+        view.update_space_route()
+        return snapshot(view, fields, route_current=True)
+    out = snapshot(view, fields, route_current=True)
+    out["position_route_difference"] = float(
+        max_distance(run.r_time, run.r))
+    return out
+
+
+# ------------------------------------------------------------------------------ recorder
+class Recorder:
+    """The records, diagnostics and hooks of one :func:`solver.simulation.simulate` call.
+
+    Parameters
+    ----------
+    case : solver.case.Case
+    run : solver.run.RodRun
+    hooks : dict
+        ``progress``, ``should_stop``, ``checkpoint``, ``checkpoint_interval`` (s),
+        ``observer`` as :func:`solver.simulation.simulate` takes them.
+    resume : solver.checkpoint.Checkpoint or None
+        The checkpoint the run continues from, as the caller gave it.
+    state : solver.checkpoint.Checkpoint or None
+        A copy of it whose records and diagnostics are continued.
+    wall0 : float or None
+        ``time.perf_counter()`` at the start of the call (default: now).
+    """
+
+    def __init__(self, case, run, hooks: dict, resume=None, state=None, wall0=None):
+        self.case = case
+        self.run = run
+        self.hooks = hooks
+        self.resume = resume
+        self.fields = set(case.output.fields)
+        self.wall0 = _time.perf_counter() if wall0 is None else wall0
+        if state is None:
+            self.times, self.records = [], []
+            self.diag = {"step_time": [], "step_dt": [], "step_newton_iterations": [],
+                         "step_residual_norm": [], "step_growth_rate": [],
+                         "step_rejected_attempts": []}
+            self.done, self.wall_before = 0, 0.0
+        else:
+            self.times, self.records, self.diag = state.times, state.records, state.diag
+            self.done, self.wall_before = state.step, state.wall_time
+        self.last_checkpoint = _time.perf_counter()
+        self.refused_before = sum(run.refusals.values())
+        self.budget = case.numerics.wall_clock_budget
+        self.rate = RateEstimate()
+
+    def save(self) -> None:
+        """Hand a checkpoint of the last accepted state to the checkpoint hook."""
+        checkpoint = self.hooks["checkpoint"]
+        if checkpoint is not None:
+            checkpoint(Checkpoint(resume_key(self.case), self.done, self.run, self.times,
+                                  self.records, self.diag,
+                                  self.wall_before + _time.perf_counter() - self.wall0))
+            self.last_checkpoint = _time.perf_counter()
+
+    def record(self, t=None, start=None) -> None:
+        """Keep the state now, or (error-controlled steps) at t inside the last step,
+        which began at the dense state ``start``."""
+        if t is None:
+            self.times.append(self.run.t)
+            self.records.append(snapshot(self.run, self.fields))
+        else:
+            self.times.append(t)
+            self.records.append(interpolated_snapshot(self.run, self.fields, t, start))
+
+    def finish(self, status, message="", reason=None):
+        """The result dataset with ``hockle_status`` = status; a run that did not
+        complete first leaves a checkpoint of its last accepted state."""
+        run = self.run
+        if status != "completed":
+            self.save()                       # the last accepted state, to resume from
+        stacked = {}
+        if self.records:
+            for key in self.records[0]:
+                stacked[key] = np.asarray([rec[key] for rec in self.records])
+        ds = build_dataset(self.case, run.props.s, np.asarray(self.times), stacked,
+                           {k: np.asarray(v) for k, v in self.diag.items()}, status, message)
+        if reason is not None:
+            ds.attrs["hockle_stop_reason"] = reason
+        ds.attrs["wall_time_s"] = self.wall_before + _time.perf_counter() - self.wall0
+        ds.attrs["factorizations"] = run.newton.factorizations
+        ds.attrs["hockle_refused_attempts"] = ", ".join(
+            f"{k} {v}" for k, v in sorted(run.refusals.items()))
+        if self.resume is not None:
+            ds.attrs["hockle_resumed_at"] = self.resume.t
+        return ds
+
+    def stopped(self):
+        """The partial dataset when the caller or the wall-clock budget stops the run."""
+        should_stop, run = self.hooks["should_stop"], self.run
+        if should_stop is not None:
+            flag = should_stop()
+            if flag:
+                reason = flag if isinstance(flag, str) else "stopped"
+                return self.finish("stopped", f"stopped at t = {run.t:.6g} s: {reason}",
+                                   reason)
+        if self.budget is not None and _time.perf_counter() - self.wall0 > self.budget:
+            return self.finish("stopped", f"wall-clock budget of {self.budget} s exceeded "
+                               f"at t = {run.t:.6g} s", "timeout")
+        return None
+
+    def accepted(self, step, its, res):
+        """Diagnostics, progress, checkpoint and observer after an accepted (nominal or
+        error-controlled) step; the partial dataset when the observer stops the run."""
+        run, diag = self.run, self.diag
+        diag["step_time"].append(run.t)
+        diag["step_dt"].append(run.last_dt)
+        diag["step_newton_iterations"].append(its)
+        diag["step_residual_norm"].append(res)
+        diag["step_growth_rate"].append(run.guard_sigma)
+        refused = sum(run.refusals.values())
+        diag["step_rejected_attempts"].append(refused - self.refused_before)
+        self.refused_before = refused
+        self.done = step
+        progress = self.hooks["progress"]
+        if progress is not None:
+            wall = _time.perf_counter() - self.wall0
+            t_end = self.case.numerics.t_end
+            progress(Progress(t=run.t, t_end=t_end, step=step, dt=run.last_dt,
+                              newton_iterations=its, residual_norm=res,
+                              wall_time=wall, fraction=min(1.0, run.t / t_end),
+                              contact_count=run.contact_count,
+                              eta_seconds=self.rate.update(wall, run.t, t_end)))
+        if _time.perf_counter() - self.last_checkpoint >= self.hooks["checkpoint_interval"]:
+            self.save()
+        return self.observed(step)
+
+    def observed(self, step):
+        """The partial dataset when the observer stops the run after ``step``."""
+        observer, run = self.hooks["observer"], self.run
+        if observer is None:
+            return None
+        flag = observer(run, step)
+        if not flag:
+            return None
+        reason = flag if isinstance(flag, str) else "observer"
+        if not self.times or self.times[-1] != run.t:
+            self.record()                     # the state the observer stopped at
+        return self.finish("stopped", f"stopped at t = {run.t:.6g} s: {reason}", reason)
+
+    def failed(self, exc, step):
+        """Put the steps done and the partial dataset on a SolverDivergence ``exc``."""
+        exc.step = step
+        exc.partial = self.finish("failed", str(exc), exc.reason)
+        return exc
+

@@ -1,0 +1,386 @@
+"""One run of a case: its state, its step control and the step itself.
+
+:class:`RodRun` owns the parts a step needs and tries one step:
+
+* the state (:class:`solver.state.RunState`: Y, Ẏ, the previous levels, the poses, the
+  end rotations, the energy accounts), exposed as the run's attributes (``run.Y``,
+  ``run.t``, ...);
+* the step control (:class:`solver.stepping.control.StepControl`), which chooses the
+  steps and calls :meth:`RodRun.try_step`; its attributes (``run.h_next``,
+  ``run.refusals``, the growth guard's ``run.guard_sigma``, ...) are exposed too;
+* the step's problem (:class:`solver.step_problem.ProblemAssembly`: boundary rows, loads,
+  contact candidates from :class:`solver.contact.search.CandidateSearch`), handed to
+  Newton (:class:`solver.newton.Newton`).
+
+:func:`solver.simulation.simulate` drives it; tests and benchmarks use it to reach the
+state between steps.
+"""
+from __future__ import annotations
+
+import copy
+import math
+
+import numpy as np
+
+from .boundary import BoundaryRows, boundary_plan
+from .contact import SelfContact
+from .contact.search import CandidateSearch
+from .energies import (distributed_power, distributed_work_into, end_loads, end_power,
+                       end_work_into)
+from .kinematics import normalize_quaternions, quat_to_matrix, rotate_rows
+from .loads import LoadModel
+from .newton import Newton
+from .properties import RodProperties
+from .recording import dense_state, interpolated_snapshot, snapshot
+from .scheme import RodSystem, alpha_parameters
+from .state import RunState
+from .step_problem import ProblemAssembly
+from .stepping import ErrorControl, PIController
+from .stepping.control import Attempt, StepControl
+
+__all__ = ["RodRun"]
+
+
+class RodRun(ProblemAssembly):
+    """The state of one run, its step control, and one step; :func:`simulate` drives it.
+
+    Exposed for tests and benchmarks that need the state between steps.
+
+    Parameters
+    ----------
+    case : solver.case.Case (validated)
+    extra_force : callable(t, run) -> (N+1, 3) or None, optional
+        A further global-frame distributed force, N/m (:class:`solver.loads.LoadModel`).
+    start : solver.initial.StartState or None, optional
+        The state to start from (:func:`solver.simulation.simulate`); None: the case's
+        initial configuration.
+    """
+
+    #: with numerics.tolerance and no contact.position_tolerance, the route rule's
+    #: tolerance in steps where strands may meet (a node's position error per step, m)
+    #: is at most ROUTE_RELATIVE × relative tolerance × rod length, so that the contact
+    #: phase's accuracy follows the tolerance too (None: the search margin's quarter
+    #: alone, as with fixed steps).
+    #: Measured on the seed's first loop (docs/numerics.md § 7): with the margin's
+    #: 5 mm alone the writhe stayed 1.1-2.7 % off a 6.25-ms reference at every
+    #: tolerance from 1e-2 to 1e-4; tied, 1e-3 gives 0.65-1.2 % and 1e-4 0.37 %
+    ROUTE_RELATIVE = 1.0
+
+    #: output fields that need the centreline and frames (the space route)
+    POSE_FIELDS = frozenset({"position", "orientation", "topology"})
+
+    #: the Newton start of the next step, "linear" or "quadratic" extrapolation:
+    #: whichever predicted the last accepted step better (:meth:`_better_predictor`)
+    predictor = "linear"
+
+    def __init__(self, case, extra_force=None, start=None):
+        self.case = case
+        num = case.numerics
+        self.props = props = RodProperties.from_case(case)
+        self.loads = LoadModel(case, props, extra=extra_force, owner=self)
+        self.contact = self.search = None
+        self.route_tolerance = math.inf
+        self.last_step_error = 0.0
+        if case.contact is not None:
+            self.contact = SelfContact(case.contact, props.s, props.diameter, props.rho_a)
+            self.search = CandidateSearch(self.contact, props.diameter)
+            self.route_tolerance = self._route_tolerance()
+        self.system = RodSystem(props, self.loads, contact=self.contact)
+        self.newton = Newton(self.system, num.newton.tolerance, num.newton.max_iterations)
+        self.params = alpha_parameters(num.rho_inf)
+        self.rho_inf = num.rho_inf
+        self.state = RunState.at_rest(case, props.s, start)
+        self.bc_plan = boundary_plan(case, props, self.system.n)
+        self.state.bc = BoundaryRows(case, props, self.state.t, self.system.n, self.bc_plan)
+        self.control = StepControl(case, *self._controllers())
+        # the last attempt: its error ratio (NaN: not estimated), why it was refused
+        # ("newton", "contact", "error", "growth"), whether it had contact candidates,
+        # its route ratio; the last accepted step's Newton figures and contacts
+        self.last_error_ratio = math.nan
+        self.last_reject = None
+        self.last_had_candidates = False
+        self.last_route_ratio = math.nan
+        self.last_iterations = 0
+        self.last_residual = 0.0
+        self.contact_count = 0
+        self.min_gap = math.inf
+        self._initial_loads()
+
+    def _route_tolerance(self) -> float:
+        """Accuracy of a step where strands may meet (m): contact.position_tolerance, by
+        default a quarter of the search margin, and with numerics.tolerance at most
+        ROUTE_RELATIVE × relative tolerance × L."""
+        case, props, num = self.case, self.props, self.case.numerics
+        tol = case.contact.position_tolerance
+        if tol is None:
+            tol = 0.25 * (self.contact.tolerance - float(np.max(props.diameter)))
+            if num.tolerance is not None and self.ROUTE_RELATIVE is not None:
+                length = float(props.s[-1] - props.s[0])
+                tol = min(tol, self.ROUTE_RELATIVE * num.tolerance.relative * length)
+        return tol
+
+    def _controllers(self):
+        """(the error control of ``numerics.tolerance`` or None, the PI controller of
+        fixed steps where strands may meet or None)."""
+        num, props = self.case.numerics, self.props
+        tol = num.tolerance
+        errctl = (ErrorControl(tol.relative, tol.absolute, self.system.floor, num.rho_inf,
+                               props.s)
+                  if tol is not None else None)
+        if errctl is not None:
+            # the estimate is the corrector minus the predictor: a start that already
+            # passes Newton's test would measure an error of exactly 0, blind below
+            # Newton's tolerance (docs/numerics.md § 7, "Newton's noise")
+            self.newton.min_iterations = 1
+        route_pi = (PIController() if self.contact is not None and errctl is None
+                    and math.isfinite(self.route_tolerance) else None)
+        return errctl, route_pi
+
+    def _initial_loads(self) -> None:
+        """The loads at the start (t = 0, or a start state's time), last: an extra_force
+        sees a complete run."""
+        props, st = self.props, self.state
+        glob = self.loads.global_force(st.t) if self.loads.has_global else None
+        pose = ((quat_to_matrix(st.q), np.zeros((props.s.size, 3)), 0.0)
+                if self.system.needs_pose else None)
+        st.F_old, _ = self.system.node_terms(st.Y, False, pose, glob)
+        st.body_force = self.loads.with_points(self._body_force(glob, pose), st.t,
+                                               None if pose is None else pose[0])
+        st.power = end_power(st.Y, props) + distributed_power(st.Y, st.body_force, props)
+        st.end_load = end_loads(st.Y, props)
+
+    # ------------------------------------------------------------------- the step
+    def try_step(self, h: float, t_new=None, left_limit=False, restart=False,
+                 estimate=True) -> Attempt:
+        """Attempt one step of size h (s), ending at t_new (default t + h; given exactly
+        when the step lands on a breakpoint, with ``left_limit`` so that the loads are
+        their left limit there). ``restart``: a backward-Euler restart step
+        (:mod:`solver.stepping`); ``estimate=False``: no error estimate (the steps of a
+        step-doubling estimate). On success the state advances and Attempt(True,
+        iterations, residual) is returned; on failure the state is untouched and the
+        Attempt has ok False and the reason (also in ``last_reject``)."""
+        self.last_route_ratio = math.nan
+        prob = self.step_problem(h, t_new, left_limit, restart)
+        sol = self.solve_problem(prob)
+        reason = sol.reason
+        if reason is None:
+            reason, summary = self._refusal(prob, sol, estimate)
+        if reason is not None:
+            self.last_reject = reason
+            return Attempt(False, sol.iterations, sol.residual, sol.nonfinite, reason)
+        self._accept(prob, sol, summary)
+        return Attempt(True, sol.iterations, sol.residual)
+
+    def _refusal(self, prob, sol, estimate):
+        """Why a converged step must be refused (None: it passes) and its contact summary
+        (count, smallest gap m). The checks, in order: interpenetration; the local error:
+        the route rule where strands may meet (a node's trapezoidal step in time against
+        the κ-integrated centreline) and, with numerics.tolerance, the estimate of
+        :class:`solver.stepping.ErrorControl`, their ratios to their tolerances (in steps
+        with contact candidates only the route rule: there the estimate follows the stiff
+        law's impact transients; the seed case at tolerance 1e-2 ran its first loop at
+        5e-4 s steps, 20x the route rule's, which keeps its events within 0.001 s of a
+        6.25-ms reference; docs/numerics.md § 7); a strand through another within the
+        step; the growth guard."""
+        Y, pose, cand, h = sol.Y, sol.pose, sol.candidates, prob.h
+        summary = None
+        if self.contact is not None:
+            contact_count, min_gap = 0, math.inf
+            if cand is not None and cand.runs:
+                # unless Newton froze the selection, its last residual evaluated these
+                # contacts at this very state
+                frozen = self.newton.last_frozen
+                vg = np.einsum("nij,nj->ni", pose[1], Y[:, 0:3]) if frozen else None
+                contact_count, min_gap = self.system.contact_summary(pose[2], vg,
+                                                                     not frozen)
+            summary = (contact_count, min_gap)
+            if min_gap < 0.0:
+                return "contact", summary    # the surfaces interpenetrate
+        ratio = 0.0
+        if self.contact is not None:
+            self.last_step_error = self._local_error(h, Y, pose[2])
+            ratio = self.last_route_ratio = self.last_step_error / self.route_tolerance
+            if self.errctl is None and ratio > 1.0:
+                return "contact", summary
+        if self.errctl is not None and not prob.restart and estimate:
+            if cand is None:
+                ratio = max(ratio, self.errctl.ratio(prob.t_new, Y, self.Y,
+                                                     self.newton.filtered))
+            self.last_error_ratio = ratio      # NaN: not estimated (after a restart)
+            if ratio > 1.0:
+                return "error", summary
+        if self.contact is not None and self.contact.passes_through(self.r, pose[2]):
+            return "contact", summary        # a strand passed through another
+        if self.growth_guard is not None and not prob.restart and cand is None:
+            if not self.control.guard.ok(self.system, h, Y):
+                return "growth", summary
+        return None, summary
+
+    def _accept(self, prob, sol, summary) -> None:
+        """Advance the state to the accepted solution of the step's problem."""
+        Y, pose, h, bc, restart = sol.Y, sol.pose, prob.h, prob.bc, prob.restart
+        g = prob.params.gamma
+        Ydot = (Y - self.Y) / (g * h) - ((1.0 - g) / g) * self.Ydot
+        # time route of every node (a diagnostic: its distance to the space route is a
+        # discretisation-error indicator) and the end rotations (linking number)
+        q_t, _, vg_t, r_t = self._time_step(h, Y, self.q_time, self.r_time,
+                                            self.v_global_time,
+                                            offsets=((self.bc_offset, self.bc.cols),
+                                                     (prob.offset, bc.cols)))
+        drift = normalize_quaternions(q_t)
+        if self.contact is not None:
+            self.contact_count, self.min_gap = summary
+        if self.errctl is not None:
+            if restart:
+                self.errctl.reset(prob.t_new, Y)
+            else:
+                self.errctl.push(prob.t_new, Y)
+        self.quat_norm_error = max(self.quat_norm_error, drift)
+        self.r_time, self.q_time, self.v_global_time = r_t, q_t, vg_t
+        self._advance_accounts(prob, Y, pose)
+        if not restart:
+            self.guard_since += 1
+        if prob.predictions is not None and "quadratic" in prob.predictions:
+            self.predictor = self._better_predictor(Y, prob.predictions)
+        # after a restart the old level is inconsistent (f jumped): no extrapolation
+        if restart:
+            self.Y_prev2 = self.h_prev2 = self.Y_prev = self.h_prev = None
+        else:
+            self.Y_prev2, self.h_prev2 = self.Y_prev, self.h_prev
+            self.Y_prev, self.h_prev = self.Y, h
+        self.Y, self.Ydot, self.F_old = Y, Ydot, sol.Fn
+        self.t = prob.t_new
+        prev_bc, self.bc = self.bc, bc
+        self.bc_offset = prob.offset
+        if self.contact is not None:
+            self.q = pose[0].copy()
+            normalize_quaternions(self.q)
+            self.r = pose[2]
+            self.v_global = np.empty_like(self.r)
+            rotate_rows(self.q, self.Y[:, 0:3], self.v_global)
+            if prob.switched:
+                self._hold_from_here(prev_bc, bc)
+        elif self.system.needs_pose:
+            self.update_space_route()
+        self.last_iterations, self.last_residual = sol.iterations, sol.residual
+
+    def _advance_accounts(self, prob, Y, pose) -> None:
+        """The end rotations φ and the work and power of the loads over an accepted step
+        to Y (N+1, 12): the displacement increments of the end sections (v, ω components,
+        body frame) with the scheme's own generalized-α relation (the one κ obeys through
+        E1). Their a3 rotations are the end rotations φ of the linking number, so Lk and
+        the discrete twist advance consistently; with the end loads they give the work
+        (:func:`solver.energies.end_work_into`), and per node the work of distributed
+        global-frame loads (:func:`solver.energies.distributed_work_into`)."""
+        props, params, h = self.props, prob.params, prob.h
+        g, am, af = params.gamma, params.alpha_m, params.alpha_f
+        glob = self.system._glob_force
+        body = self._body_force(glob, None if pose is None else (pose[1],))
+        body = self.loads.with_points(body, prob.t_new, None if pose is None else pose[1],
+                                      prob.left_limit)
+        loads, xdot = np.empty((2, 6)), np.empty((2, 6))
+        work, power, dphi0, dphi1 = end_work_into(Y, self.Y, float(h), float(g), float(am),
+                                                  float(af), self.xdot_end, self.end_load,
+                                                  props.stiffness, xdot, loads)
+        self.phi = self.phi + np.array([dphi0, dphi1])
+        self.work_in += work
+        self.xdot_end, self.end_load = xdot, loads
+        if self.loads.has_global or self.loads.points is not None:
+            # distributed global-frame loads (and point loads, as loads per node length):
+            # the same per node, with the quadrature weights
+            vdot = np.empty_like(self.xdot_nodes)
+            none = np.zeros((0, 3))
+            work, dpower = distributed_work_into(
+                Y, self.Y, float(h), float(g), float(am), float(af), self.xdot_nodes,
+                none if self.body_force is None else self.body_force, self.body_force is not None,
+                none if body is None else body, body is not None, props.quad_weights, vdot)
+            self.work_in += work
+            power += dpower
+            self.xdot_nodes = vdot
+        self.power, self.body_force = power, body
+
+    # ------------------------------------------------- step control (StepControl)
+    def advance(self, t_target: float):
+        """Advance to t_target (s) by fixed steps (:meth:`StepControl.advance`);
+        returns (iterations, residual)."""
+        return self.control.advance(self, t_target)
+
+    def step_adaptive(self, t_stop: float):
+        """One accepted error-controlled step toward t_stop (s)
+        (:meth:`StepControl.step_adaptive`); returns (iterations, residual)."""
+        return self.control.step_adaptive(self, t_stop)
+
+    def _h_cap(self) -> float:
+        """Largest Δt (s) the growth guard allows now (inf when no growth is known)."""
+        return self.control.guard.cap()
+
+    def _state(self):
+        """The run's state between steps, for :meth:`_restore`: the state (a shallow
+        copy: the accepted-step path rebinds every array it changes), the step control's
+        and the run's own attributes, the kept contact candidates and the error
+        control's history. The growth guard's knowledge is not part of it: a check made
+        in a probe step serves the steps that replace it."""
+        own = dict(self.__dict__)
+        own["state"] = copy.copy(self.state)
+        return (own, dict(self.control.__dict__),
+                self.search.verlet if self.search is not None else None,
+                self.errctl.state() if self.errctl is not None else None)
+
+    def _restore(self, saved) -> None:
+        """Return to a :meth:`_state` (which stays valid for another restore)."""
+        own, control, verlet, errctl = saved
+        self.__dict__.update(own)
+        self.state = copy.copy(own["state"])
+        self.control.__dict__.update(control)
+        if self.search is not None:
+            self.search.verlet = verlet
+        if self.errctl is not None:
+            self.errctl.restore(errctl)
+
+    # ------------------------------------------------------------- outputs
+    def snapshot(self, fields: set, route_current: bool = False) -> dict:
+        """Output quantities of the current state (:func:`solver.recording.snapshot`)."""
+        return snapshot(self, fields, route_current)
+
+    def dense_state(self):
+        """The start of a step's dense output (:func:`solver.recording.dense_state`)."""
+        return dense_state(self)
+
+    def interpolated_snapshot(self, fields: set, t: float, start) -> dict:
+        """The outputs at t (s) inside the last step
+        (:func:`solver.recording.interpolated_snapshot`)."""
+        return interpolated_snapshot(self, fields, t, start)
+
+
+def _delegate(owner: str, name: str, doc: str):
+    """A property of RodRun that reads and writes ``self.<owner>.<name>``."""
+    path = owner.split(".")
+
+    def holder(self):
+        obj = self
+        for part in path:
+            obj = getattr(obj, part)
+        return obj
+
+    def get(self):
+        return getattr(holder(self), name)
+
+    def put(self, value):
+        setattr(holder(self), name, value)
+
+    return property(get, put, doc=doc)
+
+
+for _name in RunState.names():
+    setattr(RodRun, _name, _delegate("state", _name, f"The state's ``{_name}`` "
+                                     "(:class:`solver.state.RunState`)."))
+for _name in ("errctl", "route_pi", "h_route", "h_next", "level_hint", "accepted_at_level",
+              "grow_after", "restart_pending", "breakpoints", "refusals", "last_dt"):
+    setattr(RodRun, _name, _delegate("control", _name, f"The step control's ``{_name}`` "
+                                     "(:class:`solver.stepping.control.StepControl`)."))
+for _name, _attr in (("growth_guard", "limit"), ("guard_sigma", "sigma"), ("guard_h", "h"),
+                     ("guard_h_max", "h_max"), ("guard_since", "since"), ("guard_v0", "v0")):
+    setattr(RodRun, _name, _delegate("control.guard", _attr, f"The growth guard's "
+                                     f"``{_attr}`` (:class:`solver.stepping.guard."
+                                     "GrowthGuard`)."))
+del _name, _attr

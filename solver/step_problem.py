@@ -1,0 +1,307 @@
+"""One step's problem: assembled in one place and handed to Newton.
+
+A step of size h from the run's state (:class:`solver.state.RunState`) to t + h is the
+system of difference equations of :mod:`solver.scheme` (the box scheme in s, the
+generalized-α scheme in t, or backward Euler for a restart or across a switch of the
+boundary conditions), with the boundary rows in force at t + h (:mod:`solver.boundary`,
+plus the end correction of :meth:`ProblemAssembly.end_correction`), the loads
+(:mod:`solver.loads`) and, with self-contact, the contact terms of the candidate pairs
+(:mod:`solver.contact.search`). :class:`StepProblem` holds these; Newton
+(:mod:`solver.newton`) solves it from the predicted start, and the contact coverage check
+after Newton adds the pairs the search missed and solves again
+(:meth:`ProblemAssembly.solve_problem`). What is done with the solution (the checks that
+refuse it, the accepted state) is :meth:`solver.run.RodRun.try_step`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, NamedTuple, Optional
+
+import numpy as np
+
+from .boundary import BoundaryRows
+from .contact.geometry import max_distance
+from .kinematics import quat_to_matrix, relative_rotation, space_route
+from .scheme import BACKWARD_EULER, pose_into
+from .stepping import extrapolate
+
+__all__ = ["StepProblem", "Solution", "ProblemAssembly"]
+
+
+@dataclass
+class StepProblem:
+    """The problem of one step.
+
+    h : step, s; t_new : the time it ends at, s; left_limit : the loads take their left
+    limit at t_new (a step landing on a breakpoint); restart : a backward-Euler restart
+    step; bc : the boundary rows at t_new (with the end correction ``offset`` (12,) or
+    None added); switched : the boundary conditions differ from the old level's; params :
+    the time scheme's parameters (:func:`solver.scheme.alpha_parameters` or
+    BACKWARD_EULER); predictions : dict of (N+1, 12) Newton starts by name or None;
+    guess : the Newton start (N+1, 12); candidates : the contact candidate pairs or None.
+    """
+
+    h: float
+    t_new: float
+    left_limit: bool
+    restart: bool
+    bc: BoundaryRows
+    switched: bool
+    offset: Optional[np.ndarray]
+    params: Any
+    predictions: Optional[dict]
+    guess: np.ndarray
+    candidates: Any
+
+
+class Solution(NamedTuple):
+    """Newton's answer to a :class:`StepProblem`: the new level Y (N+1, 12), its node
+    terms Fn, the iterations, the scaled residual, the pose (q, R, r) or None, the
+    candidates the contact terms were evaluated for, and the reason it failed ("newton",
+    "contact") or None."""
+
+    Y: Any
+    Fn: Any
+    iterations: int
+    residual: float
+    pose: Any
+    candidates: Any
+    reason: Optional[str] = None
+    nonfinite: bool = False
+
+
+class ProblemAssembly:
+    """The run's methods that assemble one step's problem and solve it (a mixin of
+    :class:`solver.run.RodRun`: they read its state, system, Newton and contact search)."""
+
+    #: the share of the s = L end's drift that each step's boundary values correct
+    #: (:meth:`end_correction`; None: no correction). The correction enters the step's
+    #: end motion through the trapezoid ½h(v^n + v^{n+1}), so the drift obeys
+    #: e_{n+1} = e_n − ½g(e_{n−1} + e_n) + (the step's new route difference), whose
+    #: roots have modulus √(g/2): g = 0.5 halves it per step (a damped oscillation).
+    #: Measured with 0.25, 0.5 and 1 alike (docs/contact.md § 4)
+    DRIFT_GAIN = 0.5
+    #: the correction's rate is DRIFT_GAIN / max(h, DRIFT_STEP_FLOOR · numerics.dt): on
+    #: substeps shorter than a hundredth of the case's Δt it moves the end by a share
+    #: ∝ h of its drift, not by DRIFT_GAIN of it. Why: at a fixed drift e the end moved
+    #: by ~g·e in every step however small, and the route rule read a part of that as
+    #: the step's position error, so no Δt could pass once g·e outgrew the tolerance
+    #: (PyElastica's plectoneme, N = 25, Δt = 0.1 s, ρ∞ = 0.8: a 44-mm drift in the
+    #: collapse, the route error 14.5-15.8 mm at h = 5e-5 s against 12.5 mm, the run
+    #: stopped at 7.50 s; docs/contact.md § 4). Steps at or above the floor
+    #: are unchanged (the seed example's smallest is 1.1 ms = dt/90)
+    DRIFT_STEP_FLOOR = 0.01
+
+    def step_problem(self, h: float, t_new=None, left_limit=False,
+                     restart=False) -> StepProblem:
+        """Assemble the problem of a step of h (s) from the current state, ending at
+        t_new (default t + h): boundary rows, end correction, time scheme, predicted start
+        and contact candidates (``last_had_candidates`` is set)."""
+        sysm = self.system
+        t_new = self.t + h if t_new is None else t_new
+        bc = BoundaryRows(self.case, self.props, t_new, sysm.n, self.bc_plan)
+        switched = bc.key != self.bc.key
+        offset = self.end_correction(h, bc, restart)
+        if offset is not None:
+            bc.values = bc.values + offset
+        params = BACKWARD_EULER if (restart or switched) else self.params
+        predictions = None if restart else self._predictions(h)
+        if predictions is None:
+            guess = self.Y
+        else:
+            guess = predictions.get(self.predictor, predictions["linear"])
+        cand = None
+        if self.contact is not None:
+            cand = self._candidates(h, guess)
+        self.last_had_candidates = cand is not None
+        return StepProblem(h, t_new, left_limit, restart, bc, switched, offset, params,
+                           predictions, guess, cand)
+
+    def solve_problem(self, prob: StepProblem) -> Solution:
+        """Hand the step's problem to Newton (:meth:`solver.newton.Newton.solve`). With
+        self-contact every pair within reach of the new positions must have been among
+        the candidates (the kept search holds them while the nodes stay within half its
+        skin); pairs found beyond them are added and the step solved again, at most three
+        times."""
+        sysm, cand, guess, bc = self.system, prob.candidates, prob.guess, prob.bc
+        its_total = 0
+        for attempt in range(3):
+            sysm.begin_step(prob.h, prob.params, prob.t_new, self.Y, self.Ydot, self.F_old,
+                            bc, q_old=self.q, r_old=self.r, v_old_global=self.v_global,
+                            candidates=cand, left_limit=prob.left_limit)
+            if attempt == 0 and cand is not None:
+                guess = self._feasible_guess(guess)
+            if prob.offset is not None:
+                # the end correction moves the s = L values in every step, which no
+                # extrapolation of earlier levels knows (nor the feasible start's blend):
+                # the Newton start takes the step's boundary values (PyElastica's
+                # plectoneme, N = 25, Δt = 0.1 s: 1066 against 1245 Newton iterations;
+                # docs/contact.md § 4)
+                guess = bc.project(guess)
+            Y, Fn, its, res, ok, pose = self.newton.solve(guess)
+            its_total += its
+            if not ok:
+                return Solution(Y, Fn, its_total, res, pose, cand, "newton",
+                                not np.isfinite(res))
+            if self.contact is None:
+                break
+            if pose is None:
+                pose = sysm.pose_new(Y)
+            if self.search.covers(pose[2]):
+                break
+            found = self.search.search(pose[2], pose[1], 0.0)
+            if found is None or self.contact.covers(cand, found):
+                break
+            cand, guess = self.contact.merge(cand, found), Y
+        else:
+            return Solution(Y, Fn, its_total, res, pose, cand, "contact")
+        return Solution(Y, Fn, its_total, res, pose, cand)
+
+    @staticmethod
+    def _body_force(glob, pose):
+        """The global-frame distributed load glob (N+1, 3) in the body frames of pose
+        ((R (N+1, 3, 3), ...)), or None without either."""
+        if glob is None or pose is None:
+            return None
+        return np.einsum("nji,nj->ni", pose[0], glob)
+
+    def _time_step(self, h, Y, q, r, v_global, offsets=None):
+        """Nodes advanced one step h (s) in time, each on its own (the time route):
+        q' = q ⊗ exp(½h(ω^n + ω)), r' = r + ½h(ṙ^n + R' v), with ω, v from Y (N+1, 12),
+        q (N+1, 4), r and ṙ^n = v_global (N+1, 3) m, m/s. Returns (q' unnormalised,
+        R' (N+1, 3, 3), ṙ' = R' v (N+1, 3), r' (N+1, 3)). ``offsets``: ((old-level
+        offsets (12,) or None, their columns (12,)), (the same at the new level)): the
+        boundary offsets of :meth:`end_correction`, taken out of both levels' unknowns
+        first, so that the end node's time route is its prescribed motion."""
+        Y_old = self.Y
+        if offsets is not None and any(o is not None for o, _ in offsets):
+            (old, old_cols), (new, new_cols) = offsets
+            Y_old, Y = Y_old.copy(), Y.copy()
+            if old is not None:
+                Y_old.reshape(-1)[old_cols] -= old
+            if new is not None:
+                Y.reshape(-1)[new_cols] -= new
+        n1 = Y.shape[0]
+        q_new, R_new, r_new, vg = (np.empty((n1, 4)), np.empty((n1, 3, 3)), np.empty((n1, 3)),
+                                   np.empty((n1, 3)))
+        pose_into(np.ascontiguousarray(Y, dtype=float), np.ascontiguousarray(Y_old, dtype=float),
+                  float(h), False, np.ascontiguousarray(q, dtype=float),
+                  np.ascontiguousarray(r, dtype=float),
+                  np.ascontiguousarray(v_global, dtype=float), True, 0.0, q_new, R_new, r_new,
+                  np.empty((n1, 3)), vg)
+        return q_new, R_new, vg, r_new
+
+    def end_correction(self, h, bc, restart):
+        """Offsets (12,) of the boundary values of a step of h (s) that keep the carried
+        centreline's s = L end on its prescribed motion, or None (no self-contact: the
+        centreline is not carried; a restart step; DRIFT_GAIN None).
+
+        Why: with self-contact the centreline carried from step to step is the space
+        route, integrated along s from κ and anchored at node 0 (docs/contact.md, "One
+        geometry"). Node 0 is exact by construction, but the s = L end is wherever the
+        integral of κ puts it: each step adds the difference between the two routes, and
+        on PyElastica's plectoneme case (N = 25, Δt = 0.05 s) a laterally held end had
+        drifted 25 mm off its axis and tilted 2.6° by the end of the collapse, and at
+        Δt = 0.1 s the collapse pressed it onto the clamped end (docs/contact.md § 4).
+        The end's own time route (its prescribed velocities integrated in time; the
+        carried ``r_time``, ``q_time`` of node N, which the offsets do not enter) is
+        where it should be. Each step prescribes, on top of the case's values, the
+        velocity g·e/h and angular velocity g·θ/h toward it (g = DRIFT_GAIN; e and θ the
+        position and tilt of the time route relative to the carried end, in the end's
+        body frame; :meth:`solver.boundary.BoundaryRows.end_drift_offsets`):
+        a Baumgarte stabilisation of the end's constraint at velocity level. The offset
+        is O(route difference / h) = O(h²) on a smooth motion, so second order is kept,
+        and it vanishes as Δt → 0 (measured: docs/contact.md § 4); on
+        substeps below DRIFT_STEP_FLOOR · numerics.dt the rate is that of the floor, so
+        that the end's correction within a step vanishes with h even where the drift
+        does not.
+        """
+        if self.contact is None or self.DRIFT_GAIN is None or restart:
+            return None
+        R = quat_to_matrix(self.q[-1:])[0]
+        e = R.T @ (self.r_time[-1] - self.r[-1])
+        theta = relative_rotation(self.q[-1], self.q_time[-1])
+        h_rate = max(h, self.DRIFT_STEP_FLOOR * self.case.numerics.dt)
+        return bc.end_drift_offsets(self.props.s.size - 1, e, theta, self.DRIFT_GAIN / h_rate)
+
+    def _hold_from_here(self, prev_bc, bc) -> None:
+        """A degree of freedom of the s = L end that has just become kinematic (a sliding
+        end held, as the seed's at 30 s) is held where the carried end is, not where the
+        end's time route had got to while it was free (the two differ by the route
+        differences of the free motion, which :meth:`end_correction` does not touch): the
+        end's time route is moved onto the carried end along each such translation axis
+        a_i, and its frame set to the carried frame when ω1 or ω2 becomes prescribed."""
+        R = quat_to_matrix(self.q[-1:])[0]
+        for j, idx in bc.end_kinematic_dofs(self.props.s.size - 1):
+            if prev_bc.kinematic[j] and prev_bc.cols[j] == bc.cols[j]:
+                continue                          # held before: its reference stays
+            if idx < 3:
+                a = R[:, idx]
+                self.r_time = self.r_time.copy()
+                self.r_time[-1] += a * float(a @ (self.r[-1] - self.r_time[-1]))
+            elif idx < 5:
+                self.q_time = self.q_time.copy()
+                self.q_time[-1] = self.q[-1]
+
+    def _local_error(self, h, Y, r_new) -> float:
+        """Local error indicator of a step (m): the largest distance between the new
+        centreline (integrated along s from κ) and the same nodes advanced one
+        trapezoidal step in time from the old centreline, r^n + ½h(ṙ^n + R^{n+1} v^{n+1})
+        (R^{n+1} = R^n exp(½h(ω^n + ω^{n+1})) per node). Both are second-order routes to
+        the same positions, so their difference is O(h³) per step and measures the step's
+        position error (docs/contact.md, "Step control")."""
+        r_t = self._time_step(h, Y, self.q, self.r, self.v_global)[3]
+        return max_distance(r_t, np.ascontiguousarray(r_new, dtype=float))
+
+    def _candidates(self, h, guess):
+        """Contact candidates for a step of h (s) from the Newton start ``guess``
+        (N+1, 12): :meth:`solver.contact.search.CandidateSearch.candidates` between the
+        old positions and those the start predicts (each node advanced in time)."""
+        _, R_new, _, r_new = self._time_step(h, guess, self.q, self.r, self.v_global)
+        return self.search.candidates(self.r, lambda: quat_to_matrix(self.q), r_new, R_new)
+
+    def _feasible_guess(self, guess):
+        """A Newton start whose contact gaps are open (:meth:`Newton.feasible_start`: the
+        replay of the seed example's first contact, where an extrapolated start penetrated
+        and Newton died at the barrier), unless ``guess`` is the old level itself. The
+        step (with its candidates) must have been set up by ``system.begin_step``."""
+        if guess is self.Y:
+            return guess
+        return self.newton.feasible_start(guess)
+
+    def update_space_route(self):
+        """Recompute pose along the rod from κ, anchored at node 0's time-route pose."""
+        self.q, self.r = space_route(self.q_time[0], self.r_time[0], self.Y[:, 9:12],
+                                     self.props.ds)
+        self.v_global = np.einsum("nij,nj->ni", quat_to_matrix(self.q), self.Y[:, 0:3])
+
+    def _predictions(self, h: float):
+        """Newton starts for a step of h (s) extrapolated from the accepted levels: the
+        line through the last two ("linear") and, with three since the last restart, the
+        parabola through the last three ("quadratic", with the actual steps;
+        :func:`solver.stepping.extrapolate`).
+        None without a level before the current one. Returns a dict of (N+1, 12) arrays."""
+        if self.Y_prev is None or not self.h_prev:
+            return None
+        # times relative to the current level (t = 0)
+        h1 = self.h_prev
+        out = {"linear": extrapolate((-h1, 0.0), (self.Y_prev, self.Y), h)}
+        if self.Y_prev2 is not None and self.h_prev2:
+            out["quadratic"] = extrapolate((-h1 - self.h_prev2, -h1, 0.0),
+                                           (self.Y_prev2, self.Y_prev, self.Y), h)
+        return out
+
+    def _better_predictor(self, Y: np.ndarray, predictions: dict) -> str:
+        """The predictor whose curvature κ was nearer the accepted level Y (N+1, 12)'s
+        (sum of squares over the nodes; ``predictions`` as :meth:`_predictions` returns).
+        κ is what the centreline, and so every contact gap, is
+        integrated from: at the seed's 40 s the parabola's κ was 2-10× nearer and its
+        centreline within 0.04-0.3 mm against 0.2-0.9 mm, while the RMS over all twelve
+        unknowns ranked the two alike. The parabola halves the Newton iterations of the
+        intertwined phase (156 → 89 over 40-43 s) but extrapolates an oscillation that
+        alternates from step to step (a transient the step does not resolve, damped by
+        ρ∞: the held end after 30 s) seven times instead of three (152 → 231 over
+        30-33 s), so the last step's record decides."""
+        err = {k: float(np.sum((Y[:, 9:12] - g[:, 9:12]) ** 2))
+               for k, g in predictions.items()}
+        return min(err, key=err.get)

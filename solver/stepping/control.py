@@ -1,0 +1,430 @@
+"""Step control of a run: which step to try next, and what to do when one is refused.
+
+:class:`StepControl` drives a run (:class:`solver.run.RodRun`) through the small interface
+of a step: ``run.try_step(h, t_new=..., left_limit=..., restart=..., estimate=...)`` tries a
+step of size h from the run's state and returns an :class:`Attempt` (accepted or refused,
+with the reason, the Newton iterations and the residual); an accepted step has advanced
+the state, a refused one has left it untouched. The rules it applies are those of
+:mod:`solver.stepping` (breakpoints, consistent restarts, the error estimate and the PI
+controller) and :class:`solver.stepping.guard.GrowthGuard`.
+
+Fixed steps (:meth:`StepControl.advance`): the nominal step, split at the case's
+breakpoints, substepped on the levels Δt/dt_cut_factor^k (cut on failure, grown back
+after a run of accepted substeps), and where strands may meet with Δt from the route
+rule's error ratio (:meth:`StepControl._route_step`). Error-controlled steps
+(``numerics.tolerance``, :meth:`StepControl.step_adaptive`): one accepted step of the PI
+controller's size, the first after a restart measured by step doubling.
+"""
+from __future__ import annotations
+
+import math
+from typing import NamedTuple, Optional
+
+from . import RESTART_FRACTION, RESTART_STEPS, breakpoints
+from .guard import GrowthGuard
+
+__all__ = ["Attempt", "SolverDivergence", "StepControl"]
+
+
+class Attempt(NamedTuple):
+    """The outcome of one step attempt (:meth:`solver.run.RodRun.try_step`).
+
+    ok: accepted (the state advanced) or refused (the state untouched); iterations: Newton
+    iterations of the attempt; residual: the scaled residual of its last iterate;
+    nonfinite: the iterate was not finite; reason: why it was refused ("newton",
+    "contact", "error", "growth"), None when accepted.
+    """
+
+    ok: Optional[bool]
+    iterations: int
+    residual: float
+    nonfinite: bool = False
+    reason: Optional[str] = None
+
+
+class SolverDivergence(RuntimeError):
+    """A time step could not be completed even after all Δt cuts.
+
+    Attributes: t (s, the time reached), step (nominal steps completed), residual (the
+    scaled residual of the last attempt), reason ("solver_diverged" or
+    "nonfinite_state"), partial (the xarray.Dataset up to the last accepted step).
+    """
+
+    def __init__(self, message, t, step, residual, reason, partial=None):
+        super().__init__(message)
+        self.t = t
+        self.step = step
+        self.residual = residual
+        self.reason = reason
+        self.partial = partial
+
+
+class StepControl:
+    """The step-size state of a run and the rules that choose its steps.
+
+    Parameters
+    ----------
+    case : solver.case.Case
+    errctl : solver.stepping.ErrorControl or None
+        The error estimate and PI controller of ``numerics.tolerance`` (None: fixed steps).
+    route_pi : solver.stepping.PIController or None
+        The controller of fixed steps where strands may meet (None: without contact, or
+        with ``numerics.tolerance``).
+
+    Attributes
+    ----------
+    h_next : float
+        The next error-controlled step, s.
+    h_route : float or None
+        The next fixed step where strands may meet, s (None: the levels decide).
+    level_hint, accepted_at_level, grow_after : int
+        The Δt level the last nominal step ended on, the accepted substeps at it, and
+        the accepted substeps needed before Δt grows to the nominal step.
+    restart_pending : bool
+        A consistent restart before the next step.
+    breakpoints : (K,) array, s
+    refusals : dict
+        Refused attempts so far by reason (the dataset's ``step_rejected_attempts`` and
+        ``hockle_refused_attempts``).
+    last_dt : float
+        The last accepted step, s.
+    guard : GrowthGuard
+
+    The numerics are read from the run's case at every step (a benchmark may swap it).
+    """
+
+    GROW_AFTER = 3   # accepted substeps at one Δt level before Δt is allowed to grow
+    GROW_AFTER_MAX = 48  # the same after repeated failed growths (doubling back-off)
+
+    def __init__(self, case, errctl=None, route_pi=None):
+        num = case.numerics
+        self.errctl = errctl
+        self.route_pi = route_pi
+        self.guard = GrowthGuard(num.growth_guard)
+        self.breakpoints = breakpoints(case)
+        self.h_next = num.dt
+        self.h_route = None
+        self.restart_pending = True
+        self.level_hint = 0
+        self.accepted_at_level = 0
+        self.grow_after = self.GROW_AFTER
+        self.refusals = {"error": 0, "newton": 0, "contact": 0, "growth": 0}
+        self.last_dt = num.dt
+
+    # ------------------------------------------------------------------ fixed steps
+    def advance(self, run, t_target: float):
+        """Advance ``run`` to t_target (s): the nominal step, split at the case's
+        breakpoints, each substep run by :meth:`_advance_to`, with a consistent restart (a
+        backward-Euler step of RESTART_FRACTION·Δt) at t = 0 and after each breakpoint.
+        Returns (iterations, residual) of the nominal step; raises SolverDivergence
+        (without partial) when all cuts fail."""
+        h_full = t_target - run.t
+        snap = 1e-9 * h_full
+        total_its = 0
+        while run.t < t_target - snap:
+            its, stop, at_break = self._next_stop(run, t_target, snap)
+            total_its += its + self._advance_to(run, stop, h_full, at_break)
+            if at_break:
+                self.restart_pending = True
+        return total_its, run.last_residual
+
+    def _advance_to(self, run, stop: float, h_full: float, at_break: bool) -> int:
+        """Advance to ``stop`` (s) with the nominal step h_full (s), cutting Δt on failure;
+        the step that reaches ``stop`` ends exactly there (with the loads' left limit when
+        ``at_break``). Returns the Newton iterations.
+
+        Δt levels: h = h_full/factor^level. A nominal step starts at the level the
+        previous one ended on and substeps at the current level until t_target is
+        reached; a failure raises the level by one, and after ``grow_after`` consecutive
+        accepted substeps the level drops by one (:meth:`_choose_level`). Once a step with
+        contact candidates is accepted, the steps go on by :meth:`_route_step` (Δt from
+        the route rule's error ratio) until one has none.
+        """
+        num = run.case.numerics
+        level = self.level_hint
+        total_its = 0
+        while run.t < stop - 1e-9 * h_full:
+            if self.h_route is not None:
+                total_its += self._route_step(run, stop, h_full, at_break)
+                level = self.level_hint
+                continue
+            remaining = stop - run.t
+            level, grew = self._choose_level(run, level, h_full, remaining)
+            h = h_full / num.dt_cut_factor**level
+            h_try = min(h, remaining)
+            last = remaining - h_try < 1e-9 * h
+            if last:
+                h_try = remaining
+            ok, its, res, nonfinite, _ = run.try_step(
+                h_try, t_new=stop if last else None, left_limit=last and at_break)
+            total_its += its
+            if ok:
+                self.last_dt = h_try
+                self.accepted_at_level += 1
+                if grew:
+                    self.grow_after = self.GROW_AFTER
+                if self.route_pi is not None and run.last_had_candidates:
+                    # strands may meet: from here Δt follows the route rule's ratio
+                    self.route_pi.forget()
+                    self.h_route = self.route_pi.accepted(h_try, run.last_route_ratio)
+                continue
+            self.accepted_at_level = 0
+            self._count_refusal(run)
+            if grew and level == 0:
+                # a growth to the nominal Δt that failed at once: wait twice as long
+                # before the next one (below the nominal Δt a growth is cheap to retry)
+                self.grow_after = min(2 * self.grow_after, self.GROW_AFTER_MAX)
+            if level >= num.max_dt_cuts:
+                raise self._divergence(run, f"time step from t = {run.t:.6g} s did not "
+                                       f"converge after {level} Δt cuts", h_try, res,
+                                       nonfinite)
+            level += 1
+        self.level_hint = level
+        return total_its
+
+    def _choose_level(self, run, level: int, h_full: float, remaining: float):
+        """The Δt level of the next fixed substep and whether it grew: levels whose step
+        the growth guard forbids are skipped, and after ``grow_after`` consecutive accepted
+        substeps (counted across nominal steps; GROW_AFTER, and for the growth to the
+        nominal Δt doubled after each such growth that fails at once, up to
+        GROW_AFTER_MAX, and reset by one that holds) the level drops by one (Δt grows by
+        the factor) as soon as the larger step fits in what remains (``remaining``, s) of
+        the nominal step h_full (s), so a growth is always tried and a Δt that keeps
+        failing is not retried at every nominal step. Raises SolverDivergence when the
+        guard needs more than ``numerics.max_dt_cuts`` cuts."""
+        num = run.case.numerics
+        grew = False
+        cap = self.guard.cap() * (1.0 + 1e-9)
+        while h_full / num.dt_cut_factor**level > cap:
+            # a known growth rate: the levels it forbids are not tried
+            if level >= num.max_dt_cuts:
+                raise SolverDivergence(
+                    f"at t = {run.t:.6g} s the dynamics grow at σ = "
+                    f"{self.guard.sigma:.3g} 1/s: the growth guard needs Δt ≤ "
+                    f"{self.guard.cap():.3g} s, more than numerics.max_dt_cuts = "
+                    f"{num.max_dt_cuts} cuts of dt (raise max_dt_cuts, lower dt, or set "
+                    f"numerics.growth_guard to null to run without the check)",
+                    t=run.t, step=None, residual=math.nan, reason="solver_diverged")
+            level += 1
+            self.accepted_at_level = 0
+        needed = self.grow_after if level == 1 else self.GROW_AFTER
+        grown = h_full / num.dt_cut_factor ** (level - 1)   # the step one level up
+        if (self.accepted_at_level >= needed and level > 0
+                and grown <= remaining * (1.0 + 1e-9) and grown <= cap):
+            # grow only when the larger step fits and will be tried
+            level -= 1
+            self.accepted_at_level = 0
+            grew = True
+        return level, grew
+
+    def _route_step(self, run, stop: float, h_full: float, at_break: bool) -> int:
+        """One accepted fixed-mode step where strands may meet, toward ``stop`` (s), of
+        at most the nominal h_full (s): Δt from the route rule's error ratio (the step's
+        position error over ``contact.position_tolerance``,
+        :meth:`solver.run.RodRun._local_error`) by the PI controller of error-controlled
+        steps (:class:`solver.stepping.PIController`: target ratio 0.35, retries after a
+        route refusal at its smaller size), cut by ``dt_cut_factor`` when Newton or a
+        contact check fails; it lands on ``stop`` as :meth:`step_adaptive` does (a step
+        that would leave less than itself is halved). With Δt chosen continuously rather
+        than on the levels h_full/factor^k the seed example's contact phase is more
+        accurate for its cost (docs/contact.md § 4). When the accepted step has no
+        candidates the levels take over again, at the level of that step. Raises
+        SolverDivergence below h_full/dt_cut_factor^max_dt_cuts. Returns the Newton
+        iterations."""
+        num = run.case.numerics
+        ctl = self.route_pi
+        h_min = h_full / num.dt_cut_factor ** num.max_dt_cuts
+        h = min(self.h_route, h_full, self.guard.cap())
+        refused = None           # (h, ratio) of the last attempt refused by the route rule
+        total_its = 0
+        while True:
+            h_try, last = self._landing(h, stop - run.t)
+            ok, its, res, nonfinite, _ = run.try_step(
+                h_try, t_new=stop if last else None, left_limit=last and at_break)
+            total_its += its
+            if ok:
+                self.last_dt = h_try
+                if run.last_had_candidates:
+                    h_new = ctl.accepted(h_try, run.last_route_ratio)
+                    # a step shortened to land on a stop does not shrink the next one
+                    self.h_route = max(h_new, h) if h_try < h else h_new
+                else:
+                    # strands apart: the levels again, from the largest not above this Δt
+                    self.h_route = None
+                    self.level_hint = max(0, math.ceil(
+                        math.log(h_full / h_try) / math.log(num.dt_cut_factor) - 1e-9))
+                    self.accepted_at_level = 0
+                return total_its
+            self._count_refusal(run)
+            h, refused = self._retry_size(
+                run, h_try, ctl, run.last_route_ratio,
+                run.last_reject == "contact" and run.last_route_ratio > 1.0, refused)
+            if h < h_min * (1.0 - 1e-9):
+                raise self._divergence(
+                    run, f"time step from t = {run.t:.6g} s did not converge above the "
+                    f"smallest step dt/dt_cut_factor^max_dt_cuts = {h_min:.3g} s (last "
+                    f"refusal: {run.last_reject})", h_try, res, nonfinite)
+
+    # ------------------------------------------------------- error-controlled steps
+    def step_adaptive(self, run, t_stop: float):
+        """One accepted error-controlled step (``numerics.tolerance``) toward t_stop (s):
+        never past t_stop or the next breakpoint, landing on them exactly (a step that
+        would leave less than itself before the stop is halved instead). A step refused
+        for its error is retried at the controller's smaller size, one refused by the
+        growth guard at g/σ, one whose Newton or contact checks fail at Δt/dt_cut_factor;
+        below 1e-9 t_end SolverDivergence is raised. Returns
+        (iterations of all attempts, residual)."""
+        num = run.case.numerics
+        ctl = self.errctl
+        total_its, stop, at_break = self._next_stop(run, t_stop,
+                                                    1e-9 * max(self.h_next, 1e-300))
+        # the step-size floor: 1e-9 of the run (the error control may need far smaller
+        # steps than dt/dt_cut_factor^max_dt_cuts after a switch)
+        h_min = 1e-9 * max(num.t_end, num.dt)
+        h_max = num.dt_max if num.dt_max is not None else math.inf
+        h = self.h_next
+        refused = None           # (h, ratio) of the last attempt refused for its error
+        while True:
+            h = min(h, h_max, self.guard.cap())
+            h_try, last = self._landing(h, stop - run.t)
+            doubled = not ctl.can_estimate and not run.last_had_candidates
+            if doubled:
+                ok, its, res, nonfinite, _ = self._doubled_step(
+                    run, h_try, stop if last else None, last and at_break)
+                if ok is None:                   # strands may meet: no doubling there
+                    total_its += its
+                    doubled = False
+            if not doubled:
+                ok, its, res, nonfinite, _ = run.try_step(
+                    h_try, t_new=stop if last else None, left_limit=last and at_break)
+            total_its += its
+            if ok:
+                self.last_dt = h_try
+                # a doubled step is kept as its two half steps, whose error was measured
+                h_new = ctl.accepted(0.5 * h_try if doubled else h_try, run.last_error_ratio)
+                # a step shortened to land on a stop does not shrink the next one
+                self.h_next = max(h_new, h) if h_try < h else h_new
+                if last and at_break:
+                    self.restart_pending = True
+                run.last_iterations = total_its
+                return total_its, res
+            self._count_refusal(run)
+            h, refused = self._retry_size(run, h_try, ctl, run.last_error_ratio,
+                                          run.last_reject == "error", refused)
+            if h < h_min * (1.0 - 1e-9):
+                raise self._divergence(
+                    run, f"time step from t = {run.t:.6g} s could not be completed above "
+                    f"the smallest step 1e-9 t_end = {h_min:.3g} s "
+                    f"(last refusal: {run.last_reject})", h_try, res, nonfinite)
+
+    def _doubled_step(self, run, h: float, t_new, left_limit: bool) -> Attempt:
+        """The first error-controlled step after a restart, which has no predictor: one
+        step h (s) and two steps h/2 over the same interval, the difference giving a half
+        step's local error (step doubling, :meth:`ErrorControl.doubling_error`). The two
+        half steps are kept when the error ratio of each is ≤ 1, nothing when not (ratio
+        in ``run.last_error_ratio``); the run is then at t + h with three levels since the
+        restart, so the next step has the quadratic predictor (Hairer, Nørsett & Wanner
+        I, § II.4: step doubling continues from the two half steps). Keeping only the
+        first half left the next step two levels, a linear predictor whose O(h²) estimate
+        read as O(h³) refused it (Greenhill at tolerance 1e-2: ratios 2.1 and 1.7 after
+        the doubled step's 0.35, the step cut 7× and regrown over ~10 steps); leaving the
+        first step after a restart unmeasured set the Greenhill growth rate 2 % off at
+        every tolerance (docs/numerics.md § 7). Returns the :class:`Attempt` (the residual
+        of the second half), with ok = None (state unchanged) when strands may meet in
+        one of the steps: there the route rule decides (docs/contact.md)."""
+        start, Y_old = run._state(), run.Y
+        t_end = run.t + h if t_new is None else t_new
+        its, Y_full = 0, None
+        for leg in ("whole", "first half", "second half"):
+            if leg == "first half":              # the whole step is kept aside
+                Y_full = run.Y
+                run._restore(start)
+            size = {"whole": h, "first half": 0.5 * h, "second half": t_end - run.t}[leg]
+            ends = None if leg == "first half" else t_new
+            ok, k, res, nonfinite, _ = run.try_step(
+                size, t_new=ends, estimate=False, left_limit=left_limit and ends is not None)
+            its += k
+            if not ok or run.last_had_candidates:
+                run._restore(start)
+                return Attempt((None if ok else False), its, res, nonfinite)
+        ctl = self.errctl
+        ratio = ctl.measure(ctl.doubling_error(Y_full, run.Y), run.Y, Y_old,
+                            run.newton.filtered)
+        accepted = ratio <= 1.0
+        if not accepted:
+            run._restore(start)
+            run.last_reject = "error"
+        run.last_error_ratio = ratio
+        return Attempt(accepted, its, res, False)
+
+    # ------------------------------------------------------------------ shared rules
+    @staticmethod
+    def _landing(h: float, remaining: float) -> tuple[float, bool]:
+        """The step to try (s) of a controller's size h (s) with ``remaining`` (s) to the
+        next stop, and whether it lands there: the remainder when h reaches it, half of
+        it when h would leave less than itself, else h."""
+        last = h >= remaining * (1.0 - 1e-9)
+        return (remaining if last else (0.5 * remaining if 2.0 * h > remaining else h)), last
+
+    def _retry_size(self, run, h_try: float, ctl, ratio: float, by_error: bool, refused):
+        """Size (s) to retry a controlled step of h_try (s) with, after a refusal, and the
+        (h, ratio) to pass as ``previous`` next time: the controller's smaller size
+        (:meth:`solver.stepping.PIController.rejected`) when the error estimate refused
+        it (``by_error``, ratio its error ratio), half of it within the growth guard's
+        cap after a growth refusal, else h_try / dt_cut_factor (Newton or a contact
+        check failed)."""
+        if by_error:
+            return ctl.rejected(h_try, ratio, refused), (h_try, ratio)
+        if run.last_reject == "growth":
+            return min(0.5 * h_try, self.guard.cap()), refused
+        return h_try / run.case.numerics.dt_cut_factor, refused
+
+    def _count_refusal(self, run) -> None:
+        """Count the attempt just refused under its reason (``run.last_reject``)."""
+        self.refusals[run.last_reject] = self.refusals.get(run.last_reject, 0) + 1
+
+    def _next_stop(self, run, t_stop: float, snap: float):
+        """Take the pending consistent restart, if any, and return (its Newton iterations,
+        the time (s) the next steps must land on, whether it is a breakpoint): the first
+        breakpoint after t if it comes before t_stop (within ``snap`` s), else t_stop."""
+        its = 0
+        if self.restart_pending:
+            its = self._restart(run)
+            self.restart_pending = False
+        later = self.breakpoints[self.breakpoints > run.t + snap]
+        if later.size and later[0] <= t_stop + snap:
+            return its, float(later[0]), True
+        return its, t_stop, False
+
+    def _restart(self, run) -> int:
+        """RESTART_STEPS backward-Euler steps of ε = RESTART_FRACTION·Δt (ε cut by 10 up
+        to three times if one fails): f and Ẏ become consistent with the loads and
+        conditions now in force, also after a jump of the velocities
+        (:mod:`solver.stepping`). Returns their Newton iterations."""
+        eps = RESTART_FRACTION * run.case.numerics.dt
+        its_total = 0
+        taken = 0
+        for _ in range(RESTART_STEPS + 3):
+            ok, its, res, nonfinite, _ = run.try_step(eps, restart=True)
+            its_total += its
+            if ok:
+                taken += 1
+                if taken == RESTART_STEPS:
+                    return its_total
+            else:
+                eps *= 0.1
+        raise self._divergence(run, f"the consistent restart (a backward-Euler step) at "
+                               f"t = {run.t:.6g} s did not converge", 10.0 * eps, res,
+                               nonfinite)
+
+    @staticmethod
+    def _divergence(run, what, h, res, nonfinite) -> SolverDivergence:
+        """The SolverDivergence of a step that cannot be completed, with the reason."""
+        singular = run.newton.last_failure == "singular"
+        reason = "nonfinite_state" if (nonfinite and not singular) else "solver_diverged"
+        why = ("singular Jacobian: the boundary conditions leave a force or moment "
+               "undetermined (e.g. a straight inextensible rod held axially at both "
+               "ends)" if singular else
+               "non-finite state" if nonfinite else "Newton did not converge")
+        return SolverDivergence(f"{what} (Δt = {h:.3g} s, scaled residual {res:.3g}, {why})",
+                                t=run.t, step=None, residual=res, reason=reason)

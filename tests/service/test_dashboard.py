@@ -1,0 +1,169 @@
+"""The dashboard at /ui/ without a browser (issue 44): its files, headers and the /v1/ui routes.
+
+The browser tests are in test_dashboard_browser.py.
+"""
+from __future__ import annotations
+
+import re
+from urllib.parse import urljoin
+
+import pytest
+from fastapi.testclient import TestClient
+
+from service.app import create_app
+from service.dashboard import CSP, STATIC_DIR
+from service.settings import Settings
+from svc_support import tiny_case
+
+KEY = "dashboard-key-0123456789abcdef"
+AUTH = {"Authorization": f"Bearer {KEY}"}
+OWN_FILES = ("index.html", "app.js", "view3d.js", "app.css")
+
+
+@pytest.fixture(scope="module")
+def settings(tmp_path_factory):
+    return Settings(data_dir=tmp_path_factory.mktemp("ui"), broker_url="memory://",
+                    api_keys=KEY, progress_interval=0.0)
+
+
+@pytest.fixture(scope="module")
+def client(settings):
+    with TestClient(create_app(settings)) as c:
+        yield c
+
+
+def _run(settings, job_id):
+    from worker.tasks import run_job
+
+    return run_job(job_id, "ui@test", settings)
+
+
+def test_pages_are_public_and_carry_the_csp(client):
+    assert client.get("/ui", follow_redirects=False).headers["location"].endswith("/ui/")
+    page = client.get("/ui/")
+    assert page.status_code == 200 and page.headers["content-type"].startswith("text/html")
+    assert page.headers["content-security-policy"] == CSP
+    assert "script-src 'self'" in CSP and "unsafe-inline" not in CSP and "default-src 'none'" in CSP
+    assert page.headers["x-content-type-options"] == "nosniff"
+    html = page.text
+    # no inline script or style, no event-handler attribute
+    assert not re.search(r"<script(?![^>]*\bsrc=)[^>]*>", html), html
+    assert "<style" not in html and " style=" not in html
+    assert not re.search(r"\son[a-z]+\s*=", html)
+    refs = re.findall(r"""(?:src|href)="([^"#]+)\"""", html)
+    assert {"vendor/uPlot.iife.min.js", "app.js", "view3d.js", "app.css"} <= set(refs)
+    for ref in refs:
+        if ref.startswith("data:"):
+            continue
+        asset = client.get(urljoin("/ui/", ref))
+        assert asset.status_code == 200 and asset.content, ref
+        assert asset.headers["content-security-policy"] == CSP
+
+
+def test_own_files_name_no_other_host_and_never_use_inner_html():
+    for name in OWN_FILES:
+        text = (STATIC_DIR / name).read_text()
+        assert not re.search(r"(?:https?:)?//[A-Za-z0-9-]+\.[A-Za-z]", text.replace("://", "")) \
+            and "http://" not in text and "https://" not in text, name
+        assert "innerHTML" not in text and "outerHTML" not in text and "insertAdjacentHTML" \
+            not in text and "document.write" not in text, name
+        assert "localStorage" not in text, name
+    # the vendored library with its licence beside it
+    vendor = STATIC_DIR / "vendor"
+    assert "MIT License" in (vendor / "uPlot.LICENSE").read_text()
+    assert "uPlot" in (vendor / "uPlot.iife.min.js").read_text()
+
+
+def test_config_says_whether_keys_are_set(client, tmp_path):
+    assert client.get("/ui/config").json()["auth"] is True
+    with TestClient(create_app(Settings(data_dir=tmp_path, broker_url="memory://"))) as open_:
+        assert open_.get("/ui/config").json()["auth"] is False
+        assert open_.get("/v1/ui/jobs").status_code == 200
+
+
+def test_ui_routes_need_a_known_key(client):
+    for path in ("/v1/ui/jobs", "/v1/ui/jobs/x/events", "/v1/ui/sweeps/x/map"):
+        assert client.get(path).status_code == 401
+        assert client.get(path, headers={"Authorization": "Bearer wrong-key"}).status_code == 401
+    assert client.post("/v1/ui/validate", json=tiny_case()).status_code == 401
+    assert "/v1/ui/jobs" not in client.get("/openapi.json").json()["paths"]
+
+
+def test_job_list_answers_304_until_it_changes(client):
+    first = client.get("/v1/ui/jobs", headers=AUTH)
+    assert first.status_code == 200
+    etag = first.headers["etag"]
+    again = client.get("/v1/ui/jobs", headers={**AUTH, "If-None-Match": etag})
+    assert again.status_code == 304 and not again.content
+    created = client.post("/v1/jobs", json=tiny_case("etag"), headers=AUTH)
+    assert created.status_code in (200, 201)
+    changed = client.get("/v1/ui/jobs", headers={**AUTH, "If-None-Match": etag})
+    assert changed.status_code == 200 and changed.headers["etag"] != etag
+    assert created.json()["id"] in [j["id"] for j in changed.json()["jobs"]]
+    bad = client.get("/v1/ui/jobs", params={"status": "sleeping"}, headers=AUTH)
+    assert bad.status_code == 422 and bad.json()["errors"][0]["loc"] == "query.status"
+
+
+def test_validate_is_a_dry_run_with_the_submissions_422(client):
+    before = len(client.get("/v1/ui/jobs", params={"page_size": 500}, headers=AUTH).json()["jobs"])
+    case = tiny_case("dry run")
+    case["rod"]["youngs_modulus"] = -1.0
+    answer = client.post("/v1/ui/validate", json=case, headers=AUTH)
+    submitted = client.post("/v1/jobs", json=case, headers=AUTH)
+    assert answer.status_code == submitted.status_code == 422
+    assert answer.json()["errors"] == submitted.json()["errors"]
+    assert [e["loc"] for e in answer.json()["errors"]] == ["rod.youngs_modulus"]
+    yaml_text = b"schema_version: 1\nname: y\nrod: {length: 1}\n"
+    answer = client.post("/v1/ui/validate", content=yaml_text,
+                         headers={**AUTH, "Content-Type": "application/yaml"})
+    assert answer.status_code == 422
+    assert "rod.youngs_modulus" in [e["loc"] for e in answer.json()["errors"]]
+    good = client.post("/v1/ui/validate", json=tiny_case("fine"), headers=AUTH)
+    assert good.status_code == 200 and good.json()["valid"] and good.json()["grid_points"] == 9
+    after = len(client.get("/v1/ui/jobs", params={"page_size": 500}, headers=AUTH).json()["jobs"])
+    assert after == before
+
+
+def test_events_and_sweep_map(client, settings):
+    case = tiny_case("events")
+    case["numerics"].update(n_segments=8, t_end=0.3)
+    job = client.post("/v1/jobs", json=case, headers=AUTH).json()
+    assert client.get(f"/v1/ui/jobs/{job['id']}/events", headers=AUTH).status_code == 404
+    _run(settings, job["id"])
+    events = client.get(f"/v1/ui/jobs/{job['id']}/events", headers=AUTH).json()
+    names = [e["name"] for e in events["events"]]
+    assert names[:2] == ["buckling_onset", "first_contact"]
+    assert all(set(e) >= {"time", "index", "twist", "writhe", "linking_number"}
+               for e in events["events"])
+    summary = client.get(f"/v1/jobs/{job['id']}/summary", headers=AUTH).json()
+    for event in events["events"]:
+        if event["index"] is not None:
+            assert event["time"] == pytest.approx(summary["time"][event["index"]])
+
+    sweep = client.post("/v1/sweeps", headers=AUTH, json={
+        "base": tiny_case("map"),
+        "parameters": {"boundary.start.rotation.2.angular_velocity": [1.0, 2.0]}}).json()
+    empty = client.get(f"/v1/ui/sweeps/{sweep['id']}/map", headers=AUTH).json()
+    assert [m["event_time"] for m in empty["members"]] == [{}, {}]
+    for member in sweep["members"]:
+        _run(settings, member["job_id"])
+    mapped = client.get(f"/v1/ui/sweeps/{sweep['id']}/map", headers=AUTH).json()
+    assert mapped["shape"] == [2] and mapped["parameters"][0]["values"] == [1.0, 2.0]
+    assert [m["state"] for m in mapped["members"]] == ["successful", "successful"]
+    assert all("buckling_onset" in m["event_time"] for m in mapped["members"])
+    assert client.get("/v1/ui/sweeps/nope/map", headers=AUTH).status_code == 404
+
+
+def test_package_data_ships_every_static_file():
+    """A wheel holds what pyproject's package-data names: every file of the dashboard."""
+    from pathlib import Path
+
+    tomllib = pytest.importorskip("tomllib")   # Python 3.11+
+
+    root = Path(__file__).resolve().parents[2]
+    patterns = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"][
+        "package-data"]["service.dashboard"]
+    package = STATIC_DIR.parent
+    shipped = {p for pattern in patterns for p in package.glob(pattern) if p.is_file()}
+    files = {p for p in STATIC_DIR.rglob("*") if p.is_file()}
+    assert files and files <= shipped, sorted(str(p) for p in files - shipped)

@@ -1,0 +1,340 @@
+"""The dashboard in a real headless browser (issue 44): Selenium driving Chromium against a real
+API process, redis-server and a Celery worker, with API keys.
+
+Skipped when selenium, chromium or chromedriver is missing (.ci/run installs Debian's
+``chromium`` and ``chromium-driver``). With ``HOCKLE_UI_SCREENSHOTS=DIR`` the tests save a
+screenshot of each page there (docs/figures/dashboard-*.png are made that way).
+"""
+from __future__ import annotations
+
+import io
+import json
+import os
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from svc_support import long_case, make_stack, tiny_case, wait_until
+
+pytestmark = pytest.mark.service
+
+KEY = "browser-key-0123456789abcdef"
+XSS_NAME = '<script>window.__xss=1</script><img src=x onerror="window.__xss=2">'
+WORKER_READY_S = 400     # a fresh worker compiles the numba kernels first on a loaded machine
+
+
+def buckling_case(name: str, force: float = -10.0, angular_velocity: float = 0.0,
+                  n_segments: int = 24) -> dict:
+    """The tiny rod, clamped at both ends, pushed along its axis past its Euler load (4 pi^2
+    EI / L^2 = 3.9 N) and twisted, with a small sideways load that starts the buckling:
+    buckles within 1 s (onset 0.6-0.9 s for 6-10 N), ~1 s of solve."""
+    case = tiny_case(name, n_segments=n_segments, dt=0.01, t_end=1.0)
+    case["boundary"]["end"]["translation"][2] = {"force": force}
+    case["boundary"]["start"]["rotation"][2] = {"angular_velocity": angular_velocity}
+    case["distributed_forces"] = [{"value": [1e-3, 0.0, 0.0], "start": 0.0, "end": 0.2}]
+    return case
+
+
+def _browser_paths() -> tuple[str, str]:
+    pytest.importorskip("selenium")
+    binary = next((shutil.which(n) for n in ("chromium", "chromium-browser", "google-chrome")
+                   if shutil.which(n)), None)
+    driver = shutil.which("chromedriver")
+    if binary is None or driver is None:
+        pytest.skip("no chromium and chromedriver on PATH (apt-get install chromium chromium-driver)")
+    return binary, driver
+
+
+@pytest.fixture(scope="module")
+def browser():
+    binary, driver_path = _browser_paths()
+    from selenium import webdriver
+    from selenium.webdriver.chrome.options import Options
+    from selenium.webdriver.chrome.service import Service
+
+    options = Options()
+    for arg in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--disable-gpu",
+                "--window-size=1400,1500", "--force-device-scale-factor=1",
+                "--disable-background-networking", "--disable-component-update"):
+        options.add_argument(arg)
+    options.binary_location = binary
+    options.set_capability("goog:loggingPrefs", {"browser": "ALL", "performance": "ALL"})
+    driver = webdriver.Chrome(options=options, service=Service(driver_path))
+    driver.set_page_load_timeout(60)
+    yield driver
+    driver.quit()
+
+
+@pytest.fixture(scope="module")
+def stack(tmp_path_factory, redis_server):
+    _browser_paths()
+    s = make_stack(tmp_path_factory, "ui", {"HOCKLE_BROKER_URL": redis_server.url,
+                                            "HOCKLE_API_KEYS": KEY})
+    s.http.headers["Authorization"] = f"Bearer {KEY}"
+    s.start_api(timeout=120)
+    yield s
+    s.close()
+
+
+def _ensure_worker(stack) -> None:
+    if "w1" not in stack.workers:
+        stack.start_worker("w1", wait=False)
+    wait_until(lambda: stack._ready("w1"), WORKER_READY_S, 0.5, "worker w1")
+
+
+def _wait(driver, predicate, timeout=30, what="condition"):
+    from selenium.webdriver.support.ui import WebDriverWait
+
+    return WebDriverWait(driver, timeout, poll_frequency=0.2).until(
+        lambda d: predicate(d), message=f"timed out waiting for {what}")
+
+
+def _open(driver, stack, fragment: str, key: str | None = KEY) -> None:
+    """Load /ui/ fresh (a new page: the key typed again when given) and go to ``fragment``."""
+    from selenium.webdriver.common.by import By
+
+    driver.get(f"{stack.url}/ui/#{fragment}")
+    driver.execute_script("sessionStorage.clear()")
+    driver.refresh()
+    login = _wait(driver, lambda d: d.find_element(By.ID, "login"), what="the page")
+    _wait(driver, lambda d: login.is_displayed(), what="the key form")
+    if key is not None:
+        driver.find_element(By.ID, "key").send_keys(key)
+        driver.find_element(By.CSS_SELECTOR, "#login-form button").click()
+        _wait(driver, lambda d: not login.is_displayed(), what="the key to be accepted")
+
+
+def _shot(driver, name: str) -> None:
+    target = os.environ.get("HOCKLE_UI_SCREENSHOTS")
+    if target:
+        Path(target).mkdir(parents=True, exist_ok=True)
+        height = driver.execute_script("return document.documentElement.scrollHeight")
+        driver.set_window_size(1400, max(900, min(int(height) + 20, 3000)))
+        time.sleep(0.5)
+        driver.save_screenshot(str(Path(target) / f"dashboard-{name}.png"))
+        driver.set_window_size(1400, 1500)
+
+
+def _paste(driver, area, text: str) -> None:
+    """Put ``text`` in the textarea as a paste does (one input event)."""
+    driver.execute_script("arguments[0].value = arguments[1];"
+                          "arguments[0].dispatchEvent(new Event('input'))", area, text)
+
+
+def _row_state(driver, job_id: str):
+    from selenium.common.exceptions import NoSuchElementException
+    from selenium.webdriver.common.by import By
+
+    try:
+        return driver.find_element(By.CSS_SELECTOR, f'tr[data-job-id="{job_id}"]').get_attribute(
+            "data-state")
+    except NoSuchElementException:
+        return None
+
+
+def _successful_job(stack, case) -> str:
+    _ensure_worker(stack)
+    response = stack.submit(case, params={"fresh": "true"})
+    assert response.status_code == 201, response.text
+    job_id = response.json()["id"]
+    stack.wait_state(job_id, "successful", timeout=300)
+    return job_id
+
+
+def test_a_wrong_key_is_refused(browser, stack):
+    from selenium.webdriver.common.by import By
+
+    _open(browser, stack, "/jobs", key=None)
+    _shot(browser, "login")
+    browser.find_element(By.ID, "key").send_keys("not-a-key-of-this-service")
+    browser.find_element(By.CSS_SELECTOR, "#login-form button").click()
+    message = browser.find_element(By.ID, "login-message")
+    _wait(browser, lambda d: "Refused" in message.text, what="the refusal")
+    assert "401" in message.text
+    assert browser.find_element(By.ID, "login").is_displayed()
+    assert browser.find_elements(By.CSS_SELECTOR, "#main table") == []
+    assert browser.execute_script("return sessionStorage.getItem('hockle.apiKey')") is None
+    assert browser.execute_script("return window.localStorage.length") == 0
+
+
+def test_submitted_job_goes_from_accepted_to_successful_in_the_list(browser, stack):
+    from selenium.webdriver.common.by import By
+
+    stack.stop_worker("w1")      # queued until a worker starts: the list must show accepted
+    _open(browser, stack, "/submit")
+    area = browser.find_element(By.ID, "case")
+    yaml_text = ("schema_version: 1\nname: from the browser\n"
+                 "rod: {length: 1.0, youngs_modulus: 1.25e7, shear_modulus: 5.0e6, "
+                 "density: 1500.0, diameter: 0.02}\n"
+                 "boundary:\n  start:\n"
+                 "    translation: [{velocity: 0}, {velocity: 0}, {velocity: 0}]\n"
+                 "    rotation: [{angular_velocity: 0}, {angular_velocity: 0}, "
+                 "{angular_velocity: 1.0}]\n  end:\n"
+                 "    translation: [{velocity: 0}, {velocity: 0}, {force: 0}]\n"
+                 "    rotation: [{angular_velocity: 0}, {angular_velocity: 0}, "
+                 "{angular_velocity: 0}]\n"
+                 f"numerics: {{n_segments: 8, dt: 0.01, t_end: 0.05}}\n")
+    # an invalid value first: the service's 422 is shown at its field, before submitting
+    _paste(browser, area, yaml_text.replace("youngs_modulus: 1.25e7", "youngs_modulus: -5"))
+    result = browser.find_element(By.ID, "check-result")
+    _wait(browser, lambda d: result.get_attribute("data-state") == "invalid", what="the 422")
+    errors = browser.find_elements(By.CSS_SELECTOR, ".fielderr")
+    assert [e.get_attribute("data-loc") for e in errors] == ["rod.youngs_modulus"]
+    assert "line 3" in errors[0].text and "youngs_modulus: -5" in errors[0].text
+    _shot(browser, "submit")
+    _paste(browser, area, yaml_text)
+    _wait(browser, lambda d: result.get_attribute("data-state") == "valid", what="validation")
+    browser.find_element(By.ID, "fresh").click()
+    browser.find_element(By.ID, "submit").click()
+    _wait(browser, lambda d: d.execute_script("return location.hash").startswith("#/job/"),
+          what="the job page")
+    job_id = browser.execute_script("return decodeURIComponent(location.hash.slice(6))")
+    browser.get(f"{stack.url}/ui/#/jobs")
+    _wait(browser, lambda d: _row_state(d, job_id) == "accepted", what="the job accepted")
+    _ensure_worker(stack)
+    _wait(browser, lambda d: _row_state(d, job_id) == "successful", 300, "the job successful")
+    row = browser.find_element(By.CSS_SELECTOR, f'tr[data-job-id="{job_id}"]')
+    assert "from the browser" in row.text and "100.0 %" in row.text
+    _shot(browser, "jobs")
+
+
+def test_job_page_draws_plots_and_the_rod(browser, stack):
+    from PIL import Image
+    from selenium.webdriver.common.by import By
+
+    case = buckling_case("rod in 3-D", force=-10.0, angular_velocity=4.0)
+    job_id = _successful_job(stack, case)
+    _open(browser, stack, f"/job/{job_id}")
+    plots = browser.find_element(By.ID, "plots")
+    _wait(browser, lambda d: int(plots.get_attribute("data-count") or 0) >= 4, 60, "the plots")
+    shown = {p.get_attribute("data-plot") for p in browser.find_elements(By.CSS_SELECTOR, ".plot")}
+    assert {"energies", "topology", "dt", "newton"} <= shown
+    assert len(browser.find_elements(By.CSS_SELECTOR, "#plots .plot canvas")) >= 4
+    canvas = browser.find_element(By.ID, "rod3d")
+    _wait(browser, lambda d: canvas.get_attribute("data-points"), 60, "the 3-D view")
+    assert int(canvas.get_attribute("data-points")) == 25
+    assert "youngs_modulus" in browser.find_element(By.ID, "case-yaml").text
+    assert browser.find_elements(By.CSS_SELECTOR, "#events-table tr[data-event='buckling_onset']")
+    # a non-blank drawing: many pixels off the background, in several shades
+    pixels = np.asarray(Image.open(io.BytesIO(canvas.screenshot_as_png)).convert("RGB"),
+                        dtype=int).reshape(-1, 3)
+    colours, counts = np.unique(pixels, axis=0, return_counts=True)
+    background = colours[np.argmax(counts)]
+    drawn = int((np.abs(pixels - background).sum(axis=1) > 30).sum())
+    assert drawn > 0.005 * len(pixels), (drawn, len(pixels))
+    assert len(colours) > 20
+    # the slider picks another output time: a new slice is fetched and drawn
+    slider = browser.find_element(By.ID, "time-slider")
+    browser.execute_script("arguments[0].value = 0; arguments[0].dispatchEvent(new Event('input'))",
+                           slider)
+    _wait(browser, lambda d: canvas.get_attribute("data-frame") == "0", 30, "frame 0")
+    assert browser.find_element(By.ID, "time-label").text.startswith("t = 0 s")
+    assert browser.find_element(By.ID, "download").is_displayed()
+    browser.execute_script("arguments[0].value = arguments[0].max; "
+                           "arguments[0].dispatchEvent(new Event('input'))", slider)
+    _wait(browser, lambda d: canvas.get_attribute("data-frame") == slider.get_attribute("max"),
+          30, "the last frame")
+    _shot(browser, "job")
+
+
+def test_a_running_job_is_dismissed_from_the_list(browser, stack):
+    from selenium.webdriver.common.by import By
+
+    _ensure_worker(stack)
+    job_id = stack.submit(long_case("to dismiss", t_end=60.0), params={"fresh": "true"}).json()["id"]
+    _open(browser, stack, "/jobs")
+    _wait(browser, lambda d: _row_state(d, job_id) == "running", 120, "the job running")
+    browser.find_element(By.CSS_SELECTOR, f'button[data-dismiss="{job_id}"]').click()
+    _wait(browser, lambda d: _row_state(d, job_id) == "dismissed", 60, "the job dismissed")
+    assert "stopping" in browser.find_element(By.ID, "banner").text
+    job = stack.job(job_id)
+    assert job["reason"] == "cancelled_by_user" and job["progress"] < 100
+
+
+def test_markup_in_a_case_name_is_shown_as_text(browser, stack):
+    from selenium.webdriver.common.by import By
+
+    job_id = stack.submit(tiny_case(XSS_NAME), params={"fresh": "true"}).json()["id"]
+    _open(browser, stack, "/jobs")
+    _wait(browser, lambda d: _row_state(d, job_id) is not None, what="the job's row")
+    link = browser.find_element(By.CSS_SELECTOR, f'tr[data-job-id="{job_id}"] td.name a')
+    assert link.text == XSS_NAME
+    assert browser.find_elements(By.CSS_SELECTOR, "#jobs img, #jobs script") == []
+    browser.get(f"{stack.url}/ui/#/job/{job_id}")
+    heading = _wait(browser, lambda d: d.find_elements(By.ID, "job-name"), what="the job page")[0]
+    assert heading.text == XSS_NAME
+    assert browser.find_elements(By.CSS_SELECTOR, "main img, main script") == []
+    time.sleep(1)
+    assert browser.execute_script("return window.__xss === undefined")
+
+
+def test_sweep_page_shows_members_and_the_threshold_map(browser, stack):
+    from selenium.webdriver.common.by import By
+
+    _ensure_worker(stack)
+    base = buckling_case("sweep", n_segments=16)
+    sweep = stack.http.post("/v1/sweeps", params={"fresh": "true"}, json={
+        "base": base, "parameters": {
+            "boundary.end.translation.2.force": [-4.0, -6.0, -10.0],
+            "boundary.start.rotation.2.angular_velocity": [0.0, 4.0]}})
+    assert sweep.status_code == 201, sweep.text
+    sweep_id = sweep.json()["id"]
+    final = wait_until(lambda: stack.http.get(f"/v1/sweeps/{sweep_id}").json()["state"]
+                       in ("successful", "failed", "dismissed"), 300, 0.5, "the sweep")
+    assert stack.http.get(f"/v1/sweeps/{sweep_id}").json()["state"] == "successful", final
+    _open(browser, stack, f"/sweep/{sweep_id}")
+    _wait(browser, lambda d: d.find_elements(By.ID, "map-canvas"), 60, "the map")
+    rows = browser.find_elements(By.CSS_SELECTOR, "#members tbody tr")
+    assert [r.get_attribute("data-state") for r in rows] == ["successful"] * 6
+    # the members that buckled are coloured cells (6 and 10 N are past the Euler load, 3.9 N)
+    assert int(browser.find_element(By.ID, "sweep-map").get_attribute("data-members")) >= 4
+    _shot(browser, "sweep")
+
+
+def test_no_resource_from_another_origin(browser, stack):
+    """Every request the pages made (the performance log of the whole session) went to this
+    service; and the CSP really blocks another origin (a fetch the test injects is refused)."""
+    from selenium.webdriver.common.by import By
+
+    job_id = _successful_job(stack, tiny_case("origin"))
+    browser.get_log("performance")     # start afresh
+    for fragment in ("/jobs", f"/job/{job_id}", "/submit", "/sweeps"):
+        _open(browser, stack, fragment)
+        time.sleep(0.7)
+    _wait(browser, lambda d: d.find_elements(By.ID, "job-name") or True, what="pages")
+    urls = []
+    for entry in browser.get_log("performance"):
+        message = json.loads(entry["message"])["message"]
+        if message["method"] == "Network.requestWillBeSent":
+            urls.append(message["params"]["request"]["url"])
+    assert any(u.endswith("/ui/app.js") for u in urls) and any("/v1/" in u for u in urls)
+    foreign = [u for u in urls if not (u.startswith(stack.url + "/") or u.startswith(("data:", "blob:")))]
+    assert foreign == [], foreign
+    blocked = browser.execute_async_script(
+        "var done = arguments[0];"
+        "fetch('http://127.0.0.2:9/x').then(function () { done('loaded'); },"
+        " function (e) { done('blocked: ' + e); });")
+    assert blocked.startswith("blocked")
+    logs = " ".join(e["message"] for e in browser.get_log("browser"))
+    assert "Content Security Policy" in logs
+
+
+def test_without_keys_the_page_says_so(browser, tmp_path_factory, redis_server):
+    from selenium.webdriver.common.by import By
+
+    _browser_paths()
+    open_stack = make_stack(tmp_path_factory, "ui-open", {"HOCKLE_BROKER_URL": redis_server.url})
+    try:
+        open_stack.start_api(timeout=120)
+        browser.get(f"{open_stack.url}/ui/#/jobs")
+        browser.refresh()
+        banner = browser.find_element(By.ID, "banner")
+        _wait(browser, lambda d: "no API keys configured" in banner.text, what="the banner")
+        _wait(browser, lambda d: d.find_elements(By.ID, "jobs"), what="the job list")
+        assert not browser.find_element(By.ID, "login").is_displayed()
+        assert browser.find_element(By.ID, "who").text == "no API keys configured"
+    finally:
+        open_stack.close()
