@@ -45,13 +45,16 @@ def boundary_plan(case, props, n: int):
                 from .initial import initial_pose
                 from .kinematics import quat_to_matrix
                 frames = quat_to_matrix(initial_pose(case, props.s)[0][[0, -1]])
-            glob = global_translation(ec, frames[0 if end == "start" else 1])
+            R0 = frames[0 if end == "start" else 1]
+            glob = [(None if phase[0].until is None else phase[0].until * (1.0 + UNTIL_RTOL),
+                     global_translation(ec, R0, phase))
+                    for phase in zip(*ec.translation)]
         for g, group in enumerate(_GROUPS):
             for i in range(3):
                 if glob is not None and group == "translation":
-                    kinematic, value = glob[i]
-                    plan.append((row0 + i, [(None, NV * node + (0 if kinematic else 6) + i, 1.0,
-                                             kinematic, value)]))
+                    plan.append((row0 + i, [(until, NV * node + (0 if rows[i][0] else 6) + i,
+                                             1.0, rows[i][0], rows[i][1])
+                                            for until, rows in glob]))
                     continue
                 choices = []
                 for cond in getattr(ec, group)[i]:
@@ -92,10 +95,11 @@ def position_rate(value, Table):
     return np.asarray(times), np.asarray(rates)
 
 
-def global_translation(ec, R0):
+def global_translation(ec, R0, phase=None):
     """The three translation rows of an end with ``frame: global`` (docs/case-spec.md,
     "Global-frame ends") as (kinematic, value) per body component i, a value a float or
-    a (t, value) table. With the rotation held fixed in space the end's frame is its
+    a (t, value) table; ``phase``: the three conditions in force together (one of the
+    items' switching phases; None: the first). With the rotation held fixed in space the end's frame is its
     initial one, R0 (3, 3) [a1 a2 a3], so the body components of the global velocity V
     (a position table's :func:`position_rate`) or of the global internal force F are
     R0ᵀ V, R0ᵀ F, exact and linear; on the union of the tables' knots they are again
@@ -104,7 +108,7 @@ def global_translation(ec, R0):
     (:class:`solver.loads.PointLoads`)."""
     from .case import Table
 
-    items = [c[0] for c in ec.translation]
+    items = [c[0] for c in ec.translation] if phase is None else list(phase)
     kinematic = items[0].kind != "force"
     if ec.rotation_mode == "free":
         return [(kinematic, 0.0)] * 3

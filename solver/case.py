@@ -860,7 +860,7 @@ class EndCondition(BaseModel):
     @property
     def rotation_mode(self) -> Optional[str]:
         """With ``frame: global``: ``"fixed"`` (every rotation item angular_velocity 0) or
-        ``"free"`` (every one moment 0); None otherwise."""
+        ``"free"`` (every one moment 0); None otherwise (the rotation does not switch)."""
         if self.frame != "global":
             return None
         kinds = {c[0].kind for c in self.rotation}
@@ -869,12 +869,16 @@ class EndCondition(BaseModel):
     def _check_global(self) -> list[dict]:
         """The rules of ``frame: global`` (docs/case-spec.md, "Global-frame ends")."""
         errors = []
-        for group in ("translation", "rotation"):
-            for i, conditions in enumerate(getattr(self, group)):
-                if len(conditions) > 1:
-                    errors.append(_err((group, i), "unsupported",
-                                       "switching in time (a list with until) is not supported with "
-                                       "frame: global; give one condition per item", None))
+        for i, conditions in enumerate(self.rotation):
+            if len(conditions) > 1:
+                errors.append(_err(("rotation", i), "unsupported",
+                                   "the rotation of an end with frame: global does not switch in "
+                                   "time: give one condition per rotation item", None))
+        untils = [[c.until for c in conditions] for conditions in self.translation]
+        if any(u != untils[0] for u in untils[1:]):
+            errors.append(_err(("translation",), "unsupported",
+                               "the three translation items of an end with frame: global switch "
+                               "together: give them the same until times", None))
         if errors:
             return errors
         rot = [c[0] for c in self.rotation]
@@ -887,32 +891,33 @@ class EndCondition(BaseModel):
                                "with frame: global the rotation is held fixed in space (every item "
                                "angular_velocity: 0) or free (every item moment: 0)", None))
             return errors
-        kinds = [c[0].kind for c in self.translation]
-        if set(kinds) <= {"velocity", "position"}:
-            if free:
-                for i, c in enumerate(self.translation):
-                    held = not isinstance(c[0].value, Table) and (
-                        c[0].kind == "position" or c[0].value == 0.0)
-                    if not held:
-                        errors.append(_err(("translation", i, 0, c[0].kind), "unsupported",
-                                           "an end free to turn (moment: 0) can be held at a point "
-                                           "(position: a number, or velocity: 0) but not moved: "
-                                           "its body frame would be needed to impose the motion; "
-                                           "hold its rotation fixed (angular_velocity: 0) to move it",
-                                           None))
-        elif set(kinds) != {"force"}:
-            errors.append(_err(("translation",), "mixed_frame_conditions",
-                               f"with frame: global the three translation items must all be "
-                               f"kinematic (velocity/position) or all force, got {', '.join(kinds)}: "
-                               "a mixed set would tie the end's body components together", None))
+        for j in range(len(untils[0])):
+            phase = [conditions[j] for conditions in self.translation]
+            kinds = [c.kind for c in phase]
+            if set(kinds) <= {"velocity", "position"}:
+                if free:
+                    for i, c in enumerate(phase):
+                        held = not isinstance(c.value, Table) and (
+                            c.kind == "position" or c.value == 0.0)
+                        if not held:
+                            errors.append(_err(
+                                ("translation", i, j, c.kind), "unsupported",
+                                "an end free to turn (moment: 0) can be held at a point "
+                                "(position: a number, or velocity: 0) but not moved: its body "
+                                "frame would be needed to impose the motion; hold its rotation "
+                                "fixed (angular_velocity: 0) to move it", None))
+            elif set(kinds) != {"force"}:
+                errors.append(_err(("translation",), "mixed_frame_conditions",
+                                   f"with frame: global the three translation items must all be "
+                                   f"kinematic (velocity/position) or all force at any time, got "
+                                   f"{', '.join(kinds)}: a mixed set would tie the end's body "
+                                   "components together", None))
         return errors
 
     @model_validator(mode="after")
     def _check(self) -> "EndCondition":
         errors = []
-        if self.frame == "global":
-            _raise("EndCondition", self._check_global())
-        else:
+        if self.frame != "global":
             for i, conditions in enumerate(self.translation):
                 for j, cond in enumerate(conditions):
                     if cond.kind == "position":
@@ -953,6 +958,8 @@ class EndCondition(BaseModel):
                             )
                         previous = cond.until
         _raise("EndCondition", errors)
+        if self.frame == "global":
+            _raise("EndCondition", self._check_global())
         return self
 
     def active(self, group: str, i: int, t: float) -> Condition:

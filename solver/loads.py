@@ -57,22 +57,31 @@ def end_reactions(Y, q, stiffness) -> dict:
 
 class _EndForce:
     """A global dead force on an end free to turn, as a point-load entry: ``at(t)`` the
-    global vector (3,) N, sign × the three conditions' values."""
+    global vector (3,) N, sign × the three conditions' values in the phase in force at t
+    (``EndCondition.active``'s rule), 0 in a phase that holds the end instead."""
 
     body = False
 
-    def __init__(self, conditions, sign):
-        self.conditions = conditions
+    def __init__(self, phases, sign):
+        from .case import UNTIL_RTOL
+
+        self.phases = [(None if p[0].until is None else p[0].until * (1.0 + UNTIL_RTOL), p)
+                       for p in phases]
         self.sign = sign
         self.value = [1.0, 1.0, 1.0]       # non-zero: the entry is kept
 
     def at(self, t):
-        return self.sign * np.array([c.value_at(t) for c in self.conditions])
+        for until, phase in self.phases:
+            if until is None or t <= until:
+                break
+        if phase[0].kind != "force":
+            return np.zeros(3)
+        return self.sign * np.array([c.value_at(t) for c in phase])
 
 
 def _has_end_force(case):
     return any(getattr(ec, "frame", "body") == "global" and ec.rotation_mode == "free"
-               and ec.translation[0][0].kind == "force"
+               and any(c.kind == "force" for c in ec.translation[0])
                for ec in (case.boundary.start, case.boundary.end))
 
 
@@ -108,10 +117,10 @@ class PointLoads:
         for name, node, sign in (("start", 0, -1.0), ("end", n_last, 1.0)):
             ec = getattr(case.boundary, name)
             if (getattr(ec, "frame", "body") == "global" and ec.rotation_mode == "free"
-                    and ec.translation[0][0].kind == "force"):
+                    and any(c.kind == "force" for c in ec.translation[0])):
                 nodes.append(node)
                 weights.append(1.0)
-                loads.append(_EndForce([c[0] for c in ec.translation], sign))
+                loads.append(_EndForce(list(zip(*ec.translation)), sign))
         for load in case.point_loads:
             if not np.any(np.asarray(load.value, float) != 0):
                 continue
