@@ -45,6 +45,10 @@ __all__ = [
     "end",
     "ramp",
     "switch",
+    "circular_arc",
+    "helix",
+    "catenary",
+    "catenary_parameter",
 ]
 
 
@@ -345,6 +349,10 @@ def simulate(case, callbacks: Iterable[Any] = (), loads: Iterable[Any] = (),
         if key in solver_options:
             raise ValueError(f"{key}: given by hockle.api.simulate itself (use callbacks= "
                              "and loads=)")
+    if (case.initial.from_result is not None and "start" not in solver_options
+            and solver_options.get("resume") is None):
+        from .io import read_start_state
+        solver_options["start"] = read_start_state(case)    # CaseError naming the field
     ds = solver_simulate(case, progress=progress, should_stop=should_stop,
                          observer=_CallbackSet(callbacks) if callbacks else None,
                          extra_force=_LoadSum(loads) if loads else None, **solver_options)
@@ -453,6 +461,72 @@ def make_case(name: str, *, start: Any, end: Any, n_segments: int, dt: float, t_
            "numerics": numerics}
     doc.update({k: plain(v) for k, v in sections.items()})
     return Case.model_validate(doc)
+
+
+# --------------------------------------------------------------------------- initial shapes
+
+
+def _centreline(points: np.ndarray) -> dict:
+    return {"points": [[float(x) for x in p] for p in points]}
+
+
+def circular_arc(length: float, radius: float, *, n_points: int = 401) -> dict:
+    """An ``initial.centreline`` along a circular arc of ``length`` m and ``radius`` m
+    from the origin, starting along +z and bending towards +x (in the x-z plane):
+    r(s) = (R(1 − cos(s/R)), 0, R sin(s/R)), sampled at ``n_points`` equal arclengths.
+    Use it as ``initial={"centreline": circular_arc(1.0, 0.5)}``; κ2 = 1/R with the
+    start's a1 along +x. Raises ValueError for a non-positive length or radius."""
+    if not (length > 0 and radius > 0):
+        raise ValueError("circular_arc: length and radius must be > 0 (m)")
+    phi = np.linspace(0.0, length / radius, int(n_points))
+    return _centreline(np.stack([radius * (1.0 - np.cos(phi)), np.zeros_like(phi),
+                                 radius * np.sin(phi)], axis=1))
+
+
+def helix(length: float, radius: float, pitch: float, *, n_points: int = 1001) -> dict:
+    """An ``initial.centreline`` along a circular helix about the axis x = −radius, y = 0
+    (parallel to z) from the origin: r(θ) = (R cos θ − R, R sin θ, pθ/(2π)), θ from 0 to
+    length/√(R² + (p/2π)²), sampled at ``n_points`` equal arclengths; right-handed for
+    ``pitch`` > 0 (m per turn), left-handed for < 0. Its curvature is R/(R² + h²) and its
+    torsion h/(R² + h²) with h = p/(2π) (m); with ``twist_rate`` equal to the torsion the
+    rod's κ is constant along it (its frame turns with the Frenet frame). Raises
+    ValueError for a non-positive length or radius."""
+    if not (length > 0 and radius > 0):
+        raise ValueError("helix: length and radius must be > 0 (m)")
+    h = pitch / (2.0 * math.pi)
+    theta = np.linspace(0.0, length / math.hypot(radius, h), int(n_points))
+    return _centreline(np.stack([radius * (np.cos(theta) - 1.0), radius * np.sin(theta),
+                                 h * theta], axis=1))
+
+
+def catenary_parameter(length: float, span: float) -> float:
+    """The catenary's a = H/w (m) of a cable of ``length`` hanging between two points at
+    the same height ``span`` apart (span < length): the root of 2a sinh(span/(2a)) =
+    length (scipy's brentq). Raises ValueError unless 0 < span < length."""
+    from scipy.optimize import brentq
+
+    if not 0 < span < length:
+        raise ValueError("catenary: needs 0 < span < length (m)")
+    g = lambda a: 2.0 * a * math.sinh(min(span / (2.0 * a), 700.0)) - length  # noqa: E731
+    lo = span / 1400.0
+    hi = span
+    while g(hi) > 0:
+        hi *= 2.0
+    return brentq(g, lo, hi, xtol=1e-15 * span, rtol=4 * np.finfo(float).eps)
+
+
+def catenary(length: float, span: float, *, n_points: int = 401) -> dict:
+    """An ``initial.centreline`` along the catenary of a cable of ``length`` m hanging
+    under gravity (−z) between the origin and (span, 0, 0): z = a(cosh((x − X/2)/a) −
+    cosh(X/(2a))) with a from :func:`catenary_parameter`, sampled at ``n_points`` equal
+    arclengths (x = X/2 + a asinh((s − L/2)/a)). Its sag is a(cosh(X/(2a)) − 1).
+    Raises ValueError unless 0 < span < length."""
+    a = catenary_parameter(length, span)
+    s = np.linspace(0.0, length, int(n_points))
+    x = 0.5 * span + a * np.arcsinh((s - 0.5 * length) / a)
+    z = a * (np.cosh((x - 0.5 * span) / a) - math.cosh(0.5 * span / a))
+    x[0], x[-1], z[0], z[-1] = 0.0, span, 0.0, 0.0
+    return _centreline(np.stack([x, np.zeros_like(x), z], axis=1))
 
 
 # --------------------------------------------------------------------------- local sweeps

@@ -274,6 +274,16 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.checkpoint_every <= 0:
         _err("hockle: --checkpoint-every must be positive")
         return EXIT_INVALID
+    start = None
+    if case.initial.from_result is not None and resume is None:
+        from solver.case import CaseError
+
+        from .io import read_start_state
+        try:
+            start = read_start_state(case)
+        except CaseError as exc:
+            _err(f"hockle: {args.case}: {exc}")
+            return EXIT_INVALID
     ck_path = Path(args.checkpoint) if args.checkpoint else None
     latest = {}
 
@@ -302,7 +312,8 @@ def cmd_run(args: argparse.Namespace) -> int:
             with _ProgressBar(case.name, case.numerics.t_end, enabled=not args.quiet) as bar:
                 ds = simulate(case, progress=bar.update, should_stop=interrupt.should_stop,
                               checkpoint=keep if ck_path else None,
-                              checkpoint_interval=args.checkpoint_every, resume=resume)
+                              checkpoint_interval=args.checkpoint_every, resume=resume,
+                              start=start)
         except SolverDivergence as exc:
             wall = time.perf_counter() - wall0
             reason = str(exc).replace("\n", " ")

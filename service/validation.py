@@ -130,6 +130,13 @@ def validate_case(data: Any, max_case_size: int):
         raise ProblemError(422, "invalid-case", "Invalid case spec",
                            f"{len(errors)} field(s) of the case spec are not valid",
                            errors=errors) from None
+    if case.initial.from_result is not None:
+        # a path on this server is never read for a request (the CLI and the Python API
+        # read the file themselves: hockle.io.read_start_state)
+        msg = ("a start from an earlier result is not accepted over HTTP: the service reads "
+               "no paths on its machine; run it with the CLI or the Python API")
+        raise ProblemError(422, "invalid-case", "Invalid case spec", msg, errors=[
+            {"loc": "initial.from_result.file", "msg": msg, "type": "not_accepted_over_http"}])
     size = case.grid_points * case.n_steps
     if size > max_case_size:
         msg = (f"case too large: {case.grid_points} grid points x {case.n_steps} time steps = "

@@ -16,7 +16,7 @@ import numpy as np
 
 from .banded import NV
 
-__all__ = ["BoundaryRows", "boundary_plan"]
+__all__ = ["BoundaryRows", "boundary_plan", "global_translation", "position_rate"]
 
 _GROUPS = ("translation", "rotation")
 
@@ -36,10 +36,26 @@ def boundary_plan(case, props, n: int):
 
     n_last = props.s.size - 1
     plan = []
+    frames = None
     for end, node, row0 in (("start", 0, 0), ("end", n_last, n - 6)):
         ec = getattr(case.boundary, end)
+        glob = None
+        if getattr(ec, "frame", "body") == "global":
+            if frames is None:
+                from .initial import initial_pose
+                from .kinematics import quat_to_matrix
+                frames = quat_to_matrix(initial_pose(case, props.s)[0][[0, -1]])
+            R0 = frames[0 if end == "start" else 1]
+            glob = [(None if phase[0].until is None else phase[0].until * (1.0 + UNTIL_RTOL),
+                     global_translation(ec, R0, phase))
+                    for phase in zip(*ec.translation)]
         for g, group in enumerate(_GROUPS):
             for i in range(3):
+                if glob is not None and group == "translation":
+                    plan.append((row0 + i, [(until, NV * node + (0 if rows[i][0] else 6) + i,
+                                             1.0, rows[i][0], rows[i][1])
+                                            for until, rows in glob]))
+                    continue
                 choices = []
                 for cond in getattr(ec, group)[i]:
                     kinematic = bool(cond.kinematic)
@@ -56,6 +72,62 @@ def boundary_plan(case, props, n: int):
                     choices.append((until, NV * node + idx, c, kinematic, value))
                 plan.append((row0 + 3 * g + i, choices))
     return plan
+
+
+def position_rate(value, Table):
+    """The velocity (m/s) of a position condition: 0 for a number (a point held); for a
+    table, the slope of each of its pieces, as a table (t, value) that jumps just after
+    each knot (1e-9 of the shortest piece later), so that a step landing on a knot (the
+    knots are breakpoints, :func:`solver.stepping.breakpoints`) takes the slope of the
+    piece it covers, and 0 outside the table (a position held constant)."""
+    if not isinstance(value, Table):
+        return 0.0
+    t = np.asarray(value.t, float)
+    p = np.asarray(value.value, float)
+    slope = np.diff(p) / np.diff(t)
+    delta = 1e-9 * float(np.min(np.diff(t)))
+    times, rates = [t[0]], [0.0]
+    for k in range(slope.size):
+        times += [t[k] + delta, t[k + 1]]
+        rates += [slope[k], slope[k]]
+    times.append(t[-1] + delta)
+    rates.append(0.0)
+    return np.asarray(times), np.asarray(rates)
+
+
+def global_translation(ec, R0, phase=None):
+    """The three translation rows of an end with ``frame: global`` (docs/case-spec.md,
+    "Global-frame ends") as (kinematic, value) per body component i, a value a float or
+    a (t, value) table; ``phase``: the three conditions in force together (one of the
+    items' switching phases; None: the first). With the rotation held fixed in space the end's frame is its
+    initial one, R0 (3, 3) [a1 a2 a3], so the body components of the global velocity V
+    (a position table's :func:`position_rate`) or of the global internal force F are
+    R0ᵀ V, R0ᵀ F, exact and linear; on the union of the tables' knots they are again
+    piecewise linear. With the rotation free the end is held (v = 0) or its internal
+    force is 0 here and the dead force is a point load at the end
+    (:class:`solver.loads.PointLoads`)."""
+    from .case import Table
+
+    items = [c[0] for c in ec.translation] if phase is None else list(phase)
+    kinematic = items[0].kind != "force"
+    if ec.rotation_mode == "free":
+        return [(kinematic, 0.0)] * 3
+    series = []
+    for c in items:
+        if c.kind == "position":
+            series.append(position_rate(c.value, Table))
+        elif isinstance(c.value, Table):
+            series.append((np.asarray(c.value.t, float), np.asarray(c.value.value, float)))
+        else:
+            series.append(float(c.value))
+    tabled = [x for x in series if not isinstance(x, float)]
+    if not tabled:
+        g = np.array(series, float)
+        return [(kinematic, float(R0[:, i] @ g)) for i in range(3)]
+    times = np.unique(np.concatenate([x[0] for x in tabled]))
+    G = np.stack([np.full(times.size, x) if isinstance(x, float) else np.interp(times, *x)
+                  for x in series])
+    return [(kinematic, (times, R0[:, i] @ G)) for i in range(3)]
 
 
 class BoundaryRows:

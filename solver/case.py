@@ -44,6 +44,7 @@ from pydantic import (
     BeforeValidator,
     ConfigDict,
     Field,
+    StrictBool,
     ValidationError,
     WrapValidator,
     field_validator,
@@ -68,6 +69,9 @@ __all__ = [
     "Rod",
     "Fluid",
     "DistributedForce",
+    "PointLoad",
+    "Centreline",
+    "FromResult",
     "Initial",
     "Condition",
     "EndCondition",
@@ -93,6 +97,7 @@ OUTPUT_FIELDS: tuple[str, ...] = (
     "energies",
     "topology",
     "contact",
+    "reactions",
 )
 DEFAULT_OUTPUT_FIELDS: tuple[str, ...] = (
     "v",
@@ -106,10 +111,13 @@ DEFAULT_OUTPUT_FIELDS: tuple[str, ...] = (
 #: Rod properties that may be a number or a :class:`Profile`.
 MATERIAL_PROPERTIES: tuple[str, ...] = ("youngs_modulus", "shear_modulus", "density", "diameter")
 #: Condition keys allowed in a ``translation`` item and in a ``rotation`` item.
-TRANSLATION_KEYS: tuple[str, ...] = ("velocity", "force")
+TRANSLATION_KEYS: tuple[str, ...] = ("velocity", "force", "position")
 ROTATION_KEYS: tuple[str, ...] = ("angular_velocity", "moment")
 _CONDITION_KEYS = TRANSLATION_KEYS + ROTATION_KEYS
-_KINEMATIC_KEYS = frozenset({"velocity", "angular_velocity"})
+_KINEMATIC_KEYS = frozenset({"velocity", "angular_velocity", "position"})
+#: relative tolerance (of rod.length) with which a prescribed position at t = 0 must be
+#: where the end starts
+POSITION_RTOL = 1e-3
 
 #: Relative slack when comparing a time with a condition's ``until``.
 UNTIL_RTOL = 1e-12
@@ -523,6 +531,48 @@ class DistributedForce(BaseModel):
         return 1.0 if self.factor is None else self.factor.value_at(t)
 
 
+class PointLoad(BaseModel):
+    """A concentrated force (N) at one arclength ``s`` (m), applied for ``start <= t < end``.
+
+    ``value`` is N in the global frame (a dead load: its direction is fixed in space),
+    or with ``body: true`` components along the directors (a1, a2, a3) at ``s`` (a
+    follower load, turning with the rod). ``s`` must lie within ``[0, rod.length]``
+    (checked by :class:`Case`). ``factor`` scales it in time like a distributed force's
+    (:class:`DistributedForce`). The solver places the load as a jump of the internal
+    force at a node (exact), or, between nodes, splits it over the two nodes of its cell
+    by the lever rule (:mod:`solver.loads`).
+    """
+
+    model_config = _MODEL_CONFIG
+
+    s: Finite = Field(..., description="Arclength at which the load acts, m; within [0, rod.length].")
+    value: Vector3 = Field(
+        ..., description="Force, N: global-frame components [x, y, z], or with body: true "
+        "components along the directors a1, a2, a3 at s.")
+    body: StrictBool = Field(False, description="true: a follower load (value in the body frame); "
+                       "false: a dead load (value in the global frame).")
+    start: Finite = Field(0.0, ge=0, description="Time the load is switched on, s; >= 0.")
+    end: Optional[Finite] = Field(
+        None, description="Time the load is switched off (exclusive), s; > start; null: never switched off."
+    )
+    factor: Optional[Table] = Field(
+        None,
+        description="Dimensionless multiplier of value in time: a table {t: [s], value: [-]}, piecewise "
+        "linear, held constant outside its knots; null: 1.",
+    )
+
+    @model_validator(mode="after")
+    def _check(self) -> "PointLoad":
+        if self.end is not None and not self.end > self.start:
+            _raise("PointLoad", [_err(("end",), "greater_than", f"must be > start = {self.start!r} s",
+                                      self.end)])
+        return self
+
+    def scale_at(self, t: float) -> float:
+        """The ``factor`` table at time ``t`` (s), 1 without one (dimensionless)."""
+        return 1.0 if self.factor is None else self.factor.value_at(t)
+
+
 def _unit(v: list[float]) -> list[float]:
     """``v`` scaled to unit length; idempotent (a unit vector is returned unchanged)."""
     norm = math.hypot(*v)
@@ -531,16 +581,79 @@ def _unit(v: list[float]) -> list[float]:
     return [x / norm for x in v]
 
 
+def _straight(centreline: Optional["Centreline"]) -> bool:
+    """Whether an initial centreline (None: the default straight rod) is a straight
+    line: every point within 1e-9 of its span from the line through its ends."""
+    if centreline is None:
+        return True
+    P = np.asarray(centreline.points, float)
+    d = P[-1] - P[0]
+    span = float(np.linalg.norm(d))
+    if span == 0.0:
+        return False
+    off = np.cross(P - P[0], d / span)
+    return bool(np.linalg.norm(off, axis=1).max() <= 1e-9 * span)
+
+
+class Centreline(BaseModel):
+    """An initial centreline: ``points`` (m, global), at least 2, no two consecutive
+    ones equal (``zero_segment``). The run resamples it by arclength
+    (:mod:`solver.initial`); its length must match ``rod.length`` (checked by
+    :class:`Case`)."""
+
+    model_config = _MODEL_CONFIG
+
+    points: list[Vector3] = Field(..., min_length=2, description="Points along the centreline, m, "
+                                  "global frame, from s = 0 to s = L.")
+
+    @model_validator(mode="after")
+    def _check(self) -> "Centreline":
+        errors = []
+        for k in range(1, len(self.points)):
+            if self.points[k] == self.points[k - 1]:
+                errors.append(_err(("points", k), "zero_segment",
+                                   f"equals points[{k - 1}]: a zero-length segment", self.points[k]))
+        _raise("Centreline", errors)
+        return self
+
+
+class FromResult(BaseModel):
+    """Start from the state of an earlier result: ``file`` (a result NetCDF written by
+    hockle, read by the CLI and the Python API; over HTTP not accepted) and ``time`` (s,
+    one of its output times). The solver itself reads nothing: the caller reads the state
+    (:func:`hockle.io.read_start_state`) and hands it to :func:`solver.simulate`."""
+
+    model_config = _MODEL_CONFIG
+
+    file: str = Field(..., min_length=1, max_length=4096, description="Path of the earlier result (NetCDF).")
+    time: Finite = Field(..., ge=0, description="Output time of the earlier result to start from, s.")
+
+
 class Initial(BaseModel):
-    """The initial configuration: a straight, stress-free rod with its start at the origin.
+    """The initial configuration: by default a straight, stress-free rod with its start
+    at the origin; or a given ``centreline``, and an initial ``twist_rate``.
 
     ``tangent`` is the global direction of a3 along the rod, ``normal`` that of a1.
     Both must be non-zero and, once normalised, orthogonal within |cos| <= 1e-9. After
     validation both are unit vectors (plain lists of floats) and ``normal`` is exactly
     orthogonal to ``tangent`` (projected, to round-off). ``binormal`` gives a2.
+
+    With a ``centreline``, ``tangent`` is its tangent at the first point (left out, it
+    is set to it; given, it must agree within 1e-6 rad) and ``normal`` (a1 at s = 0) is
+    projected onto the plane normal to it (refused when within 1e-3 rad of parallel;
+    left out, the default [1, 0, 0], or where that is within 25° of the tangent the
+    global axis least aligned with it). ``twist_rate`` (rad/m)
+    is κ3 along the whole rod at t = 0. Both new fields are written to the canonical
+    JSON only when used.
     """
 
     model_config = _MODEL_CONFIG
+
+    centreline: Optional[Centreline] = Field(
+        None, description="Initial centreline points, m, resampled by arclength; null: straight.")
+    twist_rate: Finite = Field(0.0, description="Initial twist rate kappa_3, rad/m, along the whole rod.")
+    from_result: Optional[FromResult] = Field(
+        None, description="Start from an earlier result's state at one of its output times; null: no.")
 
     tangent: Vector3 = Field(
         default_factory=lambda: [0.0, 0.0, 1.0],
@@ -553,6 +666,12 @@ class Initial(BaseModel):
 
     @model_validator(mode="after")
     def _normalise(self) -> "Initial":
+        if self.from_result is not None and (self.centreline is not None or self.twist_rate != 0.0):
+            _raise("Initial", [_err(("from_result",), "inconsistent",
+                                    "from_result gives the whole start state: leave out centreline "
+                                    "and twist_rate", None)])
+        if self.centreline is not None:
+            return self._along_centreline()
         errors = []
         for name in ("tangent", "normal"):
             if math.hypot(*getattr(self, name)) == 0.0:
@@ -578,6 +697,46 @@ class Initial(BaseModel):
         self.tangent = t
         self.normal = n
         return self
+
+    def _along_centreline(self) -> "Initial":
+        from .initial import Curve
+
+        t0 = Curve(self.centreline.points).start_tangent()
+        given = self.model_fields_set
+        if "tangent" in given:
+            norm = math.hypot(*self.tangent)
+            cos = float(np.dot(t0, self.tangent) / norm) if norm > 0 else -1.0
+            if not cos >= math.cos(1e-6):
+                _raise("Initial", [_err(("tangent",), "inconsistent",
+                                        f"must be the centreline's tangent at its first point "
+                                        f"({', '.join(f'{x:.6g}' for x in t0)}), or be left out",
+                                        self.tangent)])
+        if "normal" in given:
+            n = np.asarray(self.normal, float)
+            norm = float(np.linalg.norm(n))
+            if norm == 0.0 or abs(float(np.dot(n, t0))) / norm > math.cos(1e-3):
+                _raise("Initial", [_err(("normal",), "not_orthogonal",
+                                        "must not be parallel to the centreline's tangent at "
+                                        "its first point", self.normal)])
+        else:
+            n = np.asarray(self.normal, float)     # the default, unless nearly parallel
+            if abs(float(np.dot(n, t0))) > 0.9:
+                n = np.eye(3)[int(np.argmin(np.abs(t0)))]
+        n = n - float(np.dot(n, t0)) * t0
+        self.tangent = [float(x) for x in t0]
+        self.normal = [float(x) for x in n / np.linalg.norm(n)]
+        return self
+
+    @model_serializer(mode="wrap")
+    def _drop_unused(self, handler: Any):  # no return type: keeps the JSON schema
+        out = handler(self)
+        if self.centreline is None:
+            out.pop("centreline", None)
+        if self.twist_rate == 0.0:
+            out.pop("twist_rate", None)
+        if self.from_result is None:
+            out.pop("from_result", None)
+        return out
 
     @property
     def binormal(self) -> list[float]:
@@ -609,6 +768,8 @@ class Condition(BaseModel):
         None, description="Prescribed angular velocity component, rad/s, body frame (rotation only)."
     )
     moment: Optional[NumberOrTable] = Field(None, description="Applied moment component, N m, body frame (rotation only).")
+    position: Optional[NumberOrTable] = Field(
+        None, description="Prescribed position component, m, global frame (translation of an end with frame: global only).")
     until: Optional[Finite] = Field(None, gt=0, description="Last time this condition is in force (t <= until), s; > 0.")
 
     @model_validator(mode="after")
@@ -688,10 +849,85 @@ class EndCondition(BaseModel):
     rotation: Annotated[list[DOFConditions], Field(min_length=3, max_length=3)] = Field(
         ..., description="Conditions on the 3 body-frame rotation DOFs: angular_velocity (rad/s) or moment (N m)."
     )
+    frame: Literal["body", "global"] = Field(
+        "body", description="body: items are components along a1, a2, a3 of the end; global: translation "
+        "items are global x, y, z components (velocity m/s, position m, force N) and the rotation is "
+        "held fixed in space (angular_velocity 0) or free (moment 0).")
+
+    @model_serializer(mode="wrap")
+    def _drop_body_frame(self, handler: Any):  # no return type: keeps the JSON schema
+        out = handler(self)
+        if self.frame == "body":
+            out.pop("frame", None)
+        return out
+
+    @property
+    def rotation_mode(self) -> Optional[str]:
+        """With ``frame: global``: ``"fixed"`` (every rotation item angular_velocity 0) or
+        ``"free"`` (every one moment 0); None otherwise (the rotation does not switch)."""
+        if self.frame != "global":
+            return None
+        kinds = {c[0].kind for c in self.rotation}
+        return "fixed" if kinds == {"angular_velocity"} else "free"
+
+    def _check_global(self) -> list[dict]:
+        """The rules of ``frame: global`` (docs/case-spec.md, "Global-frame ends")."""
+        errors = []
+        for i, conditions in enumerate(self.rotation):
+            if len(conditions) > 1:
+                errors.append(_err(("rotation", i), "unsupported",
+                                   "the rotation of an end with frame: global does not switch in "
+                                   "time: give one condition per rotation item", None))
+        untils = [[c.until for c in conditions] for conditions in self.translation]
+        if any(u != untils[0] for u in untils[1:]):
+            errors.append(_err(("translation",), "unsupported",
+                               "the three translation items of an end with frame: global switch "
+                               "together: give them the same until times", None))
+        if errors:
+            return errors
+        rot = [c[0] for c in self.rotation]
+        fixed = all(c.kind == "angular_velocity" and not isinstance(c.value, Table)
+                    and c.value == 0.0 for c in rot)
+        free = all(c.kind == "moment" and not isinstance(c.value, Table) and c.value == 0.0
+                   for c in rot)
+        if not (fixed or free):
+            errors.append(_err(("rotation",), "unsupported",
+                               "with frame: global the rotation is held fixed in space (every item "
+                               "angular_velocity: 0) or free (every item moment: 0)", None))
+            return errors
+        for j in range(len(untils[0])):
+            phase = [conditions[j] for conditions in self.translation]
+            kinds = [c.kind for c in phase]
+            if set(kinds) <= {"velocity", "position"}:
+                if free:
+                    for i, c in enumerate(phase):
+                        held = not isinstance(c.value, Table) and (
+                            c.kind == "position" or c.value == 0.0)
+                        if not held:
+                            errors.append(_err(
+                                ("translation", i, j, c.kind), "unsupported",
+                                "an end free to turn (moment: 0) can be held at a point "
+                                "(position: a number, or velocity: 0) but not moved: its body "
+                                "frame would be needed to impose the motion; hold its rotation "
+                                "fixed (angular_velocity: 0) to move it", None))
+            elif set(kinds) != {"force"}:
+                errors.append(_err(("translation",), "mixed_frame_conditions",
+                                   f"with frame: global the three translation items must all be "
+                                   f"kinematic (velocity/position) or all force at any time, got "
+                                   f"{', '.join(kinds)}: a mixed set would tie the end's body "
+                                   "components together", None))
+        return errors
 
     @model_validator(mode="after")
     def _check(self) -> "EndCondition":
         errors = []
+        if self.frame != "global":
+            for i, conditions in enumerate(self.translation):
+                for j, cond in enumerate(conditions):
+                    if cond.kind == "position":
+                        errors.append(_err(("translation", i, j, "position"), "wrong_frame",
+                                           "position is a global-frame condition: give the end "
+                                           "frame: global", None))
         for group, allowed in (("translation", TRANSLATION_KEYS), ("rotation", ROTATION_KEYS)):
             for i, conditions in enumerate(getattr(self, group)):
                 for j, cond in enumerate(conditions):
@@ -726,6 +962,8 @@ class EndCondition(BaseModel):
                             )
                         previous = cond.until
         _raise("EndCondition", errors)
+        if self.frame == "global":
+            _raise("EndCondition", self._check_global())
         return self
 
     def active(self, group: str, i: int, t: float) -> Condition:
@@ -906,7 +1144,8 @@ def _check_output_field(value: Any, handler: Any) -> str:
 
 
 OutputField = Annotated[
-    Literal["v", "omega", "f", "kappa", "moment", "position", "orientation", "energies", "topology", "contact"],
+    Literal["v", "omega", "f", "kappa", "moment", "position", "orientation", "energies", "topology", "contact",
+            "reactions"],
     WrapValidator(_check_output_field),
 ]
 
@@ -1067,7 +1306,12 @@ class Case(BaseModel):
     distributed_forces: list[DistributedForce] = Field(
         default_factory=list, description="Uniform forces per unit length, N/m, global frame, each on [start, end) s."
     )
-    initial: Initial = Field(default_factory=Initial, description="Initial straight configuration (global directions).")
+    point_loads: list[PointLoad] = Field(
+        default_factory=list, description="Concentrated forces, N, each at one arclength s (m) on [start, end) s; "
+        "global frame (dead) or body frame (follower, body: true)."
+    )
+    initial: Initial = Field(default_factory=Initial, description="Initial configuration: straight "
+                             "(global directions) or a given centreline, and a twist rate.")
     boundary: Boundary = Field(..., description="Boundary conditions at s = 0 and s = L, body-frame components.")
     contact: Optional[Contact] = Field(None, description="Self-contact parameters; null: no self-contact search.")
     numerics: Numerics = Field(..., description="Grid (m), time step (s) and solver controls.")
@@ -1100,6 +1344,32 @@ class Case(BaseModel):
     def _cross_checks(self) -> "Case":
         errors = []
         length = self.rod.length
+        if self.initial.centreline is not None:
+            from .initial import LENGTH_RTOL, Curve
+
+            got = Curve(self.initial.centreline.points).length
+            if abs(got - length) > LENGTH_RTOL * length:
+                errors.append(_err(("initial", "centreline", "points"), "length_mismatch",
+                                   f"the centreline is {got:.6g} m long but rod.length is "
+                                   f"{length!r} m (they must agree within "
+                                   f"{LENGTH_RTOL:g} relative)", None))
+        errors.extend(self._check_positions())
+        start = self.initial.from_result
+        if start is not None:
+            num = self.numerics
+            k = start.time / num.dt
+            if num.tolerance is not None:
+                errors.append(_err(("initial", "from_result"), "unsupported",
+                                   "a start from an earlier result runs fixed steps only: "
+                                   "leave out numerics.tolerance", None))
+            elif abs(k - round(k)) > 1e-9 * max(1.0, k) or not start.time < num.t_end:
+                errors.append(_err(("initial", "from_result", "time"), "out_of_range",
+                                   f"must be a multiple of numerics.dt = {num.dt!r} s before "
+                                   f"numerics.t_end = {num.t_end!r} s", start.time))
+        for k, load in enumerate(self.point_loads):
+            if not 0.0 <= load.s <= length:
+                errors.append(_err(("point_loads", k, "s"), "out_of_range",
+                                   f"must be within [0, rod.length] = [0, {length!r}] m", load.s))
         for k, force in enumerate(self.distributed_forces):
             if force.s_range is not None:
                 for j, s in enumerate(force.s_range):
@@ -1128,9 +1398,11 @@ class Case(BaseModel):
                 )
         # a straight inextensible rod whose two ends both prescribe the axial velocity has
         # an undetermined tension (the step's Jacobian is exactly singular); the rod is
-        # straight at t = 0, so the conditions in force then decide (issue 11, item 5)
+        # straight at t = 0 unless a curved initial.centreline is given, so the
+        # conditions in force then decide (issue 11, item 5)
         if (self.boundary.start.active("translation", 2, 0.0).kinematic
-                and self.boundary.end.active("translation", 2, 0.0).kinematic):
+                and self.boundary.end.active("translation", 2, 0.0).kinematic
+                and _straight(self.initial.centreline)):
             errors.append(_err(
                 ("boundary", "end", "translation", 2), "ill_posed",
                 "both ends prescribe the axial velocity (translation[2]) of the straight "
@@ -1199,6 +1471,56 @@ class Case(BaseModel):
         _raise("Case", errors)
         self.numerics = numerics.model_copy(update={"n_segments": n_segments, "ds": length / n_segments})
         return self
+
+    def _check_positions(self) -> list[dict]:
+        """Global ``position`` conditions: at t = 0 where the end starts (within
+        POSITION_RTOL × rod.length), and with both ends' positions prescribed, never
+        farther apart than the inextensible rod is long. Both tables are piecewise linear,
+        so their difference is linear between the union of their knots and its length
+        convex there: checking the knots suffices."""
+        length = self.rod.length
+        ini = self.initial
+        if ini.centreline is not None:
+            where = {"start": np.asarray(ini.centreline.points[0], float),
+                     "end": np.asarray(ini.centreline.points[-1], float)}
+        else:
+            where = {"start": np.zeros(3), "end": length * np.asarray(ini.tangent, float)}
+        errors = []
+        tables = {}
+        for name in ("start", "end"):
+            ec = getattr(self.boundary, name)
+            items = [c[0] for c in ec.translation]
+            if ec.frame != "global" or any(c.kind != "position" for c in items):
+                continue
+            tables[name] = items
+            p0 = np.array([c.value_at(0.0) for c in items])
+            if np.linalg.norm(p0 - where[name]) > POSITION_RTOL * length:
+                errors.append(_err(("boundary", name, "translation"), "inconsistent",
+                                   f"the position at t = 0 ({', '.join(f'{x:.6g}' for x in p0)}) m "
+                                   f"is not where the rod's {name} is "
+                                   f"({', '.join(f'{x:.6g}' for x in where[name])}) m", None))
+        if len(tables) == 2:
+            times = sorted({0.0, *(t for items in tables.values() for c in items
+                                   if isinstance(c.value, Table) for t in c.value.t)})
+            for t in times:
+                gap = np.linalg.norm([a.value_at(t) - b.value_at(t)
+                                      for a, b in zip(tables["start"], tables["end"])])
+                if gap > length * (1.0 + 1e-9):
+                    errors.append(_err(("boundary", "end", "translation"), "stretches_rod",
+                                       f"the prescribed positions put the ends {gap:.6g} m apart "
+                                       f"at t = {t:.6g} s, farther than rod.length = {length!r} m: "
+                                       "the rod is inextensible", None))
+                    break
+        return errors
+
+    @model_serializer(mode="wrap")
+    def _drop_empty(self, handler: Any):  # no return type: keeps the JSON schema
+        # fields added after schema 1's first release are written only when used, so that
+        # a case without them keeps its canonical JSON and spec_hash
+        out = handler(self)
+        if not self.point_loads:
+            out.pop("point_loads", None)
+        return out
 
     # ----------------------------------------------------------------- loading
 

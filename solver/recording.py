@@ -18,6 +18,7 @@ import numpy as np
 from .checkpoint import Checkpoint, resume_key
 from .contact.geometry import max_distance
 from .energies import energies
+from .loads import end_reactions
 from .results import build_dataset
 from .stepping import hermite
 from .kinematics import quat_slerp
@@ -105,6 +106,8 @@ def snapshot(run, fields: set, route_current: bool = False) -> dict:
         out["power_in"] = run.power
     if "topology" in fields:
         out.update(_topology(run))
+    if "reactions" in fields:
+        out.update(end_reactions(Y, run.q, run.props.stiffness))
     if "contact" in fields:
         out["contact_count"] = run.contact_count
         out["min_surface_gap"] = run.min_gap

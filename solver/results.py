@@ -145,6 +145,24 @@ FIELD_VARIABLES: dict[str, tuple[tuple[str, ...], str, str, str | None]] = {
         "each changes the writhe of the closed curve by 2 with no self-crossing; writhe "
         "is kept continuous by adding 2 per passage (docs/topology.md)",
     ),
+    "reaction_force_start": (
+        ("time", "xyz"), "N", "load applied to the rod at its end s = 0, global frame",
+        "-R f at s = 0: the support's force, or the end's prescribed force (a point load "
+        "at s = 0 is not part of it)",
+    ),
+    "reaction_force_end": (
+        ("time", "xyz"), "N", "load applied to the rod at its end s = L, global frame",
+        "R f at s = L: the support's force, or the end's prescribed force (a point load "
+        "at s = L is not part of it)",
+    ),
+    "reaction_moment_start": (
+        ("time", "xyz"), "N m", "moment applied to the rod at its end s = 0, global frame",
+        "-R q at s = 0, q = diag(E J1, E J2, G J3) kappa",
+    ),
+    "reaction_moment_end": (
+        ("time", "xyz"), "N m", "moment applied to the rod at its end s = L, global frame",
+        "R q at s = L, q = diag(E J1, E J2, G J3) kappa",
+    ),
     "contact_count": (("time",), "1", "number of self-contact pairs", None),
     "min_surface_gap": (("time",), "m", "smallest surface gap among self-contact pairs", None),
     "newton_iterations": (

@@ -51,6 +51,9 @@ class RodRun(ProblemAssembly):
     case : solver.case.Case (validated)
     extra_force : callable(t, run) -> (N+1, 3) or None, optional
         A further global-frame distributed force, N/m (:class:`solver.loads.LoadModel`).
+    start : solver.initial.StartState or None, optional
+        The state to start from (:func:`solver.simulation.simulate`); None: the case's
+        initial configuration.
     """
 
     #: with numerics.tolerance and no contact.position_tolerance, the route rule's
@@ -70,7 +73,7 @@ class RodRun(ProblemAssembly):
     #: whichever predicted the last accepted step better (:meth:`_better_predictor`)
     predictor = "linear"
 
-    def __init__(self, case, extra_force=None):
+    def __init__(self, case, extra_force=None, start=None):
         self.case = case
         num = case.numerics
         self.props = props = RodProperties.from_case(case)
@@ -86,9 +89,9 @@ class RodRun(ProblemAssembly):
         self.newton = Newton(self.system, num.newton.tolerance, num.newton.max_iterations)
         self.params = alpha_parameters(num.rho_inf)
         self.rho_inf = num.rho_inf
-        self.state = RunState.at_rest(case, props.s)
+        self.state = RunState.at_rest(case, props.s, start)
         self.bc_plan = boundary_plan(case, props, self.system.n)
-        self.state.bc = BoundaryRows(case, props, 0.0, self.system.n, self.bc_plan)
+        self.state.bc = BoundaryRows(case, props, self.state.t, self.system.n, self.bc_plan)
         self.control = StepControl(case, *self._controllers())
         # the last attempt: its error ratio (NaN: not estimated), why it was refused
         # ("newton", "contact", "error", "growth"), whether it had contact candidates,
@@ -134,13 +137,15 @@ class RodRun(ProblemAssembly):
         return errctl, route_pi
 
     def _initial_loads(self) -> None:
-        """The loads at t = 0, last: an extra_force sees a complete run."""
+        """The loads at the start (t = 0, or a start state's time), last: an extra_force
+        sees a complete run."""
         props, st = self.props, self.state
-        glob = self.loads.global_force(0.0) if self.loads.has_global else None
+        glob = self.loads.global_force(st.t) if self.loads.has_global else None
         pose = ((quat_to_matrix(st.q), np.zeros((props.s.size, 3)), 0.0)
                 if self.system.needs_pose else None)
         st.F_old, _ = self.system.node_terms(st.Y, False, pose, glob)
-        st.body_force = self._body_force(glob, pose)
+        st.body_force = self.loads.with_points(self._body_force(glob, pose), st.t,
+                                               None if pose is None else pose[0])
         st.power = end_power(st.Y, props) + distributed_power(st.Y, st.body_force, props)
         st.end_load = end_loads(st.Y, props)
 
@@ -271,6 +276,8 @@ class RodRun(ProblemAssembly):
         g, am, af = params.gamma, params.alpha_m, params.alpha_f
         glob = self.system._glob_force
         body = self._body_force(glob, None if pose is None else (pose[1],))
+        body = self.loads.with_points(body, prob.t_new, None if pose is None else pose[1],
+                                      prob.left_limit)
         loads, xdot = np.empty((2, 6)), np.empty((2, 6))
         work, power, dphi0, dphi1 = end_work_into(Y, self.Y, float(h), float(g), float(am),
                                                   float(af), self.xdot_end, self.end_load,
@@ -278,8 +285,9 @@ class RodRun(ProblemAssembly):
         self.phi = self.phi + np.array([dphi0, dphi1])
         self.work_in += work
         self.xdot_end, self.end_load = xdot, loads
-        if self.loads.has_global:
-            # distributed global-frame loads: the same per node, with the quadrature weights
+        if self.loads.has_global or self.loads.points is not None:
+            # distributed global-frame loads (and point loads, as loads per node length):
+            # the same per node, with the quadrature weights
             vdot = np.empty_like(self.xdot_nodes)
             none = np.zeros((0, 3))
             work, dpower = distributed_work_into(

@@ -39,7 +39,7 @@ from .banded import NV, copy_into, fill
 from .contact.model import evaluate_into, evaluation_arrays
 from .kinematics import (_exp_one, _matrix_into, _right_jacobian_into, _space_route_kernel,
                          quat_to_matrix)
-from .loads import _drag_kernel
+from .loads import _drag_kernel, point_loads_into
 
 __all__ = ["alpha_parameters", "StepParameters", "RodSystem", "BACKWARD_EULER"]
 
@@ -557,15 +557,16 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
     has_drag = rscal[1] != 0.0
     space = rscal[2] != 0.0
     (Y_old, zconst, flux_const, glob, q_old, r_old, vg_old, bc_rows, bc_cols, bc_coef,
-     bc_vals, sscal) = step
+     bc_vals, sscal, pl_nodes, pl_cells, pl_side, pl_vals, pl_dead, pl_old) = step
     dt, cm, af = sscal[0], sscal[1], sscal[2]
     has_glob = sscal[3] != 0.0
     has_r_old = sscal[4] != 0.0
+    has_points = pl_nodes.shape[0] > 0
     (R, cells, Fn, dF, blocks, q, Rm, r, theta, vg, G, diag, loadrot, brot, C, D, tmid,
      rdot, A0, L, drag_b, drag_j, Jr, flags) = buf
     n1 = Y.shape[0]
     contact = cand[2].shape[0] > 0
-    need_pose = has_glob or contact
+    need_pose = has_glob or contact or (has_points and sscal[5] != 0.0)
     for i in range(4):
         flags[i] = 0
     P = 0
@@ -631,6 +632,9 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
         R[bc_rows[m]] = bc_coef[m] * Y[col // NV, col % NV] - bc_vals[m]
     if want_jac:
         _cell_blocks_kernel(dF, mass_t, stiffness, inertia, cm, af, ds, blocks)
+    if has_points:
+        point_loads_into(Y, Rm, theta, 0.5 * dt, ds, af, want_jac, pl_nodes, pl_cells, pl_side,
+                         pl_vals, pl_dead, pl_old, cells, blocks, Jr)
     flags[1] = P
 
 
@@ -656,7 +660,8 @@ class RodSystem:
         self.n_nodes = props.s.size
         self.n_cells = self.n_nodes - 1
         self.n = NV * self.n_nodes
-        self.needs_pose = loads.has_global or contact is not None
+        self.needs_pose = (loads.has_global or contact is not None
+                           or (loads.points is not None and loads.points.any_dead))
         # characteristic sizes of the unknowns (floors of the column scale)
         length = props.s[-1]
         b0 = float(np.max(props.stiffness[:, :2]))
@@ -763,10 +768,31 @@ class RodSystem:
             np.ascontiguousarray(v_old_global, dtype=float) if has_r else np.zeros((n1, 3)),
             np.asarray(bc.rows, dtype=np.intp), np.asarray(bc.cols, dtype=np.intp),
             np.asarray(bc.coef, dtype=float), np.asarray(bc.values, dtype=float),
-            np.array([dt, self.cm, af, float(glob is not None), float(has_r)]))
+            np.array([dt, self.cm, af, float(glob is not None), float(has_r),
+                      float(self.needs_pose)])) + self._point_data(t_new, dt, left_limit,
+                                                                   Y_old, q_old, af)
         # what the Jacobian's band part depends on besides the iterate (solver.newton
         # keeps a factorisation across steps while this is unchanged)
         self.step_key = (dt, params, bc.key)
+
+    _NO_POINTS = (np.zeros(0, np.intp), np.zeros(0, np.intp), np.zeros(0), np.zeros((0, 3)),
+                  np.zeros(0, np.bool_), np.zeros((0, NV)))
+
+    def _point_data(self, t_new, dt, left_limit, Y_old, q_old, af):
+        """The point loads' part of the step data (:func:`solver.loads.point_loads_into`):
+        (nodes, cells, side, values at t_new (m, 3) N, dead, the old level's share
+        (m, 12)), empty arrays without point loads. The old level takes the loads at
+        t_new − dt (its right limit: a step after a breakpoint is a backward-Euler
+        restart, αf = 0) in the old frames q_old."""
+        pts = self.loads.points
+        if pts is None:
+            return self._NO_POINTS
+        vals = pts.values(t_new, left=left_limit)
+        old = np.zeros((len(pts), NV))
+        if af != 0.0:
+            body_old = pts.body_values(pts.values(t_new - dt), q=q_old)
+            old = pts.old_level(Y_old, body_old, float(self.p.ds), af)
+        return (pts.nodes, pts.cells, pts.side, vals, pts.dead, old)
 
     def kernel_args(self):
         """(rod, step, candidates, contact data): what :func:`residual_into` takes of this

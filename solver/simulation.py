@@ -24,6 +24,7 @@ import time as _time
 
 from .checkpoint import CheckpointError, resume_key
 from .recording import Progress, RateEstimate, Recorder
+from .initial import start_step
 from .run import RodRun
 from .stepping.control import SolverDivergence
 
@@ -31,7 +32,8 @@ __all__ = ["simulate", "SolverDivergence", "Progress", "RodRun", "RateEstimate"]
 
 
 def simulate(case, progress=None, should_stop=None, checkpoint=None,
-             checkpoint_interval=300.0, resume=None, observer=None, extra_force=None):
+             checkpoint_interval=300.0, resume=None, observer=None, extra_force=None,
+             start=None):
     """Run a case and return its result dataset (docs/interfaces.md, "Result dataset").
 
     Parameters
@@ -64,6 +66,11 @@ def simulate(case, progress=None, should_stop=None, checkpoint=None,
         run's last accepted state, so a state-dependent force is explicit: lagged by one
         step). In-process runs only (the service takes data, never code); with
         ``checkpoint`` it must be picklable (a module-level function).
+    start : solver.initial.StartState or None
+        Start from this state at its time instead of the case's initial configuration
+        (``initial.from_result``; :func:`hockle.io.read_start_state` reads it from an
+        earlier result): the first output is that state, the fixed steps continue from
+        the one after it.
 
     Returns
     -------
@@ -81,7 +88,7 @@ def simulate(case, progress=None, should_stop=None, checkpoint=None,
     # overhead and oversubscribe shared cores (measured 3.8x slower in contact phases)
     with _blas_controller().limit(limits=1, user_api="blas"):
         return _simulate(case, progress, should_stop, checkpoint, checkpoint_interval,
-                         resume, observer, extra_force)
+                         resume, observer, extra_force, start)
 
 
 @functools.cache
@@ -97,15 +104,16 @@ def _blas_controller():
 
 
 def _simulate(case, progress, should_stop, checkpoint=None, checkpoint_interval=300.0,
-              resume=None, observer=None, extra_force=None):
+              resume=None, observer=None, extra_force=None, start=None):
     """:func:`simulate` under the BLAS thread limit: build (or resume) the run, then step
     it with fixed or error-controlled steps."""
     wall0 = _time.perf_counter()
     hooks = dict(progress=progress, should_stop=should_stop, checkpoint=checkpoint,
                  checkpoint_interval=checkpoint_interval, observer=observer)
     if resume is None:
-        run = RodRun(case, extra_force)
+        run = RodRun(case, extra_force, start)
         rec = Recorder(case, run, hooks, wall0=wall0)
+        rec.done = start_step(case, start) - 1      # 0, or the steps before the start
         rec.record()
         out = rec.observed(0)
         if out is not None:

@@ -14,9 +14,8 @@ from typing import Any, Optional
 
 import numpy as np
 
-from .kinematics import quat_from_matrix
 
-__all__ = ["RunState", "initial_pose"]
+__all__ = ["RunState"]
 
 
 @dataclass
@@ -95,28 +94,22 @@ class RunState:
         return tuple(f.name for f in fields(cls))
 
     @classmethod
-    def at_rest(cls, case, s: np.ndarray) -> "RunState":
-        """The straight rod at rest at t = 0: the initial tangent and normal of ``case``
-        (unit vectors, normalised here), s (N+1,) the arclength, m. F_old, the loads'
-        accounts and ``bc`` are filled by the run (they need its system)."""
+    def at_rest(cls, case, s: np.ndarray, start=None) -> "RunState":
+        """The rod at rest at t = 0 in the case's initial configuration
+        (:func:`solver.initial.initial_state`: straight along the initial tangent and
+        normal, or along ``initial.centreline`` with ``initial.twist_rate``), or the
+        :class:`solver.initial.StartState` ``start`` (``initial.from_result``); s (N+1,)
+        the arclength, m. F_old, the loads' accounts and ``bc`` are filled by the run
+        (they need its system)."""
+        from .initial import apply_start, initial_state
+
         n1 = s.size
-        q0, tangent = initial_pose(case)
-        q = np.tile(q0, (n1, 1))
-        r = s[:, None] * tangent[None, :]
-        return cls(t=0.0, Y=np.zeros((n1, 12)), Ydot=np.zeros((n1, 12)), q=q, r=r,
-                   q_time=q.copy(), r_time=r.copy(), v_global=np.zeros((n1, 3)),
-                   v_global_time=np.zeros((n1, 3)), phi=np.zeros(2),
-                   xdot_end=np.zeros((2, 6)), xdot_nodes=np.zeros((n1, 3)))
+        q, r, Y, t0 = initial_state(case, s, start)
+        state = cls(t=t0, Y=Y, Ydot=np.zeros((n1, 12)), q=q, r=r,
+                    q_time=q.copy(), r_time=r.copy(), v_global=np.zeros((n1, 3)),
+                    v_global_time=np.zeros((n1, 3)), phi=np.zeros(2),
+                    xdot_end=np.zeros((2, 6)), xdot_nodes=np.zeros((n1, 3)))
+        if start is not None:
+            apply_start(state, start)
+        return state
 
-
-def initial_pose(case):
-    """The frame of the straight rod: (quaternion (4,) of [normal, tangent × normal,
-    tangent], the unit tangent (3,)) from ``case.initial`` (the normal is made orthogonal
-    to the tangent first)."""
-    tangent = np.asarray(case.initial.tangent, float)
-    tangent = tangent / np.linalg.norm(tangent)
-    normal = np.asarray(case.initial.normal, float)
-    normal = normal - np.dot(normal, tangent) * tangent
-    normal = normal / np.linalg.norm(normal)
-    R0 = np.column_stack([normal, np.cross(tangent, normal), tangent])
-    return quat_from_matrix(R0), tangent

@@ -27,7 +27,7 @@ from solver.results import (DIAGNOSTIC_VARIABLES, FIELD_VARIABLES, METADATA_ATTR
 from solver.simulation import simulate
 
 ALL_FIELDS = ["v", "omega", "f", "kappa", "moment", "position", "orientation", "energies",
-              "topology", "contact"]
+              "topology", "contact", "reactions"]
 
 CASE = {
     "schema_version": 1,

@@ -90,8 +90,9 @@ def _table_kinks(t, value) -> list:
 def breakpoints(case) -> np.ndarray:
     """Times (s) in (0, t_end) at which the case's loads or boundary conditions change.
 
-    Collected: ``start`` and ``end`` of every distributed force with a non-zero value
-    (unless its ``factor`` table is 0 there: no jump) and the kinks of that table;
+    Collected: ``start`` and ``end`` of every distributed force and point load with a
+    non-zero value (unless its ``factor`` table is 0 there: no jump) and the kinks of
+    that table;
     ``until`` of every boundary condition; the kinks of every boundary table (held
     constant outside its knots) whose slope change exceeds KINK_FRACTION of the table's
     steepest slope: the corners of a ramp are breakpoints, the knots of a finely sampled
@@ -111,6 +112,15 @@ def breakpoints(case) -> np.ndarray:
             times.append(float(df.end))
         if df.factor is not None:
             times.extend(_table_kinks(df.factor.t, df.factor.value))
+    for load in case.point_loads:
+        if not np.any(np.asarray(load.value, float) != 0):
+            continue
+        if load.scale_at(load.start) != 0.0:
+            times.append(float(load.start))
+        if load.end is not None and load.scale_at(load.end) != 0.0:
+            times.append(float(load.end))
+        if load.factor is not None:
+            times.extend(_table_kinks(load.factor.t, load.factor.value))
     for end in (case.boundary.start, case.boundary.end):
         for group in (end.translation, end.rotation):
             for conditions in group:

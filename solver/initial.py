@@ -1,0 +1,251 @@
+"""The initial configuration of a run: a straight rod, or a given centreline with an
+initial twist rate (docs/case-spec.md, "Initial").
+
+A centreline given as points is made a smooth curve by a cubic spline through them in
+their chord length (scipy's ``CubicSpline``, not-a-knot ends; two points give a
+segment), measured by Gauss-Legendre quadrature of its speed, and resampled at the
+grid's arclengths (the curve's parameter scaled so that its length is the rod's). Its
+frames are the rotation-minimising (Bishop) frame, transported from the start's
+``normal`` by the double-reflection method (Wang, Jüttler, Zheng & Liu, ACM Trans.
+Graph. 27 (2008) 2) on 16 substeps per cell, turned about the tangent by the twist
+rate τ0 (rad/m) times s. The node curvatures are the Darboux vector in those frames,
+κ = (−c·a2, c·a1, τ0) with c = da3/ds the curve's curvature vector (R' = R[κ]×, so
+a3' = κ2 a1 − κ1 a2). The pose the run starts from is the space route of those κ
+(:func:`solver.kinematics.space_route`, the one the scheme carries), anchored at the
+first point and the first frame: it lies within O(Δs²) of the given curve.
+
+Velocities and forces start at zero; the run's first step is a consistent restart
+(:mod:`solver.stepping`), which sets f to what the loads and conditions then require.
+A curved start is an equilibrium only where it is one (a catenary under its own weight
+with its ends held where the curve puts them; a stress-free rod whose rest shape it is
+is not modelled: the rod is straight when unstressed), so a curved rod set free moves.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Curve", "StartState", "initial_pose", "initial_state", "LENGTH_RTOL"]
+
+#: relative tolerance with which a centreline's length must match rod.length
+LENGTH_RTOL = 1e-3
+#: Gauss-Legendre nodes and weights on [0, 1] for the curve's length
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(6)
+_GL_X = 0.5 * (_GL_X + 1.0)
+_GL_W = 0.5 * _GL_W
+#: substeps per cell of the frame transport, and per spline piece of the length table
+_SUB = 16
+
+
+class Curve:
+    """A smooth curve through points (M, 3) m, M >= 2 distinct consecutive points.
+
+    Attributes: ``length`` (m, by quadrature), ``u`` the chord-length knots (M,).
+    Raises ValueError for fewer than 2 points or a zero-length segment.
+    """
+
+    def __init__(self, points):
+        from scipy.interpolate import CubicSpline
+
+        P = np.asarray(points, dtype=float)
+        if P.ndim != 2 or P.shape[1] != 3 or P.shape[0] < 2:
+            raise ValueError("a centreline needs at least 2 points of 3 coordinates")
+        chord = np.linalg.norm(np.diff(P, axis=0), axis=1)
+        if not np.all(chord > 0):
+            k = int(np.argmin(chord > 0)) + 1
+            raise ValueError(f"points {k - 1} and {k} coincide (a zero-length segment)")
+        self.u = np.concatenate([[0.0], np.cumsum(chord)])
+        if P.shape[0] == 2:
+            self.spline = CubicSpline(self.u, P, bc_type=((1, (P[1] - P[0]) / chord[0]),
+                                                          (1, (P[1] - P[0]) / chord[0])))
+        else:
+            self.spline = CubicSpline(self.u, P, bc_type="not-a-knot")
+        self.d1 = self.spline.derivative(1)
+        self.d2 = self.spline.derivative(2)
+        # length table on a fine subdivision of every piece
+        fine = np.concatenate([np.linspace(a, b, _SUB, endpoint=False)
+                               for a, b in zip(self.u[:-1], self.u[1:])] + [[self.u[-1]]])
+        self.fine = fine
+        h = np.diff(fine)
+        x = fine[:-1, None] + h[:, None] * _GL_X[None, :]
+        speed = np.linalg.norm(self.d1(x.ravel()), axis=1).reshape(x.shape)
+        self.table = np.concatenate([[0.0], np.cumsum(h * (speed @ _GL_W))])
+        self.length = float(self.table[-1])
+
+    def _arc(self, u):
+        """Arclength (m) from the start to parameters u (array)."""
+        j = np.clip(np.searchsorted(self.fine, u, side="right") - 1, 0, self.fine.size - 2)
+        a = self.fine[j]
+        h = u - a
+        x = a[:, None] + h[:, None] * _GL_X[None, :]
+        speed = np.linalg.norm(self.d1(x.ravel()), axis=1).reshape(x.shape)
+        return self.table[j] + h * (speed @ _GL_W)
+
+    def parameter_at(self, s):
+        """The curve's parameter at arclengths s (m, within [0, length]): interpolated
+        in the length table, then three Newton steps on the quadrature (to round-off)."""
+        s = np.asarray(s, dtype=float)
+        u = np.interp(s, self.table, self.fine)
+        for _ in range(3):
+            speed = np.linalg.norm(self.d1(u), axis=1)
+            u = np.clip(u - (self._arc(u) - s) / speed, 0.0, self.u[-1])
+        return u
+
+    def start_tangent(self):
+        """Unit tangent (3,) at the first point."""
+        t = self.d1(0.0)
+        return t / np.linalg.norm(t)
+
+
+def _frames(curve, s, normal, twist_rate):
+    """Frames R (n, 3, 3) [a1 a2 a3] and curvatures κ (n, 3) 1/m at arclengths s (n,)
+    (uniform, from 0) of the curve scaled to length s[-1] (module docstring)."""
+    n = s.size
+    scale = curve.length / s[-1]
+    sub = np.linspace(0.0, s[-1], (n - 1) * _SUB + 1)
+    u = curve.parameter_at(sub * scale)
+    r = curve.spline(u)
+    d1 = curve.d1(u)
+    t = d1 / np.linalg.norm(d1, axis=1)[:, None]
+    a1 = np.empty_like(t)
+    a1[0] = normal - np.dot(normal, t[0]) * t[0]
+    a1[0] /= np.linalg.norm(a1[0])
+    for j in range(sub.size - 1):
+        # double reflection: reflect across the chord's bisector, then across the one of
+        # the tangents' difference (Wang et al. 2008, Algorithm 1)
+        v1 = r[j + 1] - r[j]
+        c1 = v1 @ v1
+        aL = a1[j] - (2.0 / c1) * (v1 @ a1[j]) * v1
+        tL = t[j] - (2.0 / c1) * (v1 @ t[j]) * v1
+        v2 = t[j + 1] - tL
+        c2 = v2 @ v2
+        a = aL - (2.0 / c2) * (v2 @ aL) * v2 if c2 > 0 else aL
+        a -= (a @ t[j + 1]) * t[j + 1]
+        a1[j + 1] = a / np.linalg.norm(a)
+    idx = np.arange(n) * _SUB
+    T, A1 = t[idx], a1[idx]
+    A2 = np.cross(T, A1)
+    phi = twist_rate * s
+    c, sn = np.cos(phi)[:, None], np.sin(phi)[:, None]
+    B1, B2 = c * A1 + sn * A2, -sn * A1 + c * A2
+    # curvature vector da3/ds of the scaled curve
+    ud1, ud2 = d1[idx], curve.d2(u[idx])
+    sp2 = np.einsum("ij,ij->i", ud1, ud1)
+    curv = (ud2 - np.einsum("ij,ij->i", ud2, T)[:, None] * T) / sp2[:, None] * scale
+    kappa = np.stack([-np.einsum("ij,ij->i", curv, B2), np.einsum("ij,ij->i", curv, B1),
+                      np.full(n, float(twist_rate))], axis=1)
+    R = np.stack([B1, B2, T], axis=2)
+    return R, kappa, r[0]
+
+
+def initial_pose(case, s):
+    """The pose and curvatures a run starts from.
+
+    Parameters
+    ----------
+    case : solver.case.Case (validated)
+    s : (N+1,) grid arclengths, m
+
+    Returns
+    -------
+    q : (N+1, 4) unit quaternions of the frames [a1 a2 a3]
+    r : (N+1, 3) positions, m
+    kappa : (N+1, 3) body-frame curvatures, 1/m (zero for a straight untwisted rod)
+
+    A straight rod without twist starts as it always has (the same arrays, bit for bit):
+    every node's frame (``normal``, ``tangent × normal``, ``tangent``), r = s·tangent.
+    """
+    from .kinematics import quat_from_matrix, space_route
+
+    ini = case.initial
+    s = np.asarray(s, dtype=float)
+    n1 = s.size
+    tangent = np.asarray(ini.tangent, float)
+    tangent = tangent / np.linalg.norm(tangent)
+    normal = np.asarray(ini.normal, float)
+    normal = normal - np.dot(normal, tangent) * tangent
+    normal = normal / np.linalg.norm(normal)
+    centreline = getattr(ini, "centreline", None)
+    twist = float(getattr(ini, "twist_rate", 0.0) or 0.0)
+    if centreline is None:
+        R0 = np.column_stack([normal, np.cross(tangent, normal), tangent])
+        q0 = quat_from_matrix(R0)
+        if twist == 0.0:
+            return np.tile(q0, (n1, 1)), s[:, None] * tangent[None, :], np.zeros((n1, 3))
+        kappa = np.zeros((n1, 3))
+        kappa[:, 2] = twist
+        q, r = space_route(q0, np.zeros(3), kappa, float(s[1] - s[0]))
+        return q, r, kappa
+    curve = Curve(centreline.points)
+    R, kappa, r0 = _frames(curve, s - s[0], normal, twist)
+    q0 = quat_from_matrix(R[0])
+    q, r = space_route(q0, np.asarray(r0, float), kappa, float(s[1] - s[0]))
+    return q, r, kappa
+
+
+@dataclass
+class StartState:
+    """The state a run starts from instead of its case's initial configuration
+    (``initial.from_result``), read by the caller from an earlier result
+    (:func:`hockle.io.read_start_state`): time ``t`` (s) and per node v, ω, f, κ
+    (N+1, 3) body frame (m/s, rad/s, N, rad/m), ``q`` (N+1, 4) unit quaternions, ``r``
+    (N+1, 3) m; ``phi`` (2,) the end rotations about a3 (rad) of the linking number and
+    ``work_in`` (J), or None where the result did not store them."""
+
+    t: float
+    v: np.ndarray
+    omega: np.ndarray
+    f: np.ndarray
+    kappa: np.ndarray
+    q: np.ndarray
+    r: np.ndarray
+    phi: object = None
+    work_in: object = None
+
+
+def initial_state(case, s, start=None):
+    """(q (N+1, 4), r (N+1, 3), Y (N+1, 12), t0 (s)): the pose, unknowns and time a run
+    starts from: :func:`initial_pose` with v = ω = f = 0 at t = 0, or the
+    :class:`StartState` ``start`` as it is. Raises ValueError when the start's arrays do
+    not match the grid."""
+    n1 = np.asarray(s).size
+    Y = np.zeros((n1, 12))
+    if start is None:
+        q, r, kappa = initial_pose(case, s)
+        Y[:, 9:12] = kappa
+        return q, r, Y, 0.0
+    for name in ("v", "omega", "f", "kappa", "r"):
+        if np.shape(getattr(start, name)) != (n1, 3):
+            raise ValueError(f"start state: {name} has shape {np.shape(getattr(start, name))}, "
+                             f"expected ({n1}, 3)")
+    if np.shape(start.q) != (n1, 4):
+        raise ValueError(f"start state: q has shape {np.shape(start.q)}, expected ({n1}, 4)")
+    Y[:, 0:3], Y[:, 3:6], Y[:, 6:9], Y[:, 9:12] = start.v, start.omega, start.f, start.kappa
+    return (np.array(start.q, dtype=float), np.array(start.r, dtype=float), Y,
+            float(start.t))
+
+
+def apply_start(run, start) -> None:
+    """Set the rest of a run's state from a :class:`StartState` (after
+    :func:`initial_state` set the pose, the unknowns and the time): the time route of
+    every node is the start's pose, the global velocities R v, and the end rotations and
+    the work put in where the start has them."""
+    from .kinematics import rotate_rows
+
+    run.q_time, run.r_time = run.q.copy(), run.r.copy()
+    run.v_global = np.empty_like(run.r)
+    rotate_rows(np.ascontiguousarray(run.q), np.ascontiguousarray(run.Y[:, 0:3]), run.v_global)
+    run.v_global_time = run.v_global.copy()
+    if start.phi is not None:
+        run.phi = np.array(start.phi, dtype=float)
+    if start.work_in is not None:
+        run.work_in = float(start.work_in)
+
+
+def start_step(case, start) -> int:
+    """The first fixed step of a run: 1, or after a start at t (a multiple of
+    numerics.dt, :class:`solver.case.FromResult`) the step that follows it."""
+    if start is None:
+        return 1
+    return int(round(start.t / case.numerics.dt)) + 1
