@@ -14,9 +14,30 @@ import os
 import re
 import socket
 import tempfile
+import threading
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Any, Iterator
 
-__all__ = ["ResultStore"]
+__all__ = ["NETCDF_LOCK", "ResultStore", "open_result"]
+
+#: netCDF4-C and HDF5 are not thread-safe, and the API's routes run in a thread pool: every
+#: NetCDF open, read and write in an API process holds this lock for its whole duration
+#: (concurrent result reads without it crashed the API process or answered 500 with
+#: "NetCDF: Can't open HDF5 attribute"; tests/service/test_concurrent_reads.py).
+NETCDF_LOCK = threading.RLock()
+
+
+@contextmanager
+def open_result(path: str | os.PathLike, **kwargs: Any) -> Iterator[Any]:
+    """An ``xarray.Dataset`` of the NetCDF file at ``path`` (netcdf4 engine), open while
+    :data:`NETCDF_LOCK` is held; read what is needed inside the ``with`` block.
+
+    Raises whatever ``xarray.open_dataset`` raises (``FileNotFoundError``, ``OSError``)."""
+    import xarray as xr
+
+    with NETCDF_LOCK, xr.open_dataset(path, engine="netcdf4", **kwargs) as ds:
+        yield ds
 
 _ID = re.compile(r"^[0-9a-f]{8}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{12}$")
 
@@ -55,8 +76,11 @@ class ResultStore:
     def write_dataset(self, job_id: str, ds, attempt: int | None = None) -> Path:
         """Write an xarray.Dataset as NetCDF4 under a temporary name, then rename it to
         :meth:`path_for` ``(job_id, attempt)``."""
-        return self._atomic(self.path_for(job_id, attempt),
-                            lambda tmp: ds.to_netcdf(tmp, engine="netcdf4"))
+        def write(tmp):
+            with NETCDF_LOCK:
+                ds.to_netcdf(tmp, engine="netcdf4")
+
+        return self._atomic(self.path_for(job_id, attempt), write)
 
     def checkpoint_path(self, job_id: str) -> Path:
         """``<id>.ckpt``: the job's latest solver checkpoint (solver.checkpoint)."""

@@ -43,6 +43,7 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from ..deps import Services, services
 from ..auth import caller
 from ..problems import ProblemError
+from ..store import open_result
 from ..validation import parse_body, read_body, validate_case
 
 __all__ = ["UI_URL", "UI_API_PREFIX", "CSP", "STATIC_DIR", "install_dashboard"]
@@ -169,8 +170,6 @@ _EVENT_CACHE: OrderedDict[tuple[str, int, int], dict] = OrderedDict()
 _EVENT_CACHE_SIZE = 2048
 _EVENT_LOCK = threading.Lock()
 _AT_EVENT = ("twist", "writhe", "linking_number", "energy_total")
-# netCDF4/HDF5 are not thread-safe and these routes run in the thread pool: one read at a time
-_READ_LOCK = threading.Lock()
 
 
 def result_events(path: str) -> dict[str, Any]:
@@ -186,10 +185,9 @@ def result_events(path: str) -> dict[str, Any]:
             _EVENT_CACHE.move_to_end(key)
             return _EVENT_CACHE[key]
     import numpy as np
-    import xarray as xr
     from solver.results import run_events
 
-    with _READ_LOCK, xr.open_dataset(path, engine="netcdf4", cache=False) as ds:
+    with open_result(path, cache=False) as ds:
         found = run_events(ds)
         time = np.asarray(ds["time"].values, dtype=float) if "time" in ds.coords else np.array([])
         at = {name: np.asarray(ds[name].values, dtype=float) for name in _AT_EVENT if name in ds}

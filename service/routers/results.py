@@ -16,6 +16,7 @@ from ..auth import caller
 from ..problems import ProblemError, problem_responses
 from ..registry import Job
 from ..schemas import Series, Summary, VariableInfo, VariableList, VariableSlice
+from ..store import open_result
 from .jobs import get_job_or_404
 
 router = APIRouter(tags=["results"])
@@ -51,9 +52,7 @@ def _not_modified(request: Request, etag: str) -> bool:
 
 @contextmanager
 def _open(path: str) -> Iterator[Any]:
-    import xarray as xr
-
-    with xr.open_dataset(path, engine="netcdf4", cache=False) as ds:
+    with open_result(path, cache=False) as ds:
         yield ds
 
 

@@ -25,6 +25,7 @@ from ..auth import caller
 from ..deps import Services, services
 from ..problems import ProblemError, problem_responses
 from ..registry import ACTIVE_STATES, RUNNING, Job, SweepRecord
+from ..store import NETCDF_LOCK, open_result
 from ..validation import parse_body, read_body, validate_case
 from . import jobs as jobs_router
 from .results import NETCDF_MEDIA_TYPE, _etag, _not_modified
@@ -194,11 +195,9 @@ def _combined_path(svc: Services, sweep: SweepRecord, fields: list[str]) -> Path
 
 
 def _load_member(job: Job | None):
-    import xarray as xr
-
     if job is None or not job.result_path or not os.path.exists(job.result_path):
         return None
-    with xr.open_dataset(job.result_path, engine="netcdf4") as ds:
+    with open_result(job.result_path) as ds:
         return ds.load()
 
 
@@ -266,7 +265,8 @@ def _build(svc: Services, sweep: SweepRecord, jobs: dict[str, Job], fields: list
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f"{path.name}.tmp-{os.getpid()}-{threading.get_ident()}")
     try:
-        ds.to_netcdf(tmp, engine="netcdf4")
+        with NETCDF_LOCK:
+            ds.to_netcdf(tmp, engine="netcdf4")
         os.replace(tmp, path)
     finally:
         if tmp.exists():
