@@ -202,6 +202,15 @@ def _plain_text_docstrings(app, what, name, obj, options, lines):
     lines[:] = escaped
 
 
+def _skip_sqlalchemy_internals(app, what, name, obj, skip, options):
+    """The declarative base's ``metadata`` and ``registry`` are SQLAlchemy's, and their
+    docstrings cross-reference SQLAlchemy's own documentation: not hockle's API."""
+    if name in ("metadata", "registry") and type(obj).__module__.startswith("sqlalchemy"):
+        return True
+    return None
+
+
 def setup(app):
     app.connect("source-read", _toctree_extras)
+    app.connect("autodoc-skip-member", _skip_sqlalchemy_internals)
     app.connect("autodoc-process-docstring", _plain_text_docstrings, priority=600)

@@ -17,7 +17,7 @@ __all__ = ["Base", "Job", "JobEvent", "WorkerBeat", "SweepRecord"]
 
 
 class Base(DeclarativeBase):
-    pass
+    """The declarative base of the registry's tables (their shared ``MetaData``)."""
 
 
 class Job(Base):

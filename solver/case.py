@@ -1342,6 +1342,19 @@ class Case(BaseModel):
 
     @model_validator(mode="after")
     def _cross_checks(self) -> "Case":
+        """Checks across sections (raising :class:`CaseError` with every error found);
+        sets ``numerics.n_segments`` and ``numerics.ds`` from whichever was given."""
+        errors = (self._check_initial() + self._check_loads_on_rod() + self._check_contact()
+                  + self._check_ill_posed_ends())
+        n_segments = self._check_numerics(errors)
+        _raise("Case", errors)
+        numerics, length = self.numerics, self.rod.length
+        self.numerics = numerics.model_copy(update={"n_segments": n_segments, "ds": length / n_segments})
+        return self
+
+    def _check_initial(self) -> list[dict]:
+        """The initial state: a centreline as long as the rod, positions where the ends
+        are, a start from a result at an output time of fixed steps."""
         errors = []
         length = self.rod.length
         if self.initial.centreline is not None:
@@ -1366,6 +1379,12 @@ class Case(BaseModel):
                 errors.append(_err(("initial", "from_result", "time"), "out_of_range",
                                    f"must be a multiple of numerics.dt = {num.dt!r} s before "
                                    f"numerics.t_end = {num.t_end!r} s", start.time))
+        return errors
+
+    def _check_loads_on_rod(self) -> list[dict]:
+        """Point loads and distributed forces placed within [0, rod.length]."""
+        errors = []
+        length = self.rod.length
         for k, load in enumerate(self.point_loads):
             if not 0.0 <= load.s <= length:
                 errors.append(_err(("point_loads", k, "s"), "out_of_range",
@@ -1378,6 +1397,11 @@ class Case(BaseModel):
                             _err(("distributed_forces", k, "s_range", j), "out_of_range",
                                  f"must be within [0, rod.length] = [0, {length!r}] m", s)
                         )
+        return errors
+
+    def _check_contact(self) -> list[dict]:
+        """The contact search's tolerance against the largest diameter (and the barrier's gap)."""
+        errors = []
         if self.contact is not None:
             d = self.rod.diameter
             d_max = max(d.value) if isinstance(d, Profile) else float(d)
@@ -1396,6 +1420,11 @@ class Case(BaseModel):
                          f"the tolerance ({self.contact.tolerance!r} m): the search would miss "
                          "pairs the barrier acts on", self.contact.barrier_gap)
                 )
+        return errors
+
+    def _check_ill_posed_ends(self) -> list[dict]:
+        """End conditions that leave the straight inextensible rod's tension undetermined."""
+        errors = []
         # a straight inextensible rod whose two ends both prescribe the axial velocity has
         # an undetermined tension (the step's Jacobian is exactly singular); the rod is
         # straight at t = 0 unless a curved initial.centreline is given, so the
@@ -1408,8 +1437,17 @@ class Case(BaseModel):
                 "both ends prescribe the axial velocity (translation[2]) of the straight "
                 "inextensible rod at t = 0, which leaves its tension undetermined; give one "
                 "end an axial force instead (force: 0 lets it slide freely)", None))
+        return errors
+
+    def _check_numerics(self, errors: list[dict]) -> int | None:
+        """Step and grid sizes against the run and the rod, appending to ``errors``;
+        returns the number of segments (raises at once, with ``errors``, where the grid
+        would be too large to check further)."""
+        length = self.rod.length
         numerics = self.numerics
-        if numerics.dt > numerics.t_end:
+        # fixed steps only: with numerics.tolerance, dt is the first trial step, which the
+        # step control cuts to land on t_end
+        if numerics.tolerance is None and numerics.dt > numerics.t_end:
             errors.append(_err(("numerics", "dt"), "out_of_range",
                                f"the time step must not exceed the run, t_end = {numerics.t_end!r} s",
                                numerics.dt))
@@ -1468,9 +1506,7 @@ class Case(BaseModel):
                 )
             else:
                 n_segments = nearest
-        _raise("Case", errors)
-        self.numerics = numerics.model_copy(update={"n_segments": n_segments, "ds": length / n_segments})
-        return self
+        return n_segments
 
     def _check_positions(self) -> list[dict]:
         """Global ``position`` conditions: at t = 0 where the end starts (within

@@ -247,7 +247,7 @@ def test_fixed_step_only_fields_are_refused_without_tolerance():
         Case.model_validate(spec)
     text = str(info.value)
     assert "numerics.dt_max" in text and "output.interval" in text
-    spec = make_case(dt=0.2, end=free_end()).model_dump()
+    spec = make_case(dt=0.2, t_end=1.0, end=free_end()).model_dump()
     spec["numerics"].update(tolerance={"relative": 1e-3}, dt_max=0.1)
     with pytest.raises(Exception, match="dt_max"):
         Case.model_validate(spec)

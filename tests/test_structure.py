@@ -14,11 +14,7 @@ from rodcases import free_end, make_case
 SOLVER = Path(__file__).resolve().parents[1] / "solver"
 
 #: functions longer than 80 lines that are not compiled kernels, and why they stay
-LONG_ALLOWED = {
-    # the case's cross-field checks: one list of independent rules, extended by the
-    # point loads; to be split by topic with them
-    "solver/case.py:_cross_checks",
-}
+LONG_ALLOWED: set[str] = set()
 
 
 def _modules() -> dict:
