@@ -44,6 +44,7 @@ from ..deps import Services, services
 from ..auth import caller
 from ..problems import ProblemError
 from ..store import open_result
+from ..routers.results import _not_modified
 from ..validation import parse_body, read_body, validate_case
 
 __all__ = ["UI_URL", "UI_API_PREFIX", "CSP", "STATIC_DIR", "install_dashboard"]
@@ -117,14 +118,6 @@ def _etag_of(body: bytes) -> str:
     return '"' + hashlib.sha256(body).hexdigest()[:32] + '"'
 
 
-def _matches(request: Request, etag: str) -> bool:
-    header = request.headers.get("if-none-match")
-    if not header:
-        return False
-    tags = [t.strip() for t in header.split(",")]
-    return "*" in tags or etag in tags or f"W/{etag}" in tags
-
-
 @router.get(f"{UI_API_PREFIX}/jobs")
 def ui_list_jobs(
     request: Request,
@@ -159,7 +152,7 @@ def ui_list_jobs(
     body = orjson.dumps({"jobs": jobs, "next_page_token": page.next_token})
     etag = _etag_of(body)
     headers = {"ETag": etag, "Cache-Control": "private, no-cache"}
-    if _matches(request, etag):
+    if _not_modified(request, etag):
         return Response(status_code=304, headers=headers)
     return Response(body, media_type="application/json", headers=headers)
 
