@@ -87,17 +87,21 @@ FULL = {
                (50, 0.0125), (100, 0.0125), (100, 0.00625), (200, 0.00625)],
     "hockle_ref": (400, 0.003125),
     # PyElastica (n, Δt/Δs s/m); refinement of (n, r) is (2n, r)
+    # 0.015 s/m: n = 25 blew up there (in contact), n = 50 ran; Δt/Δs changed Wr by 0.13 %
+    # (n = 25, 0.011 against 0.0055) and 0.01 % (n = 50, 0.015 against 0.011) to 9 s, Δs
+    # by 2.8 % (n = 25 against 50): the Δs refinement is the one that matters
     "pyelastica": [(25, 0.015), (25, 0.011), (25, 0.0055), (50, 0.015), (50, 0.011),
-                   (50, 0.0055), (100, 0.015), (100, 0.011)],
+                   (100, 0.011)],
     "pyelastica_ref": (200, 0.011),
     "repeats": 3,                  # rounds for settings whose single run is cheap
     "repeat_below_s": 20.0,        # settings slower than this (first round) run twice only
+    "stop_after_s": 1320.0,        # no repeat starts after this (the budget of one sitting)
 }
 QUICK = {
     "t_end": 8.0,
     "hockle": [(25, 0.05), (50, 0.025)], "hockle_ref": (100, 0.0125),
     "pyelastica": [(25, 0.011), (50, 0.011)], "pyelastica_ref": (100, 0.011),
-    "repeats": 2, "repeat_below_s": 5.0,
+    "repeats": 2, "repeat_below_s": 5.0, "stop_after_s": 600.0,
 }
 LEVELS = (0.01, 0.001)
 
@@ -555,6 +559,7 @@ def render(res: dict, fig_name: str | None) -> str:
     """The Markdown section (starts with '## ') from the JSON results."""
     cfg, runs, refs = res["config"], res["runs"], res["refs"]
     quick = res.get("quick", False)
+    loads = [x for e in res.get("log", []) for x in (e["load_before"][0], e["load_after"][0])]
     L = ["## hockle and PyElastica side by side: twisted rod to plectoneme", ""]
     L.append(f"`nice -n 10 python benchmarks/peer_compare.py{' --quick' if quick else ''}` "
              f"(PyElastica {res['pyelastica_version']}, `pip install -r "
@@ -563,7 +568,13 @@ def render(res: dict, fig_name: str | None) -> str:
              f"{res['total_s']:.0f} s in all, on 2 cores **shared with other jobs**: load "
              f"average (1, 5, 15 min) {res['load_start']} at the start, {res['load_end']} at "
              "the end; every timed run's load before and after is in "
-             "`benchmarks/results/peer_compare.json`."
+             "`benchmarks/results/peer_compare.json`"
+             + (f" (1-min load over the {len(loads)} timed runs: {min(loads):.1f}-"
+                f"{max(loads):.1f}, median {statistics.median(loads):.1f})" if loads else "")
+             + (f"; {res['rounds_skipped']} round(s) skipped at the time budget"
+                if res.get("rounds_skipped") else "")
+             + ". The same figures in another hour: `nice -n 10 python "
+             "benchmarks/report.py --only pyelastica`."
              + (" **Quick mode: a smoke run, not figures to quote.**" if quick else ""))
     L.append("")
     L.append("**Problem and physics.** PyElastica's `PlectonemesCase` rod (L = 1 m, r = "
@@ -617,10 +628,29 @@ def render(res: dict, fig_name: str | None) -> str:
              "(2n, same Δt/Δs)) are both within it; references are not candidates. Grids: "
              f"hockle {len(cfg['hockle'])} settings (N, Δt) plus the reference "
              f"{tuple(cfg['hockle_ref'])}; PyElastica {len(cfg['pyelastica'])} settings "
-             "(n, Δt/Δs) up to 0.015 s/m (its measured stability limit without contact is "
-             f"0.015-0.024 s/m) plus the reference {tuple(cfg['pyelastica_ref'])}.")
+             "(n, Δt/Δs) from 0.0055 to 0.015 s/m (n = 25 blows up at 0.015 s/m once in "
+             "contact, n = 50 runs; Δt/Δs moved Wr by 0.13 % at n = 25 between 0.011 and "
+             "0.0055 and by 0.01 % at n = 50 between 0.015 and 0.011, halving Δs by 2.8 %, "
+             "so the grid spends its budget on Δs) plus the reference "
+             f"{tuple(cfg['pyelastica_ref'])}; PyElastica's n = 100 and 200 runs cost "
+             "minutes each, which bounds its grid.")
     L.append("")
     hr, pr = runs[refs["hockle"]], runs[refs["PyElastica"]]
+    T = cfg["t_end"]
+    total = sum(sum(d["walls"]) for d in runs.values())
+    L.append(f"**Horizon.** The example runs 100 s (10 turns in 50 s, then 50 s held); here "
+             f"{T:g} s, which covers buckling, the collapse into a loop and the start of the "
+             f"interwinding (Wr from about 1 to {_f(hr['Wr'][-1], '{:.2f}')} turns in the last "
+             f"{T - 10:g} s). At this sitting's rates the PyElastica reference alone would take "
+             f"about {pr['wall'] * 100 / T / 60:.0f} min to 100 s (its cost per step hardly "
+             "depends on the state: an all-pairs contact check every step) and the timed runs "
+             f"of this table about {total * 100 / T / 60:.0f} min, against the ~25 min one "
+             "sitting of this shared machine allows; hockle's cost grows in the interwinding "
+             "(in probe runs N = 50, Δt = 0.025 s took 20.9 s to 20 s, N = 200, Δt = 0.00625 s "
+             "17.6 s to 12 s, both at load 6-8), so the 100-s figure is a lower bound for it "
+             "too. Probe runs to 20 s also found hockle N = 25, Δt = 0.05 s stopping with a "
+             "divergence at 17.7 s.")
+    L.append("")
     L.append(f"Gap between the references: e(PyElastica reference vs hockle reference) = "
              f"**{_pct(pr['err_vs_hockle'])} %**; buckling at {_f(hr['t_buckle'])} s "
              f"(hockle) and {_f(pr['t_buckle'])} s (PyElastica), first contact at "
@@ -718,10 +748,12 @@ def headline(res: dict) -> list[str]:
             + (" (quick mode)" if res.get("quick") else "") + "."]
 
 
-def section(figdir: Path, quick: bool = False, stop_after: float = float("inf")) -> str:
+def section(figdir: Path, quick: bool = False, stop_after: float | None = None) -> str:
     """Run the study, write benchmarks/results/peer_compare.json and the figure, return
-    the Markdown section."""
+    the Markdown section. stop_after: seconds after which no repeat starts (None: the
+    configuration's ``stop_after_s``)."""
     cfg = QUICK if quick else FULL
+    stop_after = cfg["stop_after_s"] if stop_after is None else stop_after
     start = time.strftime("%Y-%m-%d %H:%M", time.gmtime())
     res = collect(cfg, log=lambda m: print(m, file=sys.stderr, flush=True),
                   stop_after=stop_after)
@@ -760,7 +792,7 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--render", action="store_true", help="rebuild from the saved JSON")
     ap.add_argument("--check-harness", action="store_true")
-    ap.add_argument("--stop-after", type=float, default=float("inf"),
+    ap.add_argument("--stop-after", type=float, default=None,
                     help="seconds after which no repeat of the second and later rounds starts")
     ap.add_argument("--figdir", default=str(ROOT / "docs" / "figures" / "benchmarks"))
     args = ap.parse_args()
