@@ -639,9 +639,10 @@ def render(res: dict, fig_name: str | None) -> str:
     T = cfg["t_end"]
     total = sum(sum(d["walls"]) for d in runs.values())
     L.append(f"**Horizon.** The example runs 100 s (10 turns in 50 s, then 50 s held); here "
-             f"{T:g} s, which covers buckling, the collapse into a loop and the start of the "
-             f"interwinding (Wr from about 1 to {_f(hr['Wr'][-1], '{:.2f}')} turns in the last "
-             f"{T - 10:g} s). At this sitting's rates the PyElastica reference alone would take "
+             f"{T:g} s, which covers buckling, the collapse into a loop and the "
+             + (f"interwinding (Wr from about 1 to {_f(hr['Wr'][-1], '{:.2f}')} turns in the "
+                f"last {T - 10:g} s)" if T > 10 else "loop (the interwinding starts at about "
+                "10 s, after this horizon)") + ". At this sitting's rates the PyElastica reference alone would take "
              f"about {pr['wall'] * 100 / T / 60:.0f} min to 100 s (its cost per step hardly "
              "depends on the state: an all-pairs contact check every step) and the timed runs "
              f"of this table about {total * 100 / T / 60:.0f} min, against the ~25 min one "
