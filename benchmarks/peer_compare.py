@@ -721,11 +721,35 @@ def render(res: dict, fig_name: str | None) -> str:
                  f"{hc['lean']:.2f} s against {hc['old']:.2f} s (medians of "
                  f"{hc['repeats']}, interleaved).")
         L.append("")
+    L.append(second_peer_text())
     L.append("`benchmarks/pyelastica_compare.py` keeps the physics study of the two codes "
              "(Greenhill thresholds, undamped buckling, the contact-damping sweep, energies); "
              "its wall-time ratios, measured one code after the other with different damping "
              "laws, are superseded by this section.")
     return "\n".join(L) + "\n"
+
+
+def second_peer_text() -> str:
+    """The second peer's part of the section: why DiSMech-Newton is not measured, and
+    MoorDyn's no-torsion cable comparison read back from its own results file
+    (``benchmarks/moordyn_compare.py`` writes it; not re-run here)."""
+    L = ["**Second peer.** *DiSMech-Newton* (`pip install dismech-newton`, 0.1.0.post4 "
+         "with newton 1.6.1 and warp-lang 1.19.0; it has a plectoneme example with "
+         "self-contact) installs but does not import on this Python 3.11.7: `python -c "
+         "'import dismech_newton'` stops in `dismech_newton/contact.py` line 77, `def "
+         "snapshot(self) -> Slots | None:` with `TypeError: unsupported operand type(s) "
+         "for |: 'Struct' and 'NoneType'` (an annotation evaluated at class creation; the "
+         "package declares Python >= 3.10). *MoorDyn* has no torsion and no self-contact, "
+         "so it cannot run this plectoneme; the case both it and hockle can express is "
+         "measured the same way by `benchmarks/moordyn_compare.py` "
+         "(`pip install -r benchmarks/requirements-moordyn.txt`):", ""]
+    path = HERE / "results" / "moordyn_compare.json"
+    if path.exists():
+        import moordyn_compare
+        L.append(moordyn_compare.render(json.loads(path.read_text())))
+    else:
+        L.append("(not run yet)\n")
+    return "\n".join(L)
 
 
 def headline(res: dict) -> list[str]:

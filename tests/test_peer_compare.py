@@ -96,3 +96,29 @@ def test_a_setting_counts_only_if_its_refinement_is_within_the_level_too():
     assert r["err_self@0.01"]["hockle"] is None          # only the reference is within
     assert r["err_self@0.01"]["PyElastica"] == "PyElastica:25:0.011"
     assert r["err_self@0.01"]["ratio"] is None
+
+
+def test_moordyn_case_matches_the_hockle_case_and_its_step_divides_the_outputs():
+    import moordyn_compare as md
+    text = md.moordyn_input(40, 0.002)
+    line = next(x for x in text.splitlines() if x.startswith("cable "))
+    d, m, ea, ba, ei, cd, ca, cdax, caax = map(float, line.split()[1:])
+    case = md.hockle_case(40, 0.01, 1.0)
+    assert d == case.rod.diameter and ei == pytest.approx(
+        case.rod.youngs_modulus * np.pi * d**4 / 64, rel=1e-12)
+    assert m == pytest.approx(case.rod.density * np.pi * d**2 / 4, rel=1e-12)
+    assert (cd, ca, cdax, caax) == (case.fluid.drag_coefficient_normal,
+                                    case.fluid.added_mass_coefficient,
+                                    case.fluid.drag_coefficient_tangential, 0.0)
+    dtm = float(next(x for x in text.splitlines() if x.endswith(" dtM")).split()[0])
+    assert dtm == md.moordyn_step(40, 0.002) and dtm <= 0.002 * md.LENGTH / 40
+    assert (md.OUT_DT / dtm) == pytest.approx(round(md.OUT_DT / dtm), abs=1e-9)
+
+
+def test_moordyn_tip_error_is_the_mean_distance_over_the_length():
+    import moordyn_compare as md
+    t = np.arange(0.0, 1.0 + 1e-9, 0.02)
+    ref = {"t": t, "tip": np.stack([np.cos(t), 0 * t, -np.sin(t)], 1)}
+    run = {"t": t, "tip": ref["tip"] + [0.0, 0.003, 0.004]}
+    assert md.tip_error(run, ref) == pytest.approx(0.005)
+    assert np.isnan(md.tip_error({"t": t[:10], "tip": ref["tip"][:10]}, ref))
