@@ -770,9 +770,10 @@ def headline(res: dict) -> list[str]:
         parts.append(f"{100 * level:g} %: {fa} (self-convergence), {fb} (against hockle's "
                      "reference)")
     return [f"PyElastica side by side (plectoneme example to {res['config']['t_end']:g} s, "
-            "same drag law, interleaved, one thread each; load "
-            f"{res['load_start'][0]:.1f}-{res['load_end'][0]:.1f}): wall time of PyElastica "
-            "over hockle at matched writhe-history accuracy, " + "; ".join(parts)
+            "same drag law, interleaved, one thread each; 1-min load "
+            f"{res['load_start'][0]:.1f} at the start, {res['load_end'][0]:.1f} at the end): "
+            "wall time of PyElastica over hockle at matched writhe-history accuracy, "
+            + "; ".join(parts)
             + (" (quick mode)" if res.get("quick") else "") + "."]
 
 
