@@ -98,7 +98,7 @@ FULL = {
     "pyelastica_ref": (160, 0.011),
     "repeats": 3,                  # rounds for settings whose single run is cheap
     "repeat_below_s": 20.0,        # settings slower than this (first round) run twice only
-    "stop_after_s": 1320.0,        # no repeat starts after this (the budget of one sitting)
+    "stop_after_s": 1200.0,        # no repeat starts after this (the budget of one sitting)
 }
 QUICK = {
     "t_end": 8.0,
