@@ -17,7 +17,10 @@ Method (the section written by :func:`render` states it with the figures):
   codes, −½ρ_f D C_dn |v_n| v_n − ½ρ_f πD C_dt |v_t| v_t per unit length (hockle's
   ``fluid`` with no added mass; for PyElastica the forcing class :class:`MorisonLoads`,
   numba-compiled, with the tangent from the neighbouring nodes). hockle's case language
-  has no linear damper, so the drag is the common law. Contact: the codes' own laws
+  has no linear damper, so the drag is the common law. PyElastica also gets its
+  ``LaplaceDissipationFilter`` (FILTER_ORDER), the counterpart of hockle's
+  generalized-α dissipation of the highest frequencies: without it position Verlet blew
+  up in the interwinding. Contact: the codes' own laws
   (PyElastica's linear penalty k = 1e4 N/m with pair damper ν = 10 N·s/m while elements
   overlap; hockle's ρA k1/gap³ barrier with k3 damping on pairs within the tolerance),
   the remaining difference, stated in the section.
