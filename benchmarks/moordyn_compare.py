@@ -320,6 +320,19 @@ def render(res: dict) -> str:
                  if it["ratio"] else "–")
             L.append(f"| {label} | {100 * level:g} % | {desc(it['hockle'])} | "
                      f"{desc(it['MoorDyn'])} | {r} |")
+    prev = res.get("previous") or {}
+    if prev.get("ratios"):
+        def ratio(rs, key):
+            x = (rs.get(key) or {}).get("ratio")
+            return "–" if x is None else f"{x:.2f}"
+        L.append("")
+        L.append(f"Reproduced: this run ({res.get('utc', '?')} UTC) against the previous one "
+                 f"({prev.get('utc') or '?'} UTC), MoorDyn / hockle at 1 % and 0.1 % "
+                 "(self-convergence): "
+                 f"{ratio(res['ratios'], 'err_self@0.01')} and "
+                 f"{ratio(res['ratios'], 'err_self@0.001')} against "
+                 f"{ratio(prev['ratios'], 'err_self@0.01')} and "
+                 f"{ratio(prev['ratios'], 'err_self@0.001')}.")
     return "\n".join(L) + "\n"
 
 
@@ -353,6 +366,10 @@ def main() -> None:
                   log=lambda m: print(m, file=sys.stderr, flush=True))
     res["moordyn_version"] = version("moordyn")
     res["quick"] = args.quick
+    res["utc"] = time.strftime("%Y-%m-%d %H:%M", time.gmtime())
+    if path.exists():                      # the previous run's ratios, for reproducibility
+        old = json.loads(path.read_text())
+        res["previous"] = {"utc": old.get("utc"), "ratios": old.get("ratios")}
     js = to_json(res)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(js))
