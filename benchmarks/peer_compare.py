@@ -716,6 +716,21 @@ def render(res: dict, fig_name: str | None) -> str:
             L.append(f"| {label} | {100 * level:g} % | {desc(it['hockle'])} | "
                      f"{desc(it['PyElastica'])} | {r} |")
     L.append("")
+    prev = res.get("previous") or {}
+    if prev.get("ratios"):
+        def rr(rs, key):
+            x = rs.get(key) or {}
+            if x.get("ratio"):
+                return f"{x['ratio']:.1f}"
+            return f"> {x['bound']:.1f}" if x.get("bound") else "–"
+        L.append(f"Reproduced: the previous full run ({prev.get('utc')} UTC, load "
+                 f"{prev.get('load_start')}) gave at 1 % and 0.1 % "
+                 + ", ".join(f"{rr(prev['ratios'], f'{m}@{lv:g}')}" for m in
+                             ("err_self", "err_vs_hockle") for lv in LEVELS)
+                 + " (self-convergence 1 %, 0.1 %; hockle's reference 1 %, 0.1 %) against "
+                 + ", ".join(f"{rr(res['ratios'], f'{m}@{lv:g}')}" for m in
+                             ("err_self", "err_vs_hockle") for lv in LEVELS) + " here.")
+        L.append("")
     if fig_name:
         L.append(f"![Writhe histories](figures/benchmarks/{fig_name})")
         L.append("")
@@ -794,8 +809,13 @@ def section(figdir: Path, quick: bool = False, stop_after: float | None = None) 
     res["quick"] = quick
     res["utc_start"], res["utc_end"] = start, time.strftime("%H:%M", time.gmtime())
     res["headline"] = headline(res)
-    js = to_json(res)
     out = HERE / "results" / f"{NAME}.json"
+    if out.exists():                       # the previous full run's ratios, to compare
+        old = json.loads(out.read_text())
+        if not old.get("quick") and not quick:
+            res["previous"] = {"utc": old.get("utc_start"), "ratios": old.get("ratios"),
+                               "load_start": old.get("load_start")}
+    js = to_json(res)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(js))
     Path(figdir).mkdir(parents=True, exist_ok=True)
