@@ -94,14 +94,14 @@ FULL = {
     # (n = 25, 0.011 against 0.0055) and 0.01 % (n = 50, 0.015 against 0.011) to 9 s, Δs
     # by 2.8 % (n = 25 against 50): the Δs refinement is the one that matters. n = 20-160:
     # to 12 s at load 7 n = 100 took ~150 s and n = 200 ~980 s (extrapolated from 1 and
-    # 0.5 s), beyond one sitting's budget with the rest of the grid (n = 160: ~560 s by
+    # 0.5 s), beyond one run's budget with the rest of the grid (n = 160: ~560 s by
     # the same growth)
     "pyelastica": [(20, 0.015), (20, 0.011), (20, 0.0055), (40, 0.015), (40, 0.011),
                    (80, 0.011)],
     "pyelastica_ref": (160, 0.011),
     "repeats": 3,                  # rounds for settings whose single run is cheap
     "repeat_below_s": 20.0,        # settings slower than this (first round) run twice only
-    "stop_after_s": 1200.0,        # no repeat starts after this (the budget of one sitting)
+    "stop_after_s": 1200.0,        # no repeat starts after this (the budget of one run)
 }
 QUICK = {
     "t_end": 8.0,
@@ -648,11 +648,13 @@ def render(res: dict, fig_name: str | None) -> str:
              f"{T:g} s, which covers buckling, the collapse into a loop and the "
              + (f"interwinding (Wr from about 1 to {_f(hr['Wr'][-1], '{:.2f}')} turns in the "
                 f"last {T - 10:g} s)" if T > 10 else "loop (the interwinding starts at about "
-                "10 s, after this horizon)") + ". At this sitting's rates the PyElastica reference alone would take "
+                "10 s, after this horizon)")
+             + ". At this run's rates the PyElastica reference alone would take "
              f"about {pr['wall'] * 100 / T / 60:.0f} min to 100 s (its cost per step hardly "
              "depends on the state: an all-pairs contact check every step) and the timed runs "
              f"of this table about {total * 100 / T / 60:.0f} min, against the ~25 min one "
-             "sitting of this shared machine allows; hockle's cost grows in the interwinding "
+             "measurement on this shared machine is given; hockle's cost grows in the "
+             "interwinding "
              "(in probe runs N = 50, Δt = 0.025 s took 20.9 s to 20 s, N = 200, Δt = 0.00625 s "
              "17.6 s to 12 s, both at load 6-8), so the 100-s figure is a lower bound for it "
              "too. Probe runs to 20 s also found hockle N = 25, Δt = 0.05 s stopping with a "
