@@ -349,7 +349,8 @@ def _pyelastica_sim(n, dt, *, angle, rate, force, damping, contact, shear=1.0,
             system.position_collection[..., 0] = self.p0
             system.position_collection[0:2, -1] = 0.0
             system.director_collection[..., 0] = self.d0
-            c, s = np.cos(angle(time)), np.sin(angle(time))
+            phi = float(angle(time))             # one evaluation a call
+            c, s = np.cos(phi), np.sin(phi)
             d = self.d1                      # rows d1, d2, d3; turn d1, d2 about d3 = z
             system.director_collection[0, :, -1] = c * d[0] + s * d[1]
             system.director_collection[1, :, -1] = -s * d[0] + c * d[1]

@@ -40,7 +40,7 @@ SECTIONS = [
     ("feature_cost", "feature_cost", "cost per step of each feature"),
     ("profile", "profile_seed", "profile of the seed example"),
     ("seed", "bench_seed", "the seed example at its resolution"),
-    ("pyelastica", "pyelastica_compare", "PyElastica side by side"),
+    ("pyelastica", "peer_compare", "PyElastica side by side, interleaved, same drag law"),
 ]
 MARK = "<!-- section: {} -->"
 
@@ -66,19 +66,11 @@ def headline() -> list[str]:
                    f"**{seed['wall_s']:.0f} s** wall time on this machine (bar 120 s, goal "
                    f"20 s); {seed['ms_per_step_without_contact'] or float('nan'):.0f} ms per "
                    "step without contact.")
-    for name in ("work_precision", "adaptive_precision", "pyelastica_compare", "stability_map",
+    for name in ("work_precision", "adaptive_precision", "peer_compare", "stability_map",
                  "feature_cost"):
         res = _load(name)
         if res and isinstance(res.get("headline"), list):
             out.extend(str(x) for x in res["headline"])
-    pe = _load("pyelastica_compare")
-    if pe and isinstance(pe.get("matched_ratios_pyelastica_over_hockle"), dict):
-        parts = [f"{float(level) * 100:g} %: {item['text']}" for level, item in
-                 sorted(pe["matched_ratios_pyelastica_over_hockle"].items(),
-                        key=lambda kv: -float(kv[0]))]
-        out.append("PyElastica side by side (plectoneme example, scaled): wall time of "
-                   "PyElastica over hockle at matched accuracy, " + "; ".join(parts)
-                   + (" (quick mode)" if pe.get("quick") else "") + ".")
     return out
 
 
