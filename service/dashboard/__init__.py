@@ -219,6 +219,51 @@ def ui_job_events(job_id: str, svc: Annotated[Services, Depends(services)],
     return JSONResponse({"job_id": job.id, **result_events(job.result_path)})
 
 
+#: at most this many frames in a ParaView download (every k-th output time, the last kept)
+PARAVIEW_MAX_FRAMES = 100
+
+
+@router.get(f"{UI_API_PREFIX}/jobs/{{job_id}}/paraview")
+def ui_job_paraview(job_id: str, svc: Annotated[Services, Depends(services)],
+                    owner: Annotated[str | None, Depends(caller)]) -> Response:
+    """The job's result as a ParaView time series, zipped: ``<id>.pvd`` and its ``.vtu``
+    frames (:func:`hockle.export.export_vtk`, the function behind ``hockle export``), at
+    most :data:`PARAVIEW_MAX_FRAMES` frames (every k-th output time, the last one kept).
+    404 ``result-not-ready`` before there is a result; 422 ``not-exportable`` for a result
+    without positions."""
+    import io
+    import tempfile
+    import zipfile
+
+    from hockle.export import ExportError, export_vtk
+
+    from ..routers.jobs import get_job_or_404
+
+    job = get_job_or_404(svc, job_id, owner)
+    if not job.result_path or not os.path.exists(job.result_path):
+        raise ProblemError(404, "result-not-ready", "Result not ready",
+                           f"job {job.id} is {job.state} and has no result file")
+    with open_result(job.result_path) as ds:
+        n_times = ds.sizes.get("time", 0)
+        keep = [v for v in ("position", "kappa", "f", "v", "omega", "moment", "orientation")
+                if v in ds]
+        loaded = ds[keep].load()
+    # every k-th output and the last: floor((n-1)/k) + 1, plus one where k does not
+    # divide n-1, is at most PARAVIEW_MAX_FRAMES for k = ceil((n-1)/(max-1))
+    stride = max(1, -(-(n_times - 1) // max(PARAVIEW_MAX_FRAMES - 1, 1)))
+    buffer = io.BytesIO()
+    with tempfile.TemporaryDirectory() as tmp:
+        try:
+            files = export_vtk(loaded, os.path.join(tmp, f"{job.id}.pvd"), stride=stride)
+        except ExportError as exc:
+            raise ProblemError(422, "not-exportable", "Result not exportable", str(exc)) from None
+        with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as zf:
+            for f in files:
+                zf.write(f, os.path.relpath(f, tmp))
+    return Response(buffer.getvalue(), media_type="application/zip",
+                    headers={"Content-Disposition": f'attachment; filename="{job.id}-paraview.zip"'})
+
+
 # --------------------------------------------------------------------------- validation
 
 

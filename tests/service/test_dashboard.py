@@ -154,6 +154,40 @@ def test_events_and_sweep_map(client, settings):
     assert client.get("/v1/ui/sweeps/nope/map", headers=AUTH).status_code == 404
 
 
+def test_paraview_download_is_the_export_zipped(client, settings, tmp_path, monkeypatch):
+    """The job page's ParaView download: a zip of the .pvd and its .vtu frames written by
+    hockle.export, whose positions are the result's; at most PARAVIEW_MAX_FRAMES frames."""
+    import io
+    import zipfile
+
+    import meshio
+    import numpy as np
+    import xarray as xr
+
+    import service.dashboard as dashboard
+    from hockle.export import read_pvd
+
+    case = tiny_case("paraview")
+    job = client.post("/v1/jobs", json=case, headers=AUTH).json()
+    assert client.get(f"/v1/ui/jobs/{job['id']}/paraview", headers=AUTH).status_code == 404
+    _run(settings, job["id"])
+    monkeypatch.setattr(dashboard, "PARAVIEW_MAX_FRAMES", 3)
+    answer = client.get(f"/v1/ui/jobs/{job['id']}/paraview", headers=AUTH)
+    assert answer.status_code == 200 and answer.headers["content-type"] == "application/zip"
+    zipfile.ZipFile(io.BytesIO(answer.content)).extractall(tmp_path)
+    frames = read_pvd(tmp_path / f"{job['id']}.pvd")
+    result = client.get(f"/v1/jobs/{job['id']}/results", headers=AUTH)
+    (tmp_path / "r.nc").write_bytes(result.content)
+    with xr.open_dataset(tmp_path / "r.nc") as ds:
+        times = ds["time"].values
+        assert 1 < len(frames) <= 3 < len(times)
+        t_last, path_last = frames[-1]
+        assert t_last == pytest.approx(float(times[-1]))
+        mesh = meshio.read(path_last)
+        np.testing.assert_allclose(mesh.points, ds["position"].values[-1], rtol=1e-6)
+    assert client.get(f"/v1/ui/jobs/{job['id']}/paraview").status_code == 401
+
+
 def test_package_data_ships_every_static_file():
     """A wheel holds what pyproject's package-data names: every file of the dashboard."""
     from pathlib import Path

@@ -394,7 +394,10 @@
       if (job.result_available) {
         var dl = el("button.primary", { type: "button", id: "download", text: "Download NetCDF" + (job.result_partial ? " (partial)" : "") });
         dl.addEventListener("click", function () { download("jobs/" + enc + "/results", job.id + ".nc", dl); });
+        var pv = el("button", { type: "button", id: "download-paraview", text: "Download ParaView (.pvd, zip)" });
+        pv.addEventListener("click", function () { download("ui/jobs/" + enc + "/paraview", job.id + "-paraview.zip", pv); });
         buttons.appendChild(dl);
+        buttons.appendChild(pv);
       }
       var kv = el("dl.kv",
         el("dt", { text: "state" }), el("dd", stateBadge(job.state)),
