@@ -125,14 +125,31 @@ def _paste(driver, area, text: str) -> None:
 
 
 def _row_state(driver, job_id: str):
-    from selenium.common.exceptions import NoSuchElementException
+    """The job's row state, None while it is absent or being redrawn (the list's polling
+    replaces rows between a lookup and the read: a stale element is "not yet")."""
+    from selenium.common.exceptions import NoSuchElementException, StaleElementReferenceException
     from selenium.webdriver.common.by import By
 
     try:
         return driver.find_element(By.CSS_SELECTOR, f'tr[data-job-id="{job_id}"]').get_attribute(
             "data-state")
-    except NoSuchElementException:
+    except (NoSuchElementException, StaleElementReferenceException):
         return None
+
+
+def _click(driver, selector: str, what: str) -> None:
+    """Click the element at ``selector``, looked up again if a redraw replaced it."""
+    from selenium.common.exceptions import NoSuchElementException, StaleElementReferenceException
+    from selenium.webdriver.common.by import By
+
+    def attempt(d):
+        try:
+            d.find_element(By.CSS_SELECTOR, selector).click()
+            return True
+        except (NoSuchElementException, StaleElementReferenceException):
+            return False
+
+    _wait(driver, attempt, 30, what)
 
 
 def _successful_job(stack, case) -> str:
@@ -247,7 +264,7 @@ def test_a_running_job_is_dismissed_from_the_list(browser, stack):
     job_id = stack.submit(long_case("to dismiss", t_end=60.0), params={"fresh": "true"}).json()["id"]
     _open(browser, stack, "/jobs")
     _wait(browser, lambda d: _row_state(d, job_id) == "running", 120, "the job running")
-    browser.find_element(By.CSS_SELECTOR, f'button[data-dismiss="{job_id}"]').click()
+    _click(browser, f'button[data-dismiss="{job_id}"]', "the dismiss button")
     _wait(browser, lambda d: _row_state(d, job_id) == "dismissed", 60, "the job dismissed")
     assert "stopping" in browser.find_element(By.ID, "banner").text
     job = stack.job(job_id)
