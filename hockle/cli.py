@@ -380,6 +380,20 @@ def cmd_plot(args: argparse.Namespace) -> int:
 # --------------------------------------------------------------------------- animate
 
 
+def _frame_progress(verb: str):
+    """A ``progress(done, total)`` callback that prints ``hockle: VERB: frame done/total``
+    on stderr once per tenth of the frames."""
+    reported = [-1]
+
+    def progress(done: int, total: int) -> None:
+        decile = (10 * done) // total
+        if decile > reported[0]:
+            reported[0] = decile
+            _err(f"hockle: {verb}: frame {done}/{total}")
+
+    return progress
+
+
 def cmd_animate(args: argparse.Namespace) -> int:
     import xarray as xr
 
@@ -392,14 +406,7 @@ def cmd_animate(args: argparse.Namespace) -> int:
     except (OSError, ValueError) as exc:
         _err(f"hockle: cannot read {path}: {exc}")
         return EXIT_INVALID
-    reported = [-1]
-
-    def progress(done: int, total: int) -> None:
-        decile = (10 * done) // total
-        if decile > reported[0]:
-            reported[0] = decile
-            _err(f"hockle: animate: frame {done}/{total}")
-
+    progress = _frame_progress("animate")
     try:
         with ds:
             if not args.quiet:
@@ -433,14 +440,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     except (OSError, ValueError) as exc:
         _err(f"hockle: cannot read {path}: {exc}")
         return EXIT_INVALID
-    reported = [-1]
-
-    def progress(done: int, total: int) -> None:
-        decile = (10 * done) // total
-        if decile > reported[0]:
-            reported[0] = decile
-            _err(f"hockle: export: frame {done}/{total}")
-
+    progress = _frame_progress("export")
     try:
         files = export_vtk(ds, out, stride=args.stride, window=args.times,
                            progress=None if args.quiet else progress)

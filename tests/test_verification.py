@@ -29,10 +29,10 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from solver.boundary import BoundaryRows
 from solver.case import Case
-from solver.scheme import alpha_parameters
 from solver.simulation import RodRun, simulate
+
+from rodcases import jacobian_fd_error
 
 E, G, RHO, RHO_F = 1.25e7, 5.0e6, 1500.0, 1000.0
 L = 1.0
@@ -379,41 +379,7 @@ def test_analytic_jacobian_matches_finite_differences():
         forces=[{"value": [0.3, -0.2, 0.1], "start": 0.0}])
     case = Case.model_validate(spec)
     run = RodRun(case)
-    sysm, props = run.system, run.props
+    sysm = run.system
     assert sysm.needs_pose and sysm.loads.has_drag
-    rng = np.random.default_rng(20240611)
-    n1 = props.s.size
-    scale = np.repeat([0.3, 1.0, 0.5, 2.0], 3)       # v, ω, f, κ
-    Y_old = rng.standard_normal((n1, 12)) * scale
-    Ydot_old = rng.standard_normal((n1, 12)) * scale * 10
-    Y = rng.standard_normal((n1, 12)) * scale
-    q_old = rng.standard_normal((n1, 4))
-    q_old /= np.linalg.norm(q_old, axis=1)[:, None]
-    r_old = rng.standard_normal((n1, 3))
-    v_old = rng.standard_normal((n1, 3))
-    t_new, dt = 0.43, 0.01
-    bc = BoundaryRows(case, props, t_new, sysm.n)
-    F_old, _ = sysm.node_terms(Y_old, False, None, None)
-    sysm.begin_step(dt, alpha_parameters(0.5), t_new, Y_old, Ydot_old, F_old, bc,
-                    q_old=q_old, r_old=r_old, v_old_global=v_old)
-    _, _, blocks, _ = sysm.residual(Y, want_jacobian=True)
-    n = sysm.n
-    J = np.zeros((n, n))
-    for k in range(n1 - 1):                      # row order: 6 BC, 12 per cell, 6 BC
-        J[6 + 12 * k:18 + 12 * k, 12 * k:12 * k + 24] = blocks[k]
-    rows, cols, vals = bc.jacobian_entries()
-    J[rows, cols] += vals
-    J_fd = np.zeros_like(J)
-    y = Y.ravel()
-    col_scale = np.tile(scale, n1)
-    for j in range(n):
-        h = 1e-6 * max(abs(y[j]), col_scale[j])
-        yp, ym = y.copy(), y.copy()
-        yp[j] += h
-        ym[j] -= h
-        J_fd[:, j] = (sysm.residual(yp.reshape(Y.shape))[0]
-                      - sysm.residual(ym.reshape(Y.shape))[0]) / (2 * h)
-    # compare each entry's contribution J_ij y_j with the size of its row's terms
-    row_size = (np.abs(J) * col_scale).sum(axis=1)
-    err = (np.abs(J - J_fd) * col_scale).max(axis=1) / row_size
+    err = jacobian_fd_error(run, 20240611)
     assert err.max() < 1e-7, (err.max(), int(np.argmax(err)))
