@@ -190,7 +190,7 @@ def _progress_line(info: Any) -> str:
     if info.fraction >= 1:
         eta = "0 s"
     elif getattr(info, "eta_seconds", None) is not None:
-        eta = f"{info.eta_seconds:.0f} s"      # at the recent pace (solver.RateEstimate)
+        eta = f"{info.eta_seconds:.0f} s"      # solver.recording.EtaModel
     else:
         eta = "-"
     return (

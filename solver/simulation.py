@@ -23,12 +23,13 @@ import pickle
 import time as _time
 
 from .checkpoint import CheckpointError, resume_key
-from .recording import Progress, RateEstimate, Recorder
+from .recording import EtaModel, Progress, RateEstimate, Recorder
 from .initial import start_step
 from .run import RodRun
 from .stepping.control import SolverDivergence
 
-__all__ = ["simulate", "SolverDivergence", "Progress", "RodRun", "RateEstimate"]
+__all__ = ["simulate", "SolverDivergence", "Progress", "RodRun", "RateEstimate",
+           "EtaModel"]
 
 
 def simulate(case, progress=None, should_stop=None, checkpoint=None,

@@ -272,6 +272,32 @@ def test_eta_follows_the_recent_pace():
     assert ds_progress[0].eta_seconds is None
 
 
+def test_eta_prices_the_rest_at_the_contact_pace_once_contact_began():
+    # 10 simulated s free at 0.1 wall s per simulated s, then contact at 2 s/s: from the
+    # first contact step on the rest is priced at the contact steps' pace, not at the
+    # run's recent mixed pace; when contact stops long enough, back at the free pace
+    from solver.recording import EtaModel
+
+    eta = EtaModel(window_s=30.0)
+    wall = 0.0
+    for k in range(101):
+        free = eta.update(wall, 0.1 * k, 45.0, contacts=0)
+        wall += 0.01
+    assert free == pytest.approx(35.0 * 0.1, rel=1e-6)
+    wall -= 0.01
+    for k in range(1, 21):
+        wall += 0.2
+        est = eta.update(wall, 10.0 + 0.1 * k, 45.0, contacts=50)
+        assert est == pytest.approx((45.0 - 10.0 - 0.1 * k) * 2.0, rel=1e-6)
+    # the pairs gone for 5 % of the simulated time: the free pace again
+    t = 12.0
+    for k in range(1, 12):
+        wall += 0.01
+        t += 0.1
+        est = eta.update(wall, t, 45.0, contacts=0)
+    assert est < (45.0 - t) * 1.0
+
+
 def test_lateral_error_is_measured_against_the_lateral_size():
     # before buckling the bending curvature is ~1e-6 of the twist: an error of 1 % of the
     # bending curvature must count (it sets the buckling time), although it is 1e-8 of

@@ -229,7 +229,7 @@ class JobRun:
     def _write_progress(self, info) -> None:
         fraction = float(min(max(info.fraction, 0.0), 1.0))
         wall = float(info.wall_time)
-        eta = getattr(info, "eta_seconds", None)   # the solver's recent-pace estimate
+        eta = getattr(info, "eta_seconds", None)   # the solver's estimate (EtaModel), as the CLI shows
         try:
             self.registry.record_progress(
                 self.job_id,

@@ -303,3 +303,23 @@ def test_openapi_has_readable_operation_ids_and_the_case_schema(client):
     assert body["schema"]["$ref"] == "#/components/schemas/Case"
     assert "rod" in schema["components"]["schemas"]["Case"]["properties"]
     assert client.get("/docs").status_code == 200
+
+
+def test_job_status_eta_is_the_solvers_estimate(client, settings, monkeypatch):
+    """The job status's eta_seconds is the solver's EtaModel figure the progress callback
+    received (the CLI's ETA), less the seconds since it was written."""
+    from worker import tasks
+
+    job = client.post("/v1/jobs", json=tiny_case("eta", t_end=0.2)).json()
+    seen = []
+
+    def progress(self, info):
+        self._write_progress(info)
+        if info.eta_seconds is not None and not seen:
+            status = client.get(f"/v1/jobs/{self.job_id}").json()
+            seen.append((info.eta_seconds, status["eta_seconds"]))
+
+    monkeypatch.setattr(tasks.JobRun, "progress", progress)
+    assert _run(settings, job["id"]) == "successful"
+    [(solver_eta, shown)] = seen
+    assert solver_eta - 5.0 <= shown <= solver_eta
