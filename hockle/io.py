@@ -82,65 +82,29 @@ def open_result(path: str | os.PathLike[str]) -> xr.Dataset:
 
 #: the result variables a start from an earlier result needs (output.fields v, omega,
 #: f, kappa, position, orientation of that run)
-START_VARIABLES = ("v", "omega", "f", "kappa", "position", "orientation")
-
-
 def read_start_state(case):
     """The :class:`solver.initial.StartState` of ``case.initial.from_result``: the
-    earlier result's v, ω, f, κ, position and orientation at its output time ``time``,
-    with the end rotations (from its linking number) and ``work_in`` where it has them.
+    earlier result file's v, ω, f, κ, position and orientation at its output time
+    ``time``, with the end rotations (from its linking number) and ``work_in`` where it
+    has them (:func:`solver.initial.start_state_from`).
 
     Raises :class:`solver.case.CaseError` naming ``initial.from_result.file`` (a file that
     cannot be read, is not a hockle result, lacks a variable, or is of another rod: its
-    case's ``rod`` or ``numerics.n_segments`` differ) or ``initial.from_result.time`` (not
-    one of its output times), before any work."""
-    import math
-
-    import numpy as np
-
-    from solver.case import Case, CaseError
-    from solver.initial import StartState
+    case's ``rod`` or ``numerics.n_segments`` differ), ``initial.from_result.time`` (not
+    one of its output times) or ``initial.from_result.job`` (a job id, which only the
+    service resolves), before any work."""
+    from solver.case import CaseError
+    from solver.initial import start_state_from
 
     spec = case.initial.from_result
-
-    def fail(field, etype, msg):
-        return CaseError([{"loc": f"initial.from_result.{field}", "msg": msg, "type": etype}])
-
+    if spec.file is None:
+        raise CaseError([{"loc": "initial.from_result.job", "type": "not_here",
+                          "msg": "a job id is resolved by the service (hockle submit); "
+                                 "hockle run and the Python API start from a result file: "
+                                 "give initial.from_result.file"}])
     try:
         ds = open_result(spec.file)
     except (OSError, ValueError) as exc:
-        raise fail("file", "file_unreadable", f"cannot read {spec.file}: {exc}") from None
-    try:
-        earlier = Case.model_validate_json(ds.attrs["case"])
-    except Exception:                                   # noqa: BLE001 - any reason: not ours
-        raise fail("file", "not_a_result",
-                   f"{spec.file} is not a hockle result (no valid case attribute)") from None
-    if (earlier.rod != case.rod
-            or earlier.numerics.n_segments != case.numerics.n_segments):
-        raise fail("file", "another_rod",
-                   f"{spec.file} is a result of another rod (its rod or n_segments "
-                   "differ from this case's)")
-    missing = [name for name in START_VARIABLES if name not in ds.data_vars]
-    if missing:
-        raise fail("file", "missing_variable",
-                   f"{spec.file} lacks {', '.join(missing)}: run it with output.fields "
-                   f"including {', '.join(START_VARIABLES)}")
-    times = np.asarray(ds["time"].values, float)
-    hit = np.flatnonzero(np.abs(times - spec.time) <= 1e-9 * max(1.0, abs(spec.time)))
-    if hit.size == 0:
-        raise fail("time", "out_of_range",
-                   f"{spec.time!r} s is not an output time of {spec.file} (it has "
-                   f"{times.size} from {times.min():.6g} to {times.max():.6g} s)")
-    k = int(hit[-1])
-
-    def at(name, dims):
-        return np.ascontiguousarray(ds[name].transpose("time", *dims).values[k], dtype=float)
-
-    phi = None
-    if "linking_number" in ds.data_vars:
-        phi = np.array([0.0, 2.0 * math.pi * float(ds["linking_number"].values[k])])
-    work = float(ds["work_in"].values[k]) if "work_in" in ds.data_vars else None
-    return StartState(t=float(times[k]), v=at("v", ("s", "component")),
-                      omega=at("omega", ("s", "component")), f=at("f", ("s", "component")),
-                      kappa=at("kappa", ("s", "component")), q=at("orientation", ("s", "quaternion")),
-                      r=at("position", ("s", "xyz")), phi=phi, work_in=work)
+        raise CaseError([{"loc": "initial.from_result.file", "type": "file_unreadable",
+                          "msg": f"cannot read {spec.file}: {exc}"}]) from None
+    return start_state_from(ds, case, spec.file, "file")

@@ -130,11 +130,13 @@ def validate_case(data: Any, max_case_size: int):
         raise ProblemError(422, "invalid-case", "Invalid case spec",
                            f"{len(errors)} field(s) of the case spec are not valid",
                            errors=errors) from None
-    if case.initial.from_result is not None:
+    if case.initial.from_result is not None and case.initial.from_result.file is not None:
         # a path on this server is never read for a request (the CLI and the Python API
-        # read the file themselves: hockle.io.read_start_state)
-        msg = ("a start from an earlier result is not accepted over HTTP: the service reads "
-               "no paths on its machine; run it with the CLI or the Python API")
+        # read the file themselves: hockle.io.read_start_state); over HTTP an earlier job
+        # of the same owner is named by its id (start_from_job)
+        msg = ("a result file is not accepted over HTTP: the service reads no paths on its "
+               "machine; give initial.from_result.job, the id of an earlier successful job "
+               "of yours, or run the case with the CLI or the Python API")
         raise ProblemError(422, "invalid-case", "Invalid case spec", msg, errors=[
             {"loc": "initial.from_result.file", "msg": msg, "type": "not_accepted_over_http"}])
     size = case.grid_points * case.n_steps
@@ -150,3 +152,47 @@ def validate_case(data: Any, max_case_size: int):
         ])
     return case
 
+
+
+def start_from_job(case, registry, owner: str | None):
+    """The :class:`solver.initial.StartState` of a case whose ``initial.from_result``
+    names an earlier job (``job``), or None for any other case.
+
+    The job must be the caller's (``owner``, :func:`service.auth.caller`; None, a service
+    without API keys: any job), have finished successfully and still hold its result,
+    which must be of the same rod with ``time`` among its output times
+    (:func:`solver.initial.start_state_from`). Another owner's job is answered exactly
+    as an unknown id, so that ids cannot be probed. Raises a 422 :class:`ProblemError`
+    naming ``initial.from_result.job`` or ``initial.from_result.time``."""
+    from solver.case import CaseError
+    from solver.initial import start_state_from
+
+    from .registry import SUCCESSFUL
+    from .store import open_result
+
+    spec = case.initial.from_result
+    if spec is None or spec.job is None:
+        return None
+
+    def refuse(loc, etype, msg):
+        return ProblemError(422, "invalid-case", "Invalid case spec", msg,
+                            errors=[{"loc": loc, "msg": msg, "type": etype}])
+
+    loc = "initial.from_result.job"
+    job = registry.get(spec.job)
+    if job is None or (owner is not None and job.owner != owner):
+        raise refuse(loc, "unknown_job", f"no job with id {spec.job} of yours")
+    if job.state != SUCCESSFUL or not job.result_path:
+        raise refuse(loc, "job_not_successful",
+                     f"job {spec.job} is {job.state}, not successful: a start from an "
+                     "earlier job needs its complete result")
+    try:
+        with open_result(job.result_path) as ds:
+            return start_state_from(ds, case, f"the result of job {spec.job}", "job")
+    except CaseError as exc:
+        raise ProblemError(422, "invalid-case", "Invalid case spec", exc.errors[0]["msg"],
+                           errors=[{"loc": e["loc"], "msg": e["msg"], "type": e["type"]}
+                                   for e in exc.errors]) from None
+    except OSError:
+        raise refuse(loc, "result_gone",
+                     f"the result of job {spec.job} is no longer stored") from None

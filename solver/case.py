@@ -618,15 +618,37 @@ class Centreline(BaseModel):
 
 
 class FromResult(BaseModel):
-    """Start from the state of an earlier result: ``file`` (a result NetCDF written by
-    hockle, read by the CLI and the Python API; over HTTP not accepted) and ``time`` (s,
-    one of its output times). The solver itself reads nothing: the caller reads the state
-    (:func:`hockle.io.read_start_state`) and hands it to :func:`solver.simulate`."""
+    """Start from the state of an earlier result at one of its output times ``time`` (s):
+    ``file``, a result NetCDF written by hockle (read by the CLI and the Python API; a path
+    is never read over HTTP), or ``job``, the id of an earlier successful job of the same
+    owner (resolved by the service only). Exactly one of the two. The solver itself reads
+    nothing: the caller reads the state (:func:`hockle.io.read_start_state`, the service's
+    :func:`service.validation.start_from_job`) and hands it to :func:`solver.simulate`."""
 
     model_config = _MODEL_CONFIG
 
-    file: str = Field(..., min_length=1, max_length=4096, description="Path of the earlier result (NetCDF).")
+    file: Optional[str] = Field(None, min_length=1, max_length=4096,
+                                description="Path of the earlier result (NetCDF); CLI and Python API.")
+    job: Optional[str] = Field(None, min_length=1, max_length=64,
+                               description="Id of an earlier successful job of the same owner; over HTTP.")
     time: Finite = Field(..., ge=0, description="Output time of the earlier result to start from, s.")
+
+    @model_validator(mode="after")
+    def _one_source(self) -> "FromResult":
+        if (self.file is None) == (self.job is None):
+            _raise("FromResult", [_err(("file",) if self.file is None else ("job",),
+                                       "missing" if self.file is None else "inconsistent",
+                                       "give exactly one of file (a result file: CLI, Python "
+                                       "API) and job (an earlier job's id: over HTTP)", None)])
+        return self
+
+    @model_serializer(mode="wrap")
+    def _drop_unset(self, handler: Any):  # no return type: keeps the JSON schema
+        out = handler(self)
+        for name in ("file", "job"):
+            if out.get(name) is None:
+                out.pop(name, None)
+        return out
 
 
 class Initial(BaseModel):

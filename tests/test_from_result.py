@@ -115,3 +115,16 @@ def test_service_refuses_a_server_path():
         validate_case(spec, 10**9)
     assert info.value.status == 422
     assert info.value.errors[0]["loc"] == "initial.from_result.file"
+
+
+def test_a_job_id_is_for_the_service_only(earlier):
+    """The CLI and the Python API read a file; a job id is resolved by the service."""
+    spec = _spec()
+    spec["initial"] = {"from_result": {"job": "0123", "time": 0.3}}
+    with pytest.raises(CaseError) as info:
+        read_start_state(Case.model_validate(spec))
+    assert info.value.errors[0]["loc"] == "initial.from_result.job"
+    spec["initial"] = {"from_result": {"time": 0.3}}
+    with pytest.raises(CaseError) as info:
+        Case.from_text(json.dumps(spec), fmt="json")
+    assert info.value.errors[0]["loc"] == "initial.from_result.file"

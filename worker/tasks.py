@@ -46,7 +46,9 @@ from celery.signals import worker_process_init, worker_ready, worker_shutdown, \
 from service.queue import TASK_NAME, Enqueuer, send_job, sweep
 from service.registry import DISMISSED, FAILED, REGISTRY_UNAVAILABLE, SUCCESSFUL, Registry
 from service.settings import Settings, get_settings
+from service.problems import ProblemError
 from service.store import ResultStore
+from service.validation import start_from_job
 from worker.app import app
 
 log = logging.getLogger("hockle.worker")
@@ -432,7 +434,15 @@ def _prepare_and_solve(run: JobRun, job) -> str:
         run.finish(state=FAILED, reason="internal_error",
                    message=f"the stored case does not validate with this solver: {exc}")
         return "failed:internal_error"
-    return _solve(run, case)
+    try:
+        # a start from an earlier job (initial.from_result.job), checked at submission;
+        # its result may have gone since
+        start = start_from_job(case, run.registry, job.owner)
+    except ProblemError as exc:
+        run.finish(state=FAILED, reason="internal_error",
+                   message=f"the start state could not be read: {exc.detail}")
+        return "failed:internal_error"
+    return _solve(run, case, start)
 
 
 def _with_budget(case, budget: float):
@@ -446,7 +456,7 @@ def _with_budget(case, budget: float):
     return case.model_copy(update={"numerics": numerics.model_copy(update={"wall_clock_budget": budget})})
 
 
-def _solve(run: JobRun, case) -> str:
+def _solve(run: JobRun, case, start=None) -> str:
     # the submodule, not the package: `solver.simulation` is also the name of the module
     from solver.simulation import SolverDivergence, simulate
 
@@ -459,7 +469,8 @@ def _solve(run: JobRun, case) -> str:
         ds = simulate(case, progress=run.progress, should_stop=run.should_stop,
                       checkpoint=run.write_checkpoint if interval else None,
                       checkpoint_interval=(min(interval, CHECKPOINT_OFFER_INTERVAL) if interval
-                                           else math.inf), resume=resume)
+                                           else math.inf), resume=resume,
+                      start=start if resume is None else None)
         if run.superseded:
             return _superseded(run)
         if (ds.attrs.get("hockle_status") == "stopped"

@@ -21,7 +21,7 @@ from ..registry import (
     utcnow,
 )
 from ..schemas import JobError, JobLinks, JobList, JobStatus
-from ..validation import parse_body, read_body, validate_case
+from ..validation import parse_body, read_body, start_from_job, validate_case
 
 router = APIRouter(tags=["jobs"])
 
@@ -116,6 +116,7 @@ def _submit(svc: Services, body: bytes, content_type: str | None, idempotency_ke
 
     _check_time_limit(time_limit, svc.settings.time_limit_max)
     case = validate_case(parse_body(body, content_type), svc.settings.max_case_size)
+    start_from_job(case, svc.registry, owner)       # checked now; the worker reads it again
     canonical = case.canonical_json()
     spec_hash = case.spec_hash()
     version = solver.__version__

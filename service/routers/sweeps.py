@@ -26,7 +26,7 @@ from ..deps import Services, services
 from ..problems import ProblemError, problem_responses
 from ..registry import ACTIVE_STATES, RUNNING, Job, SweepRecord
 from ..store import NETCDF_LOCK, open_result
-from ..validation import parse_body, read_body, validate_case
+from ..validation import parse_body, read_body, start_from_job, validate_case
 from . import jobs as jobs_router
 from .results import NETCDF_MEDIA_TYPE, _etag, _not_modified
 
@@ -35,6 +35,13 @@ router = APIRouter(tags=["sweeps"])
 
 def _invalid(exc: sw.SweepError) -> ProblemError:
     return ProblemError(422, "invalid-sweep", "Invalid sweep", exc.detail, errors=exc.errors)
+
+
+def _member(svc: Services, doc, owner: str | None):
+    """One member's validated case, its start from an earlier job checked too."""
+    case = validate_case(doc, svc.settings.max_case_size)
+    start_from_job(case, svc.registry, owner)
+    return case
 
 
 def _create(svc: Services, data, fresh: bool, time_limit: float | None,
@@ -47,8 +54,7 @@ def _create(svc: Services, data, fresh: bool, time_limit: float | None,
     jobs_router._check_time_limit(time_limit, svc.settings.time_limit_max)
     try:
         # every member first: a bad value anywhere queues nothing
-        cases = sw.validate_members(
-            members, lambda doc: validate_case(doc, svc.settings.max_case_size))
+        cases = sw.validate_members(members, lambda doc: _member(svc, doc, owner))
     except sw.SweepError as exc:
         raise _invalid(exc) from None
     job_ids: list[str] = []
