@@ -40,7 +40,7 @@ from fastapi.responses import JSONResponse, RedirectResponse
 from fastapi.staticfiles import StaticFiles
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from ..deps import Services, services
+from ..deps import Services, known_query_only, services
 from ..auth import caller
 from ..problems import ProblemError
 from ..store import open_result
@@ -66,7 +66,8 @@ SECURITY_HEADERS = (
     (b"cache-control", b"no-cache"),
 )
 
-router = APIRouter(include_in_schema=False)
+# a misspelt query parameter is a 422 naming it, as on the /v1 API
+router = APIRouter(include_in_schema=False, dependencies=[Depends(known_query_only)])
 
 
 class _SecurityHeaders:

@@ -89,6 +89,17 @@ def test_ui_routes_need_a_known_key(client):
     assert "/v1/ui/jobs" not in client.get("/openapi.json").json()["paths"]
 
 
+def test_ui_routes_refuse_an_unknown_query_parameter(client):
+    """As on the /v1 API: a misspelt parameter is a 422 naming it, not ignored."""
+    bad = client.get("/v1/ui/jobs?page_sise=5", headers=AUTH)
+    assert bad.status_code == 422
+    [err] = bad.json()["errors"]
+    assert err["loc"] == "query.page_sise" and "page_size" in err["msg"]
+    for path in ("/v1/ui/jobs/x/events?x=1", "/v1/ui/sweeps/x/map?x=1"):
+        assert client.get(path, headers=AUTH).status_code == 422, path
+    assert client.get("/v1/ui/jobs?page_size=5", headers=AUTH).status_code == 200
+
+
 def test_job_list_answers_304_until_it_changes(client):
     first = client.get("/v1/ui/jobs", headers=AUTH)
     assert first.status_code == 200
