@@ -11,6 +11,7 @@ from __future__ import annotations
 import datetime as dt
 import hashlib
 import json
+import logging
 import os
 import threading
 from pathlib import Path
@@ -31,6 +32,7 @@ from . import jobs as jobs_router
 from .results import NETCDF_MEDIA_TYPE, _etag, _not_modified
 
 router = APIRouter(tags=["sweeps"])
+log = logging.getLogger(__name__)
 
 
 def _invalid(exc: sw.SweepError) -> ProblemError:
@@ -60,6 +62,7 @@ def _create(svc: Services, data, fresh: bool, time_limit: float | None,
     job_ids: list[str] = []
     jobs: dict[str, Job] = {}
     by_hash: dict[str, str] = {}
+    created: list[str] = []
     try:
         for member, case in zip(members, cases):
             known = by_hash.get(case.spec_hash())
@@ -67,22 +70,37 @@ def _create(svc: Services, data, fresh: bool, time_limit: float | None,
                 job_ids.append(known)
                 continue
             extra = {"owner": owner} if owner is not None else {}
-            job, _, _ = jobs_router._submit(svc, body=case.canonical_json().encode(),
-                                         content_type="application/json", idempotency_key=None,
-                                         fresh=fresh, time_limit=time_limit, **extra)
+            job, status, _ = jobs_router._submit(svc, body=case.canonical_json().encode(),
+                                                 content_type="application/json",
+                                                 idempotency_key=None, fresh=fresh,
+                                                 time_limit=time_limit, **extra)
+            if status == 201:
+                created.append(job.id)
             by_hash[case.spec_hash()] = job.id
             job_ids.append(job.id)
             jobs[job.id] = job
-    except ProblemError:
-        # the broker went away midway: the members queued so far must not run alone
-        for job_id in dict.fromkeys(job_ids):
-            svc.registry.dismiss(job_id)
+        sweep = svc.registry.create_sweep(
+            name=name or str(base.get("name") or "")[:200] or None, combine=combine,
+            parameters=sw.normalize_parameters(parameters), job_ids=job_ids,
+            base_json=json.dumps(base, sort_keys=True), owner=owner)
+    except Exception:
+        # the broker or the registry went away midway: the members this request queued
+        # must not run alone, outside any sweep (earlier jobs it reused are left alone)
+        _dismiss_created(svc, created)
         raise
-    sweep = svc.registry.create_sweep(
-        name=name or str(base.get("name") or "")[:200] or None, combine=combine,
-        parameters=sw.normalize_parameters(parameters), job_ids=job_ids,
-        base_json=json.dumps(base, sort_keys=True), owner=owner)
     return sweep, jobs
+
+
+def _dismiss_created(svc: Services, job_ids: list[str]) -> None:
+    """Dismiss the jobs a failed sweep submission created, each on its own (best effort:
+    one the registry cannot dismiss now stays queued and is logged); the submission's own
+    error is the answer."""
+    for job_id in job_ids:
+        try:
+            svc.registry.dismiss(job_id)
+        except Exception:  # noqa: BLE001 - best effort; the original error is raised
+            log.warning("could not dismiss job %s of a failed sweep submission", job_id,
+                        exc_info=True)
 
 
 def sweep_status(sweep: SweepRecord, jobs: dict[str, Job]) -> sw.SweepStatus:

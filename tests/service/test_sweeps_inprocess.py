@@ -93,3 +93,32 @@ def test_openapi_documents_the_sweep_routes(client):
     ops = {op["operationId"] for item in paths.values() for op in item.values()
            if isinstance(op, dict) and "operationId" in op}
     assert {"submit_sweep", "get_sweep", "dismiss_sweep", "download_sweep_results"} <= ops
+
+
+def test_a_submission_that_fails_midway_leaves_no_member_queued(client, monkeypatch):
+    """The registry fails when the sweep itself is recorded, after its members were
+    queued: the members this request created are dismissed, not left to run alone."""
+    from sqlalchemy.exc import OperationalError
+
+    from service.registry import Registry
+
+    made = []
+    create_job = Registry.create_job
+
+    def spy(self, **kwargs):
+        job, created = create_job(self, **kwargs)
+        made.append(job.id)
+        return job, created
+
+    def locked(self, **kwargs):
+        raise OperationalError("INSERT INTO hockle_sweeps", {}, Exception("database is locked"))
+
+    monkeypatch.setattr(Registry, "create_job", spy)
+    monkeypatch.setattr(Registry, "create_sweep", locked)
+    response = client.post("/v1/sweeps", json={"base": tiny_case("half-queued"),
+                                               "parameters": {TENSION: [0.5, 0.75]}},
+                           headers=A)
+    assert response.status_code == 503, response.text
+    assert len(made) == 2
+    for job_id in made:
+        assert client.get(f"/v1/jobs/{job_id}", headers=A).json()["state"] == "dismissed"
