@@ -1362,6 +1362,73 @@ class Case(BaseModel):
                 )
         return name
 
+    @model_validator(mode="wrap")
+    @classmethod
+    def _every_error(cls, data: Any, handler: Any) -> "Case":
+        """Report the checks across sections even where some section has errors of its
+        own: pydantic runs :meth:`_cross_checks` only on a case whose every field is valid,
+        so an error inside ``initial`` hid, say, a point load off the rod. On a failed
+        validation each section without errors is validated on its own, and every check
+        across sections whose sections are all valid adds its errors to the raised
+        ``ValidationError`` (those needing a broken section are left out)."""
+        try:
+            return handler(data)
+        except ValidationError as exc:
+            if not isinstance(data, dict):
+                raise
+            found = exc.errors()
+            extra = cls._cross_errors_of_valid_sections(data, {e["loc"][0] for e in found
+                                                                if e["loc"]})
+            if not extra:
+                raise
+            lines = [{"type": PydanticCustomError(e["type"], e["msg"].replace("{", "(")
+                                                  .replace("}", ")")),
+                      "loc": e["loc"], "input": e.get("input")} for e in found]
+            raise ValidationError.from_exception_data(exc.title, lines + extra) from None
+
+    @classmethod
+    def _cross_errors_of_valid_sections(cls, data: dict, bad: set) -> list[dict]:
+        """The errors of :meth:`_cross_checks`' checks on the sections of ``data`` that
+        validate on their own (``bad``: the top-level fields that did not); a check that
+        needs a missing section is skipped."""
+        from pydantic import TypeAdapter
+
+        valid = {}
+        for name, info in cls.model_fields.items():
+            if name in bad:
+                continue
+            if name in data:
+                try:
+                    kind = (Annotated[(info.annotation, *info.metadata)] if info.metadata
+                            else info.annotation)
+                    valid[name] = TypeAdapter(kind).validate_python(data[name])
+                except Exception:                     # noqa: BLE001 - reported by pydantic
+                    continue
+            elif not info.is_required():
+                valid[name] = info.get_default(call_default_factory=True)
+        partial = cls.model_construct(**valid)
+        for name in bad:                              # not the default in its place
+            partial.__dict__.pop(name, None)
+        errors = []
+        for check in (partial._check_initial, partial._check_loads_on_rod,
+                      partial._check_contact, partial._check_ill_posed_ends,
+                      lambda: partial._check_numerics(errors)):
+            try:
+                got = check()
+            except ValidationError as exc:            # _check_numerics' early raise
+                got = [{"type": PydanticCustomError(e["type"], e["msg"].replace("{", "(")
+                                                    .replace("}", ")")),
+                        "loc": e["loc"], "input": e.get("input")} for e in exc.errors()]
+            except (AttributeError, TypeError, KeyError, ValueError):
+                continue                              # needs a section that is broken
+            if isinstance(got, list) and got is not errors:
+                errors.extend(got)
+        unique = []
+        for e in errors:
+            if all(e["loc"] != u["loc"] for u in unique):
+                unique.append(e)
+        return unique
+
     @model_validator(mode="after")
     def _cross_checks(self) -> "Case":
         """Checks across sections (raising :class:`CaseError` with every error found);

@@ -781,3 +781,25 @@ def test_too_deep_documents_are_a_case_error(fmt):
     with pytest.raises(CaseError) as info:
         parse_text(text, fmt, "deep")
     assert "too deeply" in str(info.value)
+
+
+def test_an_error_inside_a_section_does_not_hide_the_checks_across_sections():
+    """A broken initial.tangent used to stop validation before the checks across
+    sections: the point load off the rod and the over-constrained ends went unreported.
+    Each check is reported where the sections it reads are valid, and skipped where they
+    are not (the ends' check reads initial, which is broken)."""
+    spec = parse_text(EXAMPLE_YAML)
+    spec.pop("contact", None)
+    spec["initial"]["tangent"] = [0.0, 0.0, 0.0]
+    spec["point_loads"] = [{"s": 5.0, "value": [0.0, 0.0, 1.0]}]
+    with pytest.raises(CaseError) as info:
+        Case.from_text(json.dumps(spec), fmt="json")
+    locs = [e["loc"] for e in info.value.errors]
+    assert locs == ["initial.tangent", "point_loads[0].s"], locs
+    spec["initial"]["tangent"] = [0.0, 0.0, 1.0]
+    spec["rod"]["density"] = -1.0
+    spec["boundary"]["end"]["translation"][2] = {"velocity": 0}
+    with pytest.raises(CaseError) as info:
+        Case.from_text(json.dumps(spec), fmt="json")
+    locs = [e["loc"] for e in info.value.errors]
+    assert locs[0] == "rod.density" and "boundary.end.translation[2]" in locs, locs
