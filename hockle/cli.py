@@ -247,7 +247,7 @@ def _compile_kernels_first(quiet: bool) -> None:
 
     if not quiet:
         _err("hockle: compiling the solver's kernels (once after installing or changing "
-             "the solver; about a minute, longer on a busy machine) ...")
+             "the solver; about 80 s on 2 idle cores, longer on a busy machine) ...")
     t0 = time.perf_counter()
     warm_up()
     if not quiet:
