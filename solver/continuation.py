@@ -1,0 +1,350 @@
+"""Pseudo-arclength continuation of static equilibria in one scalar parameter.
+
+The branch is followed in the scaled unknowns z = (Y/(c √(N+1)), λ̂), c the typical sizes
+of :meth:`solver.statics.StaticProblem.scales` and λ̂ = (λ − λ0)/(λ1 − λ0), so that the
+arclength does not depend on units or on N (Keller, "Numerical solution of bifurcation
+and nonlinear eigenvalue problems", 1977; Allgower & Georg, *Introduction to Numerical
+Continuation Methods*, 2003, ch. 2 and 8). One step: the predictor z + Δs t, then Newton on
+the bordered system
+
+    [ G_z  G_λ̂ ] dz = [ G(z)            ]
+    [ tᵀ       ]      [ tᵀ(z − z_pred)  ]
+
+with the exact G_z of :func:`solver.statics.jacobian` and G_λ̂ by a central difference in λ
+(exact for the many parameters G is affine in). The new tangent solves the same matrix
+against (0, 1), which keeps its orientation (t_oldᵀ t_new = 1). Step control: Δs grows by
+1.5 after a step of at most 3 iterations, shrinks by 0.7 after more than 5 and halves on a
+refusal (no convergence in ``newton_max`` iterations, or a tangent turning by more than
+``max_turn`` rad); the last step lands on λ̂ = 1 exactly (a natural-parameter solve).
+
+Test functions along the branch (Allgower & Georg ch. 8; Seydel, *Practical Bifurcation
+and Stability Analysis*, 2010, §5.3):
+
+* fold: the λ̂ component of the tangent changes sign;
+* simple branch point: the sign of det of the bordered matrix changes (from the LU:
+  :func:`solver.statics.lu_det_sign`); the sign does not change at a fold;
+* a branch point of even multiplicity (a symmetric pair, e.g. the helical modes of an
+  isotropic rod): the number of unstable modes changes with neither of the above.
+
+Each event is located by bisection in the arclength of its step (a corrector solve per
+halving, to 1e-9 of the step). At a simple branch point the null vector φ of the bordered
+matrix (inverse iteration) is the bifurcating direction: ``switch=True`` leaves the
+primary branch there along φ (Keller's branch switching by the tangent of the null
+vector) and follows the new branch.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Optional
+
+import numpy as np
+import scipy.sparse as sp
+
+from .statics import (NV, StaticProblem, StaticsError, factor, jacobian, lu_det_sign,
+                      residual, solve, unstable_modes)
+
+__all__ = ["Branch", "Bifurcation", "continuation", "ContinuationError"]
+
+
+class ContinuationError(StaticsError):
+    """Bad continuation input (a range that does not move, a singular start)."""
+
+
+@dataclass
+class Bifurcation:
+    """A located fold or branch point: ``kind`` ("fold" / "branch_point"), the parameter,
+    the state Y (N+1, 13), the index of the branch point after which it lies, and for a
+    simple branch point the critical direction ``null`` (N+1, 13) in Y units (unit scaled
+    norm)."""
+
+    kind: str
+    parameter: float
+    Y: np.ndarray
+    after: int
+    null: Optional[np.ndarray] = None
+    simple: bool = True
+
+
+@dataclass
+class Branch:
+    """The points of a branch, in order: ``parameter`` (λ), ``Y`` (N+1, 13) each,
+    ``unstable`` (count of unstable modes, -1 where not computed), ``mu`` (eigenvalue
+    nearest zero, 1/s²), ``iterations`` (Newton), the ``bifurcations`` found, the
+    ``problems`` of each point, ``switched_at`` (the index after which the branch left a
+    branch point, or None) and why it ``stopped``."""
+
+    parameter: list = field(default_factory=list)
+    Y: list = field(default_factory=list)
+    unstable: list = field(default_factory=list)
+    mu: list = field(default_factory=list)
+    iterations: list = field(default_factory=list)
+    problems: list = field(default_factory=list)
+    bifurcations: list = field(default_factory=list)
+    switched_at: Optional[int] = None
+    stopped: str = ""
+
+
+class _Scaled:
+    """z <-> (Y, λ) and the bordered system of one problem family."""
+
+    def __init__(self, problem_at, lam0, lam1, template: StaticProblem):
+        self.problem_at = problem_at
+        self.lam0, self.span = float(lam0), float(lam1) - float(lam0)
+        self.shape = (template.n_segments + 1, NV)
+        self.c = np.tile(template.scales(), self.shape[0]) * np.sqrt(self.shape[0])
+        self.n = self.c.size
+        self._cache: dict = {}
+
+    def lam(self, z) -> float:
+        return self.lam0 + self.span * float(z[-1])
+
+    def prob(self, lam: float) -> StaticProblem:
+        p = self._cache.get(lam)
+        if p is None:
+            if len(self._cache) > 8:
+                self._cache.clear()
+            p = self.problem_at(lam)
+            self._cache[lam] = p
+        return p
+
+    def Y(self, z) -> np.ndarray:
+        return (z[:-1] * self.c).reshape(self.shape)
+
+    def z(self, Y, lam) -> np.ndarray:
+        return np.concatenate([np.ravel(Y) / self.c, [(lam - self.lam0) / self.span]])
+
+    def G(self, z) -> np.ndarray:
+        return residual(self.Y(z), self.prob(self.lam(z)))
+
+    def blocks(self, z):
+        """(G_z sparse, G_λ̂ dense) at z."""
+        lam, Y = self.lam(z), self.Y(z)
+        J = jacobian(Y, self.prob(lam)) @ sp.diags(self.c)
+        d = 1e-6 * abs(self.span)
+        g = (residual(Y, self.prob(lam + d)) - residual(Y, self.prob(lam - d))) / (2 * d)
+        return J, g * self.span
+
+    def bordered(self, z, row):
+        J, g = self.blocks(z)
+        A = sp.vstack([sp.hstack([J, sp.csc_matrix(g[:, None])]),
+                       sp.csr_matrix(row[None, :])], format="csc")
+        return factor(A)
+
+
+def _corrector(S: _Scaled, z_pred, row, target, newton_max, tol):
+    """Newton on [G(z); row·z − target] = 0 from z_pred. Returns (z, iterations, lu of
+    the bordered matrix at the last iterate) or None when it does not converge."""
+    z = z_pred.copy()
+    for it in range(1, newton_max + 1):
+        try:
+            lu = S.bordered(z, row)
+        except StaticsError:
+            return None
+        F = np.concatenate([S.G(z), [row @ z - target]])
+        dz = lu.solve(F)
+        if not np.all(np.isfinite(dz)):
+            return None
+        z = z - dz
+        if np.max(np.abs(dz)) < tol:
+            return z, it, lu
+    return None
+
+
+def _tangent(lu, n):
+    e = np.zeros(n + 1)
+    e[-1] = 1.0
+    t = lu.solve(e)
+    return t / np.linalg.norm(t)
+
+
+def continuation(problem_at: Callable[[float], StaticProblem], lam0: float, lam1: float,
+                 Y0: Optional[np.ndarray] = None, *, ds: float = 0.02, ds_max: float = 0.05,
+                 ds_min: float = 1e-7, max_points: int = 500, tol: float = 1e-9,
+                 newton_max: int = 10, max_turn: float = 0.3, stability: bool = True,
+                 modes: int = 10, locate: bool = True, switch: bool = False,
+                 start_tangent: Optional[np.ndarray] = None,
+                 on_point: Optional[Callable[[int, float], None]] = None) -> Branch:
+    """Follow the equilibria of ``problem_at(λ)`` from λ = ``lam0`` towards ``lam1``.
+
+    Parameters
+    ----------
+    problem_at : λ -> :class:`solver.statics.StaticProblem` (one grid for all λ)
+    lam0, lam1 : the start and target values of the parameter (its unit)
+    Y0 : (N+1, 13) start guess (default: the straight rod, loads ramped if needed)
+    ds, ds_max, ds_min : first, largest and smallest step in scaled arclength, as fractions
+        of the arclength of the start tangent per unit λ̂ (ds_max = 0.05: at least 20
+        points to cross the range on a branch that does not bend)
+    max_points : stop after this many points
+    stability : count the unstable modes at every point (:func:`unstable_modes`)
+    locate : locate folds and branch points by bisection
+    switch : at the first simple branch point, follow the bifurcating branch instead
+    start_tangent : (N+1, 13) a direction in Y units to leave the start point along
+        (branch switching from a known branch point); default: along increasing λ
+    on_point : called with (index, λ) after every accepted point
+
+    Returns a :class:`Branch`. Raises :class:`ContinuationError` for lam1 == lam0, no
+    equilibrium at lam0, or a singular Jacobian at lam0 (a fold or branch point at the
+    start).
+    """
+    lam0, lam1 = float(lam0), float(lam1)
+    if not (np.isfinite(lam0) and np.isfinite(lam1)) or lam1 == lam0:
+        raise ContinuationError(f"the range {lam0!r} -> {lam1!r} does not move the parameter")
+    p0 = problem_at(lam0)
+    try:
+        sol = solve(p0, Y0)
+    except StaticsError as exc:
+        raise ContinuationError(f"no equilibrium at the start value {lam0!r}: {exc}") from exc
+    try:
+        factor(jacobian(sol.Y, p0))
+    except StaticsError as exc:
+        raise ContinuationError(f"singular start at {lam0!r} (a fold or branch point): "
+                                "start the continuation away from it") from exc
+    S = _Scaled(problem_at, lam0, lam1, p0)
+    n = S.n
+    z = S.z(sol.Y, lam0)
+    e_lam = np.zeros(n + 1)
+    e_lam[-1] = 1.0
+    lu = S.bordered(z, e_lam)
+    t_raw = lu.solve(e_lam)                    # dz/dλ̂ on the branch
+    rho = float(np.linalg.norm(t_raw))
+    t = t_raw / rho
+    if start_tangent is not None:
+        phi = np.concatenate([np.ravel(start_tangent) / S.c, [0.0]])
+        t = phi / np.linalg.norm(phi)
+    ds, ds_max, ds_min = ds * rho, ds_max * rho, ds_min * rho
+    br = Branch()
+
+    def record(z, its, lu_border, t):
+        lam = S.lam(z)
+        Y = S.Y(z)
+        prob = S.prob(lam)
+        count, mu0 = -1, np.nan
+        if stability:
+            count, mu = unstable_modes(Y, prob, k=modes)
+            mu0 = float(mu[0].real) if mu.size else np.nan
+        br.parameter.append(lam)
+        br.Y.append(Y)
+        br.unstable.append(count)
+        br.mu.append(mu0)
+        br.iterations.append(its)
+        br.problems.append(prob)
+        if on_point is not None:
+            on_point(len(br.parameter) - 1, lam)
+        return lu_det_sign(lu_border)
+
+    # the start point's determinant sign, with its own tangent as the border
+    det = record(z, sol.iterations, S.bordered(z, t), t)
+    switched = False
+    while len(br.parameter) < max_points:
+        landing = t[-1] > 0 and z[-1] + ds * t[-1] >= 1.0 - 1e-12
+        if landing:
+            z_pred = z + (1.0 - z[-1]) / t[-1] * t
+            res = _corrector(S, z_pred, e_lam, 1.0, newton_max, tol)
+        else:
+            z_pred = z + ds * t
+            res = _corrector(S, z_pred, t, t @ z_pred, newton_max, tol)
+        if res is None:
+            ds *= 0.5
+            if ds < ds_min:
+                br.stopped = "step below ds_min (no convergence)"
+                return br
+            continue
+        z_new, its, lu_new = res
+        if landing:
+            lu_new = S.bordered(z_new, t)
+        t_new = _tangent(lu_new, n)
+        if t_new @ t < np.cos(max_turn) and not landing:
+            ds *= 0.5
+            if ds < ds_min:
+                br.stopped = "step below ds_min (tangent turning)"
+                return br
+            continue
+        k_prev = len(br.parameter) - 1
+        det_new = record(z_new, its, lu_new, t_new)
+        events = []
+        if np.sign(t_new[-1]) != np.sign(t[-1]) and t[-1] != 0:
+            events.append("fold")
+        if det_new != det:
+            events.append("branch_point")
+        elif (stability and "fold" not in events and br.unstable[-1] != br.unstable[-2]):
+            events.append("even_branch_point")
+        for kind in events:
+            bif = _locate(S, z, t, z_new, kind, newton_max, tol, det, br.unstable[-2],
+                          modes) if locate else None
+            if bif is None:
+                lam_e = 0.5 * (S.lam(z) + S.lam(z_new))
+                bif = Bifurcation("branch_point" if "branch" in kind else kind, lam_e,
+                                  S.Y(z_new), k_prev, simple=kind != "even_branch_point")
+            else:
+                bif.after = k_prev
+            br.bifurcations.append(bif)
+            if (switch and not switched and kind == "branch_point" and bif.null is not None):
+                switched = True
+                br.switched_at = len(br.parameter) - 1
+                zb = S.z(bif.Y, bif.parameter)
+                phi = np.concatenate([np.ravel(bif.null) / S.c, [0.0]])
+                phi /= np.linalg.norm(phi)
+                if phi[int(np.argmax(np.abs(phi[:-1])))] < 0:
+                    phi = -phi
+                step = 0.1 * ds_max
+                res = _corrector(S, zb + step * phi, phi, phi @ zb + step, newton_max, tol)
+                if res is None:
+                    br.stopped = "branch switching did not converge"
+                    return br
+                z_new, its, lu_new = res
+                t_new = _tangent(lu_new, n)
+                det_new = record(z_new, its, lu_new, t_new)
+        z, t, det = z_new, t_new, det_new
+        if landing:
+            br.stopped = "reached the target value"
+            return br
+        if z[-1] < -1.0 or z[-1] > 2.0:
+            br.stopped = "left the range"
+            return br
+        if its <= 3:
+            ds = min(1.5 * ds, ds_max)
+        elif its > 5:
+            ds = max(0.7 * ds, ds_min)
+    br.stopped = "max_points"
+    return br
+
+
+def _locate(S: _Scaled, z0, t0, z1, kind, newton_max, tol, det0, count0, modes):
+    """Bisection on the arclength σ of the step z0 -> z1 (border t0) for the event
+    ``kind``: the sign of t_λ̂ (fold), of det (branch_point), or the unstable count."""
+    sig_hi = float(t0 @ (z1 - z0))
+    lo, hi = 0.0, sig_hi
+    z_lo, z_hi = z0, z1
+    lu_at = None
+    for _ in range(40):
+        if hi - lo <= 1e-9 * sig_hi:
+            break
+        mid = 0.5 * (lo + hi)
+        w = (mid - lo) / (hi - lo)
+        guess = (1 - w) * z_lo + w * z_hi
+        res = _corrector(S, guess, t0, t0 @ z0 + mid, newton_max, tol)
+        if res is None:
+            return None
+        zm, _, lu = res
+        if kind == "fold":
+            same = np.sign(_tangent(lu, S.n)[-1]) == np.sign(t0[-1])
+        elif kind == "branch_point":
+            same = lu_det_sign(lu) == det0
+        else:
+            same = unstable_modes(S.Y(zm), S.prob(S.lam(zm)), k=modes)[0] == count0
+        if same:
+            lo, z_lo = mid, zm
+        else:
+            hi, z_hi = mid, zm
+            lu_at = lu
+    zb = 0.5 * (z_lo + z_hi)
+    null = None
+    if kind == "branch_point" and lu_at is not None:
+        x = np.random.default_rng(0).standard_normal(S.n + 1)
+        for _ in range(3):
+            x = lu_at.solve(x)
+            x /= np.linalg.norm(x)
+        null = (x[:-1] * S.c).reshape(S.shape)
+    name = "fold" if kind == "fold" else "branch_point"
+    return Bifurcation(name, S.lam(zb), S.Y(zb), -1, null=null,
+                       simple=kind != "even_branch_point")
