@@ -348,3 +348,95 @@ def _locate(S: _Scaled, z0, t0, z1, kind, newton_max, tol, det0, count0, modes):
     name = "fold" if kind == "fold" else "branch_point"
     return Bifurcation(name, S.lam(zb), S.Y(zb), -1, null=null,
                        simple=kind != "even_branch_point")
+
+
+# --------------------------------------------------------------------------- the dataset
+
+def branch_dataset(br: Branch, parameter: str = "parameter", *, shapes_every: int = 1,
+                   attrs: Optional[dict] = None):
+    """The branch as an ``xarray.Dataset`` along dimension ``point`` (one per equilibrium)
+    and ``bifurcation`` (one per located fold or branch point).
+
+    Per point: ``parameter`` (λ; its attribute ``path`` names it), ``unstable_modes``,
+    ``stable`` (unstable_modes == 0), ``mu_nearest_zero`` (1/s²), ``newton_iterations``,
+    ``start_force``/``end_force`` (N) and ``start_moment``/``end_moment`` (N m) that the
+    supports apply to the rod (global xyz), ``start_position``/``end_position`` (m),
+    ``start_rotation``/``end_rotation`` (rad about the end tangents, from the reference),
+    ``end_to_end`` (m), ``twist``/``writhe``/``link`` (Tw, Wr, Lk, turns:
+    :mod:`solver.topology`; Lk from the end rotations, meaningful when the end tangents
+    stay on one axis), ``elastic_energy``, ``load_potential``, ``total_energy`` (J); on
+    every ``shapes_every``-th point (the last always) ``position`` and ``kappa`` on the
+    nodes (NaN on the others). Per bifurcation: ``bifurcation_parameter``,
+    ``bifurcation_kind`` ("fold" / "branch_point"), ``bifurcation_after`` (the point index
+    it follows), ``bifurcation_simple``.
+    """
+    import xarray as xr
+
+    from .statics import fields
+    from .topology import linking_number, twist, writhe
+
+    n_pts = len(br.parameter)
+    prob0 = br.problems[0]
+    s = prob0.s
+    n1 = s.size
+    keep = np.zeros(n_pts, bool)
+    keep[::max(1, int(shapes_every))] = True
+    keep[-1] = True
+    pos = np.full((n_pts, n1, 3), np.nan)
+    kap = np.full((n_pts, n1, 3), np.nan)
+    per = {k: np.zeros((n_pts, 3)) for k in ("start_force", "end_force", "start_moment",
+                                               "end_moment", "start_position", "end_position")}
+    scal = {k: np.zeros(n_pts) for k in ("start_rotation", "end_rotation", "end_to_end", "twist",
+                                         "writhe", "link", "elastic_energy", "load_potential")}
+    for i, (Y, prob) in enumerate(zip(br.Y, br.problems)):
+        f = fields(Y, prob)
+        per["start_force"][i] = -Y[0, 7:10]
+        per["end_force"][i] = Y[-1, 7:10]
+        per["start_moment"][i] = -Y[0, 10:13]
+        per["end_moment"][i] = Y[-1, 10:13]
+        per["start_position"][i] = Y[0, 0:3]
+        per["end_position"][i] = Y[-1, 0:3]
+        scal["start_rotation"][i] = prob.start.twist
+        scal["end_rotation"][i] = prob.end.twist
+        scal["end_to_end"][i] = float(np.linalg.norm(Y[-1, 0:3] - Y[0, 0:3]))
+        scal["twist"][i] = twist(f["kappa"][:, 2], s)
+        scal["writhe"][i] = writhe(f["position"])
+        scal["link"][i] = linking_number(prob.start.twist, prob.end.twist)
+        scal["elastic_energy"][i] = f["elastic_energy"]
+        scal["load_potential"][i] = f["load_potential"]
+        if keep[i]:
+            pos[i], kap[i] = f["position"], f["kappa"]
+    unstable = np.asarray(br.unstable, int)
+    units = {"start_force": "N", "end_force": "N", "start_moment": "N m", "end_moment": "N m",
+             "start_position": "m", "end_position": "m", "start_rotation": "rad",
+             "end_rotation": "rad", "end_to_end": "m", "twist": "turns", "writhe": "turns",
+             "link": "turns", "elastic_energy": "J", "load_potential": "J"}
+    data = {
+        "parameter": ("point", np.asarray(br.parameter, float), {"path": parameter}),
+        "unstable_modes": ("point", unstable, {"long_name": "number of unstable modes "
+                           "(-1: not computed)"}),
+        "stable": ("point", (unstable == 0).astype(np.int8), {"long_name": "1: stable"}),
+        "mu_nearest_zero": ("point", np.asarray(br.mu, float),
+                            {"units": "1/s^2", "long_name": "eigenvalue -omega^2 nearest zero"}),
+        "newton_iterations": ("point", np.asarray(br.iterations, int)),
+        "position": (("point", "node", "xyz"), pos, {"units": "m"}),
+        "kappa": (("point", "node", "xyz"), kap, {"units": "1/m", "long_name": "body-frame curvature"}),
+    }
+    for k, v in per.items():
+        data[k] = (("point", "xyz"), v, {"units": units[k]})
+    for k, v in scal.items():
+        data[k] = ("point", v, {"units": units[k]})
+    data["total_energy"] = ("point", scal["elastic_energy"] + scal["load_potential"], {"units": "J"})
+    bifs = br.bifurcations
+    data["bifurcation_parameter"] = ("bifurcation", np.asarray([b.parameter for b in bifs], float))
+    data["bifurcation_kind"] = ("bifurcation", np.asarray([b.kind for b in bifs], dtype=object))
+    data["bifurcation_after"] = ("bifurcation", np.asarray([b.after for b in bifs], int))
+    data["bifurcation_simple"] = ("bifurcation", np.asarray([int(b.simple) for b in bifs], np.int8))
+    ds = xr.Dataset(data, coords={"point": np.arange(n_pts), "s": ("node", s),
+                                  "xyz": ["x", "y", "z"]})
+    ds.attrs.update({"hockle_kind": "branch", "parameter_path": parameter,
+                     "n_segments": int(prob0.n_segments), "stopped": br.stopped,
+                     "switched_at": -1 if br.switched_at is None else int(br.switched_at)})
+    if attrs:
+        ds.attrs.update(attrs)
+    return ds
