@@ -368,7 +368,8 @@ def branch_dataset(br: Branch, parameter: str = "parameter", *, shapes_every: in
     every ``shapes_every``-th point (the last always) ``position`` and ``kappa`` on the
     nodes (NaN on the others). Per bifurcation: ``bifurcation_parameter``,
     ``bifurcation_kind`` ("fold" / "branch_point"), ``bifurcation_after`` (the point index
-    it follows), ``bifurcation_simple``.
+    it follows), ``bifurcation_simple``; ``branch`` per point: 0 on the start branch, 1
+    after a switch at a branch point.
     """
     import xarray as xr
 
@@ -419,6 +420,9 @@ def branch_dataset(br: Branch, parameter: str = "parameter", *, shapes_every: in
         "mu_nearest_zero": ("point", np.asarray(br.mu, float),
                             {"units": "1/s^2", "long_name": "eigenvalue -omega^2 nearest zero"}),
         "newton_iterations": ("point", np.asarray(br.iterations, int)),
+        "branch": ("point", (np.arange(n_pts) > (n_pts if br.switched_at is None
+                                                 else br.switched_at)).astype(np.int8),
+                   {"long_name": "0: the start branch, 1: the branch switched onto"}),
         "position": (("point", "node", "xyz"), pos, {"units": "m"}),
         "kappa": (("point", "node", "xyz"), kap, {"units": "1/m", "long_name": "body-frame curvature"}),
     }
@@ -429,7 +433,7 @@ def branch_dataset(br: Branch, parameter: str = "parameter", *, shapes_every: in
     data["total_energy"] = ("point", scal["elastic_energy"] + scal["load_potential"], {"units": "J"})
     bifs = br.bifurcations
     data["bifurcation_parameter"] = ("bifurcation", np.asarray([b.parameter for b in bifs], float))
-    data["bifurcation_kind"] = ("bifurcation", np.asarray([b.kind for b in bifs], dtype=object))
+    data["bifurcation_kind"] = ("bifurcation", np.asarray([b.kind for b in bifs], dtype="U12"))
     data["bifurcation_after"] = ("bifurcation", np.asarray([b.after for b in bifs], int))
     data["bifurcation_simple"] = ("bifurcation", np.asarray([int(b.simple) for b in bifs], np.int8))
     ds = xr.Dataset(data, coords={"point": np.arange(n_pts), "s": ("node", s),
