@@ -115,3 +115,69 @@ def test_bad_input_refused_before_work():
     free = st.uniform(1.0, 10, (1, 1, 1), st.free_end(), st.free_end())
     with pytest.raises(ContinuationError, match="singular"):
         continuation(lambda a: free, 0.0, 1.0)
+
+
+# --------------------------------------------------------------------------- from a case
+
+def _column_case(n=40):
+    from pathlib import Path
+
+    from solver.case import parse_text
+
+    doc = parse_text(Path("cases/euler-column.yaml").read_text(), "yaml")
+    doc["numerics"]["n_segments"] = n
+    return doc
+
+
+FORCE = "boundary.end.translation.2.force"
+
+
+def test_case_static_problem_and_equilibrium():
+    """The example case: EJ from the diameter, the end force read in the end's body frame,
+    the equilibrium straight and stable under 0.1 N of compression."""
+    from hockle.api import equilibrium
+    from solver.case import Case
+
+    case = Case.model_validate(_column_case())
+    prob = st.static_problem(case)
+    ej = 2.0e8 * np.pi * 0.005**4 / 64
+    assert np.allclose(prob.stiffness[:, 0], ej) and np.allclose(prob.stiffness[:, 2], ej / 1.25)
+    assert list(prob.end.held) == [True, True, False] and prob.end.force[2] == -0.1
+    ds = equilibrium(case)
+    assert ds["unstable_modes"].values.tolist() == [0]
+    assert np.allclose(ds["end_force"].values[0], [0, 0, -0.1])
+    assert abs(ds["end_position"].values[0, 2] - 1.0) < 1e-12      # inextensible
+
+
+def test_cli_continue_and_plot(tmp_path, capsys):
+    """hockle continue: the round column's first branch point (a pair of modes) at
+    -4π² EJ/L² within 0.1 %, written for hockle plot; bad input exits 2 before any work."""
+    import json
+
+    from hockle.cli import main
+    from hockle.io import open_result
+
+    path = tmp_path / "column.json"
+    path.write_text(json.dumps(_column_case(100)))
+    out = tmp_path / "branch.nc"
+    assert main(["continue", str(path), "--parameter", FORCE, "--to", "-0.3", "-q",
+                 "-o", str(out)]) == 0
+    ds = open_result(out)
+    pc = -4 * np.pi**2 * 2.0e8 * np.pi * 0.005**4 / 64
+    assert ds["bifurcation_kind"].values.tolist() == ["branch_point"]
+    assert abs(float(ds["bifurcation_parameter"][0]) / pc - 1) < 1e-3
+    assert ds["bifurcation_simple"].values.tolist() == [0]
+    u = ds["unstable_modes"].values
+    assert u[0] == 0 and u[-1] == 2
+    assert ds.attrs["parameter_path"] == FORCE and ds["position"].dims == ("point", "node", "xyz")
+    assert main(["plot", str(out), "-o", str(tmp_path / "plots")]) == 0
+    assert (tmp_path / "plots" / "branch_bifurcation.png").stat().st_size > 0
+    capsys.readouterr()
+    for argv, words in (([FORCE[:-6], "--to", "1"], "not a scalar"),
+                        (["rod.nowhere", "--to", "1"], "not a field"),
+                        ([FORCE, "--to", "-0.1"], "does not move"),
+                        (["rod.diameter", "--to", "-1"], "invalid")):
+        assert main(["continue", str(path), "--parameter", *argv, "-q",
+                     "-o", str(tmp_path / "x.nc")]) == 2
+        assert words in capsys.readouterr().err
+    assert not (tmp_path / "x.nc").exists()
