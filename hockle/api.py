@@ -37,6 +37,7 @@ __all__ = [
     "simulate",
     "sweep",
     "equilibrium",
+    "equilibrium_start",
     "continue_branch",
     "make_case",
     "clamped",
@@ -737,3 +738,26 @@ def continue_branch(case: Any, parameter: str, to: float, *, time: float | None 
     c = _as_case(case)
     return branch_dataset(br, parameter, shapes_every=shapes_every,
                           attrs={"case": c.canonical_json(), "target": to})
+
+
+def equilibrium_start(case: Any, *, time: float | None = None, parameter: str | None = None,
+                      value: float | None = None, amplitude: float = 0.0):
+    """A start state for :func:`simulate` (``simulate(case, start=...)``): the static
+    equilibrium of ``case`` at ``time`` (default ``numerics.t_end``), with the scalar at
+    ``parameter`` set to ``value`` when given (e.g. a branch point's
+    ``bifurcation_parameter`` from :func:`continue_branch`), at rest, plus ``amplitude`` (m)
+    times its critical mode (the eigenvector of the stability pencil with the eigenvalue
+    nearest zero, largest displacement 1 m) so that post-buckling dynamics start where
+    the statics leave off. Raises ``solver.statics.StaticsError`` and ValueError."""
+    from solver.statics import critical_mode, solve, start_state, static_problem
+
+    if parameter is not None:
+        if value is None:
+            raise ValueError("equilibrium_start: a parameter needs its value")
+        problem_at, _ = _problem_family(case, parameter, time)
+        prob = problem_at(float(value))
+    else:
+        prob = static_problem(_as_case(case), time)
+    sol = solve(prob)
+    mode = critical_mode(sol.Y, prob) if amplitude else None
+    return start_state(sol.Y, prob, mode, amplitude)

@@ -640,3 +640,27 @@ def static_problem(case, time: Optional[float] = None) -> StaticProblem:
 def with_load(prob: StaticProblem, **changes) -> StaticProblem:
     """A copy of ``prob`` with fields replaced (dataclasses.replace)."""
     return replace(prob, **changes)
+
+
+# --------------------------------------------------------------------------- a dynamic start
+
+def start_state(Y: np.ndarray, prob: StaticProblem, mode: Optional[np.ndarray] = None,
+                amplitude: float = 0.0, t: float = 0.0):
+    """A :class:`solver.initial.StartState` at rest (v = ω = 0) in the equilibrium ``Y``
+    (N+1, 13), plus ``amplitude`` (m) times ``mode`` ((N+1, 13), e.g. :func:`critical_mode`,
+    largest position component 1 m) when given: f = Rᵀn, κ = K⁻¹Rᵀm (body frame, the
+    dynamic scheme's unknowns), q renormalised, r as they are, the end rotations about a3
+    (the linking number's φ) from the ends' ``twist``. Time ``t`` (s)."""
+    from .initial import StartState
+
+    Z = np.array(Y, float)
+    if mode is not None and amplitude != 0.0:
+        Z = Z + float(amplitude) * np.asarray(mode, float)
+    q = Z[:, 3:7] / np.linalg.norm(Z[:, 3:7], axis=1)[:, None]
+    R = _rot(q)
+    f = np.einsum("kji,kj->ki", R, Z[:, 7:10])
+    kappa = np.einsum("kji,kj->ki", R, Z[:, 10:13]) / prob.stiffness
+    zeros = np.zeros_like(f)
+    return StartState(t=float(t), v=zeros, omega=zeros.copy(), f=f, kappa=kappa, q=q,
+                      r=np.ascontiguousarray(Z[:, 0:3]),
+                      phi=np.array([prob.start.twist, prob.end.twist], float))
