@@ -161,7 +161,7 @@ def continuation(problem_at: Callable[[float], StaticProblem], lam0: float, lam1
                  Y0: Optional[np.ndarray] = None, *, ds: float = 0.02, ds_max: float = 0.05,
                  ds_min: float = 1e-7, max_points: int = 500, tol: float = 1e-9,
                  newton_max: int = 10, max_turn: float = 0.3, stability: bool = True,
-                 modes: int = 10, locate: bool = True, switch: bool = False,
+                 modes: int = 8, locate: bool = True, switch: bool = False,
                  start_tangent: Optional[np.ndarray] = None,
                  on_point: Optional[Callable[[int, float], None]] = None) -> Branch:
     """Follow the equilibria of ``problem_at(λ)`` from λ = ``lam0`` towards ``lam1``.

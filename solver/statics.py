@@ -246,46 +246,53 @@ _PATTERNS: dict = {}
 
 
 def _pattern(n_segments: int):
-    """Rows, columns and colour of every structural nonzero (cached per N)."""
+    """The CSC structure of the Jacobian (indices, indptr) and, per colour, the positions
+    of its entries in the CSC data and their rows (cached per N)."""
     if n_segments in _PATTERNS:
         return _PATTERNS[n_segments]
     N = n_segments
-    rows, cols, colour = [], [], []
+    k = np.arange(N + 1)
     comp = np.arange(NV)
-    for k in range(N + 1):
-        rr = []
-        if k == 0:
-            rr.append(np.arange(N_START))
-        if k >= 1:
-            rr.append(N_START + NV * (k - 1) + comp)
-        if k < N:
-            rr.append(N_START + NV * k + comp)
-        if k == N:
-            rr.append(NV * (N + 1) - N_END + np.arange(N_END))
-        rr = np.concatenate(rr)
-        for c in range(NV):
-            rows.append(rr)
-            cols.append(np.full(rr.size, NV * k + c))
-            colour.append(np.full(rr.size, (k % 2) * NV + c))
-    pat = (np.concatenate(rows), np.concatenate(cols), np.concatenate(colour))
+    # rows touched by node k: its cells' 13 rows each, the start/end rows at the ends
+    blocks = []
+    for lo, hi, base in ((1, N + 1, lambda k: N_START + NV * (k - 1)),
+                         (0, N, lambda k: N_START + NV * k)):
+        kk = k[lo:hi]
+        r = (base(kk)[:, None] + comp[None, :])                    # (n, 13)
+        blocks.append((np.repeat(kk, NV), r.ravel()))
+    blocks.append((np.zeros(N_START, int), np.arange(N_START)))
+    blocks.append((np.full(N_END, N), NV * (N + 1) - N_END + np.arange(N_END)))
+    node = np.concatenate([b[0] for b in blocks])
+    row = np.concatenate([b[1] for b in blocks])
+    rows = np.repeat(row, NV)
+    cols = (NV * node[:, None] + comp[None, :]).ravel()
+    colour = ((node[:, None] % 2) * NV + comp[None, :]).ravel()
+    order = np.lexsort((rows, cols))
+    rows, cols, colour = rows[order], cols[order], colour[order]
+    n = NV * (N + 1)
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(cols, minlength=n))])
+    groups = []
+    for c in range(2 * NV):
+        pos = np.flatnonzero(colour == c)
+        groups.append((pos, rows[pos]))
+    pat = (rows, indptr, groups)
     _PATTERNS[n_segments] = pat
     return pat
 
 
 def jacobian(Y: np.ndarray, prob: StaticProblem) -> sp.csc_matrix:
     """∂G/∂Y, exact to rounding (complex step by column groups), sparse (13(N+1))²."""
-    rows, cols, colour = _pattern(prob.n_segments)
-    vals = np.empty(rows.size)
+    indices, indptr, groups = _pattern(prob.n_segments)
+    vals = np.empty(indices.size)
     Yc = Y.astype(complex)
-    for c in range(2 * NV):
+    for c, (pos, rows) in enumerate(groups):
         par, comp = divmod(c, NV)
         Yc[par::2, comp] += 1j * _EPS
         g = residual(Yc, prob)
         Yc[par::2, comp] = Y[par::2, comp]
-        sel = colour == c
-        vals[sel] = g.imag[rows[sel]] / _EPS
+        vals[pos] = g.imag[rows] / _EPS
     n = NV * (prob.n_segments + 1)
-    return sp.csc_matrix((vals, (rows, cols)), shape=(n, n))
+    return sp.csc_matrix((vals, indices, indptr), shape=(n, n))
 
 
 # --------------------------------------------------------------------------- Newton
@@ -436,7 +443,7 @@ def mass_matrix(Y: np.ndarray, prob: StaticProblem) -> sp.csc_matrix:
     return sp.csc_matrix((vals, (rows, cols)), shape=(n, n))
 
 
-def unstable_modes(Y: np.ndarray, prob: StaticProblem, k: int = 10, lu=None):
+def unstable_modes(Y: np.ndarray, prob: StaticProblem, k: int = 8, lu=None):
     """Number of unstable modes of the equilibrium ``Y`` and the eigenvalues μ = −ω²
     (1/s², per the mass and inertia of ``prob``) nearest zero, by shift-invert Arnoldi on
     J⁻¹ B (μ > 0: ω² < 0, unstable). Returns (count, μ sorted by |μ|).
@@ -447,7 +454,7 @@ def unstable_modes(Y: np.ndarray, prob: StaticProblem, k: int = 10, lu=None):
     n = J.shape[0]
     op = spla.LinearOperator((n, n), matvec=lambda x: lu.solve(B @ x), dtype=float)
     k = min(k, n - 2)
-    nu = spla.eigs(op, k=k, which="LM", return_eigenvectors=False, tol=1e-10,
+    nu = spla.eigs(op, k=k, which="LM", return_eigenvectors=False, tol=1e-8,
                    v0=np.ones(n))
     nu = nu[np.abs(nu) > 0]
     mu = 1.0 / nu
