@@ -182,9 +182,15 @@ def continuation(problem_at: Callable[[float], StaticProblem], lam0: float, lam1
         (branch switching from a known branch point); default: along increasing λ
     on_point : called with (index, λ) after every accepted point
 
-    Returns a :class:`Branch`. Raises :class:`ContinuationError` for lam1 == lam0, no
-    equilibrium at lam0, or a singular Jacobian at lam0 (a fold or branch point at the
-    start).
+    Returns
+    -------
+    Branch
+
+    Raises
+    ------
+    ContinuationError
+        for lam1 == lam0, no equilibrium at lam0, or a singular Jacobian at lam0 (a fold
+        or branch point at the start).
     """
     lam0, lam1 = float(lam0), float(lam1)
     if not (np.isfinite(lam0) and np.isfinite(lam1)) or lam1 == lam0:
