@@ -205,28 +205,47 @@ def continuation(problem_at: Callable[[float], StaticProblem], lam0: float, lam1
     except StaticsError as exc:
         raise ContinuationError(f"singular start at {lam0!r} (a fold or branch point): "
                                 "start the continuation away from it") from exc
-    S = _Scaled(problem_at, lam0, lam1, p0)
-    n = S.n
-    z = S.z(sol.Y, lam0)
-    e_lam = np.zeros(n + 1)
-    e_lam[-1] = 1.0
-    lu = S.bordered(z, e_lam)
-    t_raw = lu.solve(e_lam)                    # dz/dλ̂ on the branch
-    rho = float(np.linalg.norm(t_raw))
-    t = t_raw / rho
-    if start_tangent is not None:
-        phi = np.concatenate([np.ravel(start_tangent) / S.c, [0.0]])
-        t = phi / np.linalg.norm(phi)
-    ds, ds_max, ds_min = ds * rho, ds_max * rho, ds_min * rho
-    br = Branch()
+    tr = _Tracer(_Scaled(problem_at, lam0, lam1, p0), sol, dict(
+        ds=ds, ds_max=ds_max, ds_min=ds_min, tol=tol, newton_max=newton_max,
+        max_turn=max_turn, stability=stability, modes=modes, locate=locate, switch=switch,
+        on_point=on_point), start_tangent)
+    while len(tr.br.parameter) < max_points:
+        if tr.step():
+            return tr.br
+    tr.br.stopped = "max_points"
+    return tr.br
 
-    def record(z, its, lu_border, t):
+
+class _Tracer:
+    """The state of one continuation: the branch so far, the last point z, its tangent t,
+    the sign of its bordered determinant, the step size (scaled arclength)."""
+
+    def __init__(self, S: _Scaled, sol, opt: dict, start_tangent):
+        self.S, self.o, self.br = S, opt, Branch()
+        self.z = S.z(sol.Y, S.lam0)
+        self.e_lam = np.zeros(S.n + 1)
+        self.e_lam[-1] = 1.0
+        t_raw = S.bordered(self.z, self.e_lam).solve(self.e_lam)     # dz/dλ̂ on the branch
+        rho = float(np.linalg.norm(t_raw))
+        self.t = t_raw / rho
+        if start_tangent is not None:
+            phi = np.concatenate([np.ravel(start_tangent) / S.c, [0.0]])
+            self.t = phi / np.linalg.norm(phi)
+        self.ds, self.ds_max, self.ds_min = (opt["ds"] * rho, opt["ds_max"] * rho,
+                                             opt["ds_min"] * rho)
+        self.switched = False
+        # the start point's determinant sign, with its own tangent as the border
+        self.det = self.record(self.z, sol.iterations, S.bordered(self.z, self.t))
+
+    def record(self, z, its, lu_border) -> int:
+        """Append the point z (its unstable modes counted) and return its det sign."""
+        S, br = self.S, self.br
         lam = S.lam(z)
         Y = S.Y(z)
         prob = S.prob(lam)
         count, mu0 = -1, np.nan
-        if stability:
-            count, mu = unstable_modes(Y, prob, k=modes)
+        if self.o["stability"]:
+            count, mu = unstable_modes(Y, prob, k=self.o["modes"])
             mu0 = float(mu[0].real) if mu.size else np.nan
         br.parameter.append(lam)
         br.Y.append(Y)
@@ -234,85 +253,96 @@ def continuation(problem_at: Callable[[float], StaticProblem], lam0: float, lam1
         br.mu.append(mu0)
         br.iterations.append(its)
         br.problems.append(prob)
-        if on_point is not None:
-            on_point(len(br.parameter) - 1, lam)
+        if self.o["on_point"] is not None:
+            self.o["on_point"](len(br.parameter) - 1, lam)
         return lu_det_sign(lu_border)
 
-    # the start point's determinant sign, with its own tangent as the border
-    det = record(z, sol.iterations, S.bordered(z, t), t)
-    switched = False
-    while len(br.parameter) < max_points:
-        landing = t[-1] > 0 and z[-1] + ds * t[-1] >= 1.0 - 1e-12
+    def _refuse(self, why: str) -> bool:
+        self.ds *= 0.5
+        if self.ds < self.ds_min:
+            self.br.stopped = f"step below ds_min ({why})"
+            return True
+        return False
+
+    def step(self) -> bool:
+        """Try one step; True when the continuation is over (``br.stopped`` says why)."""
+        S, o, z, t = self.S, self.o, self.z, self.t
+        landing = t[-1] > 0 and z[-1] + self.ds * t[-1] >= 1.0 - 1e-12
         if landing:
-            z_pred = z + (1.0 - z[-1]) / t[-1] * t
-            res = _corrector(S, z_pred, e_lam, 1.0, newton_max, tol)
+            res = _corrector(S, z + (1.0 - z[-1]) / t[-1] * t, self.e_lam, 1.0,
+                             o["newton_max"], o["tol"])
         else:
-            z_pred = z + ds * t
-            res = _corrector(S, z_pred, t, t @ z_pred, newton_max, tol)
+            z_pred = z + self.ds * t
+            res = _corrector(S, z_pred, t, t @ z_pred, o["newton_max"], o["tol"])
         if res is None:
-            ds *= 0.5
-            if ds < ds_min:
-                br.stopped = "step below ds_min (no convergence)"
-                return br
-            continue
+            return self._refuse("no convergence")
         z_new, its, lu_new = res
         if landing:
             lu_new = S.bordered(z_new, t)
-        t_new = _tangent(lu_new, n)
-        if t_new @ t < np.cos(max_turn) and not landing:
-            ds *= 0.5
-            if ds < ds_min:
-                br.stopped = "step below ds_min (tangent turning)"
-                return br
-            continue
-        k_prev = len(br.parameter) - 1
-        det_new = record(z_new, its, lu_new, t_new)
+        t_new = _tangent(lu_new, S.n)
+        if t_new @ t < np.cos(o["max_turn"]) and not landing:
+            return self._refuse("tangent turning")
+        det_new = self.record(z_new, its, lu_new)
+        z_new, t_new, det_new = self._events(z_new, t_new, det_new)
+        if z_new is None:
+            return True
+        self.z, self.t, self.det = z_new, t_new, det_new
+        if landing:
+            self.br.stopped = "reached the target value"
+            return True
+        if not -1.0 <= z_new[-1] <= 2.0:
+            self.br.stopped = "left the range"
+            return True
+        if its <= 3:
+            self.ds = min(1.5 * self.ds, self.ds_max)
+        elif its > 5:
+            self.ds = max(0.7 * self.ds, self.ds_min)
+        return False
+
+    def _events(self, z_new, t_new, det_new):
+        """Detect, locate and record the events of the step z -> z_new; switch branches
+        when asked. Returns the point to go on from (None: stop)."""
+        S, o, br, z, t = self.S, self.o, self.br, self.z, self.t
+        k_prev = len(br.parameter) - 2
         events = []
         if np.sign(t_new[-1]) != np.sign(t[-1]) and t[-1] != 0:
             events.append("fold")
-        if det_new != det:
+        if det_new != self.det:
             events.append("branch_point")
-        elif (stability and "fold" not in events and br.unstable[-1] != br.unstable[-2]):
+        elif o["stability"] and "fold" not in events and br.unstable[-1] != br.unstable[-2]:
             events.append("even_branch_point")
         for kind in events:
-            bif = _locate(S, z, t, z_new, kind, newton_max, tol, det, br.unstable[-2],
-                          modes) if locate else None
+            bif = (_locate(S, z, t, z_new, kind, o["newton_max"], o["tol"], self.det,
+                           br.unstable[-2], o["modes"]) if o["locate"] else None)
             if bif is None:
-                lam_e = 0.5 * (S.lam(z) + S.lam(z_new))
-                bif = Bifurcation("branch_point" if "branch" in kind else kind, lam_e,
-                                  S.Y(z_new), k_prev, simple=kind != "even_branch_point")
-            else:
-                bif.after = k_prev
+                bif = Bifurcation("branch_point" if "branch" in kind else kind,
+                                  0.5 * (S.lam(z) + S.lam(z_new)), S.Y(z_new), k_prev,
+                                  simple=kind != "even_branch_point")
+            bif.after = k_prev
             br.bifurcations.append(bif)
-            if (switch and not switched and kind == "branch_point" and bif.null is not None):
-                switched = True
-                br.switched_at = len(br.parameter) - 1
-                zb = S.z(bif.Y, bif.parameter)
-                phi = np.concatenate([np.ravel(bif.null) / S.c, [0.0]])
-                phi /= np.linalg.norm(phi)
-                if phi[int(np.argmax(np.abs(phi[:-1])))] < 0:
-                    phi = -phi
-                step = 0.1 * ds_max
-                res = _corrector(S, zb + step * phi, phi, phi @ zb + step, newton_max, tol)
-                if res is None:
-                    br.stopped = "branch switching did not converge"
-                    return br
-                z_new, its, lu_new = res
-                t_new = _tangent(lu_new, n)
-                det_new = record(z_new, its, lu_new, t_new)
-        z, t, det = z_new, t_new, det_new
-        if landing:
-            br.stopped = "reached the target value"
-            return br
-        if z[-1] < -1.0 or z[-1] > 2.0:
-            br.stopped = "left the range"
-            return br
-        if its <= 3:
-            ds = min(1.5 * ds, ds_max)
-        elif its > 5:
-            ds = max(0.7 * ds, ds_min)
-    br.stopped = "max_points"
-    return br
+            if o["switch"] and not self.switched and kind == "branch_point" \
+                    and bif.null is not None:
+                return self._switch(bif)
+        return z_new, t_new, det_new
+
+    def _switch(self, bif: Bifurcation):
+        """Leave the branch point ``bif`` along its null vector (Keller's switching)."""
+        S, o = self.S, self.o
+        self.switched = True
+        self.br.switched_at = len(self.br.parameter) - 1
+        zb = S.z(bif.Y, bif.parameter)
+        phi = np.concatenate([np.ravel(bif.null) / S.c, [0.0]])
+        phi /= np.linalg.norm(phi)
+        if phi[int(np.argmax(np.abs(phi[:-1])))] < 0:
+            phi = -phi
+        step = 0.1 * self.ds_max
+        res = _corrector(S, zb + step * phi, phi, phi @ zb + step, o["newton_max"], o["tol"])
+        if res is None:
+            self.br.stopped = "branch switching did not converge"
+            return None, None, None
+        z_new, its, lu_new = res
+        t_new = _tangent(lu_new, S.n)
+        return z_new, t_new, self.record(z_new, its, lu_new)
 
 
 def _locate(S: _Scaled, z0, t0, z1, kind, newton_max, tol, det0, count0, modes):
@@ -358,33 +388,14 @@ def _locate(S: _Scaled, z0, t0, z1, kind, newton_max, tol, det0, count0, modes):
 
 # --------------------------------------------------------------------------- the dataset
 
-def branch_dataset(br: Branch, parameter: str = "parameter", *, shapes_every: int = 1,
-                   attrs: Optional[dict] = None):
-    """The branch as an ``xarray.Dataset`` along dimension ``point`` (one per equilibrium)
-    and ``bifurcation`` (one per located fold or branch point).
-
-    Per point: ``parameter`` (λ; its attribute ``path`` names it), ``unstable_modes``,
-    ``stable`` (unstable_modes == 0), ``mu_nearest_zero`` (1/s²), ``newton_iterations``,
-    ``start_force``/``end_force`` (N) and ``start_moment``/``end_moment`` (N m) that the
-    supports apply to the rod (global xyz), ``start_position``/``end_position`` (m),
-    ``start_rotation``/``end_rotation`` (rad about the end tangents, from the reference),
-    ``end_to_end`` (m), ``twist``/``writhe``/``link`` (Tw, Wr, Lk, turns:
-    :mod:`solver.topology`; Lk from the end rotations, meaningful when the end tangents
-    stay on one axis), ``elastic_energy``, ``load_potential``, ``total_energy`` (J); on
-    every ``shapes_every``-th point (the last always) ``position`` and ``kappa`` on the
-    nodes (NaN on the others). Per bifurcation: ``bifurcation_parameter``,
-    ``bifurcation_kind`` ("fold" / "branch_point"), ``bifurcation_after`` (the point index
-    it follows), ``bifurcation_simple``; ``branch`` per point: 0 on the start branch, 1
-    after a switch at a branch point.
-    """
-    import xarray as xr
-
+def _point_quantities(br: Branch, shapes_every: int):
+    """Per point: end loads and positions (point, 3), scalars (point,), shapes
+    (point, N+1, 3) on every ``shapes_every``-th point and the last (NaN elsewhere)."""
     from .statics import fields
     from .topology import linking_number, twist, writhe
 
     n_pts = len(br.parameter)
-    prob0 = br.problems[0]
-    s = prob0.s
+    s = br.problems[0].s
     n1 = s.size
     keep = np.zeros(n_pts, bool)
     keep[::max(1, int(shapes_every))] = True
@@ -413,6 +424,34 @@ def branch_dataset(br: Branch, parameter: str = "parameter", *, shapes_every: in
         scal["load_potential"][i] = f["load_potential"]
         if keep[i]:
             pos[i], kap[i] = f["position"], f["kappa"]
+    return per, scal, pos, kap
+
+
+def branch_dataset(br: Branch, parameter: str = "parameter", *, shapes_every: int = 1,
+                   attrs: Optional[dict] = None):
+    """The branch as an ``xarray.Dataset`` along dimension ``point`` (one per equilibrium)
+    and ``bifurcation`` (one per located fold or branch point).
+
+    Per point: ``parameter`` (λ; its attribute ``path`` names it), ``unstable_modes``,
+    ``stable`` (unstable_modes == 0), ``mu_nearest_zero`` (1/s²), ``newton_iterations``,
+    ``start_force``/``end_force`` (N) and ``start_moment``/``end_moment`` (N m) that the
+    supports apply to the rod (global xyz), ``start_position``/``end_position`` (m),
+    ``start_rotation``/``end_rotation`` (rad about the end tangents, from the reference),
+    ``end_to_end`` (m), ``twist``/``writhe``/``link`` (Tw, Wr, Lk, turns:
+    :mod:`solver.topology`; Lk from the end rotations, meaningful when the end tangents
+    stay on one axis), ``elastic_energy``, ``load_potential``, ``total_energy`` (J); on
+    every ``shapes_every``-th point (the last always) ``position`` and ``kappa`` on the
+    nodes (NaN on the others). Per bifurcation: ``bifurcation_parameter``,
+    ``bifurcation_kind`` ("fold" / "branch_point"), ``bifurcation_after`` (the point index
+    it follows), ``bifurcation_simple``; ``branch`` per point: 0 on the start branch, 1
+    after a switch at a branch point.
+    """
+    import xarray as xr
+
+    n_pts = len(br.parameter)
+    prob0 = br.problems[0]
+    s = prob0.s
+    per, scal, pos, kap = _point_quantities(br, shapes_every)
     unstable = np.asarray(br.unstable, int)
     units = {"start_force": "N", "end_force": "N", "start_moment": "N m", "end_moment": "N m",
              "start_position": "m", "end_position": "m", "start_rotation": "rad",

@@ -481,8 +481,8 @@ def critical_mode(Y: np.ndarray, prob: StaticProblem) -> np.ndarray:
 
 def fields(Y: np.ndarray, prob: StaticProblem) -> dict:
     """Positions (N+1, 3) m, κ (N+1, 3) 1/m, quaternions (N+1, 4), internal force and
-    moment (N+1, 3) N, N m, elastic energy (J) ½∫κ·Kκ ds (trapezoid) and the potential of
-    the dead loads −∫f·r ds − F_L·r_L + F_0·r_0... of the loaded components (J)."""
+    moment (N+1, 3) N, N m, the elastic energy ½∫κ·Kκ ds (J, trapezoid) and the potential
+    of the dead loads −∫f·r ds − Σ F·r over the ends' loaded components (J)."""
     R = _rot(Y[:, 3:7])
     kappa = np.einsum("kji,kj->ki", R, Y[:, 10:13]) / prob.stiffness
     w = np.full(prob.n_segments + 1, prob.h)
@@ -534,6 +534,96 @@ def _dof(conditions, t: float, where: str):
     raise AssertionError("validated conditions cover every time")
 
 
+def _dead_loads(case, props, t: float):
+    """(N+1, 3) dead force per length (N/m) at the nodes at time t: gravity with buoyancy,
+    the active distributed forces, interior point loads as P/Δs; and the point loads at
+    the ends {"start": (3,), "end": (3,)} (N). Raises StaticsError for a follower point
+    load or one between nodes."""
+    s = props.s
+    N = s.size - 1
+    load = np.zeros((N + 1, 3))
+    if case.gravity is not None:
+        rho_f = case.fluid.density if case.fluid is not None else 0.0
+        rho = np.asarray(case.rod.evaluate("density", s), float)
+        load += ((rho - rho_f) * props.area)[:, None] * np.asarray(case.gravity, float)
+    for i, dfc in enumerate(case.distributed_forces):
+        if t < dfc.start or (dfc.end is not None and t > dfc.end):
+            continue
+        fac = 1.0 if dfc.factor is None else dfc.factor.value_at(t)
+        mask = np.ones(N + 1, bool)
+        if dfc.s_range is not None:
+            mask = (s >= dfc.s_range[0] - 1e-12) & (s <= dfc.s_range[1] + 1e-12)
+        load[mask] += fac * np.asarray(dfc.value, float)
+    extra_force = {"start": np.zeros(3), "end": np.zeros(3)}
+    for i, pl in enumerate(case.point_loads):
+        if t < pl.start or (pl.end is not None and t > pl.end):
+            continue
+        if pl.body:
+            raise StaticsError(f"point_loads.{i}.body: a follower load is not conservative; "
+                               "the static problem takes dead loads (body: false)")
+        k = int(round(pl.s / props.ds))
+        if abs(k * props.ds - pl.s) > 1e-9 * case.rod.length:
+            raise StaticsError(f"point_loads.{i}.s: {pl.s} m is not a grid node")
+        fac = 1.0 if pl.factor is None else pl.factor.value_at(t)
+        P = fac * np.asarray(pl.value, float)
+        if k == 0:
+            extra_force["start"] += P
+        elif k == N:
+            extra_force["end"] += P
+        else:
+            load[k] += P / props.ds
+    return load, extra_force
+
+
+def _end_spec(ec, where: str, qk, rk, t: float, extra) -> EndSpec:
+    """The :class:`EndSpec` of the case's end conditions ``ec`` at time t, the end's
+    initial frame qk (4,) and position rk (3,) m, plus point loads ``extra`` (3,) N at the
+    end. Raises StaticsError naming ``where`` for what a static problem cannot take."""
+    rot = [_dof(ec.rotation[i], t, f"{where}.rotation.{i}") for i in range(3)]
+    kinds = {kd for kd, _, _ in rot}
+    if kinds == {"angular_velocity"}:
+        angles = [a for _, _, a in rot]
+        if ec.frame == "global" or (angles[0] == 0 and angles[1] == 0):
+            twist = 0.0 if ec.frame == "global" else angles[2]
+        else:
+            raise StaticsError(f"{where}.rotation: the static problem turns a held end "
+                               "about its tangent a3 only (items 0 and 1 integrate to 0)")
+        quat = _qmul(qk, quat_axis_angle([0, 0, 1], twist))
+        held_rot = True
+    elif kinds == {"moment"}:
+        if any(v != 0 for _, v, _ in rot):
+            raise StaticsError(f"{where}.rotation: an end moment in the body frame is a "
+                               "follower moment; the static problem takes moment 0 "
+                               "(free) or a held rotation")
+        quat, twist, held_rot = qk, 0.0, False
+    else:
+        raise StaticsError(f"{where}.rotation: mixed angular_velocity and moment items "
+                           "are not a static end condition; hold all or free all")
+    axes = np.eye(3) if ec.frame == "global" else _rot(quat)
+    held = np.zeros(3, bool)
+    pos = np.array(rk, float)
+    force = np.zeros(3)
+    for i in range(3):
+        kind, value, integral = _dof(ec.translation[i], t, f"{where}.translation.{i}")
+        if kind == "position":
+            held[i] = True
+            pos = pos + (value - axes[:, i] @ pos) * axes[:, i]
+        elif kind == "velocity":
+            held[i] = True
+            if ec.frame != "global" and i < 2 and integral != 0 and twist != 0:
+                raise StaticsError(f"{where}.translation.{i}: a body-frame velocity "
+                                   "across a turning end depends on the path")
+            pos = pos + integral * axes[:, i]
+        else:
+            if not held_rot and ec.frame != "global" and value != 0:
+                raise StaticsError(f"{where}.translation.{i}: a body-frame force on an "
+                                   "end free to turn is a follower load")
+            force = force + value * axes[:, i]
+    force = force + extra
+    return EndSpec(axes=axes, held=held, position=pos, force=force,
+                   rotation_held=held_rot, quaternion=quat, twist=twist)
+
+
 def static_problem(case, time: Optional[float] = None) -> StaticProblem:
     """The static problem of a validated :class:`solver.case.Case` at ``time`` (s;
     default ``numerics.t_end``): the end conditions in force then, velocities and angular
@@ -555,88 +645,12 @@ def static_problem(case, time: Optional[float] = None) -> StaticProblem:
     props = RodProperties.from_case(case)
     N = case.numerics.n_segments
     s = props.s
-    q, r, kappa0 = initial_pose(case, s)
-    if np.any(np.abs(kappa0[:, :2]) > 0):
-        pass  # a curved initial shape is a start guess only: the rod is naturally straight
-    load = np.zeros((N + 1, 3))
-    if case.gravity is not None:
-        rho_f = case.fluid.density if case.fluid is not None else 0.0
-        rho = np.asarray(case.rod.evaluate("density", s), float)
-        load += ((rho - rho_f) * props.area)[:, None] * np.asarray(case.gravity, float)
-    for i, dfc in enumerate(case.distributed_forces):
-        if t < dfc.start or (dfc.end is not None and t > dfc.end):
-            continue
-        fac = 1.0 if dfc.factor is None else dfc.factor.value_at(t)
-        mask = np.ones(N + 1, bool)
-        if dfc.s_range is not None:
-            mask = (s >= dfc.s_range[0] - 1e-12) & (s <= dfc.s_range[1] + 1e-12)
-        load[mask] += fac * np.asarray(dfc.value, float)
+    q, r, _ = initial_pose(case, s)        # the ends' initial frames and positions
+    load, extra_force = _dead_loads(case, props, t)
     ends = {}
-    extra_force = {"start": np.zeros(3), "end": np.zeros(3)}
-    for i, pl in enumerate(case.point_loads):
-        if t < pl.start or (pl.end is not None and t > pl.end):
-            continue
-        if pl.body:
-            raise StaticsError(f"point_loads.{i}.body: a follower load is not conservative; "
-                               "the static problem takes dead loads (body: false)")
-        k = int(round(pl.s / props.ds))
-        if abs(k * props.ds - pl.s) > 1e-9 * case.rod.length:
-            raise StaticsError(f"point_loads.{i}.s: {pl.s} m is not a grid node")
-        fac = 1.0 if pl.factor is None else pl.factor.value_at(t)
-        P = fac * np.asarray(pl.value, float)
-        if k == 0:
-            extra_force["start"] += P
-        elif k == N:
-            extra_force["end"] += P
-        else:
-            load[k] += P / props.ds
     for name, k in (("start", 0), ("end", N)):
-        ec = getattr(case.boundary, name)
-        where = f"boundary.{name}"
-        Rk = _rot(q[k])
-        rot = [_dof(ec.rotation[i], t, f"{where}.rotation.{i}") for i in range(3)]
-        kinds = {kd for kd, _, _ in rot}
-        if kinds == {"angular_velocity"}:
-            angles = [a for _, _, a in rot]
-            if ec.frame == "global" or (angles[0] == 0 and angles[1] == 0):
-                twist = 0.0 if ec.frame == "global" else angles[2]
-            else:
-                raise StaticsError(f"{where}.rotation: the static problem turns a held end "
-                                   "about its tangent a3 only (items 0 and 1 integrate to 0)")
-            quat = _qmul(q[k], quat_axis_angle([0, 0, 1], twist))
-            held_rot = True
-        elif kinds == {"moment"}:
-            if any(v != 0 for _, v, _ in rot):
-                raise StaticsError(f"{where}.rotation: an end moment in the body frame is a "
-                                   "follower moment; the static problem takes moment 0 "
-                                   "(free) or a held rotation")
-            quat, twist, held_rot = q[k], 0.0, False
-        else:
-            raise StaticsError(f"{where}.rotation: mixed angular_velocity and moment items "
-                               "are not a static end condition; hold all or free all")
-        axes = np.eye(3) if ec.frame == "global" else _rot(quat)
-        held = np.zeros(3, bool)
-        pos = np.array(r[k], float)
-        force = np.zeros(3)
-        for i in range(3):
-            kind, value, integral = _dof(ec.translation[i], t, f"{where}.translation.{i}")
-            if kind == "position":
-                held[i] = True
-                pos = pos + (value - axes[:, i] @ pos) * axes[:, i]
-            elif kind == "velocity":
-                held[i] = True
-                if ec.frame != "global" and i < 2 and integral != 0 and twist != 0:
-                    raise StaticsError(f"{where}.translation.{i}: a body-frame velocity "
-                                       "across a turning end depends on the path")
-                pos = pos + integral * axes[:, i]
-            else:
-                if not held_rot and ec.frame != "global" and value != 0:
-                    raise StaticsError(f"{where}.translation.{i}: a body-frame force on an "
-                                       "end free to turn is a follower load")
-                force = force + value * axes[:, i]
-        force = force + extra_force[name]
-        ends[name] = EndSpec(axes=axes, held=held, position=pos, force=force,
-                             rotation_held=held_rot, quaternion=quat, twist=twist)
+        ends[name] = _end_spec(getattr(case.boundary, name), f"boundary.{name}", q[k], r[k],
+                               t, extra_force[name])
     inertia = np.asarray(props.inertia[:, 0], float)
     return StaticProblem(length=float(case.rod.length), n_segments=N,
                          stiffness=np.asarray(props.stiffness, float), load=load,
