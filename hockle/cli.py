@@ -1,5 +1,5 @@
-"""The ``hockle`` command: validate, run, plot, animate, export and sweep cases; serve,
-worker, submit and db.
+"""The ``hockle`` command: validate, run, plot, animate, export, sweep and continue cases;
+serve, worker, submit and db.
 
 Exit status::
 

@@ -207,39 +207,51 @@ def residual(Y, prob: StaticProblem) -> np.ndarray:
     Y : (N+1, 13) real or complex (complex step). Returns (13(N+1),) of Y's dtype.
     Row units: m (positions), 1 (quaternions), N (forces), N m (moments).
     """
+    out = np.empty(NV * (prob.n_segments + 1), dtype=Y.dtype)
+    out[N_START:-N_END] = _cell_rows(Y, prob).ravel()
+    out[:N_START], out[-N_END:] = _end_rows(Y, prob)
+    return out
+
+
+def _cell_rows(Y, prob: StaticProblem) -> np.ndarray:
+    """The box rule on every cell: Y (..., N+1, 13) -> (..., N, 13) (leading axes: a
+    batch of states, the complex step's column groups)."""
     h = prob.h
-    r, p, n, m = Y[:, 0:3], Y[:, 3:7], Y[:, 7:10], Y[:, 10:13]
+    r, p, n, m = Y[..., 0:3], Y[..., 3:7], Y[..., 7:10], Y[..., 10:13]
     R = _rot(p)
-    a3 = R[:, :, 2]
-    kappa = np.einsum("kji,kj->ki", R, m) / prob.stiffness
-    kbar = 0.5 * (kappa[:-1] + kappa[1:])
+    a3 = R[..., :, 2]
+    kappa = np.einsum("...kji,...kj->...ki", R, m) / prob.stiffness
+    kbar = 0.5 * (kappa[..., :-1, :] + kappa[..., 1:, :])
     zero = np.zeros(kbar.shape[:-1] + (1,), dtype=kbar.dtype)
     omega = np.concatenate([zero, kbar], axis=-1)
-    cell = np.empty((prob.n_segments, NV), dtype=Y.dtype)
-    cell[:, 0:3] = r[1:] - r[:-1] - 0.5 * h * (a3[:-1] + a3[1:])
-    cell[:, 3:7] = p[1:] - p[:-1] - 0.25 * h * _qmul(p[:-1] + p[1:], omega)
-    cell[:, 7:10] = n[1:] - n[:-1] + 0.5 * h * (prob.load[:-1] + prob.load[1:])
+    cell = np.empty(Y.shape[:-2] + (prob.n_segments, NV), dtype=Y.dtype)
+    cell[..., 0:3] = r[..., 1:, :] - r[..., :-1, :] - 0.5 * h * (a3[..., :-1, :] + a3[..., 1:, :])
+    cell[..., 3:7] = (p[..., 1:, :] - p[..., :-1, :]
+                      - 0.25 * h * _qmul(p[..., :-1, :] + p[..., 1:, :], omega))
+    cell[..., 7:10] = n[..., 1:, :] - n[..., :-1, :] + 0.5 * h * (prob.load[:-1] + prob.load[1:])
     an = np.cross(a3, n)
-    cell[:, 10:13] = m[1:] - m[:-1] + 0.5 * h * (an[:-1] + an[1:])
-    out = np.empty(NV * (prob.n_segments + 1), dtype=Y.dtype)
-    out[N_START:N_START + cell.size] = cell.ravel()
+    cell[..., 10:13] = m[..., 1:, :] - m[..., :-1, :] + 0.5 * h * (an[..., :-1, :] + an[..., 1:, :])
+    return cell
+
+
+def _end_rows(Y, prob: StaticProblem):
+    """The 7 rows at s = 0 and the 6 at s = L of Y (N+1, 13)."""
     st, en = prob.start, prob.end
-    # start: translation (3) + rotation (4)
+    r0, p0, n0, m0 = Y[0, 0:3], Y[0, 3:7], Y[0, 7:10], Y[0, 10:13]
+    rN, pN, nN, mN = Y[-1, 0:3], Y[-1, 3:7], Y[-1, 7:10], Y[-1, 10:13]
+    start = np.empty(N_START, dtype=Y.dtype)
     E = st.axes
-    tr0 = np.where(st.held, E.T @ (r[0] - st.position), E.T @ (n[0] + st.force))
-    out[0:3] = tr0
+    start[0:3] = np.where(st.held, E.T @ (r0 - st.position), E.T @ (n0 + st.force))
     if st.rotation_held:
-        out[3:7] = p[0] - st.quaternion
+        start[3:7] = p0 - st.quaternion
     else:
-        out[3:6] = m[0]
-        out[6] = p[0] @ p[0] - 1.0
+        start[3:6] = m0
+        start[6] = p0 @ p0 - 1.0
+    end = np.empty(N_END, dtype=Y.dtype)
     E = en.axes
-    out[-6:-3] = np.where(en.held, E.T @ (r[-1] - en.position), E.T @ (n[-1] - en.force))
-    if en.rotation_held:
-        out[-3:] = _qmul(_qconj(en.quaternion), p[-1])[1:]
-    else:
-        out[-3:] = m[-1]
-    return out
+    end[0:3] = np.where(en.held, E.T @ (rN - en.position), E.T @ (nN - en.force))
+    end[3:6] = _qmul(_qconj(en.quaternion), pN)[1:] if en.rotation_held else mN
+    return start, end
 
 
 _PATTERNS: dict = {}
@@ -281,16 +293,23 @@ def _pattern(n_segments: int):
 
 
 def jacobian(Y: np.ndarray, prob: StaticProblem) -> sp.csc_matrix:
-    """∂G/∂Y, exact to rounding (complex step by column groups), sparse (13(N+1))²."""
+    """∂G/∂Y, exact to rounding (complex step by column groups, all 26 groups in one
+    batched evaluation of the cell rows), sparse (13(N+1))²."""
     indices, indptr, groups = _pattern(prob.n_segments)
-    vals = np.empty(indices.size)
-    Yc = Y.astype(complex)
-    for c, (pos, rows) in enumerate(groups):
+    ng = len(groups)
+    Yc = np.empty((ng,) + Y.shape, dtype=complex)
+    Yc[:] = Y
+    for c in range(ng):
         par, comp = divmod(c, NV)
-        Yc[par::2, comp] += 1j * _EPS
-        g = residual(Yc, prob)
-        Yc[par::2, comp] = Y[par::2, comp]
-        vals[pos] = g.imag[rows] / _EPS
+        Yc[c, par::2, comp] += 1j * _EPS
+    G = np.empty((ng, Y.size))
+    G[:, N_START:-N_END] = _cell_rows(Yc, prob).reshape(ng, -1).imag
+    vals = np.empty(indices.size)
+    for c, (pos, rows) in enumerate(groups):
+        start, end = _end_rows(Yc[c], prob)
+        G[c, :N_START], G[c, -N_END:] = start.imag, end.imag
+        vals[pos] = G[c, rows]
+    vals /= _EPS
     n = NV * (prob.n_segments + 1)
     return sp.csc_matrix((vals, indices, indptr), shape=(n, n))
 
