@@ -69,7 +69,7 @@ def main(figures: bool) -> None:
         from hockle.branch_plots import plot_branch
 
         out = Path(__file__).resolve().parents[1] / "docs" / "figures"
-        for path in plot_branch(branch_dataset(br, "P (N), EJ1 = 1 N m², L = 1 m"), out,
+        for path in plot_branch(branch_dataset(br, "P (N)"), out,
                                 stem="statics_euler"):
             print(f"  wrote {path}")
     print("Greenhill, branch point M L/B / 8.9868 - 1 (M = GJ Θ / L)")
