@@ -9,7 +9,10 @@ bifurcation diagrams of docs/statics.md written to docs/figures/:
   point against 4π²EJ1/L² at 25, 50, 100 segments (the order in Δs), the unstable-mode
   counts, and the elastica's end shortening against the elliptic-integral solution;
 * Greenhill's twisted clamped-clamped rod at zero axial force: the branch point against
-  M L/B = 8.9868 at 25, 50, 100 segments.
+  M L/B = 8.9868 at 25, 50, 100 segments;
+* the seed's rod (cases/goyal-writhing.yaml at 200 segments, its perturbing force left
+  out, the start's twist as the parameter): the branch point's Lk, and the time at which
+  the seed's twist schedule reaches it.
 """
 from __future__ import annotations
 
@@ -81,5 +84,31 @@ def main(figures: bool) -> None:
               f"unstable modes {br.unstable[0]} -> {br.unstable[-1]})")
 
 
+def seed_rod() -> None:
+    from solver.case import parse_text
+
+    from hockle.api import continue_branch
+
+    root = Path(__file__).resolve().parents[1]
+    doc = parse_text((root / "cases" / "goyal-writhing.yaml").read_text(), "yaml")
+    table = doc["boundary"]["start"]["rotation"][2]["angular_velocity"]
+    doc["numerics"]["n_segments"] = 200
+    doc["distributed_forces"] = []
+    doc["boundary"]["start"]["rotation"][2] = {"angular_velocity": 0.0}
+    # with time 1 s the constant angular velocity (rad/s) is the twist angle (rad)
+    ds = continue_branch(doc, "boundary.start.rotation.2.angular_velocity", -16.0, time=1.0,
+                         max_points=60)
+    phi = float(ds["bifurcation_parameter"][0])
+    tt = np.linspace(0.0, 45.0, 450001)
+    w = np.interp(tt, table["t"], table["value"])
+    angle = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(tt))])
+    t_hit = float(np.interp(-phi, -angle, tt))
+    print(f"Seed rod (N = 200): branch point at a start twist of {phi:.4f} rad, "
+          f"|Lk| = {abs(phi) / (2 * np.pi):.4f} turns (pair: "
+          f"{not bool(ds['bifurcation_simple'][0])}), reached by the seed's schedule at "
+          f"t = {t_hit:.2f} s")
+
+
 if __name__ == "__main__":
     main("--figures" in sys.argv[1:])
+    seed_rod()
