@@ -10,6 +10,8 @@ bifurcation diagrams of docs/statics.md written to docs/figures/:
   counts, and the elastica's end shortening against the elliptic-integral solution;
 * Greenhill's twisted clamped-clamped rod at zero axial force: the branch point against
   M L/B = 8.9868 at 25, 50, 100 segments;
+* Greenhill with tension T: the branch point's M / 2√(BT) for TL²/B = 4, 25, 100 (40
+  segments per unit length), which tends to 1 as L grows;
 * the seed's rod (cases/goyal-writhing.yaml at 200 segments, its perturbing force left
   out, the start's twist as the parameter): the branch point's Lk, and the time at which
   the seed's twist schedule reaches it.
@@ -84,6 +86,23 @@ def main(figures: bool) -> None:
               f"unstable modes {br.unstable[0]} -> {br.unstable[-1]})")
 
 
+def greenhill_tension() -> None:
+    B, C, T = 1.0, 1.0 / 1.3, 1.0
+    mg = 2 * np.sqrt(B * T)
+    print("Greenhill with tension, branch point M / 2√(BT) (-> 1 as L grows)")
+    for L in (2.0, 5.0, 10.0):
+        n = int(40 * L)
+
+        def prob(th, L=L, n=n):
+            return st.uniform(L, n, (B, B, C), st.clamp([0, 0, 0], [1, 0, 0, 0]),
+                              st.clamp([0, 0, L], st.quat_axis_angle([0, 0, 1], th), th,
+                                       held=(True, True, False), force=(0, 0, T)))
+
+        br = continuation(prob, 0.0, (1.2 * mg + 10 * B / L) * L / C, max_points=80)
+        bp = [b for b in br.bifurcations if b.kind == "branch_point"][0]
+        print(f"  T L²/B = {T * L**2 / B:5.0f}, N = {n}: {bp.parameter * C / L / mg:.4f}")
+
+
 def seed_rod() -> None:
     from solver.case import parse_text
 
@@ -111,4 +130,5 @@ def seed_rod() -> None:
 
 if __name__ == "__main__":
     main("--figures" in sys.argv[1:])
+    greenhill_tension()
     seed_rod()
