@@ -36,6 +36,9 @@ __all__ = [
     "DistributedLoad",
     "simulate",
     "sweep",
+    "equilibrium",
+    "equilibrium_start",
+    "continue_branch",
     "make_case",
     "clamped",
     "free",
@@ -625,3 +628,136 @@ def sweep(base: Any, parameters: Mapping[str, Sequence[Any]], combine: str = "gr
                for m, k in zip(members, key_of)]
     return sw.combine_results(results, params, combine, fields=fields,
                               attrs={"hockle_sweep_name": doc.get("name")})
+
+
+# --------------------------------------------------------------------------- statics
+
+
+def _case_scalar(doc: dict, path: str) -> float:
+    """The number at ``path`` in the case document; ValueError naming the path when the
+    path does not lead to a number (a one-item list of conditions is looked through, as
+    :func:`service.sweeps.set_path` does)."""
+    from service.sweeps import parse_path
+
+    node: Any = doc
+    for part in parse_path(path):
+        if isinstance(node, list) and isinstance(part, str) and len(node) == 1:
+            node = node[0]
+        try:
+            node = node[part]
+        except (KeyError, IndexError, TypeError):
+            raise ValueError(f"--parameter {path}: not a field of the case (no {part!r} "
+                             "there)") from None
+    if isinstance(node, bool) or not isinstance(node, (int, float)):
+        raise ValueError(f"--parameter {path}: not a scalar of the case (the value there is "
+                         f"{type(node).__name__} {str(node)[:60]})")
+    return float(node)
+
+
+def _problem_family(case: Any, parameter: str, time: float | None):
+    """(λ -> StaticProblem, the case's value at ``parameter``)."""
+    from service.client import case_document
+    from service.sweeps import SweepError, set_path
+    from solver.case import Case, CaseError
+    from solver.statics import static_problem
+
+    doc = case_document(case) if not isinstance(case, (str, os.PathLike)) else \
+        _as_case(case).model_dump(mode="json")
+    lam0 = _case_scalar(doc, parameter)
+
+    def problem_at(lam: float):
+        d = _copy_doc(doc)
+        try:
+            set_path(d, parameter, float(lam))
+        except SweepError as exc:
+            raise ValueError(f"--parameter {parameter}: {exc.errors[0]['msg']}") from exc
+        try:
+            c = Case.model_validate(d)
+        except (CaseError, ValueError) as exc:
+            raise ValueError(f"{parameter} = {lam!r} makes the case invalid: {exc}") from exc
+        return static_problem(c, time)
+
+    return problem_at, lam0
+
+
+def _copy_doc(doc: dict) -> dict:
+    import copy
+
+    return copy.deepcopy(doc)
+
+
+def equilibrium(case: Any, *, time: float | None = None):
+    """The static equilibrium of ``case`` (a ``Case``, mapping or case file) at ``time``
+    (s; default ``numerics.t_end``; docs/statics.md): a one-point branch dataset
+    (:func:`solver.continuation.branch_dataset`) with the shape, end loads, Tw, Wr, Lk,
+    energies and the number of unstable modes. Raises ``solver.statics.StaticsError``."""
+    from solver.continuation import Branch, branch_dataset
+    from solver.statics import solve, static_problem, unstable_modes
+
+    c = _as_case(case)
+    prob = static_problem(c, time)
+    sol = solve(prob)
+    count, mu = unstable_modes(sol.Y, prob)
+    br = Branch(parameter=[0.0], Y=[sol.Y], unstable=[count],
+                mu=[float(mu[0].real) if mu.size else float("nan")],
+                iterations=[sol.iterations], problems=[prob], stopped="equilibrium")
+    return branch_dataset(br, "", attrs={"case": c.canonical_json()})
+
+
+def continue_branch(case: Any, parameter: str, to: float, *, time: float | None = None,
+                    switch: bool = False, max_points: int = 500, step: float = 0.05,
+                    shapes_every: int = 1, stability: bool = True,
+                    on_point: Callable[[int, float], None] | None = None):
+    """Pseudo-arclength continuation of the equilibria of ``case`` in the scalar at the
+    dotted ``parameter`` path (as sweeps spell it, e.g. ``boundary.end.translation.2.force``)
+    from the case's value to ``to`` (docs/statics.md). ``time``: the time at which the
+    end conditions are read (velocities integrated up to it; default ``numerics.t_end``).
+    ``switch``: leave the branch at its first simple branch point along the critical
+    mode. ``step``: the largest step as a fraction of the start tangent's arclength over
+    the range. Returns the branch dataset (:func:`solver.continuation.branch_dataset`).
+
+    Raises ValueError (a path that is not a scalar of the case, a value that makes the case
+    invalid or changes its grid) and ``solver.continuation.ContinuationError`` (a range
+    that does not move, no equilibrium or a singular Jacobian at the start), both before
+    any continuation step.
+    """
+    from solver.continuation import ContinuationError, branch_dataset, continuation
+
+    problem_at, lam0 = _problem_family(case, parameter, time)
+    to = float(to)
+    if not math.isfinite(to) or to == lam0:
+        raise ContinuationError(f"--to {to!r}: the range {lam0!r} -> {to!r} does not move "
+                                f"{parameter}")
+    p0, p1 = problem_at(lam0), problem_at(to)
+    if p1.n_segments != p0.n_segments or p1.length != p0.length:
+        raise ValueError(f"--parameter {parameter}: changes the grid (rod.length or "
+                         "numerics); continue in a parameter that keeps it")
+    br = continuation(problem_at, lam0, to, max_points=max_points, ds_max=step,
+                      ds=min(step, 0.02), stability=stability, switch=switch,
+                      on_point=on_point)
+    c = _as_case(case)
+    return branch_dataset(br, parameter, shapes_every=shapes_every,
+                          attrs={"case": c.canonical_json(), "target": to})
+
+
+def equilibrium_start(case: Any, *, time: float | None = None, parameter: str | None = None,
+                      value: float | None = None, amplitude: float = 0.0):
+    """A start state for :func:`simulate` (``simulate(case, start=...)``): the static
+    equilibrium of ``case`` at ``time`` (default ``numerics.t_end``), with the scalar at
+    ``parameter`` set to ``value`` when given (e.g. a branch point's
+    ``bifurcation_parameter`` from :func:`continue_branch`), at rest, plus ``amplitude`` (m)
+    times its critical mode (the eigenvector of the stability pencil with the eigenvalue
+    nearest zero, largest displacement 1 m) so that post-buckling dynamics start where
+    the statics leave off. Raises ``solver.statics.StaticsError`` and ValueError."""
+    from solver.statics import critical_mode, solve, start_state, static_problem
+
+    if parameter is not None:
+        if value is None:
+            raise ValueError("equilibrium_start: a parameter needs its value")
+        problem_at, _ = _problem_family(case, parameter, time)
+        prob = problem_at(float(value))
+    else:
+        prob = static_problem(_as_case(case), time)
+    sol = solve(prob)
+    mode = critical_mode(sol.Y, prob) if amplitude else None
+    return start_state(sol.Y, prob, mode, amplitude)

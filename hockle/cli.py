@@ -1,5 +1,5 @@
-"""The ``hockle`` command: validate, run, plot, animate, export and sweep cases; serve,
-worker, submit and db.
+"""The ``hockle`` command: validate, run, plot, animate, export, sweep and continue cases;
+serve, worker, submit and db.
 
 Exit status::
 
@@ -361,7 +361,11 @@ def cmd_plot(args: argparse.Namespace) -> int:
         return EXIT_INVALID
     out_dir = Path(args.output_dir) if args.output_dir else path.with_name(f"{path.stem}_plots")
 
-    if "hockle_sweep_combine" in ds.attrs:       # a sweep's combined dataset
+    if ds.attrs.get("hockle_kind") == "branch":   # a continuation's branch
+        from hockle.branch_plots import plot_branch
+
+        paths = plot_branch(ds, out_dir, stem=path.stem)
+    elif "hockle_sweep_combine" in ds.attrs:       # a sweep's combined dataset
         from hockle.sweep_plots import plot_sweep
 
         paths = plot_sweep(ds, out_dir, stem=path.stem, on_skip=_err)
@@ -374,6 +378,46 @@ def cmd_plot(args: argparse.Namespace) -> int:
     if not paths:
         _err(f"hockle: nothing to plot in {path}")
         return EXIT_ERROR
+    return EXIT_OK
+
+
+# --------------------------------------------------------------------------- continue
+
+
+def cmd_continue(args: argparse.Namespace) -> int:
+    from hockle.api import continue_branch
+    from solver.case import CaseError
+    from solver.statics import StaticsError
+
+    if args.max_points < 2 or args.shapes_every < 1 or not 0 < args.step <= 1:
+        _err("hockle continue: --max-points >= 2, --shapes-every >= 1, 0 < --step <= 1")
+        return EXIT_INVALID
+
+    def progress(i: int, lam: float) -> None:
+        if not args.quiet:
+            print(f"point {i}: {args.parameter} = {lam:.6g}", file=sys.stderr)
+
+    try:
+        ds = continue_branch(args.case, args.parameter, args.to, time=args.time,
+                             switch=args.switch, max_points=args.max_points, step=args.step,
+                             shapes_every=args.shapes_every, on_point=progress)
+    except CaseError as exc:
+        _print_case_errors(exc, args.case)
+        return EXIT_INVALID
+    except (StaticsError, ValueError, OSError) as exc:
+        _err(f"hockle continue: {exc}")
+        return EXIT_INVALID
+    out = Path(args.output) if args.output else Path(f"{Path(args.case).stem}_branch.nc")
+    from hockle.io import write_netcdf
+
+    try:
+        write_netcdf(ds, out)
+    except OSError as exc:
+        _err(f"hockle: cannot write {out}: {exc}")
+        return EXIT_ERROR
+    kinds = ds["bifurcation_kind"].values.tolist()
+    where = ", ".join(f"{k} at {v:.6g}" for k, v in zip(kinds, ds["bifurcation_parameter"].values))
+    print(f"{out}: {ds.sizes['point']} points ({ds.attrs['stopped']}); {where or 'no bifurcation'}")
     return EXIT_OK
 
 
@@ -613,6 +657,38 @@ def build_parser() -> tuple[argparse.ArgumentParser, str | None]:
                    help="only the outputs with T0 <= t <= T1 (s)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=cmd_export)
+
+    p = sub.add_parser(
+        "continue",
+        help="follow a case's static equilibria in one parameter (folds, branch points, "
+        "stability) into a NetCDF branch file",
+        description="Solve the static equilibrium of a case (end conditions read at --time, "
+        "velocities integrated up to it; docs/statics.md) and follow it by pseudo-arclength "
+        "continuation while the scalar at the dotted --parameter path (as sweeps spell it) "
+        "goes from the case's value to --to. Folds and branch points are located and the "
+        "unstable modes counted at every point; the branch (parameter, end loads, Tw, Wr, "
+        "Lk, energies, shapes) is written for hockle plot.",
+    )
+    p.add_argument("case", metavar="CASE", help="case spec, .yaml/.yml or .json")
+    p.add_argument("--parameter", required=True, metavar="PATH",
+                   help="dotted path of a scalar of the case, e.g. "
+                   "boundary.end.translation.2.force")
+    p.add_argument("--to", required=True, type=float, metavar="VALUE",
+                   help="the parameter's target value")
+    p.add_argument("-o", "--output", metavar="BRANCH.nc",
+                   help="branch file (default: <case stem>_branch.nc here)")
+    p.add_argument("--time", type=float, metavar="T", help="time at which the end "
+                   "conditions are read, s (default: numerics.t_end)")
+    p.add_argument("--switch", action="store_true", help="leave the branch at its first "
+                   "simple branch point along the critical mode")
+    p.add_argument("--max-points", type=int, default=500, metavar="N",
+                   help="stop after N points (default 500)")
+    p.add_argument("--step", type=float, default=0.05, metavar="F",
+                   help="largest step, a fraction of the range's arclength (default 0.05)")
+    p.add_argument("--shapes-every", type=int, default=1, metavar="K",
+                   help="store positions and curvatures at every K-th point (default 1)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(func=cmd_continue)
 
     from hockle import sweep_command
 

@@ -1,0 +1,491 @@
+"""Pseudo-arclength continuation of static equilibria in one scalar parameter.
+
+The branch is followed in the scaled unknowns z = (Y/(c √(N+1)), λ̂), c the typical sizes
+of :meth:`solver.statics.StaticProblem.scales` and λ̂ = (λ − λ0)/(λ1 − λ0), so that the
+arclength does not depend on units or on N (Keller, "Numerical solution of bifurcation
+and nonlinear eigenvalue problems", 1977; Allgower & Georg, *Introduction to Numerical
+Continuation Methods*, 2003, ch. 2 and 8). One step: the predictor z + Δs t, then Newton on
+the bordered system
+
+    [ G_z  G_λ̂ ] dz = [ G(z)            ]
+    [ tᵀ       ]      [ tᵀ(z − z_pred)  ]
+
+with the exact G_z of :func:`solver.statics.jacobian` and G_λ̂ by a central difference in λ
+(exact for the many parameters G is affine in). The new tangent solves the same matrix
+against (0, 1), which keeps its orientation (t_oldᵀ t_new = 1). Step control: Δs grows by
+1.5 after a step of at most 3 iterations, shrinks by 0.7 after more than 5 and halves on a
+refusal (no convergence in ``newton_max`` iterations, or a tangent turning by more than
+``max_turn`` rad); the last step lands on λ̂ = 1 exactly (a natural-parameter solve).
+
+Test functions along the branch (Allgower & Georg ch. 8; Seydel, *Practical Bifurcation
+and Stability Analysis*, 2010, §5.3):
+
+* fold: the λ̂ component of the tangent changes sign;
+* simple branch point: the sign of det of the bordered matrix changes (from the LU:
+  :func:`solver.statics.lu_det_sign`); the sign does not change at a fold;
+* a branch point of even multiplicity (a symmetric pair, e.g. the helical modes of an
+  isotropic rod): the number of unstable modes changes with neither of the above.
+
+Each event is located by bisection in the arclength of its step (a corrector solve per
+halving, to 1e-9 of the step). At a simple branch point the null vector φ of the bordered
+matrix (inverse iteration) is the bifurcating direction: ``switch=True`` leaves the
+primary branch there along φ (Keller's branch switching by the tangent of the null
+vector) and follows the new branch.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Optional
+
+import numpy as np
+import scipy.sparse as sp
+
+from .statics import (NV, StaticProblem, StaticsError, factor, jacobian, lu_det_sign,
+                      residual, solve, unstable_modes)
+
+__all__ = ["Branch", "Bifurcation", "continuation", "ContinuationError"]
+
+
+class ContinuationError(StaticsError):
+    """Bad continuation input (a range that does not move, a singular start)."""
+
+
+@dataclass
+class Bifurcation:
+    """A located fold or branch point: ``kind`` ("fold" / "branch_point"), the parameter,
+    the state Y (N+1, 13), the index of the branch point after which it lies, and for a
+    simple branch point the critical direction ``null`` (N+1, 13) in Y units (unit scaled
+    norm)."""
+
+    kind: str
+    parameter: float
+    Y: np.ndarray
+    after: int
+    null: Optional[np.ndarray] = None
+    simple: bool = True
+
+
+@dataclass
+class Branch:
+    """The points of a branch, in order: ``parameter`` (λ), ``Y`` (N+1, 13) each,
+    ``unstable`` (count of unstable modes, -1 where not computed), ``mu`` (eigenvalue
+    nearest zero, 1/s²), ``iterations`` (Newton), the ``bifurcations`` found, the
+    ``problems`` of each point, ``switched_at`` (the index after which the branch left a
+    branch point, or None) and why it ``stopped``."""
+
+    parameter: list = field(default_factory=list)
+    Y: list = field(default_factory=list)
+    unstable: list = field(default_factory=list)
+    mu: list = field(default_factory=list)
+    iterations: list = field(default_factory=list)
+    problems: list = field(default_factory=list)
+    bifurcations: list = field(default_factory=list)
+    switched_at: Optional[int] = None
+    stopped: str = ""
+
+
+class _Scaled:
+    """z <-> (Y, λ) and the bordered system of one problem family."""
+
+    def __init__(self, problem_at, lam0, lam1, template: StaticProblem):
+        self.problem_at = problem_at
+        self.lam0, self.span = float(lam0), float(lam1) - float(lam0)
+        self.shape = (template.n_segments + 1, NV)
+        self.c = np.tile(template.scales(), self.shape[0]) * np.sqrt(self.shape[0])
+        self.n = self.c.size
+        self._cache: dict = {}
+
+    def lam(self, z) -> float:
+        return self.lam0 + self.span * float(z[-1])
+
+    def prob(self, lam: float) -> StaticProblem:
+        p = self._cache.get(lam)
+        if p is None:
+            if len(self._cache) > 8:
+                self._cache.clear()
+            p = self.problem_at(lam)
+            self._cache[lam] = p
+        return p
+
+    def Y(self, z) -> np.ndarray:
+        return (z[:-1] * self.c).reshape(self.shape)
+
+    def z(self, Y, lam) -> np.ndarray:
+        return np.concatenate([np.ravel(Y) / self.c, [(lam - self.lam0) / self.span]])
+
+    def G(self, z) -> np.ndarray:
+        return residual(self.Y(z), self.prob(self.lam(z)))
+
+    def blocks(self, z):
+        """(G_z sparse, G_λ̂ dense) at z."""
+        lam, Y = self.lam(z), self.Y(z)
+        J = jacobian(Y, self.prob(lam)) @ sp.diags(self.c)
+        d = 1e-6 * abs(self.span)
+        g = (residual(Y, self.prob(lam + d)) - residual(Y, self.prob(lam - d))) / (2 * d)
+        return J, g * self.span
+
+    def bordered(self, z, row):
+        J, g = self.blocks(z)
+        A = sp.vstack([sp.hstack([J, sp.csc_matrix(g[:, None])]),
+                       sp.csr_matrix(row[None, :])], format="csc")
+        return factor(A)
+
+
+def _corrector(S: _Scaled, z_pred, row, target, newton_max, tol):
+    """Newton on [G(z); row·z − target] = 0 from z_pred. Returns (z, iterations, lu of
+    the bordered matrix at the last iterate) or None when it does not converge."""
+    z = z_pred.copy()
+    for it in range(1, newton_max + 1):
+        try:
+            lu = S.bordered(z, row)
+        except StaticsError:
+            return None
+        F = np.concatenate([S.G(z), [row @ z - target]])
+        dz = lu.solve(F)
+        if not np.all(np.isfinite(dz)):
+            return None
+        z = z - dz
+        if np.max(np.abs(dz)) < tol:
+            return z, it, lu
+    return None
+
+
+def _tangent(lu, n):
+    e = np.zeros(n + 1)
+    e[-1] = 1.0
+    t = lu.solve(e)
+    return t / np.linalg.norm(t)
+
+
+def continuation(problem_at: Callable[[float], StaticProblem], lam0: float, lam1: float,
+                 Y0: Optional[np.ndarray] = None, *, ds: float = 0.02, ds_max: float = 0.05,
+                 ds_min: float = 1e-7, max_points: int = 500, tol: float = 1e-9,
+                 newton_max: int = 10, max_turn: float = 0.3, stability: bool = True,
+                 modes: int = 8, locate: bool = True, switch: bool = False,
+                 start_tangent: Optional[np.ndarray] = None,
+                 on_point: Optional[Callable[[int, float], None]] = None) -> Branch:
+    """Follow the equilibria of ``problem_at(λ)`` from λ = ``lam0`` towards ``lam1``.
+
+    Parameters
+    ----------
+    problem_at : λ -> :class:`solver.statics.StaticProblem` (one grid for all λ)
+    lam0, lam1 : the start and target values of the parameter (its unit)
+    Y0 : (N+1, 13) start guess (default: the straight rod, loads ramped if needed)
+    ds, ds_max, ds_min : first, largest and smallest step in scaled arclength, as fractions
+        of the arclength of the start tangent per unit λ̂ (ds_max = 0.05: at least 20
+        points to cross the range on a branch that does not bend)
+    max_points : stop after this many points
+    stability : count the unstable modes at every point (:func:`unstable_modes`)
+    locate : locate folds and branch points by bisection
+    switch : at the first simple branch point, follow the bifurcating branch instead
+    start_tangent : (N+1, 13) a direction in Y units to leave the start point along
+        (branch switching from a known branch point); default: along increasing λ
+    on_point : called with (index, λ) after every accepted point
+
+    Returns
+    -------
+    Branch
+
+    Raises
+    ------
+    ContinuationError
+        for lam1 == lam0, no equilibrium at lam0, or a singular Jacobian at lam0 (a fold
+        or branch point at the start).
+    """
+    lam0, lam1 = float(lam0), float(lam1)
+    if not (np.isfinite(lam0) and np.isfinite(lam1)) or lam1 == lam0:
+        raise ContinuationError(f"the range {lam0!r} -> {lam1!r} does not move the parameter")
+    p0 = problem_at(lam0)
+    try:
+        sol = solve(p0, Y0)
+    except StaticsError as exc:
+        raise ContinuationError(f"no equilibrium at the start value {lam0!r}: {exc}") from exc
+    try:
+        factor(jacobian(sol.Y, p0))
+    except StaticsError as exc:
+        raise ContinuationError(f"singular start at {lam0!r} (a fold or branch point): "
+                                "start the continuation away from it") from exc
+    tr = _Tracer(_Scaled(problem_at, lam0, lam1, p0), sol, dict(
+        ds=ds, ds_max=ds_max, ds_min=ds_min, tol=tol, newton_max=newton_max,
+        max_turn=max_turn, stability=stability, modes=modes, locate=locate, switch=switch,
+        on_point=on_point), start_tangent)
+    while len(tr.br.parameter) < max_points:
+        if tr.step():
+            return tr.br
+    tr.br.stopped = "max_points"
+    return tr.br
+
+
+class _Tracer:
+    """The state of one continuation: the branch so far, the last point z, its tangent t,
+    the sign of its bordered determinant, the step size (scaled arclength)."""
+
+    def __init__(self, S: _Scaled, sol, opt: dict, start_tangent):
+        self.S, self.o, self.br = S, opt, Branch()
+        self.z = S.z(sol.Y, S.lam0)
+        self.e_lam = np.zeros(S.n + 1)
+        self.e_lam[-1] = 1.0
+        t_raw = S.bordered(self.z, self.e_lam).solve(self.e_lam)     # dz/dλ̂ on the branch
+        rho = float(np.linalg.norm(t_raw))
+        self.t = t_raw / rho
+        if start_tangent is not None:
+            phi = np.concatenate([np.ravel(start_tangent) / S.c, [0.0]])
+            self.t = phi / np.linalg.norm(phi)
+        self.ds, self.ds_max, self.ds_min = (opt["ds"] * rho, opt["ds_max"] * rho,
+                                             opt["ds_min"] * rho)
+        self.switched = False
+        # the start point's determinant sign, with its own tangent as the border
+        self.det = self.record(self.z, sol.iterations, S.bordered(self.z, self.t))
+
+    def record(self, z, its, lu_border) -> int:
+        """Append the point z (its unstable modes counted) and return its det sign."""
+        S, br = self.S, self.br
+        lam = S.lam(z)
+        Y = S.Y(z)
+        prob = S.prob(lam)
+        count, mu0 = -1, np.nan
+        if self.o["stability"]:
+            count, mu = unstable_modes(Y, prob, k=self.o["modes"])
+            mu0 = float(mu[0].real) if mu.size else np.nan
+        br.parameter.append(lam)
+        br.Y.append(Y)
+        br.unstable.append(count)
+        br.mu.append(mu0)
+        br.iterations.append(its)
+        br.problems.append(prob)
+        if self.o["on_point"] is not None:
+            self.o["on_point"](len(br.parameter) - 1, lam)
+        return lu_det_sign(lu_border)
+
+    def _refuse(self, why: str) -> bool:
+        self.ds *= 0.5
+        if self.ds < self.ds_min:
+            self.br.stopped = f"step below ds_min ({why})"
+            return True
+        return False
+
+    def step(self) -> bool:
+        """Try one step; True when the continuation is over (``br.stopped`` says why)."""
+        S, o, z, t = self.S, self.o, self.z, self.t
+        landing = t[-1] > 0 and z[-1] + self.ds * t[-1] >= 1.0 - 1e-12
+        if landing:
+            res = _corrector(S, z + (1.0 - z[-1]) / t[-1] * t, self.e_lam, 1.0,
+                             o["newton_max"], o["tol"])
+        else:
+            z_pred = z + self.ds * t
+            res = _corrector(S, z_pred, t, t @ z_pred, o["newton_max"], o["tol"])
+        if res is None:
+            return self._refuse("no convergence")
+        z_new, its, lu_new = res
+        if landing:
+            lu_new = S.bordered(z_new, t)
+        t_new = _tangent(lu_new, S.n)
+        if t_new @ t < np.cos(o["max_turn"]) and not landing:
+            return self._refuse("tangent turning")
+        det_new = self.record(z_new, its, lu_new)
+        z_new, t_new, det_new = self._events(z_new, t_new, det_new)
+        if z_new is None:
+            return True
+        self.z, self.t, self.det = z_new, t_new, det_new
+        if landing:
+            self.br.stopped = "reached the target value"
+            return True
+        if not -1.0 <= z_new[-1] <= 2.0:
+            self.br.stopped = "left the range"
+            return True
+        if its <= 3:
+            self.ds = min(1.5 * self.ds, self.ds_max)
+        elif its > 5:
+            self.ds = max(0.7 * self.ds, self.ds_min)
+        return False
+
+    def _events(self, z_new, t_new, det_new):
+        """Detect, locate and record the events of the step z -> z_new; switch branches
+        when asked. Returns the point to go on from (None: stop)."""
+        S, o, br, z, t = self.S, self.o, self.br, self.z, self.t
+        k_prev = len(br.parameter) - 2
+        events = []
+        if np.sign(t_new[-1]) != np.sign(t[-1]) and t[-1] != 0:
+            events.append("fold")
+        if det_new != self.det:
+            events.append("branch_point")
+        elif o["stability"] and "fold" not in events and br.unstable[-1] != br.unstable[-2]:
+            events.append("even_branch_point")
+        for kind in events:
+            bif = (_locate(S, z, t, z_new, kind, o["newton_max"], o["tol"], self.det,
+                           br.unstable[-2], o["modes"]) if o["locate"] else None)
+            if bif is None:
+                bif = Bifurcation("branch_point" if "branch" in kind else kind,
+                                  0.5 * (S.lam(z) + S.lam(z_new)), S.Y(z_new), k_prev,
+                                  simple=kind != "even_branch_point")
+            bif.after = k_prev
+            br.bifurcations.append(bif)
+            if o["switch"] and not self.switched and kind == "branch_point" \
+                    and bif.null is not None:
+                return self._switch(bif)
+        return z_new, t_new, det_new
+
+    def _switch(self, bif: Bifurcation):
+        """Leave the branch point ``bif`` along its null vector (Keller's switching)."""
+        S, o = self.S, self.o
+        self.switched = True
+        self.br.switched_at = len(self.br.parameter) - 1
+        zb = S.z(bif.Y, bif.parameter)
+        phi = np.concatenate([np.ravel(bif.null) / S.c, [0.0]])
+        phi /= np.linalg.norm(phi)
+        if phi[int(np.argmax(np.abs(phi[:-1])))] < 0:
+            phi = -phi
+        step = 0.1 * self.ds_max
+        res = _corrector(S, zb + step * phi, phi, phi @ zb + step, o["newton_max"], o["tol"])
+        if res is None:
+            self.br.stopped = "branch switching did not converge"
+            return None, None, None
+        z_new, its, lu_new = res
+        t_new = _tangent(lu_new, S.n)
+        return z_new, t_new, self.record(z_new, its, lu_new)
+
+
+def _locate(S: _Scaled, z0, t0, z1, kind, newton_max, tol, det0, count0, modes):
+    """Bisection on the arclength σ of the step z0 -> z1 (border t0) for the event
+    ``kind``: the sign of t_λ̂ (fold), of det (branch_point), or the unstable count."""
+    sig_hi = float(t0 @ (z1 - z0))
+    lo, hi = 0.0, sig_hi
+    z_lo, z_hi = z0, z1
+    lu_at = None
+    for _ in range(40):
+        if hi - lo <= 1e-9 * sig_hi:
+            break
+        mid = 0.5 * (lo + hi)
+        w = (mid - lo) / (hi - lo)
+        guess = (1 - w) * z_lo + w * z_hi
+        res = _corrector(S, guess, t0, t0 @ z0 + mid, newton_max, tol)
+        if res is None:
+            return None
+        zm, _, lu = res
+        if kind == "fold":
+            same = np.sign(_tangent(lu, S.n)[-1]) == np.sign(t0[-1])
+        elif kind == "branch_point":
+            same = lu_det_sign(lu) == det0
+        else:
+            same = unstable_modes(S.Y(zm), S.prob(S.lam(zm)), k=modes)[0] == count0
+        if same:
+            lo, z_lo = mid, zm
+        else:
+            hi, z_hi = mid, zm
+            lu_at = lu
+    zb = 0.5 * (z_lo + z_hi)
+    null = None
+    if kind == "branch_point" and lu_at is not None:
+        x = np.random.default_rng(0).standard_normal(S.n + 1)
+        for _ in range(3):
+            x = lu_at.solve(x)
+            x /= np.linalg.norm(x)
+        null = (x[:-1] * S.c).reshape(S.shape)
+    name = "fold" if kind == "fold" else "branch_point"
+    return Bifurcation(name, S.lam(zb), S.Y(zb), -1, null=null,
+                       simple=kind != "even_branch_point")
+
+
+# --------------------------------------------------------------------------- the dataset
+
+def _point_quantities(br: Branch, shapes_every: int):
+    """Per point: end loads and positions (point, 3), scalars (point,), shapes
+    (point, N+1, 3) on every ``shapes_every``-th point and the last (NaN elsewhere)."""
+    from .statics import fields
+    from .topology import linking_number, twist, writhe
+
+    n_pts = len(br.parameter)
+    s = br.problems[0].s
+    n1 = s.size
+    keep = np.zeros(n_pts, bool)
+    keep[::max(1, int(shapes_every))] = True
+    keep[-1] = True
+    pos = np.full((n_pts, n1, 3), np.nan)
+    kap = np.full((n_pts, n1, 3), np.nan)
+    per = {k: np.zeros((n_pts, 3)) for k in ("start_force", "end_force", "start_moment",
+                                               "end_moment", "start_position", "end_position")}
+    scal = {k: np.zeros(n_pts) for k in ("start_rotation", "end_rotation", "end_to_end", "twist",
+                                         "writhe", "link", "elastic_energy", "load_potential")}
+    for i, (Y, prob) in enumerate(zip(br.Y, br.problems)):
+        f = fields(Y, prob)
+        per["start_force"][i] = -Y[0, 7:10]
+        per["end_force"][i] = Y[-1, 7:10]
+        per["start_moment"][i] = -Y[0, 10:13]
+        per["end_moment"][i] = Y[-1, 10:13]
+        per["start_position"][i] = Y[0, 0:3]
+        per["end_position"][i] = Y[-1, 0:3]
+        scal["start_rotation"][i] = prob.start.twist
+        scal["end_rotation"][i] = prob.end.twist
+        scal["end_to_end"][i] = float(np.linalg.norm(Y[-1, 0:3] - Y[0, 0:3]))
+        scal["twist"][i] = twist(f["kappa"][:, 2], s)
+        scal["writhe"][i] = writhe(f["position"])
+        scal["link"][i] = linking_number(prob.start.twist, prob.end.twist)
+        scal["elastic_energy"][i] = f["elastic_energy"]
+        scal["load_potential"][i] = f["load_potential"]
+        if keep[i]:
+            pos[i], kap[i] = f["position"], f["kappa"]
+    return per, scal, pos, kap
+
+
+def branch_dataset(br: Branch, parameter: str = "parameter", *, shapes_every: int = 1,
+                   attrs: Optional[dict] = None):
+    """The branch as an ``xarray.Dataset`` along dimension ``point`` (one per equilibrium)
+    and ``bifurcation`` (one per located fold or branch point).
+
+    Per point: ``parameter`` (λ; its attribute ``path`` names it), ``unstable_modes``,
+    ``stable`` (unstable_modes == 0), ``mu_nearest_zero`` (1/s²), ``newton_iterations``,
+    ``start_force``/``end_force`` (N) and ``start_moment``/``end_moment`` (N m) that the
+    supports apply to the rod (global xyz), ``start_position``/``end_position`` (m),
+    ``start_rotation``/``end_rotation`` (rad about the end tangents, from the reference),
+    ``end_to_end`` (m), ``twist``/``writhe``/``link`` (Tw, Wr, Lk, turns:
+    :mod:`solver.topology`; Lk from the end rotations, meaningful when the end tangents
+    stay on one axis), ``elastic_energy``, ``load_potential``, ``total_energy`` (J); on
+    every ``shapes_every``-th point (the last always) ``position`` and ``kappa`` on the
+    nodes (NaN on the others). Per bifurcation: ``bifurcation_parameter``,
+    ``bifurcation_kind`` ("fold" / "branch_point"), ``bifurcation_after`` (the point index
+    it follows), ``bifurcation_simple``; ``branch`` per point: 0 on the start branch, 1
+    after a switch at a branch point.
+    """
+    import xarray as xr
+
+    n_pts = len(br.parameter)
+    prob0 = br.problems[0]
+    s = prob0.s
+    per, scal, pos, kap = _point_quantities(br, shapes_every)
+    unstable = np.asarray(br.unstable, int)
+    units = {"start_force": "N", "end_force": "N", "start_moment": "N m", "end_moment": "N m",
+             "start_position": "m", "end_position": "m", "start_rotation": "rad",
+             "end_rotation": "rad", "end_to_end": "m", "twist": "turns", "writhe": "turns",
+             "link": "turns", "elastic_energy": "J", "load_potential": "J"}
+    data = {
+        "parameter": ("point", np.asarray(br.parameter, float), {"path": parameter}),
+        "unstable_modes": ("point", unstable, {"long_name": "number of unstable modes "
+                           "(-1: not computed)"}),
+        "stable": ("point", (unstable == 0).astype(np.int8), {"long_name": "1: stable"}),
+        "mu_nearest_zero": ("point", np.asarray(br.mu, float),
+                            {"units": "1/s^2", "long_name": "eigenvalue -omega^2 nearest zero"}),
+        "newton_iterations": ("point", np.asarray(br.iterations, int)),
+        "branch": ("point", (np.arange(n_pts) > (n_pts if br.switched_at is None
+                                                 else br.switched_at)).astype(np.int8),
+                   {"long_name": "0: the start branch, 1: the branch switched onto"}),
+        "position": (("point", "node", "xyz"), pos, {"units": "m"}),
+        "kappa": (("point", "node", "xyz"), kap, {"units": "1/m", "long_name": "body-frame curvature"}),
+    }
+    for k, v in per.items():
+        data[k] = (("point", "xyz"), v, {"units": units[k]})
+    for k, v in scal.items():
+        data[k] = ("point", v, {"units": units[k]})
+    data["total_energy"] = ("point", scal["elastic_energy"] + scal["load_potential"], {"units": "J"})
+    bifs = br.bifurcations
+    data["bifurcation_parameter"] = ("bifurcation", np.asarray([b.parameter for b in bifs], float))
+    data["bifurcation_kind"] = ("bifurcation", np.asarray([b.kind for b in bifs], dtype="U12"))
+    data["bifurcation_after"] = ("bifurcation", np.asarray([b.after for b in bifs], int))
+    data["bifurcation_simple"] = ("bifurcation", np.asarray([int(b.simple) for b in bifs], np.int8))
+    ds = xr.Dataset(data, coords={"point": np.arange(n_pts), "s": ("node", s),
+                                  "xyz": ["x", "y", "z"]})
+    ds.attrs.update({"hockle_kind": "branch", "parameter_path": parameter,
+                     "n_segments": int(prob0.n_segments), "stopped": br.stopped,
+                     "switched_at": -1 if br.switched_at is None else int(br.switched_at)})
+    if attrs:
+        ds.attrs.update(attrs)
+    return ds

@@ -1,0 +1,706 @@
+"""Static equilibria of the Kirchhoff rod: the box rule in s on the static equations.
+
+The static problem drops the inertia and fluid velocity terms of the dynamic scheme
+(``solver/scheme.py``, v = ω = 0) and writes the equilibrium of an inextensible,
+unshearable Kirchhoff rod with global-frame unknowns per node k = 0..N (13 per node)::
+
+    r_k (3)   centreline position, m (global)
+    p_k (4)   unit quaternion (w, x, y, z) of the frame [a1 a2 a3] (R(p) e3 = a3 = r')
+    n_k (3)   internal force, N (global): the force of the part s+ on the part s-
+    m_k (3)   internal moment, N m (global)
+
+with the constitutive law m = R K κ, K = diag(EJ1, EJ2, GJ3) (seed eq. 1, natural shape
+straight), so κ_k = K⁻¹ R(p_k)ᵀ m_k. Kirchhoff's static equations (Antman, *Nonlinear
+Problems of Elasticity*, ch. 8; the form of van der Heijden & Thompson, Nonlinear Dyn. 21,
+2000) ::
+
+    r' = a3,   p' = ½ p ⊗ (0, κ),   n' + f = 0,   m' + r' × n + l = 0
+
+are discretised by the box rule (trapezoid/midpoint, second order in Δs = h) on each cell
+[s_i, s_i+1], i = 0..N-1::
+
+    r_i+1 − r_i − h/2 (a3_i + a3_i+1)                         = 0   (3)
+    p_i+1 − p_i − h/4 (p_i + p_i+1) ⊗ (0, κ̄),  κ̄ = (κ_i + κ_i+1)/2 = 0   (4)
+    n_i+1 − n_i + h/2 (f_i + f_i+1)                           = 0   (3)
+    m_i+1 − m_i + h/2 (a3_i × n_i + a3_i+1 × n_i+1) + h/2 (l_i + l_i+1) = 0   (3)
+
+The quaternion rows are the Cayley (midpoint) map: p_i+1 = (I − hΩ/4)⁻¹(I + hΩ/4) p_i with
+Ω skew, so |p| is carried exactly from s = 0 and the frames stay orthonormal without a
+projection. Dead loads f (N/m: gravity with buoyancy, distributed forces) are given at the
+nodes; a point load P at an interior node k is the nodal load P/h (the trapezoid puts P/2
+on each neighbouring cell); at an end it adds to the end force.
+
+End conditions, 13 rows (7 at s = 0, 6 at s = L), in the end's axes E (3×3, columns e_j):
+translation component j is held (e_j·(r − r_target) = 0) or loaded (e_j·(n_L − F) = 0 at
+s = L, e_j·(n_0 + F) = 0 at s = 0, F the applied force); the rotation is held (p_0 = q_0,
+4 rows; vec(q_Lᵀ ⊗ p_N) = 0, 3 rows) or free under a zero moment (m = 0, 3 rows, with
+|p_0|² = 1 at s = 0). A held rotation is given with its total angle about the end's
+tangent (``twist``, rad), which the quaternion keeps only modulo 2π: the Newton start and
+the linking number use it.
+
+The Jacobian is exact to rounding: each column group of the bidiagonal block pattern is
+differentiated by the complex step (Squire & Trapp, SIAM Rev. 40, 1998; Martins et al.,
+ACM TOMS 29, 2003): ∂G/∂y_j = Im G(y + iε e_j)/ε with ε = 1e-30, no subtraction, so no
+truncation or cancellation error; 26 residual evaluations colour the whole matrix (nodes
+of one parity share no row).
+
+Stability: the linearised dynamics about an equilibrium are M z̈ + K z = 0 with the
+dynamic box rule; in the static rows this reads J z = μ B z, μ = −ω², where B puts the
+mass per length ρA and the rotational inertia on the force and moment rows. For a
+conservative problem (dead loads, held ends) the number of ω² < 0 (μ > 0) is the number of
+negative eigenvalues of the second variation of the energy on the constraint manifold
+(Sylvester's law of inertia: M positive definite does not change the count), i.e. the
+number of unstable modes. :func:`unstable_modes` finds the eigenvalues μ nearest zero by
+shift-invert Arnoldi (scipy ARPACK on J⁻¹B).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Optional
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+__all__ = ["EndSpec", "StaticProblem", "StaticSolution", "StaticsError", "residual",
+           "jacobian", "solve", "straight_guess", "unstable_modes", "lu_det_sign",
+           "static_problem", "quat_axis_angle", "NV", "N_START"]
+
+NV = 13          # unknowns per node
+N_START = 7      # boundary rows at s = 0
+N_END = 6        # boundary rows at s = L
+_EPS = 1e-30     # complex step
+
+
+class StaticsError(ValueError):
+    """Bad static input or no equilibrium: the message names the field or the cause."""
+
+
+# --------------------------------------------------------------------------- quaternions
+# written with + - * only, so that complex arguments (the complex step) pass through
+
+def _qmul(p, q):
+    """Hamilton product p ⊗ q, (..., 4) x (..., 4) -> (..., 4)."""
+    pw, px, py, pz = p[..., 0], p[..., 1], p[..., 2], p[..., 3]
+    qw, qx, qy, qz = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    return np.stack([pw * qw - px * qx - py * qy - pz * qz,
+                     pw * qx + px * qw + py * qz - pz * qy,
+                     pw * qy - px * qz + py * qw + pz * qx,
+                     pw * qz + px * qy - py * qx + pz * qw], axis=-1)
+
+
+def _qconj(p):
+    return p * np.array([1.0, -1.0, -1.0, -1.0])
+
+
+def _rot(p):
+    """R(p) (..., 3, 3) of a unit quaternion (columns a1, a2, a3 in global components)."""
+    w, x, y, z = p[..., 0], p[..., 1], p[..., 2], p[..., 3]
+    return np.stack([
+        np.stack([w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z], -1),
+    ], axis=-2)
+
+
+def quat_axis_angle(axis, angle) -> np.ndarray:
+    """Unit quaternion (4,) of a rotation by ``angle`` (rad) about ``axis`` (3,)."""
+    a = np.asarray(axis, float)
+    a = a / np.linalg.norm(a)
+    return np.concatenate([[np.cos(angle / 2)], np.sin(angle / 2) * a])
+
+
+# --------------------------------------------------------------------------- the problem
+
+@dataclass(frozen=True)
+class EndSpec:
+    """Conditions at one rod end (all global components, SI).
+
+    axes : (3, 3) columns e_j, the directions of the three translation conditions
+    held : (3,) bool, translation component j held at ``position`` (else loaded by ``force``)
+    position : (3,) m, the held position (components along unheld axes ignored)
+    force : (3,) N, the applied dead force (components along held axes ignored)
+    rotation_held : True: the frame is ``quaternion``; False: free under a zero moment
+    quaternion : (4,) unit quaternion of the held frame
+    twist : rad, total rotation of the held frame about the end tangent from the reference
+            frame (for the Newton start and Lk; the quaternion alone knows it modulo 2π)
+    """
+
+    axes: np.ndarray
+    held: np.ndarray
+    position: np.ndarray
+    force: np.ndarray
+    rotation_held: bool
+    quaternion: np.ndarray
+    twist: float = 0.0
+
+
+def clamp(position, quaternion, twist: float = 0.0, *, axes=None, held=(True, True, True),
+          force=(0.0, 0.0, 0.0)) -> EndSpec:
+    """An end held in rotation at ``quaternion``; translation components held or loaded."""
+    return EndSpec(axes=np.eye(3) if axes is None else np.asarray(axes, float),
+                   held=np.asarray(held, bool), position=np.asarray(position, float),
+                   force=np.asarray(force, float), rotation_held=True,
+                   quaternion=np.asarray(quaternion, float), twist=float(twist))
+
+
+def free_end(force=(0.0, 0.0, 0.0)) -> EndSpec:
+    """An end free in rotation (zero moment) under a dead ``force`` (N, global)."""
+    return EndSpec(axes=np.eye(3), held=np.zeros(3, bool), position=np.zeros(3),
+                   force=np.asarray(force, float), rotation_held=False,
+                   quaternion=np.array([1.0, 0, 0, 0]), twist=0.0)
+
+
+@dataclass(frozen=True)
+class StaticProblem:
+    """One static problem on the grid s_k = k L/N.
+
+    length : L, m;  n_segments : N
+    stiffness : (N+1, 3) EJ1, EJ2, GJ3 at the nodes, N m²
+    load : (N+1, 3) dead force per length at the nodes (point loads included as P/h), N/m
+    start, end : :class:`EndSpec`
+    mass : (N+1,) ρA, kg/m; inertia : (N+1,) rotational inertia per length, kg m
+           (only the stability pencil reads them; any positive values give the same count)
+    reference : (4,) frame of the straight reference rod (tangent a3 along the rod)
+    """
+
+    length: float
+    n_segments: int
+    stiffness: np.ndarray
+    load: np.ndarray
+    start: EndSpec
+    end: EndSpec
+    mass: Optional[np.ndarray] = None
+    inertia: Optional[np.ndarray] = None
+    reference: np.ndarray = field(default_factory=lambda: np.array([1.0, 0, 0, 0]))
+
+    @property
+    def h(self) -> float:
+        return self.length / self.n_segments
+
+    @property
+    def s(self) -> np.ndarray:
+        return np.linspace(0.0, self.length, self.n_segments + 1)
+
+    def scales(self) -> np.ndarray:
+        """(13,) typical sizes of r (L), p (1), n (B/L²), m (B/L) for norms."""
+        b = float(np.max(self.stiffness[:, :2]))
+        L = self.length
+        return np.array([L] * 3 + [1.0] * 4 + [b / L**2] * 3 + [b / L] * 3)
+
+
+def uniform(length: float, n_segments: int, stiffness, start: EndSpec, end: EndSpec,
+            load=(0.0, 0.0, 0.0), **kw) -> StaticProblem:
+    """A uniform rod: ``stiffness`` (3,) EJ1, EJ2, GJ3 (N m²), ``load`` (3,) N/m."""
+    n1 = n_segments + 1
+    return StaticProblem(length=float(length), n_segments=int(n_segments),
+                         stiffness=np.tile(np.asarray(stiffness, float), (n1, 1)),
+                         load=np.tile(np.asarray(load, float), (n1, 1)),
+                         start=start, end=end, **kw)
+
+
+# --------------------------------------------------------------------------- residual
+
+def residual(Y, prob: StaticProblem) -> np.ndarray:
+    """The 13(N+1) static rows (7 start, 13 per cell, 6 end) of the node unknowns.
+
+    Y : (N+1, 13) real or complex (complex step). Returns (13(N+1),) of Y's dtype.
+    Row units: m (positions), 1 (quaternions), N (forces), N m (moments).
+    """
+    out = np.empty(NV * (prob.n_segments + 1), dtype=Y.dtype)
+    out[N_START:-N_END] = _cell_rows(Y, prob).ravel()
+    out[:N_START], out[-N_END:] = _end_rows(Y, prob)
+    return out
+
+
+def _cell_rows(Y, prob: StaticProblem) -> np.ndarray:
+    """The box rule on every cell: Y (..., N+1, 13) -> (..., N, 13) (leading axes: a
+    batch of states, the complex step's column groups)."""
+    h = prob.h
+    r, p, n, m = Y[..., 0:3], Y[..., 3:7], Y[..., 7:10], Y[..., 10:13]
+    R = _rot(p)
+    a3 = R[..., :, 2]
+    kappa = np.einsum("...kji,...kj->...ki", R, m) / prob.stiffness
+    kbar = 0.5 * (kappa[..., :-1, :] + kappa[..., 1:, :])
+    zero = np.zeros(kbar.shape[:-1] + (1,), dtype=kbar.dtype)
+    omega = np.concatenate([zero, kbar], axis=-1)
+    cell = np.empty(Y.shape[:-2] + (prob.n_segments, NV), dtype=Y.dtype)
+    cell[..., 0:3] = r[..., 1:, :] - r[..., :-1, :] - 0.5 * h * (a3[..., :-1, :] + a3[..., 1:, :])
+    cell[..., 3:7] = (p[..., 1:, :] - p[..., :-1, :]
+                      - 0.25 * h * _qmul(p[..., :-1, :] + p[..., 1:, :], omega))
+    cell[..., 7:10] = n[..., 1:, :] - n[..., :-1, :] + 0.5 * h * (prob.load[:-1] + prob.load[1:])
+    an = np.cross(a3, n)
+    cell[..., 10:13] = m[..., 1:, :] - m[..., :-1, :] + 0.5 * h * (an[..., :-1, :] + an[..., 1:, :])
+    return cell
+
+
+def _end_rows(Y, prob: StaticProblem):
+    """The 7 rows at s = 0 and the 6 at s = L of Y (N+1, 13)."""
+    st, en = prob.start, prob.end
+    r0, p0, n0, m0 = Y[0, 0:3], Y[0, 3:7], Y[0, 7:10], Y[0, 10:13]
+    rN, pN, nN, mN = Y[-1, 0:3], Y[-1, 3:7], Y[-1, 7:10], Y[-1, 10:13]
+    start = np.empty(N_START, dtype=Y.dtype)
+    E = st.axes
+    start[0:3] = np.where(st.held, E.T @ (r0 - st.position), E.T @ (n0 + st.force))
+    if st.rotation_held:
+        start[3:7] = p0 - st.quaternion
+    else:
+        start[3:6] = m0
+        start[6] = p0 @ p0 - 1.0
+    end = np.empty(N_END, dtype=Y.dtype)
+    E = en.axes
+    end[0:3] = np.where(en.held, E.T @ (rN - en.position), E.T @ (nN - en.force))
+    end[3:6] = _qmul(_qconj(en.quaternion), pN)[1:] if en.rotation_held else mN
+    return start, end
+
+
+_PATTERNS: dict = {}
+
+
+def _pattern(n_segments: int):
+    """The CSC structure of the Jacobian (indices, indptr) and, per colour, the positions
+    of its entries in the CSC data and their rows (cached per N)."""
+    if n_segments in _PATTERNS:
+        return _PATTERNS[n_segments]
+    N = n_segments
+    k = np.arange(N + 1)
+    comp = np.arange(NV)
+    # rows touched by node k: its cells' 13 rows each, the start/end rows at the ends
+    blocks = []
+    for lo, hi, base in ((1, N + 1, lambda k: N_START + NV * (k - 1)),
+                         (0, N, lambda k: N_START + NV * k)):
+        kk = k[lo:hi]
+        r = (base(kk)[:, None] + comp[None, :])                    # (n, 13)
+        blocks.append((np.repeat(kk, NV), r.ravel()))
+    blocks.append((np.zeros(N_START, int), np.arange(N_START)))
+    blocks.append((np.full(N_END, N), NV * (N + 1) - N_END + np.arange(N_END)))
+    node = np.concatenate([b[0] for b in blocks])
+    row = np.concatenate([b[1] for b in blocks])
+    rows = np.repeat(row, NV)
+    cols = (NV * node[:, None] + comp[None, :]).ravel()
+    colour = ((node[:, None] % 2) * NV + comp[None, :]).ravel()
+    order = np.lexsort((rows, cols))
+    rows, cols, colour = rows[order], cols[order], colour[order]
+    n = NV * (N + 1)
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(cols, minlength=n))])
+    groups = []
+    for c in range(2 * NV):
+        pos = np.flatnonzero(colour == c)
+        groups.append((pos, rows[pos]))
+    pat = (rows, indptr, groups)
+    _PATTERNS[n_segments] = pat
+    return pat
+
+
+def jacobian(Y: np.ndarray, prob: StaticProblem) -> sp.csc_matrix:
+    """∂G/∂Y, exact to rounding (complex step by column groups, all 26 groups in one
+    batched evaluation of the cell rows), sparse (13(N+1))²."""
+    indices, indptr, groups = _pattern(prob.n_segments)
+    ng = len(groups)
+    Yc = np.empty((ng,) + Y.shape, dtype=complex)
+    Yc[:] = Y
+    for c in range(ng):
+        par, comp = divmod(c, NV)
+        Yc[c, par::2, comp] += 1j * _EPS
+    G = np.empty((ng, Y.size))
+    G[:, N_START:-N_END] = _cell_rows(Yc, prob).reshape(ng, -1).imag
+    vals = np.empty(indices.size)
+    for c, (pos, rows) in enumerate(groups):
+        start, end = _end_rows(Yc[c], prob)
+        G[c, :N_START], G[c, -N_END:] = start.imag, end.imag
+        vals[pos] = G[c, rows]
+    vals /= _EPS
+    n = NV * (prob.n_segments + 1)
+    return sp.csc_matrix((vals, indices, indptr), shape=(n, n))
+
+
+# --------------------------------------------------------------------------- Newton
+
+def straight_guess(prob: StaticProblem) -> np.ndarray:
+    """(N+1, 13): the straight rod from the start end along its tangent, twisted
+    uniformly from the start's to the end's ``twist``, no internal loads."""
+    N = prob.n_segments
+    s = prob.s
+    q0 = prob.start.quaternion if prob.start.rotation_held else prob.reference
+    a3 = _rot(q0)[:, 2]
+    r0 = prob.start.position if np.all(prob.start.held) else np.zeros(3)
+    Y = np.zeros((N + 1, NV))
+    Y[:, 0:3] = r0 + s[:, None] * a3
+    dtw = (prob.end.twist - prob.start.twist) if prob.end.rotation_held else 0.0
+    for k in range(N + 1):
+        Y[k, 3:7] = _qmul(q0, quat_axis_angle([0, 0, 1], dtw * s[k] / prob.length))
+    return Y
+
+
+def lu_det_sign(lu) -> int:
+    """Sign of det A from a scipy ``splu`` factor (Pr A Pc = L U, L unit lower)."""
+    d = lu.U.diagonal()
+    sign = int(np.prod(np.sign(d)))
+    for perm in (lu.perm_r, lu.perm_c):
+        sign *= _perm_parity(perm)
+    return sign
+
+
+def _perm_parity(perm: np.ndarray) -> int:
+    n = perm.size
+    seen = np.zeros(n, bool)
+    cycles = 0
+    for i in range(n):
+        if not seen[i]:
+            cycles += 1
+            j = i
+            while not seen[j]:
+                seen[j] = True
+                j = perm[j]
+    return -1 if (n - cycles) % 2 else 1
+
+
+def factor(A):
+    """splu of a sparse square matrix; raises :class:`StaticsError` when singular."""
+    try:
+        lu = spla.splu(sp.csc_matrix(A))
+    except RuntimeError as exc:
+        raise StaticsError(f"singular Jacobian ({exc})") from exc
+    d = np.abs(lu.U.diagonal())
+    if not np.all(np.isfinite(d)) or d.min() <= 1e-14 * d.max():
+        raise StaticsError("singular Jacobian (a pivot is zero to rounding)")
+    return lu
+
+
+@dataclass
+class StaticSolution:
+    """A converged equilibrium: ``Y`` (N+1, 13), Newton ``iterations``, scaled ``residual``."""
+
+    Y: np.ndarray
+    iterations: int
+    residual: float
+    problem: StaticProblem
+
+
+def solve(prob: StaticProblem, Y0: Optional[np.ndarray] = None, *, tol: float = 1e-10,
+          max_iterations: int = 30, ramp: bool = True) -> StaticSolution:
+    """Newton with the exact Jacobian from ``Y0`` (default :func:`straight_guess`).
+
+    Converged when the scaled update (by :meth:`StaticProblem.scales`) is below ``tol``.
+    Without convergence from the start and with ``ramp``, the dead loads (distributed
+    and end forces) are raised from 0 in steps (halved on a failure, at most 64 solves),
+    each solve starting from the last. Raises :class:`StaticsError` on a singular
+    Jacobian or no convergence.
+    """
+    try:
+        return _newton(prob, Y0, tol, max_iterations)
+    except StaticsError:
+        if not ramp:
+            raise
+    Y, a, da, solves = Y0, 0.0, 0.25, 0
+    while a < 1.0:
+        b = min(1.0, a + da)
+        try:
+            sol = _newton(scaled_loads(prob, b), Y, tol, max_iterations)
+        except StaticsError:
+            da *= 0.5
+            solves += 1
+            if solves > 64 or da < 1e-4:
+                raise
+            continue
+        Y, a, solves = sol.Y, b, solves + 1
+        da = min(2 * da, 0.5)
+    return StaticSolution(sol.Y, sol.iterations, sol.residual, prob)
+
+
+def scaled_loads(prob: StaticProblem, a: float) -> StaticProblem:
+    """``prob`` with every dead load (distributed, end forces) times ``a``."""
+    return replace(prob, load=a * prob.load, start=replace(prob.start, force=a * prob.start.force),
+                   end=replace(prob.end, force=a * prob.end.force))
+
+
+def _newton(prob, Y0, tol, max_iterations):
+    Y = straight_guess(prob) if Y0 is None else np.array(Y0, float)
+    scale = prob.scales()
+    for it in range(1, max_iterations + 1):
+        G = residual(Y, prob)
+        lu = factor(jacobian(Y, prob))
+        dY = lu.solve(G).reshape(Y.shape)
+        if not np.all(np.isfinite(dY)):
+            raise StaticsError("Newton: non-finite update")
+        Y = Y - dY
+        err = float(np.max(np.abs(dY) / scale))
+        if err < tol:
+            return StaticSolution(Y, it, err, prob)
+    raise StaticsError(f"Newton did not converge in {max_iterations} iterations "
+                       f"(scaled update {err:.3g})")
+
+
+# --------------------------------------------------------------------------- stability
+
+def mass_matrix(Y: np.ndarray, prob: StaticProblem) -> sp.csc_matrix:
+    """B of the pencil J z = μ B z (see the module docstring): ρA h/2 on the force rows
+    against δr of the cell's nodes, I h/2 on the moment rows against δθ = 2 vec(δp ⊗ p̄)."""
+    N, h = prob.n_segments, prob.h
+    mass = np.ones(N + 1) if prob.mass is None else np.asarray(prob.mass, float)
+    inert = (np.full(N + 1, 1e-2 * prob.length**2) * mass if prob.inertia is None
+             else np.asarray(prob.inertia, float))
+    rows, cols, vals = [], [], []
+    for i in range(N):
+        base = N_START + NV * i
+        for k in (i, i + 1):
+            for c in range(3):
+                rows.append(base + 7 + c)
+                cols.append(NV * k + c)
+                vals.append(0.5 * h * mass[k])
+            w, v = Y[k, 3], Y[k, 4:7]
+            D = np.zeros((3, 4))
+            D[:, 0] = -2 * v
+            D[:, 1:] = 2 * (w * np.eye(3) + np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]],
+                                                      [-v[1], v[0], 0]]))
+            for a in range(3):
+                for b in range(4):
+                    rows.append(base + 10 + a)
+                    cols.append(NV * k + 3 + b)
+                    vals.append(0.5 * h * inert[k] * D[a, b])
+    n = NV * (N + 1)
+    return sp.csc_matrix((vals, (rows, cols)), shape=(n, n))
+
+
+def unstable_modes(Y: np.ndarray, prob: StaticProblem, k: int = 8, lu=None):
+    """Number of unstable modes of the equilibrium ``Y`` and the eigenvalues μ = −ω²
+    (1/s², per the mass and inertia of ``prob``) nearest zero, by shift-invert Arnoldi on
+    J⁻¹ B (μ > 0: ω² < 0, unstable). Returns (count, μ sorted by |μ|).
+    """
+    J = jacobian(Y, prob)
+    lu = factor(J) if lu is None else lu
+    B = mass_matrix(Y, prob)
+    n = J.shape[0]
+    op = spla.LinearOperator((n, n), matvec=lambda x: lu.solve(B @ x), dtype=float)
+    k = min(k, n - 2)
+    nu = spla.eigs(op, k=k, which="LM", return_eigenvectors=False, tol=1e-8,
+                   v0=np.ones(n))
+    nu = nu[np.abs(nu) > 0]
+    mu = 1.0 / nu
+    mu = mu[np.argsort(np.abs(mu))]
+    real = np.abs(mu.imag) <= 1e-6 * np.abs(mu)
+    count = int(np.sum(real & (mu.real > 0)))
+    return count, mu
+
+
+def critical_mode(Y: np.ndarray, prob: StaticProblem) -> np.ndarray:
+    """(N+1, 13) the eigenvector of the pencil with μ nearest zero (real part), scaled
+    to a largest position component of 1 m."""
+    J = jacobian(Y, prob)
+    lu = factor(J)
+    B = mass_matrix(Y, prob)
+    n = J.shape[0]
+    op = spla.LinearOperator((n, n), matvec=lambda x: lu.solve(B @ x), dtype=float)
+    nu, vec = spla.eigs(op, k=min(6, n - 2), which="LM", tol=1e-10, v0=np.ones(n))
+    z = vec[:, int(np.argmax(np.abs(nu)))].real.reshape(-1, NV)
+    return z / np.max(np.abs(z[:, 0:3]))
+
+
+# --------------------------------------------------------------------------- derived fields
+
+def fields(Y: np.ndarray, prob: StaticProblem) -> dict:
+    """Positions (N+1, 3) m, κ (N+1, 3) 1/m, quaternions (N+1, 4), internal force and
+    moment (N+1, 3) N, N m, the elastic energy ½∫κ·Kκ ds (J, trapezoid) and the potential
+    of the dead loads −∫f·r ds − Σ F·r over the ends' loaded components (J)."""
+    R = _rot(Y[:, 3:7])
+    kappa = np.einsum("kji,kj->ki", R, Y[:, 10:13]) / prob.stiffness
+    w = np.full(prob.n_segments + 1, prob.h)
+    w[0] = w[-1] = 0.5 * prob.h
+    elastic = 0.5 * float(np.sum(w * np.sum(prob.stiffness * kappa**2, axis=1)))
+    potential = -float(np.sum(w * np.sum(prob.load * Y[:, 0:3], axis=1)))
+    for end, r in ((prob.start, Y[0, 0:3]), (prob.end, Y[-1, 0:3])):
+        loaded = ~end.held
+        fa = end.axes.T @ end.force
+        ra = end.axes.T @ r
+        potential -= float(np.sum(fa[loaded] * ra[loaded]))
+    return {"position": Y[:, 0:3], "kappa": kappa, "quaternion": Y[:, 3:7],
+            "force": Y[:, 7:10], "moment": Y[:, 10:13], "elastic_energy": elastic,
+            "load_potential": potential}
+
+
+# --------------------------------------------------------------------------- from a case
+
+def _integral(cond, t0: float, t1: float) -> float:
+    """∫ value dt of a Condition over [t0, t1] (piecewise-linear table held at its ends)."""
+    from .case import Table
+
+    v = cond.value
+    if not isinstance(v, Table):
+        return float(v) * (t1 - t0)
+    tt = np.unique(np.concatenate([[t0, t1], [x for x in v.t if t0 < x < t1]]))
+    vals = np.array([v.value_at(x) for x in tt])
+    return float(np.trapezoid(vals, tt)) if hasattr(np, "trapezoid") else float(np.trapz(vals, tt))
+
+
+def _dof(conditions, t: float, where: str):
+    """(kind of the condition in force at t, its value at t, its integral over [0, t]);
+    raises StaticsError if a kinematic condition at t follows a load before t."""
+    t0 = 0.0
+    total = 0.0
+    for j, cond in enumerate(conditions):
+        t1 = t if cond.until is None else min(t, cond.until)
+        if cond.kinematic or cond.kind == "position":
+            if cond.kind != "position":
+                total += _integral(cond, t0, t1) if t1 > t0 else 0.0
+        if cond.until is None or t <= cond.until:
+            if j > 0 and cond.kinematic and not all(c.kinematic for c in conditions[:j]):
+                raise StaticsError(f"{where}: held at t = {t} s after a load phase: the "
+                                   "static problem does not know where the end stopped")
+            if cond.kind == "position":
+                return "position", cond.value_at(t), None
+            return cond.kind, cond.value_at(t), total
+        t0 = cond.until
+    raise AssertionError("validated conditions cover every time")
+
+
+def _dead_loads(case, props, t: float):
+    """(N+1, 3) dead force per length (N/m) at the nodes at time t: gravity with buoyancy,
+    the active distributed forces, interior point loads as P/Δs; and the point loads at
+    the ends {"start": (3,), "end": (3,)} (N). Raises StaticsError for a follower point
+    load or one between nodes."""
+    s = props.s
+    N = s.size - 1
+    load = np.zeros((N + 1, 3))
+    if case.gravity is not None:
+        rho_f = case.fluid.density if case.fluid is not None else 0.0
+        rho = np.asarray(case.rod.evaluate("density", s), float)
+        load += ((rho - rho_f) * props.area)[:, None] * np.asarray(case.gravity, float)
+    for i, dfc in enumerate(case.distributed_forces):
+        if t < dfc.start or (dfc.end is not None and t > dfc.end):
+            continue
+        fac = 1.0 if dfc.factor is None else dfc.factor.value_at(t)
+        mask = np.ones(N + 1, bool)
+        if dfc.s_range is not None:
+            mask = (s >= dfc.s_range[0] - 1e-12) & (s <= dfc.s_range[1] + 1e-12)
+        load[mask] += fac * np.asarray(dfc.value, float)
+    extra_force = {"start": np.zeros(3), "end": np.zeros(3)}
+    for i, pl in enumerate(case.point_loads):
+        if t < pl.start or (pl.end is not None and t > pl.end):
+            continue
+        if pl.body:
+            raise StaticsError(f"point_loads.{i}.body: a follower load is not conservative; "
+                               "the static problem takes dead loads (body: false)")
+        k = int(round(pl.s / props.ds))
+        if abs(k * props.ds - pl.s) > 1e-9 * case.rod.length:
+            raise StaticsError(f"point_loads.{i}.s: {pl.s} m is not a grid node")
+        fac = 1.0 if pl.factor is None else pl.factor.value_at(t)
+        P = fac * np.asarray(pl.value, float)
+        if k == 0:
+            extra_force["start"] += P
+        elif k == N:
+            extra_force["end"] += P
+        else:
+            load[k] += P / props.ds
+    return load, extra_force
+
+
+def _end_spec(ec, where: str, qk, rk, t: float, extra) -> EndSpec:
+    """The :class:`EndSpec` of the case's end conditions ``ec`` at time t, the end's
+    initial frame qk (4,) and position rk (3,) m, plus point loads ``extra`` (3,) N at the
+    end. Raises StaticsError naming ``where`` for what a static problem cannot take."""
+    rot = [_dof(ec.rotation[i], t, f"{where}.rotation.{i}") for i in range(3)]
+    kinds = {kd for kd, _, _ in rot}
+    if kinds == {"angular_velocity"}:
+        angles = [a for _, _, a in rot]
+        if ec.frame == "global" or (angles[0] == 0 and angles[1] == 0):
+            twist = 0.0 if ec.frame == "global" else angles[2]
+        else:
+            raise StaticsError(f"{where}.rotation: the static problem turns a held end "
+                               "about its tangent a3 only (items 0 and 1 integrate to 0)")
+        quat = _qmul(qk, quat_axis_angle([0, 0, 1], twist))
+        held_rot = True
+    elif kinds == {"moment"}:
+        if any(v != 0 for _, v, _ in rot):
+            raise StaticsError(f"{where}.rotation: an end moment in the body frame is a "
+                               "follower moment; the static problem takes moment 0 "
+                               "(free) or a held rotation")
+        quat, twist, held_rot = qk, 0.0, False
+    else:
+        raise StaticsError(f"{where}.rotation: mixed angular_velocity and moment items "
+                           "are not a static end condition; hold all or free all")
+    axes = np.eye(3) if ec.frame == "global" else _rot(quat)
+    held = np.zeros(3, bool)
+    pos = np.array(rk, float)
+    force = np.zeros(3)
+    for i in range(3):
+        kind, value, integral = _dof(ec.translation[i], t, f"{where}.translation.{i}")
+        if kind == "position":
+            held[i] = True
+            pos = pos + (value - axes[:, i] @ pos) * axes[:, i]
+        elif kind == "velocity":
+            held[i] = True
+            if ec.frame != "global" and i < 2 and integral != 0 and twist != 0:
+                raise StaticsError(f"{where}.translation.{i}: a body-frame velocity "
+                                   "across a turning end depends on the path")
+            pos = pos + integral * axes[:, i]
+        else:
+            if not held_rot and ec.frame != "global" and value != 0:
+                raise StaticsError(f"{where}.translation.{i}: a body-frame force on an "
+                                   "end free to turn is a follower load")
+            force = force + value * axes[:, i]
+    force = force + extra
+    return EndSpec(axes=axes, held=held, position=pos, force=force,
+                   rotation_held=held_rot, quaternion=quat, twist=twist)
+
+
+def static_problem(case, time: Optional[float] = None) -> StaticProblem:
+    """The static problem of a validated :class:`solver.case.Case` at ``time`` (s;
+    default ``numerics.t_end``): the end conditions in force then, velocities and angular
+    velocities integrated from 0 to ``time`` into positions and rotation angles from the
+    initial configuration, the dead loads active then.
+
+    Supported (else :class:`StaticsError` naming the field): a rotation held (every item
+    angular_velocity) turning about the end's tangent a3 only, or free under zero moments;
+    body-frame velocities of a turning end along a3 only; end forces on an end whose
+    rotation is held (dead in its fixed frame) or with ``frame: global``; point loads with
+    ``body: false`` at grid nodes. Self-contact, fluid drag and the seabed do not enter.
+    """
+    from .initial import initial_pose
+    from .properties import RodProperties
+
+    t = float(case.numerics.t_end if time is None else time)
+    if not np.isfinite(t) or t < 0:
+        raise StaticsError(f"time: {t} is not a time >= 0")
+    props = RodProperties.from_case(case)
+    N = case.numerics.n_segments
+    s = props.s
+    q, r, _ = initial_pose(case, s)        # the ends' initial frames and positions
+    load, extra_force = _dead_loads(case, props, t)
+    ends = {}
+    for name, k in (("start", 0), ("end", N)):
+        ends[name] = _end_spec(getattr(case.boundary, name), f"boundary.{name}", q[k], r[k],
+                               t, extra_force[name])
+    inertia = np.asarray(props.inertia[:, 0], float)
+    return StaticProblem(length=float(case.rod.length), n_segments=N,
+                         stiffness=np.asarray(props.stiffness, float), load=load,
+                         start=ends["start"], end=ends["end"], mass=props.rho_a,
+                         inertia=inertia, reference=np.asarray(q[0], float))
+
+
+def with_load(prob: StaticProblem, **changes) -> StaticProblem:
+    """A copy of ``prob`` with fields replaced (dataclasses.replace)."""
+    return replace(prob, **changes)
+
+
+# --------------------------------------------------------------------------- a dynamic start
+
+def start_state(Y: np.ndarray, prob: StaticProblem, mode: Optional[np.ndarray] = None,
+                amplitude: float = 0.0, t: float = 0.0):
+    """A :class:`solver.initial.StartState` at rest (v = ω = 0) in the equilibrium ``Y``
+    (N+1, 13), plus ``amplitude`` (m) times ``mode`` ((N+1, 13), e.g. :func:`critical_mode`,
+    largest position component 1 m) when given: f = Rᵀn, κ = K⁻¹Rᵀm (body frame, the
+    dynamic scheme's unknowns), q renormalised, r as they are, the end rotations about a3
+    (the linking number's φ) from the ends' ``twist``. Time ``t`` (s)."""
+    from .initial import StartState
+
+    Z = np.array(Y, float)
+    if mode is not None and amplitude != 0.0:
+        Z = Z + float(amplitude) * np.asarray(mode, float)
+    q = Z[:, 3:7] / np.linalg.norm(Z[:, 3:7], axis=1)[:, None]
+    R = _rot(q)
+    f = np.einsum("kji,kj->ki", R, Z[:, 7:10])
+    kappa = np.einsum("kji,kj->ki", R, Z[:, 10:13]) / prob.stiffness
+    zeros = np.zeros_like(f)
+    return StartState(t=float(t), v=zeros, omega=zeros.copy(), f=f, kappa=kappa, q=q,
+                      r=np.ascontiguousarray(Z[:, 0:3]),
+                      phi=np.array([prob.start.twist, prob.end.twist], float))

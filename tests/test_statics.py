@@ -1,0 +1,244 @@
+"""Static equilibria and their continuation (solver/statics.py, solver/continuation.py)
+against analytic results: Mattiasson's cantilever, Euler's clamped-clamped column and its
+elastica, Greenhill's twisted rod; the unstable-mode counts; bad input."""
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+from scipy.special import ellipe, ellipk
+
+from solver import statics as st
+from solver.continuation import ContinuationError, branch_dataset, continuation
+
+#: Mattiasson's table: P L²/EI -> (w/L, x/L) of the tip under a dead load
+#: (also in tests/test_point_loads.py, for the dynamic scheme)
+MATTIASSON = {1: (0.30172, 0.94357), 2: (0.49346, 0.83936), 10: (0.81061, 0.44501)}
+#: Greenhill: a clamped-clamped rod under a twisting moment M and no axial force buckles at
+#: M L / B = 2.8606 π (Greenhill 1883; Love, Treatise §272; van der Heijden & Thompson 2000)
+GREENHILL = 8.9868
+
+
+def euler_column(P, N=100, B=(1.0, 2.0, 1.0), L=1.0):
+    """Clamped at s = 0; at s = L clamped in rotation and laterally, sliding along z under
+    the compressive force P (N). B1 < B2: the first buckling mode is simple."""
+    return st.uniform(L, N, B, st.clamp([0, 0, 0], [1, 0, 0, 0]),
+                      st.clamp([0, 0, L], [1, 0, 0, 0], held=(True, True, False),
+                               force=(0, 0, -P)))
+
+
+def test_jacobian_matches_central_differences():
+    rng = np.random.default_rng(3)
+    prob = st.uniform(1.0, 6, (1.0, 2.0, 0.7), st.clamp([0, 0, 0], [1, 0, 0, 0]),
+                      st.free_end([0.3, -0.2, 0.1]), load=(0.1, 0.0, -0.5))
+    Y = rng.standard_normal((7, st.NV))
+    J = st.jacobian(Y, prob).toarray()
+    Jf = np.zeros_like(J)
+    e = 1e-6
+    for j in range(J.shape[1]):
+        d = np.zeros(Y.size)
+        d[j] = e
+        Jf[:, j] = (st.residual(Y + d.reshape(Y.shape), prob)
+                    - st.residual(Y - d.reshape(Y.shape), prob)) / (2 * e)
+    assert np.max(np.abs(J - Jf)) < 1e-7 * np.max(np.abs(J))
+
+
+@pytest.mark.parametrize("load", [1, 2, 10])
+def test_cantilever_dead_tip_load_mattiasson(load):
+    """Within 0.1 % of Mattiasson's table at 100 segments (measured 0.002-0.01 %)."""
+    prob = st.uniform(1.0, 100, (1.0, 1.0, 0.8), st.clamp([0, 0, 0], [1, 0, 0, 0]),
+                      st.free_end([-load, 0, 0]))
+    sol = st.solve(prob)
+    w, x = -sol.Y[-1, 0], sol.Y[-1, 2]
+    w_ref, x_ref = MATTIASSON[load]
+    assert abs(w / w_ref - 1) < 1e-3 and abs(x / x_ref - 1) < 1e-3
+    assert np.allclose(np.linalg.norm(sol.Y[:, 3:7], axis=1), 1.0, atol=1e-12)
+
+
+def test_euler_branch_point_modes_and_elastica():
+    """First branch point at 4π²B/L² within 0.1 % at 100 segments; 0 unstable modes below
+    it, 1 above on the straight branch, 0 on the buckled branch; end shortening of the
+    elastica against the elliptic-integral solution within 0.5 % from P = 1.25 P_c."""
+    pc = 4 * np.pi**2
+    br = continuation(lambda P: euler_column(P), 0.0, 1.5 * pc, switch=True, max_points=80)
+    assert br.stopped == "reached the target value"
+    bps = [b for b in br.bifurcations if b.kind == "branch_point"]
+    assert len(bps) == 1 and bps[0].simple
+    assert abs(bps[0].parameter / pc - 1) < 1e-3
+    k = br.switched_at
+    P = np.asarray(br.parameter)
+    u = np.asarray(br.unstable)
+    assert np.all(u[:k][P[:k] < bps[0].parameter] == 0)
+    assert u[k] == 1 and P[k] > bps[0].parameter       # straight, just past the branch point
+    assert np.all(u[k + 1:] == 0)                       # the buckled branch is stable
+
+    def shortening(p):   # clamped-clamped: K(m) = (L/4)√(P/B), Δ/L = 2(1 − E/K)
+        m = brentq(lambda m: ellipk(m) - 0.25 * np.sqrt(p), 0.0, 1 - 1e-15)
+        return 2 * (1 - ellipe(m) / ellipk(m))
+
+    checked = 0
+    for p, Y in zip(P[k + 1:], br.Y[k + 1:]):
+        if p >= 1.25 * pc:
+            assert abs((1 - (Y[-1, 2] - Y[0, 2])) / shortening(p) - 1) < 5e-3
+            checked += 1
+    assert checked >= 3
+
+
+def test_greenhill_twisted_rod():
+    """Branch point at M L/B = 8.9868 within 0.1 % (M = GJ Θ/L on the straight branch);
+    the helical pair of an isotropic rod: two modes become unstable together."""
+    L, B, C = 1.0, 1.0, 1.0 / 1.3
+
+    def prob(theta):
+        return st.uniform(L, 100, (B, B, C), st.clamp([0, 0, 0], [1, 0, 0, 0]),
+                          st.clamp([0, 0, L], st.quat_axis_angle([0, 0, 1], theta), theta,
+                                   held=(True, True, False)))
+
+    tc = GREENHILL * B / C
+    br = continuation(prob, 0.0, 1.2 * tc, max_points=60)
+    bps = [b for b in br.bifurcations if b.kind == "branch_point"]
+    assert len(bps) == 1 and not bps[0].simple
+    assert abs(bps[0].parameter * C / B / GREENHILL - 1) < 1e-3
+    u = np.asarray(br.unstable)
+    assert set(u[: bps[0].after + 1]) == {0} and set(u[bps[0].after + 1:]) == {2}
+    ds = branch_dataset(br, "theta")
+    M = ds["end_moment"].sel(xyz="z").values
+    straight = ds["parameter"].values < tc
+    assert np.allclose(M[straight], C * ds["parameter"].values[straight] / L, rtol=1e-3)
+    assert ds["bifurcation_kind"].values.tolist() == ["branch_point"]
+    assert np.allclose(ds["link"], ds["parameter"] / (2 * np.pi))
+    assert np.allclose(ds["twist"][straight], ds["link"][straight], rtol=1e-3)
+
+
+def test_bad_input_refused_before_work():
+    with pytest.raises(ContinuationError, match="does not move"):
+        continuation(lambda P: euler_column(P, N=10), 1.0, 1.0)
+    # both ends free: a rigid-body motion, no unique equilibrium
+    free = st.uniform(1.0, 10, (1, 1, 1), st.free_end(), st.free_end())
+    with pytest.raises(ContinuationError, match="singular"):
+        continuation(lambda a: free, 0.0, 1.0)
+
+
+# --------------------------------------------------------------------------- from a case
+
+def _column_case(n=40):
+    from pathlib import Path
+
+    from solver.case import parse_text
+
+    doc = parse_text(Path("cases/euler-column.yaml").read_text(), "yaml")
+    doc["numerics"]["n_segments"] = n
+    return doc
+
+
+FORCE = "boundary.end.translation.2.force"
+
+
+def test_case_static_problem_and_equilibrium():
+    """The example case: EJ from the diameter, the end force read in the end's body frame,
+    the equilibrium straight and stable under 0.1 N of compression."""
+    from hockle.api import equilibrium
+    from solver.case import Case
+
+    case = Case.model_validate(_column_case())
+    prob = st.static_problem(case)
+    ej = 2.0e8 * np.pi * 0.005**4 / 64
+    assert np.allclose(prob.stiffness[:, 0], ej) and np.allclose(prob.stiffness[:, 2], ej / 1.25)
+    assert list(prob.end.held) == [True, True, False] and prob.end.force[2] == -0.1
+    ds = equilibrium(case)
+    assert ds["unstable_modes"].values.tolist() == [0]
+    assert np.allclose(ds["end_force"].values[0], [0, 0, -0.1])
+    assert abs(ds["end_position"].values[0, 2] - 1.0) < 1e-12      # inextensible
+
+
+def test_cli_continue_and_plot(tmp_path, capsys):
+    """hockle continue: the round column's first branch point (a pair of modes) at
+    -4π² EJ/L² within 0.1 %, written for hockle plot; bad input exits 2 before any work."""
+    import json
+
+    from hockle.cli import main
+    from hockle.io import open_result
+
+    path = tmp_path / "column.json"
+    path.write_text(json.dumps(_column_case(100)))
+    out = tmp_path / "branch.nc"
+    assert main(["continue", str(path), "--parameter", FORCE, "--to", "-0.3", "-q",
+                 "-o", str(out)]) == 0
+    ds = open_result(out)
+    pc = -4 * np.pi**2 * 2.0e8 * np.pi * 0.005**4 / 64
+    assert ds["bifurcation_kind"].values.tolist() == ["branch_point"]
+    assert abs(float(ds["bifurcation_parameter"][0]) / pc - 1) < 1e-3
+    assert ds["bifurcation_simple"].values.tolist() == [0]
+    u = ds["unstable_modes"].values
+    assert u[0] == 0 and u[-1] == 2
+    assert ds.attrs["parameter_path"] == FORCE and ds["position"].dims == ("point", "node", "xyz")
+    assert main(["plot", str(out), "-o", str(tmp_path / "plots")]) == 0
+    assert (tmp_path / "plots" / "branch_bifurcation.png").stat().st_size > 0
+    capsys.readouterr()
+    for argv, words in (([FORCE[:-6], "--to", "1"], "not a scalar"),
+                        (["rod.nowhere", "--to", "1"], "not a field"),
+                        ([FORCE, "--to", "-0.1"], "does not move"),
+                        (["rod.diameter", "--to", "-1"], "invalid")):
+        assert main(["continue", str(path), "--parameter", *argv, "-q",
+                     "-o", str(tmp_path / "x.nc")]) == 2
+        assert words in capsys.readouterr().err
+    assert not (tmp_path / "x.nc").exists()
+
+
+def test_dynamic_run_starts_from_the_equilibrium():
+    """A cantilever under gravity started at rest in its static equilibrium stays there:
+    its largest velocity over five steps is below 1e-3 of that of the same run started
+    straight (measured 3.1e-4 m/s against 0.56 m/s; the rest is the O(Δs²) difference
+    between the static and the dynamic box rule); with its critical mode added, the start
+    moves off the equilibrium by the amplitude asked for."""
+    from hockle.api import equilibrium_start, simulate
+
+    doc = {
+        "schema_version": 1, "name": "cantilever-gravity",
+        "rod": {"length": 1.0, "youngs_modulus": 2.0e8, "shear_modulus": 8.0e7,
+                "density": 1500.0, "diameter": 0.01},
+        "gravity": [-9.81, 0.0, 0.0],
+        "initial": {"tangent": [0, 0, 1], "normal": [1, 0, 0]},
+        "boundary": {
+            "start": {"translation": [{"velocity": 0}] * 3,
+                      "rotation": [{"angular_velocity": 0}] * 3},
+            "end": {"translation": [{"force": 0}] * 3, "rotation": [{"moment": 0}] * 3}},
+        "numerics": {"n_segments": 40, "dt": 0.01, "t_end": 0.05},
+        "output": {"fields": ["v", "position"]},
+    }
+    start = equilibrium_start(doc)
+    moved = simulate(doc, start=start)
+    straight = simulate(doc)
+    v_eq = float(np.abs(moved["v"].values).max())
+    v_straight = float(np.abs(straight["v"].values).max())
+    assert v_eq < 1e-3 * v_straight
+    assert np.allclose(moved["position"].values[0], start.r)
+    kicked = equilibrium_start(doc, amplitude=1e-3)
+    assert abs(np.max(np.abs(kicked.r - start.r)) - 1e-3) < 1e-9
+
+
+def test_case_ends_integrated_and_point_loads():
+    """End rotations are ∫ω dt (a table integrated piecewise), held positions ∫v dt; an
+    interior point load (linear regime) gives the cantilever's tip deflection
+    P a²(3L − a)/(6EJ) within 0.1 % at 100 segments; a follower point load is refused."""
+    from solver.case import Case
+
+    doc = _column_case(100)
+    doc["boundary"]["start"]["rotation"][2] = {"angular_velocity": {"t": [0, 1, 2],
+                                                                    "value": [0, 2.0, 2.0]}}
+    doc["boundary"]["start"]["translation"][2] = {"velocity": 0.01}
+    doc["numerics"]["t_end"] = 2.0
+    prob = st.static_problem(Case.model_validate(doc))
+    assert prob.start.twist == pytest.approx(3.0)              # 1 + 2 rad
+    assert np.allclose(prob.start.quaternion, st.quat_axis_angle([0, 0, 1], 3.0))
+    assert np.allclose(prob.start.position, [0, 0, 0.02])
+    cant = _column_case(100)
+    cant["boundary"]["end"] = {"translation": [{"force": 0}] * 3, "rotation": [{"moment": 0}] * 3}
+    P, a = 1e-5, 0.6
+    cant["point_loads"] = [{"s": a, "value": [P, 0, 0]}]
+    case = Case.model_validate(cant)
+    prob = st.static_problem(case)
+    Y = st.solve(prob).Y
+    ej = prob.stiffness[0, 0]
+    assert Y[-1, 0] == pytest.approx(P * a**2 * (3 - a) / (6 * ej), rel=1e-3)
+    cant["point_loads"][0]["body"] = True
+    with pytest.raises(st.StaticsError, match="point_loads.0.body"):
+        st.static_problem(Case.model_validate(cant))
