@@ -309,7 +309,8 @@ class _Tracer:
             events.append("fold")
         if det_new != self.det:
             events.append("branch_point")
-        elif o["stability"] and "fold" not in events and br.unstable[-1] != br.unstable[-2]:
+        elif (o["stability"] and "fold" not in events and min(br.unstable[-2:]) >= 0
+              and br.unstable[-1] != br.unstable[-2]):
             events.append("even_branch_point")
         for kind in events:
             bif = (_locate(S, z, t, z_new, kind, o["newton_max"], o["tol"], self.det,

@@ -465,7 +465,8 @@ def mass_matrix(Y: np.ndarray, prob: StaticProblem) -> sp.csc_matrix:
 def unstable_modes(Y: np.ndarray, prob: StaticProblem, k: int = 8, lu=None):
     """Number of unstable modes of the equilibrium ``Y`` and the eigenvalues μ = −ω²
     (1/s², per the mass and inertia of ``prob``) nearest zero, by shift-invert Arnoldi on
-    J⁻¹ B (μ > 0: ω² < 0, unstable). Returns (count, μ sorted by |μ|).
+    J⁻¹ B (μ > 0: ω² < 0, unstable). Returns (count, μ sorted by |μ|); count -1 when
+    ARPACK converged on no eigenvalue.
     """
     J = jacobian(Y, prob)
     lu = factor(J) if lu is None else lu
@@ -473,8 +474,13 @@ def unstable_modes(Y: np.ndarray, prob: StaticProblem, k: int = 8, lu=None):
     n = J.shape[0]
     op = spla.LinearOperator((n, n), matvec=lambda x: lu.solve(B @ x), dtype=float)
     k = min(k, n - 2)
-    nu = spla.eigs(op, k=k, which="LM", return_eigenvectors=False, tol=1e-8,
-                   v0=np.ones(n))
+    try:
+        nu = spla.eigs(op, k=k, which="LM", return_eigenvectors=False, tol=1e-8,
+                       v0=np.ones(n))
+    except spla.ArpackNoConvergence as exc:      # the converged ones, or none: -1
+        nu = np.asarray(exc.eigenvalues)
+        if nu.size == 0:
+            return -1, np.array([], complex)
     nu = nu[np.abs(nu) > 0]
     mu = 1.0 / nu
     mu = mu[np.argsort(np.abs(mu))]
