@@ -566,7 +566,8 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
      rdot, A0, L, drag_b, drag_j, Jr, flags) = buf
     n1 = Y.shape[0]
     contact = cand[2].shape[0] > 0
-    need_pose = has_glob or contact or (has_points and sscal[5] != 0.0)
+    turning = sscal[6] != 0.0 or sscal[7] != 0.0
+    need_pose = has_glob or contact or (has_points and sscal[5] != 0.0) or turning
     for i in range(4):
         flags[i] = 0
     P = 0
@@ -630,6 +631,17 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
     for m in range(bc_rows.shape[0]):
         col = bc_cols[m]
         R[bc_rows[m]] = bc_coef[m] * Y[col // NV, col % NV] - bc_vals[m]
+    if turning:
+        # an end towed in the global frame with its rotation free: v − R^{n+1}ᵀ V, the
+        # end's new-level frame R^n exp(θ) of pose_into (values m0..m0+2: V, m/s)
+        for e in range(2):
+            if sscal[6 + e] != 0.0:
+                m0 = 6 * e
+                k = 0 if e == 0 else n1 - 1
+                for i in range(3):
+                    R[bc_rows[m0 + i]] = Y[k, V + i] - (Rm[k, 0, i] * bc_vals[m0]
+                                                        + Rm[k, 1, i] * bc_vals[m0 + 1]
+                                                        + Rm[k, 2, i] * bc_vals[m0 + 2])
     if want_jac:
         _cell_blocks_kernel(dF, mass_t, stiffness, inertia, cm, af, ds, blocks)
     if has_points:
@@ -769,7 +781,8 @@ class RodSystem:
             np.asarray(bc.rows, dtype=np.intp), np.asarray(bc.cols, dtype=np.intp),
             np.asarray(bc.coef, dtype=float), np.asarray(bc.values, dtype=float),
             np.array([dt, self.cm, af, float(glob is not None), float(has_r),
-                      float(self.needs_pose)])) + self._point_data(t_new, dt, left_limit,
+                      float(self.needs_pose), float(bc.turning[0]), float(bc.turning[1])])
+        ) + self._point_data(t_new, dt, left_limit,
                                                                    Y_old, q_old, af)
         # what the Jacobian's band part depends on besides the iterate (solver.newton
         # keeps a factorisation across steps while this is unchanged)
