@@ -16,7 +16,7 @@ import numpy as np
 
 from .banded import NV
 
-__all__ = ["BoundaryRows", "boundary_plan", "global_translation", "position_rate"]
+__all__ = ["BoundaryRows", "boundary_plan", "global_translation", "position_rate", "towed_free"]
 
 _GROUPS = ("translation", "rotation")
 
@@ -24,7 +24,8 @@ _GROUPS = ("translation", "rotation")
 def boundary_plan(case, props, n: int):
     """The 12 boundary rows of a case as (row, choices) pairs, each choice (until (s) or
     None, column, Jacobian entry, kinematic, value: a float or the table's (t, value)
-    arrays), in the case's order, so that :class:`BoundaryRows` finds the condition in
+    arrays, turning: a global velocity imposed through the end's new-level frame,
+    :func:`towed_free`), in the case's order, so that :class:`BoundaryRows` finds the condition in
     force at t without going through the case's models (the first choice whose until is
     None or ≥ t, ``EndCondition.active``'s rule). Built once per (case, grid) and kept
     on the case object."""
@@ -47,14 +48,14 @@ def boundary_plan(case, props, n: int):
                 frames = quat_to_matrix(initial_pose(case, props.s)[0][[0, -1]])
             R0 = frames[0 if end == "start" else 1]
             glob = [(None if phase[0].until is None else phase[0].until * (1.0 + UNTIL_RTOL),
-                     global_translation(ec, R0, phase))
+                     global_translation(ec, R0, phase), towed_free(ec, phase))
                     for phase in zip(*ec.translation)]
         for g, group in enumerate(_GROUPS):
             for i in range(3):
                 if glob is not None and group == "translation":
                     plan.append((row0 + i, [(until, NV * node + (0 if rows[i][0] else 6) + i,
-                                             1.0, rows[i][0], rows[i][1])
-                                            for until, rows in glob]))
+                                             1.0, rows[i][0], rows[i][1], turning)
+                                            for until, rows, turning in glob]))
                     continue
                 choices = []
                 for cond in getattr(ec, group)[i]:
@@ -69,7 +70,7 @@ def boundary_plan(case, props, n: int):
                     value = ((np.asarray(value.t, float), np.asarray(value.value, float))
                              if isinstance(value, Table) else float(value))
                     until = None if cond.until is None else cond.until * (1.0 + UNTIL_RTOL)
-                    choices.append((until, NV * node + idx, c, kinematic, value))
+                    choices.append((until, NV * node + idx, c, kinematic, value, False))
                 plan.append((row0 + 3 * g + i, choices))
     return plan
 
@@ -95,6 +96,23 @@ def position_rate(value, Table):
     return np.asarray(times), np.asarray(rates)
 
 
+def towed_free(ec, phase=None) -> bool:
+    """Whether an end with ``frame: global`` is moved (a velocity other than 0, or a
+    position table) while its rotation is free (moment 0): its body-frame velocity is
+    then v = R(t)ᵀ V(t) with R the end's frame at the new level, which the unknowns
+    decide (:func:`solver.scheme.residual_into`). ``phase``: the three translation
+    conditions in force together (None: the first)."""
+    from .case import Table
+
+    if ec.rotation_mode != "free":
+        return False
+    items = [c[0] for c in ec.translation] if phase is None else list(phase)
+    if items[0].kind == "force":
+        return False
+    return any(isinstance(c.value, Table) or (c.kind == "velocity" and c.value != 0.0)
+               for c in items)
+
+
 def global_translation(ec, R0, phase=None):
     """The three translation rows of an end with ``frame: global`` (docs/case-spec.md,
     "Global-frame ends") as (kinematic, value) per body component i, a value a float or
@@ -103,15 +121,18 @@ def global_translation(ec, R0, phase=None):
     initial one, R0 (3, 3) [a1 a2 a3], so the body components of the global velocity V
     (a position table's :func:`position_rate`) or of the global internal force F are
     R0ᵀ V, R0ᵀ F, exact and linear; on the union of the tables' knots they are again
-    piecewise linear. With the rotation free the end is held (v = 0) or its internal
-    force is 0 here and the dead force is a point load at the end
-    (:class:`solver.loads.PointLoads`)."""
+    piecewise linear. With the rotation free the end is held (v = 0), or moved
+    (:func:`towed_free`: the values are then the global components of V, turned into
+    the end's new-level frame by the residual), or its internal force is 0 here and the
+    dead force is a point load at the end (:class:`solver.loads.PointLoads`)."""
     from .case import Table
 
     items = [c[0] for c in ec.translation] if phase is None else list(phase)
     kinematic = items[0].kind != "force"
     if ec.rotation_mode == "free":
-        return [(kinematic, 0.0)] * 3
+        if not towed_free(ec, phase):
+            return [(kinematic, 0.0)] * 3
+        R0 = np.eye(3)
     series = []
     for c in items:
         if c.kind == "position":
@@ -147,16 +168,20 @@ class BoundaryRows:
     coef : (12,) float, the Jacobian entries (1, or the stiffness for a moment)
     values : (12,) float, prescribed values (m/s, rad/s, N, N m)
     kinematic : (12,) bool
+    turning : (2,) bool, per end (s = 0, s = L): its three translation rows hold a global
+        velocity V (values 0-2 or 6-8, m/s) imposed as v = R^{n+1}ᵀ V through the end's
+        new-level frame (:func:`towed_free`; :func:`solver.scheme.residual_into`)
     key : hashable description of which kind of condition holds on each DOF
     """
 
     def __init__(self, case, props, t: float, n: int, plan=None):
         plan = boundary_plan(case, props, n) if plan is None else plan
-        rows, cols, coef, vals, kin = [], [], [], [], []
+        rows, cols, coef, vals, kin, turn = [], [], [], [], [], []
         for row, choices in plan:
-            for until, col, c, kinematic, value in choices:
+            for until, col, c, kinematic, value, turning in choices:
                 if until is None or t <= until:
                     break
+            turn.append(turning)
             rows.append(row)
             cols.append(col)
             coef.append(c)
@@ -168,7 +193,8 @@ class BoundaryRows:
         self.coef = np.array(coef, dtype=float)
         self.values = np.array(vals, dtype=float)
         self.kinematic = np.array(kin)
-        self.key = tuple(cols)
+        self.turning = np.array([turn[0], turn[6]])
+        self.key = tuple(cols) + (("turning", turn[0], turn[6]),) if self.turning.any() else tuple(cols)
 
     def end_drift_offsets(self, n_last: int, position_error, rotation_error, rate: float):
         """Offsets (12,) to the prescribed values that steer the s = L end back onto its
@@ -192,10 +218,14 @@ class BoundaryRows:
 
     def project(self, Y: np.ndarray) -> np.ndarray:
         """A copy of Y (N+1, 12) that satisfies these 12 rows: each prescribed unknown set
-        to value/coef (a Newton start that meets the step's linear boundary rows). Raises
+        to value/coef (a Newton start that meets the step's linear boundary rows; the
+        translation rows of a :attr:`turning` end are left as they are). Raises
         nothing (coef is 1, or a bending/torsional stiffness > 0, by construction)."""
         out = np.array(Y, dtype=float)
-        out.reshape(-1)[self.cols] = self.values / self.coef
+        keep = np.ones(self.cols.size, bool)
+        for e in np.flatnonzero(self.turning):
+            keep[6 * e:6 * e + 3] = False     # v = RᵀV: R is the iterate's
+        out.reshape(-1)[self.cols[keep]] = self.values[keep] / self.coef[keep]
         return out
 
     def end_kinematic_dofs(self, n_last: int):

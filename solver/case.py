@@ -920,19 +920,8 @@ class EndCondition(BaseModel):
         for j in range(len(untils[0])):
             phase = [conditions[j] for conditions in self.translation]
             kinds = [c.kind for c in phase]
-            if set(kinds) <= {"velocity", "position"}:
-                if free:
-                    for i, c in enumerate(phase):
-                        held = not isinstance(c.value, Table) and (
-                            c.kind == "position" or c.value == 0.0)
-                        if not held:
-                            errors.append(_err(
-                                ("translation", i, j, c.kind), "unsupported",
-                                "an end free to turn (moment: 0) can be held at a point "
-                                "(position: a number, or velocity: 0) but not moved: its body "
-                                "frame would be needed to impose the motion; hold its rotation "
-                                "fixed (angular_velocity: 0) to move it", None))
-            elif set(kinds) != {"force"}:
+            # kinematic (held or moved, the rotation fixed or free) or force
+            if not set(kinds) <= {"velocity", "position"} and set(kinds) != {"force"}:
                 errors.append(_err(("translation",), "mixed_frame_conditions",
                                    f"with frame: global the three translation items must all be "
                                    f"kinematic (velocity/position) or all force at any time, got "

@@ -40,7 +40,7 @@ import numpy as np
 
 from .banded import NV, block_factor, block_solve, block_storage, copy_into, fill
 from .contact.model import candidate_gaps_into
-from .scheme import E3, exact_loads_product, pose_into, residual_into
+from .scheme import E3, W, exact_loads_product, pose_into, residual_into
 
 __all__ = ["Newton", "equilibrate", "scale_blocks", "FAILURES"]
 
@@ -172,6 +172,13 @@ def _set_operator(buf, ev, lin, op, step, weight, af):
     bc_rows, bc_cols, bc_coef = step[7], step[8], step[9]
     for m in range(bc_rows.shape[0]):
         bc_scaled[m] = bc_coef[m] * rs[bc_rows[m]] * s12[bc_cols[m] % NV]
+    for e in range(2):
+        # a towed end free to turn: its translation rows' block on ω (buf[-2]); 0 else
+        turning = step[11][6 + e] != 0.0
+        for i in range(3):
+            for j in range(3):
+                bc_scaled[12 + 9 * e + 3 * i + j] = (
+                    buf[-2][e, i, j] * rs[bc_rows[6 * e + i]] * s12[W + j] if turning else 0.0)
     nc = blocks.shape[0]
     for c in range(nc):
         for i in range(3):
@@ -234,7 +241,11 @@ def _factor(Y, buf, ev, lin, op, rod, step, weight, ctr):
         for j in range(NV):
             cs[NV * k + j] = s12[j]
     _set_operator(buf, ev, lin, op, step, weight, step[11][2])
-    if block_factor(op[0], step[7], step[8], op[1], lu) != 0:
+    if step[11][6] != 0.0 or step[11][7] != 0.0:
+        rows, cols = _turning_entries(step, n1)
+        if block_factor(op[0], rows, cols, op[1], lu) != 0:
+            return False
+    elif block_factor(op[0], step[7], step[8], op[1], lu) != 0:
         return False
     ctr[0] += 1
     ctr[3] = 1
@@ -261,6 +272,33 @@ def _matvec(x, out, lin, op, step, gm):
     bc_rows, bc_cols = step[7], step[8]
     for m in range(bc_rows.shape[0]):
         out[bc_rows[m]] = bc_scaled[m] * x[bc_cols[m]]
+    for e in range(2):
+        if step[11][6 + e] != 0.0:
+            k = 0 if e == 0 else x.shape[0] // NV - 1
+            for i in range(3):
+                for j in range(3):
+                    out[bc_rows[6 * e + i]] += bc_scaled[12 + 9 * e + 3 * i + j] * x[NV * k + W + j]
+
+
+@numba.njit(cache=True)
+def _turning_entries(step, n1):
+    """The boundary entries' rows and columns (30,) with a towed end free to turn: the 12
+    of the step's rows, then per end e (s = 0, s = L) the 9 of its translation rows on
+    its ω columns (the operator's bc_scaled[12 + 9e + 3i + j], 0 for an end that is not
+    turning: :func:`_set_operator`)."""
+    rows = np.empty(30, np.intp)
+    cols = np.empty(30, np.intp)
+    for m in range(12):
+        rows[m] = step[7][m]
+        cols[m] = step[8][m]
+    for e in range(2):
+        k = 0 if e == 0 else n1 - 1
+        for i in range(3):
+            for j in range(3):
+                m = 12 + 9 * e + 3 * i + j
+                rows[m] = step[7][6 * e + i]
+                cols[m] = NV * k + W + j
+    return rows, cols
 
 
 @numba.njit(cache=True, fastmath={"reassoc", "contract"})
@@ -756,7 +794,7 @@ class Newton:
             frame = (np.zeros((n1, 3, 3)), np.zeros((nc, 3, 3)), np.zeros((nc, 3, 3)),
                      np.zeros((nc, 3)), np.zeros((n1, 3)), np.zeros((3, 3)),
                      np.zeros((n1, 3)), np.zeros((n1, 3, 6)))
-            head = (np.zeros((nc, NV, 2 * NV)), np.zeros(12), np.zeros((nc, 3)))
+            head = (np.zeros((nc, NV, 2 * NV)), np.zeros(30), np.zeros((nc, 3)))
             flags = np.zeros(2, np.int64)
         ex = frame + pairs + (np.array([0.0, sysm.p.ds]), np.zeros((n1, 3)),
                               np.zeros((n1, 3)), np.zeros((n1, 3)))

@@ -563,10 +563,11 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
     has_r_old = sscal[4] != 0.0
     has_points = pl_nodes.shape[0] > 0
     (R, cells, Fn, dF, blocks, q, Rm, r, theta, vg, G, diag, loadrot, brot, C, D, tmid,
-     rdot, A0, L, drag_b, drag_j, Jr, flags) = buf
+     rdot, A0, L, drag_b, drag_j, Jr, bcj, flags) = buf
     n1 = Y.shape[0]
     contact = cand[2].shape[0] > 0
-    need_pose = has_glob or contact or (has_points and sscal[5] != 0.0)
+    turning = sscal[6] != 0.0 or sscal[7] != 0.0
+    need_pose = has_glob or contact or (has_points and sscal[5] != 0.0) or turning
     for i in range(4):
         flags[i] = 0
     P = 0
@@ -630,6 +631,27 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
     for m in range(bc_rows.shape[0]):
         col = bc_cols[m]
         R[bc_rows[m]] = bc_coef[m] * Y[col // NV, col % NV] - bc_vals[m]
+    if turning:
+        # an end towed in the global frame with its rotation free: v − b, b = R^{n+1}ᵀ V
+        # with the end's new-level frame R^n exp(θ) of pose_into (values m0..m0+2: V,
+        # m/s), and with ``want_jac`` its block on ω^{n+1}: −½Δt [b]× J_r(θ) into bcj[e]
+        # (the rotated load's derivative of node_terms_into)
+        for e in range(2):
+            if sscal[6 + e] != 0.0:
+                m0 = 6 * e
+                k = 0 if e == 0 else n1 - 1
+                b = np.empty(3)
+                for i in range(3):
+                    b[i] = (Rm[k, 0, i] * bc_vals[m0] + Rm[k, 1, i] * bc_vals[m0 + 1]
+                            + Rm[k, 2, i] * bc_vals[m0 + 2])
+                    R[bc_rows[m0 + i]] = Y[k, V + i] - b[i]
+                if want_jac:
+                    _right_jacobian_into(theta[k, 0], theta[k, 1], theta[k, 2], Jr, k)
+                    c = -0.5 * dt
+                    for j in range(3):
+                        bcj[e, 0, j] = c * (-b[2] * Jr[k, 1, j] + b[1] * Jr[k, 2, j])
+                        bcj[e, 1, j] = c * (b[2] * Jr[k, 0, j] - b[0] * Jr[k, 2, j])
+                        bcj[e, 2, j] = c * (-b[1] * Jr[k, 0, j] + b[0] * Jr[k, 1, j])
     if want_jac:
         _cell_blocks_kernel(dF, mass_t, stiffness, inertia, cm, af, ds, blocks)
     if has_points:
@@ -712,7 +734,8 @@ class RodSystem:
         load G (N+1, 3), the node-local contact block (N+1, 3, 6), the load rotation's
         block (N+1, 3, 3), the body-frame load (N+1, 3), the exact product's C, D
         (N, 3, 3), mid-cell tangents (N, 3), ṙ (N+1, 3), A0 (3, 3), L (N+1, 3, 6), scratch
-        (N+1, 3), (N+1, 3, 3) ×2 and the flags (4,) int."""
+        (N+1, 3), (N+1, 3, 3) ×2, the towed ends' ∂(v − RᵀV)/∂ω blocks (2, 3, 3) and the
+        flags (4,) int."""
         n1, nc = self.n_nodes, self.n_cells
         R = np.zeros(self.n)
         return (R, R[6:6 + NV * nc].reshape(nc, NV), np.zeros((n1, NV)), np.zeros((n1, NV, NV)),
@@ -721,7 +744,8 @@ class RodSystem:
                 np.zeros((n1, 3, 6)), np.zeros((n1, 3, 3)), np.zeros((n1, 3)),
                 np.zeros((nc, 3, 3)), np.zeros((nc, 3, 3)), np.zeros((nc, 3)),
                 np.zeros((n1, 3)), np.zeros((3, 3)), np.zeros((n1, 3, 6)), np.zeros((n1, 3)),
-                np.zeros((n1, 3, 3)), np.zeros((n1, 3, 3)), np.zeros(4, np.int64))
+                np.zeros((n1, 3, 3)), np.zeros((n1, 3, 3)), np.zeros((2, 3, 3)),
+                np.zeros(4, np.int64))
 
     # ------------------------------------------------------------------ per step setup
     def begin_step(self, dt, params: StepParameters, t_new, Y_old, Ydot_old, F_old,
@@ -769,7 +793,8 @@ class RodSystem:
             np.asarray(bc.rows, dtype=np.intp), np.asarray(bc.cols, dtype=np.intp),
             np.asarray(bc.coef, dtype=float), np.asarray(bc.values, dtype=float),
             np.array([dt, self.cm, af, float(glob is not None), float(has_r),
-                      float(self.needs_pose)])) + self._point_data(t_new, dt, left_limit,
+                      float(self.needs_pose), float(bc.turning[0]), float(bc.turning[1])])
+        ) + self._point_data(t_new, dt, left_limit,
                                                                    Y_old, q_old, af)
         # what the Jacobian's band part depends on besides the iterate (solver.newton
         # keeps a factorisation across steps while this is unchanged)

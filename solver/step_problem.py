@@ -222,7 +222,12 @@ class ProblemAssembly:
         e = R.T @ (self.r_time[-1] - self.r[-1])
         theta = relative_rotation(self.q[-1], self.q_time[-1])
         h_rate = max(h, self.DRIFT_STEP_FLOOR * self.case.numerics.dt)
-        return bc.end_drift_offsets(self.props.s.size - 1, e, theta, self.DRIFT_GAIN / h_rate)
+        off = bc.end_drift_offsets(self.props.s.size - 1, e, theta, self.DRIFT_GAIN / h_rate)
+        if bc.turning[1]:
+            # a towed end free to turn holds global values (V, imposed through the new
+            # frame): its body-frame offsets turned to global with the old-level frame
+            off[6:9] = R @ off[6:9]
+        return off
 
     def _hold_from_here(self, prev_bc, bc) -> None:
         """A degree of freedom of the s = L end that has just become kinematic (a sliding

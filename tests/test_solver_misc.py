@@ -182,6 +182,7 @@ def test_warm_up_loads_every_compiled_kernel():
                "solver.loads.point_loads_into",
                "solver.newton._matvec_kernel", "solver.newton._set_operator",
                "solver.newton._factor", "solver.newton._matvec", "solver.newton._dot",
+               "solver.newton._turning_entries",
                "solver.newton._gmres", "solver.newton._back_substitute",
                "solver.newton._norm_scaled", "solver.newton._max_scaled",
                "solver.newton._trial_gaps", "solver.newton._feasible_fraction",
