@@ -174,13 +174,18 @@ class BoundaryRows:
     key : hashable description of which kind of condition holds on each DOF
     """
 
+    #: no towed end (the default of rows kept in a checkpoint written before towed ends)
+    turning = np.zeros(2, dtype=bool)
+
     def __init__(self, case, props, t: float, n: int, plan=None):
         plan = boundary_plan(case, props, n) if plan is None else plan
         rows, cols, coef, vals, kin, turn = [], [], [], [], [], []
         for row, choices in plan:
-            for until, col, c, kinematic, value, turning in choices:
+            for until, col, c, kinematic, value, *towed in choices:
                 if until is None or t <= until:
                     break
+            # a plan kept in a checkpoint written before towed ends has 5-field choices
+            turning = bool(towed and towed[0])
             turn.append(turning)
             rows.append(row)
             cols.append(col)

@@ -91,7 +91,8 @@ class RodRun(ProblemAssembly):
         self.rho_inf = num.rho_inf
         self.state = RunState.at_rest(case, props.s, start)
         self.bc_plan = boundary_plan(case, props, self.system.n)
-        if any(choice[5] for _, choices in self.bc_plan for choice in choices):
+        if any(len(choice) > 5 and choice[5] for _, choices in self.bc_plan
+               for choice in choices):
             # an end towed with its rotation free: its boundary rows need the new frames
             self.system.needs_pose = True
         self.state.bc = BoundaryRows(case, props, self.state.t, self.system.n, self.bc_plan)

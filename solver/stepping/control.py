@@ -308,7 +308,8 @@ class StepControl:
                     self.restart_pending = True
                 run.last_iterations = total_its
                 return total_its, res
-            self._count_refusal(run)
+            # ok None: a doubled step whose strands may meet goes to the route rule
+            self._count_refusal(run, "route" if ok is None else None)
             h, refused = self._retry_size(run, h_try, ctl, run.last_error_ratio,
                                           run.last_reject == "error", refused)
             if h < h_min * (1.0 - 1e-9):
@@ -379,9 +380,10 @@ class StepControl:
             return min(0.5 * h_try, self.guard.cap()), refused
         return h_try / run.case.numerics.dt_cut_factor, refused
 
-    def _count_refusal(self, run) -> None:
-        """Count the attempt just refused under its reason (``run.last_reject``)."""
-        self.refusals[run.last_reject] = self.refusals.get(run.last_reject, 0) + 1
+    def _count_refusal(self, run, reason=None) -> None:
+        """Count the attempt just refused under ``reason`` (default ``run.last_reject``)."""
+        reason = run.last_reject if reason is None else reason
+        self.refusals[reason] = self.refusals.get(reason, 0) + 1
 
     def _next_stop(self, run, t_stop: float, snap: float):
         """Take the pending consistent restart, if any, and return (its Newton iterations,
