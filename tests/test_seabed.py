@@ -342,3 +342,24 @@ def test_node_law_derivative_matches_finite_differences(seed):
     J_fd = np.column_stack([(law(X + h * e)[1] - law(X - h * e)[1]) / (2 * h)
                             for e in np.eye(6)])
     assert np.allclose(J, J_fd, rtol=1e-5, atol=1e-6 * np.abs(J_fd).max()), (J - J_fd)
+
+
+def test_error_controlled_run_with_dense_outputs_rolls_the_cable():
+    """numerics.tolerance with output.interval: the dense output of the seabed's fields
+    (on the interpolated time route) and the refusals of doubled steps counted by
+    reason."""
+    spin = {"t": [0.0, 0.25], "value": [0.0, 2.0]}
+    ends = {"translation": [{"force": 0}] * 3,
+            "rotation": [{"moment": 0}, {"moment": 0}, {"angular_velocity": spin}]}
+    spec = _spec({"elevation": -D / 2, "friction": FRICTION}, start=ends, end=ends,
+                 fluid=NO_DRAG, t_end=0.6)
+    spec["numerics"]["tolerance"] = {"relative": 1e-3}
+    spec["output"] = {"interval": 0.1, "fields": ["position"]}
+    ds = simulate(Case.model_validate(spec))
+    assert ds.attrs["hockle_status"] == "completed"
+    assert "None" not in ds.attrs["hockle_refused_attempts"]
+    # rolled by ρ × the spin's integral (0.25 s ramp: 0.25 rad, then 2 rad/s)
+    rolled = D / 2 * (0.25 + 2.0 * (0.6 - 0.25))
+    assert np.allclose(ds["position"].values[-1, :, 1], -rolled, rtol=0.01)
+    force = np.trapezoid(ds["seabed_force"].values[:, :, 2], ds["s"].values, axis=1)
+    assert np.allclose(force[1:], W, rtol=0.01), force
