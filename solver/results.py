@@ -165,6 +165,25 @@ FIELD_VARIABLES: dict[str, tuple[tuple[str, ...], str, str, str | None]] = {
     ),
     "contact_count": (("time",), "1", "number of self-contact pairs", None),
     "min_surface_gap": (("time",), "m", "smallest surface gap among self-contact pairs", None),
+    "seabed_force": (
+        ("time", "s", "xyz"), "N m-1", "seabed normal reaction per unit length, global frame",
+        "k p - c n.v along the bottom's normal n while the surface penetration p > 0 "
+        "(docs/seabed.md); present with a seabed only",
+    ),
+    "seabed_friction": (
+        ("time", "s", "xyz"), "N m-1", "seabed friction per unit length, global frame",
+        "Coulomb, axial and lateral, at the contact point (docs/seabed.md); present with a "
+        "seabed only",
+    ),
+    "seabed_contact_length": (("time",), "m", "length of rod on the seabed", None),
+    "seabed_touchdown": (
+        ("time",), "m", "arclength of the touchdown point",
+        "where the contact holding an end of the rod on the seabed ends; NaN where none",
+    ),
+    "seabed_work": (
+        ("time",), "J", "cumulative work done on the rod by the seabed",
+        "normal reaction, friction and its moment; trapezoid rule on its power per step",
+    ),
     "newton_iterations": (
         ("time",),
         "1",

@@ -346,7 +346,12 @@ class StepControl:
                 size, t_new=ends, estimate=False, left_limit=left_limit and ends is not None)
             its += k
             if not ok or run.last_had_candidates:
+                # the restore takes back the run's attributes, the failed leg's reason
+                # too: keep it (a refusal is counted under it)
+                reason = run.last_reject
                 run._restore(start)
+                if not ok:
+                    run.last_reject = reason
                 return Attempt((None if ok else False), its, res, nonfinite)
         ctl = self.errctl
         ratio = ctl.measure(ctl.doubling_error(Y_full, run.Y), run.Y, Y_old,
