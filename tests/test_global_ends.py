@@ -335,3 +335,19 @@ def test_a_towed_end_free_to_turn_has_the_exact_jacobian(where):
         fd[:, j] = (side[0] - side[1]) / 2e-6
     assert np.abs(block).max() > 1e-3
     assert np.abs(block - fd).max() < 1e-6 * np.abs(block).max(), np.abs(block - fd).max()
+
+
+def test_error_controlled_run_with_a_position_table_ends_with_its_refusals_named():
+    """An error-controlled run across a position table's knots (restart steps, doubled
+    steps) completes and names every refused attempt's reason; a failed first leg of a
+    doubled step used to lose its reason and the run crashed when writing the result."""
+    table = {"t": [0.0, 1.0, 1.5], "value": [0.0, 0.1, 0.05]}
+    sp = _spec({"frame": "global", "translation": [{"position": table}, {"position": 0.0},
+                                                     {"position": 0.0}], "rotation": FIXED},
+               FREE, gravity=[0, 3.0, 0])
+    sp["numerics"] = {"n_segments": 10, "dt": 0.1, "t_end": 2.0, "rho_inf": 0.5,
+                      "tolerance": {"relative": 1e-3}}
+    ds = simulate(Case.model_validate(sp))
+    assert ds.attrs["hockle_status"] == "completed"
+    refused = dict(item.rsplit(" ", 1) for item in ds.attrs["hockle_refused_attempts"].split(", "))
+    assert "None" not in refused and int(refused["error"]) > 0
