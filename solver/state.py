@@ -61,6 +61,10 @@ class RunState:
         Distributed global-frame load in the body frame, N/m, at this level.
     quat_norm_error : float
         Largest drift of the time route's quaternions from unit norm so far.
+    balance : dict or None
+        What the energy check carries from this level to the next (the level's energy,
+        the largest so far, each work account's old data; :mod:`solver.balance`), None
+        without ``numerics.energy_tolerance``.
     """
 
     t: float
@@ -87,6 +91,7 @@ class RunState:
     end_load: Optional[np.ndarray] = None
     body_force: Optional[np.ndarray] = None
     quat_norm_error: float = 0.0
+    balance: Optional[dict] = None
 
     @classmethod
     def names(cls) -> tuple:
