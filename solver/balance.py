@@ -4,7 +4,7 @@ Generalized-α is unconditionally stable for *linear* systems, where its algorit
 dissipation is non-negative (Chung & Hulbert 1993, § 4; ρ∞ = 1 conserves the energy of
 a linear system exactly). The rod is not linear, and a large step of a strongly
 nonlinear motion can converge to a state with more energy than the loads put in: the
-steel cantilever of docs/numerics.md § 9 at Δt = 0.1 s gains up to 135 J in a step of a
+steel cantilever of docs/numerics.md § 8 at Δt = 0.1 s gains up to 135 J in a step of a
 185-J motion and never settles. This module measures each converged step's imbalance
 
     ε = E(Y^{n+1}) − E(Y^n) − Σ_a W_a            (J)
@@ -248,7 +248,7 @@ class EnergyBalance:
         The scale is the kinetic energy (with the added mass's), max(T^n, T^{n+1}),
         floored at ENERGY_SHARE × E and at the run's floor: not E, whose strain part can
         dwarf the motion, nor the step's work, whose trapezoid sum is itself ~1 % off in
-        a good step of a ramped load. Measured on the cantilever (docs/numerics.md § 9):
+        a good step of a ramped load. Measured on the cantilever (docs/numerics.md § 8):
         against E, or the larger of T and 0.3|Σ W|, steps that each injected less than
         the tolerance kept the rod oscillating (tip 0.4-6 % off at 8 s); against T at
         0.05 every Δt from 0.02 to 0.1 s settles within 0.02 % of the elastica."""
