@@ -48,7 +48,8 @@ from typing import NamedTuple, Optional
 import numpy as np
 
 from .energies import distributed_work_into, end_work_into, energies
-from .kinematics import space_route
+from .kinematics import quat_to_matrix, space_route
+from .scheme import pose_into
 from .loads import _drag_kernel
 
 __all__ = ["EnergyBalance", "WorkAccount", "EndWork", "GlobalLoadWork", "DragWork",
@@ -127,34 +128,43 @@ class GlobalLoadWork(WorkAccount):
 
     name = "loads"
 
-    def force(self, run, t, R, left, glob):
-        """The global force per length (N+1, 3) N/m at time t with the node frames R
-        (N+1, 3, 3): ``glob`` (the distributed loads, or None) plus each point load P
-        as P/w_k at its node k (w the nodal quadrature weights; followers turned by R)."""
+    def force(self, run, t, q, left, glob):
+        """The global force per length (N+1, 3) N/m at time t with the node frames of
+        the quaternions q (N+1, 4): ``glob`` (the distributed loads, or None) plus each
+        point load P as P/w_k at its node k (w the nodal quadrature weights; followers
+        turned to the global frame)."""
         props = run.props
         out = np.zeros((props.s.size, 3)) if glob is None else np.array(glob, dtype=float)
         pts = run.loads.points
         if pts is not None:
             P = pts.values(t, left=left)
             if not pts.dead.all():
-                turned = np.einsum("mij,mj->mi", R[pts.nodes], P)
+                turned = np.einsum("mij,mj->mi", quat_to_matrix(q[pts.nodes]), P)
                 P[~pts.dead] = turned[~pts.dead]
             np.add.at(out, pts.nodes, P / props.quad_weights[pts.nodes, None])
         return out
 
     def start(self, run):
         glob = run.loads.global_force(run.t) if run.loads.has_global else None
-        return (self.force(run, run.t, _frames(run.q), False, glob),
-                np.array(run.r, dtype=float))
+        q, r = space_route(run.q_time[0], run.r_time[0], run.Y[:, 9:12], float(run.props.ds))
+        return (self.force(run, run.t, q, False, glob), r)
 
     def step(self, run, prob, sol, old):
         G_old, r_old = old
-        q, R, r = sol.pose[0], sol.pose[1], sol.pose[2]
-        if run.contact is None:
-            # the pose of a step without contact is each node's time route: the shape
-            # is integrated from its node 0
-            r = space_route(q[0], r[0], sol.Y[:, 9:12], float(run.props.ds))[1]
-        G = self.force(run, prob.t_new, R, prob.left_limit, run.system._glob_force)
+        if run.contact is not None:
+            q, r = sol.pose[0], sol.pose[2]     # the space route already
+        else:
+            # node 0 one step along its time route, the shape integrated from there
+            # (as the run's space route, RodRun.update_space_route)
+            q0, r0 = np.empty((1, 4)), np.empty((1, 3))
+            pose_into(np.ascontiguousarray(sol.Y[:1]), np.ascontiguousarray(run.Y[:1]),
+                      float(prob.h), False, np.ascontiguousarray(run.q_time[:1]),
+                      np.ascontiguousarray(run.r_time[:1]),
+                      np.ascontiguousarray(run.v_global_time[:1]), True, 0.0, q0,
+                      np.empty((1, 3, 3)), r0, np.empty((1, 3)), np.empty((1, 3)))
+            q0 /= np.linalg.norm(q0)
+            q, r = space_route(q0[0], r0[0], sol.Y[:, 9:12], float(run.props.ds))
+        G = self.force(run, prob.t_new, q, prob.left_limit, run.system._glob_force)
         work = 0.5 * float(np.dot(run.props.quad_weights,
                                   np.einsum("ni,ni->n", G_old + G, r - r_old)))
         return work, (G, r)
@@ -185,11 +195,6 @@ class DragWork(WorkAccount):
         work = distributed_work_into(sol.Y, run.Y, float(prob.h), g, am, af, rate_old, b_old,
                                      True, b, True, run.props.quad_weights, rate)[0]
         return work, (b, rate)
-
-
-def _frames(q):
-    from .kinematics import quat_to_matrix
-    return quat_to_matrix(np.asarray(q, dtype=float))
 
 
 class EnergyBalance:
