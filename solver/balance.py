@@ -244,7 +244,7 @@ class EnergyBalance:
         e = energies(run.Y, run.props)
         out = {a.name: a.start(run) for a in self.accounts}
         out["energy"] = e["energy_total"]
-        out["kinetic"] = e["energy_kinetic"]
+        out["kinetic"] = e["energy_kinetic"] + e["energy_kinetic_fluid"]
         return out
 
     def measure(self, run, prob, sol) -> StepBalance:
@@ -262,7 +262,8 @@ class EnergyBalance:
         for a in self.accounts:
             work[a.name], carry[a.name] = a.step(run, prob, sol, old[a.name])
         e = energies(sol.Y, run.props)
-        energy, kinetic = e["energy_total"], e["energy_kinetic"]
+        energy = e["energy_total"]
+        kinetic = e["energy_kinetic"] + e["energy_kinetic_fluid"]
         total = sum(work.values())
         error = energy - old["energy"] - total
         scale = max(old["kinetic"], kinetic,
