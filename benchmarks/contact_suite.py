@@ -25,7 +25,8 @@ first contact time (s) and the cost per simulated second in contact over the cos
 contact (wall s per simulated s after the first contact over the same before it).
 
 Run: ``PYTHONPATH=$PWD python benchmarks/contact_suite.py [--only a,b] [--write-docs]``
-(about 15 min alone on 2 cores); ``--write-docs`` puts the table into docs/benchmarks.md
+(about 15 min alone on 2 cores; ``--merge earlier.json`` keeps an earlier run's rows for
+the cases not run now, ``--table-only --merge x.json`` only prints the table); ``--write-docs`` puts the table into docs/benchmarks.md
 (its ``contact_suite`` section, also written by benchmarks/report.py); the figures go to
 benchmarks/results/contact_suite.json.
 """
@@ -59,7 +60,7 @@ def _seed(path="cases/goyal-writhing.yaml", twist=1.0, fluid=True):
     from solver.case import Case
     spec = Case.from_file(ROOT / path).model_dump(mode="json")
     if twist != 1.0:
-        table = spec["boundary"]["start"]["rotation"][2]["angular_velocity"]
+        table = spec["boundary"]["start"]["rotation"][2][0]["angular_velocity"]
         table["value"] = [v if t < 5.0 else v * twist
                           for t, v in zip(table["t"], table["value"])]
     if not fluid:
@@ -207,7 +208,9 @@ def section_text(res: dict) -> str:
         "",
         "Written by `benchmarks/contact_suite.py` (docstring: the cases and what each column "
         f"measures) on {res['stamp']}; one run per case, one after another in one process "
-        f"after a warm-up run; 1-min load {res['load_start']:.1f} at the start, "
+        f"after a warm-up run"
+        + (f" ({res['parts']} invocations, merged)" if res.get("parts", 1) > 1 else "")
+        + f"; 1-min load {res['load_start']:.1f} at the start, "
         f"{res['load_end']:.1f} at the end (2 cores, shared). "
         + (f"Energy check on (`numerics.energy_tolerance: {res['energy_tolerance']}`). "
            if res["energy_tolerance"] else "Energy check off. ")
@@ -239,16 +242,37 @@ def collect(names, energy_tolerance, budget=BUDGET_S, log=print) -> dict:
     t0 = time.perf_counter()
     warm_up()
     rows = []
+    from datetime import datetime, timezone
     for name in names:
         log(f"-- {name}: {CASES[name][0]}", flush=True)
         r = run_case(name, energy_tolerance, budget)
         log(f"   {r}", flush=True)
         rows.append(r)
-    from datetime import datetime, timezone
-    return {"stamp": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
-            "energy_tolerance": energy_tolerance, "budget_s": budget,
-            "load_start": load_start, "load_end": os.getloadavg()[0],
-            "total_s": time.perf_counter() - t0, "rows": rows}
+        res = {"stamp": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+               "energy_tolerance": energy_tolerance, "budget_s": budget,
+               "load_start": load_start, "load_end": os.getloadavg()[0],
+               "total_s": time.perf_counter() - t0, "rows": rows}
+        save(res)            # after every case: a later failure keeps the rows so far
+    return res
+
+
+def save(res: dict) -> None:
+    RESULTS.parent.mkdir(parents=True, exist_ok=True)
+    RESULTS.write_text(json.dumps(res, indent=1, default=float))
+
+
+def merged(res: dict, earlier: dict) -> dict:
+    """``res`` with the rows of ``earlier`` (a result of this script) for the cases it
+    did not run, in the order of CASES (``--merge``: the suite in parts)."""
+    rows = {r["case"]: r for r in earlier["rows"]}
+    rows.update({r["case"]: r for r in res["rows"]})
+    out = dict(res)
+    out["rows"] = [rows[k] for k in CASES if k in rows]
+    out["total_s"] = res["total_s"] + earlier.get("total_s", 0.0)
+    out["load_start"] = max(res["load_start"], earlier.get("load_start", 0.0))
+    out["load_end"] = max(res["load_end"], earlier.get("load_end", 0.0))
+    out["parts"] = earlier.get("parts", 1) + 1
+    return out
 
 
 def section(figdir=None, quick: bool = False) -> str:
@@ -256,8 +280,7 @@ def section(figdir=None, quick: bool = False) -> str:
     plectoneme only)."""
     names = ["pyelastica-0.8", "cantilever"] if quick else list(CASES)
     res = collect(names, ENERGY_TOLERANCE)
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(json.dumps(res, indent=1, default=float))
+    save(res)
     return section_text(res)
 
 
@@ -268,14 +291,23 @@ def main() -> None:
                     help="numerics.energy_tolerance of every case (0: the check off)")
     ap.add_argument("--budget", type=float, default=BUDGET_S, help="wall s per case")
     ap.add_argument("--write-docs", action="store_true")
+    ap.add_argument("--merge", default="", help="an earlier result JSON whose rows are "
+                    "kept for the cases not run now")
+    ap.add_argument("--table-only", action="store_true",
+                    help="print (and with --write-docs write) the table of --merge")
     args = ap.parse_args()
     names = [x for x in args.only.split(",") if x] or list(CASES)
     for x in names:
         if x not in CASES:
             ap.error(f"unknown case {x!r}; known: {', '.join(CASES)}")
-    res = collect(names, args.energy_tolerance or None, args.budget)
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(json.dumps(res, indent=1, default=float))
+    earlier = json.loads(Path(args.merge).read_text()) if args.merge else None
+    if args.table_only:
+        res = earlier
+    else:
+        res = collect(names, args.energy_tolerance or None, args.budget)
+        if earlier is not None:
+            res = merged(res, earlier)
+        save(res)
     text = section_text(res)
     print(text)
     if args.write_docs:

@@ -93,3 +93,15 @@ def test_energy_tolerance_validated():
     with pytest.raises(Exception) as info:
         cantilever(0.1, energy_tolerance=-1.0)
     assert "energy_tolerance" in str(info.value)
+
+
+def test_no_trusted_step_ends_failed_with_the_reason():
+    """A tolerance no step can meet within the allowed cuts ends the run ``failed``,
+    saying that the steps put in energy, not that Newton failed."""
+    from solver.simulation import SolverDivergence
+    case = cantilever(0.1, energy_tolerance=1e-9, max_dt_cuts=1)
+    with pytest.raises(SolverDivergence) as info:
+        simulate(case)
+    assert "numerics.energy_tolerance" in str(info.value)
+    assert "energy" in info.value.partial.attrs["hockle_refused_attempts"]
+    assert info.value.partial.attrs["hockle_status"] == "failed"
