@@ -74,6 +74,14 @@ class RodRun(ProblemAssembly):
     #: whichever predicted the last accepted step better (:meth:`_better_predictor`)
     predictor = "linear"
 
+    #: the energy check (:class:`solver.balance.EnergyBalance`, None: off), the last
+    #: measured step's balance and the largest relative error of the accepted steps
+    #: since the recorder last read it (NaN: none); class defaults, so that a run
+    #: pickled before the check existed resumes without it
+    energy_check = None
+    last_balance = None
+    energy_error = math.nan
+
     def __init__(self, case, extra_force=None, start=None):
         self.case = case
         num = case.numerics
@@ -106,9 +114,6 @@ class RodRun(ProblemAssembly):
         self.contact_count = 0
         self.min_gap = math.inf
         self._initial_loads()
-        # the energy check (numerics.energy_tolerance): the last measured step's balance,
-        # and the largest relative error of the accepted steps since the recorder last
-        # read it (NaN: none measured)
         self.energy_check = EnergyBalance.for_run(self)
         self.last_balance = None
         self.energy_error = math.nan
