@@ -117,8 +117,6 @@ class RodRun(ProblemAssembly):
         self.energy_check = EnergyBalance.for_run(self)
         self.last_balance = None
         self.energy_error = math.nan
-        if self.energy_check is not None:
-            self.state.balance = self.energy_check.start(self)
 
     def _route_tolerance(self) -> float:
         """Accuracy of a step where strands may meet (m): contact.position_tolerance, by
@@ -226,10 +224,12 @@ class RodRun(ProblemAssembly):
                 return "error", summary
         if self.contact is not None and self.contact.passes_through(self.r, pose[2]):
             return "contact", summary        # a strand passed through another
-        if self.energy_check is not None:
+        self.last_balance = None
+        if self.energy_check is not None and not prob.restart and cand is None:
+            if self.balance is None:         # after a restart or a contact step
+                self.balance = self.energy_check.start(self)
             self.last_balance = self.energy_check.measure(self, prob, sol)
-            if (not prob.restart and cand is None
-                    and self.energy_check.refuses(self.last_balance)):
+            if self.energy_check.refuses(self.last_balance):
                 return "energy", summary     # the step put in energy no load gave
         if self.growth_guard is not None and not prob.restart and cand is None:
             if not self.control.guard.ok(self.system, h, Y):
@@ -259,12 +259,12 @@ class RodRun(ProblemAssembly):
         self.r_time, self.q_time, self.v_global_time = r_t, q_t, vg_t
         self._advance_accounts(prob, Y, pose)
         if self.energy_check is not None:
+            # restarts and contact steps are not measured: the next step starts afresh
             bal = self.last_balance
-            self.balance = bal.carry
-            if not restart and prob.candidates is None:
-                rel = bal.relative
-                if math.isnan(self.energy_error) or rel > self.energy_error:
-                    self.energy_error = rel
+            self.balance = None if bal is None else bal.carry
+            if bal is not None and (math.isnan(self.energy_error)
+                                    or bal.relative > self.energy_error):
+                self.energy_error = bal.relative
         if not restart:
             self.guard_since += 1
         if prob.predictions is not None and "quadratic" in prob.predictions:

@@ -63,8 +63,8 @@ class RunState:
         Largest drift of the time route's quaternions from unit norm so far.
     balance : dict or None
         What the energy check carries from this level to the next (the level's energy,
-        the largest so far, each work account's old data; :mod:`solver.balance`), None
-        without ``numerics.energy_tolerance``.
+        each work account's old data; :mod:`solver.balance`), None without
+        ``numerics.energy_tolerance`` and after a step the check does not measure.
     """
 
     t: float
