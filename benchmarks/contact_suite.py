@@ -214,7 +214,8 @@ def section_text(res: dict) -> str:
         f"{res['load_end']:.1f} at the end (2 cores, shared). "
         + (f"Energy check on (`numerics.energy_tolerance: {res['energy_tolerance']}`). "
            if res["energy_tolerance"] else "Energy check off. ")
-        + f"Wall-clock budget {res['budget_s']:.0f} s per case. Total {res['total_s']:.0f} s.",
+        + (res.get("budget_note") or f"Wall-clock budget {res['budget_s']:.0f} s per case.")
+        + f" Total {res['total_s']:.0f} s.",
         "",
         table(res["rows"]),
         "",
