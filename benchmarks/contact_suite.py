@@ -26,8 +26,9 @@ contact (wall s per simulated s after the first contact over the same before it)
 
 Run: ``PYTHONPATH=$PWD python benchmarks/contact_suite.py [--only a,b] [--write-docs]``
 (about 15 min alone on 2 cores; ``--merge earlier.json`` keeps an earlier run's rows for
-the cases not run now, ``--table-only --merge x.json`` only prints the table); ``--write-docs`` puts the table into docs/benchmarks.md
-(its ``contact_suite`` section, also written by benchmarks/report.py); the figures go to
+the cases not run now, ``--table-only --merge x.json`` only prints the table);
+``--write-docs`` puts the table into docs/benchmarks.md (its ``contact_suite`` section,
+also written by benchmarks/report.py); the figures go to
 benchmarks/results/contact_suite.json.
 """
 from __future__ import annotations

@@ -45,8 +45,9 @@ def cantilever(dt, n=20, t_end=8.0, rho_inf=0.0, energy_tolerance=0.05, **numeri
 def test_balance_closes_on_a_conservative_case():
     """ρ∞ = 1 (the trapezoidal rule conserves a linear system's energy) at a Δt of a
     fiftieth of the rod's first period, through the ramp: every step's ε is within
-    2e-4 of the rod's energy (measured: 6.4e-5, in the first steps), and the energy at the end is the loads'
-    work within 1e-3 of it (each step's balance summed; measured 6.3e-4)."""
+    2e-4 of the rod's energy (measured: 6.4e-5, in the first steps), and the energy at
+    the end is the loads' work within 1e-3 of it (each step's balance summed; measured
+    6.3e-4)."""
     case = cantilever(0.005, n=10, t_end=0.4, rho_inf=1.0, energy_tolerance=1.0)
     run = RodRun(case)
     run.advance(0.005)                  # the restart's steps are not measured
