@@ -41,6 +41,7 @@ SECTIONS = [
     ("profile", "profile_seed", "profile of the seed example"),
     ("seed", "bench_seed", "the seed example at its resolution"),
     ("pyelastica", "peer_compare", "PyElastica side by side, interleaved, same drag law"),
+    ("contact_suite", "contact_suite", "contact suite: completed or refused, contact cost"),
 ]
 MARK = "<!-- section: {} -->"
 

@@ -1242,6 +1242,13 @@ class Numerics(BaseModel):
         "dynamics: a step that would exceed it is cut, so a large dt cannot suppress a buckling "
         "(dimensionless); > 0; null: no check.",
     )
+    energy_tolerance: Optional[Finite] = Field(
+        None,
+        gt=0,
+        description="Energy check of every step: a step whose rod energy grows by more than the work "
+        "of its loads plus this share of the energy scale is refused and dt cut (a large step of a "
+        "nonlinear motion can inject energy); > 0; null: no check.",
+    )
 
     @model_validator(mode="after")
     def _one_of(self) -> "Numerics":

@@ -293,6 +293,9 @@ class Recorder:
         else:
             self.times, self.records, self.diag = state.times, state.records, state.diag
             self.done, self.wall_before = state.step, state.wall_time
+        if run.energy_check is not None and "step_energy_error" not in self.diag:
+            # the energy check's series (a checkpoint written without it: NaN before)
+            self.diag["step_energy_error"] = [float("nan")] * len(self.diag["step_time"])
         self.last_checkpoint = _time.perf_counter()
         self.refused_before = sum(run.refusals.values())
         self.budget = case.numerics.wall_clock_budget
@@ -364,6 +367,9 @@ class Recorder:
         diag["step_growth_rate"].append(run.guard_sigma)
         refused = sum(run.refusals.values())
         diag["step_rejected_attempts"].append(refused - self.refused_before)
+        if "step_energy_error" in diag:
+            diag["step_energy_error"].append(run.energy_error)
+            run.energy_error = float("nan")
         self.refused_before = refused
         self.done = step
         progress = self.hooks["progress"]

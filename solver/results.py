@@ -223,6 +223,10 @@ DIAGNOSTIC_VARIABLES: dict[str, tuple[str, str]] = {
     "step_rejected_attempts": ("1", "attempts refused before the accepted step (error "
                                "estimate, Newton, contact or growth guard), each followed "
                                "by a smaller time step"),
+    "step_energy_error": ("1", "largest energy balance error of the accepted step's "
+                          "substeps, (energy change minus the loads' work) over the energy "
+                          "scale; > 0: energy injected (numerics.energy_tolerance; NaN: "
+                          "not checked, in contact or restart steps)"),
 }
 
 # ACDD-1.3 coverage_content_type (ISO 19115-1 MD_CoverageContentTypeCode) of each variable;
@@ -239,6 +243,7 @@ COVERAGE_CONTENT_TYPES: dict[str, str] = {
     "step_dt": "auxiliaryInformation",
     "step_growth_rate": "auxiliaryInformation",
     "step_rejected_attempts": "qualityInformation",
+    "step_energy_error": "qualityInformation",
 }
 
 # CF-1.12 section 3.4: quality variables linked to the variable whose values they qualify

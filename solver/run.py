@@ -22,6 +22,7 @@ import math
 
 import numpy as np
 
+from .balance import EnergyBalance
 from .boundary import BoundaryRows, boundary_plan
 from .contact import SelfContact
 from .contact.search import CandidateSearch
@@ -74,6 +75,14 @@ class RodRun(ProblemAssembly):
     #: whichever predicted the last accepted step better (:meth:`_better_predictor`)
     predictor = "linear"
 
+    #: the energy check (:class:`solver.balance.EnergyBalance`, None: off), the last
+    #: measured step's balance and the largest relative error of the accepted steps
+    #: since the recorder last read it (NaN: none); class defaults, so that a run
+    #: pickled before the check existed resumes without it
+    energy_check = None
+    last_balance = None
+    energy_error = math.nan
+
     def __init__(self, case, extra_force=None, start=None):
         self.case = case
         num = case.numerics
@@ -111,6 +120,9 @@ class RodRun(ProblemAssembly):
         self.contact_count = 0
         self.min_gap = math.inf
         self._initial_loads()
+        self.energy_check = EnergyBalance.for_run(self)
+        self.last_balance = None
+        self.energy_error = math.nan
 
     def _route_tolerance(self) -> float:
         """Accuracy of a step where strands may meet (m): contact.position_tolerance, by
@@ -194,7 +206,8 @@ class RodRun(ProblemAssembly):
         law's impact transients; the seed case at tolerance 1e-2 ran its first loop at
         5e-4 s steps, 20x the route rule's, which keeps its events within 0.001 s of a
         6.25-ms reference; docs/numerics.md § 7); a strand through another within the
-        step; the growth guard."""
+        step; the energy balance (:mod:`solver.balance`, ``numerics.energy_tolerance``;
+        not in restarts nor in steps with contact candidates); the growth guard."""
         Y, pose, cand, h = sol.Y, sol.pose, sol.candidates, prob.h
         summary = None
         if self.contact is not None:
@@ -224,6 +237,13 @@ class RodRun(ProblemAssembly):
                 return "error", summary
         if self.contact is not None and self.contact.passes_through(self.r, pose[2]):
             return "contact", summary        # a strand passed through another
+        self.last_balance = None
+        if self.energy_check is not None and not prob.restart and cand is None:
+            if self.balance is None:         # after a restart or a contact step
+                self.balance = self.energy_check.start(self)
+            self.last_balance = self.energy_check.measure(self, prob, sol)
+            if self.energy_check.refuses(self.last_balance):
+                return "energy", summary     # the step put in energy no load gave
         if self.growth_guard is not None and not prob.restart and cand is None:
             if not self.control.guard.ok(self.system, h, Y):
                 return "growth", summary
@@ -251,6 +271,13 @@ class RodRun(ProblemAssembly):
         self.quat_norm_error = max(self.quat_norm_error, drift)
         self.r_time, self.q_time, self.v_global_time = r_t, q_t, vg_t
         self._advance_accounts(prob, Y, pose)
+        if self.energy_check is not None:
+            # restarts and contact steps are not measured: the next step starts afresh
+            bal = self.last_balance
+            self.balance = None if bal is None else bal.carry
+            if bal is not None and (math.isnan(self.energy_error)
+                                    or bal.relative > self.energy_error):
+                self.energy_error = bal.relative
         if not restart:
             self.guard_since += 1
         if prob.predictions is not None and "quadratic" in prob.predictions:

@@ -65,6 +65,10 @@ class RunState:
         _advance_seabed_work`).
     quat_norm_error : float
         Largest drift of the time route's quaternions from unit norm so far.
+    balance : dict or None
+        What the energy check carries from this level to the next (the level's energy,
+        each work account's old data; :mod:`solver.balance`), None without
+        ``numerics.energy_tolerance`` and after a step the check does not measure.
     """
 
     t: float
@@ -93,6 +97,7 @@ class RunState:
     quat_norm_error: float = 0.0
     seabed_work: float = 0.0
     seabed_power: float = 0.0
+    balance: Optional[dict] = None
 
     @classmethod
     def names(cls) -> tuple:

@@ -32,7 +32,7 @@ class Attempt(NamedTuple):
     ok: accepted (the state advanced) or refused (the state untouched); iterations: Newton
     iterations of the attempt; residual: the scaled residual of its last iterate;
     nonfinite: the iterate was not finite; reason: why it was refused ("newton",
-    "contact", "error", "growth"), None when accepted.
+    "contact", "error", "growth", "energy"), None when accepted.
     """
 
     ok: Optional[bool]
@@ -432,6 +432,9 @@ class StepControl:
         why = ("singular Jacobian: the boundary conditions leave a force or moment "
                "undetermined (e.g. a straight inextensible rod held axially at both "
                "ends)" if singular else
-               "non-finite state" if nonfinite else "Newton did not converge")
+               "non-finite state" if nonfinite else
+               "the last attempt converged but put in more energy than its loads' work "
+               "(numerics.energy_tolerance): no step down to the smallest is trusted"
+               if run.last_reject == "energy" else "Newton did not converge")
         return SolverDivergence(f"{what} (Δt = {h:.3g} s, scaled residual {res:.3g}, {why})",
                                 t=run.t, step=None, residual=res, reason=reason)

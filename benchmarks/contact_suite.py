@@ -1,0 +1,321 @@
+"""The contact suite (issue 41): every case completes with a right answer or ends with a
+clear status, and what contact costs against the same run before contact.
+
+Cases (each run once, in one process after a warm-up that compiles the kernels, with
+``numerics.energy_tolerance`` = ENERGY_TOLERANCE unless ``--energy-tolerance 0``, and a
+wall-clock budget per case, past which the run ends ``stopped``):
+
+* ``seed``: the seed example, cases/goyal-writhing.yaml (N = 1000, Δt = 0.1 s, 45 s);
+* ``tension``: its tension variant, cases/goyal-writhing-tension.yaml;
+* ``seed-twist-x2``, ``seed-twist-x0.5``: the seed with its slow twist rate (0.3 rad/s
+  after 5 s) doubled and halved;
+* ``thin-plectoneme``: benchmarks/thin_plectoneme.py's rod (L/D = 100), N = 200,
+  Δt = 0.02 s, 16 s;
+* ``pyelastica-0.8``: PyElastica's plectoneme as benchmarks/peer_compare.py runs it,
+  ρ∞ = 0.8, N = 25, Δt = 0.1 s, to 12 s;
+* ``cantilever``: the steel cantilever under a dead tip load P L²/EI = 10 ramped over
+  2 s (tests/test_energy_check.py), N = 100, Δt = 0.1 s, 8 s, ρ∞ = 0 (no contact: the
+  tip's x/L against Mattiasson's 0.44501 is its answer);
+* ``seed-in-air``: a case no setting was tuned on: the seed example without its fluid
+  (no drag, no added mass), to 45 s.
+
+Per case: status (and reason), wall time (s), Newton iterations per nominal step, the
+smallest accepted step (s, every substep counted), refused attempts by reason, the
+first contact time (s) and the cost per simulated second in contact over the cost before
+contact (wall s per simulated s after the first contact over the same before it).
+
+Run: ``PYTHONPATH=$PWD python benchmarks/contact_suite.py [--only a,b] [--write-docs]``
+(about 15 min alone on 2 cores; ``--merge earlier.json`` keeps an earlier run's rows for
+the cases not run now, ``--table-only --merge x.json`` only prints the table);
+``--write-docs`` puts the table into docs/benchmarks.md (its ``contact_suite`` section,
+also written by benchmarks/report.py); the figures go to
+benchmarks/results/contact_suite.json.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import re
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(ROOT / "tests"))
+
+RESULTS = HERE / "results" / "contact_suite.json"
+DOC = ROOT / "docs" / "benchmarks.md"
+MARK = "<!-- section: contact_suite -->"
+ENERGY_TOLERANCE = 0.05
+BUDGET_S = 600.0          # wall-clock budget per case, s
+X_TIP = 0.44501           # Mattiasson's tip x/L under P L²/EI = 10
+
+
+def _seed(path="cases/goyal-writhing.yaml", twist=1.0, fluid=True):
+    from solver.case import Case
+    spec = Case.from_file(ROOT / path).model_dump(mode="json")
+    if twist != 1.0:
+        table = spec["boundary"]["start"]["rotation"][2][0]["angular_velocity"]
+        table["value"] = [v if t < 5.0 else v * twist
+                          for t, v in zip(table["t"], table["value"])]
+    if not fluid:
+        spec["fluid"] = None
+    return spec
+
+
+def _thin():
+    import thin_plectoneme as tp
+    return tp.thin_case(200, 0.02).model_dump(mode="json")
+
+
+def _pyelastica():
+    import peer_compare as pcmp
+    spec = pcmp.hockle_case(25, 0.1, 12.0).model_dump(mode="json")
+    spec["numerics"]["rho_inf"] = 0.8
+    return spec
+
+
+def _cantilever():
+    import test_energy_check as te
+    return te.cantilever(0.1, n=100).model_dump(mode="json")
+
+
+#: name -> (description, spec builder)
+CASES = {
+    "seed": ("seed example (N = 1000, Δt = 0.1 s, 45 s)", _seed),
+    "tension": ("tension variant", lambda: _seed("cases/goyal-writhing-tension.yaml")),
+    "seed-twist-x2": ("seed, slow twist rate ×2", lambda: _seed(twist=2.0)),
+    "seed-twist-x0.5": ("seed, slow twist rate ×0.5", lambda: _seed(twist=0.5)),
+    "thin-plectoneme": ("thin-rod plectoneme (L/D = 100, N = 200, Δt = 0.02 s)", _thin),
+    "pyelastica-0.8": ("PyElastica's plectoneme, ρ∞ = 0.8, N = 25, Δt = 0.1 s", _pyelastica),
+    "cantilever": ("dead-load cantilever, Δt = 0.1 s, ρ∞ = 0 (no contact)", _cantilever),
+    "seed-in-air": ("seed without its fluid (untuned)", lambda: _seed(fluid=False)),
+}
+
+
+def _refused(ds) -> dict:
+    text = ds.attrs.get("hockle_refused_attempts", "")
+    out = {}
+    for item in text.split(", "):
+        if item:
+            k, v = item.rsplit(" ", 1)
+            if int(v):
+                out[k] = int(v)
+    return out
+
+
+def run_case(name: str, energy_tolerance: float | None, budget: float = BUDGET_S) -> dict:
+    """One suite case: simulate it with the progress traced and every accepted attempt's
+    Δt seen (a wrapper around RodRun.try_step for the run's duration)."""
+    from solver.case import Case
+    from solver.run import RodRun
+    from solver.simulation import SolverDivergence, simulate
+
+    spec = CASES[name][1]()
+    spec["numerics"]["energy_tolerance"] = energy_tolerance
+    spec["numerics"]["wall_clock_budget"] = budget
+    case = Case.model_validate(spec)
+    trace, smallest = [], [math.inf]
+    original = RodRun.try_step
+
+    def try_step(self, h, *args, **kwargs):
+        att = original(self, h, *args, **kwargs)
+        if att.ok and not kwargs.get("restart", False):
+            smallest[0] = min(smallest[0], h)
+        return att
+
+    RodRun.try_step = try_step
+    status, reason = "completed", ""
+    t0 = time.perf_counter()
+    try:
+        ds = simulate(case, progress=lambda p: trace.append((p.t, p.wall_time,
+                                                             p.contact_count)))
+        status = ds.attrs["hockle_status"]
+        reason = ds.attrs.get("hockle_stop_reason", "")
+    except SolverDivergence as exc:
+        ds, status, reason = exc.partial, "failed", f"{exc.reason} at t = {exc.t:.3f} s"
+    finally:
+        RodRun.try_step = original
+    wall = time.perf_counter() - t0
+    tr = np.array(trace) if trace else np.zeros((0, 3))
+    num = case.numerics
+    t_reached = float(ds.step_time.values[-1]) if ds.sizes.get("step", 0) else 0.0
+    nominal = max(1, int(round(t_reached / num.dt)))
+    out = {"case": name, "what": CASES[name][0], "status": status, "reason": reason,
+           "wall_s": wall, "t_end": num.t_end, "t_reached": t_reached,
+           "newton_per_step": float(ds.step_newton_iterations.values.sum()) / nominal,
+           "smallest_dt": smallest[0], "refused": _refused(ds),
+           "t_contact": math.nan, "contact_cost_ratio": math.nan}
+    touched = np.flatnonzero(tr[:, 2] > 0) if len(tr) else np.zeros(0, int)
+    if touched.size:
+        k = int(touched[0])
+        t_c, w_c = (float(tr[k - 1, 0]), float(tr[k - 1, 1])) if k > 0 else (0.0, 0.0)
+        out["t_contact"] = float(tr[k, 0])
+        t_last, w_last = float(tr[-1, 0]), float(tr[-1, 1])
+        if t_c > 0 and t_last > t_c:
+            out["contact_cost_ratio"] = ((w_last - w_c) / (t_last - t_c)) / (w_c / t_c)
+    if name == "cantilever":
+        x = float(ds.position.values[-1, -1, 2])
+        out["answer"] = f"tip x/L {x:.5f} ({(x / X_TIP - 1) * 100:+.3f} % off the elastica)"
+    if "step_energy_error" in ds:
+        e = ds.step_energy_error.values
+        out["energy_error_max"] = float(np.nanmax(e)) if np.isfinite(e).any() else math.nan
+    return out
+
+
+def warm_up() -> None:
+    """Compile (or load) the kernels outside the timed cases: a short contact run."""
+    from solver.case import Case
+    from solver.simulation import simulate
+    spec = _pyelastica()
+    spec["numerics"]["t_end"] = 0.3
+    spec["numerics"]["energy_tolerance"] = ENERGY_TOLERANCE
+    simulate(Case.model_validate(spec))
+
+
+def _fmt(x, f="{:.2f}"):
+    return "–" if x is None or (isinstance(x, float) and not math.isfinite(x)) else f.format(x)
+
+
+def table(rows: list) -> str:
+    """The suite's markdown table."""
+    lines = ["| case | status | wall (s) | Newton its / nominal step | smallest Δt (s) | "
+             "refused attempts | first contact (s) | cost in contact / before |",
+             "|---|---|---:|---:|---:|---|---:|---:|"]
+    for r in rows:
+        status = r["status"] + (f" ({r['reason']})" if r["reason"] else "")
+        if r["status"] != "completed":
+            status += f", reached {r['t_reached']:.2f} of {r['t_end']:g} s"
+        if r.get("answer"):
+            status += f"; {r['answer']}"
+        refused = ", ".join(f"{k} {v}" for k, v in sorted(r["refused"].items())) or "none"
+        lines.append(f"| {r['what']} | {status} | {r['wall_s']:.1f} | "
+                     f"{r['newton_per_step']:.1f} | {_fmt(r['smallest_dt'], '{:.3g}')} | "
+                     f"{refused} | {_fmt(r['t_contact'])} | "
+                     f"{_fmt(r['contact_cost_ratio'], '{:.1f}×')} |")
+    return "\n".join(lines)
+
+
+def section_text(res: dict) -> str:
+    """The docs section of a result (the JSON this script writes)."""
+    return "\n".join([
+        "## Contact suite: completed or refused, and what contact costs",
+        "",
+        "Written by `benchmarks/contact_suite.py` (docstring: the cases and what each column "
+        f"measures) on {res['stamp']}; one run per case, one after another in one process "
+        f"after a warm-up run"
+        + (f" ({res['parts']} invocations, merged)" if res.get("parts", 1) > 1 else "")
+        + f"; 1-min load {res['load_start']:.1f} at the start, "
+        f"{res['load_end']:.1f} at the end (2 cores, shared). "
+        + (f"Energy check on (`numerics.energy_tolerance: {res['energy_tolerance']}`). "
+           if res["energy_tolerance"] else "Energy check off. ")
+        + (res.get("budget_note") or f"Wall-clock budget {res['budget_s']:.0f} s per case.")
+        + f" Total {res['total_s']:.0f} s.",
+        "",
+        table(res["rows"]),
+        "",
+        "Newton iterations per nominal step: all iterations (refused attempts and restarts "
+        "included) over t/Δt. Smallest Δt: the smallest accepted step, substeps included. "
+        "Cost in contact / before: wall seconds per simulated second after the first "
+        "contact over the same before it (the before-phase includes the buckling).",
+        ""])
+
+
+def write_docs(text: str) -> None:
+    """Put ``text`` into docs/benchmarks.md between the section's marker and the next
+    section marker (the marker appended at the end when the page has none)."""
+    page = DOC.read_text()
+    if MARK in page:
+        page = re.sub(re.escape(MARK) + r"\n.*?(?=\n<!-- section: |\Z)",
+                      lambda m: MARK + "\n" + text.rstrip() + "\n", page, flags=re.S)
+    else:
+        page = page.rstrip() + "\n" + MARK + "\n" + text.rstrip() + "\n"
+    DOC.write_text(page)
+
+
+def collect(names, energy_tolerance, budget=BUDGET_S, log=print) -> dict:
+    load_start = os.getloadavg()[0]
+    t0 = time.perf_counter()
+    warm_up()
+    rows = []
+    from datetime import datetime, timezone
+    for name in names:
+        log(f"-- {name}: {CASES[name][0]}", flush=True)
+        r = run_case(name, energy_tolerance, budget)
+        log(f"   {r}", flush=True)
+        rows.append(r)
+        res = {"stamp": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+               "energy_tolerance": energy_tolerance, "budget_s": budget,
+               "load_start": load_start, "load_end": os.getloadavg()[0],
+               "total_s": time.perf_counter() - t0, "rows": rows}
+        save(res)            # after every case: a later failure keeps the rows so far
+    return res
+
+
+def save(res: dict) -> None:
+    RESULTS.parent.mkdir(parents=True, exist_ok=True)
+    RESULTS.write_text(json.dumps(res, indent=1, default=float))
+
+
+def merged(res: dict, earlier: dict) -> dict:
+    """``res`` with the rows of ``earlier`` (a result of this script) for the cases it
+    did not run, in the order of CASES (``--merge``: the suite in parts)."""
+    rows = {r["case"]: r for r in earlier["rows"]}
+    rows.update({r["case"]: r for r in res["rows"]})
+    out = dict(res)
+    out["rows"] = [rows[k] for k in CASES if k in rows]
+    out["total_s"] = res["total_s"] + earlier.get("total_s", 0.0)
+    out["load_start"] = max(res["load_start"], earlier.get("load_start", 0.0))
+    out["load_end"] = max(res["load_end"], earlier.get("load_end", 0.0))
+    out["parts"] = earlier.get("parts", 1) + 1
+    return out
+
+
+def section(figdir=None, quick: bool = False) -> str:
+    """The section for benchmarks/report.py (``quick``: the cantilever and PyElastica's
+    plectoneme only)."""
+    names = ["pyelastica-0.8", "cantilever"] if quick else list(CASES)
+    res = collect(names, ENERGY_TOLERANCE)
+    save(res)
+    return section_text(res)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--only", default="", help="comma-separated case names")
+    ap.add_argument("--energy-tolerance", type=float, default=ENERGY_TOLERANCE,
+                    help="numerics.energy_tolerance of every case (0: the check off)")
+    ap.add_argument("--budget", type=float, default=BUDGET_S, help="wall s per case")
+    ap.add_argument("--write-docs", action="store_true")
+    ap.add_argument("--merge", default="", help="an earlier result JSON whose rows are "
+                    "kept for the cases not run now")
+    ap.add_argument("--table-only", action="store_true",
+                    help="print (and with --write-docs write) the table of --merge")
+    args = ap.parse_args()
+    names = [x for x in args.only.split(",") if x] or list(CASES)
+    for x in names:
+        if x not in CASES:
+            ap.error(f"unknown case {x!r}; known: {', '.join(CASES)}")
+    earlier = json.loads(Path(args.merge).read_text()) if args.merge else None
+    if args.table_only:
+        res = earlier
+    else:
+        res = collect(names, args.energy_tolerance or None, args.budget)
+        if earlier is not None:
+            res = merged(res, earlier)
+        save(res)
+    text = section_text(res)
+    print(text)
+    if args.write_docs:
+        write_docs(text)
+        print(f"wrote {DOC}")
+
+
+if __name__ == "__main__":
+    main()
