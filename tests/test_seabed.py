@@ -363,3 +363,12 @@ def test_error_controlled_run_with_dense_outputs_rolls_the_cable():
     assert np.allclose(ds["position"].values[-1, :, 1], -rolled, rtol=0.01)
     force = np.trapezoid(ds["seabed_force"].values[:, :, 2], ds["s"].values, axis=1)
     assert np.allclose(force[1:], W, rtol=0.01), force
+
+
+def test_energy_check_with_a_seabed_refused_naming_the_field():
+    """The energy balance has no seabed work account: asking for both is a clear error."""
+    spec = _spec()
+    spec["numerics"]["energy_tolerance"] = 0.05
+    errors = _refused(spec)
+    assert [e["loc"] for e in errors if e["type"] == "unsupported"] == [
+        "numerics.energy_tolerance"]
