@@ -37,7 +37,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import NullFormatter
 
-from solver.results import run_events
+from solver.results import minimum_bend_radius_of, run_events
 
 __all__ = [
     "plot_all",
@@ -115,6 +115,10 @@ def event_times(ds: xr.Dataset, max_events: int = MAX_EVENTS) -> list[tuple[floa
       length when the file has no diameter), provided it started closer than that; without
       ``position``, the first time the writhe has changed by 0.05 turns;
     * **first contact**: the first time ``contact_count`` > 0;
+    * **loop formed**: the first self-contact or |Wr| rising through 1 (with a seabed:
+      while the rod lies on it), when it is not already the first contact or Wr reaching 1;
+    * **MBR below X m**: the first time the smallest bend radius is below the case's
+      ``rod.minimum_bend_radius`` X;
     * **Wr reaches k**: the first time |Wr| >= k, for k = 1, 2, ... (``writhe``);
     * **end**: the last stored time.
 
@@ -132,6 +136,12 @@ def event_times(ds: xr.Dataset, max_events: int = MAX_EVENTS) -> list[tuple[floa
         fixed.append((events["buckling_onset"], "onset of buckling"))
     if events["first_contact"] is not None:
         fixed.append((events["first_contact"], "first contact"))
+    loop = events.get("loop_formed")
+    if loop is not None and loop not in (events["first_contact"], events.get("writhe_1")):
+        fixed.append((loop, "loop formed"))   # in free space it is one of those two
+    if events.get("bend_radius_below_mbr") is not None:
+        fixed.append((events["bend_radius_below_mbr"],
+                      f"MBR below {minimum_bend_radius_of(ds):g} m"))
     wr = np.asarray(ds["writhe"].values, dtype=float) if "writhe" in ds else None
     k = 1
     while f"writhe_{k}" in events:

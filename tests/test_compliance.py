@@ -27,7 +27,7 @@ from solver.results import (DIAGNOSTIC_VARIABLES, FIELD_VARIABLES, METADATA_ATTR
 from solver.simulation import simulate
 
 ALL_FIELDS = ["v", "omega", "f", "kappa", "moment", "position", "orientation", "energies",
-              "topology", "contact", "reactions"]
+              "topology", "contact", "reactions", "bend_radius"]
 
 CASE = {
     "schema_version": 1,
