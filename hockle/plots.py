@@ -52,6 +52,8 @@ __all__ = [
     "setup_rod_axes",
     "draw_rod",
     "rod_legend_handles",
+    "seabed_of",
+    "draw_seabed",
     "energy_lines",
     "topology_lines",
 ]
@@ -98,6 +100,39 @@ def rod_diameter(ds: xr.Dataset, s: np.ndarray) -> np.ndarray | None:
     if isinstance(d, dict) and "s" in d and "value" in d:
         return np.interp(s, np.asarray(d["s"], float), np.asarray(d["value"], float))
     return None
+
+
+def seabed_of(ds: xr.Dataset):
+    """The case's sea floor (:class:`solver.case.Seabed`, whose ``bottom(x, y)`` gives its
+    elevation in m) from the case stored in the file, or None when it has none."""
+    try:
+        spec = json.loads(str(ds.attrs["case"])).get("seabed")
+    except (KeyError, TypeError, ValueError, AttributeError):
+        return None
+    if not spec:
+        return None
+    from solver.case import Seabed
+
+    return Seabed.model_validate(spec)
+
+
+def draw_seabed(ax3, lims: Sequence[tuple[float, float]], seabed, n: int = 25) -> list:
+    """Draw the sea floor ``seabed`` (:func:`seabed_of`) into the 3-D axes ``ax3`` over the
+    x-y square of ``lims`` (:func:`rod_box`): a translucent sand-coloured surface of its
+    elevation (the plane of a flat bottom, the bilinear bathymetry otherwise) on an
+    ``n`` × ``n`` grid, cut where it leaves the box's z range. Returns the artists."""
+    X, Y = np.meshgrid(np.linspace(*lims[0], n), np.linspace(*lims[1], n), indexing="ij")
+    Z = np.asarray(seabed.bottom(X, Y), dtype=float)
+    Z = np.where((Z >= lims[2][0]) & (Z <= lims[2][1]), Z, np.nan)
+    if not np.isfinite(Z).any():
+        return []
+    return [ax3.plot_surface(X, Y, Z, color="tan", alpha=0.35, linewidth=0, shade=False,
+                             antialiased=False, rcount=n, ccount=n)]
+
+
+def _seabed_under(seabed, r: np.ndarray) -> np.ndarray:
+    """(N,) m, the bottom's elevation under each point of the centreline ``r`` (N, 3)."""
+    return np.asarray(seabed.bottom(r[:, 0], r[:, 1]), dtype=float)
 
 
 def _contact_spec(ds: xr.Dataset) -> dict | None:
@@ -372,7 +407,9 @@ def plot_snapshots(
     file; a plain centreline when the file has none): a shaded tube in the 3-D view, a band
     of the diameter's width at the axes' scale in the projections. Grid points in
     self-contact (:func:`contact_sites`) are orange dots; the start end (s = 0) is a circle,
-    the far end (s = L) a square; a legend names them. All panels share one cubic box
+    the far end (s = L) a square; a legend names them. With a seabed in the case the bottom
+    is drawn too: a surface in the 3-D view (:func:`draw_seabed`), and in the x-z and y-z
+    views the bottom's elevation under the rod. All panels share one cubic box
     that holds every drawn snapshot, so shapes compare at equal, undistorted scale.
     Writes ``<stem>_snapshots.png``.
     """
@@ -393,6 +430,7 @@ def plot_snapshots(
     counts = None
     if "contact_count" in ds:
         counts = ds["contact_count"]
+    seabed = seabed_of(ds)
 
     n = len(chosen)
     fig = Figure(figsize=(15.0, 3.4 * n + 1.0), layout="constrained")
@@ -411,10 +449,15 @@ def plot_snapshots(
         any_contact = any_contact or touching.size > 0
         ax3 = fig.add_subplot(grid[row, 0], projection="3d")
         setup_rod_axes(ax3, lims)
+        if seabed is not None:
+            draw_seabed(ax3, lims, seabed)
         draw_rod(ax3, r, diameter, touching)
         ax3.set_title(title, fontsize=10)
         for col, (a, b, i, j) in enumerate(views, start=2):
             ax = fig.add_subplot(grid[row, col - 1])
+            if seabed is not None and j == 2:           # the bottom under the rod
+                ax.plot(r[:, i], _seabed_under(seabed, r), color="saddlebrown", lw=1.0,
+                        zorder=0)
             if diameter is None:
                 ax.plot(r[:, i], r[:, j], color="C0", lw=1.2)
             else:
@@ -434,6 +477,9 @@ def plot_snapshots(
             ax.grid(alpha=0.3)
 
     handles = rod_legend_handles(s, diameter, any_contact)
+    if seabed is not None:
+        handles.append(Line2D([], [], color="saddlebrown", lw=4, alpha=0.6,
+                              label="seabed (x-z, y-z: the bottom under the rod)"))
     fig.legend(handles=handles, loc="outside lower center", ncol=len(handles), fontsize=9)
     if bands:
         fig.canvas.draw()   # fixes the layout, so the band widths are true to scale
