@@ -77,6 +77,9 @@ __all__ = [
     "EndCondition",
     "Boundary",
     "Contact",
+    "Bathymetry",
+    "Friction",
+    "Seabed",
     "Newton",
     "Numerics",
     "Output",
@@ -1072,6 +1075,109 @@ class Contact(BaseModel):
         return out
 
 
+#: the most points a bathymetry grid may hold (a case stays a case)
+MAX_BATHYMETRY_POINTS = 1_000_000
+#: how far (a share of the largest diameter) the cable's surface may start below the bottom
+START_PENETRATION_TOL = 0.05
+
+
+class Bathymetry(BaseModel):
+    """A sea floor on a regular grid: ``z[i][j]`` (m, global z of the bottom) at
+    ``x[i]``, ``y[j]`` (m), both axes strictly increasing; bilinear between the grid
+    points with its gradient, held constant outside the grid (docs/seabed.md). At most
+    MAX_BATHYMETRY_POINTS points. Errors: ``not_increasing``, ``wrong_shape``,
+    ``too_many_points``."""
+
+    model_config = _MODEL_CONFIG
+
+    x: list[Finite] = Field(..., min_length=2, description="Grid x coordinates, m, global; strictly increasing.")
+    y: list[Finite] = Field(..., min_length=2, description="Grid y coordinates, m, global; strictly increasing.")
+    z: list[list[Finite]] = Field(..., description="Bottom elevation z[i][j] at (x[i], y[j]), m, global.")
+
+    @model_validator(mode="after")
+    def _check(self) -> "Bathymetry":
+        nx, ny = len(self.x), len(self.y)
+        if nx * ny > MAX_BATHYMETRY_POINTS:
+            _raise("Bathymetry", [_err(("z",), "too_many_points",
+                                       f"{nx} x {ny} = {nx * ny} grid points: more than "
+                                       f"{MAX_BATHYMETRY_POINTS:.0e}", None)])
+        errors = (_check_increasing(self.x, "x", "bathymetry x")
+                  + _check_increasing(self.y, "y", "bathymetry y"))
+        if len(self.z) != nx:
+            errors.append(_err(("z",), "wrong_shape", f"must have len(x) = {nx} rows "
+                               f"(z[i][j] at x[i], y[j]), got {len(self.z)}", None))
+        for i, row in enumerate(self.z):
+            if len(row) != ny:
+                errors.append(_err(("z", i), "wrong_shape", f"must have len(y) = {ny} values, "
+                                   f"got {len(row)}", None))
+                break
+        _raise("Bathymetry", errors)
+        return self
+
+
+class Friction(BaseModel):
+    """Coulomb friction of the sea floor, axial and lateral separately, regularised below
+    ``slip_velocity`` (docs/seabed.md gives the law)."""
+
+    model_config = _MODEL_CONFIG
+
+    axial: Finite = Field(..., ge=0, description="Kinetic friction coefficient along the cable (dimensionless); >= 0.")
+    lateral: Finite = Field(..., ge=0, description="Kinetic friction coefficient across the cable (dimensionless); >= 0.")
+    static_to_kinetic: Finite = Field(
+        1.0, ge=1, description="Static over kinetic coefficient (dimensionless); >= 1; the static "
+        "coefficient applies below slip_velocity.")
+    slip_velocity: Finite = Field(
+        0.01, gt=0, description="Sliding speed of the contact point below which friction is "
+        "regularised (linear in the speed), m/s; > 0.")
+
+
+class Seabed(BaseModel):
+    """A sea floor the rod rests on: a flat bottom at ``elevation`` (m, global z; normal
+    +z) or a ``bathymetry`` grid; a linear spring-damper on the penetration of the
+    cable's surface (MoorDyn v2's kBot, cBot) and optional Coulomb ``friction``.
+    Omit for none (docs/seabed.md)."""
+
+    model_config = _MODEL_CONFIG
+
+    elevation: Optional[Finite] = Field(None, description="Global z of a flat bottom, m (normal +z); or give bathymetry.")
+    bathymetry: Optional[Bathymetry] = Field(None, description="Bottom elevation on a regular grid; or give elevation.")
+    normal_stiffness: Finite = Field(
+        3e6, ge=0, description="Normal stiffness kBot, Pa (N/m per m of cable per m of penetration); >= 0.")
+    normal_damping: Finite = Field(
+        3e5, ge=0, description="Normal damping cBot, Pa s (N/m per m of cable per m/s); >= 0.")
+    friction: Optional[Friction] = Field(None, description="Coulomb friction; null: frictionless.")
+
+    @model_validator(mode="after")
+    def _one_bottom(self) -> "Seabed":
+        if (self.elevation is None) == (self.bathymetry is None):
+            raise PydanticCustomError("one_bottom", "give exactly one of elevation (a flat bottom) "
+                                      "or bathymetry (a grid)")
+        return self
+
+    @model_serializer(mode="wrap")
+    def _drop_unused(self, handler: Any):  # no return type: keeps the JSON schema
+        out = handler(self)
+        for name in ("elevation", "bathymetry", "friction"):
+            if out.get(name) is None:
+                out.pop(name, None)
+        return out
+
+    def bottom(self, x, y):
+        """The bottom's elevation (m) at global (x, y) (arrays, m): the flat elevation or
+        the grid's bilinear interpolation, held constant outside the grid."""
+        x, y = np.asarray(x, float), np.asarray(y, float)
+        if self.bathymetry is None:
+            return np.full(np.broadcast(x, y).shape, float(self.elevation))
+        from scipy.interpolate import RegularGridInterpolator
+
+        b = self.bathymetry
+        gx, gy = np.asarray(b.x, float), np.asarray(b.y, float)
+        f = RegularGridInterpolator((gx, gy), np.asarray(b.z, float))
+        pts = np.stack(np.broadcast_arrays(np.clip(x, gx[0], gx[-1]), np.clip(y, gy[0], gy[-1])),
+                       axis=-1)
+        return f(pts)
+
+
 class Newton(BaseModel):
     """Newton iteration controls for each implicit time step."""
 
@@ -1329,6 +1435,8 @@ class Case(BaseModel):
                              "(global directions) or a given centreline, and a twist rate.")
     boundary: Boundary = Field(..., description="Boundary conditions at s = 0 and s = L, body-frame components.")
     contact: Optional[Contact] = Field(None, description="Self-contact parameters; null: no self-contact search.")
+    seabed: Optional[Seabed] = Field(None, description="Sea floor: flat or a bathymetry grid, normal "
+                                     "stiffness and damping, friction; null: none (docs/seabed.md).")
     numerics: Numerics = Field(..., description="Grid (m), time step (s) and solver controls.")
     output: Output = Field(default_factory=Output, description="Stored variables and output stride.")
 
@@ -1360,7 +1468,7 @@ class Case(BaseModel):
         """Checks across sections (raising :class:`CaseError` with every error found);
         sets ``numerics.n_segments`` and ``numerics.ds`` from whichever was given."""
         errors = (self._check_initial() + self._check_loads_on_rod() + self._check_contact()
-                  + self._check_ill_posed_ends())
+                  + self._check_ill_posed_ends() + self._check_seabed())
         n_segments = self._check_numerics(errors)
         _raise("Case", errors)
         numerics, length = self.numerics, self.rod.length
@@ -1435,6 +1543,39 @@ class Case(BaseModel):
                          f"the tolerance ({self.contact.tolerance!r} m): the search would miss "
                          "pairs the barrier acts on", self.contact.barrier_gap)
                 )
+        return errors
+
+    def _check_seabed(self) -> list[dict]:
+        """Gravity into the bottom (its normal is +z: g_z < 0 where gravity is given) and
+        a cable that starts above it: its surface below the bottom by at most
+        START_PENETRATION_TOL of the largest diameter (the initial centreline's points, or
+        200 points of the straight start)."""
+        sb = self.seabed
+        if sb is None:
+            return []
+        errors = []
+        g = self.gravity
+        if g is not None and any(c != 0.0 for c in g) and not g[2] < 0.0:
+            errors.append(_err(("gravity",), "away_from_seabed",
+                               "with a seabed (normal +z) gravity must point into it "
+                               f"(gravity[2] < 0), got {g!r}", g))
+        ini = self.initial
+        if ini.from_result is not None:
+            return errors
+        d = self.rod.diameter
+        d_max = max(d.value) if isinstance(d, Profile) else float(d)
+        if ini.centreline is not None:
+            pts = np.asarray(ini.centreline.points, float)
+        else:
+            pts = np.linspace(0.0, self.rod.length, 200)[:, None] * np.asarray(ini.tangent)[None, :]
+        gap = pts[:, 2] - sb.bottom(pts[:, 0], pts[:, 1]) - 0.5 * d_max
+        k = int(np.argmin(gap))
+        if gap[k] < -START_PENETRATION_TOL * d_max:
+            where = "elevation" if sb.bathymetry is None else "bathymetry"
+            errors.append(_err(("seabed", where), "starts_below_seabed",
+                               f"the cable starts {-gap[k]:.6g} m into the bottom at "
+                               f"({', '.join(f'{c:.6g}' for c in pts[k])}) m (its surface may be at "
+                               f"most {START_PENETRATION_TOL:g} x its diameter below it)", None))
         return errors
 
     def _check_ill_posed_ends(self) -> list[dict]:
@@ -1571,6 +1712,8 @@ class Case(BaseModel):
         out = handler(self)
         if not self.point_loads:
             out.pop("point_loads", None)
+        if self.seabed is None:
+            out.pop("seabed", None)
         return out
 
     # ----------------------------------------------------------------- loading

@@ -33,6 +33,7 @@ from .newton import Newton
 from .properties import RodProperties
 from .recording import dense_state, interpolated_snapshot, snapshot
 from .scheme import RodSystem, alpha_parameters
+from .seabed import Seabed
 from .state import RunState
 from .step_problem import ProblemAssembly
 from .stepping import ErrorControl, PIController
@@ -85,7 +86,8 @@ class RodRun(ProblemAssembly):
             self.contact = SelfContact(case.contact, props.s, props.diameter, props.rho_a)
             self.search = CandidateSearch(self.contact, props.diameter)
             self.route_tolerance = self._route_tolerance()
-        self.system = RodSystem(props, self.loads, contact=self.contact)
+        self.seabed = Seabed(case.seabed, props.diameter) if case.seabed is not None else None
+        self.system = RodSystem(props, self.loads, contact=self.contact, seabed=self.seabed)
         self.newton = Newton(self.system, num.newton.tolerance, num.newton.max_iterations)
         self.params = alpha_parameters(num.rho_inf)
         self.rho_inf = num.rho_inf
@@ -144,6 +146,13 @@ class RodRun(ProblemAssembly):
         pose = ((quat_to_matrix(st.q), np.zeros((props.s.size, 3)), 0.0)
                 if self.system.needs_pose else None)
         st.F_old, _ = self.system.node_terms(st.Y, False, pose, glob)
+        if self.seabed is not None:
+            # the sea floor's loads at the start level (the kernel adds them at each new one)
+            Fn, Ff, M, _ = self.seabed_loads()
+            R = pose[0]
+            st.F_old[:, 6:9] += np.einsum("nji,nj->ni", R, Fn + Ff)
+            st.F_old[:, 9:12] += np.einsum("nji,nj->ni", R, M)
+            st.seabed_power = self._seabed_power(Fn + Ff, M)
         st.body_force = self.loads.with_points(self._body_force(glob, pose), st.t,
                                                None if pose is None else pose[0])
         st.power = end_power(st.Y, props) + distributed_power(st.Y, st.body_force, props)
@@ -262,7 +271,31 @@ class RodRun(ProblemAssembly):
                 self._hold_from_here(prev_bc, bc)
         elif self.system.needs_pose:
             self.update_space_route()
+        if self.seabed is not None:
+            self._advance_seabed_work(h)
         self.last_iterations, self.last_residual = sol.iterations, sol.residual
+
+    def seabed_loads(self):
+        """The seabed's (normal reaction, friction, moment) per unit length (N+1, 3),
+        global frame, and the surface penetration (N+1,) m, at the current level's
+        centreline, velocities and frames (:meth:`solver.seabed.Seabed.loads`)."""
+        return self.seabed.loads(self.r, self.v_global, quat_to_matrix(self.q), self.Y[:, 3:6])
+
+    def _seabed_power(self, F, M):
+        """Power of the seabed's loads F, M (N+1, 3) on the current level, W: ∫ (F·ṙ +
+        M·Ω) ds with the quadrature weights (Ω = R ω the global angular velocity)."""
+        omega = np.einsum("nij,nj->ni", quat_to_matrix(self.q), self.Y[:, 3:6])
+        per = np.einsum("ni,ni->n", F, self.v_global) + np.einsum("ni,ni->n", M, omega)
+        return float(per @ self.props.quad_weights)
+
+    def _advance_seabed_work(self, h) -> None:
+        """The seabed's work over an accepted step of h (s), by the trapezoid rule on its
+        power at the two levels (its own account, ``seabed_work``, J: the dissipation of
+        friction and damping, and the spring's energy)."""
+        Fn, Ff, M, _ = self.seabed_loads()
+        power = self._seabed_power(Fn + Ff, M)
+        self.seabed_work = self.seabed_work + 0.5 * h * (self.seabed_power + power)
+        self.seabed_power = power
 
     def _advance_accounts(self, prob, Y, pose) -> None:
         """The end rotations φ and the work and power of the loads over an accepted step

@@ -40,6 +40,7 @@ from .contact.model import evaluate_into, evaluation_arrays
 from .kinematics import (_exp_one, _matrix_into, _right_jacobian_into, _space_route_kernel,
                          quat_to_matrix)
 from .loads import _drag_kernel, point_loads_into
+from .seabed import NO_SEABED, seabed_into
 
 __all__ = ["alpha_parameters", "StepParameters", "RodSystem", "BACKWARD_EULER"]
 
@@ -552,8 +553,9 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
     (the residual is NaN then), 1: active contacts P, 2: pose computed, 3: exact load
     data computed]. The one implementation of the residual: Newton's compiled
     iterations and the Python method both call it."""
-    mass_t, stiffness, inertia, cdn, cdt, floor, rscal = rod
+    mass_t, stiffness, inertia, cdn, cdt, floor, rscal, seabed = rod
     ds = rscal[0]
+    has_seabed = seabed[0][0] != 0.0
     has_drag = rscal[1] != 0.0
     space = rscal[2] != 0.0
     (Y_old, zconst, flux_const, glob, q_old, r_old, vg_old, bc_rows, bc_cols, bc_coef,
@@ -566,7 +568,7 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
      rdot, A0, L, drag_b, drag_j, Jr, flags) = buf
     n1 = Y.shape[0]
     contact = cand[2].shape[0] > 0
-    need_pose = has_glob or contact or (has_points and sscal[5] != 0.0)
+    need_pose = has_glob or contact or (has_points and sscal[5] != 0.0) or has_seabed
     for i in range(4):
         flags[i] = 0
     P = 0
@@ -615,6 +617,10 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
     node_terms_into(Y, want_jac, mass_t, stiffness, inertia, has_drag, cdn, cdt, rotate, Rm,
                     theta, 0.5 * dt, G, add_diag, diag, Fn, dF, loadrot, brot, drag_b, drag_j,
                     Jr)
+    if has_seabed:
+        # the sea floor's loads at the node's own new-level pose (solver.seabed): in the
+        # band, exact for the time route
+        seabed_into(Y, Rm, r, vg, theta, dt, seabed, want_jac, Fn, dF)
     if want_jac and space and need_pose and have_G:
         # the exact load product's data (self-contact configured: the pose is the space
         # route, so every node's position and frame depends on κ upstream of it)
@@ -651,16 +657,19 @@ class RodSystem:
     loads : LoadModel
     contact : SelfContact or None
         The self-contact model (:mod:`solver.contact`); None without self-contact.
+    seabed : solver.seabed.Seabed or None
+        The sea floor (:mod:`solver.seabed`); None without one.
     """
 
-    def __init__(self, props, loads, contact=None):
+    def __init__(self, props, loads, contact=None, seabed=None):
         self.p = props
         self.loads = loads
         self.contact = contact
+        self.seabed = seabed
         self.n_nodes = props.s.size
         self.n_cells = self.n_nodes - 1
         self.n = NV * self.n_nodes
-        self.needs_pose = (loads.has_global or contact is not None
+        self.needs_pose = (loads.has_global or contact is not None or seabed is not None
                            or (loads.points is not None and loads.points.any_dead))
         # characteristic sizes of the unknowns (floors of the column scale)
         length = props.s[-1]
@@ -678,7 +687,8 @@ class RodSystem:
         self.rod_data = (props.mass_t, props.stiffness, props.inertia,
                          np.ascontiguousarray(cdn, dtype=float),
                          np.ascontiguousarray(cdt, dtype=float), self.floor,
-                         np.array([props.ds, float(loads.has_drag), float(contact is not None)]))
+                         np.array([props.ds, float(loads.has_drag), float(contact is not None)]),
+                         NO_SEABED if seabed is None else seabed.data)
         if contact is not None:
             self.contact_data = contact.kernel_data
         else:

@@ -59,6 +59,10 @@ class RunState:
         Node displacement rates, m/s (advanced only where distributed loads do work).
     body_force : (N+1, 3) or None
         Distributed global-frame load in the body frame, N/m, at this level.
+    seabed_work, seabed_power : float
+        Work done on the rod by the seabed (normal reaction, friction and its moment), J,
+        and its rate at this level, W (0 without a seabed; :meth:`solver.run.RodRun.
+        _advance_seabed_work`).
     quat_norm_error : float
         Largest drift of the time route's quaternions from unit norm so far.
     """
@@ -87,6 +91,8 @@ class RunState:
     end_load: Optional[np.ndarray] = None
     body_force: Optional[np.ndarray] = None
     quat_norm_error: float = 0.0
+    seabed_work: float = 0.0
+    seabed_power: float = 0.0
 
     @classmethod
     def names(cls) -> tuple:

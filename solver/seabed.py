@@ -1,0 +1,456 @@
+"""The sea floor: normal contact and Coulomb friction at the cable's surface.
+
+A distributed load per unit length on the nodes that touch the bottom (docs/seabed.md):
+
+* **Bottom.** A flat bottom z = e, or the bilinear interpolation h(x, y) of a regular
+  grid with its gradient (hx, hy) and twist hxy (held constant outside the grid: the
+  clamped direction's gradient is 0). Its unit normal n = (−hx, −hy, 1)/√(1 + hx² + hy²).
+* **Normal contact** (MoorDyn v2 theory documentation, seabed: a linear spring-damper
+  per unit length, kBot and cBot). The centreline's distance to the bottom's tangent
+  plane under it d = (z − h)/√(1 + hx² + hy²) (exact for a plane); the surface
+  penetration p = ρ − d with ρ the local radius (half the diameter profile). While
+  p > 0 the reaction per unit length is F_n = N n with
+  N = max(0, k p − c n·ṙ): k = ``normal_stiffness`` (Pa), c = ``normal_damping`` (Pa s).
+  The clamp keeps the damper from pulling a lifting cable down (no adhesion).
+* **Friction** (Coulomb, axial and lateral separately as MoorDyn v2 does) acts at the
+  contact point r − ρn, whose velocity is w = ṙ + Ω × (−ρn) (Ω the global angular
+  velocity of the section, so a spinning cable's contact point slides unless it rolls).
+  With â the cable tangent projected onto the bottom and normalised, l̂ = n × â, and the
+  sliding speeds v_a = w·â, v_l = w·l̂:
+  F_f = −N (φ_a(v_a) â + φ_l(v_l) l̂),
+  φ(v) = sign(v) μ(|v|), μ(s) = μ_s s/v_s for s ≤ v_s (regularised: linear, the
+  static coefficient μ_s = ``static_to_kinetic`` · μ reached at the slip velocity v_s,
+  as MoorDyn's static coefficient applies below its slip threshold), then falling
+  linearly to the kinetic μ at 2v_s (continuous, where MoorDyn drops at once: Newton
+  needs a continuous residual), μ beyond. The moment per unit length about the
+  centreline is M = (−ρn) × F_f.
+
+The loads enter each node's linear- and angular-momentum rows (E3, E4 of
+:mod:`solver.scheme`) in the body frame, B = Rᵀ F, Q = Rᵀ M, in the same Newton as the
+rest, with the exact derivative with respect to the node's v and ω at the new level
+through the pose of the time route (r = r^n + ½Δt(ṙ^n + R v), R = R^n exp(½Δt(ω^n + ω)),
+Ω = R ω, tangent R a3): propagated forward through every step of the formulas above.
+With self-contact configured the pose is the space route (integrated along s from κ), and
+this node-local derivative is the band's approximation of it (the exact product of
+:func:`solver.scheme.exact_loads_product` does not carry the seabed).
+
+Cost: one pass over the nodes, O(N); nodes higher than the bottom's top plus their
+radius (times the steepest slope factor) are skipped, and the whole kernel when every
+node is (:func:`far_from_bottom`).
+"""
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from .kinematics import _right_jacobian_into
+
+__all__ = ["Seabed", "seabed_into", "seabed_loads", "far_from_bottom", "NO_SEABED"]
+
+#: the kernels' data of a run without a seabed (the scalars' kind 0)
+NO_SEABED = (np.zeros(10), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros((1, 1)))
+
+# rows and columns of the node's unknowns (solver.scheme's V, W, E3, E4)
+_V, _E3, _E4 = 0, 6, 9
+
+
+class Seabed:
+    """The case's ``seabed`` on the grid, as the compiled kernels take it.
+
+    Parameters
+    ----------
+    spec : solver.case.Seabed
+    diameter : (N+1,) m, the diameter profile on the grid
+
+    Attributes
+    ----------
+    data : (scalars (10,): kind (1 flat, 2 grid), elevation m, k Pa, c Pa s, μa, μl,
+        static_to_kinetic, v_slip m/s, top m (highest bottom point), slope factor
+        max √(1 + hx² + hy²); radius (N+1,) m; grid x (nx,), y (ny,), z (nx, ny) m)
+    """
+
+    def __init__(self, spec, diameter):
+        fr = spec.friction
+        radius = 0.5 * np.asarray(diameter, float)
+        if spec.bathymetry is None:
+            gx = gy = np.zeros(1)
+            gz = np.zeros((1, 1))
+            kind, elev, top, slope = 1.0, float(spec.elevation), float(spec.elevation), 1.0
+        else:
+            b = spec.bathymetry
+            gx, gy = np.asarray(b.x, float), np.asarray(b.y, float)
+            gz = np.ascontiguousarray(b.z, dtype=float)
+            kind, elev, top = 2.0, 0.0, float(gz.max())
+            hx = np.diff(gz, axis=0) / np.diff(gx)[:, None]
+            hy = np.diff(gz, axis=1) / np.diff(gy)[None, :]
+            slope = float(np.sqrt(1.0 + np.max(hx**2, initial=0.0) + np.max(hy**2, initial=0.0)))
+        scal = np.array([kind, elev, spec.normal_stiffness, spec.normal_damping,
+                         0.0 if fr is None else fr.axial, 0.0 if fr is None else fr.lateral,
+                         1.0 if fr is None else fr.static_to_kinetic,
+                         1.0 if fr is None else fr.slip_velocity, top, slope])
+        self.data = (scal, radius, gx, gy, gz)
+        self.radius = radius
+
+    def loads(self, r, v_global, R, omega):
+        """(normal reaction, friction, moment) per unit length at the nodes, each
+        (N+1, 3) N/m or N m/m, global frame, for positions r, velocities ṙ (N+1, 3),
+        frames R (N+1, 3, 3) and body angular velocities ω (N+1, 3)
+        (:func:`seabed_loads`)."""
+        n1 = r.shape[0]
+        Fn, Ff, M, pen = np.zeros((n1, 3)), np.zeros((n1, 3)), np.zeros((n1, 3)), np.zeros(n1)
+        seabed_loads(np.ascontiguousarray(r, dtype=float), np.ascontiguousarray(v_global, dtype=float),
+                     np.ascontiguousarray(R, dtype=float), np.ascontiguousarray(omega, dtype=float),
+                     self.data, Fn, Ff, M, pen)
+        return Fn, Ff, M, pen
+
+
+@numba.njit(cache=True, inline="always")
+def _locate(g, x):
+    """(cell i, share t in [0, 1], inside) of x on the increasing axis g (binary search);
+    outside the axis the nearest end, t at it, inside False."""
+    n = g.shape[0]
+    if x <= g[0]:
+        return 0, 0.0, False
+    if x >= g[n - 1]:
+        return n - 2, 1.0, False
+    lo, hi = 0, n - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if g[mid] <= x:
+            lo = mid
+        else:
+            hi = mid
+    return lo, (x - g[lo]) / (g[lo + 1] - g[lo]), True
+
+
+@numba.njit(cache=True)
+def _bottom(x, y, data):
+    """(h, hx, hy, hxy) of the bottom at global (x, y) m: the flat elevation, or the
+    grid's bilinear interpolation with its derivatives (0 across a clamped axis)."""
+    scal, _, gx, gy, gz = data
+    if scal[0] == 1.0:
+        return scal[1], 0.0, 0.0, 0.0
+    i, tx, inx = _locate(gx, x)
+    j, ty, iny = _locate(gy, y)
+    z00, z10, z01, z11 = gz[i, j], gz[i + 1, j], gz[i, j + 1], gz[i + 1, j + 1]
+    ddx = gx[i + 1] - gx[i]
+    ddy = gy[j + 1] - gy[j]
+    h = ((1.0 - tx) * (1.0 - ty) * z00 + tx * (1.0 - ty) * z10 + (1.0 - tx) * ty * z01
+         + tx * ty * z11)
+    hx = ((1.0 - ty) * (z10 - z00) + ty * (z11 - z01)) / ddx if inx else 0.0
+    hy = ((1.0 - tx) * (z01 - z00) + tx * (z11 - z10)) / ddy if iny else 0.0
+    hxy = (z11 - z10 - z01 + z00) / (ddx * ddy) if (inx and iny) else 0.0
+    return h, hx, hy, hxy
+
+
+@numba.njit(cache=True, inline="always")
+def _coef(v, mu, ratio, vs):
+    """The friction coefficient law φ(v) (signed) and its derivative φ'(v) (s/m):
+    module docstring."""
+    s = abs(v)
+    sg = 1.0 if v >= 0.0 else -1.0
+    mus = ratio * mu
+    if s <= vs:
+        return mus * v / vs, mus / vs
+    if s < 2.0 * vs:
+        return sg * (mus + (mu - mus) * (s - vs) / vs), (mu - mus) / vs
+    return sg * mu, 0.0
+
+
+@numba.njit(cache=True, inline="always")
+def _cross_cols(a, B, out, sign):
+    """out (3, 6) += sign · a × B[:, j] for every column j (a (3,), B (3, 6))."""
+    for j in range(6):
+        out[0, j] += sign * (a[1] * B[2, j] - a[2] * B[1, j])
+        out[1, j] += sign * (a[2] * B[0, j] - a[0] * B[2, j])
+        out[2, j] += sign * (a[0] * B[1, j] - a[1] * B[0, j])
+
+
+@numba.njit(cache=True)
+def _node(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk):
+    """The seabed's loads on one node (module docstring): normal reaction Fn, friction
+    Ff, moment M (3,) global, per unit length, from the centreline x, its velocity u,
+    the global angular velocity Om, the tangent t (3,) and the radius rho (m). With
+    ``want`` also DF = ∂(Fn + Ff)/∂X and DM = ∂M/∂X (3, 6) for the derivatives of x, u,
+    Om, t with respect to the node's unknowns X (Dr, Du, DOm, Dt (3, 6)), by forward
+    propagation through the formulas. wk: scratch (12, 3, 6). Returns the penetration
+    p (m, ≤ 0: no contact, every output 0)."""
+    for i in range(3):
+        Fn[i] = 0.0
+        Ff[i] = 0.0
+        M[i] = 0.0
+    scal = data[0]
+    kst, cdp, mua, mul, ratio, vs = scal[2], scal[3], scal[4], scal[5], scal[6], scal[7]
+    h, hx, hy, hxy = _bottom(x[0], x[1], data)
+    sq = math.sqrt(1.0 + hx * hx + hy * hy)
+    n0, n1, n2 = -hx / sq, -hy / sq, 1.0 / sq
+    d = (x[2] - h) / sq
+    p = rho - d
+    if p <= 0.0:
+        if want:
+            for i in range(3):
+                for j in range(6):
+                    DF[i, j] = 0.0
+                    DM[i, j] = 0.0
+        return p
+    sn = n0 * u[0] + n1 * u[1] + n2 * u[2]
+    N = kst * p - cdp * sn
+    if N <= 0.0:
+        if want:
+            for i in range(3):
+                for j in range(6):
+                    DF[i, j] = 0.0
+                    DM[i, j] = 0.0
+        return p
+    n = np.empty(3)
+    n[0], n[1], n[2] = n0, n1, n2
+    for i in range(3):
+        Fn[i] = N * n[i]
+    fric = mua > 0.0 or mul > 0.0
+    # friction: contact-point velocity, directions, speeds
+    w = np.empty(3)
+    a = np.empty(3)
+    ah = np.empty(3)
+    lh = np.empty(3)
+    w[0] = u[0] - rho * (Om[1] * n2 - Om[2] * n1)
+    w[1] = u[1] - rho * (Om[2] * n0 - Om[0] * n2)
+    w[2] = u[2] - rho * (Om[0] * n1 - Om[1] * n0)
+    tn = t[0] * n0 + t[1] * n1 + t[2] * n2
+    for i in range(3):
+        a[i] = t[i] - tn * n[i]
+    la = math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
+    if la < 1e-12:
+        fric = False        # the cable stands on the bottom: no axial direction
+    pa = pl = dpa = dpl = va = vl = 0.0
+    if fric:
+        for i in range(3):
+            ah[i] = a[i] / la
+        lh[0] = n1 * ah[2] - n2 * ah[1]
+        lh[1] = n2 * ah[0] - n0 * ah[2]
+        lh[2] = n0 * ah[1] - n1 * ah[0]
+        va = w[0] * ah[0] + w[1] * ah[1] + w[2] * ah[2]
+        vl = w[0] * lh[0] + w[1] * lh[1] + w[2] * lh[2]
+        pa, dpa = _coef(va, mua, ratio, vs)
+        pl, dpl = _coef(vl, mul, ratio, vs)
+        for i in range(3):
+            Ff[i] = -N * (pa * ah[i] + pl * lh[i])
+        M[0] = -rho * (n1 * Ff[2] - n2 * Ff[1])
+        M[1] = -rho * (n2 * Ff[0] - n0 * Ff[2])
+        M[2] = -rho * (n0 * Ff[1] - n1 * Ff[0])
+    if not want:
+        return p
+    # ---- derivatives with respect to the node's unknowns X (3, 6 columns)
+    Dn, Dw, Da, Dah, Dl, DFf = wk[0], wk[1], wk[2], wk[3], wk[4], wk[5]
+    # ∂n/∂x and ∂d/∂x (bilinear: hxx = hyy = 0)
+    dsx = hy * hxy / sq
+    dsy = hx * hxy / sq
+    G0, G1 = -hx, -hy
+    dn = wk[6]          # (3, 3) in its first columns: ∂n/∂x
+    dn[0, 0] = -G0 * dsx / (sq * sq)
+    dn[1, 0] = -hxy / sq - G1 * dsx / (sq * sq)
+    dn[2, 0] = -dsx / (sq * sq)
+    dn[0, 1] = -hxy / sq - G0 * dsy / (sq * sq)
+    dn[1, 1] = -G1 * dsy / (sq * sq)
+    dn[2, 1] = -dsy / (sq * sq)
+    dn[0, 2] = 0.0
+    dn[1, 2] = 0.0
+    dn[2, 2] = 0.0
+    dd0 = n0 - d * dsx / sq
+    dd1 = n1 - d * dsy / sq
+    dd2 = n2
+    DN = np.empty(6)
+    for j in range(6):
+        for i in range(3):
+            Dn[i, j] = dn[i, 0] * Dr[0, j] + dn[i, 1] * Dr[1, j]
+        Dd = dd0 * Dr[0, j] + dd1 * Dr[1, j] + dd2 * Dr[2, j]
+        Dsn = (n0 * Du[0, j] + n1 * Du[1, j] + n2 * Du[2, j]
+               + u[0] * Dn[0, j] + u[1] * Dn[1, j] + u[2] * Dn[2, j])
+        DN[j] = -kst * Dd - cdp * Dsn
+        for i in range(3):
+            DF[i, j] = DN[j] * n[i] + N * Dn[i, j]
+            DM[i, j] = 0.0
+    if not fric:
+        return p
+    # Dw = Du − ρ(DOm × n + Om × Dn)
+    for i in range(3):
+        for j in range(6):
+            Dw[i, j] = Du[i, j]
+    _cross_cols(n, DOm, Dw, rho)            # −ρ DOm × n = +ρ n × DOm
+    _cross_cols(Om, Dn, Dw, -rho)
+    # Da = Dt − n (nᵀDt + tᵀDn) − (t·n) Dn
+    for j in range(6):
+        c = (n0 * Dt[0, j] + n1 * Dt[1, j] + n2 * Dt[2, j]
+             + t[0] * Dn[0, j] + t[1] * Dn[1, j] + t[2] * Dn[2, j])
+        for i in range(3):
+            Da[i, j] = Dt[i, j] - n[i] * c - tn * Dn[i, j]
+    # Dâ = (I − â âᵀ) Da / |a|
+    for j in range(6):
+        c = ah[0] * Da[0, j] + ah[1] * Da[1, j] + ah[2] * Da[2, j]
+        for i in range(3):
+            Dah[i, j] = (Da[i, j] - ah[i] * c) / la
+    # Dl = Dn × â + n × Dâ
+    for i in range(3):
+        for j in range(6):
+            Dl[i, j] = 0.0
+    _cross_cols(ah, Dn, Dl, -1.0)
+    _cross_cols(n, Dah, Dl, 1.0)
+    for j in range(6):
+        Dva = 0.0
+        Dvl = 0.0
+        for i in range(3):
+            Dva += ah[i] * Dw[i, j] + w[i] * Dah[i, j]
+            Dvl += lh[i] * Dw[i, j] + w[i] * Dl[i, j]
+        for i in range(3):
+            DFf[i, j] = (-DN[j] * (pa * ah[i] + pl * lh[i])
+                         - N * (dpa * Dva * ah[i] + pa * Dah[i, j]
+                                + dpl * Dvl * lh[i] + pl * Dl[i, j]))
+            DF[i, j] += DFf[i, j]
+    # DM = −ρ (Dn × Ff + n × DFf)
+    _cross_cols(Ff, Dn, DM, rho)
+    _cross_cols(n, DFf, DM, -rho)
+    return p
+
+
+@numba.njit(cache=True)
+def far_from_bottom(r, data):
+    """True when every node is above the bottom's top by more than its radius times the
+    steepest slope factor (then no node touches: the kernel is skipped)."""
+    scal, radius = data[0], data[1]
+    lim = scal[8]
+    f = scal[9]
+    for k in range(r.shape[0]):
+        if r[k, 2] - f * radius[k] <= lim:
+            return False
+    return True
+
+
+@numba.njit(cache=True)
+def seabed_into(Y, Rm, r, vg, theta, dt, data, want, Fn, dF):
+    """Add the seabed's loads to the node terms Fn (N+1, 12) (E3 rows: B = Rᵀ F; E4 rows:
+    Q = Rᵀ M) and with ``want`` their exact derivative with respect to each node's v and
+    ω at the new level to dF (N+1, 12, 12) (module docstring), for the iterate Y
+    (N+1, 12) with the new-level frames Rm (N+1, 3, 3), positions r and velocities
+    ṙ = R v (N+1, 3), the rotation increments θ (N+1, 3) and the step dt (s). A node
+    above the bottom's top plus its radius is skipped."""
+    scal, radius = data[0], data[1]
+    if scal[0] == 0.0 or far_from_bottom(r, data):
+        return
+    lim = scal[8]
+    f = scal[9]
+    hdt = 0.5 * dt
+    x = np.empty(3)
+    u = np.empty(3)
+    Om = np.empty(3)
+    t = np.empty(3)
+    Fnv = np.empty(3)
+    Ffv = np.empty(3)
+    Mv = np.empty(3)
+    Dr = np.zeros((3, 6))
+    Du = np.zeros((3, 6))
+    DOm = np.zeros((3, 6))
+    Dt = np.zeros((3, 6))
+    DF = np.empty((3, 6))
+    DM = np.empty((3, 6))
+    wk = np.zeros((7, 3, 6))
+    J = np.empty((1, 3, 3))
+    S = np.empty((3, 3))
+    RS = np.empty((3, 3))
+    for k in range(Y.shape[0]):
+        if r[k, 2] - f * radius[k] > lim:
+            continue
+        R = Rm[k]
+        for i in range(3):
+            x[i] = r[k, i]
+            u[i] = vg[k, i]
+            Om[i] = R[i, 0] * Y[k, 3] + R[i, 1] * Y[k, 4] + R[i, 2] * Y[k, 5]
+            t[i] = R[i, 2]
+        if want:
+            _right_jacobian_into(theta[k, 0], theta[k, 1], theta[k, 2], J, 0)
+            # Du = [R | −½Δt R [v]× J_r]; Dr = ½Δt Du
+            for vec in range(3):
+                if vec == 0:
+                    a0, a1, a2 = Y[k, 0], Y[k, 1], Y[k, 2]
+                elif vec == 1:
+                    a0, a1, a2 = Y[k, 3], Y[k, 4], Y[k, 5]
+                else:
+                    a0, a1, a2 = 0.0, 0.0, 1.0
+                # S = [a]× J_r, RS = −½Δt R S
+                for j in range(3):
+                    S[0, j] = -a2 * J[0, 1, j] + a1 * J[0, 2, j]
+                    S[1, j] = a2 * J[0, 0, j] - a0 * J[0, 2, j]
+                    S[2, j] = -a1 * J[0, 0, j] + a0 * J[0, 1, j]
+                for i in range(3):
+                    for j in range(3):
+                        RS[i, j] = -hdt * (R[i, 0] * S[0, j] + R[i, 1] * S[1, j]
+                                           + R[i, 2] * S[2, j])
+                for i in range(3):
+                    for j in range(3):
+                        if vec == 0:
+                            Du[i, j] = R[i, j]
+                            Du[i, 3 + j] = RS[i, j]
+                            Dr[i, j] = hdt * R[i, j]
+                            Dr[i, 3 + j] = hdt * RS[i, j]
+                        elif vec == 1:
+                            DOm[i, 3 + j] = R[i, j] + RS[i, j]
+                        else:
+                            Dt[i, 3 + j] = RS[i, j]
+        p = _node(x, u, Om, t, radius[k], data, want, Dr, Du, DOm, Dt, Fnv, Ffv, Mv, DF, DM, wk)
+        if p <= 0.0:
+            continue
+        b = np.empty(3)
+        q = np.empty(3)
+        for i in range(3):
+            b[i] = (R[0, i] * (Fnv[0] + Ffv[0]) + R[1, i] * (Fnv[1] + Ffv[1])
+                    + R[2, i] * (Fnv[2] + Ffv[2]))
+            q[i] = R[0, i] * Mv[0] + R[1, i] * Mv[1] + R[2, i] * Mv[2]
+            Fn[k, _E3 + i] += b[i]
+            Fn[k, _E4 + i] += q[i]
+        if not want:
+            continue
+        for i in range(3):
+            for j in range(6):
+                dF[k, _E3 + i, _V + j] += R[0, i] * DF[0, j] + R[1, i] * DF[1, j] + R[2, i] * DF[2, j]
+                dF[k, _E4 + i, _V + j] += R[0, i] * DM[0, j] + R[1, i] * DM[1, j] + R[2, i] * DM[2, j]
+        # the body frame turns with ω: ∂(Rᵀ F)/∂ω = ½Δt [Rᵀ F]× J_r (solver.loads)
+        for vec in range(2):
+            c0, c1, c2 = (b[0], b[1], b[2]) if vec == 0 else (q[0], q[1], q[2])
+            row = _E3 if vec == 0 else _E4
+            for j in range(3):
+                dF[k, row, 3 + j] += hdt * (-c2 * J[0, 1, j] + c1 * J[0, 2, j])
+                dF[k, row + 1, 3 + j] += hdt * (c2 * J[0, 0, j] - c0 * J[0, 2, j])
+                dF[k, row + 2, 3 + j] += hdt * (-c1 * J[0, 0, j] + c0 * J[0, 1, j])
+
+
+@numba.njit(cache=True)
+def seabed_loads(r, vg, Rm, omega, data, Fn, Ff, M, pen):
+    """The seabed's normal reaction Fn, friction Ff and moment M per unit length (N+1, 3),
+    global frame, and the surface penetration pen (N+1,) m (negative: the gap), for
+    positions r, velocities ṙ (N+1, 3), frames Rm (N+1, 3, 3) and body angular velocities
+    omega (N+1, 3) (module docstring; the outputs and the work account)."""
+    scal, radius = data[0], data[1]
+    x = np.empty(3)
+    u = np.empty(3)
+    Om = np.empty(3)
+    t = np.empty(3)
+    a = np.empty(3)
+    b = np.empty(3)
+    c = np.empty(3)
+    z = np.zeros((3, 6))
+    wk = np.zeros((7, 3, 6))
+    for k in range(r.shape[0]):
+        R = Rm[k]
+        for i in range(3):
+            x[i] = r[k, i]
+            u[i] = vg[k, i]
+            Om[i] = R[i, 0] * omega[k, 0] + R[i, 1] * omega[k, 1] + R[i, 2] * omega[k, 2]
+            t[i] = R[i, 2]
+        if scal[0] == 0.0:
+            pen[k] = -math.inf
+            continue
+        pen[k] = _node(x, u, Om, t, radius[k], data, False, z, z, z, z, a, b, c, z, z, wk)
+        for i in range(3):
+            Fn[k, i] = a[i]
+            Ff[k, i] = b[i]
+            M[k, i] = c[i]
