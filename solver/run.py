@@ -275,17 +275,26 @@ class RodRun(ProblemAssembly):
             self._advance_seabed_work(h)
         self.last_iterations, self.last_residual = sol.iterations, sol.residual
 
+    def _seabed_pose(self):
+        """(q, r, ṙ) the seabed acts on: the pose the steps carry with self-contact (the
+        space route), else each node's time route (:meth:`solve_problem`)."""
+        if self.contact is not None:
+            return self.q, self.r, self.v_global
+        return self.q_time, self.r_time, self.v_global_time
+
     def seabed_loads(self):
         """The seabed's (normal reaction, friction, moment) per unit length (N+1, 3),
         global frame, and the surface penetration (N+1,) m, at the current level's
-        centreline, velocities and frames (:meth:`solver.seabed.Seabed.loads`)."""
-        return self.seabed.loads(self.r, self.v_global, quat_to_matrix(self.q), self.Y[:, 3:6])
+        pose (:meth:`_seabed_pose`, :meth:`solver.seabed.Seabed.loads`)."""
+        q, r, v = self._seabed_pose()
+        return self.seabed.loads(r, v, quat_to_matrix(q), self.Y[:, 3:6])
 
     def _seabed_power(self, F, M):
         """Power of the seabed's loads F, M (N+1, 3) on the current level, W: ∫ (F·ṙ +
         M·Ω) ds with the quadrature weights (Ω = R ω the global angular velocity)."""
-        omega = np.einsum("nij,nj->ni", quat_to_matrix(self.q), self.Y[:, 3:6])
-        per = np.einsum("ni,ni->n", F, self.v_global) + np.einsum("ni,ni->n", M, omega)
+        q, _, v = self._seabed_pose()
+        omega = np.einsum("nij,nj->ni", quat_to_matrix(q), self.Y[:, 3:6])
+        per = np.einsum("ni,ni->n", F, v) + np.einsum("ni,ni->n", M, omega)
         return float(per @ self.props.quad_weights)
 
     def _advance_seabed_work(self, h) -> None:

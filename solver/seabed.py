@@ -18,11 +18,14 @@ A distributed load per unit length on the nodes that touch the bottom (docs/seab
   With â the cable tangent projected onto the bottom and normalised, l̂ = n × â, and the
   sliding speeds v_a = w·â, v_l = w·l̂:
   F_f = −N (φ_a(v_a) â + φ_l(v_l) l̂),
-  φ(v) = sign(v) μ(|v|), μ(s) = μ_s s/v_s for s ≤ v_s (regularised: linear, the
-  static coefficient μ_s = ``static_to_kinetic`` · μ reached at the slip velocity v_s,
-  as MoorDyn's static coefficient applies below its slip threshold), then falling
-  linearly to the kinetic μ at 2v_s (continuous, where MoorDyn drops at once: Newton
-  needs a continuous residual), μ beyond. The moment per unit length about the
+  φ(v) = sign(v) μ(|v|/v_s) with x = |v|/v_s: μ(x) = μ_s x(2 − x) for x ≤ 1
+  (regularised: the static coefficient μ_s = ``static_to_kinetic`` · μ is reached at the
+  slip velocity v_s = ``slip_velocity``, as MoorDyn's static coefficient applies below
+  its slip threshold), then the smoothstep μ_s + (μ − μ_s)(3y² − 2y³), y = x − 1, to the
+  kinetic μ at 2v_s, and μ beyond. MoorDyn's law is linear below the threshold and drops
+  to μ at once; this one is continuously differentiable, so that Newton's linearisation
+  does not jump between iterates (a piecewise-linear law stalled Newton where nodes
+  crossed the threshold). The moment per unit length about the
   centreline is M = (−ρn) × F_f.
 
 The loads enter each node's linear- and angular-momentum rows (E3, E4 of
@@ -148,14 +151,17 @@ def _bottom(x, y, data):
 @numba.njit(cache=True, inline="always")
 def _coef(v, mu, ratio, vs):
     """The friction coefficient law φ(v) (signed) and its derivative φ'(v) (s/m):
-    module docstring."""
-    s = abs(v)
+    module docstring (x = |v|/v_s: μ_s x(2 − x) up to x = 1, the smoothstep from μ_s
+    to μ up to x = 2, μ beyond; continuously differentiable)."""
+    x = abs(v) / vs
     sg = 1.0 if v >= 0.0 else -1.0
     mus = ratio * mu
-    if s <= vs:
-        return mus * v / vs, mus / vs
-    if s < 2.0 * vs:
-        return sg * (mus + (mu - mus) * (s - vs) / vs), (mu - mus) / vs
+    if x <= 1.0:
+        return sg * mus * x * (2.0 - x), mus * (2.0 - 2.0 * x) / vs
+    if x < 2.0:
+        y = x - 1.0
+        return (sg * (mus + (mu - mus) * y * y * (3.0 - 2.0 * y)),
+                (mu - mus) * 6.0 * y * (1.0 - y) / vs)
     return sg * mu, 0.0
 
 

@@ -125,9 +125,16 @@ class ProblemAssembly:
         times."""
         sysm, cand, guess, bc = self.system, prob.candidates, prob.guess, prob.bc
         its_total = 0
+        q_old, r_old, v_old = self.q, self.r, self.v_global
+        if self.seabed is not None and self.contact is None:
+            # the sea floor's spring acts on positions (a micrometre is a newton per metre
+            # at its default stiffness): the step takes each node's own time route, which
+            # it carries from step to step, not the shape integrated from κ, whose
+            # difference from the last step's positions would jump the penetration
+            q_old, r_old, v_old = self.q_time, self.r_time, self.v_global_time
         for attempt in range(3):
             sysm.begin_step(prob.h, prob.params, prob.t_new, self.Y, self.Ydot, self.F_old,
-                            bc, q_old=self.q, r_old=self.r, v_old_global=self.v_global,
+                            bc, q_old=q_old, r_old=r_old, v_old_global=v_old,
                             candidates=cand, left_limit=prob.left_limit)
             if attempt == 0 and cand is not None:
                 guess = self._feasible_guess(guess)

@@ -144,3 +144,103 @@ def test_cable_at_rest_on_a_flat_bottom_carries_its_submerged_weight():
     assert np.allclose(total[:2], 0.0, atol=1e-12) and np.all(Ff == 0.0)
     k = case.seabed.normal_stiffness
     assert np.allclose(pen, W / k, rtol=1e-3), (pen, W / k)
+
+
+# --------------------------------------------------------------------------- friction
+V_DRAG = 0.02                           # m/s, 20 slip velocities: kinetic friction
+_TT = np.linspace(0.0, 0.5, 51)
+RAMP = {"t": _TT.tolist(), "value": (V_DRAG * (3 * (_TT / 0.5) ** 2
+                                              - 2 * (_TT / 0.5) ** 3)).tolist()}
+FRICTION = {"axial": 0.3, "lateral": 0.6, "slip_velocity": 1e-3}
+NO_DRAG = {"density": RHO_F, "drag_coefficient_normal": 0.0, "drag_coefficient_tangential": 0.0}
+
+
+def _drag_case(direction):
+    """A stiff cable on the bottom dragged at V_DRAG along its axis (the s = L end) or
+    across it (both ends), the ends free to tilt (so that the bottom carries the whole
+    weight) and, across, held about the axis (so that it slides, not rolls); no Morison
+    drag; ρ∞ = 0 damps the bending vibration the start excites."""
+    seabed = {"elevation": -D / 2, "friction": FRICTION}
+    if direction == "axial":
+        end = {"translation": [{"force": 0}, {"force": 0}, {"velocity": RAMP}],
+               "rotation": FREE_ROT}
+        spec = _spec(seabed, end=end, fluid=NO_DRAG)
+    else:
+        # a2 = a3 × a1 = x × z = −y: a velocity −V along a2 moves the ends along +y
+        ends = {"translation": [{"force": 0}, {"velocity": {"t": RAMP["t"], "value": [
+            -v for v in RAMP["value"]]}}, {"force": 0}],
+            "rotation": [{"moment": 0}, {"moment": 0}, {"angular_velocity": 0}]}
+        spec = _spec(seabed, start=ends, end=ends, fluid=NO_DRAG)
+    spec["rod"].update(youngs_modulus=1.25e12, shear_modulus=5e11)
+    spec["numerics"]["rho_inf"] = 0.0
+    spec["numerics"]["t_end"] = 1.5
+    return Case.model_validate(spec)
+
+
+@pytest.mark.parametrize("direction, axis, mu", [("axial", 0, 0.3), ("lateral", 1, 0.6)])
+def test_cable_dragged_along_the_bottom_pulls_with_mu_w_l(direction, axis, mu):
+    from solver.loads import end_reactions
+
+    run = _run_to(_drag_case(direction), 1.5)
+    assert np.allclose(run.v_global_time[:, axis], V_DRAG, rtol=1e-3)
+    re = end_reactions(run.Y, run.q, run.props.stiffness)
+    pull = re["reaction_force_start"][axis] + re["reaction_force_end"][axis]
+    assert abs(pull / (mu * W * 1.0) - 1.0) < 0.01, (pull, mu * W)
+
+
+def test_a_spinning_cable_rolls_without_slip_at_spin_times_radius():
+    spin = {"t": [0.0, 0.25], "value": [0.0, 2.0]}          # rad/s about a3 = +x
+    ends = {"translation": [{"force": 0}] * 3,
+            "rotation": [{"moment": 0}, {"moment": 0}, {"angular_velocity": spin}]}
+    spec = _spec({"elevation": -D / 2, "friction": FRICTION}, start=ends, end=ends,
+                 fluid=NO_DRAG)
+    spec["rod"].update(youngs_modulus=1.25e12, shear_modulus=5e11)
+    spec["numerics"]["rho_inf"] = 0.0
+    run = _run_to(Case.model_validate(spec), 1.0)
+    # the contact point (−ρ z) at rest: ṙ = −Ω × (−ρ z) = ρ Ω x × z = −ρ Ω y
+    spin_now = run.Y[:, 5]
+    assert np.allclose(spin_now, 2.0, rtol=1e-4), spin_now
+    assert np.allclose(run.v_global_time[:, 1], -spin_now * D / 2, rtol=1e-3), run.v_global_time
+    assert np.allclose(run.v_global_time[:, [0, 2]], 0.0, atol=1e-6)
+
+
+# --------------------------------------------------------------------------- bathymetry
+def test_a_sloped_grid_gives_the_plane_it_represents():
+    """A cable resting across a bottom inclined in y (slope 0.1), friction holding it:
+    the grid (bilinear, exact for a plane) and the analytic plane (the same case with the
+    gravity turned instead) agree; the reaction balances the weight's normal part and the
+    friction its downslope part."""
+    slope = 0.1
+    grid = {"x": [-1.0, 0.3, 2.0], "y": [-1.0, 0.5, 1.0],
+            "z": [[-D / 2 * math.sqrt(1 + slope**2) + slope * y for y in (-1.0, 0.5, 1.0)]] * 3}
+    fric = {"axial": 0.5, "lateral": 0.5, "slip_velocity": 1e-3}
+    # the ends held about the axis: the cable creeps (regularised sticking), not rolls
+    ends = {"translation": [{"force": 0}] * 3,
+            "rotation": [{"moment": 0}, {"moment": 0}, {"angular_velocity": 0}]}
+    def case(seabed, **extra):
+        spec = _spec(seabed, start=ends, end=ends, **extra)
+        spec["rod"].update(youngs_modulus=1.25e12, shear_modulus=5e11)
+        spec["numerics"]["rho_inf"] = 0.0
+        return Case.model_validate(spec)
+
+    run = _run_to(case({"bathymetry": grid, "friction": fric}), 1.0)
+    c = 1.0 / math.sqrt(1 + slope**2)
+    n = np.array([0.0, -slope * c, c])
+    Fn, Ff, _, pen = run.seabed_loads()
+    total_n = Fn.T @ run.props.quad_weights
+    total_f = Ff.T @ run.props.quad_weights
+    # the reaction along the bottom's normal, about the weight's normal part (the cable
+    # creeps down at ~1e-4 m/s and still settles, through the damper, after 1 s)
+    assert abs(np.dot(total_n, n) / (W * c) - 1.0) < 0.03, (total_n, W * c)
+    assert np.linalg.norm(np.cross(total_n, n)) < 1e-9 * W
+    assert abs(np.dot(total_f, n)) < 1e-9 * W
+    # the same rod on a flat bottom with gravity tilted by the slope's angle
+    g = G * np.array([0.0, -slope * c, -c])
+    flat = _run_to(case({"elevation": -D / 2, "friction": fric}, gravity=[0.0, -g[1], g[2]]),
+                   1.0)
+    Fn2, Ff2, _, pen2 = flat.seabed_loads()
+    # the same to Newton's tolerance (a 1e-10 m/s normal velocity is 3e-5 N/m of damper)
+    assert np.allclose(pen, pen2, rtol=1e-3, atol=1e-15), (pen, pen2)
+    assert abs(np.linalg.norm(total_n) / (Fn2.T @ flat.props.quad_weights)[2] - 1.0) < 1e-3
+    assert abs(np.linalg.norm(total_f) / np.linalg.norm(Ff2.T @ flat.props.quad_weights)
+               - 1.0) < 1e-3
