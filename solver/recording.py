@@ -77,11 +77,13 @@ class RateEstimate:
 
 
 # ------------------------------------------------------------------------- output records
-def snapshot(run, fields: set, route_current: bool = False) -> dict:
+def snapshot(run, fields: set, route_current: bool = False, pose=None) -> dict:
     """Output quantities of the current state of ``run`` (:class:`solver.run.RodRun`) for
     the requested field groups (``route_current``: the space route is already that of the
     current κ; otherwise it is recomputed where the steps do not keep it,
-    ``system.needs_pose`` False). Shapes and units: :func:`solver.results.build_dataset`."""
+    ``system.needs_pose`` False; ``pose``: the (q, r, ṙ) the seabed outputs take, None:
+    the run's own, :meth:`solver.run.RodRun.seabed_loads`). Shapes and units:
+    :func:`solver.results.build_dataset`."""
     out = {}
     Y = run.Y
     if not run.system.needs_pose and not route_current:
@@ -115,12 +117,27 @@ def snapshot(run, fields: set, route_current: bool = False) -> dict:
         radius, s_min = min_bend_radius(Y[:, 9:12], run.props.s)
         out["bend_radius_min"] = float(radius)
         out["bend_radius_min_s"] = float(s_min)
+    if run.seabed is not None:
+        out.update(_seabed(run, pose))
     out["newton_iterations"] = run.last_iterations
     out["residual_norm"] = run.last_residual
     out["dt"] = run.last_dt
     out["position_route_difference"] = max_distance(run.r_time, run.r)
     out["quaternion_norm_error"] = run.quat_norm_error
     return out
+
+
+def _seabed(run, pose) -> dict:
+    """The seabed's outputs (with a seabed only): its normal reaction and friction per
+    unit length (N+1, 3) N/m, global; the length on the bottom (m), the touchdown
+    arclength (m, NaN where none: :func:`solver.seabed.touchdown`) and its work (J)."""
+    from .seabed import contact_length, touchdown
+
+    Fn, Ff, _, pen = run.seabed_loads(pose)
+    s = run.props.s
+    return {"seabed_force": Fn, "seabed_friction": Ff,
+            "seabed_contact_length": contact_length(pen, s),
+            "seabed_touchdown": touchdown(pen, s), "seabed_work": run.seabed_work}
 
 
 def _topology(run) -> dict:
@@ -147,7 +164,8 @@ def dense_state(run):
     """What :func:`interpolated_snapshot` needs of the level a step starts from (the
     accepted-step path rebinds every array it changes, so references suffice)."""
     return (run.t, run.Y, run.Ydot, run.q_time, run.r_time, run.v_global_time,
-            run.phi, run.xdot_end[:, 5], run.work_in, run.power)
+            run.phi, run.xdot_end[:, 5], run.work_in, run.power, run.seabed_work,
+            run.seabed_power)
 
 
 def interpolated_snapshot(run, fields: set, t: float, start) -> dict:
@@ -166,7 +184,7 @@ def interpolated_snapshot(run, fields: set, t: float, start) -> dict:
     step's too (measured: 5 % of an adaptive run of the seed problem that keeps only
     energies). Returns the snapshot dict.
     """
-    t0, Y0, D0, q0, r0, v0, phi0, dphi0, w0, p0 = start
+    t0, Y0, D0, q0, r0, v0, phi0, dphi0, w0, p0 = start[:10]
     h = run.t - t0
     s = (t - t0) / h
     view = copy.copy(run)
@@ -179,10 +197,20 @@ def interpolated_snapshot(run, fields: set, t: float, start) -> dict:
     view.phi = hermite(s, h, phi0, dphi0, run.phi, run.xdot_end[:, 5])
     view.work_in = float(hermite(s, h, w0, p0, run.work_in, run.power))
     view.power = (1.0 - s) * p0 + s * run.power
+    pose = None
+    if run.seabed is not None:
+        # the seabed on the interpolated time route (each node's own positions), with
+        # its velocities linear across the step and the frames of the step's end
+        view.seabed_work = float(hermite(s, h, start[10], start[11], run.seabed_work,
+                                         run.seabed_power))
+        pose = (run.q_time if run.contact is None else view.q, view.r_time,
+                (1.0 - s) * v0 + s * run.v_global_time)
     if fields & run.POSE_FIELDS or not run.system.needs_pose:
         view.update_space_route()
-        return snapshot(view, fields, route_current=True)
-    out = snapshot(view, fields, route_current=True)
+        if pose is not None and run.contact is not None:
+            pose = (view.q, view.r, view.v_global)
+        return snapshot(view, fields, route_current=True, pose=pose)
+    out = snapshot(view, fields, route_current=True, pose=pose)
     out["position_route_difference"] = float(
         max_distance(run.r_time, run.r))
     return out

@@ -177,6 +177,25 @@ FIELD_VARIABLES: dict[str, tuple[tuple[str, ...], str, str, str | None]] = {
         ("time",), "m", "arclength at which the bend radius is smallest",
         "the grid point of bend_radius_min; NaN when the rod is straight",
     ),
+    "seabed_force": (
+        ("time", "s", "xyz"), "N m-1", "seabed normal reaction per unit length, global frame",
+        "k p - c n.v along the bottom's normal n while the surface penetration p > 0 "
+        "(docs/seabed.md); present with a seabed only",
+    ),
+    "seabed_friction": (
+        ("time", "s", "xyz"), "N m-1", "seabed friction per unit length, global frame",
+        "Coulomb, axial and lateral, at the contact point (docs/seabed.md); present with a "
+        "seabed only",
+    ),
+    "seabed_contact_length": (("time",), "m", "length of rod on the seabed", None),
+    "seabed_touchdown": (
+        ("time",), "m", "arclength of the touchdown point",
+        "where the contact holding an end of the rod on the seabed ends; NaN where none",
+    ),
+    "seabed_work": (
+        ("time",), "J", "cumulative work done on the rod by the seabed",
+        "normal reaction, friction and its moment; trapezoid rule on its power per step",
+    ),
     "newton_iterations": (
         ("time",),
         "1",
@@ -753,11 +772,11 @@ def bend_radius_series(ds) -> np.ndarray | None:
 
 
 def on_bottom(ds) -> np.ndarray | None:
-    """(T,) True where the rod touches the seabed, for a result whose case has a seabed
-    and which stores where the rod touches it; None otherwise (no qualification)."""
-    if "seabed" not in _case_of(ds):
+    """(T,) True where the rod touches the seabed (``seabed_contact_length`` > 0), for a
+    result whose case has a seabed; None otherwise (no qualification)."""
+    if "seabed" not in _case_of(ds) or "seabed_contact_length" not in ds:
         return None
-    return None
+    return np.nan_to_num(np.asarray(ds["seabed_contact_length"].values, dtype=float)) > 0
 
 
 def _loop_formed(ds, wr: np.ndarray | None) -> int | None:

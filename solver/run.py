@@ -282,11 +282,12 @@ class RodRun(ProblemAssembly):
             return self.q, self.r, self.v_global
         return self.q_time, self.r_time, self.v_global_time
 
-    def seabed_loads(self):
+    def seabed_loads(self, pose=None):
         """The seabed's (normal reaction, friction, moment) per unit length (N+1, 3),
         global frame, and the surface penetration (N+1,) m, at the current level's
-        pose (:meth:`_seabed_pose`, :meth:`solver.seabed.Seabed.loads`)."""
-        q, r, v = self._seabed_pose()
+        pose (:meth:`_seabed_pose`; or pose = (q, r, ṙ) given), by
+        :meth:`solver.seabed.Seabed.loads`."""
+        q, r, v = self._seabed_pose() if pose is None else pose
         return self.seabed.loads(r, v, quat_to_matrix(q), self.Y[:, 3:6])
 
     def _seabed_power(self, F, M):

@@ -50,7 +50,8 @@ import numpy as np
 
 from .kinematics import _right_jacobian_into
 
-__all__ = ["Seabed", "seabed_into", "seabed_loads", "far_from_bottom", "NO_SEABED"]
+__all__ = ["Seabed", "seabed_into", "seabed_loads", "far_from_bottom", "contact_length",
+           "touchdown", "NO_SEABED"]
 
 #: the kernels' data of a run without a seabed (the scalars' kind 0)
 NO_SEABED = (np.zeros(10), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros((1, 1)))
@@ -460,3 +461,32 @@ def seabed_loads(r, vg, Rm, omega, data, Fn, Ff, M, pen):
             Fn[k, i] = a[i]
             Ff[k, i] = b[i]
             M[k, i] = c[i]
+
+
+def contact_length(pen, s) -> float:
+    """Length of rod on the bottom, m: the arclength where the surface penetration pen
+    (N+1,) m, linear in each cell of the grid s (N+1,) m, is positive."""
+    pen, s = np.asarray(pen, float), np.asarray(s, float)
+    a, b, ds = pen[:-1], pen[1:], np.diff(s)
+    both = (a > 0) & (b > 0)
+    one = (a > 0) != (b > 0)
+    share = np.where(one, np.maximum(a, b) / np.where(one, np.abs(a - b), 1.0), 0.0)
+    return float(np.sum(ds * both) + np.sum(ds * share))
+
+
+def touchdown(pen, s) -> float:
+    """The touchdown point's arclength, m: where the contact that holds an end of the rod
+    on the bottom ends (from s = 0 if node 0 touches, else from s = L if node N does),
+    the zero of the penetration pen (N+1,) m, linear in its cell; NaN when neither end
+    touches or the whole rod does."""
+    pen, s = np.asarray(pen, float), np.asarray(s, float)
+    on = pen > 0
+    if on.all() or not (on[0] or on[-1]):
+        return math.nan
+    if on[0]:
+        j = int(np.argmin(on)) - 1            # last node of the first contact run
+        a, b = pen[j], pen[j + 1]
+        return float(s[j] + (s[j + 1] - s[j]) * a / (a - b))
+    j = len(on) - 1 - int(np.argmin(on[::-1]))  # last free node before the end's run
+    a, b = pen[j], pen[j + 1]
+    return float(s[j] + (s[j + 1] - s[j]) * (-a) / (b - a))

@@ -244,3 +244,28 @@ def test_a_sloped_grid_gives_the_plane_it_represents():
     assert abs(np.linalg.norm(total_n) / (Fn2.T @ flat.props.quad_weights)[2] - 1.0) < 1e-3
     assert abs(np.linalg.norm(total_f) / np.linalg.norm(Ff2.T @ flat.props.quad_weights)
                - 1.0) < 1e-3
+
+
+# --------------------------------------------------------------------------- outputs
+def test_outputs_with_a_seabed_and_none_without():
+    from solver.seabed import contact_length, touchdown
+
+    spec = _spec(t_end=0.3)
+    ds = simulate(Case.model_validate(spec))
+    assert ds["seabed_force"].dims == ("time", "s", "xyz")
+    assert ds["seabed_force"].attrs["units"] == "N m-1"
+    last = ds.isel(time=-1)
+    total = np.trapezoid(last["seabed_force"].values[:, 2], ds["s"].values)
+    assert abs(total / W - 1.0) < 0.02, total / W
+    assert np.all(last["seabed_friction"].values == 0.0)
+    assert float(last["seabed_contact_length"]) == pytest.approx(1.0)
+    assert math.isnan(float(last["seabed_touchdown"]))          # the whole rod touches
+    assert "seabed_work" in ds
+    spec.pop("seabed")
+    assert not any(name.startswith("seabed") for name in simulate(Case.model_validate(spec)))
+    s = np.linspace(0.0, 1.0, 5)
+    pen = np.array([1.0, 1.0, -1.0, -1.0, -1.0])
+    assert contact_length(pen, s) == pytest.approx(0.25 + 0.125)
+    assert touchdown(pen, s) == pytest.approx(0.375)
+    assert touchdown(pen[::-1], s) == pytest.approx(0.625)
+    assert math.isnan(touchdown(-pen ** 2, s))

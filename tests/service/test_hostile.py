@@ -319,3 +319,38 @@ def test_hockle_submit_says_when_it_reused_a_result(client, finished_job, tmp_pa
     out = capsys.readouterr().out
     assert f"job {finished_job} successful" in out
     assert f"reused the result of job {finished_job}" in out and "--fresh" in out
+
+
+# --- the seabed section (docs/seabed.md): refused before any work, naming the field --------
+_GRID = {"x": [0.0, 1.0], "y": [0.0, 1.0], "z": [[-1.0, -1.0], [-1.0, -1.0]]}
+SEABED = {
+    "unsorted bathymetry axis": ({"bathymetry": {**_GRID, "x": [1.0, 0.0]}},
+                                 None, "seabed.bathymetry.x[1]"),
+    "bathymetry of the wrong shape": ({"bathymetry": {**_GRID, "z": [[-1.0, -1.0]]}},
+                                      None, "seabed.bathymetry.z"),
+    "negative stiffness": ({"elevation": -1.0, "normal_stiffness": -1.0}, None,
+                           "seabed.normal_stiffness"),
+    "negative friction": ({"elevation": -1.0, "friction": {"axial": -0.1, "lateral": 0.1}},
+                          None, "seabed.friction.axial"),
+    "gravity away from the bottom": ({"elevation": -1.0}, [0.0, 0.0, 9.81], "gravity"),
+    "a cable starting below the bottom": ({"elevation": 0.5}, None, "seabed.elevation"),
+}
+
+
+@pytest.mark.parametrize("seabed,gravity,loc", SEABED.values(), ids=list(SEABED))
+def test_bad_seabed_input_is_a_422_naming_the_field(client, seabed, gravity, loc):
+    case = tiny_case("seabed")
+    case["seabed"] = seabed
+    if gravity is not None:
+        case["gravity"] = gravity
+    response = client.post("/v1/jobs", json=case)
+    assert response.status_code == 422, response.text
+    assert response.headers["content-type"].startswith(PROBLEM)
+    assert loc in _locs(response), response.text
+
+
+def test_a_seabed_case_is_accepted(client):
+    case = tiny_case("seabed-ok")
+    case["seabed"] = {"bathymetry": _GRID, "friction": {"axial": 0.2, "lateral": 0.4}}
+    response = client.post("/v1/jobs", json=case)
+    assert response.status_code == 201, response.text
