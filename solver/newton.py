@@ -26,6 +26,9 @@ docs/contact.md § 4). The strategy, in one place:
 * **Feasible iterates.** A correction may close no candidate gap to less than
   ``GAP_KEEP`` of itself (halving; an IPC-like filter), then an Armijo backtracking on
   the scaled residual, whose evaluation with its Jacobian is reused as the next iterate.
+* **Sea floor.** With a seabed (:mod:`solver.seabed`) and no self-contact, every
+  correction is backtracked (Armijo on the scaled residual) and the Jacobian refactored
+  at each iterate: the contact law's kink at zero penetration made full steps cycle.
 * **Fail fast.** A contact step that halves its residual less than once in four
   iterations, whose corrections are cut to 1/64 three times, or whose GMRES does not
   converge even with a fresh factorisation, fails at once: the step control
@@ -536,6 +539,7 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
     delta = delta_flat.reshape(n1, NV)
     nr = cand[2].shape[0]
     contact = nr > 0
+    seabed = rod[7][0][0] != 0.0
     copy_into(Y, Y0)
     refactor = ctr[3] == 0 or contact
     res_prev = np.inf
@@ -659,6 +663,26 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
             copy_into(Y, Yt)
             cached = True
             refactor = gmres_last > gm_refactor
+        elif seabed:
+            # the sea floor's contact switches on and off between iterates (its law has
+            # a kink at zero penetration; a full Newton step cycled between the two
+            # sides): backtracking on the row-scaled residual 2-norm as with
+            # self-contact, at most 6 halvings, and a fresh Jacobian at each iterate
+            f0 = _norm_scaled(R, rs)
+            step_frac = 1.0
+            for _ in range(6):
+                for k in range(n1):
+                    for j in range(NV):
+                        Yt[k, j] = Y[k, j] + step_frac * delta[k, j]
+                residual_into(Yt, True, rod, step, cand, frozen[:0], cdata, buf, ev)
+                f1 = _norm_scaled(R, rs)
+                if np.isfinite(f1) and f1 <= (1.0 - 1e-4 * step_frac) * f0:
+                    break
+                step_frac *= 0.5
+            trace[it, 2] = step_frac
+            copy_into(Y, Yt)
+            cached = True
+            refactor = True
         else:
             for k in range(n1):
                 for j in range(NV):

@@ -10,8 +10,12 @@ A distributed load per unit length on the nodes that touch the bottom (docs/seab
   plane under it d = (z − h)/√(1 + hx² + hy²) (exact for a plane); the surface
   penetration p = ρ − d with ρ the local radius (half the diameter profile). While
   p > 0 the reaction per unit length is F_n = N n with
-  N = max(0, k p − c n·ṙ): k = ``normal_stiffness`` (Pa), c = ``normal_damping`` (Pa s).
-  The clamp keeps the damper from pulling a lifting cable down (no adhesion).
+  N = k p + clamp(−c n·ṙ, −k p, k p): k = ``normal_stiffness`` (Pa), c =
+  ``normal_damping`` (Pa s); MoorDyn's k p − c n·ṙ wherever the damper's force is
+  smaller than the spring's. The clamp keeps N between 0 and 2kp: the damper neither
+  pulls a lifting cable down (no adhesion) nor jumps the force at first touch (MoorDyn's
+  law jumps by c·|n·ṙ| at p = 0, which made Newton cycle; Hunt & Crossley (1975) make
+  the damping vanish with the penetration for the same reason).
 * **Friction** (Coulomb, axial and lateral separately as MoorDyn v2 does) acts at the
   contact point r − ρn, whose velocity is w = ṙ + Ω × (−ρn) (Ω the global angular
   velocity of the section, so a spinning cable's contact point slides unless it rolls).
@@ -203,7 +207,13 @@ def _node(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk):
                     DM[i, j] = 0.0
         return p
     sn = n0 * u[0] + n1 * u[1] + n2 * u[2]
-    N = kst * p - cdp * sn
+    spring = kst * p
+    damper = -cdp * sn
+    capped = damper > spring
+    if capped:
+        N = 2.0 * spring
+    else:
+        N = spring + damper
     if N <= 0.0:
         if want:
             for i in range(3):
@@ -274,7 +284,7 @@ def _node(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk):
         Dd = dd0 * Dr[0, j] + dd1 * Dr[1, j] + dd2 * Dr[2, j]
         Dsn = (n0 * Du[0, j] + n1 * Du[1, j] + n2 * Du[2, j]
                + u[0] * Dn[0, j] + u[1] * Dn[1, j] + u[2] * Dn[2, j])
-        DN[j] = -kst * Dd - cdp * Dsn
+        DN[j] = -2.0 * kst * Dd if capped else -kst * Dd - cdp * Dsn
         for i in range(3):
             DF[i, j] = DN[j] * n[i] + N * Dn[i, j]
             DM[i, j] = 0.0
@@ -475,18 +485,19 @@ def contact_length(pen, s) -> float:
 
 
 def touchdown(pen, s) -> float:
-    """The touchdown point's arclength, m: where the contact that holds an end of the rod
-    on the bottom ends (from s = 0 if node 0 touches, else from s = L if node N does),
-    the zero of the penetration pen (N+1,) m, linear in its cell; NaN when neither end
-    touches or the whole rod does."""
+    """The touchdown point's arclength, m: with i0, i1 the first and last node whose
+    surface penetration pen (N+1,) m is positive, the zero of pen (linear in its cell)
+    between the contact and the longer of the two free spans, after i1 or before i0
+    (a lifted end node does not count as the suspended span); NaN when no node or every
+    node touches."""
     pen, s = np.asarray(pen, float), np.asarray(s, float)
-    on = pen > 0
-    if on.all() or not (on[0] or on[-1]):
+    on = np.flatnonzero(pen > 0)
+    if on.size == 0 or on.size == pen.size:
         return math.nan
-    if on[0]:
-        j = int(np.argmin(on)) - 1            # last node of the first contact run
-        a, b = pen[j], pen[j + 1]
-        return float(s[j] + (s[j + 1] - s[j]) * a / (a - b))
-    j = len(on) - 1 - int(np.argmin(on[::-1]))  # last free node before the end's run
+    i0, i1 = int(on[0]), int(on[-1])
+    if pen.size - 1 - i1 >= i0:
+        j = i1                                  # the cell (i1, i1 + 1)
+    else:
+        j = i0 - 1                              # the cell (i0 − 1, i0)
     a, b = pen[j], pen[j + 1]
-    return float(s[j] + (s[j + 1] - s[j]) * (-a) / (b - a))
+    return float(s[j] + (s[j + 1] - s[j]) * a / (a - b))
