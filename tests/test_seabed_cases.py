@@ -27,7 +27,7 @@ def _case(name, t_end=None):
 
 
 @pytest.mark.parametrize("name", CASES)
-def test_case_validates_and_a_prefix_runs(name):
+def test_case_validates_and_a_prefix_runs(name, tmp_path):
     ds = simulate(_case(name, t_end=0.5))
     assert ds.attrs["hockle_status"] == "completed"
     assert float(ds.time[-1]) == pytest.approx(0.5)
@@ -36,6 +36,12 @@ def test_case_validates_and_a_prefix_runs(name):
     z = ds["position"].sel(xyz=3).values
     assert z.min() > -0.5 - 1e-3 if name.startswith("catenary") else z.min() > -1e-3
     assert "bend_radius_min" in ds
+    # hockle plot draws the bottom of the case stored in the result
+    from hockle.plots import plot_snapshots, seabed_of
+    seabed = seabed_of(ds)
+    assert seabed is not None and float(seabed.bottom(1.0, 0.0)) == pytest.approx(
+        -0.5 if name.startswith("catenary") else -0.01)
+    assert plot_snapshots(ds, tmp_path, stem="s")[0].exists()
 
 
 @pytest.mark.slow
