@@ -28,7 +28,7 @@ docs/contact.md § 4). The strategy, in one place:
   the scaled residual, whose evaluation with its Jacobian is reused as the next iterate.
 * **Sea floor.** With a seabed (:mod:`solver.seabed`) and no self-contact, every
   correction is backtracked (Armijo on the scaled residual) and the Jacobian refactored
-  at each iterate: the contact law's kink at zero penetration made full steps cycle.
+  after a cut one: the contact law's kink at zero penetration made full steps cycle.
 * **Fail fast.** A contact step that halves its residual less than once in four
   iterations, whose corrections are cut to 1/64 three times, or whose GMRES does not
   converge even with a fresh factorisation, fails at once: the step control
@@ -667,14 +667,15 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
             # the sea floor's contact switches on and off between iterates (its law has
             # a kink at zero penetration; a full Newton step cycled between the two
             # sides): backtracking on the row-scaled residual 2-norm as with
-            # self-contact, at most 6 halvings, and a fresh Jacobian at each iterate
+            # self-contact, at most 6 halvings, and a fresh Jacobian after a cut step
+            # (else the chord rule above decides)
             f0 = _norm_scaled(R, rs)
             step_frac = 1.0
             for _ in range(6):
                 for k in range(n1):
                     for j in range(NV):
                         Yt[k, j] = Y[k, j] + step_frac * delta[k, j]
-                residual_into(Yt, True, rod, step, cand, frozen[:0], cdata, buf, ev)
+                residual_into(Yt, False, rod, step, cand, frozen[:0], cdata, buf, ev)
                 f1 = _norm_scaled(R, rs)
                 if np.isfinite(f1) and f1 <= (1.0 - 1e-4 * step_frac) * f0:
                     break
@@ -682,7 +683,9 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
             trace[it, 2] = step_frac
             copy_into(Y, Yt)
             cached = True
-            refactor = True
+            if step_frac < 1.0:
+                residual_into(Y, True, rod, step, cand, frozen[:0], cdata, buf, ev)
+                refactor = True
         else:
             for k in range(n1):
                 for j in range(NV):

@@ -186,7 +186,7 @@ def _node(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk):
     the global angular velocity Om, the tangent t (3,) and the radius rho (m). With
     ``want`` also DF = ∂(Fn + Ff)/∂X and DM = ∂M/∂X (3, 6) for the derivatives of x, u,
     Om, t with respect to the node's unknowns X (Dr, Du, DOm, Dt (3, 6)), by forward
-    propagation through the formulas. wk: scratch (12, 3, 6). Returns the penetration
+    propagation through the formulas. wk: scratch (9, 3, 6). Returns the penetration
     p (m, ≤ 0: no contact, every output 0)."""
     for i in range(3):
         Fn[i] = 0.0
@@ -221,16 +221,13 @@ def _node(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk):
                     DF[i, j] = 0.0
                     DM[i, j] = 0.0
         return p
-    n = np.empty(3)
+    n = wk[7, 0]
     n[0], n[1], n[2] = n0, n1, n2
     for i in range(3):
         Fn[i] = N * n[i]
     fric = mua > 0.0 or mul > 0.0
     # friction: contact-point velocity, directions, speeds
-    w = np.empty(3)
-    a = np.empty(3)
-    ah = np.empty(3)
-    lh = np.empty(3)
+    w, a, ah, lh = wk[7, 1], wk[7, 2], wk[8, 0], wk[8, 1]
     w[0] = u[0] - rho * (Om[1] * n2 - Om[2] * n1)
     w[1] = u[1] - rho * (Om[2] * n0 - Om[0] * n2)
     w[2] = u[2] - rho * (Om[0] * n1 - Om[1] * n0)
@@ -277,7 +274,7 @@ def _node(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk):
     dd0 = n0 - d * dsx / sq
     dd1 = n1 - d * dsy / sq
     dd2 = n2
-    DN = np.empty(6)
+    DN = wk[8, 2]
     for j in range(6):
         for i in range(3):
             Dn[i, j] = dn[i, 0] * Dr[0, j] + dn[i, 1] * Dr[1, j]
@@ -370,8 +367,10 @@ def seabed_into(Y, Rm, r, vg, theta, dt, data, want, Fn, dF):
     Dt = np.zeros((3, 6))
     DF = np.empty((3, 6))
     DM = np.empty((3, 6))
-    wk = np.zeros((7, 3, 6))
+    wk = np.zeros((9, 3, 6))
     J = np.empty((1, 3, 3))
+    b = np.empty(3)
+    q = np.empty(3)
     S = np.empty((3, 3))
     RS = np.empty((3, 3))
     for k in range(Y.shape[0]):
@@ -416,8 +415,6 @@ def seabed_into(Y, Rm, r, vg, theta, dt, data, want, Fn, dF):
         p = _node(x, u, Om, t, radius[k], data, want, Dr, Du, DOm, Dt, Fnv, Ffv, Mv, DF, DM, wk)
         if p <= 0.0:
             continue
-        b = np.empty(3)
-        q = np.empty(3)
         for i in range(3):
             b[i] = (R[0, i] * (Fnv[0] + Ffv[0]) + R[1, i] * (Fnv[1] + Ffv[1])
                     + R[2, i] * (Fnv[2] + Ffv[2]))
@@ -455,7 +452,7 @@ def seabed_loads(r, vg, Rm, omega, data, Fn, Ff, M, pen):
     b = np.empty(3)
     c = np.empty(3)
     z = np.zeros((3, 6))
-    wk = np.zeros((7, 3, 6))
+    wk = np.zeros((9, 3, 6))
     for k in range(r.shape[0]):
         R = Rm[k]
         for i in range(3):

@@ -303,3 +303,42 @@ def test_catenary_with_touchdown_matches_its_suspended_length_and_span():
     x_at = np.interp(s_td, run.props.s, run.r_time[:, 0])
     assert abs((L - s_td) / suspended - 1.0) < 0.01, (L - s_td, suspended)
     assert abs((top[0] - x_at) / span - 1.0) < 0.01, (top[0] - x_at, span)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_node_law_derivative_matches_finite_differences(seed):
+    """The per-node law's forward-propagated derivative (solver.seabed._node) against
+    central differences, through random linear maps from six unknowns to the position,
+    velocity, angular velocity and tangent, on a twisted grid, with every friction regime
+    (speeds below, across and above the slip velocity) and the damper's cap."""
+    from solver.case import Seabed as SeabedSpec
+    from solver.seabed import Seabed, _node
+
+    rng = np.random.default_rng(seed)
+    spec = SeabedSpec.model_validate({
+        "bathymetry": {"x": [-2.0, 0.1, 2.0], "y": [-2.0, -0.2, 2.0],
+                       "z": [[0.1, -0.3, 0.2], [-0.2, 0.4, 0.1], [0.3, -0.1, -0.2]]},
+        "normal_stiffness": 80.0, "normal_damping": 10.0 * rng.uniform(0.1, 3.0),
+        "friction": {"axial": 0.4, "lateral": 0.7, "static_to_kinetic": 1.6,
+                     "slip_velocity": 0.5}})
+    rho = 0.3
+    data = Seabed(spec, np.full(2, 2 * rho)).data
+    Dr, Du, DOm, Dt = (rng.standard_normal((3, 6)) for _ in range(4))
+    r0 = np.array([rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-0.1, 0.3)])
+    u0, Om0 = 0.6 * rng.standard_normal(3), rng.standard_normal(3)
+    t0 = np.array([1.0, 0.3, 0.2]) + 0.2 * rng.standard_normal(3)
+    wk = np.zeros((9, 3, 6))
+
+    def law(X, want=False):
+        Fn, Ff, M, DF, DM = np.zeros(3), np.zeros(3), np.zeros(3), np.zeros((3, 6)), np.zeros((3, 6))
+        p = _node(r0 + Dr @ X, u0 + Du @ X, Om0 + DOm @ X, t0 + Dt @ X, rho, data, want,
+                  Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk)
+        return p, np.concatenate([Fn + Ff, M]), np.vstack([DF, DM])
+
+    X = 0.05 * rng.standard_normal(6)
+    p, _, J = law(X, True)
+    assert p > 0
+    h = 1e-7
+    J_fd = np.column_stack([(law(X + h * e)[1] - law(X - h * e)[1]) / (2 * h)
+                            for e in np.eye(6)])
+    assert np.allclose(J, J_fd, rtol=1e-5, atol=1e-6 * np.abs(J_fd).max()), (J - J_fd)
