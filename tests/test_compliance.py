@@ -44,6 +44,7 @@ CASE = {
     },
     "contact": {"aperture": 90.0, "tolerance": 0.03, "k1": 1e-7, "k2": 3.0, "k3": 1e-6,
                 "k4": 1.0},
+    "seabed": {"elevation": -1.0},   # below the rod: its outputs are written (zeros)
     "numerics": {"n_segments": 8, "dt": 0.01, "t_end": 0.05},
     "output": {"fields": ALL_FIELDS},
 }
