@@ -42,6 +42,8 @@ from hockle.plots import (
     _title,
     contact_sites,
     draw_rod,
+    draw_seabed,
+    seabed_of,
     energy_lines,
     rod_box,
     rod_diameter,
@@ -270,6 +272,9 @@ def _animate(ds, out, frames, fps, dpi, window, progress) -> Path:
     ax3 = fig.add_subplot(grid[:, 0], projection="3d")
     setup_rod_axes(ax3, lims, zoom=ZOOM)
     ax3.computed_zorder = False     # ends and contact sites stay visible on the tube
+    seabed = seabed_of(ds)
+    if seabed is not None:          # drawn once: the bottom does not move
+        draw_seabed(ax3, lims, seabed)
 
     curves = []      # (line, values) of every panel
     cursors = []

@@ -66,8 +66,8 @@ class State:
     them changes nothing in the run): ``position`` (N+1, 3) m, global; ``v``, ``omega``,
     ``f``, ``kappa``, ``moment`` (N+1, 3) body frame; ``orientation`` (N+1, 4) unit
     quaternions; ``twist``, ``writhe``, ``linking_number`` (turns; the writhe costs
-    O(N²)); ``energies`` (a dict of J); ``contact_count``, ``min_surface_gap`` (m).
-    ``get(*groups)`` returns the output field groups of the result dataset as a dict.
+    O(N²)); ``energies`` (a dict of J); ``contact_count``, ``min_surface_gap`` (m);
+    ``bend_radius_min``, ``bend_radius_min_s`` (m). ``get(*groups)`` returns the output field groups of the result dataset as a dict.
     ``run`` is the :class:`solver.simulation.RodRun` itself, for experts: read it, do not
     change it.
     """
@@ -75,7 +75,8 @@ class State:
     _GROUPS = {"v": "v", "omega": "omega", "f": "f", "kappa": "kappa", "moment": "moment",
                "position": "position", "orientation": "orientation", "twist": "topology",
                "writhe": "topology", "linking_number": "topology", "contact_count": "contact",
-               "min_surface_gap": "contact"}
+               "min_surface_gap": "contact", "bend_radius_min": "bend_radius",
+               "bend_radius_min_s": "bend_radius"}
 
     def __init__(self, run, step: int):
         self.run = run

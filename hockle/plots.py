@@ -37,7 +37,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import NullFormatter
 
-from solver.results import run_events
+from solver.results import minimum_bend_radius_of, run_events
 
 __all__ = [
     "plot_all",
@@ -52,6 +52,8 @@ __all__ = [
     "setup_rod_axes",
     "draw_rod",
     "rod_legend_handles",
+    "seabed_of",
+    "draw_seabed",
     "energy_lines",
     "topology_lines",
 ]
@@ -100,6 +102,39 @@ def rod_diameter(ds: xr.Dataset, s: np.ndarray) -> np.ndarray | None:
     return None
 
 
+def seabed_of(ds: xr.Dataset):
+    """The case's sea floor (:class:`solver.case.Seabed`, whose ``bottom(x, y)`` gives its
+    elevation in m) from the case stored in the file, or None when it has none."""
+    try:
+        spec = json.loads(str(ds.attrs["case"])).get("seabed")
+    except (KeyError, TypeError, ValueError, AttributeError):
+        return None
+    if not spec:
+        return None
+    from solver.case import Seabed
+
+    return Seabed.model_validate(spec)
+
+
+def draw_seabed(ax3, lims: Sequence[tuple[float, float]], seabed, n: int = 25) -> list:
+    """Draw the sea floor ``seabed`` (:func:`seabed_of`) into the 3-D axes ``ax3`` over the
+    x-y square of ``lims`` (:func:`rod_box`): a translucent sand-coloured surface of its
+    elevation (the plane of a flat bottom, the bilinear bathymetry otherwise) on an
+    ``n`` × ``n`` grid, cut where it leaves the box's z range. Returns the artists."""
+    X, Y = np.meshgrid(np.linspace(*lims[0], n), np.linspace(*lims[1], n), indexing="ij")
+    Z = np.asarray(seabed.bottom(X, Y), dtype=float)
+    Z = np.where((Z >= lims[2][0]) & (Z <= lims[2][1]), Z, np.nan)
+    if not np.isfinite(Z).any():
+        return []
+    return [ax3.plot_surface(X, Y, Z, color="tan", alpha=0.35, linewidth=0, shade=False,
+                             antialiased=False, rcount=n, ccount=n)]
+
+
+def _seabed_under(seabed, r: np.ndarray) -> np.ndarray:
+    """(N,) m, the bottom's elevation under each point of the centreline ``r`` (N, 3)."""
+    return np.asarray(seabed.bottom(r[:, 0], r[:, 1]), dtype=float)
+
+
 def _contact_spec(ds: xr.Dataset) -> dict | None:
     try:
         return json.loads(str(ds.attrs["case"])).get("contact")
@@ -115,6 +150,10 @@ def event_times(ds: xr.Dataset, max_events: int = MAX_EVENTS) -> list[tuple[floa
       length when the file has no diameter), provided it started closer than that; without
       ``position``, the first time the writhe has changed by 0.05 turns;
     * **first contact**: the first time ``contact_count`` > 0;
+    * **loop formed**: the first self-contact or |Wr| rising through 1 (with a seabed:
+      while the rod lies on it), when it is not already the first contact or Wr reaching 1;
+    * **MBR below X m**: the first time the smallest bend radius is below the case's
+      ``rod.minimum_bend_radius`` X;
     * **Wr reaches k**: the first time |Wr| >= k, for k = 1, 2, ... (``writhe``);
     * **end**: the last stored time.
 
@@ -132,6 +171,12 @@ def event_times(ds: xr.Dataset, max_events: int = MAX_EVENTS) -> list[tuple[floa
         fixed.append((events["buckling_onset"], "onset of buckling"))
     if events["first_contact"] is not None:
         fixed.append((events["first_contact"], "first contact"))
+    loop = events.get("loop_formed")
+    if loop is not None and loop not in (events["first_contact"], events.get("writhe_1")):
+        fixed.append((loop, "loop formed"))   # in free space it is one of those two
+    if events.get("bend_radius_below_mbr") is not None:
+        fixed.append((events["bend_radius_below_mbr"],
+                      f"MBR below {minimum_bend_radius_of(ds):g} m"))
     wr = np.asarray(ds["writhe"].values, dtype=float) if "writhe" in ds else None
     k = 1
     while f"writhe_{k}" in events:
@@ -362,7 +407,9 @@ def plot_snapshots(
     file; a plain centreline when the file has none): a shaded tube in the 3-D view, a band
     of the diameter's width at the axes' scale in the projections. Grid points in
     self-contact (:func:`contact_sites`) are orange dots; the start end (s = 0) is a circle,
-    the far end (s = L) a square; a legend names them. All panels share one cubic box
+    the far end (s = L) a square; a legend names them. With a seabed in the case the bottom
+    is drawn too: a surface in the 3-D view (:func:`draw_seabed`), and in the x-z and y-z
+    views the bottom's elevation under the rod. All panels share one cubic box
     that holds every drawn snapshot, so shapes compare at equal, undistorted scale.
     Writes ``<stem>_snapshots.png``.
     """
@@ -383,6 +430,7 @@ def plot_snapshots(
     counts = None
     if "contact_count" in ds:
         counts = ds["contact_count"]
+    seabed = seabed_of(ds)
 
     n = len(chosen)
     fig = Figure(figsize=(15.0, 3.4 * n + 1.0), layout="constrained")
@@ -401,10 +449,15 @@ def plot_snapshots(
         any_contact = any_contact or touching.size > 0
         ax3 = fig.add_subplot(grid[row, 0], projection="3d")
         setup_rod_axes(ax3, lims)
+        if seabed is not None:
+            draw_seabed(ax3, lims, seabed)
         draw_rod(ax3, r, diameter, touching)
         ax3.set_title(title, fontsize=10)
         for col, (a, b, i, j) in enumerate(views, start=2):
             ax = fig.add_subplot(grid[row, col - 1])
+            if seabed is not None and j == 2:           # the bottom under the rod
+                ax.plot(r[:, i], _seabed_under(seabed, r), color="saddlebrown", lw=1.0,
+                        zorder=0)
             if diameter is None:
                 ax.plot(r[:, i], r[:, j], color="C0", lw=1.2)
             else:
@@ -424,6 +477,9 @@ def plot_snapshots(
             ax.grid(alpha=0.3)
 
     handles = rod_legend_handles(s, diameter, any_contact)
+    if seabed is not None:
+        handles.append(Line2D([], [], color="saddlebrown", lw=4, alpha=0.6,
+                              label="seabed (x-z, y-z: the bottom under the rod)"))
     fig.legend(handles=handles, loc="outside lower center", ncol=len(handles), fontsize=9)
     if bands:
         fig.canvas.draw()   # fixes the layout, so the band widths are true to scale

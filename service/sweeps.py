@@ -731,7 +731,9 @@ _EVENT_QUANTITIES = (("linking_number", "1"), ("twist", "1"), ("writhe", "1"),
 def _event_names(events: Sequence[Mapping[str, Any]]) -> list[str]:
     levels = max((int(k.split("_")[1]) for ev in events for k in ev if k.startswith("writhe_")),
                  default=0)
-    return ["buckling_onset", "first_contact"] + [f"writhe_{k}" for k in range(1, levels + 1)]
+    optional = [name for name in ("bend_radius_below_mbr",) if any(name in ev for ev in events)]
+    return (["buckling_onset", "first_contact", "loop_formed"] + optional
+            + [f"writhe_{k}" for k in range(1, levels + 1)])
 
 
 def _event_vars(layout: _Layout, series: Mapping[str, Any],

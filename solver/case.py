@@ -101,6 +101,7 @@ OUTPUT_FIELDS: tuple[str, ...] = (
     "topology",
     "contact",
     "reactions",
+    "bend_radius",
 )
 DEFAULT_OUTPUT_FIELDS: tuple[str, ...] = (
     "v",
@@ -440,6 +441,10 @@ class Rod(BaseModel):
     diameter: Material = Field(
         ..., description="Diameter of the circular cross-section, m; > 0; a number or a profile in s (m)."
     )
+    minimum_bend_radius: Optional[Finite] = Field(
+        None, gt=0, description="The cable's minimum bend radius (MBR, from its datasheet), m; > 0; "
+        "null: none. The result's events then say when the smallest bend radius first falls "
+        "below it (solver.results.run_events).")
 
     @model_validator(mode="after")
     def _check_stations(self) -> "Rod":
@@ -454,6 +459,15 @@ class Rod(BaseModel):
                         )
         _raise("Rod", errors)
         return self
+
+    @model_serializer(mode="wrap")
+    def _drop_unused(self, handler: Any):  # no return type: keeps the JSON schema
+        # added after schema 1's first release: written only when given, so that a case
+        # without it keeps its canonical JSON and spec_hash
+        out = handler(self)
+        if self.minimum_bend_radius is None:
+            out.pop("minimum_bend_radius", None)
+        return out
 
     def evaluate(self, name: str, s: Any) -> np.ndarray:
         """Property ``name`` (one of :data:`MATERIAL_PROPERTIES`) at arclengths ``s`` (m).
@@ -1269,7 +1283,7 @@ def _check_output_field(value: Any, handler: Any) -> str:
 
 OutputField = Annotated[
     Literal["v", "omega", "f", "kappa", "moment", "position", "orientation", "energies", "topology", "contact",
-            "reactions"],
+            "reactions", "bend_radius"],
     WrapValidator(_check_output_field),
 ]
 
@@ -1298,7 +1312,8 @@ class Output(BaseModel):
     )
     fields: list[OutputField] = Field(
         default_factory=lambda: list(DEFAULT_OUTPUT_FIELDS),
-        description="Variables to store: any of v, omega, f, kappa, moment, position, orientation, energies, topology, contact.",
+        description="Variables to store: any of v, omega, f, kappa, moment, position, orientation, energies, topology, contact, "
+        "reactions, bend_radius.",
     )
 
     @field_validator("fields", mode="after")

@@ -33,7 +33,40 @@ __all__ = [
     "space_route",
     "skew",
     "right_jacobian",
+    "min_bend_radius",
 ]
+
+
+def min_bend_radius(kappa: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The smallest bend radius along the rod and the arclength where it is.
+
+    The bend radius at a grid point is 1/|κ_b| with κ_b = (κ1, κ2) the bending components
+    of the Darboux vector (seed eq. 1: κ3 is the twist rate and does not bend the
+    centreline); the curvature of the centreline is |κ_b| for an inextensible,
+    unshearable rod (Antman, *Nonlinear Problems of Elasticity*, ch. 8).
+
+    Parameters
+    ----------
+    kappa : (..., N+1, 3) rad/m, body-frame κ at the grid points (leading axes: e.g. time).
+    s : (N+1,) m, the grid's arclengths.
+
+    Returns
+    -------
+    radius : (...) m, min over the grid of 1/|κ_b|; ``inf`` where the rod is straight
+        (|κ_b| = 0 everywhere), NaN where κ is not finite.
+    s_min : (...) m, the arclength of that grid point (the first of equal ones; NaN
+        with ``radius`` inf or NaN).
+    """
+    kappa = np.asarray(kappa, dtype=float)
+    s = np.asarray(s, dtype=float)
+    bend = np.hypot(kappa[..., 0], kappa[..., 1])          # (..., N+1) rad/m
+    ok = np.all(np.isfinite(kappa), axis=(-2, -1))
+    k = np.argmax(np.where(np.isfinite(bend), bend, -1.0), axis=-1)
+    largest = np.take_along_axis(bend, k[..., None], axis=-1)[..., 0]
+    with np.errstate(divide="ignore"):
+        radius = np.where(ok, 1.0 / largest, np.nan)
+    s_min = np.where(ok & (largest > 0), s[k], np.nan)
+    return radius, s_min
 
 
 def skew(a: np.ndarray) -> np.ndarray:

@@ -21,7 +21,7 @@ from .energies import energies
 from .loads import end_reactions
 from .results import build_dataset
 from .stepping import hermite
-from .kinematics import quat_slerp
+from .kinematics import min_bend_radius, quat_slerp
 
 __all__ = ["Progress", "RateEstimate", "EtaModel", "Recorder", "snapshot",
            "interpolated_snapshot",
@@ -159,6 +159,10 @@ def snapshot(run, fields: set, route_current: bool = False, pose=None) -> dict:
     if "contact" in fields:
         out["contact_count"] = run.contact_count
         out["min_surface_gap"] = run.min_gap
+    if "bend_radius" in fields:
+        radius, s_min = min_bend_radius(Y[:, 9:12], run.props.s)
+        out["bend_radius_min"] = float(radius)
+        out["bend_radius_min_s"] = float(s_min)
     if run.seabed is not None:
         out.update(_seabed(run, pose))
     out["newton_iterations"] = run.last_iterations

@@ -43,6 +43,9 @@ __all__ = [
     "build_dataset",
     "run_events",
     "EVENT_RULES",
+    "bend_radius_series",
+    "minimum_bend_radius_of",
+    "on_bottom",
     "apply_metadata",
     "FIELD_VARIABLES",
     "DIAGNOSTIC_VARIABLES",
@@ -165,6 +168,15 @@ FIELD_VARIABLES: dict[str, tuple[tuple[str, ...], str, str, str | None]] = {
     ),
     "contact_count": (("time",), "1", "number of self-contact pairs", None),
     "min_surface_gap": (("time",), "m", "smallest surface gap among self-contact pairs", None),
+    "bend_radius_min": (
+        ("time",), "m", "smallest bend radius along the rod",
+        "min over the grid points of 1/|(kappa_1, kappa_2)|, the bending curvatures (kappa_3, "
+        "the twist rate, does not bend the centreline); inf: the rod is straight",
+    ),
+    "bend_radius_min_s": (
+        ("time",), "m", "arclength at which the bend radius is smallest",
+        "the grid point of bend_radius_min; NaN when the rod is straight",
+    ),
     "seabed_force": (
         ("time", "s", "xyz"), "N m-1", "seabed normal reaction per unit length, global frame",
         "k p - c n.v along the bottom's normal n while the surface penetration p > 0 "
@@ -426,7 +438,8 @@ def build_dataset(
         energy_kinetic_fluid energy_total work_in``: (T,) J; ``power_in``: (T,) W;
         ``twist writhe linking_number topology_error writhe_closure_passages``: (T,)
         turns;
-        ``contact_count``: (T,); ``min_surface_gap``: (T,) m; ``newton_iterations
+        ``contact_count``: (T,); ``min_surface_gap``: (T,) m; ``bend_radius_min
+        bend_radius_min_s``: (T,) m; ``newton_iterations
         residual_norm quaternion_norm_error``: (T,); ``dt``: (T,) s;
         ``position_route_difference``: (T,) m.
     diagnostics:
@@ -698,8 +711,11 @@ EVENT_RULES = (
     "buckling_onset: first stored time the centreline is farther than the rod's largest "
     "diameter from the line through its ends (having started closer); without position, "
     "the first time the writhe has changed by 0.05 turns. first_contact: first time "
-    "contact_count > 0. writhe_k: first time |Wr| >= k turns. NaN: did not happen in the "
-    "stored outputs (or the member has no result).")
+    "contact_count > 0. loop_formed: first time the rod touches itself (contact_count > 0) "
+    "or |Wr| has risen through 1 turn (from below 1), with a seabed only while the rod lies "
+    "on the bottom. bend_radius_below_mbr (when the case gives rod.minimum_bend_radius): "
+    "first time the smallest bend radius is below it. writhe_k: first time |Wr| >= k turns. "
+    "NaN: did not happen in the stored outputs (or the member has no result).")
 
 
 def _chord_deviation(pos: np.ndarray) -> np.ndarray:
@@ -731,15 +747,73 @@ def _largest_diameter(ds) -> float | None:
     return None
 
 
+def _case_of(ds) -> dict:
+    """The case stored in the file's ``case`` attribute as a dict ({} when absent)."""
+    try:
+        case = json.loads(str(ds.attrs["case"]))
+    except (KeyError, TypeError, ValueError):
+        return {}
+    return case if isinstance(case, dict) else {}
+
+
+def minimum_bend_radius_of(ds) -> float | None:
+    """The cable's minimum bend radius (m, ``rod.minimum_bend_radius``) from the case in
+    the file, or None when the case gives none."""
+    mbr = (_case_of(ds).get("rod") or {}).get("minimum_bend_radius")
+    return float(mbr) if isinstance(mbr, (int, float)) and not isinstance(mbr, bool) else None
+
+
+def bend_radius_series(ds) -> np.ndarray | None:
+    """(T,) smallest bend radius (m) of each stored time: ``bend_radius_min`` when stored,
+    else from ``kappa`` (:func:`solver.kinematics.min_bend_radius`); None without either."""
+    if "bend_radius_min" in ds:
+        return np.asarray(ds["bend_radius_min"].values, dtype=float)
+    if "kappa" in ds and "s" in ds.coords:
+        from .kinematics import min_bend_radius
+
+        kappa = np.asarray(ds["kappa"].transpose("time", "s", "component").values, dtype=float)
+        return min_bend_radius(kappa, np.asarray(ds["s"].values, dtype=float))[0]
+    return None
+
+
+def on_bottom(ds) -> np.ndarray | None:
+    """(T,) True where the rod touches the seabed (``seabed_contact_length`` > 0), for a
+    result whose case has a seabed; None otherwise (no qualification)."""
+    if "seabed" not in _case_of(ds) or "seabed_contact_length" not in ds:
+        return None
+    return np.nan_to_num(np.asarray(ds["seabed_contact_length"].values, dtype=float)) > 0
+
+
+def _loop_formed(ds, wr: np.ndarray | None) -> int | None:
+    """The output index of :data:`EVENT_RULES`' ``loop_formed`` (None: not formed)."""
+    n = ds.sizes["time"]
+    loop = np.zeros(n, dtype=bool)
+    if "contact_count" in ds:
+        loop |= np.nan_to_num(np.asarray(ds["contact_count"].values, dtype=float)) > 0
+    if wr is not None:
+        # |Wr| >= 1 having been below 1 at an earlier (or this) stored time
+        loop |= (wr >= 1.0 - 1e-12) & (np.minimum.accumulate(wr) < 1.0 - 1e-12)
+    bottom = on_bottom(ds)
+    if bottom is not None:
+        loop &= bottom
+    return _first(loop)
+
+
 def run_events(ds) -> dict[str, int | None]:
     """The output index of each event of a result dataset (None: it did not happen).
 
-    Keys: ``buckling_onset``, ``first_contact`` and ``writhe_1``, ``writhe_2``, ... up to
-    the largest |Wr| reached; the rules are :data:`EVENT_RULES` (the threshold is the
-    rod's largest diameter, or 1 % of its length when the file does not say). The one
-    definition behind ``hockle plot``'s snapshot rows and a sweep's event variables.
+    Keys: ``buckling_onset``, ``first_contact``, ``loop_formed``,
+    ``bend_radius_below_mbr`` (only when the case gives ``rod.minimum_bend_radius``) and
+    ``writhe_1``, ``writhe_2``, ... up to the largest |Wr| reached; the rules are
+    :data:`EVENT_RULES` (the buckling threshold is the rod's largest diameter, or 1 % of
+    its length when the file does not say). The one definition behind ``hockle plot``'s
+    snapshot rows and a sweep's event variables.
     """
-    out: dict[str, int | None] = {"buckling_onset": None, "first_contact": None}
+    out: dict[str, int | None] = {"buckling_onset": None, "first_contact": None,
+                                  "loop_formed": None}
+    mbr = minimum_bend_radius_of(ds) if ds is not None else None
+    if mbr is not None:
+        out["bend_radius_below_mbr"] = None
     if ds is None or "time" not in ds.coords or ds.sizes.get("time", 0) == 0:
         return out
     if "position" in ds and "s" in ds.coords:
@@ -756,9 +830,16 @@ def run_events(ds) -> dict[str, int | None]:
     if "contact_count" in ds:
         count = np.nan_to_num(np.asarray(ds["contact_count"].values, dtype=float))
         out["first_contact"] = _first(count > 0)
+    wr = None
     if "writhe" in ds:
         wr = np.abs(np.asarray(ds["writhe"].values, dtype=float))
         wr = np.where(np.isfinite(wr), wr, 0.0)
+    out["loop_formed"] = _loop_formed(ds, wr)
+    if mbr is not None:
+        radius = bend_radius_series(ds)
+        if radius is not None:
+            out["bend_radius_below_mbr"] = _first(np.nan_to_num(radius, nan=np.inf) < mbr)
+    if wr is not None:
         for k in range(1, int(np.floor(np.max(wr) + 1e-12)) + 1):
             out[f"writhe_{k}"] = _first(wr >= k - 1e-12)
     return out

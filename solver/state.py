@@ -122,5 +122,18 @@ class RunState:
                     xdot_end=np.zeros((2, 6)), xdot_nodes=np.zeros((n1, 3)))
         if start is not None:
             apply_start(state, start)
+        elif case.initial.twist_rate != 0.0 or case.initial.centreline is not None:
+            state.phi = initial_end_rotations(r, Y[:, 11], s)
         return state
+
+
+def initial_end_rotations(r: np.ndarray, kappa3: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """(2,) rad: the end rotations φ of a start that is already twisted or curved
+    (``initial.twist_rate``, ``initial.centreline``), so that its linking number
+    Lk = (φ_end − φ_start)/2π is Tw + Wr of the start shape (Călugăreanu–White; the
+    linking number counts from the untwisted straight rod, docs/topology.md). r (N+1, 3)
+    m, kappa3 (N+1,) rad/m, s (N+1,) m."""
+    from .topology import twist, writhe
+
+    return np.array([0.0, 2.0 * np.pi * (float(twist(kappa3, s)) + float(writhe(r)))])
 

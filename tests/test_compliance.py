@@ -27,7 +27,7 @@ from solver.results import (DIAGNOSTIC_VARIABLES, FIELD_VARIABLES, METADATA_ATTR
 from solver.simulation import simulate
 
 ALL_FIELDS = ["v", "omega", "f", "kappa", "moment", "position", "orientation", "energies",
-              "topology", "contact", "reactions"]
+              "topology", "contact", "reactions", "bend_radius"]
 
 CASE = {
     "schema_version": 1,
@@ -44,6 +44,7 @@ CASE = {
     },
     "contact": {"aperture": 90.0, "tolerance": 0.03, "k1": 1e-7, "k2": 3.0, "k3": 1e-6,
                 "k4": 1.0},
+    "seabed": {"elevation": -1.0},   # below the rod: its outputs are written (zeros)
     "numerics": {"n_segments": 8, "dt": 0.01, "t_end": 0.05},
     "output": {"fields": ALL_FIELDS},
 }

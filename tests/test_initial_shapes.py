@@ -139,3 +139,18 @@ def test_arc_under_its_end_moment_is_an_equilibrium_and_without_it_moves():
                          output={"fields": ["v"]})
         speeds.append(np.abs(simulate(case).v.values).max())
     assert speeds[0] < 1e-4 and speeds[1] > 1.0, speeds
+
+
+def test_a_twisted_start_has_its_twist_as_linking_number():
+    """Lk counts from the untwisted straight rod: a start with 2 rad/m of twist over 1 m
+    has Lk = Tw = 2/(2π) turns and Wr = 0 at t = 0 (it started at 0, and with self-contact
+    the closure-passage rule then shifted the writhe), and a helix start Lk = Tw + Wr."""
+    ds = simulate(_case({"twist_rate": 2.0}, 10, output={"fields": ["topology"]}))
+    assert float(ds.linking_number[0]) == pytest.approx(2.0 / (2 * np.pi), rel=1e-9)
+    assert float(ds.topology_error.max()) < 1e-6
+    R, p = 0.2, 0.3
+    tau = (p / (2 * np.pi)) / (R**2 + (p / (2 * np.pi))**2)
+    ds = simulate(_case({"centreline": helix(1.0, R, p), "twist_rate": tau}, 40,
+                        output={"fields": ["topology"]}))
+    assert float(ds.topology_error[0]) < 1e-9
+    assert abs(float(ds.writhe[0])) > 0.1

@@ -126,15 +126,15 @@ def test_sweep_state_in_the_job_states_vocabulary():
 
 def test_events_of_one_member():
     ev = member_events(fake_result(0.0, 2.0))          # onset 0.5 s, Wr = 2 (t - 0.5)
-    assert ev == {"buckling_onset": 5, "first_contact": 10, "writhe_1": 10, "writhe_2": 15,
-                  "writhe_3": 20, "writhe_4": 25, "writhe_5": 30}
+    assert ev == {"buckling_onset": 5, "first_contact": 10, "loop_formed": 10, "writhe_1": 10,
+                  "writhe_2": 15, "writhe_3": 20, "writhe_4": 25, "writhe_5": 30}
 
 
 def test_combine_a_grid():
     members, res = results()
     ds = combine_results(res, PARAMS, fields=["position"])
     assert ds["writhe"].dims == (FORCE, SPIN, "time")
-    assert ds.sizes == {FORCE: 2, SPIN: 3, "time": 31, "s": 11, "xyz": 3, "event": 10}
+    assert ds.sizes == {FORCE: 2, SPIN: 3, "time": 31, "s": 11, "xyz": 3, "event": 11}
     assert list(ds[FORCE].values) == [0.0, 2.0] and list(ds[SPIN].values) == [1.0, 2.0, 3.0]
     assert ds[FORCE].attrs["units"] == "N" and ds[SPIN].attrs["units"] == "rad s-1"
     assert ds.attrs["hockle_sweep_time_grid"] == "common"
