@@ -71,8 +71,7 @@ def request_body_schema() -> dict:
     (the Case schema there)."""
     return {"type": "object", "required": ["case", "continuation"],
             "additionalProperties": False, "properties": {
-                "case": {"type": "object", "description": "The case spec, as the body of "
-                         "POST /v1/jobs (schema Case)."},
+                "case": {"$ref": "#/components/schemas/Case"},
                 "continuation": ContinuationOptions.model_json_schema()}}
 
 

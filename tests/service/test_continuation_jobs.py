@@ -192,3 +192,14 @@ def test_the_python_client_submits_a_continuation(client, monkeypatch):
             hc.submit_continuation(_column(), "rod.nothing", 1.0)
     assert info.value.status == 422
     assert [e["loc"] for e in info.value.errors] == ["continuation.parameter"]
+
+
+def test_openapi_documents_the_continuation(client):
+    schema = client.get("/openapi.json").json()
+    post = schema["paths"]["/v1/continuations"]["post"]
+    assert post["operationId"] == "submit_continuation"
+    body = post["requestBody"]["content"]["application/json"]["schema"]
+    assert body["properties"]["case"] == {"$ref": "#/components/schemas/Case"}
+    assert {"parameter", "to", "max_points"} <= set(body["properties"]["continuation"]
+                                                     ["properties"])
+    assert "kind" in schema["components"]["schemas"]["JobStatus"]["properties"]

@@ -1,6 +1,7 @@
 """Jobs of their own kind (issue 42, continuation jobs): hockle_jobs.kind, "dynamic" for
 every job recorded before (the server default fills the existing rows) or
-"continuation".
+"continuation". Adds it only where missing (service.migrations.adopt), as a registry
+adopted from before migrations is brought through every revision.
 
 Revision ID: 0004_job_kind
 Revises: 0003_job_owner
@@ -11,6 +12,8 @@ from __future__ import annotations
 import sqlalchemy as sa
 from alembic import op
 
+from service.migrations.adopt import add_column_if_missing
+
 revision = "0004_job_kind"
 down_revision = "0003_job_owner"
 branch_labels = None
@@ -18,8 +21,8 @@ depends_on = None
 
 
 def upgrade() -> None:
-    op.add_column("hockle_jobs", sa.Column("kind", sa.String(16), nullable=False,
-                                           server_default="dynamic"))
+    add_column_if_missing("hockle_jobs", sa.Column("kind", sa.String(16), nullable=False,
+                                                   server_default="dynamic"))
 
 
 def downgrade() -> None:
