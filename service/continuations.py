@@ -86,7 +86,9 @@ def _http_message(msg: str) -> str:
 
 def validate_request(data: Any, max_case_size: int):
     """``(case, options)`` of a continuation request, checked before any work; else a 422
-    :class:`ProblemError` whose errors name ``case.<field>`` or ``continuation.<field>``."""
+    :class:`ProblemError` whose errors name ``case.<field>`` or ``continuation.<field>``.
+    ``max_case_size`` (HOCKLE_MAX_CASE_SIZE) bounds grid points x POINT_COST_STEPS x
+    max_points, as it bounds grid points x time steps of a dynamic case."""
     from solver.case import format_validation_errors
 
     from .validation import validate_case
@@ -109,11 +111,21 @@ def validate_request(data: Any, max_case_size: int):
                 for e in format_validation_errors(exc)]
         raise _refuse(errs, f"{len(errs)} field(s) of the continuation are not valid") from None
     try:
-        case = validate_case(data["case"], max_case_size)
+        # the case's own time steps do not matter here: the size is the points' (below)
+        case = validate_case(data["case"], 2 ** 62)
     except ProblemError as exc:
         exc.errors = [{**e, "loc": "case" + (f".{e['loc']}" if e.get("loc") else "")}
                       for e in (exc.errors or [])]
         raise
+    size = case.grid_points * POINT_COST_STEPS * options.max_points
+    if size > max_case_size:
+        msg = (f"continuation too large: {case.grid_points} grid points x {options.max_points} "
+               f"points x {POINT_COST_STEPS} (a point's cost in time steps) = {size} exceeds "
+               f"this service's limit of {max_case_size}; lower max_points or "
+               "numerics.n_segments")
+        raise ProblemError(422, "case-too-large", "Case too large", msg, errors=[
+            {"loc": "continuation.max_points", "msg": msg, "type": "case_too_large"},
+            {"loc": "case.numerics.n_segments", "msg": msg, "type": "case_too_large"}])
     if case.initial.from_result is not None:
         msg = ("a continuation starts from the case's own equilibrium; initial.from_result "
                "is not used by it: leave it out")
