@@ -500,7 +500,8 @@ def _continue(run: JobRun, case, options) -> str:
         info = run.last_info
         if info is None:
             return "before the first point"
-        return f"after {info.step} points ({options.parameter} = {info.parameter:.6g})"
+        plural = "" if info.step == 1 else "s"
+        return f"after {info.step} point{plural} ({options.parameter} = {info.parameter:.6g})"
 
     try:
         ds = continue_branch(case, options.parameter, options.to, time=options.time,

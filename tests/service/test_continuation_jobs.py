@@ -211,3 +211,26 @@ def test_openapi_documents_the_continuation(client):
     assert {"parameter", "to", "max_points"} <= set(body["properties"]["continuation"]
                                                      ["properties"])
     assert "kind" in schema["components"]["schemas"]["JobStatus"]["properties"]
+
+
+def test_a_continuation_out_of_time_keeps_its_branch(client, settings):
+    from sqlalchemy import update
+
+    from service.models import Job
+    from service.registry import Registry
+
+    response = client.post("/v1/continuations", json=_body(), params={"fresh": "true"})
+    job_id = response.json()["id"]
+    reg = Registry(settings.registry_url)
+    try:            # a budget spent before the first step: the start point is all there is
+        with reg.sessions.begin() as session:
+            session.execute(update(Job).where(Job.id == job_id).values(wall_clock_budget=0.0))
+    finally:
+        reg.dispose()
+    assert _run(settings, job_id) == "failed:timeout"
+    status = client.get(f"/v1/jobs/{job_id}").json()
+    assert (status["state"], status["reason"], status["step"]) == ("failed", "timeout", 1)
+    assert status["result_partial"] and "the branch so far is kept" in status["message"]
+    assert f"after 1 point ({FORCE} = -0.1)" in status["message"]
+    response = client.get(f"/v1/jobs/{job_id}/results/variables/parameter")
+    assert response.json()["data"] == [pytest.approx(-0.1)]
