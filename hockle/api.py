@@ -708,21 +708,42 @@ def equilibrium(case: Any, *, time: float | None = None):
 def continue_branch(case: Any, parameter: str, to: float, *, time: float | None = None,
                     switch: bool = False, max_points: int = 500, step: float = 0.05,
                     shapes_every: int = 1, stability: bool = True,
-                    on_point: Callable[[int, float], None] | None = None):
+                    on_point: Callable[[int, float], None] | None = None,
+                    should_stop: Callable[[], object] | None = None):
     """Pseudo-arclength continuation of the equilibria of ``case`` in the scalar at the
     dotted ``parameter`` path (as sweeps spell it, e.g. ``boundary.end.translation.2.force``)
     from the case's value to ``to`` (docs/statics.md). ``time``: the time at which the
     end conditions are read (velocities integrated up to it; default ``numerics.t_end``).
     ``switch``: leave the branch at its first simple branch point along the critical
     mode. ``step``: the largest step as a fraction of the start tangent's arclength over
-    the range. Returns the branch dataset (:func:`solver.continuation.branch_dataset`).
+    the range. ``should_stop``: asked before every step; a true answer (a reason) ends the
+    branch there, its ``stopped`` attribute "stopped: <reason>". Returns the branch dataset
+    (:func:`solver.continuation.branch_dataset`).
 
     Raises ValueError (a path that is not a scalar of the case, a value that makes the case
     invalid or changes its grid) and ``solver.continuation.ContinuationError`` (a range
     that does not move, no equilibrium or a singular Jacobian at the start), both before
     any continuation step.
     """
-    from solver.continuation import ContinuationError, branch_dataset, continuation
+    from solver.continuation import branch_dataset, continuation
+
+    problem_at, lam0, to = continuation_family(case, parameter, to, time=time)
+    br = continuation(problem_at, lam0, to, max_points=max_points, ds_max=step,
+                      ds=min(step, 0.02), stability=stability, switch=switch,
+                      on_point=on_point, should_stop=should_stop)
+    c = _as_case(case)
+    return branch_dataset(br, parameter, shapes_every=shapes_every,
+                          attrs={"case": c.canonical_json(), "target": to})
+
+
+def continuation_family(case: Any, parameter: str, to: float, *, time: float | None = None):
+    """The checks :func:`continue_branch` makes before any solve, and what it continues:
+    ``(λ -> StaticProblem, the case's value λ0 at parameter, to)``. Raises ValueError (a
+    path that is not a scalar of the case, a ``to`` that makes the case invalid or changes
+    its grid), ``solver.continuation.ContinuationError`` (a range that does not move) and
+    ``solver.statics.StaticsError`` (a case the static problem does not support, naming the
+    field). The service runs it at submission (service/continuations.py)."""
+    from solver.continuation import ContinuationError
 
     problem_at, lam0 = _problem_family(case, parameter, time)
     to = float(to)
@@ -733,12 +754,7 @@ def continue_branch(case: Any, parameter: str, to: float, *, time: float | None 
     if p1.n_segments != p0.n_segments or p1.length != p0.length:
         raise ValueError(f"--parameter {parameter}: changes the grid (rod.length or "
                          "numerics); continue in a parameter that keeps it")
-    br = continuation(problem_at, lam0, to, max_points=max_points, ds_max=step,
-                      ds=min(step, 0.02), stability=stability, switch=switch,
-                      on_point=on_point)
-    c = _as_case(case)
-    return branch_dataset(br, parameter, shapes_every=shapes_every,
-                          attrs={"case": c.canonical_json(), "target": to})
+    return problem_at, lam0, to
 
 
 def equilibrium_start(case: Any, *, time: float | None = None, parameter: str | None = None,

@@ -19,7 +19,7 @@ from .docs import ASSETS_URL, DOCS_URL, OAUTH2_REDIRECT_URL, REDOC_URL, install_
 from .problems import CatchAllMiddleware, install_handlers
 from .queue import Enqueuer
 from .registry import REGISTRY_UNAVAILABLE, Registry
-from .routers import health, jobs, metrics, results, sweeps
+from .routers import continuations, health, jobs, metrics, results, sweeps
 from .settings import Settings, get_settings
 from .store import ResultStore
 
@@ -91,6 +91,7 @@ def create_app(settings: Settings | None = None, *, enqueuer: Enqueuer | None = 
     app.include_router(jobs.router, prefix="/v1", dependencies=checked)
     app.include_router(results.router, prefix="/v1", dependencies=checked)
     app.include_router(sweeps.router, prefix="/v1", dependencies=checked)
+    app.include_router(continuations.router, prefix="/v1", dependencies=checked)
     app.include_router(health.router, prefix="/v1", dependencies=checked)
     app.include_router(metrics.router)
     install_dashboard(app)  # /ui/ (static, public) and its /v1/ui routes

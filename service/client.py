@@ -139,6 +139,34 @@ class HockleClient:
         response = self._request("POST", "/v1/jobs", content=body, headers=headers, params=params)
         return JobStatus.model_validate(response.json())
 
+    def submit_continuation(self, case, parameter: str, to: float, *,
+                            time: float | None = None, switch: bool = False,
+                            max_points: int | None = None, step: float | None = None,
+                            shapes_every: int | None = None, stability: bool | None = None,
+                            idempotency_key: str | None = None, fresh: bool = False,
+                            time_limit: float | None = None) -> JobStatus:
+        """Submit a continuation job (``POST /v1/continuations``; docs/statics.md): the static
+        branch of ``case`` (path, mapping or ``Case``) while the scalar at the dotted
+        ``parameter`` goes to ``to``, with the options of :func:`hockle.api.continue_branch`
+        (left out: the service's defaults). Returns the job's status (``kind``
+        ``continuation``); :meth:`wait` and :meth:`download` as for any job, the result being
+        the branch dataset."""
+        options: dict[str, Any] = {"parameter": parameter, "to": to, "switch": switch}
+        for key, value in (("time", time), ("max_points", max_points), ("step", step),
+                           ("shapes_every", shapes_every), ("stability", stability)):
+            if value is not None:
+                options[key] = value
+        body = json.dumps({"case": case_document(case), "continuation": options}).encode()
+        headers = {"Content-Type": "application/json"}
+        if idempotency_key:
+            headers["Idempotency-Key"] = idempotency_key
+        params: dict[str, Any] = {"fresh": "true"} if fresh else {}
+        if time_limit is not None:
+            params["time_limit"] = time_limit
+        response = self._request("POST", "/v1/continuations", content=body, headers=headers,
+                                 params=params)
+        return JobStatus.model_validate(response.json())
+
     def get(self, job_id: str) -> JobStatus:
         return JobStatus.model_validate(self._request("GET", f"/v1/jobs/{job_id}").json())
 

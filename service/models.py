@@ -26,6 +26,9 @@ class Job(Base):
     id: Mapped[str] = mapped_column(String(36), primary_key=True)
     name: Mapped[str | None] = mapped_column(String(200))
     state: Mapped[str] = mapped_column(String(16), index=True)
+    # what the job computes: "dynamic" (a run of its case, spec_json the case) or
+    # "continuation" (a static branch, spec_json {"case": ..., "continuation": ...})
+    kind: Mapped[str] = mapped_column(String(16), default="dynamic", server_default="dynamic")
     reason: Mapped[str | None] = mapped_column(String(32))
     message: Mapped[str | None] = mapped_column(Text)
 

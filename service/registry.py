@@ -201,8 +201,12 @@ class Registry:
         idempotency_key: str | None = None,
         request_fingerprint: str | None = None,
         owner: str | None = None,
+        kind: str = "dynamic",
     ) -> tuple[Job, bool]:
         """Insert an accepted job and commit it. Returns (job, created).
+
+        ``kind``: "dynamic" (``spec_json`` a case) or "continuation" (``spec_json`` the
+        validated request of service/continuations.py).
 
         ``owner``: the owner id of the API key that submits it (None without keys).
         With an ``idempotency_key`` this owner already used: the earlier job when the
@@ -217,6 +221,7 @@ class Registry:
             id=str(uuid.uuid4()),
             name=name,
             state=ACCEPTED,
+            kind=kind,
             spec_json=spec_json,
             spec_hash=spec_hash,
             solver_version=solver_version,
@@ -268,10 +273,11 @@ class Registry:
             return session.scalars(select(Job).where(Job.idempotency_key == stored)).first()
 
     def find_successful(self, spec_hash: str, solver_version: str, *,
-                        owner: str | None = None) -> Job | None:
-        """The latest successful job with this spec hash and solver version and a result file;
-        with ``owner``, among that owner's jobs only."""
+                        owner: str | None = None, kind: str = "dynamic") -> Job | None:
+        """The latest successful job of this ``kind`` with this spec hash and solver version
+        and a result file; with ``owner``, among that owner's jobs only."""
         query = select(Job).where(
+            Job.kind == kind,
             Job.spec_hash == spec_hash,
             Job.solver_version == solver_version,
             Job.state == SUCCESSFUL,

@@ -30,11 +30,17 @@ class JobLinks(BaseModel):
 
 class JobStatus(BaseModel):
     id: str = Field(..., description="Job id (UUID).")
+    kind: Literal["dynamic", "continuation"] = Field(
+        "dynamic", description="dynamic: a run of the case (POST /v1/jobs); continuation: a "
+        "static branch (POST /v1/continuations), whose result is the branch dataset "
+        "(dimension point) and whose step counts the points done.")
     name: str | None = Field(None, description="The case's name.")
     state: JobState
     reason: Reason | None = Field(None, description="Set on failed and dismissed jobs.")
     message: str | None = None
-    progress: float = Field(..., ge=0, le=100, description="Simulated time over t_end, percent.")
+    progress: float = Field(..., ge=0, le=100, description="Simulated time over t_end, percent "
+                            "(a continuation: the larger of points done over max_points and "
+                            "the parameter's way to its target).")
     sim_time: float = Field(..., description="Simulated time reached, s.")
     t_end: float = Field(..., description="End time of the run, s.")
     step: int = Field(..., description="Time steps done.")

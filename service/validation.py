@@ -182,6 +182,10 @@ def start_from_job(case, registry, owner: str | None):
     job = registry.get(spec.job)
     if job is None or (owner is not None and job.owner != owner):
         raise refuse(loc, "unknown_job", f"no job with id {spec.job} of yours")
+    if (job.kind or "dynamic") != "dynamic":
+        raise refuse(loc, "job_not_dynamic",
+                     f"job {spec.job} is a {job.kind} job: its result is a branch, not a run "
+                     "to start from (hockle.api.equilibrium_start starts from a branch point)")
     if job.state != SUCCESSFUL or not job.result_path:
         raise refuse(loc, "job_not_successful",
                      f"job {spec.job} is {job.state}, not successful: a start from an "

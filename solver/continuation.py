@@ -163,7 +163,8 @@ def continuation(problem_at: Callable[[float], StaticProblem], lam0: float, lam1
                  newton_max: int = 10, max_turn: float = 0.3, stability: bool = True,
                  modes: int = 8, locate: bool = True, switch: bool = False,
                  start_tangent: Optional[np.ndarray] = None,
-                 on_point: Optional[Callable[[int, float], None]] = None) -> Branch:
+                 on_point: Optional[Callable[[int, float], None]] = None,
+                 should_stop: Optional[Callable[[], object]] = None) -> Branch:
     """Follow the equilibria of ``problem_at(λ)`` from λ = ``lam0`` towards ``lam1``.
 
     Parameters
@@ -181,6 +182,8 @@ def continuation(problem_at: Callable[[float], StaticProblem], lam0: float, lam1
     start_tangent : (N+1, 13) a direction in Y units to leave the start point along
         (branch switching from a known branch point); default: along increasing λ
     on_point : called with (index, λ) after every accepted point
+    should_stop : called before every step; a true answer (a reason, e.g. "timeout") ends
+        the continuation there with the points so far, ``stopped`` = "stopped: <reason>"
 
     Returns
     -------
@@ -210,6 +213,10 @@ def continuation(problem_at: Callable[[float], StaticProblem], lam0: float, lam1
         max_turn=max_turn, stability=stability, modes=modes, locate=locate, switch=switch,
         on_point=on_point), start_tangent)
     while len(tr.br.parameter) < max_points:
+        reason = should_stop() if should_stop is not None else False
+        if reason:
+            tr.br.stopped = f"stopped: {reason}"
+            return tr.br
         if tr.step():
             return tr.br
     tr.br.stopped = "max_points"

@@ -424,6 +424,8 @@ def run_job(job_id: str, worker: str, settings: Settings | None = None) -> str:
 
 def _prepare_and_solve(run: JobRun, job) -> str:
     job_id = run.job_id
+    if (job.kind or "dynamic") == "continuation":
+        return _prepare_and_continue(run, job)
     try:
         from solver.case import Case
 
@@ -443,6 +445,122 @@ def _prepare_and_solve(run: JobRun, job) -> str:
                    message=f"the start state could not be read: {exc.detail}")
         return "failed:internal_error"
     return _solve(run, case, start)
+
+
+def _prepare_and_continue(run: JobRun, job) -> str:
+    """A continuation job (service/continuations.py): its stored request, then the branch."""
+    from service.continuations import read_request
+
+    try:
+        case, options = read_request(job.spec_json)
+    except Exception as exc:  # noqa: BLE001 - a stored request that no longer validates is final
+        log.exception("job %s: stored continuation does not validate", run.job_id)
+        run.finish(state=FAILED, reason="internal_error",
+                   message=f"the stored continuation does not validate with this solver: {exc}")
+        return "failed:internal_error"
+    return _continue(run, case, options)
+
+
+@dataclass
+class _PointInfo:
+    """A continuation's progress in the shape JobRun.progress reads: ``step`` the points
+    done, ``fraction`` the larger of points over max_points and the parameter's way from its
+    start to its target, ``t`` 0 (no simulated time)."""
+
+    fraction: float
+    step: int
+    wall_time: float
+    parameter: float
+    t: float = 0.0
+    eta_seconds: float | None = None
+    contact_count: int = 0
+
+
+def _continue(run: JobRun, case, options) -> str:
+    """Follow the branch with :func:`hockle.api.continue_branch`; progress after every point
+    (``step`` = points done), the job's should_stop before every step (dismissal, the
+    wall-clock budget, a shutdown: the branch so far is kept as a partial result; a
+    shutdown hands the job back and the next attempt starts the branch again), the branch
+    dataset as the result."""
+    from hockle.api import continue_branch
+    from solver.statics import StaticsError
+
+    start: list[float] = []
+
+    def on_point(index: int, lam: float) -> None:
+        if not start:
+            start.append(lam)
+        span = abs(options.to - start[0]) or 1.0
+        way = min(abs(lam - start[0]) / span, 1.0)
+        run.progress(_PointInfo(fraction=max((index + 1) / options.max_points, way),
+                                step=index + 1, wall_time=time.monotonic() - run.started,
+                                parameter=float(lam)))
+
+    def where() -> str:
+        info = run.last_info
+        if info is None:
+            return "before the first point"
+        plural = "" if info.step == 1 else "s"
+        return f"after {info.step} point{plural} ({options.parameter} = {info.parameter:.6g})"
+
+    try:
+        ds = continue_branch(case, options.parameter, options.to, time=options.time,
+                             switch=options.switch, max_points=options.max_points,
+                             step=options.step, shapes_every=options.shapes_every,
+                             stability=options.stability, on_point=on_point,
+                             should_stop=run.should_stop)
+    except (StaticsError, ValueError) as exc:   # no equilibrium or a singular start
+        if run.superseded:
+            return _superseded(run)
+        run.finish(state=FAILED, reason="solver_diverged", message=str(exc), **run._position())
+        return "failed:solver_diverged"
+    except SoftTimeLimitExceeded:
+        run.finish(state=FAILED, reason="timeout",
+                   message=f"soft time limit of {run.soft_limit:.0f} s reached {where()}; "
+                           "no result was written", **run._position())
+        return "failed:timeout"
+    except Exception as exc:  # noqa: BLE001 - unexpected: recorded, logged, never retried
+        log.exception("job %s: the continuation raised", run.job_id)
+        run.finish(state=FAILED, reason="internal_error",
+                   message=f"the continuation raised {type(exc).__name__}: {exc}",
+                   **run._position())
+        return "failed:internal_error"
+    if run.superseded:
+        return _superseded(run)
+    stopped = str(ds.attrs.get("stopped", ""))
+    stop = stopped[len("stopped: "):] if stopped.startswith("stopped: ") else None
+    if stop == SHUTDOWN_REASON:
+        return _hand_back(run)
+    run.event("solve_finished", {"status": "stopped" if stop else "completed",
+                                 "points": int(ds.sizes["point"]), "stopped": stopped})
+    if run.last_info is not None:
+        run._write_progress(run.last_info)
+    try:
+        path = run.save(ds)
+    except Exception as exc:  # noqa: BLE001
+        log.exception("job %s: writing the branch failed", run.job_id)
+        run.finish(state=FAILED, reason="internal_error",
+                   message=f"writing the result failed: {type(exc).__name__}: {exc}",
+                   **run._position())
+        return "failed:internal_error"
+    points = f"{int(ds.sizes['point'])} points"
+    if stop == "cancelled_by_user":
+        run.finish(state=DISMISSED, reason="cancelled_by_user",
+                   message=f"dismissed while running, {where()}; the branch so far is kept",
+                   result_path=path, result_partial=True, **run._position())
+        return "dismissed"
+    if stop is not None:
+        message = (f"wall-clock budget of {run.budget:.0f} s reached {where()}; the branch so "
+                   "far is kept (a job may ask for a longer limit: POST "
+                   "/v1/continuations?time_limit=)" if stop == "timeout"
+                   else f"the continuation stopped: {stop}")
+        run.finish(state=FAILED, reason="timeout" if stop == "timeout" else "internal_error",
+                   message=message, result_path=path, result_partial=True, **run._position())
+        return f"failed:{stop}"
+    position = run._position()
+    position["progress"] = 100.0
+    run.finish(state=SUCCESSFUL, message=f"{points}; {stopped}", result_path=path, **position)
+    return "successful"
 
 
 def _with_budget(case, budget: float):

@@ -44,6 +44,7 @@ def job_status(job: Job, store_exists) -> JobStatus:
                          step=job.failed_step)
     return JobStatus(
         id=job.id,
+        kind=job.kind or "dynamic",
         name=job.name,
         state=job.state,
         reason=job.reason,
@@ -112,13 +113,30 @@ def _submit(svc: Services, body: bytes, content_type: str | None, idempotency_ke
     """Validate, record and queue a case: ``(job, status, reused)``; ``reused`` is None for a
     new job (201), else why an earlier job answers (200): ``identical_case`` or
     ``idempotency_key``."""
-    import solver
-
     _check_time_limit(time_limit, svc.settings.time_limit_max)
     case = validate_case(parse_body(body, content_type), svc.settings.max_case_size)
     start_from_job(case, svc.registry, owner)       # checked now; the worker reads it again
-    canonical = case.canonical_json()
-    spec_hash = case.spec_hash()
+    hard, soft, budget = svc.settings.time_limits(case.grid_points, case.n_steps,
+                                                  contact=case.contact is not None,
+                                                  t_end=float(case.numerics.t_end),
+                                                  requested=time_limit)
+    return record_and_enqueue(
+        svc, kind="dynamic", canonical=case.canonical_json(), spec_hash=case.spec_hash(),
+        name=case.name, grid_points=case.grid_points, n_steps=case.n_steps,
+        t_end=float(case.numerics.t_end), limits=(hard, soft, budget),
+        idempotency_key=idempotency_key, fresh=fresh, time_limit=time_limit, owner=owner)
+
+
+def record_and_enqueue(svc: Services, *, kind: str, canonical: str, spec_hash: str,
+                       name: str | None, grid_points: int, n_steps: int, t_end: float,
+                       limits: tuple[float, float, float], idempotency_key: str | None,
+                       fresh: bool, time_limit: float | None,
+                       owner: str | None) -> tuple[Job, int, str | None]:
+    """Record a validated job of ``kind`` (``canonical``: its spec_json) and queue it:
+    ``(job, status, reused)`` as :func:`_submit` answers. An Idempotency-Key replay or
+    an identical spec that already succeeded (unless ``fresh``) creates no job."""
+    import solver
+
     version = solver.__version__
     asked = "" if time_limit is None else f"|time_limit={float(time_limit)!r}"
     fingerprint = hashlib.sha256(f"{canonical}|fresh={fresh}{asked}".encode()).hexdigest()
@@ -133,26 +151,24 @@ def _submit(svc: Services, body: bytes, content_type: str | None, idempotency_ke
                 raise _reuse_problem(earlier.id)
             return earlier, 200, "idempotency_key"
     if not fresh:
-        cached = svc.registry.find_successful(spec_hash, version, owner=owner)
+        cached = svc.registry.find_successful(spec_hash, version, owner=owner, kind=kind)
         if cached is not None and _exists(cached.result_path):
             return cached, 200, "identical_case"
-    hard, soft, budget = svc.settings.time_limits(case.grid_points, case.n_steps,
-                                                  contact=case.contact is not None,
-                                                  t_end=float(case.numerics.t_end),
-                                                  requested=time_limit)
+    hard, soft, _ = limits
     try:
         job, created = svc.registry.create_job(
             spec_json=canonical,
             spec_hash=spec_hash,
             solver_version=version,
-            name=case.name,
-            grid_points=case.grid_points,
-            n_steps=case.n_steps,
-            t_end=float(case.numerics.t_end),
-            limits=(hard, soft, budget),
+            name=name,
+            grid_points=grid_points,
+            n_steps=n_steps,
+            t_end=t_end,
+            limits=limits,
             idempotency_key=idempotency_key,
             request_fingerprint=fingerprint,
             owner=owner,
+            kind=kind,
         )
     except IdempotencyConflict as exc:
         raise _reuse_problem(exc.job_id) from None
@@ -179,7 +195,7 @@ def _reuse_problem(job_id: str) -> ProblemError:
     )
 
 
-def _submit_slots(request: Request) -> asyncio.Semaphore:
+def submit_slots(request: Request) -> asyncio.Semaphore:
     state = request.app.state
     if getattr(state, "submit_slots", None) is None:
         state.submit_slots = asyncio.Semaphore(SUBMIT_CONCURRENCY)
@@ -221,7 +237,7 @@ async def submit_job(
     the earlier job, marked ``reused``."""
     body = await read_body(request)
     # a burst of submissions waits here, not in the thread pool that status polls need
-    async with _submit_slots(request):
+    async with submit_slots(request):
         job, status, reused = await run_in_threadpool(
             _submit, svc, body, request.headers.get("content-type"), idempotency_key, fresh,
             time_limit, owner
@@ -318,4 +334,5 @@ def get_job_spec(job_id: str, svc: Annotated[Services, Depends(services)],
                     headers={"ETag": f'"{job.spec_hash}"'})
 
 
-__all__ = ["router", "job_status", "get_job_or_404"]
+__all__ = ["router", "job_status", "get_job_or_404", "record_and_enqueue", "submit_slots",
+           "REUSED_HEADER"]

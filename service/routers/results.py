@@ -309,12 +309,19 @@ def _jsonable(values) -> Any:
 @router.get("/jobs/{job_id}/summary", operation_id="get_summary",
             summary="Scalar time series for dashboards", response_model=Summary,
             responses={304: {"description": "Not modified (If-None-Match)"},
-                       **problem_responses(404)})
+                       **problem_responses(404, 409)})
 def get_summary(job_id: str, request: Request, response: Response,
                 svc: Annotated[Services, Depends(services)],
                 owner: Annotated[str | None, Depends(caller)]) -> Summary | Response:
-    """Energies, twist, writhe, linking number and contact count over time."""
+    """Energies, twist, writhe, linking number and contact count over time. A continuation
+    job's result is a branch, not a time history: 409 ``result-is-a-branch``."""
     job = get_job_or_404(svc, job_id, owner)
+    if (job.kind or "dynamic") != "dynamic":
+        raise ProblemError(409, "result-is-a-branch", "The result is a branch",
+                           f"job {job.id} is a {job.kind} job: its result is a branch of "
+                           "equilibria (dimension point), not a time history; read its "
+                           f"variables at /v1/jobs/{job.id}/results/variables or download "
+                           f"/v1/jobs/{job.id}/results")
     path = _result_path(svc, job)
     etag = _etag(path)
     if _not_modified(request, etag):

@@ -165,7 +165,7 @@ async def submit_sweep(
     nothing is queued); then one job per member is queued as ``POST /v1/jobs`` does."""
     body = await read_body(request)
     data = parse_body(body, request.headers.get("content-type"))
-    async with jobs_router._submit_slots(request):
+    async with jobs_router.submit_slots(request):
         sweep, jobs = await run_in_threadpool(_create, svc, data, fresh, time_limit, owner)
     response.headers["Location"] = f"/v1/sweeps/{sweep.id}"
     missing = [j for j in sweep.job_ids if j not in jobs]

@@ -224,6 +224,7 @@ def test_a_registry_made_before_migrations_is_adopted_with_its_rows(url, era):
         old = reg.get("done")
         assert (old.state, old.result_path, old.attempts, old.owner, old.heartbeat_at) == (
             "successful", "done.nc", 1, None, None)
+        assert old.kind == "dynamic"        # 0004: every job recorded before is dynamic
         assert [e.kind for e in reg.events("done")] == ["submitted", "finished"]
         assert sorted(j.id for j in reg.list().jobs) == ["done", "queued"]
         assert reg.by_idempotency_key("key-done").id == "done"
