@@ -167,7 +167,7 @@ class GlobalLoadWork(WorkAccount):
                       np.empty((1, 3, 3)), r0, np.empty((1, 3)), np.empty((1, 3)))
             q0 /= np.linalg.norm(q0)
             q, r = space_route(q0[0], r0[0], sol.Y[:, 9:12], float(run.props.ds))
-        G = self.force(run, prob.t_new, q, prob.left_limit, run.system._glob_force)
+        G = self.force(run, prob.t_new, q, prob.left_limit, run.system.step.glob_force)
         work = 0.5 * float(np.dot(run.props.quad_weights,
                                   np.einsum("ni,ni->n", G_old + G, r - r_old)))
         return work, (G, r)

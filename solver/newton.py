@@ -65,7 +65,7 @@ def equilibrate(system, Y, blocks):
     """
     rs = np.empty(system.n)
     s12 = np.empty(NV)
-    bc = system.bc
+    bc = system.step.bc
     _equilibrate(np.ascontiguousarray(Y, dtype=float), np.ascontiguousarray(blocks), bc.rows,
                  bc.cols, bc.coef.astype(float), system.floor, rs, s12)
     return rs, s12
@@ -110,7 +110,7 @@ def scale_blocks(system, blocks, row_scale, s12):
     scales of :func:`equilibrate` (row scale (n,), column scale s12 (12,) per node; the
     cell blocks hold rows 6 + 12c + i, :mod:`solver.banded`). Returns a fresh
     (N, 12, 24) array and (12,)."""
-    bc_rows, bc_cols, bc_vals = system.bc.jacobian_entries()
+    bc_rows, bc_cols, bc_vals = system.step.bc.jacobian_entries()
     scaled = np.empty_like(blocks)
     _scale_blocks_kernel(np.ascontiguousarray(blocks), row_scale, np.ascontiguousarray(s12),
                          scaled)
@@ -889,13 +889,13 @@ class Newton:
         the iterations are one compiled call (:func:`_newton_kernel`).
         """
         system = self.system
-        contact = system.candidates is not None
-        runs = system.candidates.runs if contact else 0
+        contact = system.step.candidates is not None
+        runs = system.step.candidates.runs if contact else 0
         self._allocate(max(runs, system.ev[0].shape[0]))
         st = self._state
-        if (system.step_key != self.factor_key or contact or self._factored_with_contact):
+        if (system.step.key != self.factor_key or contact or self._factored_with_contact):
             st["ctr"][3] = 0
-        self.factor_key = system.step_key
+        self.factor_key = system.step.key
         rod, step, cand, cdata = system.kernel_args()
         factorizations = st["ctr"][0]
         its, res, ok, code = _newton_kernel(
@@ -915,7 +915,7 @@ class Newton:
         flags = buf[-1]
         pose = None
         if flags[2] and np.isfinite(res):
-            has_r = system.contact is not None or bool(system.step_data[11][4])
+            has_r = system.contact is not None or bool(system.step.data[11][4])
             pose = (buf[5].copy(), buf[6].copy(), buf[7].copy() if has_r else None,
                     buf[8].copy())
         return st["ws"][0].copy(), buf[2].copy(), int(its), float(res), bool(ok), pose
@@ -926,7 +926,7 @@ class Newton:
         zero-displacement state toward ``guess`` (N+1, 12) (:func:`_feasible_start`).
         Returns (N+1, 12)."""
         system = self.system
-        self._allocate(system.candidates.runs)
+        self._allocate(system.step.candidates.runs)
         rod, step, cand, cdata = system.kernel_args()
         out = np.empty((system.n_nodes, NV))
         _feasible_start(step[0], np.ascontiguousarray(guess, dtype=float), step, rod, cand,
@@ -944,7 +944,8 @@ class Newton:
         iterate. Raises BandFactorError for a singular Jacobian."""
         from .banded import BandFactorError
         system = self.system
-        self._allocate(system.candidates.runs if system.candidates is not None else 1)
+        cand = system.step.candidates
+        self._allocate(cand.runs if cand is not None else 1)
         st = self._state
         system.evaluate(Y, True)
         rod, step, cand, cdata = system.kernel_args()
@@ -955,8 +956,8 @@ class Newton:
         if not _factor(np.ascontiguousarray(Y, dtype=float), system.buf, system.ev, st["lin"],
                        st["op"], rod, step, self.CONTACT_BAND_WEIGHT, st["ctr"]):
             raise BandFactorError("singular Jacobian")
-        self.factor_key = system.step_key
-        self._factored_with_contact = system.candidates is not None
+        self.factor_key = system.step.key
+        self._factored_with_contact = system.step.candidates is not None
 
     @property
     def row_scale(self):
@@ -978,7 +979,7 @@ class Newton:
         st = self._state
         out = np.empty(self.system.n)
         _matvec(np.ascontiguousarray(x, dtype=float), out, st["lin"], st["op"],
-                self.system.step_data, st["gm"])
+                self.system.step.data, st["gm"])
         return out
 
     def gmres(self, rhs, rtol=None):
@@ -990,7 +991,7 @@ class Newton:
         out = np.empty(self.system.n)
         failures = int(st["ctr"][2])
         its = _gmres(np.ascontiguousarray(rhs, dtype=float), out, rtol, self.GMRES_MAX,
-                     st["lin"], st["op"], self.system.step_data, st["gm"], st["ctr"])
+                     st["lin"], st["op"], self.system.step.data, st["gm"], st["ctr"])
         return out, int(its), int(st["ctr"][2]) == failures
 
     def band_solve(self, rhs):
@@ -1009,6 +1010,6 @@ class Newton:
         not chase (contact oscillations, checkerboard modes), are divided by about λ/c.
         The result satisfies the linearised constraints (its f and E2 rows are
         consistent). Returns (N+1, 12); needs a factorisation of the current step."""
-        rhs = self.system.cm * self.system.cell_inertia(e)
+        rhs = self.system.step.cm * self.system.cell_inertia(e)
         x = self.band_solve(rhs * self.row_scale) * self.col_scale
         return x.reshape(e.shape)

@@ -95,11 +95,10 @@ class RodRun(ProblemAssembly):
             self.contact = SelfContact(case.contact, props.s, props.diameter, props.rho_a)
             self.search = CandidateSearch(self.contact, props.diameter)
             self.route_tolerance = self._route_tolerance()
-        self.seabed = Seabed(case.seabed, props.diameter) if case.seabed is not None else None
-        self.system = RodSystem(props, self.loads, contact=self.contact, seabed=self.seabed)
+        seabed = Seabed(case.seabed, props.diameter) if case.seabed is not None else None
+        self.system = RodSystem(props, self.loads, contact=self.contact, seabed=seabed)
         self.newton = Newton(self.system, num.newton.tolerance, num.newton.max_iterations)
         self.params = alpha_parameters(num.rho_inf)
-        self.rho_inf = num.rho_inf
         self.state = RunState.at_rest(case, props.s, start)
         self.bc_plan = boundary_plan(case, props, self.system.n)
         if any(len(choice) > 5 and choice[5] for _, choices in self.bc_plan
@@ -348,7 +347,7 @@ class RodRun(ProblemAssembly):
         global-frame loads (:func:`solver.energies.distributed_work_into`)."""
         props, params, h = self.props, prob.params, prob.h
         g, am, af = params.gamma, params.alpha_m, params.alpha_f
-        glob = self.system._glob_force
+        glob = self.system.step.glob_force
         body = self._body_force(glob, None if pose is None else (pose[1],))
         body = self.loads.with_points(body, prob.t_new, None if pose is None else pose[1],
                                       prob.left_limit)
@@ -458,3 +457,6 @@ for _name, _attr in (("growth_guard", "limit"), ("guard_sigma", "sigma"), ("guar
                                      f"``{_attr}`` (:class:`solver.stepping.guard."
                                      "GrowthGuard`)."))
 del _name, _attr
+# the sea floor has one home, the system's equations
+RodRun.seabed = _delegate("system", "seabed", "The sea floor (:class:`solver.seabed.Seabed`, "
+                          "None without one) of the system's equations.")

@@ -667,6 +667,55 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
     flags[1] = P
 
 
+@dataclass
+class StepTerms:
+    """The data of one time step n -> n+1 that the residual and Newton read: built by
+    :meth:`RodSystem.begin_step` and held as ``RodSystem.step`` until the next step.
+
+    dt (s) the step, params the time scheme (:class:`StepParameters`), t_new (s) its
+    end, bc the boundary rows at t_new (:class:`solver.boundary.BoundaryRows`),
+    cm = (1 − αm)/(γΔt) (1/s) the coefficient of the generalized-α relation, Y_old and
+    Ydot_old (N+1, 12) the old level, zconst (N+1, 12) the old level's part of the cell
+    rows ½(M·cY + αf F^n), flux_const (N+1, 12) αf K Y^n, q_old (N+1, 4), r_old and
+    v_old_global (N+1, 3) the old pose and global velocities (or None), glob_force
+    (N+1, 3) N/m the global-frame load at t_new (or None), candidates the contact
+    candidates (:class:`solver.contact.ContactCandidates`, None without any) and
+    cand_arrays their kernel arrays, frozen_selection the frozen closest-point selection
+    (None: selected afresh at every iterate), data the step's tuple for
+    :func:`residual_into`, key what the Jacobian's band part depends on besides the
+    iterate (:class:`solver.newton.Newton` keeps a factorisation while it is unchanged).
+    The fields left None are those of a system before its first step.
+    """
+    cand_arrays: tuple
+    dt: float | None = None
+    params: StepParameters | None = None
+    t_new: float | None = None
+    bc: object = None
+    cm: float | None = None
+    Y_old: np.ndarray | None = None
+    Ydot_old: np.ndarray | None = None
+    zconst: np.ndarray | None = None
+    flux_const: np.ndarray | None = None
+    q_old: np.ndarray | None = None
+    r_old: np.ndarray | None = None
+    v_old_global: np.ndarray | None = None
+    glob_force: np.ndarray | None = None
+    candidates: object = None
+    frozen_selection: np.ndarray | None = None
+    data: tuple | None = None
+    key: tuple | None = None
+
+
+#: the attributes a pickled RodSystem held before :class:`StepTerms`, by field
+_OLD_STEP_NAMES = {"dt": "dt", "params": "params", "t_new": "t_new", "bc": "bc", "cm": "cm",
+                   "Y_old": "Y_old", "Ydot_old": "Ydot_old", "_zconst": "zconst",
+                   "_flux_const": "flux_const", "q_old": "q_old", "r_old": "r_old",
+                   "v_old_global": "v_old_global", "_glob_force": "glob_force",
+                   "candidates": "candidates", "cand_arrays": "cand_arrays",
+                   "frozen_selection": "frozen_selection", "step_data": "data",
+                   "step_key": "key"}
+
+
 class RodSystem:
     """Residual and Jacobian of one time step of the box/generalized-α scheme.
 
@@ -701,9 +750,6 @@ class RodSystem:
         tc = length**2 * np.sqrt(m0 / b0)
         self.tc = float(tc)       # bending time scale L²√(ρA/EJ), s
         self.floor = np.repeat([length / tc, 1.0 / tc, b0 / length**2, 1.0 / length], 3)
-        self.step_key = None
-        self.candidates = None
-        self.frozen_selection = None
         cdn = loads.cdn if loads.has_drag else np.zeros(self.n_nodes)
         cdt = loads.cdt if loads.has_drag else np.zeros(self.n_nodes)
         #: the run's constant data as the compiled kernels take it (:func:`residual_into`)
@@ -724,7 +770,8 @@ class RodSystem:
                                np.zeros(0, np.intp), np.zeros(0, np.bool_),
                                np.zeros(0, np.bool_))
         self._no_frozen = np.zeros(0, np.intp)
-        self.cand_arrays = self._no_candidates
+        #: the current step's data (:class:`StepTerms`), set by :meth:`begin_step`
+        self.step = StepTerms(cand_arrays=self._no_candidates)
 
     def __getstate__(self):
         # the buffers (one of them a view of another) are made afresh on loading
@@ -734,9 +781,17 @@ class RodSystem:
         return state
 
     def __setstate__(self, state):
+        state = dict(state)
+        if "step" not in state:
+            # a checkpoint pickled before the step's data were one StepTerms
+            old = {new: state.pop(name) for name, new in _OLD_STEP_NAMES.items()
+                   if name in state}
+            old.setdefault("cand_arrays", state["_no_candidates"])
+            state["step"] = StepTerms(**old)
         self.__dict__.update(state)
         self.buf = self.buffers()
-        self.ev = evaluation_arrays(self.candidates.runs if self.candidates is not None else 0)
+        cand = self.step.candidates
+        self.ev = evaluation_arrays(cand.runs if cand is not None else 0)
 
     def buffers(self):
         """Fresh output buffers of :func:`residual_into` for this grid: R (n,) and its cell
@@ -773,43 +828,40 @@ class RodSystem:
         on a breakpoint, so the loads are taken as their left limit at t_new.
         """
         am, af, g = params.alpha_m, params.alpha_f, params.gamma
-        self.dt, self.params, self.t_new, self.bc = dt, params, t_new, bc
-        self.cm = (1.0 - am) / (g * dt)
-        self.Y_old, self.Ydot_old = Y_old, Ydot_old
+        cm = (1.0 - am) / (g * dt)
         # M Ẏ^{n+1-αm} = cm M Y + M·cY with cY = −cm Y^n + (αm − (1−αm)(1−γ)/γ) Ẏ^n
-        cY = -self.cm * Y_old + (am - (1.0 - am) * (1.0 - g) / g) * Ydot_old
+        cY = -cm * Y_old + (am - (1.0 - am) * (1.0 - g) / g) * Ydot_old
         zc = 0.5 * self._apply_M(cY) + 0.5 * af * F_old
-        self._zconst = zc
-        self._flux_const = af * self._flux(Y_old)
-        self.q_old, self.r_old, self.v_old_global = q_old, r_old, v_old_global
-        self._glob_force = (self.loads.global_force(t_new, left=left_limit)
-                             if self.loads.has_global else None)
-        self.candidates = candidates if (candidates is not None and candidates.runs > 0) else None
-        self.frozen_selection = None      # set by Newton (see SelfContact.closest)
-        if self.candidates is not None:
-            self.cand_arrays = self.candidates.arrays
-            if self.ev[0].shape[0] < self.candidates.runs:
-                self.ev = evaluation_arrays(2 * self.candidates.runs)
+        flux_const = af * self._flux(Y_old)
+        glob = self.loads.global_force(t_new, left=left_limit) if self.loads.has_global else None
+        candidates = candidates if (candidates is not None and candidates.runs > 0) else None
+        if candidates is not None:
+            cand_arrays = candidates.arrays
+            if self.ev[0].shape[0] < candidates.runs:
+                self.ev = evaluation_arrays(2 * candidates.runs)
         else:
-            self.cand_arrays = self._no_candidates
+            cand_arrays = self._no_candidates
         n1 = self.n_nodes
-        glob = self._glob_force
         has_r = r_old is not None and v_old_global is not None
-        self.step_data = (
-            np.ascontiguousarray(Y_old, dtype=float), zc, self._flux_const,
+        data = (
+            np.ascontiguousarray(Y_old, dtype=float), zc, flux_const,
             np.zeros((0, 3)) if glob is None else np.ascontiguousarray(glob, dtype=float),
             np.zeros((n1, 4)) if q_old is None else np.ascontiguousarray(q_old, dtype=float),
             np.ascontiguousarray(r_old, dtype=float) if has_r else np.zeros((n1, 3)),
             np.ascontiguousarray(v_old_global, dtype=float) if has_r else np.zeros((n1, 3)),
             np.asarray(bc.rows, dtype=np.intp), np.asarray(bc.cols, dtype=np.intp),
             np.asarray(bc.coef, dtype=float), np.asarray(bc.values, dtype=float),
-            np.array([dt, self.cm, af, float(glob is not None), float(has_r),
+            np.array([dt, cm, af, float(glob is not None), float(has_r),
                       float(self.needs_pose), float(bc.turning[0]), float(bc.turning[1])])
-        ) + self._point_data(t_new, dt, left_limit,
-                                                                   Y_old, q_old, af)
-        # what the Jacobian's band part depends on besides the iterate (solver.newton
-        # keeps a factorisation across steps while this is unchanged)
-        self.step_key = (dt, params, bc.key)
+        ) + self._point_data(t_new, dt, left_limit, Y_old, q_old, af)
+        # frozen_selection None: set by Newton (see SelfContact.closest); key: what the
+        # Jacobian's band part depends on besides the iterate (solver.newton keeps a
+        # factorisation across steps while this is unchanged)
+        self.step = StepTerms(
+            cand_arrays=cand_arrays, dt=dt, params=params, t_new=t_new, bc=bc, cm=cm,
+            Y_old=Y_old, Ydot_old=Ydot_old, zconst=zc, flux_const=flux_const, q_old=q_old,
+            r_old=r_old, v_old_global=v_old_global, glob_force=glob, candidates=candidates,
+            frozen_selection=None, data=data, key=(dt, params, bc.key))
 
     _NO_POINTS = (np.zeros(0, np.intp), np.zeros(0, np.intp), np.zeros(0), np.zeros((0, 3)),
                   np.zeros(0, np.bool_), np.zeros((0, NV)))
@@ -833,7 +885,8 @@ class RodSystem:
     def kernel_args(self):
         """(rod, step, candidates, contact data): what :func:`residual_into` takes of this
         run and step (:meth:`begin_step` must have been called)."""
-        return self.rod_data, self.step_data, self.cand_arrays, self.contact_data
+        step = self.step
+        return self.rod_data, step.data, step.cand_arrays, self.contact_data
 
     # ------------------------------------------------------------------ node pieces
     def _apply_M(self, Y):
@@ -882,10 +935,11 @@ class RodSystem:
         """
         n1 = self.n_nodes
         q, R, r, theta = np.empty((n1, 4)), np.empty((n1, 3, 3)), np.empty((n1, 3)), np.empty((n1, 3))
-        has_r = bool(self.step_data[11][4])
-        space = self.contact is not None and self.r_old is not None
-        pose_into(np.ascontiguousarray(Y, dtype=float), self.step_data[0], float(self.dt), space,
-                  self.step_data[4], self.step_data[5], self.step_data[6], has_r,
+        step = self.step
+        has_r = bool(step.data[11][4])
+        space = self.contact is not None and step.r_old is not None
+        pose_into(np.ascontiguousarray(Y, dtype=float), step.data[0], float(step.dt), space,
+                  step.data[4], step.data[5], step.data[6], has_r,
                   float(self.p.ds), q, R, r, theta, np.empty((n1, 3)))
         return q, R, (r if (space or has_r) else None), theta
 
@@ -928,7 +982,8 @@ class RodSystem:
         buf = self.buf if buf is None else buf
         fz = self._no_frozen if frozen is None else np.ascontiguousarray(frozen, np.intp)
         residual_into(np.ascontiguousarray(Y, dtype=float), bool(want_jacobian), self.rod_data,
-                      self.step_data, self.cand_arrays, fz, self.contact_data, buf, self.ev)
+                      self.step.data, self.step.cand_arrays, fz, self.contact_data, buf,
+                      self.ev)
         return buf[-1]
 
     def residual(self, Y, want_jacobian=False):
@@ -942,10 +997,10 @@ class RodSystem:
         has set one). One compiled call (:func:`residual_into`).
         """
         buf = self.buf
-        flags = self.evaluate(Y, want_jacobian, self.frozen_selection)
+        flags = self.evaluate(Y, want_jacobian, self.step.frozen_selection)
         pose = None
         if flags[2]:
-            has_r = self.contact is not None or bool(self.step_data[11][4])
+            has_r = self.contact is not None or bool(self.step.data[11][4])
             pose = (buf[5].copy(), buf[6].copy(), buf[7].copy() if has_r else None,
                     buf[8].copy())
         return buf[0].copy(), buf[2].copy(), (buf[4] if want_jacobian else None), pose
@@ -958,13 +1013,13 @@ class RodSystem:
         :meth:`solver.contact.SelfContact.closest`) the contacts are evaluated again with
         a fresh selection (:func:`solver.contact.model.evaluate_into`, into this step's
         arrays). Coincident centreline points in a pair give a gap of −inf."""
-        if self.candidates is None:
+        if self.step.candidates is None:
             return None
         if fresh:
             p = int(self.buf[-1][1])
         else:
             p = evaluate_into(np.ascontiguousarray(r, dtype=float),
-                              np.ascontiguousarray(v, dtype=float), self.cand_arrays,
+                              np.ascontiguousarray(v, dtype=float), self.step.cand_arrays,
                               np.full(0, -1, np.intp), self.contact_data, self.ev)
             if p < 0:
                 return 0, -math.inf
@@ -979,9 +1034,10 @@ class RodSystem:
     def candidate_gaps(self, Y):
         """Surface gaps (R,) m of the closest points of the step's contact candidates at
         the iterate Y (new level), inf for run edges; empty without candidates."""
-        if self.candidates is None:
+        cand = self.step.candidates
+        if cand is None:
             return np.zeros(0)
         r = self.pose_new(Y)[2]
         if not np.all(np.isfinite(r)):
-            return np.full(self.candidates.runs, -np.inf)
-        return self.contact.gaps(self.candidates, r)
+            return np.full(cand.runs, -np.inf)
+        return self.contact.gaps(cand, r)

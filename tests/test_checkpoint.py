@@ -47,6 +47,30 @@ def test_resume_in_contact_repeats_the_run_bit_for_bit():
     assert resumed.sizes["step"] == full.sizes["step"] and steps_before > 0
     # the checkpoint object is untouched by the resume (another resume gives the same)
     assert_identical(full, simulate(case, resume=ck))
+    # a checkpoint pickled before the step's data were one StepTerms resumes the same
+    assert ck.run.system.step.candidates is not None
+    assert_identical(full, simulate(case, resume=Checkpoint.loads(old_layout(ck), case)))
+
+
+def old_layout(ck) -> bytes:
+    """The checkpoint's bytes with its RodSystem pickled as before StepTerms: the step's
+    data as the system's own attributes (``step_data``, ``_glob_force`` ...)."""
+    from solver.scheme import _OLD_STEP_NAMES, RodSystem
+
+    def old_state(system):
+        state = new_state(system)
+        step = state.pop("step")
+        state.update({name: getattr(step, new) for name, new in _OLD_STEP_NAMES.items()})
+        return state
+
+    new_state = RodSystem.__getstate__
+    RodSystem.__getstate__ = old_state
+    try:
+        data = ck.dumps()
+    finally:
+        RodSystem.__getstate__ = new_state
+    assert b"step_data" in data and b"StepTerms" not in data
+    return data
 
 
 def test_resume_of_an_error_controlled_run():

@@ -70,7 +70,7 @@ def test_no_contact_machinery_without_contact():
     assert run.contact is None
     for k in range(3):
         run.advance(0.1 * (k + 1))
-    assert run.system.candidates is None and not run.newton.coupled
+    assert run.system.step.candidates is None and not run.newton.coupled
 
 
 class _Captured(Exception):
@@ -90,7 +90,7 @@ def _linearized_contact_iterate(monkeypatch, min_pairs=5, accept=None):
 
     def spy(self, Y_guess):
         system = self.system
-        if system.candidates is not None and system.evaluate(Y_guess, True)[1] >= min_pairs:
+        if system.step.candidates is not None and system.evaluate(Y_guess, True)[1] >= min_pairs:
             self.linearize(Y_guess)
             Y = np.array(Y_guess, dtype=float)
             if accept is not None:
@@ -179,7 +179,7 @@ def test_position_tolerance_bounds_the_error_of_every_contact_step(monkeypatch):
 
     def recording(self, *args, **kwargs):
         out = plain(self, *args, **kwargs)
-        if out[0] and self.system.candidates is not None:
+        if out[0] and self.system.step.candidates is not None:
             errors.append(self.last_step_error)
         return out
 

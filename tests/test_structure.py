@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import ast
 import copy
+import importlib
+import inspect
 from pathlib import Path
 
 import numpy as np
@@ -74,6 +76,55 @@ def test_the_loop_is_short_and_no_function_is_long():
                         and name not in LONG_ALLOWED:
                     long.append(name)
     assert not long, long
+
+
+#: the most attributes one class of the solver may hold (issue 36)
+MAX_ATTRIBUTES = 25
+
+
+def _attributes(cls: ast.ClassDef, live=None) -> set:
+    """Names a class assigns: every ``self.X`` it stores (plain, tuple-unpacked,
+    augmented or annotated) in its methods, less the names that ``live`` (the class
+    object, if given) makes data descriptors: a property that stores into another object
+    (``RodRun``'s delegates to its state and step control) holds nothing itself.
+    A dataclass's fields are not counted."""
+    names = set()
+    for fn in cls.body:
+        if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)) or not fn.args.args:
+            continue
+        me = fn.args.args[0].arg
+        for node in ast.walk(fn):
+            if (isinstance(node, ast.Attribute) and isinstance(node.ctx, ast.Store)
+                    and isinstance(node.value, ast.Name) and node.value.id == me):
+                names.add(node.attr)
+    if live is not None:
+        names = {n for n in names
+                 if not hasattr(type(inspect.getattr_static(live, n, None)), "__set__")}
+    return names
+
+
+def test_attribute_count_reads_stores_and_fields():
+    cls = ast.parse("class A:\n    def f(self):\n        self.a, self.b = 1, 2\n"
+                    "        self.c += 1\n        other.d = 3\n"
+                    "    def g(me):\n        me.e: int = 4\n").body[0]
+    assert _attributes(cls) == {"a", "b", "c", "e"}
+
+    class Live:
+        b = property(lambda self: 0, lambda self, v: None)
+    assert _attributes(cls, Live) == {"a", "c", "e"}
+
+
+def test_no_class_holds_more_than_25_attributes():
+    big = {}
+    for name, f in _modules().items():
+        module = importlib.import_module(name)
+        for node in ast.walk(ast.parse(f.read_text())):
+            if isinstance(node, ast.ClassDef) and not any(
+                    "jitclass" in ast.unparse(d) for d in node.decorator_list):
+                count = len(_attributes(node, getattr(module, node.name, None)))
+                if count > MAX_ATTRIBUTES:
+                    big[f"{f.relative_to(SOLVER.parent).as_posix()}:{node.name}"] = count
+    assert not big, big
 
 
 def _run():

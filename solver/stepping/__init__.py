@@ -212,13 +212,13 @@ def growth_rate(system, Y, shift: float, layout, v0=None):
     from ..banded import BandFactorError
     from ..newton import equilibrate, scale_blocks
 
-    af = system.params.alpha_f
+    af = system.step.params.alpha_f
     _, _, blocks, _ = system.residual(Y, want_jacobian=True)
     blocks = blocks.copy()
-    system.add_inertia(blocks, (1.0 - af) * shift - system.cm)
+    system.add_inertia(blocks, (1.0 - af) * shift - system.step.cm)
     rs, s12 = equilibrate(system, Y, blocks)
     scaled, bc_scaled = scale_blocks(system, blocks, rs, s12)
-    bc_rows, bc_cols, _ = system.bc.jacobian_entries()
+    bc_rows, bc_cols, _ = system.step.bc.jacobian_entries()
     try:
         layout.factor(scaled, bc_rows, bc_cols, bc_scaled)
     except BandFactorError:
