@@ -30,7 +30,11 @@ The accounts (each one more term; a new force joins the balance by one more
   not usable here: at large steps the frames turn within the step and its sum drifts
   (the cantilever at Δt = 0.1 s: 1012 J of work against 179 J of energy at rest, where
   the global account gives 178 J);
-* :class:`DragWork`: the Morison drag (body frame, on the body-frame velocities).
+* :class:`DragWork`: the Morison drag (body frame, on the body-frame velocities);
+* :class:`SeabedWork`: the sea floor's normal spring and damping, friction and friction
+  moment, the trapezoid of their power on the pose the seabed acts on (each node's time
+  route; the space route with self-contact), as the run's ``seabed_work``. The spring's
+  energy is not in E: its work is minus the change of that energy.
 
 Steps with contact candidates are not checked (no account of the contact law's work
 and stored energy yet; there the route rule decides the step, docs/contact.md), nor the
@@ -51,12 +55,13 @@ from typing import NamedTuple, Optional
 import numpy as np
 
 from .energies import distributed_work_into, end_work_into, energies
-from .kinematics import quat_to_matrix, space_route
+from .kinematics import normalize_quaternions, quat_to_matrix, rotate_rows, space_route
 from .scheme import pose_into
 from .loads import _drag_kernel
+from .seabed import seabed_power
 
 __all__ = ["EnergyBalance", "WorkAccount", "EndWork", "GlobalLoadWork", "DragWork",
-           "StepBalance"]
+           "SeabedWork", "StepBalance"]
 
 
 class StepBalance(NamedTuple):
@@ -200,6 +205,40 @@ class DragWork(WorkAccount):
         return work, (b, rate)
 
 
+class SeabedWork(WorkAccount):
+    """Work of the sea floor (:meth:`solver.seabed.Seabed.loads`: normal spring and
+    damping, Coulomb friction and its moment) by the trapezoid rule on its power
+    (:func:`solver.seabed.seabed_power`) at the two levels, as the run's own
+    ``seabed_work`` (:meth:`solver.run.RodRun._advance_seabed_work`). The spring's
+    stored energy is not part of E, so its work (minus the change of that energy) is a
+    work term of the balance like gravity's; damping and friction only take energy out.
+    The new level's pose is the one the seabed acted on in the step: each node's time
+    route (:meth:`solver.run.RodRun._time_step`, as :meth:`_accept` advances it), or
+    with self-contact the space route of the solution. Carries the level's power, W."""
+
+    name = "seabed"
+
+    def start(self, run):
+        return float(run.seabed_power)
+
+    def step(self, run, prob, sol, old):
+        if run.contact is not None:
+            q = sol.pose[0].copy()
+            normalize_quaternions(q)
+            r = sol.pose[2]
+            v = np.empty_like(r)
+            rotate_rows(q, sol.Y[:, 0:3], v)
+        else:
+            q, _, v, r = run._time_step(prob.h, sol.Y, run.q_time, run.r_time,
+                                        run.v_global_time,
+                                        offsets=((run.bc_offset, run.bc.cols),
+                                                 (prob.offset, prob.bc.cols)))
+            normalize_quaternions(q)
+        Fn, Ff, M, _ = run.seabed.loads(r, v, quat_to_matrix(q), sol.Y[:, 3:6])
+        power = seabed_power(Fn + Ff, M, q, v, sol.Y, run.props.quad_weights)
+        return 0.5 * float(prob.h) * (old + power), power
+
+
 class EnergyBalance:
     """The per-step energy check of a run (module docstring).
 
@@ -226,7 +265,8 @@ class EnergyBalance:
     def for_run(cls, run) -> Optional["EnergyBalance"]:
         """The balance of ``run``'s case, or None without ``numerics.energy_tolerance``.
         Accounts: the end loads always, the global-frame loads where the case has
-        distributed global forces or point loads, the drag with a fluid's drag. The
+        distributed global forces or point loads, the drag with a fluid's drag, the sea
+        floor's work with a ``seabed``. The
         floor of the energy scale: 1e-9 EJ/L (J; EJ the largest bending stiffness)."""
         tol = run.case.numerics.energy_tolerance
         if tol is None:
@@ -236,6 +276,8 @@ class EnergyBalance:
             accounts.append(GlobalLoadWork())
         if run.loads.has_drag:
             accounts.append(DragWork())
+        if run.seabed is not None:
+            accounts.append(SeabedWork())
         props = run.props
         length = float(props.s[-1] - props.s[0])
         floor = 1e-9 * float(np.max(props.stiffness[:, :2])) / length
