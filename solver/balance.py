@@ -31,10 +31,10 @@ The accounts (each one more term; a new force joins the balance by one more
   (the cantilever at Δt = 0.1 s: 1012 J of work against 179 J of energy at rest, where
   the global account gives 178 J);
 * :class:`DragWork`: the Morison drag (body frame, on the body-frame velocities);
-* :class:`SeabedWork`: the sea floor's normal spring and damping, friction and friction
-  moment, the trapezoid of their power on the pose the seabed acts on (each node's time
-  route; the space route with self-contact), as the run's ``seabed_work``. The spring's
-  energy is not in E: its work is minus the change of that energy.
+* :class:`SeabedWork`: the sea floor's normal spring, minus the change of its stored
+  energy ½kp² on the pose the seabed acts on (each node's time route; the space route
+  with self-contact). The damper and the friction only dissipate and are left out, as
+  the scheme's own dissipation is.
 
 Steps with contact candidates are not checked (no account of the contact law's work
 and stored energy yet; there the route rule decides the step, docs/contact.md), nor the
@@ -58,7 +58,6 @@ from .energies import distributed_work_into, end_work_into, energies
 from .kinematics import normalize_quaternions, quat_to_matrix, rotate_rows, space_route
 from .scheme import pose_into
 from .loads import _drag_kernel
-from .seabed import seabed_power
 
 __all__ = ["EnergyBalance", "WorkAccount", "EndWork", "GlobalLoadWork", "DragWork",
            "SeabedWork", "StepBalance"]
@@ -206,20 +205,32 @@ class DragWork(WorkAccount):
 
 
 class SeabedWork(WorkAccount):
-    """Work of the sea floor (:meth:`solver.seabed.Seabed.loads`: normal spring and
-    damping, Coulomb friction and its moment) by the trapezoid rule on its power
-    (:func:`solver.seabed.seabed_power`) at the two levels, as the run's own
-    ``seabed_work`` (:meth:`solver.run.RodRun._advance_seabed_work`). The spring's
-    stored energy is not part of E, so its work (minus the change of that energy) is a
-    work term of the balance like gravity's; damping and friction only take energy out.
-    The new level's pose is the one the seabed acted on in the step: each node's time
-    route (:meth:`solver.run.RodRun._time_step`, as :meth:`_accept` advances it), or
-    with self-contact the space route of the solution. Carries the level's power, W."""
+    """Work of the sea floor's normal spring (:mod:`solver.seabed`, the linear
+    spring-damper per unit length of MoorDyn): minus the change of its stored energy
+    U = Σ_k w_k ½ k max(p_k, 0)² (J; k the normal stiffness, Pa, p the surface
+    penetration, m, w the nodal quadrature weights, m), exact for a flat bottom and for
+    each grid cell's tangent plane. U is not part of E, so the spring enters the balance
+    as a work term, on the shape like gravity. The damper (clamped to the sign of −n·ṙ)
+    and the Coulomb friction with its moment only take energy out at every instant
+    (module :mod:`solver.seabed`), so they are left out like the scheme's own
+    dissipation: they only make ε negative. Their trapezoid on the two levels' power
+    (the run's ``seabed_work``) is no account of them where the bottom stops a node
+    within a step (its damper's time m/c, microseconds, far below any Δt): it over-counts
+    the energy taken and reads the landing as injected energy (docs/numerics.md § 8).
+    The new level's penetration is the one the seabed acted on in the step: on each
+    node's time route (:meth:`solver.run.RodRun._time_step`, as the accepted step
+    advances it), or with self-contact the space route of the solution. Carries U (J)."""
 
     name = "seabed"
 
+    @staticmethod
+    def stored(run, pen) -> float:
+        """The spring's stored energy U (J) at the penetrations pen (N+1,) m."""
+        k = float(run.seabed.data[0][2])
+        return float(run.props.quad_weights @ (0.5 * k * np.maximum(pen, 0.0) ** 2))
+
     def start(self, run):
-        return float(run.seabed_power)
+        return self.stored(run, run.seabed_loads()[3])
 
     def step(self, run, prob, sol, old):
         if run.contact is not None:
@@ -234,9 +245,9 @@ class SeabedWork(WorkAccount):
                                         offsets=((run.bc_offset, run.bc.cols),
                                                  (prob.offset, prob.bc.cols)))
             normalize_quaternions(q)
-        Fn, Ff, M, _ = run.seabed.loads(r, v, quat_to_matrix(q), sol.Y[:, 3:6])
-        power = seabed_power(Fn + Ff, M, q, v, sol.Y, run.props.quad_weights)
-        return 0.5 * float(prob.h) * (old + power), power
+        pen = run.seabed.loads(r, v, quat_to_matrix(q), sol.Y[:, 3:6])[3]
+        energy = self.stored(run, pen)
+        return old - energy, energy
 
 
 class EnergyBalance:

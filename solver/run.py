@@ -34,7 +34,7 @@ from .newton import Newton
 from .properties import RodProperties
 from .recording import dense_state, interpolated_snapshot, snapshot
 from .scheme import RodSystem, alpha_parameters
-from .seabed import Seabed, seabed_power
+from .seabed import Seabed
 from .state import RunState
 from .step_problem import ProblemAssembly
 from .stepping import ErrorControl, PIController
@@ -324,7 +324,9 @@ class RodRun(ProblemAssembly):
         """Power of the seabed's loads F, M (N+1, 3) on the current level, W: ∫ (F·ṙ +
         M·Ω) ds with the quadrature weights (Ω = R ω the global angular velocity)."""
         q, _, v = self._seabed_pose()
-        return seabed_power(F, M, q, v, self.Y, self.props.quad_weights)
+        omega = np.einsum("nij,nj->ni", quat_to_matrix(q), self.Y[:, 3:6])
+        per = np.einsum("ni,ni->n", F, v) + np.einsum("ni,ni->n", M, omega)
+        return float(per @ self.props.quad_weights)
 
     def _advance_seabed_work(self, h) -> None:
         """The seabed's work over an accepted step of h (s), by the trapezoid rule on its

@@ -52,9 +52,9 @@ import math
 import numba
 import numpy as np
 
-from .kinematics import _right_jacobian_into, quat_to_matrix
+from .kinematics import _right_jacobian_into
 
-__all__ = ["Seabed", "seabed_power", "seabed_into", "seabed_loads", "far_from_bottom", "contact_length",
+__all__ = ["Seabed", "seabed_into", "seabed_loads", "far_from_bottom", "contact_length",
            "touchdown", "NO_SEABED"]
 
 #: the kernels' data of a run without a seabed (the scalars' kind 0)
@@ -498,14 +498,3 @@ def touchdown(pen, s) -> float:
         j = i0 - 1                              # the cell (i0 − 1, i0)
     a, b = pen[j], pen[j + 1]
     return float(s[j] + (s[j + 1] - s[j]) * a / (a - b))
-
-
-def seabed_power(F, M, q, v, Y, weights) -> float:
-    """Power of the seabed's loads F, M (N+1, 3) N/m, N (global frame) on a level with
-    node frames q (N+1, 4), global velocities v (N+1, 3) m/s and unknowns Y (N+1, 12),
-    W: ∫ (F·ṙ + M·Ω) ds with the quadrature weights (N+1,) m (Ω = R ω the global angular
-    velocity). The run's ``seabed_work`` and the energy balance's
-    :class:`solver.balance.SeabedWork` both integrate it."""
-    omega = np.einsum("nij,nj->ni", quat_to_matrix(q), Y[:, 3:6])
-    per = np.einsum("ni,ni->n", F, v) + np.einsum("ni,ni->n", M, omega)
-    return float(per @ weights)
