@@ -30,7 +30,11 @@ The accounts (each one more term; a new force joins the balance by one more
   not usable here: at large steps the frames turn within the step and its sum drifts
   (the cantilever at Δt = 0.1 s: 1012 J of work against 179 J of energy at rest, where
   the global account gives 178 J);
-* :class:`DragWork`: the Morison drag (body frame, on the body-frame velocities).
+* :class:`DragWork`: the Morison drag (body frame, on the body-frame velocities);
+* :class:`SeabedWork`: the sea floor's normal spring, minus the change of its stored
+  energy ½kp² on the pose the seabed acts on (each node's time route; the space route
+  with self-contact). The damper and the friction only dissipate and are left out, as
+  the scheme's own dissipation is.
 
 Steps with contact candidates are not checked (no account of the contact law's work
 and stored energy yet; there the route rule decides the step, docs/contact.md), nor the
@@ -51,12 +55,12 @@ from typing import NamedTuple, Optional
 import numpy as np
 
 from .energies import distributed_work_into, end_work_into, energies
-from .kinematics import quat_to_matrix, space_route
+from .kinematics import normalize_quaternions, quat_to_matrix, rotate_rows, space_route
 from .scheme import pose_into
 from .loads import _drag_kernel
 
 __all__ = ["EnergyBalance", "WorkAccount", "EndWork", "GlobalLoadWork", "DragWork",
-           "StepBalance"]
+           "SeabedWork", "StepBalance"]
 
 
 class StepBalance(NamedTuple):
@@ -200,6 +204,52 @@ class DragWork(WorkAccount):
         return work, (b, rate)
 
 
+class SeabedWork(WorkAccount):
+    """Work of the sea floor's normal spring (:mod:`solver.seabed`, the linear
+    spring-damper per unit length of MoorDyn): minus the change of its stored energy
+    U = Σ_k w_k ½ k max(p_k, 0)² (J; k the normal stiffness, Pa, p the surface
+    penetration, m, w the nodal quadrature weights, m), exact for a flat bottom and for
+    each grid cell's tangent plane. U is not part of E, so the spring enters the balance
+    as a work term, on the shape like gravity. The damper (clamped to the sign of −n·ṙ)
+    and the Coulomb friction with its moment only take energy out at every instant
+    (module :mod:`solver.seabed`), so they are left out like the scheme's own
+    dissipation: they only make ε negative. Their trapezoid on the two levels' power
+    (the run's ``seabed_work``) is no account of them where the bottom stops a node
+    within a step (its damper's time m/c, microseconds, far below any Δt): it over-counts
+    the energy taken and reads the landing as injected energy (docs/numerics.md § 8).
+    The new level's penetration is the one the seabed acted on in the step: on each
+    node's time route (:meth:`solver.run.RodRun._time_step`, as the accepted step
+    advances it), or with self-contact the space route of the solution. Carries U (J)."""
+
+    name = "seabed"
+
+    @staticmethod
+    def stored(run, pen) -> float:
+        """The spring's stored energy U (J) at the penetrations pen (N+1,) m."""
+        k = float(run.seabed.data[0][2])
+        return float(run.props.quad_weights @ (0.5 * k * np.maximum(pen, 0.0) ** 2))
+
+    def start(self, run):
+        return self.stored(run, run.seabed_loads()[3])
+
+    def step(self, run, prob, sol, old):
+        if run.contact is not None:
+            q = sol.pose[0].copy()
+            normalize_quaternions(q)
+            r = sol.pose[2]
+            v = np.empty_like(r)
+            rotate_rows(q, sol.Y[:, 0:3], v)
+        else:
+            q, _, v, r = run._time_step(prob.h, sol.Y, run.q_time, run.r_time,
+                                        run.v_global_time,
+                                        offsets=((run.bc_offset, run.bc.cols),
+                                                 (prob.offset, prob.bc.cols)))
+            normalize_quaternions(q)
+        pen = run.seabed.loads(r, v, quat_to_matrix(q), sol.Y[:, 3:6])[3]
+        energy = self.stored(run, pen)
+        return old - energy, energy
+
+
 class EnergyBalance:
     """The per-step energy check of a run (module docstring).
 
@@ -226,7 +276,8 @@ class EnergyBalance:
     def for_run(cls, run) -> Optional["EnergyBalance"]:
         """The balance of ``run``'s case, or None without ``numerics.energy_tolerance``.
         Accounts: the end loads always, the global-frame loads where the case has
-        distributed global forces or point loads, the drag with a fluid's drag. The
+        distributed global forces or point loads, the drag with a fluid's drag, the sea
+        floor's work with a ``seabed``. The
         floor of the energy scale: 1e-9 EJ/L (J; EJ the largest bending stiffness)."""
         tol = run.case.numerics.energy_tolerance
         if tol is None:
@@ -236,6 +287,8 @@ class EnergyBalance:
             accounts.append(GlobalLoadWork())
         if run.loads.has_drag:
             accounts.append(DragWork())
+        if run.seabed is not None:
+            accounts.append(SeabedWork())
         props = run.props
         length = float(props.s[-1] - props.s[0])
         floor = 1e-9 * float(np.max(props.stiffness[:, :2])) / length

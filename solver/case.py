@@ -1692,13 +1692,6 @@ class Case(BaseModel):
             errors.append(_err(("numerics", "dt"), "out_of_range",
                                f"the time step must not exceed the run, t_end = {numerics.t_end!r} s",
                                numerics.dt))
-        if numerics.energy_tolerance is not None and getattr(self, "seabed", None) is not None:
-            # solver.balance has no account of the seabed's work (its spring's energy,
-            # friction): the balance would read the bottom's reaction as injected energy
-            errors.append(_err(("numerics", "energy_tolerance"), "unsupported",
-                               "the energy check has no account of a seabed's work yet; "
-                               "leave energy_tolerance unset in a case with a seabed",
-                               numerics.energy_tolerance))
         d = self.rod.diameter
         d_max = max(d.value) if isinstance(d, Profile) else float(d)
         if d_max > length:
