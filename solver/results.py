@@ -187,7 +187,12 @@ FIELD_VARIABLES: dict[str, tuple[tuple[str, ...], str, str, str | None]] = {
         "Coulomb, axial and lateral, at the contact point (docs/seabed.md); present with a "
         "seabed only",
     ),
-    "seabed_contact_length": (("time",), "m", "length of rod on the seabed", None),
+    "seabed_contact_length": (
+        ("time",), "m", "length of rod on the seabed",
+        "arclength with surface penetration p > 0, nodes between touching ones hovering "
+        "less than 2.5 % of the diameter above the bottom counting as touching "
+        "(solver.seabed.CONTACT_GAP; docs/seabed.md)",
+    ),
     "seabed_touchdown": (
         ("time",), "m", "arclength of the touchdown point",
         "where the contact holding an end of the rod on the seabed ends; NaN where none",

@@ -269,6 +269,36 @@ def test_outputs_with_a_seabed_and_none_without():
     assert math.isnan(touchdown(-pen ** 2, s))
 
 
+def test_contact_length_bridges_nodes_hovering_between_touching_ones():
+    """A cable lying on the bottom whose every other node hovers up to 0.1 mm above it
+    (the box rule's nodal contact, measured on cases/catenary-touchdown.yaml: even nodes
+    carrying 2w at p = 2w/k, odd ones 35-105 µm up) reports its lying length, not the
+    slivers around the touching nodes; a cable lifted clear, or more than the gap, reports
+    0 and a contact's ends (the touchdown) stay the zeros of p."""
+    from solver.seabed import CONTACT_GAP, contact_gap, contact_length, touchdown
+
+    s = np.linspace(0.0, 4.0, 81)
+    D = 0.02
+    gap = contact_gap(np.full(s.size, D))
+    assert np.allclose(gap, CONTACT_GAP * D)
+    rng = np.random.default_rng(3)
+    lying = s <= 2.0                                        # 2 m on the bottom, then the span
+    pen = np.where(lying, 0.0, -0.5 * (s - 2.0) ** 2)
+    pen[lying] = np.where(np.arange(lying.sum()) % 2 == 0, 1.03e-6,
+                          -rng.uniform(3.5e-5, 1.05e-4, lying.sum()))
+    pen[40] = 1.03e-6                                       # the last touching node, s = 2
+    assert contact_length(pen, s) < 0.1                     # without the gap: slivers
+    assert contact_length(pen, s, gap) == pytest.approx(2.0, rel=0.02)
+    assert touchdown(pen, s) == pytest.approx(2.0, abs=0.05)
+    assert contact_length(pen - 0.01, s, gap) == 0.0        # lifted clear
+    assert contact_length(np.full(s.size, -0.01), s, gap) == 0.0
+    hover = np.where(np.arange(s.size) % 2 == 0, 1e-6, -2.0 * CONTACT_GAP * D)
+    assert contact_length(hover, s, gap) < 0.1              # hovering more than the gap
+    lifted = pen.copy()
+    lifted[10:20] = -0.01                   # nodes 10-19 lifted: contact to s8 and from s20
+    assert contact_length(lifted, s, gap) == pytest.approx(1.4, abs=0.01)
+
+
 # --------------------------------------------------------------------------- catenary
 def test_catenary_with_touchdown_matches_its_suspended_length_and_span():
     """A cable pinned at height h = 1 m, its other end on the bottom pulled horizontally
