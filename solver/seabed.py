@@ -179,6 +179,15 @@ def _cross_cols(a, B, out, sign):
         out[2, j] += sign * (a[0] * B[1, j] - a[1] * B[0, j])
 
 
+@numba.njit(cache=True, inline="always")
+def _zero_derivatives(DF, DM):
+    """DF, DM (3, 6) := 0: a node the bottom does not push on has no load derivatives."""
+    for i in range(3):
+        for j in range(6):
+            DF[i, j] = 0.0
+            DM[i, j] = 0.0
+
+
 @numba.njit(cache=True)
 def _node(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk):
     """The seabed's loads on one node (module docstring): normal reaction Fn, friction
@@ -201,10 +210,7 @@ def _node(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk):
     p = rho - d
     if p <= 0.0:
         if want:
-            for i in range(3):
-                for j in range(6):
-                    DF[i, j] = 0.0
-                    DM[i, j] = 0.0
+            _zero_derivatives(DF, DM)
         return p
     sn = n0 * u[0] + n1 * u[1] + n2 * u[2]
     spring = kst * p
@@ -216,10 +222,7 @@ def _node(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk):
         N = spring + damper
     if N <= 0.0:
         if want:
-            for i in range(3):
-                for j in range(6):
-                    DF[i, j] = 0.0
-                    DM[i, j] = 0.0
+            _zero_derivatives(DF, DM)
         return p
     n = wk[7, 0]
     n[0], n[1], n[2] = n0, n1, n2

@@ -533,15 +533,8 @@ def _continue(run: JobRun, case, options) -> str:
         return _hand_back(run)
     run.event("solve_finished", {"status": "stopped" if stop else "completed",
                                  "points": int(ds.sizes["point"]), "stopped": stopped})
-    if run.last_info is not None:
-        run._write_progress(run.last_info)
-    try:
-        path = run.save(ds)
-    except Exception as exc:  # noqa: BLE001
-        log.exception("job %s: writing the branch failed", run.job_id)
-        run.finish(state=FAILED, reason="internal_error",
-                   message=f"writing the result failed: {type(exc).__name__}: {exc}",
-                   **run._position())
+    path = _save_result(run, ds, "branch")
+    if path is None:
         return "failed:internal_error"
     points = f"{int(ds.sizes['point'])} points"
     if stop == "cancelled_by_user":
@@ -625,15 +618,8 @@ def _solve(run: JobRun, case, start=None) -> str:
 
     status = ds.attrs.get("hockle_status", "completed")
     run.event("solve_finished", {"status": status})
-    if run.last_info is not None:
-        run._write_progress(run.last_info)
-    try:
-        path = run.save(ds)
-    except Exception as exc:  # noqa: BLE001
-        log.exception("job %s: writing the dataset failed", run.job_id)
-        run.finish(state=FAILED, reason="internal_error",
-                   message=f"writing the result failed: {type(exc).__name__}: {exc}",
-                   **run._position())
+    path = _save_result(run, ds, "dataset")
+    if path is None:
         return "failed:internal_error"
     if status == "stopped":
         stop = str(ds.attrs.get("hockle_stop_reason", "stopped"))
@@ -705,6 +691,22 @@ def _superseded(run: JobRun) -> str:
     log.warning("job %s attempt %s: superseded, nothing written", run.job_id, run.attempt)
     run.event("attempt_abandoned", {"at": run._position()})
     return "superseded"
+
+
+def _save_result(run: JobRun, ds, what: str) -> str | None:
+    """Write the last progress and the result ``ds`` of ``run``; returns its path, or None
+    after recording the job failed (``internal_error``) when writing raised. ``what``
+    names the result in the log ("dataset", "branch")."""
+    if run.last_info is not None:
+        run._write_progress(run.last_info)
+    try:
+        return run.save(ds)
+    except Exception as exc:  # noqa: BLE001 - recorded on the job, logged
+        log.exception("job %s: writing the %s failed", run.job_id, what)
+        run.finish(state=FAILED, reason="internal_error",
+                   message=f"writing the result failed: {type(exc).__name__}: {exc}",
+                   **run._position())
+        return None
 
 
 def _save_quietly(run: JobRun, ds) -> str | None:
