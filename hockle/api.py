@@ -709,7 +709,9 @@ def continue_branch(case: Any, parameter: str, to: float, *, time: float | None 
                     switch: bool = False, max_points: int = 500, step: float = 0.05,
                     shapes_every: int = 1, stability: bool = True,
                     on_point: Callable[[int, float], None] | None = None,
-                    should_stop: Callable[[], object] | None = None):
+                    should_stop: Callable[[], object] | None = None,
+                    checkpoint: Callable[[Any], None] | None = None,
+                    resume: Any = None):
     """Pseudo-arclength continuation of the equilibria of ``case`` in the scalar at the
     dotted ``parameter`` path (as sweeps spell it, e.g. ``boundary.end.translation.2.force``)
     from the case's value to ``to`` (docs/statics.md). ``time``: the time at which the
@@ -717,23 +719,55 @@ def continue_branch(case: Any, parameter: str, to: float, *, time: float | None 
     ``switch``: leave the branch at its first simple branch point along the critical
     mode. ``step``: the largest step as a fraction of the start tangent's arclength over
     the range. ``should_stop``: asked before every step; a true answer (a reason) ends the
-    branch there, its ``stopped`` attribute "stopped: <reason>". Returns the branch dataset
-    (:func:`solver.continuation.branch_dataset`).
+    branch there, its ``stopped`` attribute "stopped: <reason>". ``checkpoint``: called
+    with a :class:`solver.checkpoint.BranchCheckpoint` after every point (and at a stop);
+    ``resume``: such a checkpoint of the same case and options, continued to the branch an
+    uninterrupted call returns (its dataset's ``resumed_at_point`` attribute says after
+    how many points). Returns the branch dataset (:func:`solver.continuation.branch_dataset`).
 
     Raises ValueError (a path that is not a scalar of the case, a value that makes the case
-    invalid or changes its grid) and ``solver.continuation.ContinuationError`` (a range
-    that does not move, no equilibrium or a singular Jacobian at the start), both before
-    any continuation step.
+    invalid or changes its grid, a ``resume`` of another case or options) and
+    ``solver.continuation.ContinuationError`` (a range that does not move, no equilibrium
+    or a singular Jacobian at the start), both before any continuation step. Any exception
+    raised later carries the branch so far as a dataset, ``exc.partial`` (its ``stopped``
+    attribute "failed: <exception>").
     """
+    import time as _time
+
+    from solver.checkpoint import BranchCheckpoint, branch_resume_key
     from solver.continuation import branch_dataset, continuation
 
     problem_at, lam0, to = continuation_family(case, parameter, to, time=time)
-    br = continuation(problem_at, lam0, to, max_points=max_points, ds_max=step,
-                      ds=min(step, 0.02), stability=stability, switch=switch,
-                      on_point=on_point, should_stop=should_stop)
     c = _as_case(case)
-    return branch_dataset(br, parameter, shapes_every=shapes_every,
-                          attrs={"case": c.canonical_json(), "target": to})
+    key = branch_resume_key(c, parameter=parameter, to=to, time=time, switch=bool(switch),
+                            step=float(step), stability=bool(stability))
+    if resume is not None and resume.key != key:
+        raise ValueError("resume: the checkpoint belongs to another case or continuation")
+    began = _time.monotonic()
+    spent = 0.0 if resume is None else float(resume.wall_time)
+
+    def keep(state: dict) -> None:
+        checkpoint(BranchCheckpoint(key, state, spent + _time.monotonic() - began))
+
+    attrs = {"case": c.canonical_json(), "target": to}
+    if resume is not None:
+        attrs["resumed_at_point"] = int(resume.points)
+    try:
+        br = continuation(problem_at, lam0, to, max_points=max_points, ds_max=step,
+                          ds=min(step, 0.02), stability=stability, switch=switch,
+                          on_point=on_point, should_stop=should_stop,
+                          checkpoint=keep if checkpoint is not None else None,
+                          resume=None if resume is None else resume.state)
+    except Exception as exc:
+        partial = getattr(exc, "partial_branch", None)
+        if partial is not None and partial.parameter:
+            try:
+                exc.partial = branch_dataset(partial, parameter, shapes_every=shapes_every,
+                                             attrs=attrs)
+            except Exception:  # noqa: BLE001 - the exception to report is the first one
+                pass
+        raise
+    return branch_dataset(br, parameter, shapes_every=shapes_every, attrs=attrs)
 
 
 def continuation_family(case: Any, parameter: str, to: float, *, time: float | None = None):

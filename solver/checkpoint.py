@@ -12,6 +12,11 @@ The bytes are a header line (format name, version, case hash) and a pickle of th
 objects: exact (the resumed run repeats the uninterrupted one to the last bit, tested),
 and as trustworthy as the file it comes from. Load checkpoints only from sources you
 trust (your own runs, the service's own store), as with any pickle.
+
+A :class:`BranchCheckpoint` is the same for a continuation (:func:`solver.continuation.
+continuation`): the state it hands to ``checkpoint=`` (the points so far and the step
+state), bound to the case and the continuation's options by :func:`branch_resume_key`; its
+header's format is ``hockle-branch-checkpoint``.
 """
 from __future__ import annotations
 
@@ -20,9 +25,11 @@ import json
 import pickle
 from dataclasses import dataclass, field
 
-__all__ = ["Checkpoint", "CheckpointError", "FORMAT", "VERSION", "resume_key"]
+__all__ = ["Checkpoint", "BranchCheckpoint", "CheckpointError", "FORMAT", "BRANCH_FORMAT",
+           "VERSION", "resume_key", "branch_resume_key"]
 
 FORMAT = "hockle-checkpoint"
+BRANCH_FORMAT = "hockle-branch-checkpoint"
 VERSION = 1
 
 
@@ -34,6 +41,30 @@ def resume_key(case) -> str:
     spec.get("numerics", {}).pop("wall_clock_budget", None)
     text = json.dumps(spec, sort_keys=True, separators=(",", ":"), ensure_ascii=False)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def branch_resume_key(case, **options) -> str:
+    """The identity a :class:`BranchCheckpoint` is bound to: sha256 of :func:`resume_key`
+    of the case and the continuation's ``options`` (parameter, target, time, switch, step,
+    stability ...: JSON scalars) that shape the branch."""
+    text = json.dumps({"case": resume_key(case), **options}, sort_keys=True,
+                      separators=(",", ":"))
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def _header(data: bytes, fmt: str) -> dict:
+    line = data.split(b"\n", 1)[0]
+    try:
+        head = json.loads(line.decode())
+    except (UnicodeDecodeError, ValueError):
+        head = None
+    if not isinstance(head, dict) or head.get("format") != fmt:
+        raise CheckpointError(f"not a {fmt.replace('-', ' ')} (no {fmt} header)")
+    if head.get("version") != VERSION:
+        raise CheckpointError(f"checkpoint version {head.get('version')!r} is not "
+                              f"{VERSION}: written by another hockle version; rerun from "
+                              f"the start")
+    return head
 
 
 class CheckpointError(ValueError):
@@ -85,18 +116,7 @@ class Checkpoint:
     def header(data: bytes) -> dict:
         """The header of checkpoint bytes (format, version, case_hash, t, step) without
         unpickling anything. Raises CheckpointError when ``data`` is not a checkpoint."""
-        line = data.split(b"\n", 1)[0]
-        try:
-            head = json.loads(line.decode())
-        except (UnicodeDecodeError, ValueError):
-            head = None
-        if not isinstance(head, dict) or head.get("format") != FORMAT:
-            raise CheckpointError("not a hockle checkpoint (no hockle-checkpoint header)")
-        if head.get("version") != VERSION:
-            raise CheckpointError(f"checkpoint version {head.get('version')!r} is not "
-                                  f"{VERSION}: written by another hockle version; rerun from "
-                                  f"the start")
-        return head
+        return _header(data, FORMAT)
 
     @classmethod
     def loads(cls, data: bytes, case=None) -> "Checkpoint":
@@ -123,6 +143,65 @@ class Checkpoint:
                                       f"solver (its state lacks {', '.join(missing[:4])}"
                                       f"{' ...' if len(missing) > 4 else ''}); rerun from "
                                       "the start")
+        return obj
+
+
+@dataclass
+class BranchCheckpoint:
+    """The state of a continuation after an accepted point.
+
+    Attributes
+    ----------
+    key : str
+        :func:`branch_resume_key` of the case and options; a resume with others is refused.
+    state : dict
+        What :func:`solver.continuation.continuation` hands to ``checkpoint=`` and takes
+        as ``resume=``: the points so far (``parameter``, ``Y`` (N+1, 13) each, ...) and
+        the step state.
+    wall_time : float
+        Wall-clock seconds spent on the branch up to this checkpoint (all attempts).
+    """
+
+    key: str
+    state: dict
+    wall_time: float = 0.0
+
+    @property
+    def points(self) -> int:
+        """The points of the branch so far."""
+        return len(self.state["parameter"])
+
+    @property
+    def parameter(self) -> float:
+        """The parameter at the last point (its unit)."""
+        return float(self.state["parameter"][-1])
+
+    @property
+    def t(self) -> float:
+        """The points so far as a float: the progress coordinate the service's checkpoint
+        policy reads (a dynamic run's simulated time)."""
+        return float(self.points)
+
+    def dumps(self) -> bytes:
+        """The checkpoint as bytes: a JSON header line, then the pickle."""
+        header = json.dumps({"format": BRANCH_FORMAT, "version": VERSION, "key": self.key,
+                             "points": self.points, "parameter": self.parameter}).encode()
+        return header + b"\n" + pickle.dumps(self, protocol=pickle.HIGHEST_PROTOCOL)
+
+    @classmethod
+    def loads(cls, data: bytes, key: str | None = None) -> "BranchCheckpoint":
+        """BranchCheckpoint from :meth:`dumps` bytes; with ``key``, it must belong to it.
+        Raises CheckpointError with the reason."""
+        head = _header(data, BRANCH_FORMAT)
+        if key is not None and head.get("key") != key:
+            raise CheckpointError("the checkpoint belongs to another continuation (key "
+                                  f"{head.get('key')} != {key})")
+        try:
+            obj = pickle.loads(data.split(b"\n", 1)[1])
+        except Exception as exc:  # noqa: BLE001 - any unpickling failure is a bad file
+            raise CheckpointError(f"checkpoint cannot be read: {exc}") from None
+        if not isinstance(obj, cls):
+            raise CheckpointError("checkpoint does not hold a branch")
         return obj
 
 

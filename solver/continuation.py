@@ -31,6 +31,12 @@ halving, to 1e-9 of the step). At a simple branch point the null vector φ of th
 matrix (inverse iteration) is the bifurcating direction: ``switch=True`` leaves the
 primary branch there along φ (Keller's branch switching by the tangent of the null
 vector) and follows the new branch.
+
+A continuation keeps what it computed: an unexpected exception mid-branch leaves with the
+branch so far on it (``exc.partial_branch``), and ``checkpoint`` hands out the state after
+every accepted point (the points so far and the step state: z, t, det sign, Δs), from which
+``resume=`` continues bit for bit (:class:`solver.checkpoint.BranchCheckpoint` turns it into
+bytes).
 """
 from __future__ import annotations
 
@@ -164,7 +170,9 @@ def continuation(problem_at: Callable[[float], StaticProblem], lam0: float, lam1
                  modes: int = 8, locate: bool = True, switch: bool = False,
                  start_tangent: Optional[np.ndarray] = None,
                  on_point: Optional[Callable[[int, float], None]] = None,
-                 should_stop: Optional[Callable[[], object]] = None) -> Branch:
+                 should_stop: Optional[Callable[[], object]] = None,
+                 checkpoint: Optional[Callable[[dict], None]] = None,
+                 resume: Optional[dict] = None) -> Branch:
     """Follow the equilibria of ``problem_at(λ)`` from λ = ``lam0`` towards ``lam1``.
 
     Parameters
@@ -184,6 +192,12 @@ def continuation(problem_at: Callable[[float], StaticProblem], lam0: float, lam1
     on_point : called with (index, λ) after every accepted point
     should_stop : called before every step; a true answer (a reason, e.g. "timeout") ends
         the continuation there with the points so far, ``stopped`` = "stopped: <reason>"
+    checkpoint : called with the continuation's state (a dict of arrays and lists: the
+        points so far, z, t, the det sign, Δs; no problem objects) after every accepted point
+        and once more when ``should_stop`` ends the branch
+    resume : such a state (from ``checkpoint``, same problem family and options): continue
+        from it instead of solving the start point; the branch returned is the one an
+        uninterrupted continuation returns, to the last bit
 
     Returns
     -------
@@ -193,34 +207,59 @@ def continuation(problem_at: Callable[[float], StaticProblem], lam0: float, lam1
     ------
     ContinuationError
         for lam1 == lam0, no equilibrium at lam0, or a singular Jacobian at lam0 (a fold
-        or branch point at the start).
+        or branch point at the start), or a ``resume`` state of another grid.
+    Exception
+        any other exception raised after the start point carries the points computed so
+        far as ``exc.partial_branch`` (a :class:`Branch`, ``stopped`` naming the exception).
     """
     lam0, lam1 = float(lam0), float(lam1)
     if not (np.isfinite(lam0) and np.isfinite(lam1)) or lam1 == lam0:
         raise ContinuationError(f"the range {lam0!r} -> {lam1!r} does not move the parameter")
     p0 = problem_at(lam0)
+    opt = dict(ds=ds, ds_max=ds_max, ds_min=ds_min, tol=tol, newton_max=newton_max,
+               max_turn=max_turn, stability=stability, modes=modes, locate=locate,
+               switch=switch, on_point=on_point)
+    S = _Scaled(problem_at, lam0, lam1, p0)
+    if resume is not None:
+        tr = _Tracer.restore(S, opt, resume)
+    else:
+        try:
+            sol = solve(p0, Y0)
+        except StaticsError as exc:
+            raise ContinuationError(f"no equilibrium at the start value {lam0!r}: {exc}") \
+                from exc
+        try:
+            factor(jacobian(sol.Y, p0))
+        except StaticsError as exc:
+            raise ContinuationError(f"singular start at {lam0!r} (a fold or branch point): "
+                                    "start the continuation away from it") from exc
+        tr = _Tracer(S, sol, opt, start_tangent)
     try:
-        sol = solve(p0, Y0)
-    except StaticsError as exc:
-        raise ContinuationError(f"no equilibrium at the start value {lam0!r}: {exc}") from exc
-    try:
-        factor(jacobian(sol.Y, p0))
-    except StaticsError as exc:
-        raise ContinuationError(f"singular start at {lam0!r} (a fold or branch point): "
-                                "start the continuation away from it") from exc
-    tr = _Tracer(_Scaled(problem_at, lam0, lam1, p0), sol, dict(
-        ds=ds, ds_max=ds_max, ds_min=ds_min, tol=tol, newton_max=newton_max,
-        max_turn=max_turn, stability=stability, modes=modes, locate=locate, switch=switch,
-        on_point=on_point), start_tangent)
-    while len(tr.br.parameter) < max_points:
-        reason = should_stop() if should_stop is not None else False
-        if reason:
-            tr.br.stopped = f"stopped: {reason}"
-            return tr.br
-        if tr.step():
-            return tr.br
+        while len(tr.br.parameter) < max_points:
+            reason = should_stop() if should_stop is not None else False
+            if reason:
+                tr.br.stopped = f"stopped: {reason}"
+                if checkpoint is not None:
+                    checkpoint(tr.state())
+                return tr.br
+            if tr.step():
+                return tr.br
+            if checkpoint is not None:
+                checkpoint(tr.state())
+    except Exception as exc:
+        # keep what was computed: the caller stores the branch so far and reports exc
+        tr.br.stopped = f"failed: {type(exc).__name__}: {exc}"
+        try:
+            exc.partial_branch = tr.br
+        except AttributeError:          # an exception type without a __dict__
+            pass
+        raise
     tr.br.stopped = "max_points"
     return tr.br
+
+
+#: the Branch lists a checkpoint holds (``problems`` is rebuilt from the parameter)
+_BRANCH_LISTS = ("parameter", "Y", "unstable", "mu", "iterations", "bifurcations")
 
 
 class _Tracer:
@@ -243,6 +282,34 @@ class _Tracer:
         self.switched = False
         # the start point's determinant sign, with its own tangent as the border
         self.det = self.record(self.z, sol.iterations, S.bordered(self.z, self.t))
+
+    def state(self) -> dict:
+        """What :meth:`restore` needs to go on exactly as this tracer would (copies)."""
+        br = self.br
+        out = {k: list(getattr(br, k)) for k in _BRANCH_LISTS}
+        out.update(switched_at=br.switched_at, z=self.z.copy(), t=self.t.copy(),
+                   det=int(self.det), ds=self.ds, ds_max=self.ds_max, ds_min=self.ds_min,
+                   switched=self.switched, shape=self.S.shape)
+        return out
+
+    @classmethod
+    def restore(cls, S: _Scaled, opt: dict, state: dict) -> "_Tracer":
+        """The tracer of :meth:`state` on the problem family of ``S``."""
+        if tuple(state.get("shape", ())) != S.shape:
+            raise ContinuationError(f"the resume state is of a grid {state.get('shape')} "
+                                    f"that is not this problem's {S.shape}")
+        tr = cls.__new__(cls)
+        tr.S, tr.o, tr.br = S, opt, Branch()
+        for k in _BRANCH_LISTS:
+            setattr(tr.br, k, list(state[k]))
+        tr.br.switched_at = state["switched_at"]
+        tr.br.problems = [S.problem_at(lam) for lam in tr.br.parameter]
+        tr.e_lam = np.zeros(S.n + 1)
+        tr.e_lam[-1] = 1.0
+        tr.z, tr.t, tr.det = np.array(state["z"]), np.array(state["t"]), int(state["det"])
+        tr.ds, tr.ds_max, tr.ds_min = state["ds"], state["ds_max"], state["ds_min"]
+        tr.switched = bool(state["switched"])
+        return tr
 
     def record(self, z, its, lu_border) -> int:
         """Append the point z (its unstable modes counted) and return its det sign."""

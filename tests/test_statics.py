@@ -108,6 +108,67 @@ def test_greenhill_twisted_rod():
     assert np.allclose(ds["twist"][straight], ds["link"][straight], rtol=1e-3)
 
 
+def _same_branch(a, b):
+    assert len(a.parameter) == len(b.parameter) and a.stopped == b.stopped
+    assert a.parameter == b.parameter and a.unstable == b.unstable
+    assert all(np.array_equal(x, y) for x, y in zip(a.Y, b.Y))
+    assert np.array_equal(a.mu, b.mu, equal_nan=True) and a.switched_at == b.switched_at
+    assert [(f.kind, f.parameter) for f in a.bifurcations] == \
+        [(f.kind, f.parameter) for f in b.bifurcations]
+
+
+@pytest.mark.parametrize("stop_after", [3, 14])        # before and after the switch
+def test_a_resumed_continuation_repeats_the_uninterrupted_one(stop_after):
+    """Stopped after ``stop_after`` points (should_stop, as a worker's shutdown does) and
+    resumed from the last state handed to ``checkpoint`` (through BranchCheckpoint's
+    bytes): the branch equals the uninterrupted one to the last bit, switch included."""
+    from solver.checkpoint import BranchCheckpoint, CheckpointError
+
+    pc = 4 * np.pi**2
+    run = dict(switch=True, max_points=25, ds_max=0.1)
+    whole = continuation(lambda P: euler_column(P, N=20), 0.0, 1.5 * pc, **run)
+    assert whole.switched_at is not None and 3 < whole.switched_at < 14 < len(whole.Y)
+    states, seen = [], []
+    first = continuation(lambda P: euler_column(P, N=20), 0.0, 1.5 * pc, **run,
+                         should_stop=lambda: len(seen) >= stop_after and "shutdown",
+                         checkpoint=states.append, on_point=lambda i, lam: seen.append(i))
+    assert first.stopped == "stopped: shutdown" and len(first.parameter) == stop_after
+    data = BranchCheckpoint("k", states[-1]).dumps()
+    ck = BranchCheckpoint.loads(data, "k")
+    assert ck.points == stop_after and ck.parameter == first.parameter[-1]
+    with pytest.raises(CheckpointError, match="another continuation"):
+        BranchCheckpoint.loads(data, "other")
+    with pytest.raises(CheckpointError, match="not a hockle branch checkpoint"):
+        BranchCheckpoint.loads(b"{}\n", "k")
+    again = continuation(lambda P: euler_column(P, N=20), 0.0, 1.5 * pc, **run,
+                         resume=ck.state)
+    _same_branch(again, whole)
+    with pytest.raises(ContinuationError, match="grid"):
+        continuation(lambda P: euler_column(P, N=10), 0.0, 1.5 * pc, **run, resume=ck.state)
+
+
+def test_an_exception_mid_branch_keeps_the_points_so_far():
+    """An unexpected exception at the sixth point leaves with the five before it."""
+    pc = 4 * np.pi**2
+    calls = []
+
+    def prob(P):
+        calls.append(P)
+        if len(set(calls)) > 40:
+            raise RuntimeError("lost the mesh")
+        return euler_column(P, N=20)
+
+    seen = []
+    with pytest.raises(RuntimeError, match="lost the mesh") as info:
+        continuation(prob, 0.0, 1.5 * pc, max_points=60,
+                     on_point=lambda i, lam: seen.append(lam))
+    partial = info.value.partial_branch
+    assert partial.parameter == seen and len(seen) >= 2
+    assert partial.stopped == "failed: RuntimeError: lost the mesh"
+    ds = branch_dataset(partial, "P")
+    assert ds.sizes["point"] == len(seen)
+
+
 def test_bad_input_refused_before_work():
     with pytest.raises(ContinuationError, match="does not move"):
         continuation(lambda P: euler_column(P, N=10), 1.0, 1.0)
