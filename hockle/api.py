@@ -39,6 +39,7 @@ __all__ = [
     "equilibrium",
     "equilibrium_start",
     "continue_branch",
+    "branch_key",
     "make_case",
     "clamped",
     "free",
@@ -734,13 +735,13 @@ def continue_branch(case: Any, parameter: str, to: float, *, time: float | None 
     """
     import time as _time
 
-    from solver.checkpoint import BranchCheckpoint, branch_resume_key
+    from solver.checkpoint import BranchCheckpoint
     from solver.continuation import branch_dataset, continuation
 
     problem_at, lam0, to = continuation_family(case, parameter, to, time=time)
     c = _as_case(case)
-    key = branch_resume_key(c, parameter=parameter, to=to, time=time, switch=bool(switch),
-                            step=float(step), stability=bool(stability))
+    key = branch_key(c, parameter, to, time=time, switch=switch, step=step,
+                     stability=stability)
     if resume is not None and resume.key != key:
         raise ValueError("resume: the checkpoint belongs to another case or continuation")
     began = _time.monotonic()
@@ -768,6 +769,18 @@ def continue_branch(case: Any, parameter: str, to: float, *, time: float | None 
                 pass
         raise
     return branch_dataset(br, parameter, shapes_every=shapes_every, attrs=attrs)
+
+
+def branch_key(case: Any, parameter: str, to: float, *, time: float | None = None,
+               switch: bool = False, step: float = 0.05, stability: bool = True) -> str:
+    """The key a :class:`solver.checkpoint.BranchCheckpoint` of :func:`continue_branch`
+    is bound to: the case and the options that shape the branch
+    (:func:`solver.checkpoint.branch_resume_key`; ``max_points`` and ``shapes_every`` do
+    not, so a branch may be resumed with more points)."""
+    from solver.checkpoint import branch_resume_key
+
+    return branch_resume_key(_as_case(case), parameter=parameter, to=float(to), time=time,
+                             switch=bool(switch), step=float(step), stability=bool(stability))
 
 
 def continuation_family(case: Any, parameter: str, to: float, *, time: float | None = None):

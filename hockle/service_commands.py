@@ -7,6 +7,8 @@
     hockle worker [--concurrency N] [--hostname NAME] [--loglevel L]
     hockle submit CASE [--url URL] [--api-key KEY] [--wait] [-o OUT.nc] [--idempotency-key K]
                        [--fresh] [--time-limit S]
+                       [--continue --parameter PATH --to VALUE [--time T] [--switch]
+                        [--max-points N] [--step F] [--shapes-every K]]
     hockle db {current,upgrade,downgrade,check,history,revision} [--url URL]
 
 ``submit`` exit codes: 0 accepted (or, with --wait, successful); 1 failed; 2 invalid case or
@@ -68,6 +70,24 @@ def register(subparsers) -> None:
                    "takes)")
     p.add_argument("--poll", type=float, default=1.0, metavar="S",
                    help="with --wait: seconds between status polls (default 1)")
+    g = p.add_argument_group(
+        "continuation", "with --continue: a continuation job (POST /v1/continuations), the "
+        "case's static branch as `hockle continue` follows it, computed by the service")
+    g.add_argument("--continue", dest="continuation", action="store_true",
+                   help="submit a continuation of the case instead of a dynamic run")
+    g.add_argument("--parameter", metavar="PATH", help="dotted path of a scalar of the case, "
+                   "e.g. boundary.end.translation.2.force")
+    g.add_argument("--to", type=float, metavar="VALUE", help="the parameter's target value")
+    g.add_argument("--time", type=float, metavar="T", help="time at which the end conditions "
+                   "are read, s (default: numerics.t_end)")
+    g.add_argument("--switch", action="store_true", help="leave the branch at its first "
+                   "simple branch point along the critical mode")
+    g.add_argument("--max-points", type=int, metavar="N", help="stop after N points "
+                   "(default 500)")
+    g.add_argument("--step", type=float, metavar="F", help="largest step, a fraction of the "
+                   "range's arclength (default 0.05)")
+    g.add_argument("--shapes-every", type=int, metavar="K", help="store positions and "
+                   "curvatures at every K-th point (default 1)")
     p.set_defaults(func=submit)
 
     p = subparsers.add_parser(
@@ -115,10 +135,27 @@ def submit(args: argparse.Namespace) -> int:
     from service.client import HockleAPIError, HockleClient
 
     out = sys.stdout
+    branch = bool(getattr(args, "continuation", False))
+    options = {k: getattr(args, k, None) for k in ("parameter", "to", "time", "max_points",
+                                                   "step", "shapes_every")}
+    if branch and (options["parameter"] is None or options["to"] is None):
+        print("hockle submit: --continue needs --parameter PATH and --to VALUE",
+              file=sys.stderr)
+        return 2
+    given = [f"--{k.replace('_', '-')}" for k, v in options.items() if v is not None]
+    if not branch and (given or getattr(args, "switch", False)):
+        print(f"hockle submit: {', '.join(given) or '--switch'} only with --continue",
+              file=sys.stderr)
+        return 2
     try:
         with HockleClient(args.url, api_key=getattr(args, "api_key", None)) as client:
-            job = client.submit(args.case, idempotency_key=args.idempotency_key, fresh=args.fresh,
-                                time_limit=getattr(args, "time_limit", None))
+            if branch:
+                job = client.submit_continuation(
+                    args.case, switch=args.switch, idempotency_key=args.idempotency_key,
+                    fresh=args.fresh, time_limit=getattr(args, "time_limit", None), **options)
+            else:
+                job = client.submit(args.case, idempotency_key=args.idempotency_key,
+                                    fresh=args.fresh, time_limit=getattr(args, "time_limit", None))
             print(f"job {job.id} {job.state} ({client.base_url}/v1/jobs/{job.id})", file=out)
             reused = _REUSED.get(job.reused or "")
             if reused:
@@ -129,8 +166,11 @@ def submit(args: argparse.Namespace) -> int:
             last = [None]
 
             def show(status) -> None:
-                line = (f"{status.state:<10} {status.progress:6.1f}%  t = {status.sim_time:.4g} / "
-                        f"{status.t_end:.4g} s  step {status.step}")
+                if branch:
+                    line = f"{status.state:<10} {status.progress:6.1f}%  point {status.step}"
+                else:
+                    line = (f"{status.state:<10} {status.progress:6.1f}%  t = "
+                            f"{status.sim_time:.4g} / {status.t_end:.4g} s  step {status.step}")
                 if status.eta_seconds is not None and status.state == "running":
                     line += f"  eta {status.eta_seconds:.0f} s"
                 if line != last[0]:
@@ -141,7 +181,7 @@ def submit(args: argparse.Namespace) -> int:
                               on_progress=show)
             if job.error is not None:
                 where = ""
-                if job.error.time is not None:
+                if job.error.time is not None and not branch:
                     where = f" at t = {job.error.time:.6g} s, step {job.error.step}"
                 print(f"job {job.id} {job.state} ({job.reason}){where}: {job.message}", file=out)
             else:

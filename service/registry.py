@@ -577,10 +577,10 @@ class Registry:
         with self.sessions.begin() as session:
             rows = session.execute(
                 select(Job.id, Job.attempts, beat, Job.deadline_at, Job.time_limit, Job.sim_time,
-                       Job.t_end, Job.step)
+                       Job.t_end, Job.step, Job.kind)
                 .where(Job.state == RUNNING, Job.deadline_at < cutoff)
             ).all()
-            for job_id, attempt, last, deadline, limit, sim_time, t_end, step in rows:
+            for job_id, attempt, last, deadline, limit, sim_time, t_end, step, kind in rows:
                 if (heartbeat_timeout is not None and last is not None
                         and last < deadline - dt.timedelta(seconds=heartbeat_timeout)):
                     continue
@@ -591,8 +591,8 @@ class Registry:
                         state=FAILED,
                         reason="timeout",
                         message=f"killed at the hard time limit of {limit:.0f} s at "
-                                f"t = {sim_time or 0.0:.6g} s of {t_end:.6g} s (step "
-                                f"{step or 0}); no result was written",
+                                f"{_how_far(kind, sim_time, t_end, step)}; no result was "
+                                "written",
                         finished_at=now,
                         updated_at=now,
                         eta_seconds=None,
@@ -621,18 +621,19 @@ class Registry:
         with self.sessions.begin() as session:
             rows = session.execute(
                 select(Job.id, Job.attempts, beat, Job.deadline_at, Job.cancel_requested,
-                       Job.worker, Job.sim_time, Job.t_end, Job.step)
+                       Job.worker, Job.sim_time, Job.t_end, Job.step, Job.kind)
                 .where(Job.state == RUNNING, beat < stale)
             ).all()
-            for job_id, attempt, last, deadline, cancel, worker, sim_time, t_end, step in rows:
+            for (job_id, attempt, last, deadline, cancel, worker, sim_time, t_end, step,
+                 kind) in rows:
                 if deadline is not None and last >= deadline - dt.timedelta(
                         seconds=heartbeat_timeout):
                     continue  # alive until about its hard limit: reap() fails it as timeout
                 where = (Job.id == job_id, Job.state == RUNNING, Job.attempts == attempt,
                          beat < stale)
-                lost = (f"attempt {attempt} lost its worker {worker} at t = "
-                        f"{sim_time or 0.0:.6g} s of {t_end:.6g} s (step {step or 0}; no "
-                        f"heartbeat since {last.isoformat(timespec='seconds')}Z)")
+                lost = (f"attempt {attempt} lost its worker {worker} at "
+                        + _how_far(kind, sim_time, t_end, step, "no heartbeat since "
+                                   f"{last.isoformat(timespec='seconds')}Z"))
                 if cancel:
                     action = "dismissed"
                     values = dict(state=DISMISSED, reason="cancelled_by_user",
@@ -670,7 +671,7 @@ class Registry:
 
     def requeue_at_shutdown(self, job_id: str, attempt: int, *, worker: str | None = None,
                             reason: str = "worker_shutdown", sim_time: float | None = None,
-                            step: int | None = None) -> str | None:
+                            step: int | None = None, at: str | None = None) -> str | None:
         """``attempt`` stopped because its worker shuts down (a redeploy): the job goes back to
         ``accepted`` at once, as :meth:`requeue_lost` does for a lost worker but without waiting
         for its heartbeat to go stale (the caller sends its message again; the next claim is
@@ -680,11 +681,13 @@ class Registry:
         Conditional on (running, ``attempt``): returns ``"requeued"``, ``"dismissed"``, or None
         when this attempt no longer holds the job (given up as lost, reaped, finished).
         Event ``requeued_at_shutdown`` with the reason and where it stopped (``t``, ``step``).
+        ``at`` describes where it stopped in the message (a continuation's point and
+        parameter); default ``t = <sim_time> s (step <step>)``.
         """
         now = utcnow()
         where = (Job.id == job_id, Job.state == RUNNING, Job.attempts == attempt)
-        stopped = (f"attempt {attempt} stopped at t = {sim_time or 0.0:.6g} s (step "
-                   f"{step or 0}) because its worker {worker} shut down")
+        at = at or f"t = {sim_time or 0.0:.6g} s (step {step or 0})"
+        stopped = f"attempt {attempt} stopped at {at} because its worker {worker} shut down"
         with self.sessions.begin() as session:
             action = "requeued"
             changed = session.execute(
@@ -819,6 +822,16 @@ def _requeued(now: dt.datetime, message: str) -> dict[str, Any]:
     return dict(state=ACCEPTED, message=message, worker=None, heartbeat_at=None,
                 deadline_at=None, progress=0.0, sim_time=0.0, step=0, eta_seconds=None,
                 enqueued_at=now, dispatches=func.coalesce(Job.dispatches, 1) + 1)
+
+
+def _how_far(kind: str | None, sim_time, t_end, step, note: str = "") -> str:
+    """Where a running job got, from its registry row: 't = 1.2 s of 45 s (step 120)';
+    for a continuation (whose ``step`` counts points and which has no simulated time)
+    'point 12'. ``note`` goes into the parentheses."""
+    if kind == "continuation":
+        return f"point {step or 0}" + (f" ({note})" if note else "")
+    return (f"t = {sim_time or 0.0:.6g} s of {t_end:.6g} s (step {step or 0}"
+            + (f"; {note})" if note else ")"))
 
 
 def _sqlite_pragmas(dbapi_connection, _record, busy_ms: int = 30000) -> None:

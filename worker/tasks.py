@@ -291,33 +291,53 @@ class JobRun:
             _log_registry_error(f"job {self.job_id}: event {kind}", exc)
 
     def how_far(self) -> str:
-        """Where the run got: 't = 19.3 s of 45 s (step 193)', or that no step finished."""
+        """Where the run got: 't = 19.3 s of 45 s (step 193)', for a continuation 'point 12
+        (P = 0.25)', or that no step finished."""
         info = self.last_info
         if info is None:
             return f"before the first time step ({time.monotonic() - self.started:.0f} s)"
+        if isinstance(info, _PointInfo):
+            return info.where()
         return f"t = {float(info.t):.6g} s of {self.t_end:.6g} s (step {int(info.step)})"
 
     # --- checkpoints (solver.checkpoint) in the result store ----------------------------------
     def load_checkpoint(self, case):
         """The job's last checkpoint for ``case`` (a re-run after a lost worker or a
         redeploy continues from it), or None: none, off, or unusable (logged, then t = 0)."""
+        from solver.checkpoint import Checkpoint
+
+        ck = self._read_checkpoint(lambda data: Checkpoint.loads(data, case), "t = 0")
+        if ck is not None:
+            self.event("resumed", {"t": ck.t, "step": ck.step})
+            log.info("job %s attempt %s resumes at t = %g s (step %d)", self.job_id,
+                     self.attempt, ck.t, ck.step)
+        return ck
+
+    def load_branch_checkpoint(self, key: str):
+        """The continuation job's last :class:`solver.checkpoint.BranchCheckpoint` bound to
+        ``key`` (:func:`hockle.api.branch_key`), or None (then from the first point)."""
+        from solver.checkpoint import BranchCheckpoint
+
+        ck = self._read_checkpoint(lambda data: BranchCheckpoint.loads(data, key),
+                                   "from the first point")
+        if ck is not None:
+            self.event("resumed", {"point": ck.points, "parameter": ck.parameter})
+            log.info("job %s attempt %s resumes after point %d (parameter %g)", self.job_id,
+                     self.attempt, ck.points, ck.parameter)
+        return ck
+
+    def _read_checkpoint(self, loads, otherwise: str):
         if not self.settings.checkpoint_interval:
             return None
-        from solver.checkpoint import Checkpoint, CheckpointError
+        from solver.checkpoint import CheckpointError
 
         try:
             data = self.store.read_checkpoint(self.job_id)
-            if data is None:
-                return None
-            ck = Checkpoint.loads(data, case)
+            return None if data is None else loads(data)
         except (OSError, CheckpointError) as exc:
-            log.warning("job %s: checkpoint not used (%s): from t = 0", self.job_id, exc)
+            log.warning("job %s: checkpoint not used (%s): %s", self.job_id, exc, otherwise)
             self.event("checkpoint_ignored", {"error": str(exc)})
             return None
-        self.event("resumed", {"t": ck.t, "step": ck.step})
-        log.info("job %s attempt %s resumes at t = %g s (step %d)", self.job_id, self.attempt,
-                 ck.t, ck.step)
-        return ck
 
     def write_checkpoint(self, ck) -> None:
         """Store a checkpoint handed out by the solver when :attr:`checkpoints` says it is due,
@@ -465,36 +485,64 @@ def _prepare_and_continue(run: JobRun, job) -> str:
 class _PointInfo:
     """A continuation's progress in the shape JobRun.progress reads: ``step`` the points
     done, ``fraction`` the larger of points over max_points and the parameter's way from its
-    start to its target, ``t`` 0 (no simulated time)."""
+    start to its target, ``t`` 0 (no simulated time); ``name`` the parameter's path."""
 
     fraction: float
     step: int
     wall_time: float
     parameter: float
+    name: str = "parameter"
     t: float = 0.0
     eta_seconds: float | None = None
     contact_count: int = 0
+
+    def where(self) -> str:
+        """'point 12 (boundary.end.translation.2.force = -0.25)'."""
+        return f"point {self.step} ({self.name} = {self.parameter:.6g})"
 
 
 def _continue(run: JobRun, case, options) -> str:
     """Follow the branch with :func:`hockle.api.continue_branch`; progress after every point
     (``step`` = points done), the job's should_stop before every step (dismissal, the
-    wall-clock budget, a shutdown: the branch so far is kept as a partial result; a
-    shutdown hands the job back and the next attempt starts the branch again), the branch
-    dataset as the result."""
-    from hockle.api import continue_branch
+    wall-clock budget, a shutdown: the branch so far is kept as a partial result), the
+    branch dataset as the result. The branch is checkpointed in the result store as a
+    dynamic run is (:class:`CheckpointPolicy`, progress counted in points of
+    ``max_points``); a shutdown hands the job back and the next attempt continues from the
+    last checkpoint. An exception after the first point fails the job with the branch so
+    far as its (partial) result."""
+    from hockle.api import branch_key, continue_branch
     from solver.statics import StaticsError
 
     start: list[float] = []
+    interval = run.settings.checkpoint_interval
+    resume = None
+    if interval:
+        try:
+            key = branch_key(case, options.parameter, options.to, time=options.time,
+                             switch=options.switch, step=options.step,
+                             stability=options.stability)
+            resume = run.load_branch_checkpoint(key)
+        except Exception:  # noqa: BLE001 - a case continue_branch refuses: reported below
+            log.warning("job %s: no branch key", run.job_id, exc_info=True)
+    run.checkpoints = CheckpointPolicy(interval, run.settings.checkpoint_progress,
+                                       float(options.max_points),
+                                       last_t=resume.t if resume is not None else 0.0)
+
+    def info(index: int, lam: float) -> _PointInfo:
+        span = abs(options.to - start[0]) or 1.0
+        way = min(abs(lam - start[0]) / span, 1.0)
+        return _PointInfo(fraction=max((index + 1) / options.max_points, way),
+                          step=index + 1, wall_time=time.monotonic() - run.started,
+                          parameter=float(lam), name=options.parameter)
+
+    if resume is not None:
+        start.append(float(resume.state["parameter"][0]))
+        run.last_info = info(resume.points - 1, resume.parameter)
 
     def on_point(index: int, lam: float) -> None:
         if not start:
             start.append(lam)
-        span = abs(options.to - start[0]) or 1.0
-        way = min(abs(lam - start[0]) / span, 1.0)
-        run.progress(_PointInfo(fraction=max((index + 1) / options.max_points, way),
-                                step=index + 1, wall_time=time.monotonic() - run.started,
-                                parameter=float(lam)))
+        run.progress(info(index, lam))
 
     def where() -> str:
         info = run.last_info
@@ -503,28 +551,38 @@ def _continue(run: JobRun, case, options) -> str:
         plural = "" if info.step == 1 else "s"
         return f"after {info.step} point{plural} ({options.parameter} = {info.parameter:.6g})"
 
+    def failed(reason: str, message: str, exc) -> str:
+        """Fail the job; the branch computed before ``exc`` (if any) is its result."""
+        path = _save_quietly(run, getattr(exc, "partial", None))
+        if path is not None:
+            message += f"; the branch so far is kept ({where()})"
+        elif reason == "timeout":
+            message += "; no result was written"
+        run.finish(state=FAILED, reason=reason, message=message, result_path=path,
+                   result_partial=path is not None, **run._position())
+        return f"failed:{reason}"
+
     try:
         ds = continue_branch(case, options.parameter, options.to, time=options.time,
                              switch=options.switch, max_points=options.max_points,
                              step=options.step, shapes_every=options.shapes_every,
                              stability=options.stability, on_point=on_point,
-                             should_stop=run.should_stop)
+                             should_stop=run.should_stop,
+                             checkpoint=run.write_checkpoint if interval else None,
+                             resume=resume)
     except (StaticsError, ValueError) as exc:   # no equilibrium or a singular start
         if run.superseded:
             return _superseded(run)
-        run.finish(state=FAILED, reason="solver_diverged", message=str(exc), **run._position())
-        return "failed:solver_diverged"
-    except SoftTimeLimitExceeded:
-        run.finish(state=FAILED, reason="timeout",
-                   message=f"soft time limit of {run.soft_limit:.0f} s reached {where()}; "
-                           "no result was written", **run._position())
-        return "failed:timeout"
+        return failed("solver_diverged", str(exc), exc)
+    except SoftTimeLimitExceeded as exc:
+        return failed("timeout", f"soft time limit of {run.soft_limit:.0f} s reached {where()}",
+                      exc)
     except Exception as exc:  # noqa: BLE001 - unexpected: recorded, logged, never retried
         log.exception("job %s: the continuation raised", run.job_id)
-        run.finish(state=FAILED, reason="internal_error",
-                   message=f"the continuation raised {type(exc).__name__}: {exc}",
-                   **run._position())
-        return "failed:internal_error"
+        if run.superseded:
+            return _superseded(run)
+        return failed("internal_error", f"the continuation raised {type(exc).__name__}: "
+                      f"{exc}", exc)
     if run.superseded:
         return _superseded(run)
     stopped = str(ds.attrs.get("stopped", ""))
@@ -658,12 +716,13 @@ def _hand_back(run: JobRun) -> str:
     info = run.last_info
     sim_time = None if info is None else float(info.t)
     step = None if info is None else int(info.step)
+    at = info.where() if isinstance(info, _PointInfo) else None
     try:
         action = with_registry_retry(
             "the hand-back at shutdown",
             lambda: run.registry.requeue_at_shutdown(run.job_id, run.attempt, worker=run.worker,
                                                      reason=SHUTDOWN_REASON, sim_time=sim_time,
-                                                     step=step),
+                                                     step=step, at=at),
             run.settings, job_id=run.job_id, timeout=HAND_BACK_RETRY_TIMEOUT)
     except RegistryUnavailable as exc:
         log.error("%s; its heartbeat stops now and a sweeper queues it again", exc)

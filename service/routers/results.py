@@ -24,7 +24,7 @@ router = APIRouter(tags=["results"])
 NETCDF_MEDIA_TYPE = "application/x-netcdf"
 SUMMARY_NAMES = ("work_in", "power_in", "twist", "writhe", "linking_number", "contact_count",
                  "min_surface_gap")
-SLICE_DIMS = ("time", "s", "component", "xyz", "quaternion", "step")
+SLICE_DIMS = ("time", "s", "component", "xyz", "quaternion", "step", "point", "bifurcation")
 
 
 def _result_path(svc: Services, job: Job) -> str:
@@ -137,12 +137,20 @@ def get_result_variable(
     quaternion: Annotated[str | None, Query(description="Quaternion part: w, x, y, z (or its "
                                                         "index 0, 1, 2, 3).")] = None,
     step: Annotated[str | None, Query(description="Solver step number (step diagnostics).")] = None,
+    point: Annotated[str | None, Query(description=(
+        "A continuation job's branch: the point index 0, 1, ... (a value, a range 'a:b' "
+        "or a list 'a,b,c')."))] = None,
+    bifurcation: Annotated[str | None, Query(description=(
+        "A continuation job's branch: the index of a located fold or branch point."))] = None,
 ) -> VariableSlice:
-    """Select by coordinate labels; refuses (422) a slice larger than HOCKLE_MAX_SLICE_VALUES."""
+    """Select by coordinate labels (``time``, ``s`` ... for a dynamic run, ``point`` and
+    ``bifurcation`` for a branch); a selector for a dimension the variable lacks, or a
+    label it does not store, is refused (422 naming ``query.<selector>``), and so is a
+    slice larger than HOCKLE_MAX_SLICE_VALUES."""
     job = get_job_or_404(svc, job_id, owner)
     path = _result_path(svc, job)
     query = {"time": time, "s": s, "component": component, "xyz": xyz,
-             "quaternion": quaternion, "step": step}
+             "quaternion": quaternion, "step": step, "point": point, "bifurcation": bifurcation}
     query = {k: v for k, v in query.items() if v is not None}
     with _open(path) as ds:
         if name not in ds.variables:

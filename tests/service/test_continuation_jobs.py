@@ -234,3 +234,193 @@ def test_a_continuation_out_of_time_keeps_its_branch(client, settings):
     assert f"after 1 point ({FORCE} = -0.1)" in status["message"]
     response = client.get(f"/v1/jobs/{job_id}/results/variables/parameter")
     assert response.json()["data"] == [pytest.approx(-0.1)]
+
+
+def _submit_fresh(client, **options) -> str:
+    response = client.post("/v1/continuations", json=_body(**options), params={"fresh": "true"})
+    assert response.status_code == 201, response.text
+    return response.json()["id"]
+
+
+def _variable(client, job_id, name, **query):
+    response = client.get(f"/v1/jobs/{job_id}/results/variables/{name}", params=query)
+    assert response.status_code == 200, response.text
+    return response.json()
+
+
+def test_an_exception_mid_branch_fails_the_job_and_keeps_its_points(client, settings,
+                                                                     monkeypatch):
+    """An unexpected exception at the fifth point (the unstable-mode count raising): the job
+    fails (internal_error, naming the exception) and the four points before it are its
+    partial result, as a failed dynamic run keeps what it computed."""
+    import solver.continuation as continuation
+
+    real, calls = continuation.unstable_modes, []
+
+    def breaks_at_the_fifth(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 5:
+            raise RuntimeError("ARPACK lost its way")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(continuation, "unstable_modes", breaks_at_the_fifth)
+    job_id = _submit_fresh(client)
+    assert _run(settings, job_id) == "failed:internal_error"
+    status = client.get(f"/v1/jobs/{job_id}").json()
+    assert (status["state"], status["reason"]) == ("failed", "internal_error")
+    assert status["result_partial"] and status["result_available"]
+    assert "RuntimeError: ARPACK lost its way" in status["message"]
+    assert "the branch so far is kept (after 4 points" in status["message"]
+    data = _variable(client, job_id, "parameter")["data"]
+    assert len(data) == 4 and data[0] == pytest.approx(-0.1)
+    whole = _variable(client, _branch_of(client), "parameter")["data"]
+    assert data == whole[:4]
+
+
+def _branch_of(client) -> str:
+    """The uninterrupted branch of _body() (the module's first job, answered from it)."""
+    response = client.post("/v1/continuations", json=_body())
+    assert response.status_code == 200, response.text
+    return response.json()["id"]
+
+
+def _same_branch_files(settings, job_id, other_id):
+    results = Path(settings.results_dir)
+    with xr.open_dataset(results / f"{job_id}.attempt-2.nc") as a, \
+            xr.open_dataset(results / f"{other_id}.nc") as b:
+        assert a.sizes == b.sizes
+        for name in ("parameter", "position", "end_force", "unstable_modes",
+                     "bifurcation_parameter"):
+            assert a[name].equals(b[name]), name
+        return dict(a.attrs)
+
+
+def test_a_continuation_handed_back_at_shutdown_resumes_where_it_stopped(
+        client, settings, branch_job, monkeypatch):
+    """A worker shutting down after the 7th point: its final checkpoint is stored, the job
+    goes back to the queue saying the point and the parameter; attempt 2 continues from
+    point 7 to the branch of an uninterrupted job, to the last bit."""
+    from service.registry import Registry
+    from worker import tasks
+
+    job_id = _submit_fresh(client)
+    real = tasks.JobRun.should_stop
+
+    def shutdown_after_seven(self):
+        if self.attempt == 1 and self.last_info is not None and self.last_info.step >= 7:
+            self.stopping = True
+            return tasks.SHUTDOWN_REASON
+        return real(self)
+
+    monkeypatch.setattr(tasks.JobRun, "should_stop", shutdown_after_seven)
+    assert _run(settings, job_id) == "requeued_at_shutdown:requeued"
+    assert (Path(settings.results_dir) / f"{job_id}.ckpt").exists()
+    status = client.get(f"/v1/jobs/{job_id}").json()
+    assert status["state"] == "accepted"
+    assert f"attempt 1 stopped at point 7 ({FORCE} = " in status["message"]
+    assert " s (step" not in status["message"]
+    assert _run(settings, job_id) == "successful"
+    reg = Registry(settings.registry_url)
+    try:
+        events = reg.events(job_id)
+    finally:
+        reg.dispose()
+    [resumed] = [e for e in events if e.kind == "resumed"]
+    assert resumed.attempt == 2 and '"point": 7' in resumed.detail
+    attrs = _same_branch_files(settings, job_id, branch_job)
+    assert attrs["resumed_at_point"] == 7 and attrs["hockle_attempt"] == 2
+    assert not (Path(settings.results_dir) / f"{job_id}.ckpt").exists()
+
+
+def test_a_killed_continuation_resumes_from_its_last_checkpoint(client, settings, branch_job,
+                                                               monkeypatch):
+    """A worker killed after the 15th point (nothing of the attempt runs after it): the job is
+    given up as lost and queued again; attempt 2 continues from the last checkpoint the
+    policy stored (every tenth of max_points = 60: after point 12) to the uninterrupted
+    branch."""
+    import datetime as dt
+
+    from service.registry import Registry
+    from worker import tasks
+
+    class Killed(BaseException):
+        """What SIGKILL does to the attempt: nothing after it runs."""
+
+    job_id = _submit_fresh(client)
+    real = tasks.JobRun.should_stop
+
+    def killed_after_fifteen(self):
+        if self.attempt == 1 and self.last_info is not None and self.last_info.step >= 15:
+            raise Killed
+        return real(self)
+
+    monkeypatch.setattr(tasks.JobRun, "should_stop", killed_after_fifteen)
+    with pytest.raises(Killed):
+        _run(settings, job_id)
+    reg = Registry(settings.registry_url)
+    try:
+        later = dt.datetime.now(dt.timezone.utc).replace(tzinfo=None) + dt.timedelta(hours=1)
+        [(job, action)] = [(j, a) for j, a in reg.requeue_lost(
+            heartbeat_timeout=1.0, max_attempts=3, now=later) if j.id == job_id]
+        assert action == "requeued"
+        assert "lost its worker continuation@test at point 15 (no heartbeat" in job.message
+        assert _run(settings, job_id) == "successful"
+        [resumed] = [e for e in reg.events(job_id) if e.kind == "resumed"]
+    finally:
+        reg.dispose()
+    assert resumed.attempt == 2 and '"point": 12' in resumed.detail
+    assert _same_branch_files(settings, job_id, branch_job)["resumed_at_point"] == 12
+
+
+def test_the_point_selector_of_a_branch(client, branch_job):
+    n = client.get(f"/v1/jobs/{branch_job}/results/variables").json()["dims"]["point"]
+    whole = _variable(client, branch_job, "parameter")["data"]
+    one = _variable(client, branch_job, "parameter", point="3")
+    assert one["dims"] == [] and one["data"] == whole[3] and one["selected"] == {"point": 3}
+    some = _variable(client, branch_job, "end_force", point="2:4", xyz="z")
+    assert some["dims"] == ["point"] and some["coords"]["point"] == [2, 3, 4]
+    listed = _variable(client, branch_job, "position", point="0,5", xyz="z")
+    assert listed["shape"][0] == 2
+    first = _variable(client, branch_job, "bifurcation_parameter", bifurcation="0")
+    assert first["dims"] == []
+    for query, loc in [({"point": str(n)}, "query.point"), ({"point": "4:2"}, "query.point"),
+                       ({"point": "x"}, "query.point"),
+                       ({"time": "0"}, "query.time")]:        # a branch has no time
+        response = client.get(f"/v1/jobs/{branch_job}/results/variables/parameter",
+                              params=query)
+        assert response.status_code == 422, (query, response.text)
+        assert [e["loc"] for e in response.json()["errors"]] == [loc]
+
+
+def test_hockle_submit_continue(client, monkeypatch, tmp_path, capsys):
+    """`hockle submit CASE --continue --parameter P --to V` submits what `hockle continue`
+    computes locally; its options without --continue, or --continue without both, are
+    refused (exit 2)."""
+    import json
+
+    from hockle.cli import main
+    from service import client as client_module
+
+    monkeypatch.delenv("HOCKLE_API_KEY", raising=False)
+    real = client_module.HockleClient.__init__
+
+    def through_the_test_client(self, url=None, **kwargs):
+        real(self, "http://testserver", transport=client._transport, **kwargs)
+
+    monkeypatch.setattr(client_module.HockleClient, "__init__", through_the_test_client)
+    case = tmp_path / "column.json"
+    case.write_text(json.dumps(_column()))
+    code = main(["submit", str(case), "--continue", "--parameter", FORCE, "--to", "-0.25",
+                 "--max-points", "30", "--switch", "--fresh"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    job_id = out.split()[1]
+    status = client.get(f"/v1/jobs/{job_id}").json()
+    assert status["kind"] == "continuation"
+    assert client.get(f"/v1/jobs/{job_id}/spec").json()["continuation"] == {
+        "parameter": FORCE, "to": -0.25, "time": None, "switch": True, "max_points": 30,
+        "step": 0.05, "shapes_every": 1, "stability": True}
+    assert main(["submit", str(case), "--continue", "--to", "1"]) == 2
+    assert "--continue needs --parameter PATH and --to VALUE" in capsys.readouterr().err
+    assert main(["submit", str(case), "--parameter", FORCE]) == 2
+    assert "--parameter only with --continue" in capsys.readouterr().err
