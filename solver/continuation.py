@@ -46,8 +46,8 @@ from typing import Callable, Optional
 import numpy as np
 import scipy.sparse as sp
 
-from .statics import (NV, StaticProblem, StaticsError, factor, jacobian, lu_det_sign,
-                      residual, solve, unstable_modes)
+from .statics import (NV, StaticProblem, StaticsError, _qmul, factor, jacobian, lu_det_sign,
+                      mass_matrix, residual, solve, unstable_modes)
 
 __all__ = ["Branch", "Bifurcation", "continuation", "ContinuationError"]
 
@@ -130,37 +130,108 @@ class _Scaled:
         g = (residual(Y, self.prob(lam + d)) - residual(Y, self.prob(lam - d))) / (2 * d)
         return J, g * self.span
 
-    def bordered(self, z, row):
+    def bordered(self, z, row, phase=None):
+        """LU of the bordered matrix at z; with ``phase`` (a branch of a symmetric pair),
+        of [[G_z, G_λ̂, w], [row, 0], [a, 0, 0]] (:func:`_corrector`)."""
         J, g = self.blocks(z)
-        A = sp.vstack([sp.hstack([J, sp.csc_matrix(g[:, None])]),
-                       sp.csr_matrix(row[None, :])], format="csc")
+        if phase is None:
+            A = sp.vstack([sp.hstack([J, sp.csc_matrix(g[:, None])]),
+                           sp.csr_matrix(row[None, :])], format="csc")
+        else:
+            A = sp.vstack([sp.hstack([J, sp.csc_matrix(g[:, None]),
+                                      sp.csc_matrix(phase["w"][:, None])]),
+                           sp.csr_matrix(np.append(row, 0.0)[None, :]),
+                           sp.csr_matrix(np.append(phase["a"], (0.0, 0.0))[None, :])],
+                          format="csc")
         return factor(A)
 
 
-def _corrector(S: _Scaled, z_pred, row, target, newton_max, tol):
+def _corrector(S: _Scaled, z_pred, row, target, newton_max, tol, phase=None):
     """Newton on [G(z); row·z − target] = 0 from z_pred. Returns (z, iterations, lu of
-    the bordered matrix at the last iterate) or None when it does not converge."""
+    the bordered matrix at the last iterate) or None when it does not converge.
+
+    With ``phase`` (a branch of a pair that a rotation symmetry makes a circle of
+    equilibria): Newton on [G(z) + ε w; row·z − target; a·(z − z_ref)] = 0 in (z, ε), the
+    phase condition a·(z − z_ref) = 0 (a the symmetry's generator at the last point)
+    picking one equilibrium of the circle and the unfolding ε w (w off the range of G_z)
+    keeping the system square; ε = 0 at a solution (Allgower & Georg 2003, §8.4 on
+    equivariant problems; Dellnitz & Werner 1989). A converged ε above 1e-8 is refused."""
     z = z_pred.copy()
+    eps = 0.0
     for it in range(1, newton_max + 1):
         try:
-            lu = S.bordered(z, row)
+            lu = S.bordered(z, row, phase)
         except StaticsError:
             return None
         F = np.concatenate([S.G(z), [row @ z - target]])
+        if phase is not None:
+            F[:-1] += eps * phase["w"]
+            F = np.append(F, phase["a"] @ (z[:-1] - phase["zref"][:-1]))
         dz = lu.solve(F)
         if not np.all(np.isfinite(dz)):
             return None
-        z = z - dz
+        if phase is not None:
+            eps -= dz[-1]
+            z = z - dz[:-1]
+        else:
+            z = z - dz
         if np.max(np.abs(dz)) < tol:
+            if abs(eps) > 1e-8:
+                return None
             return z, it, lu
     return None
 
 
-def _tangent(lu, n):
-    e = np.zeros(n + 1)
-    e[-1] = 1.0
-    t = lu.solve(e)
+def _tangent(lu, n, phase=None):
+    e = np.zeros(n + 1 + (phase is not None))
+    e[n] = 1.0
+    t = lu.solve(e)[:n + 1]
     return t / np.linalg.norm(t)
+
+
+def _generator(Y, axis, origin) -> np.ndarray:
+    """(N+1, 13) the infinitesimal rotation about the line ``origin`` + R ``axis`` of the
+    equilibrium Y (positions, internal forces and moments turned about the axis; the frames
+    turned about it and back about their own d3: p -> ½(â ⊗ p − p ⊗ ê3)). For an isotropic
+    section (B1 = B2) with ends on the axis whose tangents lie along it, G(Y) = 0 is
+    invariant under this rotation: the helical modes of a round rod come in pairs, and the
+    branch they start is a circle of equilibria per parameter value."""
+    d = np.zeros_like(Y)
+    q = Y[:, 3:7]
+    d[:, 0:3] = np.cross(axis, Y[:, 0:3] - origin)
+    d[:, 3:7] = 0.5 * (_qmul(np.broadcast_to(np.append(0.0, axis), q.shape), q)
+                       - _qmul(q, np.broadcast_to(np.array([0.0, 0.0, 0.0, 1.0]), q.shape)))
+    d[:, 7:10] = np.cross(axis, Y[:, 7:10])
+    d[:, 10:13] = np.cross(axis, Y[:, 10:13])
+    return d
+
+
+def _unstable_on_orbit(Y, prob, aY, k):
+    """Unstable modes of an equilibrium of a symmetric circle (:func:`_generator` ``aY``
+    (N+1, 13) its direction along the circle, a neutral mode): the pencil J z = μ B z on
+    aYᵀ z = 0, bordered [[J, B aY], [aYᵀ, 0]] (a Lagrange multiplier); otherwise as
+    :func:`solver.statics.unstable_modes`. Returns (count, μ sorted by |μ|)."""
+    import scipy.sparse.linalg as spla
+
+    a = np.ravel(aY)
+    J, Bm = jacobian(Y, prob), mass_matrix(Y, prob)
+    n = J.shape[0]
+    lu = factor(sp.vstack([sp.hstack([J, sp.csc_matrix((Bm @ a)[:, None])]),
+                           sp.csr_matrix(np.append(a, 0.0)[None, :])], format="csc"))
+    Be = sp.block_diag([Bm, sp.csc_matrix((1, 1))], format="csc")
+    op = spla.LinearOperator((n + 1, n + 1), matvec=lambda x: lu.solve(Be @ x), dtype=float)
+    try:
+        nu = spla.eigs(op, k=min(k, n - 2), which="LM", return_eigenvectors=False, tol=1e-8,
+                       v0=np.ones(n + 1))
+    except spla.ArpackNoConvergence as exc:
+        nu = np.asarray(exc.eigenvalues)
+        if nu.size == 0:
+            return -1, np.array([], complex)
+    nu = nu[np.abs(nu) > 0]
+    mu = 1.0 / nu
+    mu = mu[np.argsort(np.abs(mu))]
+    real = np.abs(mu.imag) <= 1e-6 * np.abs(mu)
+    return int(np.sum(real & (mu.real > 0))), mu
 
 
 def continuation(problem_at: Callable[[float], StaticProblem], lam0: float, lam1: float,
@@ -280,6 +351,7 @@ class _Tracer:
         self.ds, self.ds_max, self.ds_min = (opt["ds"] * rho, opt["ds_max"] * rho,
                                              opt["ds_min"] * rho)
         self.switched = False
+        self.phase = None            # the phase condition on a branch of a symmetric pair
         # the start point's determinant sign, with its own tangent as the border
         self.det = self.record(self.z, sol.iterations, S.bordered(self.z, self.t))
 
@@ -289,7 +361,9 @@ class _Tracer:
         out = {k: list(getattr(br, k)) for k in _BRANCH_LISTS}
         out.update(switched_at=br.switched_at, z=self.z.copy(), t=self.t.copy(),
                    det=int(self.det), ds=self.ds, ds_max=self.ds_max, ds_min=self.ds_min,
-                   switched=self.switched, shape=self.S.shape)
+                   switched=self.switched, shape=self.S.shape,
+                   phase=None if self.phase is None else
+                   {k: np.array(v) for k, v in self.phase.items()})
         return out
 
     @classmethod
@@ -309,6 +383,7 @@ class _Tracer:
         tr.z, tr.t, tr.det = np.array(state["z"]), np.array(state["t"]), int(state["det"])
         tr.ds, tr.ds_max, tr.ds_min = state["ds"], state["ds_max"], state["ds_min"]
         tr.switched = bool(state["switched"])
+        tr.phase = state.get("phase")
         return tr
 
     def record(self, z, its, lu_border) -> int:
@@ -318,7 +393,12 @@ class _Tracer:
         Y = S.Y(z)
         prob = S.prob(lam)
         count, mu0 = -1, np.nan
-        if self.o["stability"]:
+        if self.o["stability"] and self.phase is not None:
+            count, mu = _unstable_on_orbit(Y, prob, _generator(Y, self.phase["axis"],
+                                                               self.phase["origin"]),
+                                           self.o["modes"])
+            mu0 = float(mu[0].real) if mu.size else np.nan
+        elif self.o["stability"]:
             count, mu = unstable_modes(Y, prob, k=self.o["modes"])
             mu0 = float(mu[0].real) if mu.size else np.nan
         br.parameter.append(lam)
@@ -340,20 +420,20 @@ class _Tracer:
 
     def step(self) -> bool:
         """Try one step; True when the continuation is over (``br.stopped`` says why)."""
-        S, o, z, t = self.S, self.o, self.z, self.t
+        S, o, z, t, ph = self.S, self.o, self.z, self.t, self.phase
         landing = t[-1] > 0 and z[-1] + self.ds * t[-1] >= 1.0 - 1e-12
         if landing:
             res = _corrector(S, z + (1.0 - z[-1]) / t[-1] * t, self.e_lam, 1.0,
-                             o["newton_max"], o["tol"])
+                             o["newton_max"], o["tol"], ph)
         else:
             z_pred = z + self.ds * t
-            res = _corrector(S, z_pred, t, t @ z_pred, o["newton_max"], o["tol"])
+            res = _corrector(S, z_pred, t, t @ z_pred, o["newton_max"], o["tol"], ph)
         if res is None:
             return self._refuse("no convergence")
         z_new, its, lu_new = res
         if landing:
-            lu_new = S.bordered(z_new, t)
-        t_new = _tangent(lu_new, S.n)
+            lu_new = S.bordered(z_new, t, ph)
+        t_new = _tangent(lu_new, S.n, ph)
         if t_new @ t < np.cos(o["max_turn"]) and not landing:
             return self._refuse("tangent turning")
         det_new = self.record(z_new, its, lu_new)
@@ -361,6 +441,7 @@ class _Tracer:
         if z_new is None:
             return True
         self.z, self.t, self.det = z_new, t_new, det_new
+        self._phase_at(z_new)
         if landing:
             self.br.stopped = "reached the target value"
             return True
@@ -388,7 +469,8 @@ class _Tracer:
             events.append("even_branch_point")
         for kind in events:
             bif = (_locate(S, z, t, z_new, kind, o["newton_max"], o["tol"], self.det,
-                           br.unstable[-2], o["modes"]) if o["locate"] else None)
+                           br.unstable[-2], o["modes"], self.phase)
+                   if o["locate"] else None)
             if bif is None:
                 bif = Bifurcation("branch_point" if "branch" in kind else kind,
                                   0.5 * (S.lam(z) + S.lam(z_new)), S.Y(z_new), k_prev,
@@ -398,7 +480,74 @@ class _Tracer:
             if o["switch"] and not self.switched and kind == "branch_point" \
                     and bif.null is not None:
                 return self._switch(bif)
+            if o["switch"] and not self.switched and kind == "even_branch_point":
+                out = self._switch_pair(bif)
+                if out is not None:
+                    return out
         return z_new, t_new, det_new
+
+    def _phase_at(self, z):
+        """On a branch of a symmetric pair: the phase condition's reference is the point z
+        and its row the symmetry's generator there (unit scaled norm)."""
+        if self.phase is None:
+            return
+        S = self.S
+        a = np.ravel(_generator(S.Y(z), self.phase["axis"], self.phase["origin"])) / S.c
+        self.phase["a"] = a / np.linalg.norm(a)
+        self.phase["zref"] = z.copy()
+
+    def _switch_pair(self, bif: Bifurcation):
+        """Leave a branch point of a symmetric pair (a double zero eigenvalue of G_y, the
+        rod's rotation about its axis turning one mode of the pair into the other) along
+        one mode φ of the pair, with the phase condition that fixes the rotation
+        (:func:`_corrector`). Returns None (the primary branch goes on) when the kernel is
+        not such a pair: not two-dimensional, or not turned into itself by the rotation
+        about the line through the rod's ends."""
+        S, o = self.S, self.o
+        zb = S.z(bif.Y, bif.parameter)
+        J, _ = S.blocks(zb)
+        try:
+            lu = factor(J.tocsc())
+        except StaticsError:
+            return None
+        rng = np.random.default_rng(0)
+        X, W = rng.standard_normal((S.n, 2)), rng.standard_normal((S.n, 2))
+        for _ in range(4):                      # block inverse iteration: the 2-D kernels
+            X = np.linalg.qr(np.column_stack([lu.solve(x) for x in X.T]))[0]
+            W = np.linalg.qr(np.column_stack([lu.solve(x, trans="T") for x in W.T]))[0]
+        ends = bif.Y[-1, 0:3] - bif.Y[0, 0:3]
+        if not np.linalg.norm(ends) > 0:
+            return None
+        axis, origin = ends / np.linalg.norm(ends), bif.Y[0, 0:3].copy()
+        phi = X[:, 0]
+        if phi[int(np.argmax(np.abs(phi)))] < 0:
+            phi = -phi
+        a = np.ravel(_generator((phi * S.c).reshape(S.shape), axis, origin)) / S.c
+        na = np.linalg.norm(a)
+        kernel_rel = np.linalg.norm(J @ X, axis=0) / np.linalg.norm(J @ rng.standard_normal(
+            S.n)) * np.sqrt(S.n)
+        if not (na > 1e-6 and np.linalg.norm(a - X @ (X.T @ a)) < 1e-6 * na
+                and np.all(kernel_rel < 1e-6)):
+            return None
+        self.switched = True
+        self.br.switched_at = len(self.br.parameter) - 1
+        w = W @ rng.standard_normal(2)
+        self.phase = {"axis": axis, "origin": origin, "w": w / np.linalg.norm(w),
+                      "a": a / na, "zref": zb.copy()}
+        phi_z = np.append(phi, 0.0)
+        step = 0.1 * self.ds_max
+        res = _corrector(S, zb + step * phi_z, phi_z, phi_z @ zb + step, o["newton_max"],
+                         o["tol"], self.phase)
+        if res is None:
+            self.br.stopped = "branch switching did not converge"
+            return None, None, None
+        z_new, its, lu_new = res
+        t_new = _tangent(lu_new, S.n, self.phase)
+        self._phase_at(z_new)
+        # the determinant's sign with the rows the next step borders with (its tangent and
+        # the phase row there), as at the start point
+        det = self.record(z_new, its, S.bordered(z_new, t_new, self.phase))
+        return z_new, t_new, det
 
     def _switch(self, bif: Bifurcation):
         """Leave the branch point ``bif`` along its null vector (Keller's switching)."""
@@ -420,7 +569,7 @@ class _Tracer:
         return z_new, t_new, self.record(z_new, its, lu_new)
 
 
-def _locate(S: _Scaled, z0, t0, z1, kind, newton_max, tol, det0, count0, modes):
+def _locate(S: _Scaled, z0, t0, z1, kind, newton_max, tol, det0, count0, modes, phase=None):
     """Bisection on the arclength σ of the step z0 -> z1 (border t0) for the event
     ``kind``: the sign of t_λ̂ (fold), of det (branch_point), or the unstable count."""
     sig_hi = float(t0 @ (z1 - z0))
@@ -433,14 +582,17 @@ def _locate(S: _Scaled, z0, t0, z1, kind, newton_max, tol, det0, count0, modes):
         mid = 0.5 * (lo + hi)
         w = (mid - lo) / (hi - lo)
         guess = (1 - w) * z_lo + w * z_hi
-        res = _corrector(S, guess, t0, t0 @ z0 + mid, newton_max, tol)
+        res = _corrector(S, guess, t0, t0 @ z0 + mid, newton_max, tol, phase)
         if res is None:
             return None
         zm, _, lu = res
         if kind == "fold":
-            same = np.sign(_tangent(lu, S.n)[-1]) == np.sign(t0[-1])
+            same = np.sign(_tangent(lu, S.n, phase)[-1]) == np.sign(t0[-1])
         elif kind == "branch_point":
             same = lu_det_sign(lu) == det0
+        elif phase is not None:
+            aY = _generator(S.Y(zm), phase["axis"], phase["origin"])
+            same = _unstable_on_orbit(S.Y(zm), S.prob(S.lam(zm)), aY, modes)[0] == count0
         else:
             same = unstable_modes(S.Y(zm), S.prob(S.lam(zm)), k=modes)[0] == count0
         if same:
@@ -451,11 +603,11 @@ def _locate(S: _Scaled, z0, t0, z1, kind, newton_max, tol, det0, count0, modes):
     zb = 0.5 * (z_lo + z_hi)
     null = None
     if kind == "branch_point" and lu_at is not None:
-        x = np.random.default_rng(0).standard_normal(S.n + 1)
+        x = np.random.default_rng(0).standard_normal(S.n + 1 + (phase is not None))
         for _ in range(3):
             x = lu_at.solve(x)
             x /= np.linalg.norm(x)
-        null = (x[:-1] * S.c).reshape(S.shape)
+        null = (x[:S.n] * S.c).reshape(S.shape)
     name = "fold" if kind == "fold" else "branch_point"
     return Bifurcation(name, S.lam(zb), S.Y(zb), -1, null=null,
                        simple=kind != "even_branch_point")

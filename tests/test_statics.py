@@ -108,6 +108,47 @@ def test_greenhill_twisted_rod():
     assert np.allclose(ds["twist"][straight], ds["link"][straight], rtol=1e-3)
 
 
+def greenhill(theta, N=100, L=1.0, B=1.0, C=1.0 / 1.3):
+    """Clamped-clamped round rod (B1 = B2 = B, GJ = C), the end turned by theta about the
+    axis and free to slide along it (no axial force)."""
+    return st.uniform(L, N, (B, B, C), st.clamp([0, 0, 0], [1, 0, 0, 0]),
+                      st.clamp([0, 0, L], st.quat_axis_angle([0, 0, 1], theta), theta,
+                               held=(True, True, False)))
+
+
+def test_greenhill_switches_onto_the_buckled_branch_of_the_pair():
+    """At Greenhill's pair (a double zero eigenvalue) --switch leaves the straight rod along
+    one mode of the pair, the phase condition fixing the rotation about the axis: every
+    switched point is an equilibrium (residual at rounding, the unfolding ε = 0), its lateral
+    displacement grows from 0 past 0.15 L, and it has 1 unstable mode (the neutral
+    rotation about the axis left out) between the straight rod's 0 before the pair and 2
+    after it; the end rotation decreases along it (measured: subcritical). A resume after
+    the switch repeats it to the last bit."""
+    B, C = 1.0, 1.0 / 1.3
+    run = dict(max_points=40, switch=True)
+    br = continuation(lambda a: greenhill(a, N=40), 0.0, 1.2 * GREENHILL * B / C, **run)
+    [bp] = br.bifurcations
+    assert not bp.simple and abs(bp.parameter * C / B / GREENHILL - 1) < 5e-3
+    k = br.switched_at
+    assert k == bp.after + 1 and br.unstable[k - 1] == 0 and br.unstable[k] == 2
+    lam = np.asarray(br.parameter[k + 1:])
+    amp = np.array([np.abs(Y[:, 0:2]).max() for Y in br.Y[k + 1:]])
+    assert len(lam) >= 15 and amp[0] < 0.01 and amp[-1] > 0.15 and np.all(np.diff(amp) > 0)
+    assert np.all(lam < bp.parameter) and np.all(np.diff(lam) < 0)
+    assert set(br.unstable[k + 1:]) == {1}
+    for a, Y in zip(lam, br.Y[k + 1:]):
+        assert np.abs(st.residual(Y, greenhill(a, N=40))).max() < 1e-12
+    ds = branch_dataset(br, "theta")
+    assert ds["branch"].values.tolist() == [0] * (k + 1) + [1] * len(lam)
+    states, seen = [], []
+    continuation(lambda a: greenhill(a, N=40), 0.0, 1.2 * GREENHILL * B / C, **run,
+                 should_stop=lambda: len(seen) >= k + 4 and "stop",
+                 checkpoint=states.append, on_point=lambda i, x: seen.append(i))
+    again = continuation(lambda a: greenhill(a, N=40), 0.0, 1.2 * GREENHILL * B / C, **run,
+                         resume=states[-1])
+    _same_branch(again, br)
+
+
 def _same_branch(a, b):
     assert len(a.parameter) == len(b.parameter) and a.stopped == b.stopped
     assert a.parameter == b.parameter and a.unstable == b.unstable
