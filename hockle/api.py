@@ -717,8 +717,8 @@ def continue_branch(case: Any, parameter: str, to: float, *, time: float | None 
     dotted ``parameter`` path (as sweeps spell it, e.g. ``boundary.end.translation.2.force``)
     from the case's value to ``to`` (docs/statics.md). ``time``: the time at which the
     end conditions are read (velocities integrated up to it; default ``numerics.t_end``).
-    ``switch``: leave the branch at its first simple branch point along the critical
-    mode. ``step``: the largest step as a fraction of the start tangent's arclength over
+    ``switch``: leave the branch at its first branch point (a simple one along the
+    critical mode, a round rod's symmetric pair along one mode of the pair). ``step``: the largest step as a fraction of the start tangent's arclength over
     the range. ``should_stop``: asked before every step; a true answer (a reason) ends the
     branch there, its ``stopped`` attribute "stopped: <reason>". ``checkpoint``: called
     with a :class:`solver.checkpoint.BranchCheckpoint` after every point (and at a stop);

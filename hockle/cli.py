@@ -680,7 +680,8 @@ def build_parser() -> tuple[argparse.ArgumentParser, str | None]:
     p.add_argument("--time", type=float, metavar="T", help="time at which the end "
                    "conditions are read, s (default: numerics.t_end)")
     p.add_argument("--switch", action="store_true", help="leave the branch at its first "
-                   "simple branch point along the critical mode")
+                   "branch point (a simple one along the critical mode, a round rod's "
+                   "symmetric pair along one mode of the pair)")
     p.add_argument("--max-points", type=int, default=500, metavar="N",
                    help="stop after N points (default 500)")
     p.add_argument("--step", type=float, default=0.05, metavar="F",

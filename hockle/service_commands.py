@@ -81,7 +81,8 @@ def register(subparsers) -> None:
     g.add_argument("--time", type=float, metavar="T", help="time at which the end conditions "
                    "are read, s (default: numerics.t_end)")
     g.add_argument("--switch", action="store_true", help="leave the branch at its first "
-                   "simple branch point along the critical mode")
+                   "branch point (a simple one along the critical mode, a round rod's "
+                   "symmetric pair along one mode of the pair)")
     g.add_argument("--max-points", type=int, metavar="N", help="stop after N points "
                    "(default 500)")
     g.add_argument("--step", type=float, metavar="F", help="largest step, a fraction of the "

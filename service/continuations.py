@@ -49,7 +49,8 @@ class ContinuationOptions(BaseModel):
         "Time at which the end conditions are read, s (velocities integrated up to it); "
         "default numerics.t_end."))
     switch: bool = Field(False, description=(
-        "Leave the branch at its first simple branch point along the critical mode."))
+        "Leave the branch at its first branch point: a simple one along the critical mode, "
+        "a round rod's symmetric pair along one mode of the pair."))
     max_points: int = Field(500, ge=2, le=MAX_POINTS, description="Stop after this many points.")
     step: float = Field(0.05, gt=0, le=1, description=(
         "Largest step, a fraction of the range's arclength."))

@@ -30,7 +30,9 @@ Each event is located by bisection in the arclength of its step (a corrector sol
 halving, to 1e-9 of the step). At a simple branch point the null vector φ of the bordered
 matrix (inverse iteration) is the bifurcating direction: ``switch=True`` leaves the
 primary branch there along φ (Keller's branch switching by the tangent of the null
-vector) and follows the new branch.
+vector) and follows the new branch. At a pair that the rod's rotation about its axis turns
+into itself (a round rod) it leaves along one mode of the pair with a phase condition that
+fixes the rotation (:func:`_corrector`, :meth:`_Tracer._switch_pair`).
 
 A continuation keeps what it computed: an unexpected exception mid-branch leaves with the
 branch so far on it (``exc.partial_branch``), and ``checkpoint`` hands out the state after
@@ -257,7 +259,8 @@ def continuation(problem_at: Callable[[float], StaticProblem], lam0: float, lam1
     max_points : stop after this many points
     stability : count the unstable modes at every point (:func:`unstable_modes`)
     locate : locate folds and branch points by bisection
-    switch : at the first simple branch point, follow the bifurcating branch instead
+    switch : at the first branch point (simple, or a pair of the rod's rotation symmetry),
+        follow the bifurcating branch instead
     start_tangent : (N+1, 13) a direction in Y units to leave the start point along
         (branch switching from a known branch point); default: along increasing λ
     on_point : called with (index, λ) after every accepted point
