@@ -149,6 +149,29 @@ def test_greenhill_switches_onto_the_buckled_branch_of_the_pair():
     _same_branch(again, br)
 
 
+def test_a_round_column_switches_at_its_pair_onto_the_elastica():
+    """B1 = B2: Euler's first branch point is a pair (buckling in any plane through the
+    axis); --switch leaves it along one mode with the phase condition and the branch is
+    the clamped-clamped elastica: end shortening within 0.5 % of the elliptic-integral
+    solution from P = 1.25 P_c (100 segments), as for the simple branch point of B1 < B2
+    above."""
+    pc = 4 * np.pi**2
+    br = continuation(lambda P: euler_column(P, B=(1.0, 1.0, 1 / 1.3)), 0.0, 1.35 * pc,
+                      switch=True, max_points=60)
+    [bp] = br.bifurcations
+    assert not bp.simple and abs(bp.parameter / pc - 1) < 1e-3
+    k = br.switched_at
+    assert k is not None and set(br.unstable[k + 1:]) == {0}
+
+    def shortening(p):
+        m = brentq(lambda m: ellipk(m) - 0.25 * np.sqrt(p), 0.0, 1 - 1e-15)
+        return 2 * (1 - ellipe(m) / ellipk(m))
+
+    checked = [abs((1 - (Y[-1, 2] - Y[0, 2])) / shortening(p) - 1)
+               for p, Y in zip(br.parameter[k + 1:], br.Y[k + 1:]) if p >= 1.25 * pc]
+    assert len(checked) >= 2 and max(checked) < 5e-3
+
+
 def _same_branch(a, b):
     assert len(a.parameter) == len(b.parameter) and a.stopped == b.stopped
     assert a.parameter == b.parameter and a.unstable == b.unstable
