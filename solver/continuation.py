@@ -156,8 +156,10 @@ def _corrector(S: _Scaled, z_pred, row, target, newton_max, tol, phase=None):
     equilibria): Newton on [G(z) + ε w; row·z − target; a·(z − z_ref)] = 0 in (z, ε), the
     phase condition a·(z − z_ref) = 0 (a the symmetry's generator at the last point)
     picking one equilibrium of the circle and the unfolding ε w (w off the range of G_z)
-    keeping the system square; ε = 0 at a solution (Allgower & Georg 2003, §8.4 on
-    equivariant problems; Dellnitz & Werner 1989). A converged ε above 1e-8 is refused."""
+    keeping the system square; ε = 0 at a solution (phase condition and unfolding parameter
+    of continuation with a continuous symmetry: Dellnitz & Werner, J. Comput. Appl. Math.
+    26, 1989; Champneys & Sandstede in Krauskopf et al., *Numerical Continuation Methods
+    for Dynamical Systems*, 2007). A converged ε above 1e-8 is refused."""
     z = z_pred.copy()
     eps = 0.0
     for it in range(1, newton_max + 1):
