@@ -388,7 +388,8 @@ class _Tracer:
         tr.z, tr.t, tr.det = np.array(state["z"]), np.array(state["t"]), int(state["det"])
         tr.ds, tr.ds_max, tr.ds_min = state["ds"], state["ds_max"], state["ds_min"]
         tr.switched = bool(state["switched"])
-        tr.phase = state.get("phase")
+        phase = state.get("phase")
+        tr.phase = None if phase is None else {k: np.array(v) for k, v in phase.items()}
         return tr
 
     def record(self, z, its, lu_border) -> int:
@@ -529,10 +530,11 @@ class _Tracer:
             phi = -phi
         a = np.ravel(_generator((phi * S.c).reshape(S.shape), axis, origin)) / S.c
         na = np.linalg.norm(a)
-        kernel_rel = np.linalg.norm(J @ X, axis=0) / np.linalg.norm(J @ rng.standard_normal(
-            S.n)) * np.sqrt(S.n)
-        if not (na > 1e-6 and np.linalg.norm(a - X @ (X.T @ a)) < 1e-6 * na
-                and np.all(kernel_rel < 1e-6)):
+        r = rng.standard_normal(S.n)
+        gain = np.linalg.norm(J @ r) / np.linalg.norm(r)     # |G_z x| of a typical unit x
+        two_dimensional = np.all(np.linalg.norm(J @ X, axis=0) < 1e-6 * gain)
+        turned_into_itself = na > 1e-6 and np.linalg.norm(a - X @ (X.T @ a)) < 1e-6 * na
+        if not (two_dimensional and turned_into_itself):
             return None
         self.switched = True
         self.br.switched_at = len(self.br.parameter) - 1
