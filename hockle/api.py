@@ -718,9 +718,10 @@ def continue_branch(case: Any, parameter: str, to: float, *, time: float | None 
     from the case's value to ``to`` (docs/statics.md). ``time``: the time at which the
     end conditions are read (velocities integrated up to it; default ``numerics.t_end``).
     ``switch``: leave the branch at its first branch point (a simple one along the
-    critical mode, a round rod's symmetric pair along one mode of the pair). ``step``: the largest step as a fraction of the start tangent's arclength over
-    the range. ``should_stop``: asked before every step; a true answer (a reason) ends the
-    branch there, its ``stopped`` attribute "stopped: <reason>". ``checkpoint``: called
+    critical mode, a round rod's symmetric pair along one mode of the pair). ``step``:
+    the largest step as a fraction of the start tangent's arclength over the range.
+    ``should_stop``: asked before every step; a true answer (a reason) ends the branch
+    there, its ``stopped`` attribute "stopped: <reason>". ``checkpoint``: called
     with a :class:`solver.checkpoint.BranchCheckpoint` after every point (and at a stop);
     ``resume``: such a checkpoint of the same case and options, continued to the branch an
     uninterrupted call returns (its dataset's ``resumed_at_point`` attribute says after
