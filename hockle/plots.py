@@ -262,7 +262,8 @@ def contact_sites(
     Two grid points touch when their surface gap is at most :data:`TOUCH_GAP` times their
     mean diameter, plus half a segment (the closest points of two strands lie between grid
     points); pairs closer along the rod than the case's contact ``exclusion`` (default
-    twice the largest diameter, as the solver uses) are neighbours, not contacts. On the
+    twice the largest diameter, as the solver uses), or than that reach (a grid coarser
+    than the exclusion), are neighbours, not contacts. On the
     seed's rod this marks about as many points as the solver counts contact pairs
     (``contact_count``). Returns ``[]`` when the file gives no diameter.
     """
@@ -275,6 +276,9 @@ def contact_sites(
     exclusion = float(exclusion) if exclusion is not None else 2.0 * d_max
     half_segment = 0.5 * float(np.max(np.diff(s)))
     reach = (1.0 + TOUCH_GAP) * d_max + half_segment
+    # two points closer along the rod than the reach are within it on any shape (a chord
+    # is no longer than its arc): on a grid coarser than the exclusion, neighbours
+    exclusion = max(exclusion, reach)
     pairs = cKDTree(r).query_pairs(reach, output_type="ndarray")
     if pairs.size == 0:
         return np.zeros(0, dtype=int)

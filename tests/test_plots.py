@@ -9,6 +9,7 @@ import pytest
 
 from hockle.plots import (
     MAX_EVENTS,
+    TOUCH_GAP,
     contact_sites,
     event_times,
     plot_snapshots,
@@ -149,6 +150,25 @@ def test_contact_sites_of_a_hairpin():
     assert contact_sites(dataset(case=case), r, S, d).size == 0
     # no diameter in the file: nothing is marked
     assert contact_sites(ds, r, S, None).size == 0
+
+
+def test_contact_sites_on_a_grid_coarser_than_the_exclusion():
+    """Segments longer than the default exclusion (2 diameters) but within the touching
+    reach ((1 + TOUCH_GAP) d + half a segment) of each other: neighbours are still not
+    contacts (a straight rod of 23 segments of 2.2 diameters marks nothing; every node was
+    marked before), and a hairpin on that grid still touches on both strands."""
+    s = np.linspace(0.0, 1.0, 24)                       # h = 0.0435 m, d 0.018-0.02 m
+    ds = dataset()
+    d = rod_diameter(ds, s)
+    assert 2.0 * d.max() < s[1] < (1.0 + TOUCH_GAP) * d.min() + 0.5 * s[1]
+    straight = np.column_stack([np.zeros(s.size), np.zeros(s.size), s])
+    assert contact_sites(ds, straight, s, d).size == 0
+    half = s.size // 2
+    r = straight.copy()
+    r[half:, 2] = s[half - 1] - (s[half:] - s[half - 1])
+    r[half:, 0] = 0.019
+    sites = contact_sites(ds, r, s, d)
+    assert np.any(sites < half - 2) and np.any(sites > half + 2)
 
 
 def test_snapshot_figure_at_the_events(tmp_path):

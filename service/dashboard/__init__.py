@@ -18,6 +18,8 @@ and owner-filtered like every ``/v1`` route, left out of the OpenAPI document):
   ``If-None-Match`` (the jobs page polls it every few seconds);
 * ``GET /v1/ui/jobs/{id}/events``: the run's events (:func:`solver.results.run_events`)
   with their times and Tw, Wr, Lk there;
+* ``GET /v1/ui/jobs/{id}/seabed``: the sea floor under the rod, sampled on a grid for the
+  3-D view (``null`` when the case has none);
 * ``POST /v1/ui/validate``: the case validated as ``POST /v1/jobs`` validates it (the same
   422 problem), nothing recorded or queued;
 * ``GET /v1/ui/sweeps/{id}/map``: each member's parameter values, state and event times, the
@@ -28,6 +30,7 @@ and owner-filtered like every ``/v1`` route, left out of the OpenAPI document):
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import threading
 from collections import OrderedDict
@@ -218,6 +221,69 @@ def ui_job_events(job_id: str, svc: Annotated[Services, Depends(services)],
         raise ProblemError(404, "result-not-ready", "Result not ready",
                            f"job {job.id} is {job.state} and has no result file")
     return JSONResponse({"job_id": job.id, **result_events(job.result_path)})
+
+
+#: the bottom is sampled on this many points a side for the 3-D view (at most)
+SEABED_GRID_MAX = 65
+#: at most this many output times are read to find the rod's x-y extent
+SEABED_EXTENT_TIMES = 200
+
+
+def result_seabed(path: str, n: int = 25) -> dict[str, Any] | None:
+    """The sea floor of the result file at ``path`` for the 3-D view, or None when its case
+    has no seabed: ``{"kind": "elevation" | "bathymetry", "x": (n,), "y": (n,), "z": (n, n)}``
+    (m, global; ``z[i][j]`` the bottom's elevation at ``x[i]``, ``y[j]``, from
+    :meth:`solver.case.Seabed.bottom`: the flat plane, or the bilinear bathymetry held
+    outside its grid) over the x-y box of the rod at every stored time (at most
+    :data:`SEABED_EXTENT_TIMES` of them, evenly spread), widened on each side by a tenth of
+    its larger side and at least 5 diameters. Raises ValueError when the result stores no
+    position."""
+    import numpy as np
+
+    from solver.case import Seabed
+
+    with open_result(path, cache=False) as ds:
+        case = json.loads(str(ds.attrs.get("case") or "{}"))
+        if not case.get("seabed"):
+            return None
+        seabed = Seabed.model_validate(case["seabed"])
+        if "position" not in ds or not ds.sizes.get("time", 0):
+            raise ValueError("the result stores no position (output.fields), so the rod's "
+                             "extent over the bottom is unknown")
+        stride = max(1, -(-ds.sizes["time"] // SEABED_EXTENT_TIMES))
+        pos = ds["position"].isel(time=slice(None, None, stride)).transpose(..., "xyz")
+        xy = np.asarray(pos.values, dtype=float).reshape(-1, 3)[:, :2]
+    xy = xy[np.isfinite(xy).all(axis=1)]
+    lo, hi = xy.min(axis=0), xy.max(axis=0)
+    d = case["rod"]["diameter"]
+    dmax = float(np.max(d["value"])) if isinstance(d, dict) else float(d)
+    pad = max(0.1 * float(np.max(hi - lo)), 5.0 * dmax)
+    x = np.linspace(lo[0] - pad, hi[0] + pad, n)
+    y = np.linspace(lo[1] - pad, hi[1] + pad, n)
+    z = seabed.bottom(*np.meshgrid(x, y, indexing="ij"))
+    return {"kind": "elevation" if seabed.bathymetry is None else "bathymetry",
+            "x": x.tolist(), "y": y.tolist(), "z": np.asarray(z, dtype=float).tolist()}
+
+
+@router.get(f"{UI_API_PREFIX}/jobs/{{job_id}}/seabed")
+def ui_job_seabed(job_id: str, svc: Annotated[Services, Depends(services)],
+                  owner: Annotated[str | None, Depends(caller)],
+                  n: Annotated[int, Query(ge=2, le=SEABED_GRID_MAX)] = 25) -> JSONResponse:
+    """The sea floor under the job's rod for the 3-D view (:func:`result_seabed`, an ``n`` x
+    ``n`` grid): ``{"job_id", "seabed": {...}}``, ``"seabed": null`` when the case has none.
+    404 ``result-not-ready`` before there is a result; 422 naming ``query.n`` outside 2..65;
+    422 ``not-drawable`` for a result without positions."""
+    from ..routers.jobs import get_job_or_404
+
+    job = get_job_or_404(svc, job_id, owner)
+    if not job.result_path or not os.path.exists(job.result_path):
+        raise ProblemError(404, "result-not-ready", "Result not ready",
+                           f"job {job.id} is {job.state} and has no result file")
+    try:
+        seabed = result_seabed(job.result_path, n)
+    except ValueError as exc:
+        raise ProblemError(422, "not-drawable", "Seabed not drawable", str(exc)) from None
+    return JSONResponse({"job_id": job.id, "seabed": seabed})
 
 
 #: at most this many frames in a ParaView download (every k-th output time, the last kept)

@@ -165,6 +165,59 @@ def test_events_and_sweep_map(client, settings):
     assert client.get("/v1/ui/sweeps/nope/map", headers=AUTH).status_code == 404
 
 
+def test_seabed_grid_for_the_3d_view(client, settings, tmp_path):
+    """GET /v1/ui/jobs/{id}/seabed: the bottom the 3-D view draws under the rod. A flat
+    bottom is its elevation everywhere; a bathymetry that is a plane (z = -0.5 + x + 2 y at
+    the corners of its 10-cm grid) is that plane at every point of the view's grid inside
+    the bathymetry's grid and, outside it, the plane at the nearest edge (held); the grid
+    covers the rod at every stored time with at least 5 diameters to spare; null without a
+    seabed; 404 before the result, 422 naming query.n outside 2..65, 401 without the key."""
+    import numpy as np
+    import xarray as xr
+
+    def plane(x, y):
+        return -0.5 + np.clip(x, -0.05, 0.05) + 2.0 * np.clip(y, -0.05, 0.05)
+
+    gx = gy = [-0.05, 0.05]
+    bathymetry = {"x": gx, "y": gy, "z": [[float(plane(a, b)) for b in gy] for a in gx]}
+    grids = {}
+    for kind, seabed in (("elevation", {"elevation": -0.25}),
+                         ("bathymetry", {"bathymetry": bathymetry}), ("none", None)):
+        case = tiny_case(f"seabed {kind}")
+        case["numerics"].update(n_segments=8, t_end=0.1)
+        if seabed is not None:
+            case["seabed"] = seabed
+        job = client.post("/v1/jobs", json={**case}, headers=AUTH).json()
+        if kind == "elevation":
+            assert client.get(f"/v1/ui/jobs/{job['id']}/seabed",
+                              headers=AUTH).status_code == 404
+        _run(settings, job["id"])
+        answer = client.get(f"/v1/ui/jobs/{job['id']}/seabed", params={"n": 9}, headers=AUTH)
+        assert answer.status_code == 200, answer.text
+        grids[kind] = answer.json()["seabed"]
+        if kind == "elevation":
+            result = client.get(f"/v1/jobs/{job['id']}/results", headers=AUTH)
+            (tmp_path / "r.nc").write_bytes(result.content)
+            with xr.open_dataset(tmp_path / "r.nc") as ds:
+                pos = ds["position"].values.reshape(-1, 3)
+            for name in ("n=1", "n=66"):
+                bad = client.get(f"/v1/ui/jobs/{job['id']}/seabed", params={"n": name[2:]},
+                                 headers=AUTH)
+                assert bad.status_code == 422 and bad.json()["errors"][0]["loc"] == "query.n"
+            assert client.get(f"/v1/ui/jobs/{job['id']}/seabed").status_code == 401
+    assert grids["none"] is None
+    flat = grids["elevation"]
+    x, y, z = (np.asarray(flat[k]) for k in ("x", "y", "z"))
+    assert flat["kind"] == "elevation" and x.shape == y.shape == (9,) and z.shape == (9, 9)
+    assert np.all(z == -0.25)
+    assert x[0] <= pos[:, 0].min() - 0.1 and x[-1] >= pos[:, 0].max() + 0.1
+    assert y[0] <= pos[:, 1].min() - 0.1 and y[-1] >= pos[:, 1].max() + 0.1
+    bed = grids["bathymetry"]
+    x, y, z = (np.asarray(bed[k]) for k in ("x", "y", "z"))
+    assert bed["kind"] == "bathymetry" and x[0] < -0.05 and x[-1] > 0.05 and y[0] < -0.05
+    np.testing.assert_allclose(z, plane(x[:, None], y[None, :]), atol=1e-12)
+
+
 def test_paraview_download_is_the_export_zipped(client, settings, tmp_path, monkeypatch):
     """The job page's ParaView download: a zip of the .pvd and its .vtu frames written by
     hockle.export, whose positions are the result's; at most PARAVIEW_MAX_FRAMES frames."""

@@ -257,6 +257,35 @@ def test_job_page_draws_plots_and_the_rod(browser, stack):
     _shot(browser, "job")
 
 
+def test_job_page_draws_the_seabed_under_the_rod(browser, stack):
+    """A case with a flat seabed: the 3-D view fetches the bottom (GET
+    /v1/ui/jobs/{id}/seabed) and paints it under the rod, sand-coloured, with the rod still
+    drawn over it; a case without a seabed draws none (the test above's rod)."""
+    from PIL import Image
+    from selenium.webdriver.common.by import By
+
+    case = tiny_case("rod on the seabed", n_segments=12, dt=0.01, t_end=0.2)
+    case["initial"] = {"tangent": [1.0, 0.0, 0.0], "normal": [0.0, 0.0, 1.0]}
+    case["gravity"] = [0.0, 0.0, -9.81]
+    case["seabed"] = {"elevation": -0.01}
+    job_id = _successful_job(stack, case)
+    _open(browser, stack, f"/job/{job_id}")
+    canvas = browser.find_element(By.ID, "rod3d")
+    _wait(browser, lambda d: int(canvas.get_attribute("data-seabed-quads") or 0) > 0, 60,
+          "the seabed drawn")
+    assert canvas.get_attribute("data-seabed") == "elevation"
+    assert int(canvas.get_attribute("data-seabed-quads")) == 24 * 24
+    assert "sea floor" in browser.find_element(By.ID, "view3d-info").text
+    pixels = np.asarray(Image.open(io.BytesIO(canvas.screenshot_as_png)).convert("RGB"),
+                        dtype=int).reshape(-1, 3)
+    r, g, b = pixels.T
+    sand = (r > g) & (g > b) & (r - b > 40)           # the bottom's colours
+    blue = (b > r + 40)                                # the rod's
+    assert sand.sum() > 0.02 * len(pixels), sand.sum()
+    assert blue.sum() > 0.002 * len(pixels), blue.sum()
+    _shot(browser, "job-seabed")
+
+
 def test_a_running_job_is_dismissed_from_the_list(browser, stack):
     from selenium.webdriver.common.by import By
 

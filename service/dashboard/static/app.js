@@ -511,6 +511,7 @@
             sites = window.HockleView3D.contactSites(pts, sNodes, radii, Math.max(3 * dmax, contact.exclusion || 0), 0.15);
           }
           view.setShape(pts, radii, sites, false);
+          canvas.dataset.seabedQuads = String(view.seabedQuads || 0);
           canvas.dataset.frame = String(index);
           performance.mark("hockle:view3d-drawn");
           canvas.dataset.points = String(pts.length);
@@ -518,9 +519,18 @@
           canvas.dataset.drawMs = view.lastDrawMs.toFixed(1);
           view3dInfo.textContent = pts.length + " of " + vars.s.shape[0] + " grid points shown (a decimated slice of position), " +
             (count === null ? "" : count + " contact pair(s) at this time" + (sites.length ? ", sites estimated from the points shown" : "") + "; ") +
-            "drag to turn, wheel to zoom.";
+            seabedNote + "drag to turn, wheel to zoom.";
         }).catch(function (err) { fill(view3dInfo, problemNode(err)); });
       }
+      var seabedNote = "";
+      apiResult("ui/jobs/" + enc + "/seabed").then(function (r) {
+        var grid = r.data.seabed;
+        canvas.dataset.seabed = grid ? grid.kind : "none";
+        if (!grid) return;
+        view.setSeabed(grid);
+        if (view.points) canvas.dataset.seabedQuads = String(view.seabedQuads || 0);
+        seabedNote = "the sea floor (" + (grid.kind === "bathymetry" ? "the bathymetry" : "the plane z = " + fmtNum(grid.z[0][0]) + " m") + ") drawn under the rod; ";
+      }).catch(function (err) { canvas.dataset.seabed = "error"; fill(view3dInfo, problemNode(err)); });
       apiResult("jobs/" + enc + "/results/variables/s").then(function (r) {
         var all = r.data.data, n = all.length, m = Math.min(n, MAX_3D_POINTS), idx = [];
         for (var i = 0; i < m; i++) idx.push(Math.round(i * (n - 1) / Math.max(1, m - 1)));

@@ -6,6 +6,11 @@
  * pitch), back faces culled, the rest painted far to near (painter's algorithm) with Lambert
  * shading. Contact sites are red discs sorted with the quads. No WebGL: it draws wherever a
  * canvas does (headless browsers included) and a 200-point tube is ~2,400 quads.
+ *
+ * The sea floor, when the case has one, is the grid of GET /v1/ui/jobs/{id}/seabed (its
+ * elevation z[i][j] at x[i], y[j]): sand-coloured Lambert-shaded quads, sorted among
+ * themselves and painted before the rod when the view looks down on the bottom (after it,
+ * translucent, when it looks up from below), so the rod lying on it stays in front.
  */
 (function () {
   "use strict";
@@ -70,7 +75,7 @@
   function RodView(canvas) {
     this.canvas = canvas;
     this.yaw = -0.6; this.pitch = 0.35; this.zoom = 1;
-    this.points = null; this.radii = null; this.sites = [];
+    this.points = null; this.radii = null; this.sites = []; this.seabed = null;
     this.center = [0, 0, 0]; this.extent = 1;
     this.lastDrawMs = 0;
     var self = this, drag = null;
@@ -98,6 +103,29 @@
     if (fit || !this.fitted) { this.fit(); }
     this.draw();
   };
+
+  /** Set the sea floor: {x: (nx), y: (ny), z: (nx x ny)} in m, or null for none. */
+  RodView.prototype.setSeabed = function (grid) {
+    this.seabed = grid && grid.x && grid.x.length > 1 && grid.y.length > 1 ? grid : null;
+    this.draw();
+  };
+
+  /** The sea floor's quads in view coordinates, far to near: [{quad, shade}]. */
+  function seabedQuads(grid, view, viewDir, light) {
+    var out = [], x = grid.x, y = grid.y, z = grid.z;
+    for (var i = 0; i + 1 < x.length; i++) {
+      for (var j = 0; j + 1 < y.length; j++) {
+        var c = [[x[i], y[j], z[i][j]], [x[i + 1], y[j], z[i + 1][j]],
+                 [x[i + 1], y[j + 1], z[i + 1][j + 1]], [x[i], y[j + 1], z[i][j + 1]]];
+        var nm = unit(cross(sub(c[2], c[0]), sub(c[3], c[1])));      // upward normal
+        var q = c.map(view), vn = viewDir(nm);
+        var shade = 0.35 + 0.65 * Math.abs(dot(vn, light));
+        out.push({ z: (q[0][2] + q[1][2] + q[2][2] + q[3][2]) / 4, quad: q, shade: shade });
+      }
+    }
+    out.sort(function (u, v) { return u.z - v.z; });
+    return out;
+  }
 
   RodView.prototype.fit = function () {
     var p = this.points; if (!p || !p.length) return;
@@ -174,6 +202,22 @@
     items.sort(function (u, v) { return u.z - v.z; });
     var ox = w / 2, oy = h / 2;
     ctx.lineJoin = "round";
+    var bottom = this.seabed ? seabedQuads(this.seabed, view, viewDir, light) : [];
+    var fromAbove = sp >= 0;                      // world up points towards the viewer
+    function paintBottom(alpha) {
+      for (var m = 0; m < bottom.length; m++) {
+        var bq = bottom[m].quad, sh = bottom[m].shade;
+        ctx.fillStyle = "rgba(" + Math.round(120 + 90 * sh) + "," + Math.round(100 + 75 * sh) + "," +
+          Math.round(60 + 50 * sh) + "," + alpha + ")";
+        ctx.strokeStyle = "rgba(120, 95, 60, " + (0.5 * alpha) + ")";
+        ctx.lineWidth = 0.5;
+        ctx.beginPath();
+        ctx.moveTo(ox + bq[0][0] * scale, oy - bq[0][1] * scale);
+        for (var e = 1; e < 4; e++) ctx.lineTo(ox + bq[e][0] * scale, oy - bq[e][1] * scale);
+        ctx.closePath(); ctx.fill(); ctx.stroke();
+      }
+    }
+    if (fromAbove) paintBottom(1);
     for (i = 0; i < items.length; i++) {
       var it = items[i];
       if (it.quad) {
@@ -192,6 +236,8 @@
         ctx.fill();
       }
     }
+    if (!fromAbove) paintBottom(0.45);
+    this.seabedQuads = bottom.length;
     // the s = 0 end, and an axis triad
     var s0 = view(p[0]);
     ctx.fillStyle = "#1d232b"; ctx.font = "12px sans-serif";
