@@ -90,10 +90,10 @@ OUT_DT, DELTA = 0.02, 1.0e-2
 REST_WINDOW, END_WINDOW = 2.0, 5.0     # s: readings averaged over the last of each phase
 T_MOVE, T_RAMP, T_END = 10.0, 5.0, 25.0
 
-# hockle's Δt ≤ 0.02 s: at 0.05 s the 40-segment run takes two orders of magnitude longer
-# (Newton's refusals and Δt cuts while the laid part settles) and its laid part's output
-# centreline tilts by 1.5 mm over 2.2 m (its space route leaves the time route the seabed
-# acts on)
+# hockle at Δt = 0.01-0.02 s (Δt = 0.05 s also completes: N = 40 to 25 s in 1.2 s, its
+# output centreline then up to 2.9 mm from the nodes' time route the seabed acts on,
+# 1.6 mm at 0.02 s); MoorDyn at Δt/Δs = 0.002 s/m, below its axial wave's Δs/c and its
+# bottom damper's 2m/(cBot·D)
 FULL = {"t_end": T_END, "hockle": [(40, 0.02), (80, 0.02), (80, 0.01), (160, 0.01)],
         "moordyn": [(40, 0.002), (80, 0.002), (160, 0.002)], "repeats": 3}
 QUICK = {"t_end": 12.0, "hockle": [(40, 0.02)], "moordyn": [(40, 0.002)], "repeats": 1}
