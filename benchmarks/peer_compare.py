@@ -658,7 +658,8 @@ def render(res: dict, fig_name: str | None) -> str:
              "(in probe runs N = 50, Δt = 0.025 s took 20.9 s to 20 s, N = 200, Δt = 0.00625 s "
              "17.6 s to 12 s, both at load 6-8), so the 100-s figure is a lower bound for it "
              "too. Probe runs to 20 s also found hockle N = 25, Δt = 0.05 s stopping with a "
-             "divergence at 17.7 s.")
+             "divergence at 17.7 s. The whole 100 s is compared untimed, on the writhe, "
+             "below (*The whole horizon*, `benchmarks/peer_long.py`).")
     L.append("")
     L.append(f"Gap between the references: e(PyElastica reference vs hockle reference) = "
              f"**{_pct(pr['err_vs_hockle'])} %**; buckling at {_f(hr['t_buckle'])} s "
@@ -736,6 +737,10 @@ def render(res: dict, fig_name: str | None) -> str:
     if fig_name:
         L.append(f"![Writhe histories](figures/benchmarks/{fig_name})")
         L.append("")
+    long_path = HERE / "results" / "peer_long.json"
+    if long_path.exists():                 # benchmarks/peer_long.py writes it; not re-run
+        import peer_long
+        L.append(peer_long.render(json.loads(long_path.read_text())))
     hc = res.get("harness_check")
     if hc:
         L.append(f"**The lean harness** (`--check-harness`, n = {hc['n']}, "
@@ -754,8 +759,9 @@ def render(res: dict, fig_name: str | None) -> str:
 
 def second_peer_text() -> str:
     """The second peer's part of the section: why DiSMech-Newton is not measured, and
-    MoorDyn's no-torsion cable comparison read back from its own results file
-    (``benchmarks/moordyn_compare.py`` writes it; not re-run here)."""
+    MoorDyn's no-torsion cable comparisons (in water; onto the seabed) read back from
+    their own results files (``benchmarks/moordyn_compare.py`` and
+    ``benchmarks/moordyn_seabed_compare.py`` write them; not re-run here)."""
     L = ["**Second peer.** *DiSMech-Newton* (`pip install dismech-newton`, 0.1.0.post4 "
          "with newton 1.6.1 and warp-lang 1.19.0; it has a plectoneme example with "
          "self-contact) installs but does not import on this Python 3.11.7: `python -c "
@@ -772,6 +778,10 @@ def second_peer_text() -> str:
         L.append(moordyn_compare.render(json.loads(path.read_text())))
     else:
         L.append("(not run yet)\n")
+    path = HERE / "results" / "moordyn_seabed_compare.json"
+    if path.exists():                      # benchmarks/moordyn_seabed_compare.py writes it
+        import moordyn_seabed_compare
+        L.append(moordyn_seabed_compare.render(json.loads(path.read_text())))
     return "\n".join(L)
 
 
