@@ -96,6 +96,11 @@ class WorkAccount:
     def step(self, run, prob, sol, old):
         raise NotImplementedError
 
+    def stored(self, carried) -> float:
+        """The energy (J) the force stores at a level, from what the level carries (0: a
+        force with no potential outside E); it joins E in the energy scale's floor."""
+        return 0.0
+
 
 def _rates(params):
     g, am, af = params.gamma, params.alpha_m, params.alpha_f
@@ -108,6 +113,10 @@ class EndWork(WorkAccount):
 
     name = "ends"
 
+    def __init__(self, moments_only: bool = False):
+        #: the end forces' work is measured on the shape (:class:`GlobalLoadWork`)
+        self.moments_only = bool(moments_only)
+
     def start(self, run):
         return (np.array(run.end_load, dtype=float), np.array(run.xdot_end, dtype=float))
 
@@ -115,8 +124,12 @@ class EndWork(WorkAccount):
         load_old, xdot_old = old
         loads, xdot = np.empty((2, 6)), np.empty((2, 6))
         g, am, af = _rates(prob.params)
-        work = end_work_into(sol.Y, run.Y, float(prob.h), g, am, af, xdot_old, load_old,
+        h = float(prob.h)
+        work = end_work_into(sol.Y, run.Y, h, g, am, af, xdot_old, load_old,
                              run.props.stiffness, xdot, loads)[0]
+        if self.moments_only:
+            dx = h * ((1.0 - g) * xdot_old[:, 0:3] + g * xdot[:, 0:3])
+            work -= 0.5 * float(np.sum((load_old[:, 0:3] + loads[:, 0:3]) * dx))
         return work, (loads, xdot)
 
 
@@ -151,15 +164,38 @@ class GlobalLoadWork(WorkAccount):
             np.add.at(out, pts.nodes, P / props.quad_weights[pts.nodes, None])
         return out
 
+    @staticmethod
+    def end_forces(Y, q):
+        """The end forces on the rod (2, 3) N in the global frame: −f at s = 0, +f at
+        s = L (:func:`solver.energies.end_loads`), f turned by the node frames of q."""
+        R = quat_to_matrix(q[[0, -1]])
+        f = np.array([-Y[0, 6:9], Y[-1, 6:9]])
+        return np.einsum("nij,nj->ni", R, f)
+
+    def __init__(self, time_route: bool = False):
+        #: measure on each node's time route (where the seabed acts on it) instead of
+        #: the shape integrated from κ
+        self.time_route = bool(time_route)
+
     def start(self, run):
         glob = run.loads.global_force(run.t) if run.loads.has_global else None
-        q, r = space_route(run.q_time[0], run.r_time[0], run.Y[:, 9:12], float(run.props.ds))
-        return (self.force(run, run.t, q, False, glob), r)
+        if self.time_route:
+            q, r = np.array(run.q_time), np.array(run.r_time)
+        else:
+            q, r = space_route(run.q_time[0], run.r_time[0], run.Y[:, 9:12],
+                               float(run.props.ds))
+        return (self.force(run, run.t, q, False, glob), r, self.end_forces(run.Y, q))
 
     def step(self, run, prob, sol, old):
-        G_old, r_old = old
+        G_old, r_old, F_old = old
         if run.contact is not None:
             q, r = sol.pose[0], sol.pose[2]     # the space route already
+        elif self.time_route:
+            q, _, _, r = run._time_step(prob.h, sol.Y, run.q_time, run.r_time,
+                                        run.v_global_time,
+                                        offsets=((run.bc_offset, run.bc.cols),
+                                                 (prob.offset, prob.bc.cols)))
+            normalize_quaternions(q)
         else:
             # node 0 one step along its time route, the shape integrated from there
             # (as the run's space route, RodRun.update_space_route)
@@ -174,7 +210,9 @@ class GlobalLoadWork(WorkAccount):
         G = self.force(run, prob.t_new, q, prob.left_limit, run.system.step.glob_force)
         work = 0.5 * float(np.dot(run.props.quad_weights,
                                   np.einsum("ni,ni->n", G_old + G, r - r_old)))
-        return work, (G, r)
+        F = self.end_forces(sol.Y, q)
+        work += 0.5 * float(np.sum((F_old + F) * (r[[0, -1]] - r_old[[0, -1]])))
+        return work, (G, r, F)
 
 
 class DragWork(WorkAccount):
@@ -224,13 +262,16 @@ class SeabedWork(WorkAccount):
     name = "seabed"
 
     @staticmethod
-    def stored(run, pen) -> float:
+    def spring_energy(run, pen) -> float:
         """The spring's stored energy U (J) at the penetrations pen (N+1,) m."""
         k = float(run.seabed.data[0][2])
         return float(run.props.quad_weights @ (0.5 * k * np.maximum(pen, 0.0) ** 2))
 
+    def stored(self, carried) -> float:
+        return float(carried)
+
     def start(self, run):
-        return self.stored(run, run.seabed_loads()[3])
+        return self.spring_energy(run, run.seabed_loads()[3])
 
     def step(self, run, prob, sol, old):
         if run.contact is not None:
@@ -246,7 +287,7 @@ class SeabedWork(WorkAccount):
                                                  (prob.offset, prob.bc.cols)))
             normalize_quaternions(q)
         pen = run.seabed.loads(r, v, quat_to_matrix(q), sol.Y[:, 3:6])[3]
-        energy = self.stored(run, pen)
+        energy = self.spring_energy(run, pen)
         return old - energy, energy
 
 
@@ -282,9 +323,12 @@ class EnergyBalance:
         tol = run.case.numerics.energy_tolerance
         if tol is None:
             return None
-        accounts = [EndWork()]
-        if run.loads.has_global or run.loads.points is not None:
-            accounts.append(GlobalLoadWork())
+        shape = run.loads.has_global or run.loads.points is not None
+        accounts = [EndWork(moments_only=shape)]
+        if shape:
+            # with a seabed (and no self-contact) on the pose the seabed acts on
+            accounts.append(GlobalLoadWork(time_route=run.seabed is not None
+                                           and run.contact is None))
         if run.loads.has_drag:
             accounts.append(DragWork())
         if run.seabed is not None:
@@ -322,8 +366,10 @@ class EnergyBalance:
         kinetic = e["energy_kinetic"] + e["energy_kinetic_fluid"]
         total = sum(work.values())
         error = energy - old["energy"] - total
-        scale = max(old["kinetic"], kinetic,
-                    self.ENERGY_SHARE * max(energy, old["energy"]), self.floor)
+        stored_old = old["energy"] + sum(a.stored(old[a.name]) for a in self.accounts)
+        stored = energy + sum(a.stored(carry[a.name]) for a in self.accounts)
+        scale = max(old["kinetic"], kinetic, self.ENERGY_SHARE * max(stored, stored_old),
+                    self.floor)
         carry["energy"] = energy
         carry["kinetic"] = kinetic
         return StepBalance(float(error), float(scale), float(energy), work, carry)
