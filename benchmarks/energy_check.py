@@ -1,0 +1,155 @@
+"""The energy check's evidence on the cases that argue for and against turning it on by
+default (docs/numerics.md § 8, ``numerics.energy_tolerance``), printed:
+
+* the soft hanging cable of benchmarks/loads_verification.py with the check at
+  ``energy_tolerance: 0.05`` and without, at several Δt: status, refusals, settled sag
+  against the catenary, the κ-integrated centreline's held end against its hold;
+* the cable resting on a flat bottom (tests/test_seabed.py's 2-cm cable, touching at the
+  start) at Δt = 1e-4 s over 0.05 s: refusals and the largest ε/scale;
+* the seabed cases cases/catenary-touchdown.yaml (to 20 s) and cases/seabed-hockle.yaml
+  (to 1 s) without and with the check, interleaved: refusals, when, and wall time;
+* ε summed over 4 steps, the check measuring only, on the cantilever and the cable;
+* Newton's history against the balance on the steel cantilever of
+  tests/test_energy_check.py (the check measuring only): whether the steps that inject
+  energy (ε > 0.05 T) show a Newton that contracts worse than the others.
+
+Run: ``PYTHONPATH=$PWD python benchmarks/energy_check.py [--only cable|rest|newton]``
+(about a minute after the kernels are compiled).
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import loads_verification as LV  # noqa: E402
+import test_energy_check as EC  # noqa: E402
+import test_seabed as SB  # noqa: E402
+from hockle.api import catenary_parameter  # noqa: E402
+from solver.case import Case  # noqa: E402
+from solver.simulation import RodRun, SolverDivergence, simulate  # noqa: E402
+
+TOLERANCE = 0.05
+
+
+def _refused(ds, reason="energy"):
+    items = dict(item.rsplit(" ", 1) for item in ds.attrs["hockle_refused_attempts"].split(", ")
+                 if item)
+    return int(items.get(reason, 0))
+
+
+def cable():
+    L, X = 1.0, 0.8
+    a = catenary_parameter(L, X)
+    sag = a * (math.cosh(X / (2 * a)) - 1)
+    for dt in (0.0125, 0.05, 0.1, 0.2):
+        for tol in (None, TOLERANCE):
+            spec = LV.catenary_spec(dt, tol)
+            spec["output"]["fields"] = ["position", "energies"]
+            try:
+                ds, status = simulate(Case.model_validate(spec)), "completed"
+            except SolverDivergence as exc:
+                ds, status = exc.partial, f"failed at t = {exc.partial.time.values[-1]:.4g} s"
+            z = ds.position.values[-1, :, 2]
+            end = ds.position.values[-1, -1]
+            print(f"hanging cable, Δt = {dt:6.4f} s, check {'off' if tol is None else tol}: "
+                  f"{status}, {_refused(ds)} energy refusals, sag {(-z.min() / sag - 1) * 100:+.2f} % "
+                  f"off the catenary, T at 16 s {float(ds.energy_kinetic.values[-1]):.1e} J, "
+                  f"κ-integrated end {np.linalg.norm(end - (X, 0.0, 0.0)) * 1e3:.2f} mm "
+                  f"from its hold")
+
+
+def rest():
+    spec = SB._spec({"elevation": -SB.D / 2}, dt=1e-4, t_end=0.05)
+    spec["numerics"]["energy_tolerance"] = TOLERANCE
+    ds = simulate(Case.model_validate(spec))
+    print(f"cable resting on the bottom, Δt = 1e-4 s, 0.05 s: {ds.attrs['hockle_status']}, "
+          f"{_refused(ds)} energy refusals, largest ε/scale "
+          f"{np.nanmax(ds.step_energy_error.values):.2e}")
+
+
+def cases():
+    root = Path(__file__).resolve().parents[1] / "cases"
+    for name, t_end in (("catenary-touchdown.yaml", 20.0), ("seabed-hockle.yaml", 1.0)):
+        for tol in (None, TOLERANCE):                     # interleaved, off then on
+            spec = Case.from_text((root / name).read_text(), fmt="yaml").model_dump(
+                mode="json", exclude_none=True)
+            spec["numerics"].update(t_end=t_end, energy_tolerance=tol)
+            run = RodRun(Case.model_validate(spec))
+            dt, k, t0 = spec["numerics"]["dt"], 0, time.perf_counter()
+            refused = []
+            while run.t < t_end - 1e-9:
+                k += 1
+                before = run.refusals.get("energy", 0)
+                t_from = run.t
+                run.advance(k * dt)
+                if run.refusals.get("energy", 0) > before:
+                    refused.append(t_from)
+            wall = time.perf_counter() - t0
+            print(f"{name} to {t_end} s, check {'off' if tol is None else tol}: "
+                  f"{len(refused) and run.refusals['energy']} energy refusals"
+                  f"{' (steps from t = ' + ', '.join(f'{t:.4g}' for t in refused) + ' s)' if refused else ''}, "
+                  f"{run.refusals.get('newton', 0)} Newton refusals, wall {wall:.1f} s")
+
+
+def windows(m=4):
+    """ε summed over m consecutive steps against tol × their largest scale, the check
+    measuring only: does a window separate the cantilever's injection from the cable?"""
+    def series(case, dt, t_end):
+        run = RodRun(case)
+        run.advance(dt)
+        out = []
+        while run.t < t_end - 1e-9:
+            run.advance(run.t + dt)
+            out.append((run.last_balance.error, run.last_balance.scale))
+        return np.array(out)
+    for name, case, dt, t_end in (
+            ("cantilever", EC.cantilever(0.1, n=50, energy_tolerance=1e9), 0.1, 8.0),
+            ("hanging cable", Case.model_validate(LV.catenary_spec(0.2, 1e9)), 0.2, 16.0)):
+        e = series(case, dt, t_end)
+        win = np.array([e[i:i + m, 0].sum() / (TOLERANCE * e[i:i + m, 1].max())
+                        for i in range(len(e) - m + 1)])
+        print(f"{name}, Δt = {dt} s: {np.sum(e[:, 0] > TOLERANCE * e[:, 1])} of {len(e)} "
+              f"steps over the tolerance, {np.sum(win > 1)} of {len(win)} {m}-step windows")
+
+
+def newton():
+    for dt in (0.1, 0.04):
+        run = RodRun(EC.cantilever(dt, n=50, energy_tolerance=1e9))   # measures only
+        run.advance(dt)
+        rows = []
+        while run.t < 8.0 - 1e-9:
+            run.advance(run.t + dt)
+            res = run.newton.last_trace[:, 0]
+            last = res[-1] / res[-2] if res.size > 1 else 0.0
+            prev = res[-2] / res[-3] if res.size > 2 else 0.0
+            rows.append((run.last_balance.relative, res.size - 1, last, prev))
+        r = np.array(rows)
+        bad = r[:, 0] > TOLERANCE
+        print(f"cantilever, Δt = {dt} s, 50 segments, no check: {len(r)} steps, "
+              f"{bad.sum()} inject ε > {TOLERANCE} T")
+        for name, col in (("Newton iterations", 1), ("last contraction", 2),
+                          ("contraction before it", 3)):
+            print(f"  {name}: injecting steps median {np.median(r[bad, col]):.3g}, "
+                  f"max {r[bad, col].max():.3g}; the others median "
+                  f"{np.median(r[~bad, col]):.3g}, max {r[~bad, col].max():.3g}")
+        slow = r[:, 3] > 0.1
+        print(f"  steps whose contraction before the last was > 0.1: {slow.sum()}, "
+              f"of them injecting {np.sum(slow & bad)}")
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--only", choices=("cable", "rest", "cases", "windows", "newton"))
+    only = parser.parse_args().only
+    for name, fn in (("cable", cable), ("rest", rest), ("cases", cases),
+                     ("windows", windows), ("newton", newton)):
+        if only in (None, name):
+            fn()
