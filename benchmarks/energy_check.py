@@ -11,9 +11,15 @@ default (docs/numerics.md § 8, ``numerics.energy_tolerance``), printed:
 * ε summed over 4 steps, the check measuring only, on the cantilever and the cable;
 * Newton's history against the balance on the steel cantilever of
   tests/test_energy_check.py (the check measuring only): whether the steps that inject
-  energy (ε > 0.05 T) show a Newton that contracts worse than the others.
+  energy (ε > 0.05 T) show a Newton that contracts worse than the others;
+* self-contact (``contact``): the contact account's −ΔU_c against the contact forces'
+  work (trapezoid on the two levels, and along each step's chord) in the crossing loop
+  of tests/test_energy_check.py by Δt, both laws; the seed example
+  cases/goyal-writhing.yaml to 30 s without and with the check (contact steps measured),
+  interleaved: refusals (with and without candidates), the largest ε/scale, events
+  (first contact, |Wr| through 1 and 1.5), Wr at 20, 25, 30 s, wall time.
 
-Run: ``PYTHONPATH=$PWD python benchmarks/energy_check.py [--only cable|rest|newton]``
+Run: ``PYTHONPATH=$PWD python benchmarks/energy_check.py [--only cable|rest|newton|contact]``
 (about a minute after the kernels are compiled).
 """
 from __future__ import annotations
@@ -145,11 +151,63 @@ def newton():
               f"of them injecting {np.sum(slow & bad)}")
 
 
+def contact(t_end=30.0):
+    print("crossing loop (undamped push-off, to 10 ms): the account's -dU_c against the "
+          "contact forces' work")
+    for law in ("seed", "barrier"):
+        for dt in (2e-4, 1e-4, 5e-5, 2.5e-5):
+            booked, trap, chord, n = EC.contact_work_in_run(dt, law, 0.01)
+            print(f"  {law:8s} dt {dt:7.1e} s: -dU_c {booked:.5e} J, trapezoid off "
+                  f"{(trap - booked) / booked:+.2e}, chord (8-point GL) off "
+                  f"{(chord - booked) / booked:+.1e}, {n} steps")
+    print(f"seed example to {t_end:g} s (cases/goyal-writhing.yaml), without and with "
+          f"energy_tolerance {TOLERANCE} (contact steps measured)")
+    from solver import run as runmod
+    spec = Case.from_file(Path(__file__).resolve().parents[1] / "cases"
+                          / "goyal-writhing.yaml").model_dump(mode="json")
+    spec["numerics"]["t_end"] = t_end
+    original = runmod.RodRun._refusal
+    for rep in range(2):
+        for tol in (None, TOLERANCE):
+            spec["numerics"]["energy_tolerance"] = tol
+            counts = {"free": 0, "contact": 0}
+            worst = {"free": 0.0, "contact": 0.0}
+
+            def refusal(self, prob, sol, estimate):
+                reason, summary = original(self, prob, sol, estimate)
+                key = "free" if sol.candidates is None else "contact"
+                bal = self.last_balance
+                if bal is not None:
+                    worst[key] = max(worst[key], bal.relative)
+                    counts[key] += reason == "energy"
+                return reason, summary
+
+            runmod.RodRun._refusal = refusal
+            try:
+                start = time.perf_counter()
+                ds = simulate(Case.model_validate(spec))
+                wall = time.perf_counter() - start
+            finally:
+                runmod.RodRun._refusal = original
+            t, wr, cc = ds.time.values, np.abs(ds.writhe.values), ds.contact_count.values
+            first = t[np.argmax(cc > 0)] if (cc > 0).any() else math.nan
+            through = [t[np.argmax(wr >= v)] if (wr >= v).any() else math.nan
+                       for v in (1.0, 1.5)]
+            at = [wr[np.argmin(np.abs(t - v))] for v in (20.0, 25.0, t_end)]
+            print(f"  tolerance {tol}: {ds.attrs['hockle_status']}, energy refusals "
+                  f"{counts['free']} without candidates, {counts['contact']} with; largest "
+                  f"eps/T {worst['free']:.3g} / {worst['contact']:.3g}; first contact "
+                  f"{first:.2f} s, |Wr| through 1 at {through[0]:.2f} s, 1.5 at "
+                  f"{through[1]:.2f} s; |Wr| at 20/25/{t_end:g} s "
+                  + "/".join(f"{v:.4f}" for v in at) + f"; wall {wall:.1f} s")
+
+
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--only", choices=("cable", "rest", "cases", "windows", "newton"))
+    parser.add_argument("--only", choices=("cable", "rest", "cases", "windows", "newton",
+                                           "contact"))
     only = parser.parse_args().only
     for name, fn in (("cable", cable), ("rest", rest), ("cases", cases),
-                     ("windows", windows), ("newton", newton)):
+                     ("windows", windows), ("newton", newton), ("contact", contact)):
         if only in (None, name):
             fn()

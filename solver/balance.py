@@ -44,11 +44,14 @@ The accounts (each one more term; a new force joins the balance by one more
 * :class:`SeabedWork`: the sea floor's normal spring, minus the change of its stored
   energy ½kp² on the pose the seabed acts on (each node's time route; the space route
   with self-contact). The damper and the friction only dissipate and are left out, as
-  the scheme's own dissipation is.
+  the scheme's own dissipation is;
+* :class:`ContactWork`: the self-contact law's repulsion, minus the change of its
+  stored energy U_c (:meth:`solver.contact.model.SelfContact.potential`) with the
+  step's candidates on the space route; the law's damping only dissipates and is left
+  out.
 
-Steps with contact candidates are not checked (no account of the contact law's work
-and stored energy yet; there the route rule decides the step, docs/contact.md), nor the
-consistent restart's backward-Euler steps (their dissipation is first order).
+The consistent restart's backward-Euler steps are not checked (their dissipation is
+first order).
 
 The check is off by default: measured against the kinetic energy it still refuses steps
 of slow, settling motions whose ε is a few 1e-5 to 1e-3 of the stored energy
@@ -57,9 +60,8 @@ of slow, settling motions whose ε is a few 1e-5 to 1e-3 of the stored energy
 Everything a step carries to the next (the energy of the level, each account's old
 forces and displacement rates) is kept in the run's state
 (:attr:`solver.state.RunState.balance`, a dict rebound at every accepted step), so a
-refused or rolled-back step leaves it as it was. Restarts and contact steps are not
-measured (none of the measuring's 0.4 ms per step at N = 1000 is spent there); the step
-after them starts the accounts afresh from its old level (:meth:`EnergyBalance.start`;
+refused or rolled-back step leaves it as it was. Restarts are not measured; the step
+after one starts the accounts afresh from its old level (:meth:`EnergyBalance.start`;
 the displacement rates of the drag's account then start at the velocities).
 """
 from __future__ import annotations
@@ -74,7 +76,7 @@ from .scheme import pose_into
 from .loads import _drag_kernel
 
 __all__ = ["EnergyBalance", "WorkAccount", "EndWork", "GlobalLoadWork", "DragWork",
-           "SeabedWork", "StepBalance"]
+           "SeabedWork", "ContactWork", "StepBalance"]
 
 
 class StepBalance(NamedTuple):
@@ -307,6 +309,38 @@ class SeabedWork(WorkAccount):
         return old - energy, energy
 
 
+class ContactWork(WorkAccount):
+    """Work of the self-contact law's repulsion: minus the change of its stored energy
+    U_c = Σ_i ½ Δs_i ρĀ Ψ(d_i) (J; :meth:`solver.contact.model.SelfContact.potential`,
+    Ψ the law's potential :func:`solver.contact.laws.law_potential`, d_i node i's
+    distance to its closest point on the partner curve, Δs_i its quadrature weight).
+    Node i's force ½ f n Δs_i with its reaction spread over the partner curve's nodes is
+    −∇U_c (the closest point is stationary along the curve), so −ΔU_c is the repulsion's
+    exact work, as ½kp² is the seabed spring's. Both levels are evaluated with the
+    step's candidates (``sol.candidates``) on the pose the contact acts on (the space
+    route: the old level's ``run.r``, the solution's ``sol.pose``); a step without
+    candidates has U_c = 0 at both (no pair within the search distance, beyond every
+    law's cut-off). The law's damper only takes energy out and is left out, as the
+    scheme's own dissipation is. Carries U_c of the new level (J; None at the start,
+    where no step has made candidates yet)."""
+
+    name = "contact"
+
+    def stored(self, carried) -> float:
+        return 0.0 if carried is None else float(carried)
+
+    def start(self, run):
+        return None
+
+    def step(self, run, prob, sol, old):
+        cand = sol.candidates
+        if cand is None or not cand.runs:
+            return 0.0, 0.0
+        u_old = run.contact.potential(cand, run.r)
+        u_new = run.contact.potential(cand, sol.pose[2])
+        return u_old - u_new, u_new
+
+
 class EnergyBalance:
     """The per-step energy check of a run (module docstring).
 
@@ -330,13 +364,16 @@ class EnergyBalance:
         self.tolerance = float(tolerance)
         self.accounts = list(accounts)
         self.floor = float(floor)
+        #: steps with contact candidates are measured (the accounts hold the contact
+        #: law's, :class:`ContactWork`; a balance without it leaves them unmeasured)
+        self.contact_steps = any(isinstance(a, ContactWork) for a in self.accounts)
 
     @classmethod
     def for_run(cls, run) -> Optional["EnergyBalance"]:
         """The balance of ``run``'s case, or None without ``numerics.energy_tolerance``.
         Accounts: the end loads always, the global-frame loads where the case has
         distributed global forces or point loads, the drag with a fluid's drag, the sea
-        floor's work with a ``seabed``. The
+        floor's work with a ``seabed``, the contact law's with ``contact``. The
         floor of the energy scale: 1e-9 EJ/L (J; EJ the largest bending stiffness)."""
         tol = run.case.numerics.energy_tolerance
         if tol is None:
@@ -351,6 +388,8 @@ class EnergyBalance:
             accounts.append(DragWork())
         if run.seabed is not None:
             accounts.append(SeabedWork())
+        if run.contact is not None:
+            accounts.append(ContactWork())
         props = run.props
         length = float(props.s[-1] - props.s[0])
         floor = 1e-9 * float(np.max(props.stiffness[:, :2])) / length

@@ -206,7 +206,8 @@ class RodRun(ProblemAssembly):
         5e-4 s steps, 20x the route rule's, which keeps its events within 0.001 s of a
         6.25-ms reference; docs/numerics.md § 7); a strand through another within the
         step; the energy balance (:mod:`solver.balance`, ``numerics.energy_tolerance``;
-        not in restarts nor in steps with contact candidates); the growth guard."""
+        not in restarts; in steps with contact candidates with the contact law's account);
+        the growth guard."""
         Y, pose, cand, h = sol.Y, sol.pose, sol.candidates, prob.h
         summary = None
         if self.contact is not None:
@@ -237,8 +238,9 @@ class RodRun(ProblemAssembly):
         if self.contact is not None and self.contact.passes_through(self.r, pose[2]):
             return "contact", summary        # a strand passed through another
         self.last_balance = None
-        if self.energy_check is not None and not prob.restart and cand is None:
-            if self.balance is None:         # after a restart or a contact step
+        if (self.energy_check is not None and not prob.restart
+                and (cand is None or self.energy_check.contact_steps)):
+            if self.balance is None:         # after a restart
                 self.balance = self.energy_check.start(self)
             self.last_balance = self.energy_check.measure(self, prob, sol)
             if self.energy_check.refuses(self.last_balance):
@@ -271,7 +273,7 @@ class RodRun(ProblemAssembly):
         self.r_time, self.q_time, self.v_global_time = r_t, q_t, vg_t
         self._advance_accounts(prob, Y, pose)
         if self.energy_check is not None:
-            # restarts and contact steps are not measured: the next step starts afresh
+            # restarts are not measured: the next step starts afresh
             bal = self.last_balance
             self.balance = None if bal is None else bal.carry
             if bal is not None and (math.isnan(self.energy_error)

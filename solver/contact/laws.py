@@ -23,6 +23,18 @@ active set inside a Newton iteration without a jump in the residual or its slope
   as g → 0. Only the damping term is cut off, with d_on = D̄ + ½ĝ, d_off = D̄ + ĝ.
 
 A law returns, per pair, f (N/m), ∂f/∂d (N/m²) and ∂f/∂ḋ (N·s/m²).
+
+**Stored potential.** The conservative part ρĀ φ(d) P(g) of both laws is −ρĀ dΨ/dd with
+
+    Ψ(d) = ∫_d^{d_off} φ(x) P(x − D̄) dx      (m²/s²; the barrier's P without φ)
+
+(:func:`law_potential`), the energy per unit length per unit ρĀ the pair stores; the
+damping only dissipates and has none. The seed's Ψ is the power law's primitive
+k1 g^{1−k2}/(1−k2) (k1 ln g for k2 = 1) from g up to d_on − D̄, the linear continuation's
+exact integral below the floor, and the cut-off band [d_on, d_off] by 24-point
+Gauss-Legendre in ln g (a quintic times a power of g: exact to round-off at the seed
+example's parameters); the barrier's is κ b(g) (P = −κ b'), continued by the linear part's
+integral below the floor. :class:`solver.balance.ContactWork` books it.
 """
 from __future__ import annotations
 
@@ -33,7 +45,8 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["SeedLaw", "BarrierLaw", "smoothstep_off", "law_force", "SEED", "BARRIER"]
+__all__ = ["SeedLaw", "BarrierLaw", "smoothstep_off", "law_force", "law_potential", "SEED",
+           "BARRIER"]
 
 #: the law kinds of a parameter vector (:attr:`_Law.params`)
 SEED, BARRIER = 0, 1
@@ -118,6 +131,80 @@ def law_force(law, d, ddot, mean_diameter, rho):
     return f, f_d, f_dd, gap
 
 
+#: Gauss-Legendre nodes and weights on [−1, 1] for the seed law's cut-off band
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(24)
+
+
+@numba.njit(cache=True, inline="always")
+def _repulsion_integral(law, g1, g2):
+    """∫_{g1}^{g2} P(g) dg (m²/s²) of the law's repulsion without the cut-off, g1 ≤ g2
+    (m): the power law's (seed) or barrier's primitive above the gap floor, the linear
+    continuation's exact integral below it."""
+    gf = law[_FLOOR]
+    out = 0.0
+    if g1 < gf:
+        hi = min(g2, gf)
+        p0, slope = _repulsion(law, gf)
+        # ∫ p0 + slope (g − gf) dg over [g1, hi]
+        out += p0 * (hi - g1) + 0.5 * slope * ((hi - gf) ** 2 - (g1 - gf) ** 2)
+        g1 = hi
+    if g2 > g1:
+        if law[_KIND] == SEED:
+            k1, k2 = law[_K1], law[_K2]
+            if k2 == 1.0:
+                out += k1 * math.log(g2 / g1)
+            else:
+                out += k1 * (g2 ** (1.0 - k2) - g1 ** (1.0 - k2)) / (1.0 - k2)
+        else:
+            h = law[_DHAT]
+            a, b = min(g1, h), min(g2, h)
+            # P = −κ b'(g), b(g) = −(g − ĝ)² ln(g/ĝ): κ (b(a) − b(b))
+            out += law[_KAPPA] * ((b - h) ** 2 * math.log(b / h)
+                                  - (a - h) ** 2 * math.log(a / h))
+    return out
+
+
+@numba.njit(cache=True, inline="always")
+def law_potential(law, d, mean_diameter):
+    """Ψ(d) = ∫_d^{d_off} φ(x) P(x − D̄) dx (m²/s²; the barrier's P not cut off), the
+    stored potential per unit length per unit ρĀ of one pair at centreline distance d
+    (m), mean diameter D̄ (m) (module doc): −ρĀ dΨ/dd is :func:`law_force`'s f at ḋ = 0.
+    ``law``: the parameter vector (:attr:`_Law.params`)."""
+    d_on, d_off = law_cutoff(law, mean_diameter)
+    if d >= d_off:
+        return 0.0
+    gap = d - mean_diameter
+    if law[_KIND] != SEED:
+        return _repulsion_integral(law, gap, law[_DHAT])
+    g_on = d_on - mean_diameter
+    out = 0.0
+    if gap < g_on:
+        out += _repulsion_integral(law, gap, g_on)
+    # the cut-off band [max(d, d_on), d_off] in u = ln g
+    a = max(d, d_on) - mean_diameter
+    b = d_off - mean_diameter
+    if a > 0.0:
+        ua, ub = math.log(a), math.log(b)
+        half, mid = 0.5 * (ub - ua), 0.5 * (ub + ua)
+        for k in range(_GL_X.shape[0]):
+            g = math.exp(mid + half * _GL_X[k])
+            phi = _smoothstep(g + mean_diameter, d_on, d_off)[0]
+            out += half * _GL_W[k] * phi * _repulsion(law, g)[0] * g
+    else:
+        half, mid = 0.5 * (b - a), 0.5 * (b + a)
+        for k in range(_GL_X.shape[0]):
+            g = mid + half * _GL_X[k]
+            phi = _smoothstep(g + mean_diameter, d_on, d_off)[0]
+            out += half * _GL_W[k] * phi * _repulsion(law, g)[0]
+    return out
+
+
+@numba.njit(cache=True)
+def _potential_kernel(law, d, mean_diameter, out):
+    for m in range(d.shape[0]):
+        out[m] = law_potential(law, d[m], mean_diameter[m])
+
+
 @numba.njit(cache=True)
 def _law_kernel(law, d, ddot, mean_diameter, rho, out):
     for m in range(d.shape[0]):
@@ -187,6 +274,14 @@ class _Law(ABC):
         out = np.empty((2, g.size))
         _repulsion_kernel(self.params, g, out)
         return out[0].reshape(shape), out[1].reshape(shape)
+
+    def potential(self, d, mean_diameter):
+        """Ψ(d) (m²/s²) per pair (:func:`law_potential`); d, mean_diameter (m) of one
+        shape: the stored energy per unit length of a pair is ρĀ Ψ."""
+        shape, (d, dbar) = _flat(d, mean_diameter)
+        out = np.empty(d.size)
+        _potential_kernel(self.params, d, dbar, out)
+        return out.reshape(shape)
 
     def __call__(self, d, ddot, mean_diameter, rho):
         """f, ∂f/∂d, ∂f/∂ḋ, gap per pair; d, ddot, mean_diameter (m), rho (kg/m): (P,)."""

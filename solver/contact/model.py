@@ -34,7 +34,7 @@ import numpy as np
 from .geometry import (_candidate_pairs_kernel, _run_point, _segment_matrices,
                        _segment_nodes, _swept_kernel, candidate_pairs, close_node_pairs,
                        max_distance, run_closest)
-from .laws import BarrierLaw, SeedLaw, law_cutoff, law_force
+from .laws import BarrierLaw, SeedLaw, law_cutoff, law_force, law_potential
 
 __all__ = ["SelfContact", "ContactCandidates", "ContactEvaluation", "assemble_nodal",
            "nodal_weights", "GAP_FLOOR_FRACTION", "EXCLUSION_DIAMETERS"]
@@ -415,6 +415,17 @@ class SelfContact:
                             self.kernel_data, out)
         return out
 
+    def potential(self, cand: ContactCandidates, positions) -> float:
+        """The energy U (J) the contact law stores at positions (N, 3) m over the
+        candidates' runs (:func:`candidate_potential`): Σ over the runs' active closest
+        points of ½ Δs_i ρĀ Ψ(d_i), Ψ the law's potential (:func:`~.laws.law_potential`).
+        Node i's force ½ f n Δs_i and its reaction at the closest point are −∇U (the
+        closest point is stationary in t), the damping left out. 0 without candidates."""
+        if cand is None or not cand.runs:
+            return 0.0
+        return float(candidate_potential(np.ascontiguousarray(positions, dtype=float),
+                                         cand.arrays, self.kernel_data))
+
     def evaluate(self, cand: ContactCandidates, positions, velocities,
                  frozen=None) -> ContactEvaluation:
         """Active contacts of the candidates at a state (module doc), with derivatives.
@@ -673,6 +684,34 @@ def candidate_gaps_into(r, cand, data, out):
             out[q] = np.inf
         else:
             out[q] = d - _at_contact(diameter, own[k], seg[k], t)
+
+
+@numba.njit(cache=True)
+def candidate_potential(r, cand, data):
+    """The contact law's stored energy (J) at positions r (N, 3) over the candidates
+    (:meth:`SelfContact.potential`): per run, the closest point made afresh (as
+    :func:`candidate_gaps_into`), kept as :func:`evaluate_into` keeps it (not an interior
+    run edge, closer than the law's cut-off), ½ Δs_i ρĀ Ψ(d; D̄) with ρĀ and D̄ at the
+    contact as the force takes them."""
+    own, seg = cand[0], cand[1]
+    seg_nodes, seg_mats, diameter, rho_a, w, law = data
+    tb0 = np.empty((3, 4))
+    tb1 = np.empty((3, 4))
+    out = 0.0
+    for q in range(cand[2].shape[0]):
+        lo, hi, first_end, last_end = _run_bounds(cand, q)
+        k, t, x0, x1, x2, d, c0, c1, c2, g, row = _run_point(
+            r, own, seg, lo, hi, -1, 3, seg_nodes, seg_mats, tb0, tb1)
+        if (k == lo and t == 0.0 and not first_end) or (k == hi and t == 1.0
+                                                        and not last_end):
+            continue
+        i = own[k]
+        j = seg[k]
+        dbar = _at_contact(diameter, i, j, t)
+        if not d < law_cutoff(law, dbar)[1]:
+            continue
+        out += 0.5 * w[i] * _at_contact(rho_a, i, j, t) * law_potential(law, d, dbar)
+    return out
 
 
 @numba.njit(cache=True)
