@@ -170,8 +170,9 @@ def contact(t_end=30.0):
     for rep in range(2):
         for tol in (None, TOLERANCE):
             spec["numerics"]["energy_tolerance"] = tol
-            counts = {"free": 0, "contact": 0}
+            counts = {"free": 0, "contact": 0, "measured": 0}
             worst = {"free": 0.0, "contact": 0.0}
+            refused = []
 
             def refusal(self, prob, sol, estimate):
                 reason, summary = original(self, prob, sol, estimate)
@@ -180,6 +181,11 @@ def contact(t_end=30.0):
                 if bal is not None:
                     worst[key] = max(worst[key], bal.relative)
                     counts[key] += reason == "energy"
+                    counts["measured"] += key == "contact" and reason is None
+                    if reason == "energy" and key == "contact":
+                        refused.append((prob.t_new, bal.error, bal.scale,
+                                        abs(sum(bal.work.values())),
+                                        abs(bal.work["contact"])))
                 return reason, summary
 
             runmod.RodRun._refusal = refusal
@@ -194,12 +200,22 @@ def contact(t_end=30.0):
             through = [t[np.argmax(wr >= v)] if (wr >= v).any() else math.nan
                        for v in (1.0, 1.5)]
             at = [wr[np.argmin(np.abs(t - v))] for v in (20.0, 25.0, t_end)]
+            err = ds.step_energy_error.values if "step_energy_error" in ds else np.zeros(1)
             print(f"  tolerance {tol}: {ds.attrs['hockle_status']}, energy refusals "
                   f"{counts['free']} without candidates, {counts['contact']} with; largest "
-                  f"eps/T {worst['free']:.3g} / {worst['contact']:.3g}; first contact "
+                  f"eps/T {worst['free']:.3g} / {worst['contact']:.3g} (accepted "
+                  f"{np.nanmax(err):.3g}); first contact "
                   f"{first:.2f} s, |Wr| through 1 at {through[0]:.2f} s, 1.5 at "
                   f"{through[1]:.2f} s; |Wr| at 20/25/{t_end:g} s "
                   + "/".join(f"{v:.4f}" for v in at) + f"; wall {wall:.1f} s")
+            if tol is not None:
+                e = np.array(refused).reshape(-1, 5)
+                print(f"    {counts['measured']} accepted contact steps measured; the refused "
+                      f"ones at {e[:, 0].min():.2f}-{e[:, 0].max():.2f} s: eps "
+                      f"{e[:, 1].min():.2g}-{e[:, 1].max():.2g} J, T {e[:, 2].min():.2g}-"
+                      f"{e[:, 2].max():.2g} J, |sum W| {e[:, 3].min():.2g}-{e[:, 3].max():.2g}"
+                      f" J, |contact work| {e[:, 4].min():.2g}-{e[:, 4].max():.2g} J" if len(e)
+                      else f"    {counts['measured']} accepted contact steps measured")
 
 
 if __name__ == "__main__":
