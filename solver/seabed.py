@@ -1,6 +1,7 @@
 """The sea floor: normal contact and Coulomb friction at the cable's surface.
 
-A distributed load per unit length on the nodes that touch the bottom (docs/seabed.md):
+A distributed load per unit length on the cells of the grid that touch the bottom, the
+law taken at each cell's midpoint (docs/seabed.md):
 
 * **Bottom.** A flat bottom z = e, or the bilinear interpolation h(x, y) of a regular
   grid with its gradient (hx, hy) and twist hxy (held constant outside the grid: the
@@ -32,18 +33,25 @@ A distributed load per unit length on the nodes that touch the bottom (docs/seab
   crossed the threshold). The moment per unit length about the
   centreline is M = (−ρn) × F_f.
 
-The loads enter each node's linear- and angular-momentum rows (E3, E4 of
-:mod:`solver.scheme`) in the body frame, B = Rᵀ F, Q = Rᵀ M, in the same Newton as the
-rest, with the exact derivative with respect to the node's v and ω at the new level
-through the pose of the time route (r = r^n + ½Δt(ṙ^n + R v), R = R^n exp(½Δt(ω^n + ω)),
-Ω = R ω, tangent R a3): propagated forward through every step of the formulas above.
+**Per cell.** The law acts at each cell's midpoint: the means of its two nodes'
+position, velocity, global angular velocity, tangent and radius (for a flat bottom the
+penetration is the mean of the nodes'). Its force F and moment M enter the cell's E3 and
+E4 rows (:mod:`solver.scheme`) as the box rule's mean of its two nodes' body-frame loads,
+½(R_aᵀ + R_bᵀ) F and ½(R_aᵀ + R_bᵀ) M, at the generalized-α level (1 − αf) new + αf old
+(the old level from the old pose), in the same Newton as the rest, with the exact
+derivative with respect to the two nodes' v and ω at the new level through the pose of
+the time route (r = r^n + ½Δt(ṙ^n + R v), R = R^n exp(½Δt(ω^n + ω)), Ω = R ω, tangent
+R a3): propagated forward through every step of the formulas above. The law at the
+nodes let a lying cable rest on every other node (the box rule's averaging hides a
+node-to-node alternation of the nodal loads: 2w, 0, 2w, ... has the cell means w).
 With self-contact configured the pose is the space route (integrated along s from κ), and
-this node-local derivative is the band's approximation of it (the exact product of
-:func:`solver.scheme.exact_loads_product` does not carry the seabed).
+this derivative through the cell's two nodes only is the band's approximation of it
+(the exact product of :func:`solver.scheme.exact_loads_product` does not carry the
+seabed).
 
-Cost: one pass over the nodes, O(N); nodes higher than the bottom's top plus their
-radius (times the steepest slope factor) are skipped, and the whole kernel when every
-node is (:func:`far_from_bottom`).
+Cost: one pass over the cells, O(N), and one more on the old level; cells whose
+midpoint is higher than the bottom's top plus its radius (times the steepest slope
+factor) are skipped, and the whole kernel when every node is (:func:`far_from_bottom`).
 """
 from __future__ import annotations
 
@@ -281,7 +289,7 @@ def _node(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk):
         M[2] = -rho * (n0 * Ff[1] - n1 * Ff[0])
     if not want:
         return p
-    # ---- derivatives with respect to the node's unknowns X (3, 6 columns)
+    # ---- derivatives with respect to the unknowns X (3, m columns)
     Dn, Dw, Da, Dah, Dl, DFf = wk[0], wk[1], wk[2], wk[3], wk[4], wk[5]
     # ∂n/∂x and ∂d/∂x (bilinear: hxx = hyy = 0)
     dsx = hy * hxy / sq
@@ -602,9 +610,9 @@ def to_nodes(cell_values):
 
 
 #: the gap, as a fraction of the diameter, that a node between two touching nodes may
-#: hover above the bottom and still count as lying on it: the nodal contact of the box
-#: rule lets every other node of a cable lying on the bottom rise up to ~0.1 mm above it
-#: with no reaction while its neighbours carry twice the weight (docs/seabed.md)
+#: hover above the bottom and still count as lying on it: the box rule's odd-even mode
+#: zig-zags the node heights of a cable lying on the bottom by up to ~0.15 mm while the
+#: cells carry it (docs/seabed.md, "Per cell")
 CONTACT_GAP = 0.025
 
 
