@@ -658,10 +658,10 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
     if want_jac:
         _cell_blocks_kernel(dF, mass_t, stiffness, inertia, cm, af, ds, blocks)
     if has_seabed:
-        # the sea floor's loads per cell, at its midpoint on the new- and old-level pose
-        # (solver.seabed), into the cell rows and blocks: exact for the time route
-        seabed_into(Y, Rm, r, vg, theta, dt, af if has_r_old else 0.0,
-                    (Y_old, q_old, r_old, vg_old), seabed, want_jac, cells, blocks)
+        # the sea floor's loads per cell, at its midpoint on the new-level pose, and the
+        # old level's share frozen by begin_step (solver.seabed), into the cell rows and
+        # blocks: exact for the time route
+        seabed_into(Y, Rm, r, vg, theta, dt, af, seabed, want_jac, cells, blocks)
     if has_points:
         point_loads_into(Y, Rm, theta, 0.5 * dt, ds, af, want_jac, pl_nodes, pl_cells, pl_side,
                          pl_vals, pl_dead, pl_old, cells, blocks, Jr)
@@ -844,6 +844,8 @@ class RodSystem:
             cand_arrays = self._no_candidates
         n1 = self.n_nodes
         has_r = r_old is not None and v_old_global is not None
+        if self.seabed is not None:
+            self.seabed.begin_step(af, Y_old, q_old, r_old, v_old_global)
         data = (
             np.ascontiguousarray(Y_old, dtype=float), zc, flux_const,
             np.zeros((0, 3)) if glob is None else np.ascontiguousarray(glob, dtype=float),

@@ -62,12 +62,13 @@ import numpy as np
 
 from .kinematics import _right_jacobian_into
 
-__all__ = ["Seabed", "seabed_into", "seabed_cells", "node_penetration", "to_nodes",
+__all__ = ["Seabed", "seabed_into", "seabed_old_into", "seabed_cells", "node_penetration", "to_nodes",
            "far_from_bottom", "contact_length", "contact_gap", "CONTACT_GAP", "touchdown",
            "NO_SEABED"]
 
 #: the kernels' data of a run without a seabed (the scalars' kind 0)
-NO_SEABED = (np.zeros(10), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros((1, 1)))
+NO_SEABED = (np.zeros(10), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros((1, 1)),
+             np.zeros((1, 12)))
 
 # rows and columns of the node's unknowns (solver.scheme's V, W, E3, E4)
 _V, _E3, _E4 = 0, 6, 9
@@ -107,8 +108,31 @@ class Seabed:
                          0.0 if fr is None else fr.axial, 0.0 if fr is None else fr.lateral,
                          1.0 if fr is None else fr.static_to_kinetic,
                          1.0 if fr is None else fr.slip_velocity, top, slope])
-        self.data = (scal, radius, gx, gy, gz)
+        #: the old level's share of the cell rows (N, 12), set by :meth:`begin_step`
+        self.old_rows = np.zeros((radius.size - 1, 12))
+        self.data = (scal, radius, gx, gy, gz, self.old_rows)
         self.radius = radius
+
+    def __setstate__(self, state):
+        # a checkpoint from before the old level's rows were frozen per step
+        self.__dict__.update(state)
+        if "old_rows" not in state:
+            self.old_rows = np.zeros((self.radius.size - 1, 12))
+            self.data = tuple(self.data[:5]) + (self.old_rows,)
+
+    def begin_step(self, af, Y_old, q_old, r_old, v_old_global):
+        """Freeze the old level's share αf ½(R_aᵀ + R_bᵀ)(F, M) of each cell's E3, E4 rows
+        (:func:`seabed_old_into`) for a step with the generalized-α weight af = αf from
+        the old level Y^n (N+1, 12), q^n (N+1, 4), r^n and ṙ^n (N+1, 3) (None: no old
+        pose, the share 0)."""
+        self.old_rows[:] = 0.0
+        if af == 0.0 or r_old is None or q_old is None or v_old_global is None:
+            return
+        seabed_old_into(np.ascontiguousarray(Y_old, dtype=float),
+                        np.ascontiguousarray(q_old, dtype=float),
+                        np.ascontiguousarray(r_old, dtype=float),
+                        np.ascontiguousarray(v_old_global, dtype=float), float(af), self.data,
+                        self.old_rows)
 
     def cell_loads(self, r, v_global, R, omega):
         """(force (N, 6): normal reaction in [:, 0:3] and friction in [:, 3:6], moment
@@ -168,7 +192,7 @@ def _locate(g, x):
 def _bottom(x, y, data):
     """(h, hx, hy, hxy) of the bottom at global (x, y) m: the flat elevation, or the
     grid's bilinear interpolation with its derivatives (0 across a clamped axis)."""
-    scal, _, gx, gy, gz = data
+    scal, _, gx, gy, gz, _ = data
     if scal[0] == 1.0:
         return scal[1], 0.0, 0.0, 0.0
     i, tx, inx = _locate(gx, x)
@@ -453,7 +477,7 @@ def _cell_touches(r, radius, a, lim, f):
 
 
 @numba.njit(cache=True)
-def seabed_into(Y, Rm, r, vg, theta, dt, af, old, data, want, cells, blocks):
+def seabed_into(Y, Rm, r, vg, theta, dt, af, data, want, cells, blocks):
     """Add the seabed's loads to the cell rows (N, 12) of the residual and with ``want``
     their exact derivative to the cell blocks (N, 12, 24) on [node k | node k + 1]
     (module docstring): for each cell the law at its midpoint (position, velocity,
@@ -462,9 +486,9 @@ def seabed_into(Y, Rm, r, vg, theta, dt, af, old, data, want, cells, blocks):
     the two nodes' body-frame loads, ½(R_aᵀ + R_bᵀ) F and ½(R_aᵀ + R_bᵀ) M, at the
     generalized-α level: (1 − αf) times the new level's plus αf times the old level's.
     Y (N+1, 12) the iterate with the new-level frames Rm (N+1, 3, 3), positions r and
-    velocities ṙ = R v (N+1, 3), rotation increments θ (N+1, 3); dt (s); af = αf; old:
-    the old level (Y^n (N+1, 12), q^n (N+1, 4), r^n, ṙ^n (N+1, 3)) or an empty tuple
-    entry when αf = 0. The derivative is with respect to the cell's two nodes' v and ω
+    velocities ṙ = R v (N+1, 3), rotation increments θ (N+1, 3); dt (s); af = αf (the
+    old level's share is data[5], frozen at the step's start by
+    :meth:`Seabed.begin_step`). The derivative is with respect to the cell's two nodes' v and ω
     at the new level. A cell whose midpoint is above the bottom's top plus its radius
     is skipped."""
     scal, radius = data[0], data[1]
@@ -534,16 +558,36 @@ def seabed_into(Y, Rm, r, vg, theta, dt, af, old, data, want, cells, blocks):
                         blocks[c, row, w0 + j] += hdt * (-c2 * J[0, 1, j] + c1 * J[0, 2, j])
                         blocks[c, row + 1, w0 + j] += hdt * (c2 * J[0, 0, j] - c0 * J[0, 2, j])
                         blocks[c, row + 2, w0 + j] += hdt * (-c1 * J[0, 0, j] + c0 * J[0, 1, j])
-    if af == 0.0:
+    if af != 0.0:
+        old = data[5]
+        for c in range(n_cells):
+            for i in range(12):
+                cells[c, i] += old[c, i]
+
+
+@numba.njit(cache=True)
+def seabed_old_into(Y_old, q_old, r_old, vg_old, af, data, out):
+    """The old level's share of the seabed's cell rows, αf ½(R_aᵀ + R_bᵀ) F into the E3
+    and αf ½(R_aᵀ + R_bᵀ) M into the E4 columns of out (N, 12) (zero elsewhere): the law
+    at each cell's midpoint on the old pose Y^n (N+1, 12), q^n (N+1, 4), r^n and ṙ^n
+    (N+1, 3) (:func:`seabed_into`; constant in a step, so computed once at its start)."""
+    scal, radius = data[0], data[1]
+    if scal[0] == 0.0 or far_from_bottom(r_old, data):
         return
-    # the old level's share αf: the same law on the old pose (constant in the step)
-    Y_old, q_old, r_old, vg_old = old
-    if far_from_bottom(r_old, data):
-        return
+    lim = scal[8]
+    f = scal[9]
+    x = np.empty(3)
+    u = np.empty(3)
+    Om = np.empty(3)
+    t = np.empty(3)
+    Fnv = np.empty(3)
+    Ffv = np.empty(3)
+    Mv = np.empty(3)
+    wk = np.zeros((9, 3, 12))
+    z = np.zeros((3, 12))
     R_old = np.empty((r_old.shape[0], 3, 3))
     _old_frames(q_old, R_old, 0, r_old.shape[0])
-    z = np.zeros((3, 12))
-    for c in range(n_cells):
+    for c in range(r_old.shape[0] - 1):
         if not _cell_touches(r_old, radius, c, lim, f):
             continue
         rho = _midpoint(r_old, vg_old, R_old, Y_old[:, 3:6], radius, c, x, u, Om, t)
@@ -553,11 +597,11 @@ def seabed_into(Y, Rm, r, vg, theta, dt, af, old, data, want, cells, blocks):
         for e in range(2):
             R = R_old[c + e]
             for i in range(3):
-                cells[c, _E3 + i] += 0.5 * af * (
+                out[c, _E3 + i] += 0.5 * af * (
                     R[0, i] * (Fnv[0] + Ffv[0]) + R[1, i] * (Fnv[1] + Ffv[1])
                     + R[2, i] * (Fnv[2] + Ffv[2]))
-                cells[c, _E4 + i] += 0.5 * af * (R[0, i] * Mv[0] + R[1, i] * Mv[1]
-                                                 + R[2, i] * Mv[2])
+                out[c, _E4 + i] += 0.5 * af * (R[0, i] * Mv[0] + R[1, i] * Mv[1]
+                                               + R[2, i] * Mv[2])
 
 
 @numba.njit(cache=True)
