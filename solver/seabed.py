@@ -15,8 +15,10 @@ law taken at each cell's midpoint (docs/seabed.md):
   ``normal_damping`` (Pa s); MoorDyn's k p − c n·ṙ wherever the damper's force is
   smaller than the spring's. The clamp keeps N between 0 and 2kp: the damper neither
   pulls a lifting cable down (no adhesion) nor jumps the force at first touch (MoorDyn's
-  law jumps by c·|n·ṙ| at p = 0, which made Newton cycle; Hunt & Crossley (1975) make
-  the damping vanish with the penetration for the same reason).
+  law jumps by c·|n·ṙ| at p = 0, which made Newton cycle; Hunt & Crossley (1975) scale
+  the damping with the penetration for physical reasons, no jump at impact and no pull
+  at separation; the clamp is not their law). MoorDyn's kBot (Pa/m) and cBot (Pa s/m)
+  are per unit of contact width: k = kBot·D, c = cBot·D.
 * **Friction** (Coulomb, axial and lateral separately as MoorDyn v2 does) acts at the
   contact point r − ρn, whose velocity is w = ṙ + Ω × (−ρn) (Ω the global angular
   velocity of the section, so a spinning cable's contact point slides unless it rolls).
