@@ -263,8 +263,8 @@ class DragWork(WorkAccount):
 class SeabedWork(WorkAccount):
     """Work of the sea floor's normal spring (:mod:`solver.seabed`, the linear
     spring-damper per unit length of MoorDyn): minus the change of its stored energy
-    U = Σ_k w_k ½ k max(p_k, 0)² (J; k the normal stiffness, Pa, p the surface
-    penetration, m, w the nodal quadrature weights, m), exact for a flat bottom and for
+    U = Σ_c Δs ½ k max(p_c, 0)² (J; k the normal stiffness, Pa, p_c the surface
+    penetration at cell c's midpoint, m, where the seabed's law acts), exact for a flat bottom and for
     each grid cell's tangent plane. U is not part of E, so the spring enters the balance
     as a work term, on the shape like gravity. The damper (clamped to the sign of −n·ṙ)
     and the Coulomb friction with its moment only take energy out at every instant
@@ -280,16 +280,16 @@ class SeabedWork(WorkAccount):
     name = "seabed"
 
     @staticmethod
-    def spring_energy(run, pen) -> float:
-        """The spring's stored energy U (J) at the penetrations pen (N+1,) m."""
-        k = float(run.seabed.data[0][2])
-        return float(run.props.quad_weights @ (0.5 * k * np.maximum(pen, 0.0) ** 2))
+    def spring_energy(run, r) -> float:
+        """The spring's stored energy U (J) at the node positions r (N+1, 3) m
+        (:meth:`solver.seabed.Seabed.stored_energy`: per cell, at its midpoint)."""
+        return run.seabed.stored_energy(r, float(run.props.ds))
 
     def stored(self, carried) -> float:
         return float(carried)
 
     def start(self, run):
-        return self.spring_energy(run, run.seabed_loads()[3])
+        return self.spring_energy(run, run._seabed_pose()[1])
 
     def step(self, run, prob, sol, old):
         if run.contact is not None:
@@ -304,8 +304,7 @@ class SeabedWork(WorkAccount):
                                         offsets=((run.bc_offset, run.bc.cols),
                                                  (prob.offset, prob.bc.cols)))
             normalize_quaternions(q)
-        pen = run.seabed.loads(r, v, quat_to_matrix(q), sol.Y[:, 3:6])[3]
-        energy = self.spring_energy(run, pen)
+        energy = self.spring_energy(run, r)
         return old - energy, energy
 
 

@@ -1153,9 +1153,9 @@ class Seabed(BaseModel):
     elevation: Optional[Finite] = Field(None, description="Global z of a flat bottom, m (normal +z); or give bathymetry.")
     bathymetry: Optional[Bathymetry] = Field(None, description="Bottom elevation on a regular grid; or give elevation.")
     normal_stiffness: Finite = Field(
-        3e6, ge=0, description="Normal stiffness kBot, Pa (N/m per m of cable per m of penetration); >= 0.")
+        3e6, ge=0, description="Normal stiffness, Pa (N/m per m of cable per m of penetration; MoorDyn's kBot times the diameter); >= 0.")
     normal_damping: Finite = Field(
-        3e5, ge=0, description="Normal damping cBot, Pa s (N/m per m of cable per m/s); >= 0.")
+        3e5, ge=0, description="Normal damping, Pa s (N/m per m of cable per m/s; MoorDyn's cBot times the diameter); >= 0.")
     friction: Optional[Friction] = Field(None, description="Coulomb friction; null: frictionless.")
 
     @model_validator(mode="after")

@@ -162,11 +162,9 @@ class RodRun(ProblemAssembly):
                 if self.system.needs_pose else None)
         st.F_old, _ = self.system.node_terms(st.Y, False, pose, glob)
         if self.seabed is not None:
-            # the sea floor's loads at the start level (the kernel adds them at each new one)
+            # the sea floor's loads are cell terms, not node terms: each step's residual
+            # takes their old level from the old pose (solver.seabed.seabed_into)
             Fn, Ff, M, _ = self.seabed_loads()
-            R = pose[0]
-            st.F_old[:, 6:9] += np.einsum("nji,nj->ni", R, Fn + Ff)
-            st.F_old[:, 9:12] += np.einsum("nji,nj->ni", R, M)
             st.seabed_power = self._seabed_power(Fn + Ff, M)
         st.body_force = self.loads.with_points(self._body_force(glob, pose), st.t,
                                                None if pose is None else pose[0])

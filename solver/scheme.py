@@ -619,10 +619,6 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
     node_terms_into(Y, want_jac, mass_t, stiffness, inertia, has_drag, cdn, cdt, rotate, Rm,
                     theta, 0.5 * dt, G, add_diag, diag, Fn, dF, loadrot, brot, drag_b, drag_j,
                     Jr)
-    if has_seabed:
-        # the sea floor's loads at the node's own new-level pose (solver.seabed): in the
-        # band, exact for the time route
-        seabed_into(Y, Rm, r, vg, theta, dt, seabed, want_jac, Fn, dF)
     if want_jac and space and need_pose and have_G:
         # the exact load product's data (self-contact configured: the pose is the space
         # route, so every node's position and frame depends on κ upstream of it)
@@ -661,6 +657,11 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
                         bcj[e, 2, j] = c * (-b[1] * Jr[k, 0, j] + b[0] * Jr[k, 1, j])
     if want_jac:
         _cell_blocks_kernel(dF, mass_t, stiffness, inertia, cm, af, ds, blocks)
+    if has_seabed:
+        # the sea floor's loads per cell, at its midpoint on the new-level pose, and the
+        # old level's share frozen by begin_step (solver.seabed), into the cell rows and
+        # blocks: exact for the time route
+        seabed_into(Y, Rm, r, vg, theta, dt, af, seabed, want_jac, cells, blocks)
     if has_points:
         point_loads_into(Y, Rm, theta, 0.5 * dt, ds, af, want_jac, pl_nodes, pl_cells, pl_side,
                          pl_vals, pl_dead, pl_old, cells, blocks, Jr)
@@ -843,6 +844,8 @@ class RodSystem:
             cand_arrays = self._no_candidates
         n1 = self.n_nodes
         has_r = r_old is not None and v_old_global is not None
+        if self.seabed is not None:
+            self.seabed.begin_step(af, Y_old, q_old, r_old, v_old_global)
         data = (
             np.ascontiguousarray(Y_old, dtype=float), zc, flux_const,
             np.zeros((0, 3)) if glob is None else np.ascontiguousarray(glob, dtype=float),

@@ -1,6 +1,7 @@
 """The sea floor: normal contact and Coulomb friction at the cable's surface.
 
-A distributed load per unit length on the nodes that touch the bottom (docs/seabed.md):
+A distributed load per unit length on the cells of the grid that touch the bottom, the
+law taken at each cell's midpoint (docs/seabed.md):
 
 * **Bottom.** A flat bottom z = e, or the bilinear interpolation h(x, y) of a regular
   grid with its gradient (hx, hy) and twist hxy (held constant outside the grid: the
@@ -14,8 +15,10 @@ A distributed load per unit length on the nodes that touch the bottom (docs/seab
   ``normal_damping`` (Pa s); MoorDyn's k p − c n·ṙ wherever the damper's force is
   smaller than the spring's. The clamp keeps N between 0 and 2kp: the damper neither
   pulls a lifting cable down (no adhesion) nor jumps the force at first touch (MoorDyn's
-  law jumps by c·|n·ṙ| at p = 0, which made Newton cycle; Hunt & Crossley (1975) make
-  the damping vanish with the penetration for the same reason).
+  law jumps by c·|n·ṙ| at p = 0, which made Newton cycle; Hunt & Crossley (1975) scale
+  the damping with the penetration for physical reasons, no jump at impact and no pull
+  at separation; the clamp is not their law). MoorDyn's kBot (Pa/m) and cBot (Pa s/m)
+  are per unit of contact width: k = kBot·D, c = cBot·D.
 * **Friction** (Coulomb, axial and lateral separately as MoorDyn v2 does) acts at the
   contact point r − ρn, whose velocity is w = ṙ + Ω × (−ρn) (Ω the global angular
   velocity of the section, so a spinning cable's contact point slides unless it rolls).
@@ -32,18 +35,25 @@ A distributed load per unit length on the nodes that touch the bottom (docs/seab
   crossed the threshold). The moment per unit length about the
   centreline is M = (−ρn) × F_f.
 
-The loads enter each node's linear- and angular-momentum rows (E3, E4 of
-:mod:`solver.scheme`) in the body frame, B = Rᵀ F, Q = Rᵀ M, in the same Newton as the
-rest, with the exact derivative with respect to the node's v and ω at the new level
-through the pose of the time route (r = r^n + ½Δt(ṙ^n + R v), R = R^n exp(½Δt(ω^n + ω)),
-Ω = R ω, tangent R a3): propagated forward through every step of the formulas above.
+**Per cell.** The law acts at each cell's midpoint: the means of its two nodes'
+position, velocity, global angular velocity, tangent and radius (for a flat bottom the
+penetration is the mean of the nodes'). Its force F and moment M enter the cell's E3 and
+E4 rows (:mod:`solver.scheme`) as the box rule's mean of its two nodes' body-frame loads,
+½(R_aᵀ + R_bᵀ) F and ½(R_aᵀ + R_bᵀ) M, at the generalized-α level (1 − αf) new + αf old
+(the old level from the old pose), in the same Newton as the rest, with the exact
+derivative with respect to the two nodes' v and ω at the new level through the pose of
+the time route (r = r^n + ½Δt(ṙ^n + R v), R = R^n exp(½Δt(ω^n + ω)), Ω = R ω, tangent
+R a3): propagated forward through every step of the formulas above. The law at the
+nodes let a lying cable rest on every other node (the box rule's averaging hides a
+node-to-node alternation of the nodal loads: 2w, 0, 2w, ... has the cell means w).
 With self-contact configured the pose is the space route (integrated along s from κ), and
-this node-local derivative is the band's approximation of it (the exact product of
-:func:`solver.scheme.exact_loads_product` does not carry the seabed).
+this derivative through the cell's two nodes only is the band's approximation of it
+(the exact product of :func:`solver.scheme.exact_loads_product` does not carry the
+seabed).
 
-Cost: one pass over the nodes, O(N); nodes higher than the bottom's top plus their
-radius (times the steepest slope factor) are skipped, and the whole kernel when every
-node is (:func:`far_from_bottom`).
+Cost: one pass over the cells, O(N), and one more on the old level; cells whose
+midpoint is higher than the bottom's top plus its radius (times the steepest slope
+factor) are skipped, and the whole kernel when every node is (:func:`far_from_bottom`).
 """
 from __future__ import annotations
 
@@ -54,11 +64,13 @@ import numpy as np
 
 from .kinematics import _right_jacobian_into
 
-__all__ = ["Seabed", "seabed_into", "seabed_loads", "far_from_bottom", "contact_length",
-           "contact_gap", "CONTACT_GAP", "touchdown", "NO_SEABED"]
+__all__ = ["Seabed", "seabed_into", "seabed_old_into", "seabed_cells", "node_penetration", "to_nodes",
+           "far_from_bottom", "contact_length", "contact_gap", "CONTACT_GAP", "touchdown",
+           "NO_SEABED"]
 
 #: the kernels' data of a run without a seabed (the scalars' kind 0)
-NO_SEABED = (np.zeros(10), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros((1, 1)))
+NO_SEABED = (np.zeros(10), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros((1, 1)),
+             np.zeros((1, 12)))
 
 # rows and columns of the node's unknowns (solver.scheme's V, W, E3, E4)
 _V, _E3, _E4 = 0, 6, 9
@@ -98,20 +110,65 @@ class Seabed:
                          0.0 if fr is None else fr.axial, 0.0 if fr is None else fr.lateral,
                          1.0 if fr is None else fr.static_to_kinetic,
                          1.0 if fr is None else fr.slip_velocity, top, slope])
-        self.data = (scal, radius, gx, gy, gz)
+        #: the old level's share of the cell rows (N, 12), set by :meth:`begin_step`
+        self.old_rows = np.zeros((radius.size - 1, 12))
+        self.data = (scal, radius, gx, gy, gz, self.old_rows)
         self.radius = radius
+
+    def __setstate__(self, state):
+        # a checkpoint from before the old level's rows were frozen per step
+        self.__dict__.update(state)
+        if "old_rows" not in state:
+            self.old_rows = np.zeros((self.radius.size - 1, 12))
+            self.data = tuple(self.data[:5]) + (self.old_rows,)
+
+    def begin_step(self, af, Y_old, q_old, r_old, v_old_global):
+        """Freeze the old level's share αf ½(R_aᵀ + R_bᵀ)(F, M) of each cell's E3, E4 rows
+        (:func:`seabed_old_into`) for a step with the generalized-α weight af = αf from
+        the old level Y^n (N+1, 12), q^n (N+1, 4), r^n and ṙ^n (N+1, 3) (None: no old
+        pose, the share 0)."""
+        self.old_rows[:] = 0.0
+        if af == 0.0 or r_old is None or q_old is None or v_old_global is None:
+            return
+        seabed_old_into(np.ascontiguousarray(Y_old, dtype=float),
+                        np.ascontiguousarray(q_old, dtype=float),
+                        np.ascontiguousarray(r_old, dtype=float),
+                        np.ascontiguousarray(v_old_global, dtype=float), float(af), self.data,
+                        self.old_rows)
+
+    def cell_loads(self, r, v_global, R, omega):
+        """(force (N, 6): normal reaction in [:, 0:3] and friction in [:, 3:6], moment
+        (N, 3), penetration (N,) m) of each cell, per unit length, global frame, at its
+        midpoint (:func:`seabed_cells`), for node positions r, velocities ṙ (N+1, 3),
+        frames R (N+1, 3, 3) and body angular velocities ω (N+1, 3)."""
+        nc = r.shape[0] - 1
+        F, M, pen = np.zeros((nc, 6)), np.zeros((nc, 3)), np.zeros(nc)
+        seabed_cells(np.ascontiguousarray(r, dtype=float),
+                     np.ascontiguousarray(v_global, dtype=float),
+                     np.ascontiguousarray(R, dtype=float), np.ascontiguousarray(omega, dtype=float),
+                     self.data, F, M, pen)
+        return F, M, pen
 
     def loads(self, r, v_global, R, omega):
         """(normal reaction, friction, moment) per unit length at the nodes, each
-        (N+1, 3) N/m or N m/m, global frame, for positions r, velocities ṙ (N+1, 3),
-        frames R (N+1, 3, 3) and body angular velocities ω (N+1, 3)
-        (:func:`seabed_loads`)."""
+        (N+1, 3) N/m or N m/m, global frame (the mean of a node's two cells' loads,
+        :func:`to_nodes`), and each node's surface penetration (N+1,) m (negative: the
+        gap, :func:`node_penetration`), for positions r, velocities ṙ (N+1, 3), frames
+        R (N+1, 3, 3) and body angular velocities ω (N+1, 3)."""
+        F, M, _ = self.cell_loads(r, v_global, R, omega)
+        pen = np.empty(r.shape[0])
+        node_penetration(np.ascontiguousarray(r, dtype=float), self.data, pen)
+        F, M = to_nodes(F), to_nodes(M)
+        return F[:, 0:3], F[:, 3:6], M, pen
+
+    def stored_energy(self, r, ds) -> float:
+        """The spring's stored energy U = Σ_cells Δs ½ k max(p, 0)² (J) of the cells'
+        midpoint penetrations p at node positions r (N+1, 3), cells of length ds (m)."""
+        r = np.ascontiguousarray(r, dtype=float)
         n1 = r.shape[0]
-        Fn, Ff, M, pen = np.zeros((n1, 3)), np.zeros((n1, 3)), np.zeros((n1, 3)), np.zeros(n1)
-        seabed_loads(np.ascontiguousarray(r, dtype=float), np.ascontiguousarray(v_global, dtype=float),
-                     np.ascontiguousarray(R, dtype=float), np.ascontiguousarray(omega, dtype=float),
-                     self.data, Fn, Ff, M, pen)
-        return Fn, Ff, M, pen
+        eye = np.broadcast_to(np.eye(3), (n1, 3, 3))
+        _, _, pen = self.cell_loads(r, np.zeros((n1, 3)), eye, np.zeros((n1, 3)))
+        return float(ds * np.sum(0.5 * self.data[0][2] * np.maximum(pen, 0.0) ** 2))
 
 
 @numba.njit(cache=True, inline="always")
@@ -137,7 +194,7 @@ def _locate(g, x):
 def _bottom(x, y, data):
     """(h, hx, hy, hxy) of the bottom at global (x, y) m: the flat elevation, or the
     grid's bilinear interpolation with its derivatives (0 across a clamped axis)."""
-    scal, _, gx, gy, gz = data
+    scal, _, gx, gy, gz, _ = data
     if scal[0] == 1.0:
         return scal[1], 0.0, 0.0, 0.0
     i, tx, inx = _locate(gx, x)
@@ -172,8 +229,8 @@ def _coef(v, mu, ratio, vs):
 
 @numba.njit(cache=True, inline="always")
 def _cross_cols(a, B, out, sign):
-    """out (3, 6) += sign · a × B[:, j] for every column j (a (3,), B (3, 6))."""
-    for j in range(6):
+    """out (3, m) += sign · a × B[:, j] for every column j (a (3,), B (3, m))."""
+    for j in range(B.shape[1]):
         out[0, j] += sign * (a[1] * B[2, j] - a[2] * B[1, j])
         out[1, j] += sign * (a[2] * B[0, j] - a[0] * B[2, j])
         out[2, j] += sign * (a[0] * B[1, j] - a[1] * B[0, j])
@@ -181,22 +238,22 @@ def _cross_cols(a, B, out, sign):
 
 @numba.njit(cache=True, inline="always")
 def _zero_derivatives(DF, DM):
-    """DF, DM (3, 6) := 0: a node the bottom does not push on has no load derivatives."""
+    """DF, DM (3, m) := 0: a cell the bottom does not push on has no load derivatives."""
     for i in range(3):
-        for j in range(6):
+        for j in range(DF.shape[1]):
             DF[i, j] = 0.0
             DM[i, j] = 0.0
 
 
 @numba.njit(cache=True)
 def _node(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk):
-    """The seabed's loads on one node (module docstring): normal reaction Fn, friction
-    Ff, moment M (3,) global, per unit length, from the centreline x, its velocity u,
-    the global angular velocity Om, the tangent t (3,) and the radius rho (m). With
-    ``want`` also DF = ∂(Fn + Ff)/∂X and DM = ∂M/∂X (3, 6) for the derivatives of x, u,
-    Om, t with respect to the node's unknowns X (Dr, Du, DOm, Dt (3, 6)), by forward
-    propagation through the formulas. wk: scratch (9, 3, 6). Returns the penetration
-    p (m, ≤ 0: no contact, every output 0)."""
+    """The seabed's law at one point of the centreline (a cell's midpoint, module
+    docstring): normal reaction Fn, friction Ff, moment M (3,) global, per unit length,
+    from the centreline x, its velocity u, the global angular velocity Om, the tangent t
+    (3,) and the radius rho (m). With ``want`` also DF = ∂(Fn + Ff)/∂X and DM = ∂M/∂X
+    (3, m) for the derivatives of x, u, Om, t with respect to m unknowns X (Dr, Du, DOm,
+    Dt (3, m)), by forward propagation through the formulas. wk: scratch (9, 3, m).
+    Returns the penetration p (m, ≤ 0: no contact, every output 0)."""
     for i in range(3):
         Fn[i] = 0.0
         Ff[i] = 0.0
@@ -258,7 +315,7 @@ def _node(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk):
         M[2] = -rho * (n0 * Ff[1] - n1 * Ff[0])
     if not want:
         return p
-    # ---- derivatives with respect to the node's unknowns X (3, 6 columns)
+    # ---- derivatives with respect to the unknowns X (3, m columns)
     Dn, Dw, Da, Dah, Dl, DFf = wk[0], wk[1], wk[2], wk[3], wk[4], wk[5]
     # ∂n/∂x and ∂d/∂x (bilinear: hxx = hyy = 0)
     dsx = hy * hxy / sq
@@ -278,7 +335,8 @@ def _node(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk):
     dd1 = n1 - d * dsy / sq
     dd2 = n2
     DN = wk[8, 2]
-    for j in range(6):
+    nc = Dr.shape[1]
+    for j in range(nc):
         for i in range(3):
             Dn[i, j] = dn[i, 0] * Dr[0, j] + dn[i, 1] * Dr[1, j]
         Dd = dd0 * Dr[0, j] + dd1 * Dr[1, j] + dd2 * Dr[2, j]
@@ -292,28 +350,28 @@ def _node(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk):
         return p
     # Dw = Du − ρ(DOm × n + Om × Dn)
     for i in range(3):
-        for j in range(6):
+        for j in range(nc):
             Dw[i, j] = Du[i, j]
     _cross_cols(n, DOm, Dw, rho)            # −ρ DOm × n = +ρ n × DOm
     _cross_cols(Om, Dn, Dw, -rho)
     # Da = Dt − n (nᵀDt + tᵀDn) − (t·n) Dn
-    for j in range(6):
+    for j in range(nc):
         c = (n0 * Dt[0, j] + n1 * Dt[1, j] + n2 * Dt[2, j]
              + t[0] * Dn[0, j] + t[1] * Dn[1, j] + t[2] * Dn[2, j])
         for i in range(3):
             Da[i, j] = Dt[i, j] - n[i] * c - tn * Dn[i, j]
     # Dâ = (I − â âᵀ) Da / |a|
-    for j in range(6):
+    for j in range(nc):
         c = ah[0] * Da[0, j] + ah[1] * Da[1, j] + ah[2] * Da[2, j]
         for i in range(3):
             Dah[i, j] = (Da[i, j] - ah[i] * c) / la
     # Dl = Dn × â + n × Dâ
     for i in range(3):
-        for j in range(6):
+        for j in range(nc):
             Dl[i, j] = 0.0
     _cross_cols(ah, Dn, Dl, -1.0)
     _cross_cols(n, Dah, Dl, 1.0)
-    for j in range(6):
+    for j in range(nc):
         Dva = 0.0
         Dvl = 0.0
         for i in range(3):
@@ -343,20 +401,106 @@ def far_from_bottom(r, data):
     return True
 
 
+@numba.njit(cache=True, inline="always")
+def _seeds_into(Y, R, theta, k, hdt, col, Dr, Du, DOm, Dt, J, S, RS):
+    """The derivatives of node k's new-level position, velocity, global angular velocity
+    and tangent with respect to its (v, ω), halved (a cell's midpoint takes half of each
+    node), into columns col..col+5 of Dr, Du, DOm, Dt (3, 12), and J_r(θ_k) into J
+    (1, 3, 3): r = r^n + ½Δt(ṙ^n + R v), R = R^n exp(θ), θ = ½Δt(ω^n + ω), so
+    ∂(R a)/∂ω = −½Δt R [a]× J_r and Du = [R | −½Δt R [v]× J_r], Dr = ½Δt Du."""
+    _right_jacobian_into(theta[k, 0], theta[k, 1], theta[k, 2], J, 0)
+    for vec in range(3):
+        if vec == 0:
+            a0, a1, a2 = Y[k, 0], Y[k, 1], Y[k, 2]
+        elif vec == 1:
+            a0, a1, a2 = Y[k, 3], Y[k, 4], Y[k, 5]
+        else:
+            a0, a1, a2 = 0.0, 0.0, 1.0
+        # S = [a]× J_r, RS = −½Δt R S
+        for j in range(3):
+            S[0, j] = -a2 * J[0, 1, j] + a1 * J[0, 2, j]
+            S[1, j] = a2 * J[0, 0, j] - a0 * J[0, 2, j]
+            S[2, j] = -a1 * J[0, 0, j] + a0 * J[0, 1, j]
+        for i in range(3):
+            for j in range(3):
+                RS[i, j] = -hdt * (R[i, 0] * S[0, j] + R[i, 1] * S[1, j] + R[i, 2] * S[2, j])
+        for i in range(3):
+            for j in range(3):
+                if vec == 0:
+                    Du[i, col + j] = 0.5 * R[i, j]
+                    Du[i, col + 3 + j] = 0.5 * RS[i, j]
+                    Dr[i, col + j] = 0.5 * hdt * R[i, j]
+                    Dr[i, col + 3 + j] = 0.5 * hdt * RS[i, j]
+                elif vec == 1:
+                    DOm[i, col + j] = 0.0
+                    DOm[i, col + 3 + j] = 0.5 * (R[i, j] + RS[i, j])
+                else:
+                    Dt[i, col + j] = 0.0
+                    Dt[i, col + 3 + j] = 0.5 * RS[i, j]
+
+
+@numba.njit(cache=True, inline="always")
+def _midpoint(r, vg, Rm, omega, radius, a, x, u, Om, t):
+    """The midpoint of cell (a, a + 1): centreline x, velocity u, global angular velocity
+    Om = ½(R_a ω_a + R_b ω_b), tangent t = ½(R_a a3 + R_b a3) (3,) into the arguments;
+    returns the radius ½(ρ_a + ρ_b) (m)."""
+    b = a + 1
+    for i in range(3):
+        x[i] = 0.5 * (r[a, i] + r[b, i])
+        u[i] = 0.5 * (vg[a, i] + vg[b, i])
+        Om[i] = 0.5 * (Rm[a, i, 0] * omega[a, 0] + Rm[a, i, 1] * omega[a, 1]
+                       + Rm[a, i, 2] * omega[a, 2] + Rm[b, i, 0] * omega[b, 0]
+                       + Rm[b, i, 1] * omega[b, 1] + Rm[b, i, 2] * omega[b, 2])
+        t[i] = 0.5 * (Rm[a, i, 2] + Rm[b, i, 2])
+    return 0.5 * (radius[a] + radius[b])
+
+
 @numba.njit(cache=True)
-def seabed_into(Y, Rm, r, vg, theta, dt, data, want, Fn, dF):
-    """Add the seabed's loads to the node terms Fn (N+1, 12) (E3 rows: B = Rᵀ F; E4 rows:
-    Q = Rᵀ M) and with ``want`` their exact derivative with respect to each node's v and
-    ω at the new level to dF (N+1, 12, 12) (module docstring), for the iterate Y
-    (N+1, 12) with the new-level frames Rm (N+1, 3, 3), positions r and velocities
-    ṙ = R v (N+1, 3), the rotation increments θ (N+1, 3) and the step dt (s). A node
-    above the bottom's top plus its radius is skipped."""
+def _old_frames(q_old, R_old, lo, hi):
+    """The rotation matrices of the unit quaternions q_old[lo:hi] into R_old[lo:hi]."""
+    for k in range(lo, hi):
+        w, x, y, z = q_old[k, 0], q_old[k, 1], q_old[k, 2], q_old[k, 3]
+        R_old[k, 0, 0] = 1 - 2 * (y * y + z * z)
+        R_old[k, 0, 1] = 2 * (x * y - w * z)
+        R_old[k, 0, 2] = 2 * (x * z + w * y)
+        R_old[k, 1, 0] = 2 * (x * y + w * z)
+        R_old[k, 1, 1] = 1 - 2 * (x * x + z * z)
+        R_old[k, 1, 2] = 2 * (y * z - w * x)
+        R_old[k, 2, 0] = 2 * (x * z - w * y)
+        R_old[k, 2, 1] = 2 * (y * z + w * x)
+        R_old[k, 2, 2] = 1 - 2 * (x * x + y * y)
+
+
+@numba.njit(cache=True)
+def _cell_touches(r, radius, a, lim, f):
+    """Whether cell (a, a + 1)'s midpoint may touch: its height minus its radius times
+    the steepest slope factor f not above the bottom's top lim (m)."""
+    return 0.5 * (r[a, 2] + r[a + 1, 2]) - f * 0.5 * (radius[a] + radius[a + 1]) <= lim
+
+
+@numba.njit(cache=True)
+def seabed_into(Y, Rm, r, vg, theta, dt, af, data, want, cells, blocks):
+    """Add the seabed's loads to the cell rows (N, 12) of the residual and with ``want``
+    their exact derivative to the cell blocks (N, 12, 24) on [node k | node k + 1]
+    (module docstring): for each cell the law at its midpoint (position, velocity,
+    angular velocity, tangent and radius the means of its two nodes'), its force F and
+    moment M (N/m, N m/m, global) entering the E3 and E4 rows as the box rule's mean of
+    the two nodes' body-frame loads, ½(R_aᵀ + R_bᵀ) F and ½(R_aᵀ + R_bᵀ) M, at the
+    generalized-α level: (1 − αf) times the new level's plus αf times the old level's.
+    Y (N+1, 12) the iterate with the new-level frames Rm (N+1, 3, 3), positions r and
+    velocities ṙ = R v (N+1, 3), rotation increments θ (N+1, 3); dt (s); af = αf (the
+    old level's share is data[5], frozen at the step's start by
+    :meth:`Seabed.begin_step`). The derivative is with respect to the cell's two nodes' v and ω
+    at the new level. A cell whose midpoint is above the bottom's top plus its radius
+    is skipped."""
     scal, radius = data[0], data[1]
-    if scal[0] == 0.0 or far_from_bottom(r, data):
+    if scal[0] == 0.0:
         return
     lim = scal[8]
     f = scal[9]
     hdt = 0.5 * dt
+    gf = 1.0 - af
+    n_cells = r.shape[0] - 1
     x = np.empty(3)
     u = np.empty(3)
     Om = np.empty(3)
@@ -364,89 +508,112 @@ def seabed_into(Y, Rm, r, vg, theta, dt, data, want, Fn, dF):
     Fnv = np.empty(3)
     Ffv = np.empty(3)
     Mv = np.empty(3)
-    Dr = np.zeros((3, 6))
-    Du = np.zeros((3, 6))
-    DOm = np.zeros((3, 6))
-    Dt = np.zeros((3, 6))
-    DF = np.empty((3, 6))
-    DM = np.empty((3, 6))
-    wk = np.zeros((9, 3, 6))
-    J = np.empty((1, 3, 3))
-    b = np.empty(3)
-    q = np.empty(3)
+    Dr = np.zeros((3, 12))
+    Du = np.zeros((3, 12))
+    DOm = np.zeros((3, 12))
+    Dt = np.zeros((3, 12))
+    DF = np.empty((3, 12))
+    DM = np.empty((3, 12))
+    wk = np.zeros((9, 3, 12))
+    Ja = np.empty((1, 3, 3))
+    Jb = np.empty((1, 3, 3))
     S = np.empty((3, 3))
     RS = np.empty((3, 3))
-    for k in range(Y.shape[0]):
-        if r[k, 2] - f * radius[k] > lim:
-            continue
-        R = Rm[k]
-        for i in range(3):
-            x[i] = r[k, i]
-            u[i] = vg[k, i]
-            Om[i] = R[i, 0] * Y[k, 3] + R[i, 1] * Y[k, 4] + R[i, 2] * Y[k, 5]
-            t[i] = R[i, 2]
-        if want:
-            _right_jacobian_into(theta[k, 0], theta[k, 1], theta[k, 2], J, 0)
-            # Du = [R | −½Δt R [v]× J_r]; Dr = ½Δt Du
-            for vec in range(3):
-                if vec == 0:
-                    a0, a1, a2 = Y[k, 0], Y[k, 1], Y[k, 2]
-                elif vec == 1:
-                    a0, a1, a2 = Y[k, 3], Y[k, 4], Y[k, 5]
-                else:
-                    a0, a1, a2 = 0.0, 0.0, 1.0
-                # S = [a]× J_r, RS = −½Δt R S
-                for j in range(3):
-                    S[0, j] = -a2 * J[0, 1, j] + a1 * J[0, 2, j]
-                    S[1, j] = a2 * J[0, 0, j] - a0 * J[0, 2, j]
-                    S[2, j] = -a1 * J[0, 0, j] + a0 * J[0, 1, j]
+    b = np.empty(3)
+    q = np.empty(3)
+    if not far_from_bottom(r, data):
+        for c in range(n_cells):
+            if not _cell_touches(r, radius, c, lim, f):
+                continue
+            rho = _midpoint(r, vg, Rm, Y[:, 3:6], radius, c, x, u, Om, t)
+            if want:
+                _seeds_into(Y, Rm[c], theta, c, hdt, 0, Dr, Du, DOm, Dt, Ja, S, RS)
+                _seeds_into(Y, Rm[c + 1], theta, c + 1, hdt, 6, Dr, Du, DOm, Dt, Jb, S, RS)
+            p = _node(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fnv, Ffv, Mv, DF, DM, wk)
+            if p <= 0.0:
+                continue
+            for e in range(2):
+                k = c + e
+                R = Rm[k]
                 for i in range(3):
-                    for j in range(3):
-                        RS[i, j] = -hdt * (R[i, 0] * S[0, j] + R[i, 1] * S[1, j]
-                                           + R[i, 2] * S[2, j])
+                    b[i] = 0.5 * gf * (R[0, i] * (Fnv[0] + Ffv[0]) + R[1, i] * (Fnv[1] + Ffv[1])
+                                       + R[2, i] * (Fnv[2] + Ffv[2]))
+                    q[i] = 0.5 * gf * (R[0, i] * Mv[0] + R[1, i] * Mv[1] + R[2, i] * Mv[2])
+                    cells[c, _E3 + i] += b[i]
+                    cells[c, _E4 + i] += q[i]
+                if not want:
+                    continue
                 for i in range(3):
+                    for j in range(12):
+                        col = j if j < 6 else j + 6        # (v, ω) of node c, node c + 1
+                        blocks[c, _E3 + i, col] += 0.5 * gf * (
+                            R[0, i] * DF[0, j] + R[1, i] * DF[1, j] + R[2, i] * DF[2, j])
+                        blocks[c, _E4 + i, col] += 0.5 * gf * (
+                            R[0, i] * DM[0, j] + R[1, i] * DM[1, j] + R[2, i] * DM[2, j])
+                # node k's body frame turns with its ω: ∂(Rᵀ F)/∂ω = ½Δt [Rᵀ F]× J_r
+                J = Ja if e == 0 else Jb
+                w0 = 3 + 12 * e
+                for vec in range(2):
+                    c0, c1, c2 = (b[0], b[1], b[2]) if vec == 0 else (q[0], q[1], q[2])
+                    row = _E3 if vec == 0 else _E4
                     for j in range(3):
-                        if vec == 0:
-                            Du[i, j] = R[i, j]
-                            Du[i, 3 + j] = RS[i, j]
-                            Dr[i, j] = hdt * R[i, j]
-                            Dr[i, 3 + j] = hdt * RS[i, j]
-                        elif vec == 1:
-                            DOm[i, 3 + j] = R[i, j] + RS[i, j]
-                        else:
-                            Dt[i, 3 + j] = RS[i, j]
-        p = _node(x, u, Om, t, radius[k], data, want, Dr, Du, DOm, Dt, Fnv, Ffv, Mv, DF, DM, wk)
-        if p <= 0.0:
-            continue
-        for i in range(3):
-            b[i] = (R[0, i] * (Fnv[0] + Ffv[0]) + R[1, i] * (Fnv[1] + Ffv[1])
-                    + R[2, i] * (Fnv[2] + Ffv[2]))
-            q[i] = R[0, i] * Mv[0] + R[1, i] * Mv[1] + R[2, i] * Mv[2]
-            Fn[k, _E3 + i] += b[i]
-            Fn[k, _E4 + i] += q[i]
-        if not want:
-            continue
-        for i in range(3):
-            for j in range(6):
-                dF[k, _E3 + i, _V + j] += R[0, i] * DF[0, j] + R[1, i] * DF[1, j] + R[2, i] * DF[2, j]
-                dF[k, _E4 + i, _V + j] += R[0, i] * DM[0, j] + R[1, i] * DM[1, j] + R[2, i] * DM[2, j]
-        # the body frame turns with ω: ∂(Rᵀ F)/∂ω = ½Δt [Rᵀ F]× J_r (solver.loads)
-        for vec in range(2):
-            c0, c1, c2 = (b[0], b[1], b[2]) if vec == 0 else (q[0], q[1], q[2])
-            row = _E3 if vec == 0 else _E4
-            for j in range(3):
-                dF[k, row, 3 + j] += hdt * (-c2 * J[0, 1, j] + c1 * J[0, 2, j])
-                dF[k, row + 1, 3 + j] += hdt * (c2 * J[0, 0, j] - c0 * J[0, 2, j])
-                dF[k, row + 2, 3 + j] += hdt * (-c1 * J[0, 0, j] + c0 * J[0, 1, j])
+                        blocks[c, row, w0 + j] += hdt * (-c2 * J[0, 1, j] + c1 * J[0, 2, j])
+                        blocks[c, row + 1, w0 + j] += hdt * (c2 * J[0, 0, j] - c0 * J[0, 2, j])
+                        blocks[c, row + 2, w0 + j] += hdt * (-c1 * J[0, 0, j] + c0 * J[0, 1, j])
+    if af != 0.0:
+        old = data[5]
+        for c in range(n_cells):
+            for i in range(12):
+                cells[c, i] += old[c, i]
 
 
 @numba.njit(cache=True)
-def seabed_loads(r, vg, Rm, omega, data, Fn, Ff, M, pen):
-    """The seabed's normal reaction Fn, friction Ff and moment M per unit length (N+1, 3),
-    global frame, and the surface penetration pen (N+1,) m (negative: the gap), for
-    positions r, velocities ṙ (N+1, 3), frames Rm (N+1, 3, 3) and body angular velocities
-    omega (N+1, 3) (module docstring; the outputs and the work account)."""
+def seabed_old_into(Y_old, q_old, r_old, vg_old, af, data, out):
+    """The old level's share of the seabed's cell rows, αf ½(R_aᵀ + R_bᵀ) F into the E3
+    and αf ½(R_aᵀ + R_bᵀ) M into the E4 columns of out (N, 12) (zero elsewhere): the law
+    at each cell's midpoint on the old pose Y^n (N+1, 12), q^n (N+1, 4), r^n and ṙ^n
+    (N+1, 3) (:func:`seabed_into`; constant in a step, so computed once at its start)."""
     scal, radius = data[0], data[1]
+    if scal[0] == 0.0 or far_from_bottom(r_old, data):
+        return
+    lim = scal[8]
+    f = scal[9]
+    x = np.empty(3)
+    u = np.empty(3)
+    Om = np.empty(3)
+    t = np.empty(3)
+    Fnv = np.empty(3)
+    Ffv = np.empty(3)
+    Mv = np.empty(3)
+    wk = np.zeros((9, 3, 12))
+    z = np.zeros((3, 12))
+    R_old = np.empty((r_old.shape[0], 3, 3))
+    _old_frames(q_old, R_old, 0, r_old.shape[0])
+    for c in range(r_old.shape[0] - 1):
+        if not _cell_touches(r_old, radius, c, lim, f):
+            continue
+        rho = _midpoint(r_old, vg_old, R_old, Y_old[:, 3:6], radius, c, x, u, Om, t)
+        p = _node(x, u, Om, t, rho, data, False, z, z, z, z, Fnv, Ffv, Mv, z, z, wk)
+        if p <= 0.0:
+            continue
+        for e in range(2):
+            R = R_old[c + e]
+            for i in range(3):
+                out[c, _E3 + i] += 0.5 * af * (
+                    R[0, i] * (Fnv[0] + Ffv[0]) + R[1, i] * (Fnv[1] + Ffv[1])
+                    + R[2, i] * (Fnv[2] + Ffv[2]))
+                out[c, _E4 + i] += 0.5 * af * (R[0, i] * Mv[0] + R[1, i] * Mv[1]
+                                               + R[2, i] * Mv[2])
+
+
+@numba.njit(cache=True)
+def seabed_cells(r, vg, Rm, omega, data, F, M, pen):
+    """The seabed's force F = normal reaction + friction and moment M per unit length on
+    each cell (N, 3) (N/m, N m/m, global: the law at the cell's midpoint, module
+    docstring) and the midpoint's surface penetration pen (N,) m (negative: the gap), for
+    node positions r, velocities ṙ (N+1, 3), frames Rm (N+1, 3, 3) and body angular
+    velocities omega (N+1, 3). Fills F[:, 0:3] with the normal reaction and F[:, 3:6]
+    with the friction (F (N, 6))."""
     x = np.empty(3)
     u = np.empty(3)
     Om = np.empty(3)
@@ -454,29 +621,44 @@ def seabed_loads(r, vg, Rm, omega, data, Fn, Ff, M, pen):
     a = np.empty(3)
     b = np.empty(3)
     c = np.empty(3)
-    z = np.zeros((3, 6))
-    wk = np.zeros((9, 3, 6))
-    for k in range(r.shape[0]):
-        R = Rm[k]
+    z = np.zeros((3, 12))
+    wk = np.zeros((9, 3, 12))
+    for k in range(r.shape[0] - 1):
+        rho = _midpoint(r, vg, Rm, omega, data[1], k, x, u, Om, t)
+        pen[k] = _node(x, u, Om, t, rho, data, False, z, z, z, z, a, b, c, z, z, wk)
         for i in range(3):
-            x[i] = r[k, i]
-            u[i] = vg[k, i]
-            Om[i] = R[i, 0] * omega[k, 0] + R[i, 1] * omega[k, 1] + R[i, 2] * omega[k, 2]
-            t[i] = R[i, 2]
-        if scal[0] == 0.0:
-            pen[k] = -math.inf
-            continue
-        pen[k] = _node(x, u, Om, t, radius[k], data, False, z, z, z, z, a, b, c, z, z, wk)
-        for i in range(3):
-            Fn[k, i] = a[i]
-            Ff[k, i] = b[i]
+            F[k, i] = a[i]
+            F[k, 3 + i] = b[i]
             M[k, i] = c[i]
 
 
+@numba.njit(cache=True)
+def node_penetration(r, data, pen):
+    """The surface penetration ρ − d (m, negative: the gap) of each node's centreline r
+    (N+1, 3) into pen (N+1,) (module docstring; d the distance to the bottom's tangent
+    plane under the node)."""
+    radius = data[1]
+    for k in range(r.shape[0]):
+        h, hx, hy, _ = _bottom(r[k, 0], r[k, 1], data)
+        pen[k] = radius[k] - (r[k, 2] - h) / math.sqrt(1.0 + hx * hx + hy * hy)
+
+
+def to_nodes(cell_values):
+    """Per-cell values (N, ...) per unit length as node values (N+1, ...): the mean of
+    a node's two cells, an end node's own cell's. With the trapezoid weights (Δs/2 at the
+    ends, Δs inside) their integral is the cells' Σ Δs·value, and their power with the
+    node velocities the cells' with the midpoint velocities (both exactly)."""
+    c = np.asarray(cell_values, float)
+    out = np.empty((c.shape[0] + 1,) + c.shape[1:])
+    out[0], out[-1] = c[0], c[-1]
+    out[1:-1] = 0.5 * (c[:-1] + c[1:])
+    return out
+
+
 #: the gap, as a fraction of the diameter, that a node between two touching nodes may
-#: hover above the bottom and still count as lying on it: the nodal contact of the box
-#: rule lets every other node of a cable lying on the bottom rise up to ~0.1 mm above it
-#: with no reaction while its neighbours carry twice the weight (docs/seabed.md)
+#: hover above the bottom and still count as lying on it: the box rule's odd-even mode
+#: zig-zags the node heights of a cable lying on the bottom by up to ~0.15 mm while the
+#: cells carry it (docs/seabed.md, "Per cell")
 CONTACT_GAP = 0.025
 
 

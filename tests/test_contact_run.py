@@ -243,6 +243,65 @@ def test_fixed_contact_steps_take_their_size_from_the_route_ratio(monkeypatch):
     assert sum(1 for a in early if abs(a["h"] - 0.1) < 1e-9) >= 45
 
 
+class _PartedRun:
+    """A stand-in for RodRun after the strands have parted: no contact candidates, every
+    step accepted unless the route rule refuses it, the route ratio (h/h1)³ (a position
+    error O(h³) reaching the bound at h1)."""
+
+    def __init__(self, case, h1, control):
+        self.case, self.h1, self.control = case, h1, control
+        self.t = 0.0
+        self.last_had_candidates = False
+        self.last_route_ratio = float("nan")
+        self.last_reject = None
+        self.attempts = []
+
+    def try_step(self, h, t_new=None, left_limit=False, restart=False, estimate=True):
+        from solver.stepping.control import Attempt
+        self.last_route_ratio = (h / self.h1) ** 3
+        ok = self.last_route_ratio <= 1.0
+        self.attempts.append((h, ok, self.control.h_route is not None))
+        if not ok:
+            self.last_reject = "contact"
+            return Attempt(False, 3, 1e-12, False, "contact")
+        self.t = t_new if t_new is not None else self.t + h
+        return Attempt(True, 3, 1e-12)
+
+
+@pytest.mark.parametrize("h1", [1e-3, 1.0])
+def test_route_controller_keeps_dt_after_the_strands_part(h1):
+    """After a contact phase (Δt from the route rule's ratio, here 0.2 ms) a step without
+    candidates hands Δt back to the levels dt/4^k only once the controller allows the
+    nominal step: while the route rule still limits Δt (bound reached at h1 = 1 ms) every
+    step stays with the controller, near its target ratio, and almost none is refused (the
+    levels alternated between 0.39 ms, ratio 0.06, and 1.56 ms, refused at ratio 3.8);
+    with a rule that allows the nominal step (h1 = 1 s) the levels take over again
+    (docs/contact.md § 3)."""
+    from solver.stepping import PIController
+    from solver.stepping.control import StepControl
+    case = fast_writhing_case(1.0)
+    control = StepControl(case, None, PIController())
+    control.h_route = 2e-4
+    run = _PartedRun(case, h1, control)
+    for stop in (0.1, 0.2):
+        control._advance_to(run, stop, 0.1, False)
+        assert abs(run.t - stop) < 1e-12
+    if h1 < 0.1:
+        assert all(pi for _, _, pi in run.attempts)
+        refused = sum(1 for _, ok, _ in run.attempts if not ok)
+        assert refused <= 2
+        # after the growth from 0.2 ms, steps near the target ratio 0.35 (h ≈ 0.7 h1),
+        # short ones only where a step lands on a nominal step
+        h_ok = np.array([h for h, ok, _ in run.attempts[5:] if ok])
+        assert 0.5 * h1 <= np.median(h_ok) <= h1
+        assert np.sum(h_ok < 0.3 * h1) <= 4
+    else:
+        # the controller grows the step (×2 a step at low ratios) until it allows the
+        # nominal one, then the levels step on
+        assert control.h_route is None
+        assert not run.attempts[-1][2]
+
+
 def plectoneme_case(n_segments, dt, t_end=9.0):
     """PyElastica's plectoneme example as benchmarks/pyelastica_compare.py sets it up: a
     1-m rod, clamped at s = 0, its s = L end held laterally, free to slide axially and

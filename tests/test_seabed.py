@@ -271,8 +271,8 @@ def test_outputs_with_a_seabed_and_none_without():
 
 def test_contact_length_bridges_nodes_hovering_between_touching_ones():
     """A cable lying on the bottom whose every other node hovers up to 0.1 mm above it
-    (the box rule's nodal contact, measured on cases/catenary-touchdown.yaml: even nodes
-    carrying 2w at p = 2w/k, odd ones 35-105 µm up) reports its lying length, not the
+    (the box rule's odd-even mode in the node heights, measured on
+    cases/catenary-touchdown.yaml: up to 0.15 mm) reports its lying length, not the
     slivers around the touching nodes; a cable lifted clear, or more than the gap, reports
     0 and a contact's ends (the touchdown) stay the zeros of p."""
     from solver.seabed import CONTACT_GAP, contact_gap, contact_length, touchdown

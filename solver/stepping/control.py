@@ -10,10 +10,11 @@ controller) and :class:`solver.stepping.guard.GrowthGuard`.
 
 Fixed steps (:meth:`StepControl.advance`): the nominal step, split at the case's
 breakpoints, substepped on the levels Δt/dt_cut_factor^k (cut on failure, grown back
-after a run of accepted substeps), and where strands may meet with Δt from the route
-rule's error ratio (:meth:`StepControl._route_step`). Error-controlled steps
-(``numerics.tolerance``, :meth:`StepControl.step_adaptive`): one accepted step of the PI
-controller's size, the first after a restart measured by step doubling.
+after a run of accepted substeps), and where strands may meet (and after, while the route
+rule limits Δt) with Δt from the route rule's error ratio
+(:meth:`StepControl._route_step`). Error-controlled steps (``numerics.tolerance``,
+:meth:`StepControl.step_adaptive`): one accepted step of the PI controller's size, the
+first after a restart measured by step doubling.
 """
 from __future__ import annotations
 
@@ -138,7 +139,8 @@ class StepControl:
         reached; a failure raises the level by one, and after ``grow_after`` consecutive
         accepted substeps the level drops by one (:meth:`_choose_level`). Once a step with
         contact candidates is accepted, the steps go on by :meth:`_route_step` (Δt from
-        the route rule's error ratio) until one has none.
+        the route rule's error ratio) until one without candidates is accepted at a ratio
+        that allows the nominal step.
         """
         num = run.case.numerics
         level = self.level_hint
@@ -228,7 +230,8 @@ class StepControl:
         that would leave less than itself is halved). With Δt chosen continuously rather
         than on the levels h_full/factor^k the seed example's contact phase is more
         accurate for its cost (docs/contact.md § 4). When the accepted step has no
-        candidates the levels take over again, at the level of that step. Raises
+        candidates and the controller's next size reaches h_full the levels take over
+        again, at the level of that step. Raises
         SolverDivergence below h_full/dt_cut_factor^max_dt_cuts. Returns the Newton
         iterations."""
         num = run.case.numerics
@@ -244,12 +247,22 @@ class StepControl:
             total_its += its
             if ok:
                 self.last_dt = h_try
-                if run.last_had_candidates:
-                    h_new = ctl.accepted(h_try, run.last_route_ratio)
-                    # a step shortened to land on a stop does not shrink the next one
-                    self.h_route = max(h_new, h) if h_try < h else h_new
+                h_new = ctl.accepted(h_try, run.last_route_ratio)
+                # a step shortened to land on a stop does not shrink the next one
+                h_new = max(h_new, h) if h_try < h else h_new
+                if run.last_had_candidates or h_new < h_full * (1.0 - 1e-9):
+                    # strands may meet, or the route rule still limits Δt: its ratio
+                    # sizes the next step. Why the second: between contacts the route
+                    # rule alone can limit Δt, and the levels, 4x apart, then alternate
+                    # between a step it refuses and one 4x too small (the seed example
+                    # without its fluid, 17.5-18.4 s: 855 of 4307 attempts refused, most
+                    # steps at 0.1/4^5 s with route ratios of 0.02-0.07; kept on the
+                    # controller, 53 of 3436, the ratios at its target;
+                    # benchmarks/contact_steps.py, docs/contact.md § 3)
+                    self.h_route = h_new
                 else:
-                    # strands apart: the levels again, from the largest not above this Δt
+                    # strands apart and the route rule allows the nominal step: the
+                    # levels again, from the largest not above this Δt
                     self.h_route = None
                     self.level_hint = max(0, math.ceil(
                         math.log(h_full / h_try) / math.log(num.dt_cut_factor) - 1e-9))

@@ -1,0 +1,115 @@
+"""Every step attempt of a contact-suite case (benchmarks/contact_suite.py) over a window:
+how Δt is chosen and why attempts are refused.
+
+The case runs from t = 0 to ``--t-end`` (with ``numerics.energy_tolerance`` = 0.05 as in
+the suite); each attempt (RodRun.try_step) is recorded: its start time, Δt, accepted or
+the refusal's reason ("contact" covers the route rule, a negative gap and tunnelling;
+"newton" a Newton failure), Newton iterations, the route rule's error ratio and the
+contacts. Printed per ``--every`` seconds from ``--from`` on: attempts, accepted, refused
+by reason, Newton iterations, median and smallest accepted Δt, median route ratio of the
+accepted steps, median contacts; then the totals over the window. With
+``--newton-failures K`` also the first K attempts of the window refused by Newton, each
+with its iterations (Newton.last_trace: scaled residual, the feasibility filter's
+fraction, the line search's fraction, GMRES iterations) and why it failed.
+
+Run: ``PYTHONPATH=$PWD python benchmarks/contact_steps.py seed-in-air --from 17.5
+--t-end 18.4`` (the seed example without its fluid, from just before its first contact),
+``... tension --from 18.4 --t-end 18.7``.
+"""
+from __future__ import annotations
+
+import argparse
+import collections
+import math
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent / "tests"))
+
+
+def record(name: str, t_end: float) -> list:
+    """Run suite case ``name`` to t_end (s); the attempts as dicts."""
+    import contact_suite as cs
+    from solver.case import Case
+    from solver.run import RodRun
+    from solver.simulation import SolverDivergence, simulate
+
+    spec = cs.CASES[name][1]()
+    spec["numerics"]["energy_tolerance"] = cs.ENERGY_TOLERANCE
+    spec["numerics"]["t_end"] = t_end
+    case = Case.model_validate(spec)
+    attempts, plain = [], RodRun.try_step
+
+    def recording(self, h, *args, **kwargs):
+        t0 = self.t
+        att = plain(self, h, *args, **kwargs)
+        trace = None
+        if att.reason == "newton" and self.newton.last_trace is not None:
+            trace = (self.newton.last_failure, self.newton.last_trace.copy())
+        attempts.append({"t": t0, "h": h, "ok": bool(att.ok), "why": att.reason,
+                         "its": att.iterations, "ratio": self.last_route_ratio,
+                         "contacts": self.contact_count, "trace": trace})
+        return att
+
+    RodRun.try_step = recording
+    try:
+        simulate(case)
+    except SolverDivergence as exc:
+        print(f"stopped: {exc.reason} at t = {exc.t:.4f} s")
+    finally:
+        RodRun.try_step = plain
+    return attempts
+
+
+def summary(rows: list) -> str:
+    acc = [a for a in rows if a["ok"]]
+    why = collections.Counter(a["why"] for a in rows if not a["ok"])
+    h = np.array([a["h"] for a in acc])
+    ratio = np.array([a["ratio"] for a in acc], float)
+    med = (lambda x: float(np.nanmedian(x)) if x.size and np.isfinite(x).any()
+           else math.nan)
+    return (f"attempts {len(rows):5d}  accepted {len(acc):5d}  refused "
+            f"{dict(why) or '-'}  Newton {sum(a['its'] for a in rows):6d}  "
+            f"Δt median {med(h):.3g} min {(h.min() if h.size else math.nan):.3g} s  "
+            f"route ratio median {med(ratio):.2f}  contacts median "
+            f"{med(np.array([a['contacts'] for a in acc], float)):.0f}")
+
+
+def main() -> None:
+    import contact_suite as cs
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("case", choices=list(cs.CASES))
+    ap.add_argument("--from", dest="t_from", type=float, default=0.0)
+    ap.add_argument("--t-end", type=float, required=True)
+    ap.add_argument("--every", type=float, default=0.1)
+    ap.add_argument("--newton-failures", type=int, default=0)
+    args = ap.parse_args()
+    load = os.getloadavg()[0]
+    wall = time.perf_counter()
+    rows = [a for a in record(args.case, args.t_end) if a["t"] >= args.t_from - 1e-12]
+    wall = time.perf_counter() - wall
+    edges = np.arange(args.t_from, args.t_end + 1e-9, args.every)
+    for a, b in zip(edges[:-1], edges[1:]):
+        part = [r for r in rows if a - 1e-12 <= r["t"] < b - 1e-12]
+        if part:
+            print(f"{a:7.2f}-{b:<7.2f} {summary(part)}")
+    print(f"{args.t_from:.2f}-{args.t_end:.2f}  {summary(rows)}")
+    failed = [r for r in rows if r["trace"] is not None][:args.newton_failures]
+    for r in failed:
+        print(f"Newton failed ({r['trace'][0]}) at t = {r['t']:.5f} s, Δt = {r['h']:.3g} s, "
+              f"{r['contacts']} contacts before the step:")
+        for k, (res, feas, frac, gm) in enumerate(r["trace"][1]):
+            print(f"   iteration {k}: residual {res:.3g}, feasible fraction {feas:.3g}, "
+                  f"line search {frac:.3g}, GMRES {gm:.0f}")
+    print(f"wall {wall:.1f} s for the whole run (compilation included); 1-min load "
+          f"{load:.1f} at the start, {os.getloadavg()[0]:.1f} at the end")
+
+
+if __name__ == "__main__":
+    main()
