@@ -102,6 +102,44 @@ def main():
         print(f"{r[0]:6.3f} {r[1]:8.4f} {r[2]:12.4f} {r[3]:7.3f} {r[4]:7.3f} {r[5]:10.3g}")
     if a.save:
         np.save(a.save, rows)
+    compare(rows, B=B, T=T, D=D, L=L, g_hat=D / 20)
+
+
+def compare(rows, *, B, T, D, L, g_hat):
+    """Print the branch's figures beside the theory (module doc). rows: (turns, M,
+    shortening, Tw, Wr, gap) per point."""
+    turns, M, short, gap = rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 5]
+    k = int(np.argmax(turns[1:] < turns[:-1]))          # the first fold in the rotation
+    print(f"buckling (first fold in the rotation): {turns[k]:.3f} turns, M = {M[k]:.4f} N m "
+          f"= {M[k] / (2 * np.sqrt(B * T)):.4f} x 2√(BT) (T L²/B = {T * L**2 / B:.0f})")
+    touch = np.flatnonzero(gap < g_hat)
+    if touch.size == 0:
+        print("no self-contact on the branch followed")
+        return
+    c = touch[0]
+    print(f"first contact (gap < ĝ): {turns[c]:.3f} turns, M = {M[c]:.4f} N m, shortening "
+          f"{short[c]:.3f} m, Wr = {rows[c, 4]:.3f}")
+    print(f"smallest segment-to-segment gap along the branch: {np.min(gap):.3g} m "
+          f"({np.min(gap) / D:.2%} of D)")
+    after = slice(c, None)
+    mean_gap = float(np.median(np.clip(gap[after], 0, None)))
+    th, Mp, slope = theory(T, B, 0.5 * (D + mean_gap))
+    print(f"theory (R = (D + g)/2, g = {mean_gap:.3g} m the median gap after contact): "
+          f"θ = {th:.4f} rad, plateau M_p = {Mp:.4f} N m, extension falls "
+          f"{slope:.3f} m per turn")
+    tt, mm, ss = turns[after], M[after], short[after]
+    grow = np.flatnonzero((np.diff(tt) > 0) & (np.diff(ss) > 0))
+    if grow.size < 3 or np.ptp(ss[grow]) < 0.5 * slope:
+        print(f"after contact ({tt.size} points): {tt.min():.3f}-{tt.max():.3f} turns, M "
+              f"{mm.min():.4f}-{mm.max():.4f} N m, shortening {ss.min():.3f}-{ss.max():.3f} m, "
+              "Wr {:.3f}-{:.3f}: the shortening does not grow by half a theoretical turn's "
+              "(no plectoneme growth on the branch followed)".format(rows[c:, 4].min(),
+                                                                    rows[c:, 4].max()))
+        return
+    fit = np.polyfit(tt[grow], ss[grow], 1)
+    print(f"plectoneme growth on {grow.size} steps: M = {np.median(mm[grow]):.4f} N m "
+          f"(median; {mm[grow].min():.4f}-{mm[grow].max():.4f}), shortening "
+          f"{fit[0]:.3f} m per turn")
 
 
 if __name__ == "__main__":
