@@ -12,7 +12,9 @@ Prints per point the rotation, Lk, end slide, Tw, Wr, the smallest segment-to-se
 gap and the number of nodes carrying a contact load, then the first point with a
 contact load (a pair inside the law's cut-off, the dynamic run's "contact count > 0")
 and its Lk beside the dynamic run's Lk at its first contact (18.1 s of the seed's twist
-schedule, docs/seed-example.md).
+schedule, docs/seed-example.md), and the branch in contact at that Lk (Wr, end slide).
+
+    PYTHONPATH=$PWD python3 benchmarks/seed_statics_contact.py --to -30 --points 2000 --ds-max 0.01
 """
 from __future__ import annotations
 
@@ -86,6 +88,20 @@ def main():
               f"Lk = {first[1]:.4f} turns (Tw {first[3]:.3f}, Wr {first[4]:.3f}, slide "
               f"{first[2]:.4f} m, gap {first[5]:.2f} mm)")
     print(f"smallest gap along the branch: {min(r[5] for r in rows):.3f} mm")
+    if first is not None:
+        lk_dyn = -angle_dyn / (2 * np.pi)
+        arr = np.array(rows)
+        k0 = rows.index(first)
+        lk = arr[k0:, 1]
+        hit = np.flatnonzero((lk[:-1] - lk_dyn) * (lk[1:] - lk_dyn) <= 0)
+        if hit.size:
+            i = k0 + hit[0]
+            w = (lk_dyn - arr[i, 1]) / (arr[i + 1, 1] - arr[i, 1])
+            at = (1 - w) * arr[i] + w * arr[i + 1]
+            print(f"in contact at the dynamic run's Lk = {lk_dyn:.4f} (first crossing after "
+                  f"first contact, point {i}): Wr = {at[4]:.3f}, Tw = {at[3]:.3f}, slide "
+                  f"{at[2]:.4f} m, gap {at[5]:.3f} mm, {int(arr[i, 6])} loaded nodes; "
+                  f"{hit.size} crossings of that Lk in contact")
 
 
 if __name__ == "__main__":

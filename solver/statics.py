@@ -44,6 +44,13 @@ ACM TOMS 29, 2003): ∂G/∂y_j = Im G(y + iε e_j)/ε with ε = 1e-30, no subtr
 truncation or cancellation error; 26 residual evaluations colour the whole matrix (nodes
 of one parity share no row).
 
+Self-contact and the seabed (optional, ``StaticProblem.contact``/``seabed``) add nodal load
+densities L_k (N/m) to the force rows, h/2 (L_i + L_i+1) per cell: the dynamic contact
+model at rest (its law without damping, :func:`contact_loads`) and the bottom's normal
+spring without damping or friction (:func:`seabed_loads`), with their exact derivatives
+with respect to the positions. Both are conservative; the energies of :func:`fields`
+leave their potentials out.
+
 Stability: the linearised dynamics about an equilibrium are M z̈ + K z = 0 with the
 dynamic box rule; in the static rows this reads J z = μ B z, μ = −ω², where B puts the
 mass per length ρA and the rotational inertia on the force and moment rows. For a
