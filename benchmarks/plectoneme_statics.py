@@ -1,7 +1,7 @@
 """A clamped rod under tension T twisted through plectoneme formation, with self-contact:
 the static branch in the end rotation against the elastic-rod plectoneme theory.
 
-    PYTHONPATH=$PWD python3 benchmarks/plectoneme_statics.py [--segments 240] [--length 24]
+    PYTHONPATH=$PWD python3 benchmarks/plectoneme_statics.py [--segments 120] [--length 24] [--points 3000]
 
 The rod (B = EJ1 = EJ2 = 1 N m², C = GJ3 = 1 N m², diameter D = 0.4 m, T = 1 N: lengths
 in units of √(B/T) = 1 m) is clamped at s = 0; at s = L its frame is turned about the axis
@@ -70,10 +70,10 @@ def problem_family(L, N, *, B=1.0, C=1.0, T=1.0, D=0.4, g_hat=None, kappa=100.0,
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--segments", type=int, default=240)
+    ap.add_argument("--segments", type=int, default=120)
     ap.add_argument("--length", type=float, default=24.0)
     ap.add_argument("--turns", type=float, default=14.0)
-    ap.add_argument("--points", type=int, default=400)
+    ap.add_argument("--points", type=int, default=3000)
     ap.add_argument("--ds-max", type=float, default=0.05)
     ap.add_argument("--save", default="")
     a = ap.parse_args()
