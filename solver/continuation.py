@@ -625,7 +625,7 @@ def _locate(S: _Scaled, z0, t0, z1, kind, newton_max, tol, det0, count0, modes, 
 def _point_quantities(br: Branch, shapes_every: int):
     """Per point: end loads and positions (point, 3), scalars (point,), shapes
     (point, N+1, 3) on every ``shapes_every``-th point and the last (NaN elsewhere)."""
-    from .statics import fields
+    from .statics import contact_gap, fields
     from .topology import linking_number, twist, writhe
 
     n_pts = len(br.parameter)
@@ -639,7 +639,8 @@ def _point_quantities(br: Branch, shapes_every: int):
     per = {k: np.zeros((n_pts, 3)) for k in ("start_force", "end_force", "start_moment",
                                                "end_moment", "start_position", "end_position")}
     scal = {k: np.zeros(n_pts) for k in ("start_rotation", "end_rotation", "end_to_end", "twist",
-                                         "writhe", "link", "elastic_energy", "load_potential")}
+                                         "writhe", "link", "elastic_energy", "load_potential",
+                                         "contact_gap")}
     for i, (Y, prob) in enumerate(zip(br.Y, br.problems)):
         f = fields(Y, prob)
         per["start_force"][i] = -Y[0, 7:10]
@@ -656,6 +657,7 @@ def _point_quantities(br: Branch, shapes_every: int):
         scal["link"][i] = linking_number(prob.start.twist, prob.end.twist)
         scal["elastic_energy"][i] = f["elastic_energy"]
         scal["load_potential"][i] = f["load_potential"]
+        scal["contact_gap"][i] = contact_gap(Y, prob)
         if keep[i]:
             pos[i], kap[i] = f["position"], f["kappa"]
     return per, scal, pos, kap
@@ -673,7 +675,9 @@ def branch_dataset(br: Branch, parameter: str = "parameter", *, shapes_every: in
     ``start_rotation``/``end_rotation`` (rad about the end tangents, from the reference),
     ``end_to_end`` (m), ``twist``/``writhe``/``link`` (Tw, Wr, Lk, turns:
     :mod:`solver.topology`; Lk from the end rotations, meaningful when the end tangents
-    stay on one axis), ``elastic_energy``, ``load_potential``, ``total_energy`` (J); on
+    stay on one axis), ``elastic_energy``, ``load_potential``, ``total_energy`` (J),
+    ``contact_gap`` (m: the smallest segment-to-segment surface gap beyond the exclusion,
+    :func:`solver.statics.contact_gap`; inf without self-contact); on
     every ``shapes_every``-th point (the last always) ``position`` and ``kappa`` on the
     nodes (NaN on the others). Per bifurcation: ``bifurcation_parameter``,
     ``bifurcation_kind`` ("fold" / "branch_point"), ``bifurcation_after`` (the point index
@@ -690,7 +694,8 @@ def branch_dataset(br: Branch, parameter: str = "parameter", *, shapes_every: in
     units = {"start_force": "N", "end_force": "N", "start_moment": "N m", "end_moment": "N m",
              "start_position": "m", "end_position": "m", "start_rotation": "rad",
              "end_rotation": "rad", "end_to_end": "m", "twist": "turns", "writhe": "turns",
-             "link": "turns", "elastic_energy": "J", "load_potential": "J"}
+             "link": "turns", "elastic_energy": "J", "load_potential": "J",
+             "contact_gap": "m"}
     data = {
         "parameter": ("point", np.asarray(br.parameter, float), {"path": parameter}),
         "unstable_modes": ("point", unstable, {"long_name": "number of unstable modes "

@@ -44,6 +44,13 @@ ACM TOMS 29, 2003): ∂G/∂y_j = Im G(y + iε e_j)/ε with ε = 1e-30, no subtr
 truncation or cancellation error; 26 residual evaluations colour the whole matrix (nodes
 of one parity share no row).
 
+Self-contact and the seabed (optional, ``StaticProblem.contact``/``seabed``) add nodal load
+densities L_k (N/m) to the force rows, h/2 (L_i + L_i+1) per cell: the dynamic contact
+model at rest (its law without damping, :func:`contact_loads`) and the bottom's normal
+spring without damping or friction (:func:`seabed_loads`), with their exact derivatives
+with respect to the positions. Both are conservative; the energies of :func:`fields`
+leave their potentials out.
+
 Stability: the linearised dynamics about an equilibrium are M z̈ + K z = 0 with the
 dynamic box rule; in the static rows this reads J z = μ B z, μ = −ω², where B puts the
 mass per length ρA and the rotational inertia on the force and moment rows. For a
@@ -64,7 +71,8 @@ import scipy.sparse.linalg as spla
 
 __all__ = ["EndSpec", "StaticProblem", "StaticSolution", "StaticsError", "residual",
            "jacobian", "solve", "straight_guess", "unstable_modes", "lu_det_sign",
-           "static_problem", "quat_axis_angle", "NV", "N_START"]
+           "static_problem", "quat_axis_angle", "contact_loads", "seabed_loads",
+           "contact_gap", "NV", "N_START"]
 
 NV = 13          # unknowns per node
 N_START = 7      # boundary rows at s = 0
@@ -162,6 +170,10 @@ class StaticProblem:
     mass : (N+1,) ρA, kg/m; inertia : (N+1,) rotational inertia per length, kg m
            (only the stability pencil reads them; any positive values give the same count)
     reference : (4,) frame of the straight reference rod (tangent a3 along the rod)
+    contact : :class:`solver.contact.SelfContact` or None: self-contact by its law's
+              repulsion, without damping (:func:`contact_loads`)
+    seabed : :class:`solver.seabed.Seabed` or None: the bottom's normal spring, without
+             damping and friction (:func:`seabed_loads`)
     """
 
     length: float
@@ -173,6 +185,8 @@ class StaticProblem:
     mass: Optional[np.ndarray] = None
     inertia: Optional[np.ndarray] = None
     reference: np.ndarray = field(default_factory=lambda: np.array([1.0, 0, 0, 0]))
+    contact: Optional[object] = None
+    seabed: Optional[object] = None
 
     @property
     def h(self) -> float:
@@ -210,6 +224,10 @@ def residual(Y, prob: StaticProblem) -> np.ndarray:
     out = np.empty(NV * (prob.n_segments + 1), dtype=Y.dtype)
     out[N_START:-N_END] = _cell_rows(Y, prob).ravel()
     out[:N_START], out[-N_END:] = _end_rows(Y, prob)
+    if prob.contact is not None or prob.seabed is not None:
+        extra = contact_loads(Y, prob) + seabed_loads(Y, prob)
+        cells = out[N_START:-N_END].reshape(prob.n_segments, NV)
+        cells[:, 7:10] += 0.5 * prob.h * (extra[:-1] + extra[1:])
     return out
 
 
@@ -311,7 +329,181 @@ def jacobian(Y: np.ndarray, prob: StaticProblem) -> sp.csc_matrix:
         vals[pos] = G[c, rows]
     vals /= _EPS
     n = NV * (prob.n_segments + 1)
-    return sp.csc_matrix((vals, indices, indptr), shape=(n, n))
+    J = sp.csc_matrix((vals, indices, indptr), shape=(n, n))
+    if prob.contact is None and prob.seabed is None:
+        return J
+    dL = _contact_load_jacobian(Y, prob) + _seabed_load_jacobian(Y, prob)
+    return (J + _load_rows(prob) @ dL @ _position_columns(prob)).tocsc()
+
+
+# --------------------------------------------------------------------------- contact, seabed
+
+def _load_rows(prob: StaticProblem) -> sp.csr_matrix:
+    """(13(N+1), 3(N+1)): how a nodal load density L_k (N/m) enters the force rows of the
+    box rule, h/2 in the cells k − 1 and k."""
+    N, h = prob.n_segments, prob.h
+    k = np.repeat(np.arange(N + 1), 3)
+    c = np.tile(np.arange(3), N + 1)
+    rows, cols = [], []
+    for cell in (k - 1, k):
+        ok = (cell >= 0) & (cell < N)
+        rows.append(N_START + NV * cell[ok] + 7 + c[ok])
+        cols.append(3 * k[ok] + c[ok])
+    rows, cols = np.concatenate(rows), np.concatenate(cols)
+    return sp.csr_matrix((np.full(rows.size, 0.5 * h), (rows, cols)),
+                         shape=(NV * (N + 1), 3 * (N + 1)))
+
+
+def _position_columns(prob: StaticProblem) -> sp.csr_matrix:
+    """(3(N+1), 13(N+1)): the position unknowns r_k among the node unknowns."""
+    n1 = prob.n_segments + 1
+    k = np.repeat(np.arange(n1), 3)
+    c = np.tile(np.arange(3), n1)
+    return sp.csr_matrix((np.ones(3 * n1), (3 * k + c, NV * k + c)), shape=(3 * n1, NV * n1))
+
+
+def _contact_evaluation(Y, prob):
+    """The dynamic contact model's evaluation (:meth:`solver.contact.SelfContact.evaluate`)
+    at the positions of Y and zero velocities, or None without contact or candidates: the
+    candidates searched afresh at every call (within the tolerance, no reach), so that
+    the residual is a function of Y alone."""
+    c = prob.contact
+    if c is None:
+        return None
+    r = np.ascontiguousarray(np.real(Y[:, 0:3]), dtype=float)
+    if not np.all(np.isfinite(r)):
+        raise StaticsError("contact: non-finite positions")
+    a3 = np.ascontiguousarray(_rot(np.real(Y[:, 3:7]))[:, :, 2], dtype=float)
+    cand = c.search(r, a3)
+    if cand is None:
+        return None
+    try:
+        return c.evaluate(cand, r, np.zeros_like(r))
+    except ValueError as exc:
+        raise StaticsError(f"contact: {exc}") from exc
+
+
+def contact_loads(Y: np.ndarray, prob: StaticProblem) -> np.ndarray:
+    """Self-contact load density (N+1, 3) N/m (global) at the state Y (N+1, 13), zeros
+    without ``prob.contact``.
+
+    The dynamic model of :mod:`solver.contact.model` at rest: every node i finds the
+    closest point of each run of nearby partner nodes on the partner curve (Catmull-Rom
+    through the nodes), d its centreline distance, n the unit direction; node i receives
+    ½ f(d) n and the curve's nodes the reaction weighted by the curve's basis (and the
+    ratio of nodal weights), :func:`solver.contact.assemble_nodal`; f the law of
+    :mod:`solver.contact.laws` at zero approach rate ḋ = 0, i.e. the repulsion alone
+    (ρĀ P(g) for the barrier, ρĀ φ(d) P(g) for the seed law): no damping in statics.
+    The closest point t minimises d, so the loads are the gradient of the potential
+    Σ_i ½ Δs_i Π(d_i), Π' = −f (for a uniform diameter; the dynamic model interpolates
+    D̄ and ρĀ along the partner segment, which the derivative leaves out).
+    """
+    n1 = prob.n_segments + 1
+    ev = _contact_evaluation(Y, prob)
+    if ev is None or ev.count == 0:
+        return np.zeros((n1, 3))
+    from .contact import assemble_nodal
+    return assemble_nodal(ev, n1)
+
+
+def _contact_load_jacobian(Y, prob) -> sp.csr_matrix:
+    """∂L/∂r (3(N+1), 3(N+1)) of :func:`contact_loads` from the dynamic model's exact
+    pair derivatives: node a's load w_a F changes by w_a δF + F (∂w_a/∂t) Σ_b ∂t/∂r_b
+    δr_b (``d_force_d_r``, ``d_weights_d_t``, ``d_t_d_r`` of
+    :class:`solver.contact.ContactEvaluation`)."""
+    n1 = prob.n_segments + 1
+    ev = _contact_evaluation(Y, prob)
+    if ev is None or ev.count == 0:
+        return sp.csr_matrix((3 * n1, 3 * n1))
+    # block[p, a, b] (3, 3): ∂(w_a F_p)/∂r_b
+    block = (ev.weights[:, :, None, None, None] * ev.d_force_d_r[:, None, :, :, :]
+             + (ev.force[:, None, None, :, None] * ev.d_weights_d_t[:, :, None, None, None]
+                * ev.d_t_d_r[:, None, :, None, :]))
+    P = ev.count
+    na = ev.nodes[:, :, None, None, None]
+    nb = ev.nodes[:, None, :, None, None]
+    ca = np.arange(3)[None, None, None, :, None]
+    cb = np.arange(3)[None, None, None, None, :]
+    shape = (P, 5, 5, 3, 3)
+    rows = np.broadcast_to(3 * na + ca, shape).ravel()
+    cols = np.broadcast_to(3 * nb + cb, shape).ravel()
+    return sp.csr_matrix((block.ravel(), (rows, cols)), shape=(3 * n1, 3 * n1))
+
+
+def contact_gap(Y: np.ndarray, prob: StaticProblem) -> float:
+    """Smallest surface gap (m) between segments of the centreline polyline further apart
+    in arclength than the exclusion (:func:`solver.contact.geometry.min_surface_gap`,
+    segment to segment, the measure the dynamic run reports); inf without contact or
+    with no pair within the tolerance."""
+    from .contact.geometry import min_surface_gap
+
+    c = prob.contact
+    if c is None:
+        return float("inf")
+    r = np.ascontiguousarray(np.real(Y[:, 0:3]), dtype=float)
+    return min_surface_gap(r, c.diameter, prob.s, c.separation_cut, c.tolerance + prob.h)
+
+
+def _static_seabed_data(sb):
+    """The seabed's kernel data with its damping and friction set to zero: in statics the
+    bottom is the normal spring alone (no velocity, no slip history)."""
+    scal = np.array(sb.data[0], float)
+    scal[3] = scal[4] = scal[5] = 0.0
+    return (scal,) + tuple(sb.data[1:])
+
+
+def seabed_loads(Y: np.ndarray, prob: StaticProblem) -> np.ndarray:
+    """The seabed's normal reaction per unit length (N+1, 3) N/m (global) at the state Y,
+    zeros without ``prob.seabed``: :func:`solver.seabed.seabed_loads` at rest with its
+    damping and friction off, N = k p n (p the surface penetration, n the bottom's normal).
+    Frictionless: Coulomb friction is a force of the slip history, which a static problem
+    does not have."""
+    from .seabed import seabed_loads as _kernel
+
+    n1 = prob.n_segments + 1
+    sb = prob.seabed
+    if sb is None:
+        return np.zeros((n1, 3))
+    r = np.ascontiguousarray(np.real(Y[:, 0:3]), dtype=float)
+    R = np.ascontiguousarray(_rot(np.real(Y[:, 3:7])), dtype=float)
+    zero = np.zeros((n1, 3))
+    Fn, Ff, M, pen = zero.copy(), zero.copy(), zero.copy(), np.zeros(n1)
+    _kernel(r, zero, R, zero, _static_seabed_data(sb), Fn, Ff, M, pen)
+    return Fn
+
+
+def _seabed_load_jacobian(Y, prob) -> sp.csr_matrix:
+    """∂L/∂r (3(N+1), 3(N+1)) of :func:`seabed_loads`: node-local 3×3 blocks, exact, from
+    the derivative propagation of :func:`solver.seabed._node` (velocity, rotation and
+    tangent seeds zero) at the nodes in contact."""
+    from .seabed import _node
+
+    n1 = prob.n_segments + 1
+    sb = prob.seabed
+    if sb is None:
+        return sp.csr_matrix((3 * n1, 3 * n1))
+    data = _static_seabed_data(sb)
+    r = np.real(Y[:, 0:3])
+    R = _rot(np.real(Y[:, 3:7]))
+    Dr = np.zeros((3, 6))
+    Dr[:, :3] = np.eye(3)
+    z36 = np.zeros((3, 6))
+    wk = np.zeros((9, 3, 6))
+    a, b, cc = np.zeros(3), np.zeros(3), np.zeros(3)
+    DF, DM = np.zeros((3, 6)), np.zeros((3, 6))
+    rows, cols, vals = [], [], []
+    zero3 = np.zeros(3)
+    for k in range(n1):
+        pen = _node(np.array(r[k], float), zero3, zero3, np.array(R[k, :, 2], float),
+                    float(sb.radius[k]), data, True, Dr, z36, z36, z36, a, b, cc, DF, DM, wk)
+        if pen <= 0:
+            continue
+        for i in range(3):
+            for j in range(3):
+                rows.append(3 * k + i)
+                cols.append(3 * k + j)
+                vals.append(DF[i, j])
+    return sp.csr_matrix((vals, (rows, cols)), shape=(3 * n1, 3 * n1))
 
 
 # --------------------------------------------------------------------------- Newton
@@ -414,16 +606,43 @@ def scaled_loads(prob: StaticProblem, a: float) -> StaticProblem:
                    end=replace(prob.end, force=a * prob.end.force))
 
 
+def _row_scales(prob: StaticProblem) -> np.ndarray:
+    """(13(N+1),) typical sizes of the residual rows: the cell rows as the unknowns
+    (:meth:`StaticProblem.scales`), the boundary rows 1."""
+    return np.concatenate([np.ones(N_START), np.tile(prob.scales(), prob.n_segments),
+                           np.ones(N_END)])
+
+
+def _damped(prob, Y, G, dY):
+    """Y − λ dY with the first λ of 1, ½, ¼ ... (down to 2⁻¹⁰) whose residual is smaller
+    in the scaled max norm than G's (backtracking: a stiff contact barrier or a seabed
+    spring makes the full Newton step overshoot far from the solution; Deuflhard,
+    *Newton Methods for Nonlinear Problems*, 2004, §3.1 for the monotonicity test)."""
+    w = 1.0 / _row_scales(prob)
+    g0 = float(np.max(np.abs(G) * w))
+    lam = 1.0
+    while True:
+        Yt = Y - lam * dY
+        try:
+            gt = float(np.max(np.abs(residual(Yt, prob)) * w))
+        except StaticsError:
+            gt = np.inf
+        if gt < g0 or lam < 2.0 ** -10:
+            return Yt
+        lam *= 0.5
+
+
 def _newton(prob, Y0, tol, max_iterations):
     Y = straight_guess(prob) if Y0 is None else np.array(Y0, float)
     scale = prob.scales()
+    damp = prob.contact is not None or prob.seabed is not None
     for it in range(1, max_iterations + 1):
         G = residual(Y, prob)
         lu = factor(jacobian(Y, prob))
         dY = lu.solve(G).reshape(Y.shape)
         if not np.all(np.isfinite(dY)):
             raise StaticsError("Newton: non-finite update")
-        Y = Y - dY
+        Y = _damped(prob, Y, G, dY) if damp else Y - dY
         err = float(np.max(np.abs(dY) / scale))
         if err < tol:
             return StaticSolution(Y, it, err, prob)
@@ -659,7 +878,9 @@ def static_problem(case, time: Optional[float] = None) -> StaticProblem:
     angular_velocity) turning about the end's tangent a3 only, or free under zero moments;
     body-frame velocities of a turning end along a3 only; end forces on an end whose
     rotation is held (dead in its fixed frame) or with ``frame: global``; point loads with
-    ``body: false`` at grid nodes. Self-contact, fluid drag and the seabed do not enter.
+    ``body: false`` at grid nodes. Self-contact (``contact``) enters by its law's
+    repulsion without damping (:func:`contact_loads`), the seabed by its normal spring
+    without damping and friction (:func:`seabed_loads`); fluid drag does not enter.
     """
     from .initial import initial_pose
     from .properties import RodProperties
@@ -677,10 +898,18 @@ def static_problem(case, time: Optional[float] = None) -> StaticProblem:
         ends[name] = _end_spec(getattr(case.boundary, name), f"boundary.{name}", q[k], r[k],
                                t, extra_force[name])
     inertia = np.asarray(props.inertia[:, 0], float)
+    contact = seabed = None
+    if case.contact is not None:
+        from .contact import SelfContact
+        contact = SelfContact(case.contact, props.s, props.diameter, props.rho_a)
+    if case.seabed is not None:
+        from .seabed import Seabed
+        seabed = Seabed(case.seabed, props.diameter)
     return StaticProblem(length=float(case.rod.length), n_segments=N,
                          stiffness=np.asarray(props.stiffness, float), load=load,
                          start=ends["start"], end=ends["end"], mass=props.rho_a,
-                         inertia=inertia, reference=np.asarray(q[0], float))
+                         inertia=inertia, reference=np.asarray(q[0], float),
+                         contact=contact, seabed=seabed)
 
 
 def with_load(prob: StaticProblem, **changes) -> StaticProblem:

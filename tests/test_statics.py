@@ -367,3 +367,113 @@ def test_case_ends_integrated_and_point_loads():
     cant["point_loads"][0]["body"] = True
     with pytest.raises(st.StaticsError, match="point_loads.0.body"):
         st.static_problem(Case.model_validate(cant))
+
+
+# --------------------------------------------------------------------------- contact, seabed
+
+def _barrier(s, D=0.02, g_hat=0.004, kappa=1e4, rho_a=0.5):
+    from solver.contact import SelfContact
+    return SelfContact(dict(aperture=90.0, tolerance=0.04, k1=0, k2=0, k3=0, k4=0,
+                            law="barrier", barrier_gap=g_hat, barrier_stiffness=kappa),
+                       s, np.full(s.size, D), np.full(s.size, rho_a))
+
+
+def _hairpin(N=100, L=1.0, D=0.02, g_hat=0.004, B=1e-5, q=1.0, rho_a=0.5, kappa=1e4):
+    """A rod folded into a hairpin (arms along z, a half circle between them), clamped at
+    s = 0, free at s = L, its arms pressed together by a dead load q (N/m) on each (away
+    from the bend), and its guess (N+1, 13)."""
+    s = np.linspace(0, L, N + 1)
+    R = 0.5 * (D + 0.6 * g_hat)
+    s1, s2 = 0.5 * (L - np.pi * R), 0.5 * (L + np.pi * R)
+    load = np.zeros((N + 1, 3))
+    load[s < s1 - 0.05, 0] = q
+    load[s > s2 + 0.05, 0] = -q
+    prob = st.StaticProblem(L, N, np.tile([B, B, 0.8 * B], (N + 1, 1)), load,
+                            st.clamp([-R, 0, 0], [1, 0, 0, 0]), st.free_end(),
+                            contact=_barrier(s, D, g_hat, kappa, rho_a))
+    Y = np.zeros((N + 1, st.NV))
+    for k, sk in enumerate(s):
+        th = float(np.clip((sk - s1) / R, 0.0, np.pi))
+        if sk < s1:
+            Y[k, 0:3] = [-R, 0, sk]
+        elif sk > s2:
+            Y[k, 0:3] = [R, 0, L - sk]
+        else:
+            Y[k, 0:3] = [-R * np.cos(th), 0, s1 + R * np.sin(th)]
+            Y[k, 11] = B / R
+        Y[k, 3:7] = st.quat_axis_angle([0, 1, 0], th)
+    return prob, Y
+
+
+def _seabed(k=2e3, elevation=0.0, diameter=None):
+    from solver.case import Seabed as SeabedSpec
+    from solver.seabed import Seabed
+    return Seabed(SeabedSpec(elevation=elevation, normal_stiffness=k, normal_damping=50.0,
+                             friction={"axial": 0.5, "lateral": 0.8}), diameter)
+
+
+def test_contact_and_seabed_jacobian_match_central_differences():
+    """The load Jacobians of self-contact (the dynamic model's pair derivatives) and the
+    seabed (its kernel's derivative propagation) against central differences of the
+    residual, on a hairpin with both strands inside the barrier and its lower nodes in
+    the bottom: 1e-7 of the largest entry (the differences' own error)."""
+    prob, Y = _hairpin(N=60)
+    rng = np.random.default_rng(5)
+    Y = Y + 1e-4 * rng.standard_normal(Y.shape)
+    prob = st.with_load(prob, seabed=_seabed(elevation=0.1, diameter=np.full(61, 0.02)))
+    assert np.any(st.contact_loads(Y, prob) != 0) and np.any(st.seabed_loads(Y, prob) != 0)
+    J = st.jacobian(Y, prob)
+    cols = [st.NV * k + c for k in range(Y.shape[0]) for c in range(3)]
+    Jd = J[:, cols].toarray()
+    Jf = np.zeros_like(Jd)
+    e = 1e-7
+    for n, j in enumerate(cols):
+        d = np.zeros(Y.size)
+        d[j] = e
+        Jf[:, n] = (st.residual(Y + d.reshape(Y.shape), prob)
+                    - st.residual(Y - d.reshape(Y.shape), prob)) / (2 * e)
+    assert np.max(np.abs(Jd - Jf)) < 1e-7 * np.max(np.abs(Jd))
+
+
+def test_pressed_hairpin_gap_is_the_barrier_law_s():
+    """Two straight strands pressed together by q per unit length: in equilibrium each
+    receives q from the other, so the gap solves ρĀ P(g) = q (the barrier law inverted,
+    BarrierLaw.equilibrium_gap): within 1e-7 relative (measured 1.2e-8) at 100 segments; the
+    equilibrium is stable. Along a branch in q from 1 to 4 N/m the gap follows the law
+    within 1e-6 and stays inside (0, ĝ): the barrier holds."""
+    from solver.contact.laws import BarrierLaw
+
+    q0, rho_a, g_hat, D = 1.0, 0.5, 0.004, 0.02
+    law = BarrierLaw(g_hat, 1e4, 0, 0, 1e-3 * D)
+    prob, Y = _hairpin(q=q0)
+    sol = st.solve(prob, Y, tol=1e-8, ramp=False, max_iterations=40)
+    mid = 25
+    gap = np.linalg.norm(sol.Y[mid, 0:3] - sol.Y[100 - mid, 0:3]) - D
+    assert abs(gap / law.equilibrium_gap(q0 / rho_a) - 1) < 1e-7
+    assert st.unstable_modes(sol.Y, prob)[0] == 0
+
+    def at(q):
+        return st.with_load(prob, load=prob.load * (q / q0))
+
+    br = continuation(at, q0, 4.0, sol.Y, stability=False, tol=1e-6, max_points=60)
+    assert br.stopped == "reached the target value" and len(br.parameter) > 3
+    for q, Yq in zip(br.parameter, br.Y):
+        g = np.linalg.norm(Yq[mid, 0:3] - Yq[100 - mid, 0:3]) - D
+        assert abs(g / law.equilibrium_gap(q / rho_a) - 1) < 1e-6
+        assert 0 < st.contact_gap(Yq, at(q)) < g_hat
+
+
+def test_rod_on_the_seabed_sinks_by_weight_over_stiffness():
+    """A horizontal rod under its weight w per length on a flat bottom of stiffness k:
+    beyond ten decay lengths (4B/k)^¼ from the clamped end the surface penetration is w/k
+    (within 1e-6 relative); the static
+    bottom has no friction (a dead axial end load is carried unchanged along the rod)."""
+    N, L, D, k, w = 100, 2.0, 0.02, 2e4, 3.0
+    sb = _seabed(k=k, diameter=np.full(N + 1, D))
+    q = st.quat_axis_angle([0, 1, 0], np.pi / 2)            # a3 along +x
+    prob = st.uniform(L, N, (0.05, 0.05, 0.04), st.clamp([0, 0, D / 2], q),
+                      st.free_end([0.1, 0.0, 0.0]), load=(0.0, 0.0, -w), seabed=sb)
+    sol = st.solve(prob)
+    pen = D / 2 - sol.Y[N // 2:, 2]
+    assert np.max(np.abs(pen / (w / k) - 1)) < 1e-6
+    assert np.max(np.abs(sol.Y[:, 7] - 0.1)) < 1e-9     # no friction takes the axial load
