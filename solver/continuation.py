@@ -299,17 +299,28 @@ def continuation(problem_at: Callable[[float], StaticProblem], lam0: float, lam1
     if resume is not None:
         tr = _Tracer.restore(S, opt, resume)
     else:
-        try:
-            sol = solve(p0, Y0)
-        except StaticsError as exc:
-            raise ContinuationError(f"no equilibrium at the start value {lam0!r}: {exc}") \
-                from exc
-        try:
-            factor(jacobian(sol.Y, p0))
-        except StaticsError as exc:
-            raise ContinuationError(f"singular start at {lam0!r} (a fold or branch point): "
-                                    "start the continuation away from it") from exc
-        tr = _Tracer(S, sol, opt, start_tangent)
+        tr = _Tracer(S, _start_point(p0, lam0, Y0), opt, start_tangent)
+    return _trace(tr, max_points, should_stop, checkpoint)
+
+
+def _start_point(p0: StaticProblem, lam0: float, Y0: Optional[np.ndarray]):
+    """The equilibrium at the start value, with a regular Jacobian
+    (:func:`continuation`'s ContinuationError otherwise)."""
+    try:
+        sol = solve(p0, Y0)
+    except StaticsError as exc:
+        raise ContinuationError(f"no equilibrium at the start value {lam0!r}: {exc}") \
+            from exc
+    try:
+        factor(jacobian(sol.Y, p0))
+    except StaticsError as exc:
+        raise ContinuationError(f"singular start at {lam0!r} (a fold or branch point): "
+                                "start the continuation away from it") from exc
+    return sol
+
+
+def _trace(tr: "_Tracer", max_points: int, should_stop, checkpoint) -> Branch:
+    """Step ``tr`` until the range, a stop or ``max_points`` (:func:`continuation`)."""
     try:
         while len(tr.br.parameter) < max_points:
             reason = should_stop() if should_stop is not None else False
