@@ -87,6 +87,8 @@ def warm_up() -> None:
     law(d, np.zeros(2), np.full(2, 0.02), np.ones(2))
     law.repulsion(d - 0.02)
     law.cutoff(np.full(2, 0.02))
+    law.potential(d, np.full(2, 0.02))                   # the energy check's contact account
+    contact.potential(cand, run.r)
     smoothstep_off(d, np.full(2, 0.02), np.full(2, 0.04))
 
 

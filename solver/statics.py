@@ -454,21 +454,29 @@ def _static_seabed_data(sb):
 
 def seabed_loads(Y: np.ndarray, prob: StaticProblem) -> np.ndarray:
     """The seabed's normal reaction per unit length (N+1, 3) N/m (global) at the state Y,
-    zeros without ``prob.seabed``: :func:`solver.seabed.seabed_loads` at rest with its
-    damping and friction off, N = k p n (p the surface penetration, n the bottom's normal).
+    zeros without ``prob.seabed``: the seabed's law at each node
+    (:func:`solver.seabed._node`) at rest with its damping and friction off, N = k p n
+    (p the node's surface penetration, n the bottom's normal; a per-node spring, where a
+    dynamic step takes the law at each cell's midpoint).
     Frictionless: Coulomb friction is a force of the slip history, which a static problem
     does not have."""
-    from .seabed import seabed_loads as _kernel
+    from .seabed import _node
 
     n1 = prob.n_segments + 1
     sb = prob.seabed
+    Fn = np.zeros((n1, 3))
     if sb is None:
-        return np.zeros((n1, 3))
-    r = np.ascontiguousarray(np.real(Y[:, 0:3]), dtype=float)
-    R = np.ascontiguousarray(_rot(np.real(Y[:, 3:7])), dtype=float)
-    zero = np.zeros((n1, 3))
-    Fn, Ff, M, pen = zero.copy(), zero.copy(), zero.copy(), np.zeros(n1)
-    _kernel(r, zero, R, zero, _static_seabed_data(sb), Fn, Ff, M, pen)
+        return Fn
+    data = _static_seabed_data(sb)
+    r = np.real(Y[:, 0:3])
+    R = _rot(np.real(Y[:, 3:7]))
+    z36 = np.zeros((3, 6))
+    wk = np.zeros((9, 3, 6))
+    ff, mm, zero3 = np.zeros(3), np.zeros(3), np.zeros(3)
+    for k in range(n1):
+        _node(np.array(r[k], float), zero3, zero3, np.array(R[k, :, 2], float),
+              float(sb.radius[k]), data, False, z36, z36, z36, z36, Fn[k], ff, mm,
+              z36.copy(), z36.copy(), wk)
     return Fn
 
 

@@ -180,6 +180,7 @@ def test_warm_up_loads_every_compiled_kernel():
                "solver.kinematics._exp_one", "solver.kinematics._matrix_into",
                "solver.kinematics._right_jacobian_into", "solver.loads._drag_kernel",
                "solver.loads.point_loads_into",
+               "solver.contact.laws.law_potential", "solver.contact.laws._repulsion_integral",
                "solver.newton._matvec_kernel", "solver.newton._set_operator",
                "solver.newton._factor", "solver.newton._matvec", "solver.newton._dot",
                "solver.newton._turning_entries",
