@@ -4,17 +4,22 @@ The branch is followed in the scaled unknowns z = (Y/(c √(N+1)), λ̂), c the 
 of :meth:`solver.statics.StaticProblem.scales` and λ̂ = (λ − λ0)/(λ1 − λ0), so that the
 arclength does not depend on units or on N (Keller, "Numerical solution of bifurcation
 and nonlinear eigenvalue problems", 1977; Allgower & Georg, *Introduction to Numerical
-Continuation Methods*, 2003, ch. 2 and 8). One step: the predictor z + Δs t, then Newton on
-the bordered system
+Continuation Methods*, 2003, ch. 2 and 8). One step: the predictor z + Δs t, then the
+corrector on the bordered system
 
     [ G_z  G_λ̂ ] dz = [ G(z)            ]
     [ tᵀ       ]      [ tᵀ(z − z_pred)  ]
 
 with the exact G_z of :func:`solver.statics.jacobian` and G_λ̂ by a central difference in λ
-(exact for the many parameters G is affine in). The new tangent solves the same matrix
-against (0, 1), which keeps its orientation (t_oldᵀ t_new = 1). Step control: Δs grows by
-1.5 after a step of at most 3 iterations, shrinks by 0.7 after more than 5 and halves on a
-refusal (no convergence in ``newton_max`` iterations, or a tangent turning by more than
+(exact for the many parameters G is affine in): Newton's first iteration, Broyden's
+updates of its factorisation after it, and one Newton step with the matrix factored at
+the converged point (:func:`_corrector`). Without self-contact and seabed G_z is a band and
+the bordered matrix is solved by block elimination on LAPACK's band LU
+(:mod:`solver.static_band`), else by scipy's sparse LU. The new tangent solves the
+matrix at the point against (0, 1), which keeps its orientation (t_oldᵀ t_new = 1). Step
+control: Δs grows by 1.5 after a step of at most :data:`GROW_ITERATIONS` corrector
+iterations, shrinks by 0.7 after more than :data:`SHRINK_ITERATIONS` and halves on a refusal
+(no convergence in ``newton_max`` iterations, or a tangent turning by more than
 ``max_turn`` rad); the last step lands on λ̂ = 1 exactly (a natural-parameter solve).
 
 Test functions along the branch (Allgower & Georg ch. 8; Seydel, *Practical Bifurcation
