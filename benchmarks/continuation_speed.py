@@ -1,16 +1,22 @@
 """Speed of static solves and continuation (solver/statics.py, solver/continuation.py),
 printed (issue 42's targets: one continuation point at 1000 segments costs at most a few
-dynamic steps, <= 10 Newton iterations; a branch of 200 points at 200 segments in <= 30 s).
+dynamic steps, <= 10 Newton iterations with the factorisation reused; a branch of 200
+points at 200 segments in <= 30 s).
 
-    PYTHONPATH=$PWD python3 benchmarks/continuation_speed.py
+    PYTHONPATH=$PWD python3 benchmarks/continuation_speed.py [--repeats 3]
 
-1. One pseudo-arclength point at 1000 segments on the twisted clamped-clamped rod
-   (Greenhill's problem, past the start): Newton iterations and wall time of the step, with
-   and without the unstable-mode count, against one fixed time step of a dynamic run of
-   the same rod (hockle.api.simulate: the difference of runs of 25 and 5 steps over 20,
-   the median of three).
+1. The cost of one pseudo-arclength point at 1000 segments on the twisted clamped-clamped
+   rod (Greenhill's problem, past the start): the difference of continuations of 12 and
+   2 points over 10 (so the start solve and the tracer's set-up cancel), the median of
+   ``--repeats``, with the corrector's iterations per point and the factorisations per
+   point (counted on solver.continuation._Scaled.bordered); against one fixed time
+   step of a dynamic run of the same rod (hockle.api.simulate: the difference of runs of
+   25 and 5 steps over 20, the median of ``--repeats``).
 2. A branch of 200 points at 200 segments through Greenhill's branch point, with the
    unstable modes counted at every point: wall time.
+
+The script uses the public functions only, so the same file measures another checkout
+(``PYTHONPATH=/path/to/other``) for an interleaved comparison.
 """
 from __future__ import annotations
 
@@ -34,22 +40,42 @@ def greenhill(n):
     return prob
 
 
-def one_point(n=1000):
+def one_point(n=1000, repeats=3):
+    """Median seconds per continuation point at ``n`` segments, corrector iterations and
+    factorisations per point (points 2-11 of a 12-point continuation)."""
+    import solver.continuation as co
+
     prob = greenhill(n)
     tc = GREENHILL * B / C
-    out = {}
-    for stability in (False, True):
-        t0 = time.perf_counter()
-        br = continuation(prob, 0.0, tc, max_points=2, stability=stability, ds=0.05)
-        out[stability] = (time.perf_counter() - t0, br)
-    # the start solve (straight guess, a linear problem) is part of the time: time it alone
-    t0 = time.perf_counter()
-    sol = st.solve(prob(0.0))
-    t_start = time.perf_counter() - t0
-    return out, t_start, sol.iterations
+    factorisations = []
+    bordered = co._Scaled.bordered
+
+    def counted(self, *args, **kw):
+        factorisations.append(1)
+        return bordered(self, *args, **kw)
+
+    continuation(prob, 0.0, tc, max_points=2, stability=False, ds=0.05)     # warm
+    per_point = []
+    co._Scaled.bordered = counted
+    try:
+        for _ in range(repeats):
+            times = []
+            for points in (2, 12):
+                factorisations.clear()
+                t0 = time.perf_counter()
+                br = continuation(prob, 0.0, tc, max_points=points, stability=False, ds=0.05)
+                times.append(time.perf_counter() - t0)
+                counts = len(factorisations)
+                if points == 2:
+                    base = counts
+            per_point.append((times[1] - times[0]) / 10)
+    finally:
+        co._Scaled.bordered = bordered
+    its = float(np.mean(br.iterations[2:]))
+    return float(np.median(per_point)), its, (counts - base) / 10
 
 
-def dynamic_step(n=1000):
+def dynamic_step(n=1000, repeats=3):
     from hockle.api import simulate
 
     doc = {
@@ -66,8 +92,9 @@ def dynamic_step(n=1000):
         "numerics": {"n_segments": n, "dt": 0.01, "t_end": 0.05},
         "output": {"fields": ["position"]},
     }
+    simulate(doc)                                    # warm: the kernels loaded
     per_step = []
-    for _ in range(3):
+    for _ in range(repeats):
         times = []
         for steps in (5, 25):
             doc["numerics"]["t_end"] = 0.01 * steps
@@ -87,17 +114,22 @@ def branch(n=200, points=200):
 
 
 def main():
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--skip-branch", action="store_true", help="only the 1000-segment point")
+    args = ap.parse_args()
     print(f"load: {os.getloadavg()[0]:.2f} (1-min), cores: {os.cpu_count()}")
-    pts, t_start, its_start = one_point()
-    for stability, (t, br) in pts.items():
-        print(f"1000 segments, start solve + 1 continuation point"
-              f"{' + unstable modes at both' if stability else ''}: {t:.2f} s, "
-              f"Newton iterations of the point: {br.iterations[-1]}")
-    print(f"  of which the start solve: {t_start:.2f} s ({its_start} iterations)")
-    t_pt = pts[False][0] - t_start
-    t_dyn = dynamic_step()
-    print(f"1000 segments, one dynamic step (median of run lengths): {t_dyn * 1e3:.1f} ms; "
+    t_pt, its, fac = one_point(repeats=args.repeats)
+    t_dyn = dynamic_step(repeats=args.repeats)
+    print(f"1000 segments, one continuation point (points 2-11, median of {args.repeats}): "
+          f"{t_pt * 1e3:.1f} ms, {its:.1f} corrector iterations and {fac:.1f} "
+          f"factorisations per point")
+    print(f"1000 segments, one dynamic step (median of run lengths): {t_dyn * 1e3:.2f} ms; "
           f"one continuation point / dynamic step: {t_pt / t_dyn:.1f}")
+    if args.skip_branch:
+        return
     t, br = branch()
     print(f"200 segments, a branch of {len(br.parameter)} points with unstable modes: "
           f"{t:.1f} s (target <= 30 s); bifurcations: "

@@ -8,7 +8,8 @@ the contact loads with their band blocks and the exact contact load product with
 pose data (:mod:`solver.scheme`); the Morison drag (:mod:`solver.loads`); the scaling of the
 Jacobian's blocks and GMRES's operator product (:mod:`solver.newton`); the candidate
 search and the closest points (:mod:`solver.contact.geometry`) and the contact forces'
-derivatives (:mod:`solver.contact.model`). They are compiled once per installation and
+derivatives (:mod:`solver.contact.model`); the static Jacobian's band, the static cell
+rows and the band product (:mod:`solver.static_band`). They are compiled once per installation and
 cached on disk (``cache=True``; 86 s wall, 81 s CPU on an idle 2-core machine, measured by
 ``time python3 -c "from solver.compiled import warm_up; warm_up()"`` after a change of the
 solver's sources, 1.9 s once cached); ``hockle run`` says when it compiles and how
@@ -90,6 +91,15 @@ def warm_up() -> None:
     law.potential(d, np.full(2, 0.02))                   # the energy check's contact account
     contact.potential(cand, run.r)
     smoothstep_off(d, np.full(2, 0.02), np.full(2, 0.04))
+    # statics: the band Jacobian, the compiled residual and the band LU's product
+    from . import statics
+    from .static_band import BorderedBandLU
+    prob = statics.uniform(1.0, 4, (1.0, 1.0, 0.8), statics.clamp([0, 0, 0], [1, 0, 0, 0]),
+                           statics.free_end([0.1, 0.0, 0.0]))
+    sol = statics.solve(prob)
+    lu = BorderedBandLU(statics.band_jacobian(sol.Y, prob), np.ones(sol.Y.size),
+                        np.ones(sol.Y.size))
+    lu.solve(np.ones(sol.Y.size + 1))
 
 
 def _warm_up_spec() -> dict:

@@ -4,17 +4,22 @@ The branch is followed in the scaled unknowns z = (Y/(c √(N+1)), λ̂), c the 
 of :meth:`solver.statics.StaticProblem.scales` and λ̂ = (λ − λ0)/(λ1 − λ0), so that the
 arclength does not depend on units or on N (Keller, "Numerical solution of bifurcation
 and nonlinear eigenvalue problems", 1977; Allgower & Georg, *Introduction to Numerical
-Continuation Methods*, 2003, ch. 2 and 8). One step: the predictor z + Δs t, then Newton on
-the bordered system
+Continuation Methods*, 2003, ch. 2 and 8). One step: the predictor z + Δs t, then the
+corrector on the bordered system
 
     [ G_z  G_λ̂ ] dz = [ G(z)            ]
     [ tᵀ       ]      [ tᵀ(z − z_pred)  ]
 
 with the exact G_z of :func:`solver.statics.jacobian` and G_λ̂ by a central difference in λ
-(exact for the many parameters G is affine in). The new tangent solves the same matrix
-against (0, 1), which keeps its orientation (t_oldᵀ t_new = 1). Step control: Δs grows by
-1.5 after a step of at most 3 iterations, shrinks by 0.7 after more than 5 and halves on a
-refusal (no convergence in ``newton_max`` iterations, or a tangent turning by more than
+(exact for the many parameters G is affine in): Newton's first iteration, Broyden's
+updates of its factorisation after it, and one Newton step with the matrix factored at
+the converged point (:func:`_corrector`). Without self-contact and seabed G_z is a band and
+the bordered matrix is solved by block elimination on LAPACK's band LU
+(:mod:`solver.static_band`), else by scipy's sparse LU. The new tangent solves the
+matrix at the point against (0, 1), which keeps its orientation (t_oldᵀ t_new = 1). Step
+control: Δs grows by 1.5 after a step of at most :data:`GROW_ITERATIONS` corrector
+iterations, shrinks by 0.7 after more than :data:`SHRINK_ITERATIONS` and halves on a refusal
+(no convergence in ``newton_max`` iterations, or a tangent turning by more than
 ``max_turn`` rad); the last step lands on λ̂ = 1 exactly (a natural-parameter solve).
 
 Test functions along the branch (Allgower & Georg ch. 8; Seydel, *Practical Bifurcation
@@ -48,10 +53,23 @@ from typing import Callable, Optional
 import numpy as np
 import scipy.sparse as sp
 
-from .statics import (NV, StaticProblem, StaticsError, _qmul, factor, jacobian, lu_det_sign,
-                      mass_matrix, residual, solve, unstable_modes)
+from .static_band import BandSingular, BorderedBandLU
+from .statics import (NV, StaticProblem, StaticsError, _qmul, band_jacobian, band_ready, factor,
+                      factor_jacobian, jacobian, lu_det_sign, mass_matrix, residual, solve,
+                      unstable_modes)
 
 __all__ = ["Branch", "Bifurcation", "continuation", "ContinuationError"]
+
+
+#: step control: Δs grows by 1.5 after a step of at most GROW_ITERATIONS corrector
+#: iterations and shrinks by 0.7 after more than SHRINK_ITERATIONS (Broyden's iterations
+#: from one factorisation, :func:`_corrector`: about 1.5 times Newton's 3 and 5 for the
+#: same predictor error, so that a branch gets about as many points as with Newton)
+GROW_ITERATIONS = 5
+SHRINK_ITERATIONS = 7
+#: the corrector refactors at an iterate whose update is not below CONTRACTION times the
+#: one before (:func:`_corrector`)
+CONTRACTION = 0.5
 
 
 class ContinuationError(StaticsError):
@@ -124,17 +142,32 @@ class _Scaled:
     def G(self, z) -> np.ndarray:
         return residual(self.Y(z), self.prob(self.lam(z)))
 
+    def g_lam(self, z) -> np.ndarray:
+        """G_λ̂ (13(N+1),) at z, by a central difference in λ."""
+        lam, Y = self.lam(z), self.Y(z)
+        d = 1e-6 * abs(self.span)
+        g = (residual(Y, self.prob(lam + d)) - residual(Y, self.prob(lam - d))) / (2 * d)
+        return g * self.span
+
     def blocks(self, z):
         """(G_z sparse, G_λ̂ dense) at z."""
         lam, Y = self.lam(z), self.Y(z)
-        J = jacobian(Y, self.prob(lam)) @ sp.diags(self.c)
-        d = 1e-6 * abs(self.span)
-        g = (residual(Y, self.prob(lam + d)) - residual(Y, self.prob(lam - d))) / (2 * d)
-        return J, g * self.span
+        return jacobian(Y, self.prob(lam)) @ sp.diags(self.c), self.g_lam(z)
 
     def bordered(self, z, row, phase=None):
-        """LU of the bordered matrix at z; with ``phase`` (a branch of a symmetric pair),
-        of [[G_z, G_λ̂, w], [row, 0], [a, 0, 0]] (:func:`_corrector`)."""
+        """LU of the bordered matrix at z, [[G_z, G_λ̂], [row]] (row (n + 1,)); with
+        ``phase`` (a branch of a symmetric pair), of [[G_z, G_λ̂, w], [row, 0], [a, 0, 0]]
+        (:func:`_corrector`). Without self-contact and seabed G_z is a band and the LU is
+        :class:`solver.static_band.BorderedBandLU` (block elimination on LAPACK's band LU);
+        otherwise, or where the band LU meets a zero pivot, scipy's sparse LU of the whole
+        matrix. Either has ``solve``; :func:`solver.statics.lu_det_sign` reads either.
+        Raises StaticsError where the bordered matrix is singular."""
+        prob = self.prob(self.lam(z))
+        if band_ready(prob):
+            try:
+                return self._bordered_band(z, row, phase, prob)
+            except BandSingular:
+                pass
         J, g = self.blocks(z)
         if phase is None:
             A = sp.vstack([sp.hstack([J, sp.csc_matrix(g[:, None])]),
@@ -147,43 +180,93 @@ class _Scaled:
                           format="csc")
         return factor(A)
 
+    def _bordered_band(self, z, row, phase, prob):
+        n = self.n
+        ab = band_jacobian(self.Y(z), prob)
+        ab *= self.c[None, :]
+        g = self.g_lam(z)
+        if phase is None:
+            return BorderedBandLU(ab, g[:, None], row[:n, None], [[row[n]]])
+        W = np.column_stack([g, phase["w"]])
+        C = np.column_stack([row[:n], phase["a"]])
+        return BorderedBandLU(ab, W, C, [[row[n], 0.0], [0.0, 0.0]])
+
 
 def _corrector(S: _Scaled, z_pred, row, target, newton_max, tol, phase=None):
-    """Newton on [G(z); row·z − target] = 0 from z_pred. Returns (z, iterations, lu of
-    the bordered matrix at the last iterate) or None when it does not converge.
+    """Solve [G(z); row·z − target] = 0 from z_pred. Returns (z, iterations, lu of the
+    bordered matrix at z) or None when it does not converge.
+
+    Quasi-Newton on one factorisation: the first iteration is Newton's, with the bordered
+    LU at z_pred, the later ones solve with Broyden's good update of it, applied as its
+    Sherman-Morrison product over the steps taken (Kelley, *Iterative Methods for
+    Linear and Nonlinear Equations*, SIAM 1995, § 7.3, algorithm brsol; Broyden's method
+    as the corrector of a continuation: Allgower & Georg, *Introduction to Numerical
+    Continuation Methods*, 2003, § 7.2). An iteration whose update is not at most half
+    the one before refactors at its iterate and starts the updates afresh. Converged
+    (an update below ``tol``) after Broyden steps, the bordered matrix is factored at
+    the point and one Newton step taken with it (the residual at rounding, as Newton's
+    quadratic last step leaves it). The returned lu is factored at the last iterate
+    before the final update, as Newton's, so its determinant sign and the tangent it
+    gives belong to the new point.
 
     With ``phase`` (a branch of a pair that a rotation symmetry makes a circle of
-    equilibria): Newton on [G(z) + ε w; row·z − target; a·(z − z_ref)] = 0 in (z, ε), the
+    equilibria): the same on [G(z) + ε w; row·z − target; a·(z − z_ref)] = 0 in (z, ε), the
     phase condition a·(z − z_ref) = 0 (a the symmetry's generator at the last point)
     picking one equilibrium of the circle and the unfolding ε w (w off the range of G_z)
     keeping the system square; ε = 0 at a solution (phase condition and unfolding parameter
     of continuation with a continuous symmetry: Dellnitz & Werner, J. Comput. Appl. Math.
     26, 1989; Champneys & Sandstede in Krauskopf et al., *Numerical Continuation Methods
     for Dynamical Systems*, 2007). A converged ε above 1e-8 is refused."""
-    z = z_pred.copy()
-    eps = 0.0
+    u = z_pred.copy() if phase is None else np.append(z_pred, 0.0)   # (z, ε)
+    lu, steps, last = None, [], np.inf
     for it in range(1, newton_max + 1):
-        try:
-            lu = S.bordered(z, row, phase)
-        except StaticsError:
-            return None
-        F = np.concatenate([S.G(z), [row @ z - target]])
-        if phase is not None:
-            F[:-1] += eps * phase["w"]
-            F = np.append(F, phase["a"] @ (z[:-1] - phase["zref"][:-1]))
-        dz = lu.solve(F)
-        if not np.all(np.isfinite(dz)):
-            return None
-        if phase is not None:
-            eps -= dz[-1]
-            z = z - dz[:-1]
-        else:
-            z = z - dz
-        if np.max(np.abs(dz)) < tol:
-            if abs(eps) > 1e-8:
+        if lu is None:
+            try:
+                lu = S.bordered(u[:S.n + 1], row, phase)
+            except StaticsError:
                 return None
-            return z, it, lu
+            steps = []
+        d = -_solve(lu, _corrector_rows(S, u, row, target, phase), refine=False)
+        for j in range(len(steps) - 1):
+            d += steps[j + 1] * ((steps[j] @ d) / (steps[j] @ steps[j]))
+        if steps:
+            d /= 1.0 - (steps[-1] @ d) / (steps[-1] @ steps[-1])
+        if not np.all(np.isfinite(d)):
+            return None
+        u = u + d
+        steps.append(d)
+        size = float(np.max(np.abs(d)))
+        if size < tol:
+            if len(steps) > 1:            # a last Newton step, with the LU at the point
+                try:
+                    lu = S.bordered(u[:S.n + 1], row, phase)
+                except StaticsError:
+                    return None
+                u = u - lu.solve(_corrector_rows(S, u, row, target, phase))
+            if phase is not None and abs(u[-1]) > 1e-8:
+                return None
+            return u[:S.n + 1], it, lu
+        if size > CONTRACTION * last:
+            lu = None                     # no contraction: refactor at this iterate
+        last = size
     return None
+
+
+def _corrector_rows(S: _Scaled, u, row, target, phase):
+    """The corrector's equations at u = z, or (z, ε) with ``phase`` (:func:`_corrector`)."""
+    z = u[:S.n + 1]
+    F = np.concatenate([S.G(z), [row @ z - target]])
+    if phase is None:
+        return F
+    F[:-1] += u[-1] * phase["w"]
+    return np.append(F, phase["a"] @ (z[:-1] - phase["zref"][:-1]))
+
+
+def _solve(lu, b, refine=True):
+    """lu.solve(b); with ``refine=False`` a band LU's block elimination without its
+    refinement step (:meth:`solver.static_band.BorderedBandLU.solve`): the corrector's
+    own iterations refine."""
+    return lu.solve(b, refine=refine) if isinstance(lu, BorderedBandLU) else lu.solve(b)
 
 
 def _tangent(lu, n, phase=None):
@@ -312,7 +395,7 @@ def _start_point(p0: StaticProblem, lam0: float, Y0: Optional[np.ndarray]):
         raise ContinuationError(f"no equilibrium at the start value {lam0!r}: {exc}") \
             from exc
     try:
-        factor(jacobian(sol.Y, p0))
+        factor_jacobian(sol.Y, p0)
     except StaticsError as exc:
         raise ContinuationError(f"singular start at {lam0!r} (a fold or branch point): "
                                 "start the continuation away from it") from exc
@@ -465,9 +548,9 @@ class _Tracer:
         if not -1.0 <= z_new[-1] <= 2.0:
             self.br.stopped = "left the range"
             return True
-        if its <= 3:
+        if its <= GROW_ITERATIONS:
             self.ds = min(1.5 * self.ds, self.ds_max)
-        elif its > 5:
+        elif its > SHRINK_ITERATIONS:
             self.ds = max(0.7 * self.ds, self.ds_min)
         return False
 

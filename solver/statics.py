@@ -69,10 +69,13 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .static_band import (KL, KU, BandSingular, BorderedBandLU, band_storage, cell_band,
+                          cell_residual)
+
 __all__ = ["EndSpec", "StaticProblem", "StaticSolution", "StaticsError", "residual",
            "jacobian", "solve", "straight_guess", "unstable_modes", "lu_det_sign",
            "static_problem", "quat_axis_angle", "contact_loads", "seabed_loads",
-           "contact_gap", "NV", "N_START"]
+           "contact_gap", "NV", "N_START", "band_jacobian", "band_ready", "factor_jacobian"]
 
 NV = 13          # unknowns per node
 N_START = 7      # boundary rows at s = 0
@@ -222,7 +225,11 @@ def residual(Y, prob: StaticProblem) -> np.ndarray:
     Row units: m (positions), 1 (quaternions), N (forces), N m (moments).
     """
     out = np.empty(NV * (prob.n_segments + 1), dtype=Y.dtype)
-    out[N_START:-N_END] = _cell_rows(Y, prob).ravel()
+    if Y.dtype == np.float64 and Y.ndim == 2:        # the compiled cells
+        cell_residual(np.ascontiguousarray(Y), prob.stiffness, prob.load, prob.h,
+                      out[N_START:-N_END].reshape(prob.n_segments, NV))
+    else:                                             # complex (the complex step)
+        out[N_START:-N_END] = _cell_rows(Y, prob).ravel()
     out[:N_START], out[-N_END:] = _end_rows(Y, prob)
     if prob.contact is not None or prob.seabed is not None:
         extra = contact_loads(Y, prob) + seabed_loads(Y, prob)
@@ -334,6 +341,40 @@ def jacobian(Y: np.ndarray, prob: StaticProblem) -> sp.csc_matrix:
         return J
     dL = _contact_load_jacobian(Y, prob) + _seabed_load_jacobian(Y, prob)
     return (J + _load_rows(prob) @ dL @ _position_columns(prob)).tocsc()
+
+
+def band_ready(prob: StaticProblem) -> bool:
+    """True where the Jacobian is a band (:mod:`solver.static_band`): no self-contact
+    (its pairs couple distant nodes) and no seabed (its load Jacobian goes the sparse
+    way, with the contact's)."""
+    return prob.contact is None and prob.seabed is None
+
+
+def band_jacobian(Y: np.ndarray, prob: StaticProblem) -> np.ndarray:
+    """∂G/∂Y in LAPACK band storage (2 KL + KU + 1, 13(N+1)) (:mod:`solver.static_band`),
+    exact to rounding: the cells by the compiled per-cell complex step, the 13 end rows by
+    the complex step of :func:`_end_rows` (13 evaluations: the start rows depend on node 0
+    only and the end rows on node N only, so one step perturbs both ends). The same
+    matrix as :func:`jacobian`. Raises :class:`StaticsError` where the problem has
+    self-contact or a seabed (:func:`band_ready`)."""
+    if not band_ready(prob):
+        raise StaticsError("the Jacobian with self-contact or a seabed is not a band")
+    N = prob.n_segments
+    n = NV * (N + 1)
+    ab = band_storage(n)
+    cell_band(np.ascontiguousarray(Y, dtype=float), prob.stiffness, prob.load, prob.h, ab)
+    ends = np.empty((2, NV), dtype=complex)
+    diag = KL + KU
+    start_rows = np.arange(N_START)
+    end_rows = n - N_END + np.arange(N_END)
+    for c in range(NV):
+        ends[0], ends[1] = Y[0], Y[-1]
+        ends[:, c] += 1j * _EPS
+        start, end = _end_rows(ends, prob)
+        ab[diag + start_rows - c, c] = start.imag / _EPS
+        col = NV * N + c
+        ab[diag + end_rows - col, col] = end.imag / _EPS
+    return ab
 
 
 # --------------------------------------------------------------------------- contact, seabed
@@ -533,7 +574,10 @@ def straight_guess(prob: StaticProblem) -> np.ndarray:
 
 
 def lu_det_sign(lu) -> int:
-    """Sign of det A from a scipy ``splu`` factor (Pr A Pc = L U, L unit lower)."""
+    """Sign of det A from a scipy ``splu`` factor (Pr A Pc = L U, L unit lower), or the
+    ``det_sign`` of a :class:`solver.static_band.BorderedBandLU`."""
+    if hasattr(lu, "det_sign"):
+        return int(lu.det_sign)
     d = lu.U.diagonal()
     sign = int(np.prod(np.sign(d)))
     for perm in (lu.perm_r, lu.perm_c):
@@ -565,6 +609,23 @@ def factor(A):
     if not np.all(np.isfinite(d)) or d.min() <= 1e-14 * d.max():
         raise StaticsError("singular Jacobian (a pivot is zero to rounding)")
     return lu
+
+
+def factor_jacobian(Y: np.ndarray, prob: StaticProblem):
+    """The LU of ∂G/∂Y at Y: LAPACK's band LU (:class:`solver.static_band.BorderedBandLU`
+    with no border) where the Jacobian is a band (:func:`band_ready`), else scipy's
+    sparse LU (:func:`factor`); either has ``solve``. Raises :class:`StaticsError` when
+    the Jacobian is singular (a pivot zero, or below 1e-14 of the largest)."""
+    if band_ready(prob):
+        try:
+            lu = BorderedBandLU(band_jacobian(Y, prob))
+        except BandSingular as exc:
+            raise StaticsError(f"singular Jacobian ({exc})") from exc
+        d = np.abs(lu.lu[KL + KU])
+        if not np.all(np.isfinite(d)) or d.min() <= 1e-14 * d.max():
+            raise StaticsError("singular Jacobian (a pivot is zero to rounding)")
+        return lu
+    return factor(jacobian(Y, prob))
 
 
 @dataclass
@@ -646,7 +707,7 @@ def _newton(prob, Y0, tol, max_iterations):
     damp = prob.contact is not None or prob.seabed is not None
     for it in range(1, max_iterations + 1):
         G = residual(Y, prob)
-        lu = factor(jacobian(Y, prob))
+        lu = factor_jacobian(Y, prob)
         dY = lu.solve(G).reshape(Y.shape)
         if not np.all(np.isfinite(dY)):
             raise StaticsError("Newton: non-finite update")
@@ -667,26 +728,27 @@ def mass_matrix(Y: np.ndarray, prob: StaticProblem) -> sp.csc_matrix:
     mass = np.ones(N + 1) if prob.mass is None else np.asarray(prob.mass, float)
     inert = (np.full(N + 1, 1e-2 * prob.length**2) * mass if prob.inertia is None
              else np.asarray(prob.inertia, float))
+    cells = np.arange(N)
+    base = N_START + NV * cells
     rows, cols, vals = [], [], []
-    for i in range(N):
-        base = N_START + NV * i
-        for k in (i, i + 1):
-            for c in range(3):
-                rows.append(base + 7 + c)
-                cols.append(NV * k + c)
-                vals.append(0.5 * h * mass[k])
-            w, v = Y[k, 3], Y[k, 4:7]
-            D = np.zeros((3, 4))
-            D[:, 0] = -2 * v
-            D[:, 1:] = 2 * (w * np.eye(3) + np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]],
-                                                      [-v[1], v[0], 0]]))
-            for a in range(3):
-                for b in range(4):
-                    rows.append(base + 10 + a)
-                    cols.append(NV * k + 3 + b)
-                    vals.append(0.5 * h * inert[k] * D[a, b])
+    for k in (cells, cells + 1):                 # each cell's two nodes
+        rows.append(np.repeat(base + 7, 3) + np.tile(np.arange(3), N))
+        cols.append((NV * k[:, None] + np.arange(3)).ravel())
+        vals.append(np.repeat(0.5 * h * mass[k], 3))
+        w, v = Y[k, 3], Y[k, 4:7]
+        D = np.zeros((N, 3, 4))
+        D[:, :, 0] = -2 * v
+        D[:, :, 1:] = 2 * w[:, None, None] * np.eye(3)
+        D[:, 0, 2], D[:, 0, 3] = -2 * v[:, 2], 2 * v[:, 1]
+        D[:, 1, 1], D[:, 1, 3] = 2 * v[:, 2], -2 * v[:, 0]
+        D[:, 2, 1], D[:, 2, 2] = -2 * v[:, 1], 2 * v[:, 0]
+        rows.append(np.broadcast_to((base + 10)[:, None, None] + np.arange(3)[None, :, None],
+                                    D.shape).ravel())
+        cols.append(np.broadcast_to((NV * k + 3)[:, None, None] + np.arange(4), D.shape).ravel())
+        vals.append((0.5 * h * inert[k][:, None, None] * D).ravel())
     n = NV * (N + 1)
-    return sp.csc_matrix((vals, (rows, cols)), shape=(n, n))
+    return sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(n, n))
 
 
 def unstable_modes(Y: np.ndarray, prob: StaticProblem, k: int = 8, lu=None):
@@ -694,11 +756,17 @@ def unstable_modes(Y: np.ndarray, prob: StaticProblem, k: int = 8, lu=None):
     (1/s², per the mass and inertia of ``prob``) nearest zero, by shift-invert Arnoldi on
     J⁻¹ B (μ > 0: ω² < 0, unstable). Returns (count, μ sorted by |μ|); count -1 when
     ARPACK converged on no eigenvalue.
+
+    The solves are scipy's sparse LU's even where the band LU of :func:`factor_jacobian`
+    is at hand: a single-vector Krylov method sees one vector of each eigenspace, so a
+    double eigenvalue (a round rod's pairs) is found twice only where rounding breaks the
+    symmetry, and SuperLU's column ordering does (measured on the round Euler column at
+    1.03 P_c, 100 segments: the sparse LU's solves give both copies of μ = 2.954, the
+    band LU's one).
     """
-    J = jacobian(Y, prob)
-    lu = factor(J) if lu is None else lu
+    lu = factor(jacobian(Y, prob)) if lu is None else lu
     B = mass_matrix(Y, prob)
-    n = J.shape[0]
+    n = B.shape[0]
     op = spla.LinearOperator((n, n), matvec=lambda x: lu.solve(B @ x), dtype=float)
     k = min(k, n - 2)
     try:
@@ -719,10 +787,9 @@ def unstable_modes(Y: np.ndarray, prob: StaticProblem, k: int = 8, lu=None):
 def critical_mode(Y: np.ndarray, prob: StaticProblem) -> np.ndarray:
     """(N+1, 13) the eigenvector of the pencil with μ nearest zero (real part), scaled
     to a largest position component of 1 m."""
-    J = jacobian(Y, prob)
-    lu = factor(J)
+    lu = factor(jacobian(Y, prob))
     B = mass_matrix(Y, prob)
-    n = J.shape[0]
+    n = B.shape[0]
     op = spla.LinearOperator((n, n), matvec=lambda x: lu.solve(B @ x), dtype=float)
     nu, vec = spla.eigs(op, k=min(6, n - 2), which="LM", tol=1e-10, v0=np.ones(n))
     z = vec[:, int(np.argmax(np.abs(nu)))].real.reshape(-1, NV)

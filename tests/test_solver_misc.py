@@ -158,7 +158,8 @@ def test_warm_up_loads_every_compiled_kernel():
         kernels = []
         for name in ("solver.topology", "solver.kinematics", "solver.scheme", "solver.loads",
                      "solver.newton", "solver.contact.geometry", "solver.contact.model",
-                     "solver.contact.laws", "solver.banded", "solver.energies"):
+                     "solver.contact.laws", "solver.banded", "solver.energies",
+                     "solver.static_band"):
             module = importlib.import_module(name)
             kernels += [(name, k, bool(v.signatures)) for k, v in vars(module).items()
                         if isinstance(v, CPUDispatcher) and v.py_func.__module__ == name]
@@ -193,7 +194,8 @@ def test_warm_up_loads_every_compiled_kernel():
                "solver.contact.laws._smoothstep", "solver.contact.laws._barrier_p",
                "solver.contact.laws._repulsion", "solver.contact.laws.law_cutoff",
                "solver.contact.laws.law_force", "solver.banded.copy_into",
-               "solver.banded.fill", "solver.banded._eliminate"}
+               "solver.banded.fill", "solver.banded._eliminate",
+               "solver.static_band._rotation", "solver.static_band._cell"}
     names = {f"{m}.{k}" for m, k, _ in kernels}
     assert helpers <= names and len(names - helpers) >= 14, names
     missing = [f"{m}.{k}" for m, k, loaded in kernels

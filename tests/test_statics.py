@@ -8,6 +8,7 @@ from scipy.special import ellipe, ellipk
 
 from solver import statics as st
 from solver.continuation import ContinuationError, branch_dataset, continuation
+from solver.static_band import KL, KU, BorderedBandLU, band_storage, band_to_sparse
 
 #: Mattiasson's table: P L²/EI -> (w/L, x/L) of the tip under a dead load
 #: (also in tests/test_point_loads.py, for the dynamic scheme)
@@ -39,6 +40,75 @@ def test_jacobian_matches_central_differences():
         Jf[:, j] = (st.residual(Y + d.reshape(Y.shape), prob)
                     - st.residual(Y - d.reshape(Y.shape), prob)) / (2 * e)
     assert np.max(np.abs(J - Jf)) < 1e-7 * np.max(np.abs(J))
+
+
+def _random_problems(rng):
+    """Problems whose end rows take every form: clamped, free, a held rotation with
+    sliding translation, a non-uniform stiffness and a distributed load."""
+    free = st.uniform(1.0, 6, (1.0, 2.0, 0.7), st.clamp([0, 0, 0], [1, 0, 0, 0]),
+                      st.free_end([0.3, -0.2, 0.1]), load=(0.1, 0.0, -0.5))
+    twisted = st.uniform(1.0, 9, (1.0, 1.0, 0.7), st.clamp([0, 0, 0], [1, 0, 0, 0]),
+                         st.clamp([0, 0, 1.0], st.quat_axis_angle([0, 0, 1], 0.4), 0.4,
+                                  held=(True, True, False), force=(0, 0, -0.3)))
+    uneven = st.StaticProblem(length=2.0, n_segments=5,
+                              stiffness=rng.uniform(0.5, 2.0, (6, 3)),
+                              load=rng.standard_normal((6, 3)), start=free.start,
+                              end=free.end)
+    return free, twisted, uneven
+
+
+def test_band_jacobian_and_compiled_residual_are_the_sparse_ones():
+    """The band Jacobian (compiled, closed form in r, n, m, complex step in p) is the
+    sparse complex-step one to rounding, at random states (quaternions not unit); the
+    compiled residual is the numpy one to rounding."""
+    rng = np.random.default_rng(5)
+    for prob in _random_problems(rng):
+        Y = rng.standard_normal((prob.n_segments + 1, st.NV))
+        J = st.jacobian(Y, prob).toarray()
+        Jb = band_to_sparse(st.band_jacobian(Y, prob)[KL:]).toarray()
+        assert np.max(np.abs(Jb - J)) <= 1e-13 * np.max(np.abs(J))
+        G, Gc = st.residual(Y, prob), st.residual(Y.astype(complex), prob).real
+        assert np.max(np.abs(G - Gc)) <= 1e-14 * np.max(np.abs(Gc))
+
+
+def test_bordered_band_lu_solves_and_signs_as_the_sparse_lu():
+    """Block elimination on the band LU (one or two borders) against scipy's sparse LU of
+    the whole bordered matrix: the solution to 1e-10 and the determinant's sign; and with
+    J singular to rounding (its bordered matrix regular, as at a fold), the refined solve
+    leaves a residual of rounding size."""
+    import scipy.sparse as sp
+
+    rng = np.random.default_rng(7)
+    for prob in _random_problems(rng):
+        Y = st.solve(prob).Y if prob.n_segments != 5 else \
+            rng.standard_normal((6, st.NV))
+        J = st.jacobian(Y, prob)
+        n = J.shape[0]
+        for k in (1, 2):
+            W, C, D = rng.standard_normal((n, k)), rng.standard_normal((n, k)), np.zeros((k, k))
+            A = sp.bmat([[J, sp.csc_matrix(W)], [sp.csc_matrix(C.T), sp.csc_matrix(D)]],
+                        format="csc")
+            lu, ref = BorderedBandLU(st.band_jacobian(Y, prob), W, C, D), st.factor(A)
+            b = rng.standard_normal(n + k)
+            assert np.allclose(lu.solve(b), ref.solve(b), rtol=1e-10, atol=1e-10)
+            assert lu.det_sign == st.lu_det_sign(ref)
+    # J singular to rounding: one diagonal entry moved by 1/(J⁻¹)_ii (Sherman-Morrison)
+    prob = _random_problems(rng)[0]
+    Y = rng.standard_normal((prob.n_segments + 1, st.NV))
+    Jd = st.jacobian(Y, prob).toarray()
+    i = int(np.argmax(np.abs(np.diag(np.linalg.inv(Jd)))))
+    Jd[i, i] -= 1.0 / np.linalg.inv(Jd)[i, i]
+    assert np.linalg.svd(Jd, compute_uv=False)[-1] < 1e-13 * np.linalg.norm(Jd, 2)
+    ab = band_storage(Jd.shape[0])
+    for i, j in zip(*np.nonzero(Jd)):
+        ab[KL + KU + i - j, j] = Jd[i, j]
+    null = np.linalg.svd(Jd)[2][-1]
+    g, c = rng.standard_normal(Jd.shape[0]), null + 0.1 * rng.standard_normal(Jd.shape[0])
+    A = np.block([[Jd, g[:, None]], [c[None, :], np.zeros((1, 1))]])
+    b = rng.standard_normal(A.shape[0])
+    lu = BorderedBandLU(ab, g, c)
+    for refine in (True, False):      # unrefined only where J is well conditioned
+        assert np.max(np.abs(A @ lu.solve(b, refine=refine) - b)) < 1e-10 * np.max(np.abs(b))
 
 
 @pytest.mark.parametrize("load", [1, 2, 10])
