@@ -80,6 +80,10 @@ def main():
             first = row
     for r in rows[:: max(1, len(rows) // 50)] + rows[-1:]:
         print(f"{r[0]:8.4f} {r[1]:7.4f} {r[2]:9.4f} {r[3]:7.3f} {r[4]:7.3f} {r[5]:10.3f} {r[6]:6d}")
+    before = rows[:rows.index(first)] if first is not None else rows
+    k_fold = int(np.argmax([r[1] for r in before]))
+    print(f"the branch leaves the straight rod at its largest Lk before contact: "
+          f"{rows[k_fold][1]:.4f} turns (point {k_fold}, rotation {rows[k_fold][0]:.4f} rad)")
     print(f"dynamic run: first contact at 18.1 s, Lk = {-angle_dyn / (2 * np.pi):.4f} turns")
     if first is None:
         print("static branch: no contact load on the branch followed")
