@@ -12,6 +12,12 @@ ratios to the run without a seabed are printed with ``uptime``. Targets (steady)
 flat ≤ 1.5×, grid ≤ 2×.
 
 Run: ``PYTHONPATH=$PWD python benchmarks/seabed_cost.py [--repeats 5]``.
+
+``--cases`` times instead the two documented runs side by side, alternately (seed,
+hockle, seed, ...; ``--repeats`` of each, after a warm-up): ``cases/seabed-hockle.yaml``
+(the twisted cable that loops on the sea floor, docs/hockle.md) and the seed example
+``cases/goyal-writhing.yaml``, their wall times, Newton iterations, simulated seconds and
+wall time per simulated second.
 """
 from __future__ import annotations
 
@@ -74,10 +80,50 @@ def per_step(case, settle=0.2, steps=50):
     return (t1 - t0) / n0, (t2 - t1) / steps
 
 
+CASES = (("seed example", "cases/goyal-writhing.yaml"),
+         ("seabed hockle", "cases/seabed-hockle.yaml"))
+
+
+def cases_side_by_side(repeats: int):
+    """Wall time of the two documented runs, alternately; prints medians and spreads."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    loaded = [(label, Case.from_file(root / path)) for label, path in CASES]
+    for _, case in loaded:               # warm-up: kernels loaded, a few steps
+        short = case.model_copy(deep=True)
+        short.numerics.t_end = 5 * short.numerics.dt
+        simulate(short)
+    walls = {label: [] for label, _ in loaded}
+    info = {}
+    for _ in range(repeats):
+        for label, case in loaded:
+            t0 = time.perf_counter()
+            ds = simulate(case)
+            walls[label].append(time.perf_counter() - t0)
+            info[label] = (ds.attrs.get("hockle_status", "?"), float(ds["time"].values[-1]),
+                           int(ds["step_newton_iterations"].sum())
+                           if "step_newton_iterations" in ds else -1)
+    print(f"uptime: {os.popen('uptime').read().strip()}")
+    print(f"{'case':16s} {'status':10s} {'to t (s)':>9s} {'Newton its':>10s} "
+          f"{'wall median (s)':>16s} {'wall/sim s':>10s}  runs (s)")
+    for label, _ in loaded:
+        med = statistics.median(walls[label])
+        status, t_end, its = info[label]
+        runs = " ".join(f"{t:.1f}" for t in walls[label])
+        print(f"{label:16s} {status:10s} {t_end:9.2f} {its:10d} {med:16.1f} "
+              f"{med / t_end:10.2f}  {runs}")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--cases", action="store_true",
+                    help="the seabed-hockle case beside the seed example (wall times)")
     args = ap.parse_args()
+    if args.cases:
+        cases_side_by_side(args.repeats)
+        return
     rows = [(label, Case.model_validate(s)) for label, s in variants()]
     for _, case in rows:                 # warm-up: the kernels compiled and cached
         per_step(case, settle=0.02, steps=1)
