@@ -53,10 +53,11 @@ from typing import Callable, Optional
 import numpy as np
 import scipy.sparse as sp
 
+from .simulation import _blas_controller
 from .static_band import BandSingular, BorderedBandLU
-from .statics import (NV, StaticProblem, StaticsError, _qmul, band_jacobian, band_ready, factor,
-                      factor_jacobian, jacobian, lu_det_sign, mass_matrix, residual, solve,
-                      unstable_modes)
+from .statics import (NV, StaticProblem, StaticsError, _count, _qmul, band_jacobian, band_ready,
+                      factor, factor_jacobian, jacobian, lu_det_sign, mass_matrix,
+                      nearest_eigenvalues, residual, solve, unstable_modes)
 
 __all__ = ["Branch", "Bifurcation", "continuation", "ContinuationError"]
 
@@ -307,18 +308,10 @@ def _unstable_on_orbit(Y, prob, aY, k):
                            sp.csr_matrix(np.append(a, 0.0)[None, :])], format="csc"))
     Be = sp.block_diag([Bm, sp.csc_matrix((1, 1))], format="csc")
     op = spla.LinearOperator((n + 1, n + 1), matvec=lambda x: lu.solve(Be @ x), dtype=float)
-    try:
-        nu = spla.eigs(op, k=min(k, n - 2), which="LM", return_eigenvectors=False, tol=1e-8,
-                       v0=np.ones(n + 1))
-    except spla.ArpackNoConvergence as exc:
-        nu = np.asarray(exc.eigenvalues)
-        if nu.size == 0:
-            return -1, np.array([], complex)
-    nu = nu[np.abs(nu) > 0]
-    mu = 1.0 / nu
-    mu = mu[np.argsort(np.abs(mu))]
-    real = np.abs(mu.imag) <= 1e-6 * np.abs(mu)
-    return int(np.sum(real & (mu.real > 0))), mu
+    nu = nearest_eigenvalues(op, n + 1, min(k, n - 2))
+    if nu.size == 0:
+        return -1, np.array([], complex)
+    return _count(nu)
 
 
 def continuation(problem_at: Callable[[float], StaticProblem], lam0: float, lam1: float,
@@ -379,11 +372,15 @@ def continuation(problem_at: Callable[[float], StaticProblem], lam0: float, lam1
                max_turn=max_turn, stability=stability, modes=modes, locate=locate,
                switch=switch, on_point=on_point)
     S = _Scaled(problem_at, lam0, lam1, p0)
-    if resume is not None:
-        tr = _Tracer.restore(S, opt, resume)
-    else:
-        tr = _Tracer(S, _start_point(p0, lam0, Y0), opt, start_tangent)
-    return _trace(tr, max_points, should_stop, checkpoint)
+    # band LUs, small dense blocks and ARPACK: BLAS threads only oversubscribe shared cores
+    # (the 200-point branch of benchmarks/continuation_speed.py at load 2.6 on 2 cores:
+    # 4.1 s with one thread, 18.5 s with two), as for solver.simulation.simulate
+    with _blas_controller().limit(limits=1, user_api="blas"):
+        if resume is not None:
+            tr = _Tracer.restore(S, opt, resume)
+        else:
+            tr = _Tracer(S, _start_point(p0, lam0, Y0), opt, start_tangent)
+        return _trace(tr, max_points, should_stop, checkpoint)
 
 
 def _start_point(p0: StaticProblem, lam0: float, Y0: Optional[np.ndarray]):

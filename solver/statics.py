@@ -75,7 +75,8 @@ from .static_band import (KL, KU, BandSingular, BorderedBandLU, band_storage, ce
 __all__ = ["EndSpec", "StaticProblem", "StaticSolution", "StaticsError", "residual",
            "jacobian", "solve", "straight_guess", "unstable_modes", "lu_det_sign",
            "static_problem", "quat_axis_angle", "contact_loads", "seabed_loads",
-           "contact_gap", "NV", "N_START", "band_jacobian", "band_ready", "factor_jacobian"]
+           "contact_gap", "NV", "N_START", "band_jacobian", "band_ready", "factor_jacobian",
+           "nearest_eigenvalues"]
 
 NV = 13          # unknowns per node
 N_START = 7      # boundary rows at s = 0
@@ -751,37 +752,121 @@ def mass_matrix(Y: np.ndarray, prob: StaticProblem) -> sp.csc_matrix:
                          shape=(n, n))
 
 
-def unstable_modes(Y: np.ndarray, prob: StaticProblem, k: int = 8, lu=None):
-    """Number of unstable modes of the equilibrium ``Y`` and the eigenvalues μ = −ω²
-    (1/s², per the mass and inertia of ``prob``) nearest zero, by shift-invert Arnoldi on
-    J⁻¹ B (μ > 0: ω² < 0, unstable). Returns (count, μ sorted by |μ|); count -1 when
-    ARPACK converged on no eigenvalue.
+def nearest_eigenvalues(op, n: int, k: int, tol: float = 1e-8) -> np.ndarray:
+    """The k eigenvalues ν of largest |ν| of ``op`` (a real LinearOperator n × n, here
+    J⁻¹B: μ = 1/ν nearest zero), each as often as its multiplicity.
 
-    The solves are scipy's sparse LU's even where the band LU of :func:`factor_jacobian`
-    is at hand: a single-vector Krylov method sees one vector of each eigenspace, so a
-    double eigenvalue (a round rod's pairs) is found twice only where rounding breaks the
-    symmetry, and SuperLU's column ordering does (measured on the round Euler column at
-    1.03 P_c, 100 segments: the sparse LU's solves give both copies of μ = 2.954, the
-    band LU's one).
+    ARPACK's implicitly restarted Arnoldi (scipy ``eigs``) works in the Krylov space of
+    one start vector, which holds one vector of each eigenspace: a double eigenvalue (a
+    round rod's pairs) is found twice only where rounding breaks the symmetry. So the
+    search is repeated, where an eigenvalue found is real and positive (an unstable mode,
+    whose copies the count needs), on the deflated operator P op P, P = I − QQᵀ with Q an
+    orthonormal basis of the eigenvectors found: were Q exactly invariant, P op P would have the
+    remaining eigenvalues, a second copy included, and zeros on Q (Saad, *Numerical
+    Methods for Large Eigenvalue Problems*, 2nd ed., SIAM 2011, § 4.2). ARPACK's
+    eigenvectors are accurate to ``tol`` only, and the deflated operator of a non-normal
+    op then has spurious eigenvalues (seen on Greenhill's rod: μ = +5821 and −1318 where
+    the spectrum has neither). So every eigenvalue λ of the deflated search is checked on
+    op itself: its vector w is completed to x = w + Q z, (R − λ) z = −Qᵀ op w by least
+    squares (R = Qᵀ op Q), and λ is kept only where |op x − λ x| ≤ 1e-6 |λ| |x|. One
+    deflated search, from a fixed pseudo-random start (a symmetric one like the first
+    search's ones would miss the copy again): a double eigenvalue is found twice, a
+    triple one (which no symmetry of a rod makes) possibly twice only.
+
+    Returns (m,) complex, m ≤ k, sorted by |ν| descending (fewer where ARPACK did not
+    converge, empty where it converged on none).
     """
-    lu = factor(jacobian(Y, prob)) if lu is None else lu
-    B = mass_matrix(Y, prob)
-    n = B.shape[0]
-    op = spla.LinearOperator((n, n), matvec=lambda x: lu.solve(B @ x), dtype=float)
-    k = min(k, n - 2)
+    def search(vectors):
+        try:
+            out = spla.eigs(op, k=k, which="LM", tol=tol, v0=np.ones(n),
+                            return_eigenvectors=vectors)
+        except spla.ArpackNoConvergence as exc:   # the converged ones, or none
+            out = (np.asarray(exc.eigenvalues), np.asarray(exc.eigenvectors))
+            return out if vectors else out[0]
+        return out
+
+    found = search(False)
+    found = found[np.abs(found) > 0]
+    # the count (μ = 1/ν > 0) misses a copy only of a positive ν: search where one is,
+    # for as many as there are positive ones (a copy is as large as its original)
+    positive = int(np.sum((np.abs(found.imag) <= 1e-6 * np.abs(found)) & (found.real > 0)))
+    if positive:
+        found, X = search(True)                   # the same search, with its vectors
+        keep = np.abs(found) > 0
+        found, X = found[keep], X[:, keep]
+        found = np.concatenate([found, _copies(op, n, found, X, positive, k, tol)])
+    return found[np.argsort(-np.abs(found))][:k]
+
+
+def _copies(op, n, found, X, positive, k, tol):
+    """The second copies of the eigenvalues ``found`` (vectors X, n × m) of ``op``, by
+    one search on the deflated operator, each checked on op (:func:`nearest_eigenvalues`).
+    Returns (c,) complex."""
+    cols = [X.real] + [X.imag[:, [j]] for j in range(X.shape[1])
+                       if np.linalg.norm(X.imag[:, j]) > 1e-10 * np.linalg.norm(X[:, j])]
+    Q = np.linalg.qr(np.column_stack(cols))[0]
+    kk = min(positive + 1, k, n - 2 - Q.shape[1])
+    if kk < 1:
+        return np.zeros(0, complex)
+    AQ = _apply(op, Q)
+    R = Q.T @ AQ
+
+    def deflated(x):
+        y = op.matvec(x - Q @ (Q.T @ x))
+        return y - Q @ (Q.T @ y)
+
     try:
-        nu = spla.eigs(op, k=k, which="LM", return_eigenvectors=False, tol=1e-8,
-                       v0=np.ones(n))
-    except spla.ArpackNoConvergence as exc:      # the converged ones, or none: -1
-        nu = np.asarray(exc.eigenvalues)
-        if nu.size == 0:
-            return -1, np.array([], complex)
-    nu = nu[np.abs(nu) > 0]
+        nu, vec = spla.eigs(spla.LinearOperator((n, n), matvec=deflated, dtype=float), k=kk,
+                            which="LM", tol=tol, v0=np.random.default_rng(0).standard_normal(n))
+    except spla.ArpackNoConvergence as exc:
+        nu, vec = np.asarray(exc.eigenvalues), np.asarray(exc.eigenvectors)
+    bound = np.sort(np.abs(found))[::-1][min(k, found.size) - 1]
+    added = []
+    for lam, w in zip(nu, vec.T):
+        if not abs(lam) >= bound * (1 - 1e-6):
+            continue
+        Aw = _apply(op, w[:, None])[:, 0]
+        z = np.linalg.lstsq(R - lam * np.eye(R.shape[0]), -(Q.T @ Aw), rcond=None)[0]
+        x = w + Q @ z
+        if np.linalg.norm(Aw + AQ @ z - lam * x) <= 1e-6 * abs(lam) * np.linalg.norm(x):
+            added.append(lam)
+    return np.asarray(added, complex)
+
+
+def _apply(op, X):
+    """op (real) applied to each column of X (n, m), real or complex."""
+    out = np.empty(X.shape, dtype=X.dtype)
+    for j in range(X.shape[1]):
+        out[:, j] = op.matvec(X[:, j].real)
+        if np.iscomplexobj(X):
+            out[:, j] += 1j * op.matvec(X[:, j].imag)
+    return out
+
+
+def _count(nu):
+    """(number of μ = 1/ν real and > 0, μ sorted by |μ|) of the eigenvalues ν of J⁻¹B."""
     mu = 1.0 / nu
     mu = mu[np.argsort(np.abs(mu))]
     real = np.abs(mu.imag) <= 1e-6 * np.abs(mu)
-    count = int(np.sum(real & (mu.real > 0)))
-    return count, mu
+    return int(np.sum(real & (mu.real > 0))), mu
+
+
+def unstable_modes(Y: np.ndarray, prob: StaticProblem, k: int = 8, lu=None):
+    """Number of unstable modes of the equilibrium ``Y`` and the eigenvalues μ = −ω²
+    (1/s², per the mass and inertia of ``prob``) nearest zero, by shift-invert Arnoldi on
+    J⁻¹ B (μ > 0: ω² < 0, unstable), each eigenvalue as often as its multiplicity
+    (:func:`nearest_eigenvalues`). ``lu``: a factorisation of J with ``solve`` (default
+    :func:`factor_jacobian`). Returns (count, μ sorted by |μ|); count -1 when ARPACK
+    converged on no eigenvalue.
+    """
+    lu = factor_jacobian(Y, prob) if lu is None else lu
+    B = mass_matrix(Y, prob)
+    n = B.shape[0]
+    op = spla.LinearOperator((n, n), matvec=lambda x: lu.solve(B @ x), dtype=float)
+    nu = nearest_eigenvalues(op, n, min(k, n - 2))
+    if nu.size == 0:
+        return -1, np.array([], complex)
+    return _count(nu)
 
 
 def critical_mode(Y: np.ndarray, prob: StaticProblem) -> np.ndarray:

@@ -111,6 +111,43 @@ def test_bordered_band_lu_solves_and_signs_as_the_sparse_lu():
         assert np.max(np.abs(A @ lu.solve(b, refine=refine) - b)) < 1e-10 * np.max(np.abs(b))
 
 
+def test_nearest_eigenvalues_counts_a_double_eigenvalue_twice():
+    """A single-vector Krylov search finds a double eigenvalue once where the start vector
+    is symmetric in its eigenspace; the deflated, checked search finds the copy, and no
+    spurious one: a diagonal operator (1, 1, 1/3, ...) and the same made non-normal by an
+    upper-triangular similarity, against the exact spectra."""
+    import scipy.sparse.linalg as spla
+
+    n = 60
+    d = 1.0 / (1.0 + np.arange(n))
+    d[1] = d[0]
+    diag = spla.LinearOperator((n, n), matvec=lambda x: d * x, dtype=float)
+    plain = spla.eigs(diag, k=4, which="LM", return_eigenvectors=False, v0=np.ones(n))
+    assert np.sum(np.isclose(plain.real, 1.0)) == 1          # the copy is missed
+    assert np.allclose(np.sort(st.nearest_eigenvalues(diag, n, 4).real)[::-1],
+                       [1.0, 1.0, 1 / 3, 1 / 4])
+    rng = np.random.default_rng(0)
+    S = np.eye(n) + 0.3 * np.triu(rng.standard_normal((n, n)), 1)
+    A = S @ np.diag(d) @ np.linalg.inv(S)
+    dense = spla.LinearOperator((n, n), matvec=lambda x: A @ x, dtype=float)
+    assert np.allclose(np.sort(st.nearest_eigenvalues(dense, n, 4).real)[::-1],
+                       [1.0, 1.0, 1 / 3, 1 / 4])
+
+
+def test_round_column_pair_counts_two_with_the_band_lu():
+    """The round column past its pair (1.03 P_c, 100 segments): two unstable modes with
+    the band LU's solves, the pair's two equal eigenvalues both in the list."""
+    P = 1.03 * 4 * np.pi**2
+    prob = st.uniform(1.0, 100, (1.0, 1.0, 0.8), st.clamp([0, 0, 0], [1, 0, 0, 0]),
+                      st.clamp([0, 0, 1.0], [1, 0, 0, 0], held=(True, True, False),
+                               force=(0, 0, -P)))
+    Y = st.straight_guess(prob)
+    Y[:, 9] = -P                     # the straight column's internal force, exact
+    assert np.abs(st.residual(Y, prob)).max() < 1e-12
+    count, mu = st.unstable_modes(Y, prob, lu=st.factor_jacobian(Y, prob))
+    assert count == 2 and np.isclose(mu[0].real, mu[1].real, rtol=1e-6)
+
+
 @pytest.mark.parametrize("load", [1, 2, 10])
 def test_cantilever_dead_tip_load_mattiasson(load):
     """Within 0.1 % of Mattiasson's table at 100 segments (measured 0.002-0.01 %)."""
