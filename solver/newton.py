@@ -28,7 +28,11 @@ docs/contact.md § 4). The strategy, in one place:
   the scaled residual, whose evaluation with its Jacobian is reused as the next iterate.
 * **Sea floor.** With a seabed (:mod:`solver.seabed`) and no self-contact, every
   correction is backtracked (Armijo on the scaled residual) and the Jacobian refactored
-  after a cut one: the contact law's kink at zero penetration made full steps cycle.
+  after a cut one: the contact law's kink at zero penetration made full steps cycle. The
+  damper's clamp is held on one branch per cell through the iterations and re-decided
+  near their solution, until the law's own residual passes (an active-set strategy,
+  :class:`solver.seabed.Seabed`): its bounds swapping between iterates made Newton cycle
+  while the cable settles onto the bottom.
 * **Fail fast.** A contact step that halves its residual less than once in four
   iterations, whose corrections are cut to 1/64 three times, or whose GMRES does not
   converge even with a fresh factorisation, fails at once: the step control
@@ -578,6 +582,15 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
     nr = cand[2].shape[0]
     contact = nr > 0
     seabed = rod[7][0][0] != 0.0
+    # the seabed damper's branches held within the solve (solver.seabed.Seabed.freeze_control)
+    hold = rod[7][7]
+    held = seabed and not contact and hold[1] != 0.0
+    hold_at = int(hold[2])
+    hold[0] = 0.0
+    if held:
+        # taken at the start, or (hold_at < 0) the last solve's
+        hold[0] = 1.0 if hold_at == 0 else (2.0 if hold_at < 0 else 0.0)
+    hold[4] = 0.0
     copy_into(Y, Y0)
     refactor = ctr[3] == 0 or contact
     res_prev = np.inf
@@ -589,10 +602,15 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
     frozen_on = False
     fresh_sel = True
     for it in range(max_it + 1):
+        if held and it == hold_at and it > 0 and hold[0] == 0.0:
+            hold[0] = 1.0           # take the branches at this iterate
+            cached = False
         if not cached:
             residual_into(Y, refactor or contact, rod, step, cand,
                           frozen[:nr] if frozen_on else frozen[:0], cdata, buf, ev)
             fresh_sel = not frozen_on
+            if hold[0] == 1.0:
+                hold[0] = 2.0
         cached = False
         for i in range(R.shape[0]):
             if not np.isfinite(R[i]):
@@ -612,8 +630,45 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
         trace[it, 1] = 1.0
         trace[it, 2] = 1.0
         trace[it, 3] = 0.0
+        if (held and hold[0] == 2.0 and res > tol and res <= hold[6]
+                and hold[4] < hold[3]):
+            # near the held branches' solution: re-decide them at this iterate
+            hold[0] = 3.0
+            residual_into(Y, False, rod, step, cand, frozen[:0], cdata, buf, ev)
+            hold[0] = 2.0
+            if hold[7] > 0.0:
+                hold[4] += 1.0
+                hold[5] += 1.0
+                if hold[8] != 0.0:
+                    residual_into(Y, True, rod, step, cand, frozen[:0], cdata, buf, ev)
+                    cached = True
+                    refactor = True
+                    res_prev = np.inf
+                    continue
+                res = _max_scaled(R, rs)
+                res_prev = np.inf
         if res <= tol and it >= min_it:
-            return it, res, True, 0
+            if not (held and hold[0] == 2.0):
+                return it, res, True, 0
+            # converged with the damper's branches held: the solution is the law's when
+            # its own residual passes too; else re-decide the branches here (or, after
+            # REDECISIONS, let the law's clamp act) and go on
+            hold[0] = 0.0
+            residual_into(Y, False, rod, step, cand, frozen[:0], cdata, buf, ev)
+            res_law = _max_scaled(R, rs)
+            if res_law <= tol:
+                return it, res_law, True, 0
+            if hold[4] < hold[3]:
+                hold[4] += 1.0
+                hold[5] += 1.0
+                hold[0] = 3.0
+            residual_into(Y, True, rod, step, cand, frozen[:0], cdata, buf, ev)
+            if hold[0] == 3.0:
+                hold[0] = 2.0
+            cached = True
+            refactor = True
+            res_prev = np.inf
+            continue
         if it == max_it:
             break
         if contact:
@@ -901,6 +956,7 @@ class Newton:
         its, res, ok, code = _newton_kernel(
             np.ascontiguousarray(Y_guess, dtype=float), self._params(), rod, step, cand, cdata,
             system.buf, system.ev, st["lin"], st["op"], st["gm"], st["ws"], st["ctr"])
+        rod[7][7][0] = 0.0          # the seabed's law at evaluations outside Newton
         if st["ctr"][0] != factorizations:
             self._factored_with_contact = contact
         self.last_failure = FAILURES[code]
