@@ -602,9 +602,6 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
     frozen_on = False
     fresh_sel = True
     for it in range(max_it + 1):
-        if held and it == hold_at and it > 0 and hold[0] == 0.0:
-            hold[0] = 1.0           # take the branches at this iterate
-            cached = False
         if not cached:
             residual_into(Y, refactor or contact, rod, step, cand,
                           frozen[:nr] if frozen_on else frozen[:0], cdata, buf, ev)
@@ -630,34 +627,12 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
         trace[it, 1] = 1.0
         trace[it, 2] = 1.0
         trace[it, 3] = 0.0
-        if (held and hold[0] == 2.0 and res > tol and res <= hold[6]
-                and hold[4] < hold[3]):
-            # near the held branches' solution: re-decide them at this iterate
-            hold[0] = 3.0
-            residual_into(Y, False, rod, step, cand, frozen[:0], cdata, buf, ev)
-            hold[0] = 2.0
-            if hold[7] > 0.0:
-                hold[4] += 1.0
-                hold[5] += 1.0
-                if hold[8] != 0.0:
-                    residual_into(Y, True, rod, step, cand, frozen[:0], cdata, buf, ev)
-                    cached = True
-                    refactor = True
-                    res_prev = np.inf
-                    continue
-                res = _max_scaled(R, rs)
-                res_prev = np.inf
-        if res <= tol and it >= min_it:
-            if not (held and hold[0] == 2.0):
-                return it, res, True, 0
-            # converged with the damper's branches held: the solution is the law's when
-            # its own residual passes too; else re-decide the branches here (or, after
-            # REDECISIONS, let the law's clamp act) and go on
+        done = res <= tol and it >= min_it
+        if held and hold[0] == 2.0 and hold[7] > 0.0 and (done or res <= hold[6]):
+            # converged, or near the held branches' solution, with touching cells off
+            # the law's branch (hold[7], counted at this iterate's evaluation): re-decide
+            # the branches here (after REDECISIONS, let the law's clamp act) and go on
             hold[0] = 0.0
-            residual_into(Y, False, rod, step, cand, frozen[:0], cdata, buf, ev)
-            res_law = _max_scaled(R, rs)
-            if res_law <= tol:
-                return it, res_law, True, 0
             if hold[4] < hold[3]:
                 hold[4] += 1.0
                 hold[5] += 1.0
@@ -669,6 +644,9 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
             refactor = True
             res_prev = np.inf
             continue
+        if done:
+            # held branches all the law's at this iterate: its residual is the law's
+            return it, res, True, 0
         if it == max_it:
             break
         if contact:
@@ -764,6 +742,8 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
             # (else the chord rule above decides)
             f0 = _norm_scaled(R, rs)
             step_frac = 1.0
+            if held and it + 1 == hold_at and hold[0] == 0.0:
+                hold[0] = 1.0       # the branches taken at the next iterate
             for _ in range(6):
                 for k in range(n1):
                     for j in range(NV):
@@ -773,6 +753,8 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
                 if np.isfinite(f1) and f1 <= (1.0 - 1e-4 * step_frac) * f0:
                     break
                 step_frac *= 0.5
+            if hold[0] == 1.0:
+                hold[0] = 2.0
             trace[it, 2] = step_frac
             copy_into(Y, Yt)
             cached = True

@@ -59,13 +59,14 @@ slopes differing tenfold between its three branches: Newton's iterates cycled an
 step was refused). Newton therefore holds each cell's branch (0: N = 0, free: N = kp −
 c n·ṙ unclamped, 2kp: N = 2kp) fixed within a step's solve, with the held branch's exact
 derivative: taken from the law at the iterate after the first correction
-(``FREEZE_AT``), re-decided at
-every iterate whose scaled residual is below ``RECHECK_BELOW`` and at convergence, until
-the law's own residual passes the tolerance at the held branches' solution; a cell held
+(``FREEZE_AT``); each evaluation counts the touching cells whose held branch is not the
+law's there, and an iterate with such cells re-decides the branches once its scaled
+residual is below ``RECHECK_BELOW`` or the tolerance, so that a solve ends only where
+every held branch is the law's (its residual is then the law's); a cell held
 at one bound whose law gives the other goes to the free branch between them
 (:func:`_next_mode`; the root lies between the two bounds' roots). After
 ``REDECISIONS`` re-decisions the law's clamp acts at every iterate as before. The
-solution is the law's (its residual is tested); only the path of the iterates changes.
+solution is the law's; only the path of the iterates changes.
 This is the primal-dual active-set strategy, a semismooth Newton method, applied to the
 clamp's two bounds (M. Hintermüller, K. Ito, K. Kunisch (2002), "The primal-dual active
 set strategy as a semismooth Newton method", SIAM J. Optim. 13(3), 865–888), with the
@@ -91,7 +92,7 @@ __all__ = ["Seabed", "seabed_into", "seabed_old_into", "seabed_cells", "node_pen
 
 #: the kernels' data of a run without a seabed (the scalars' kind 0)
 NO_SEABED = (np.zeros(10), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros((1, 1)),
-             np.zeros((1, 12)), np.zeros(1), np.zeros(9))
+             np.zeros((1, 12)), np.zeros(1), np.zeros(8))
 
 # rows and columns of the node's unknowns (solver.scheme's V, W, E3, E4)
 _V, _E3, _E4 = 0, 6, 9
@@ -161,11 +162,10 @@ class Seabed:
     #: re-decisions of the branches in one Newton solve, after which the law's clamp
     #: acts at every iterate
     REDECISIONS = 4
-    #: the scaled residual below which each iterate re-decides the branches (a solve
-    #: held on branches the law no longer takes is not finished to the tolerance)
+    #: the scaled residual below which an iterate with touching cells off the law's
+    #: branch re-decides them (a solve held on branches the law no longer takes is not
+    #: finished to the tolerance)
     RECHECK_BELOW = 1e-4
-    #: factorise afresh after a re-decision (else the last factor, as a chord)
-    REFACTOR_ON_CHANGE = True
 
     @classmethod
     def freeze_control(cls):
@@ -173,11 +173,10 @@ class Seabed:
         every evaluation, 1 take the branches from the law, 2 use the held ones, 3
         re-decide them, :func:`_next_mode`), on (1) or off (0), the iterate at which they
         are taken, the re-decisions allowed per solve, this solve's re-decisions, the
-        run's, the residual below which iterates re-decide, the branches changed by the
-        last re-decision, refactor on a change (1) or not (0)."""
+        run's, the residual below which iterates re-decide, the touching cells off the
+        law's branch at the last held evaluation."""
         return np.array([0.0, 1.0 if cls.FREEZE else 0.0, float(cls.FREEZE_AT),
-                         float(cls.REDECISIONS), 0.0, 0.0, float(cls.RECHECK_BELOW), 0.0,
-                         1.0 if cls.REFACTOR_ON_CHANGE else 0.0])
+                         float(cls.REDECISIONS), 0.0, 0.0, float(cls.RECHECK_BELOW), 0.0])
 
     def begin_step(self, af, Y_old, q_old, r_old, v_old_global):
         """Freeze the old level's share αf ½(R_aᵀ + R_bᵀ)(F, M) of each cell's E3, E4 rows
@@ -320,7 +319,7 @@ def _law(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk, m
     """:func:`_node` with the damper's branch given: mode −1 the law's own (the clamp),
     0 the lower bound (N = 0), 1 free (N = k p − c n·ṙ, unclamped), 2 the upper bound
     (N = 2kp); with ``rule`` the branch is the one :func:`_next_mode` gives from mode and
-    the law's. Returns (p, the branch used). The branch is decided (and returned) where
+    the law's. Returns (p, the branch used, the law's own). The branch is decided (and returned) where
     p ≤ 0 too: there the outputs are 0 whatever it is."""
     for i in range(3):
         Fn[i] = 0.0
@@ -351,7 +350,7 @@ def _law(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk, m
     if p <= 0.0 or m == 0:
         if want:
             _zero_derivatives(DF, DM)
-        return p, m
+        return p, m, law
     capped = m == 2
     if capped:
         N = 2.0 * spring
@@ -360,7 +359,7 @@ def _law(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk, m
     if N == 0.0:
         if want:
             _zero_derivatives(DF, DM)
-        return p, m
+        return p, m, law
     n = wk[7, 0]
     n[0], n[1], n[2] = n0, n1, n2
     for i in range(3):
@@ -394,7 +393,7 @@ def _law(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk, m
         M[1] = -rho * (n2 * Ff[0] - n0 * Ff[2])
         M[2] = -rho * (n0 * Ff[1] - n1 * Ff[0])
     if not want:
-        return p, m
+        return p, m, law
     # ---- derivatives with respect to the unknowns X (3, m columns)
     Dn, Dw, Da, Dah, Dl, DFf = wk[0], wk[1], wk[2], wk[3], wk[4], wk[5]
     # ∂n/∂x and ∂d/∂x (bilinear: hxx = hyy = 0)
@@ -427,7 +426,7 @@ def _law(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk, m
             DF[i, j] = DN[j] * n[i] + N * Dn[i, j]
             DM[i, j] = 0.0
     if not fric:
-        return p, m
+        return p, m, law
     # Dw = Du − ρ(DOm × n + Om × Dn)
     for i in range(3):
         for j in range(nc):
@@ -465,7 +464,7 @@ def _law(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk, m
     # DM = −ρ (Dn × Ff + n × DFf)
     _cross_cols(Ff, Dn, DM, rho)
     _cross_cols(n, DFf, DM, -rho)
-    return p, m
+    return p, m, law
 
 
 @numba.njit(cache=True, inline="always")
@@ -618,7 +617,7 @@ def seabed_into(Y, Rm, r, vg, theta, dt, af, data, want, cells, blocks):
     if state == 1:
         for c in range(n_cells):
             modes[c] = -1.0
-    if state == 3:
+    if state >= 1:
         data[7][7] = 0.0
     if not far_from_bottom(r, data):
         for c in range(n_cells):
@@ -629,10 +628,10 @@ def seabed_into(Y, Rm, r, vg, theta, dt, af, data, want, cells, blocks):
                 _seeds_into(Y, Rm[c], theta, c, hdt, 0, Dr, Du, DOm, Dt, Ja, S, RS)
                 _seeds_into(Y, Rm[c + 1], theta, c + 1, hdt, 6, Dr, Du, DOm, Dt, Jb, S, RS)
             held = int(modes[c]) if state >= 2 else -1
-            p, m = _law(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fnv, Ffv, Mv, DF, DM,
-                        wk, held, state == 3)
-            if state == 3 and m != held:
-                data[7][7] += 1.0
+            p, m, law = _law(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fnv, Ffv, Mv, DF,
+                             DM, wk, held, state == 3)
+            if state >= 2 and p > 0.0 and m != law:
+                data[7][7] += 1.0       # a touching cell off the law's branch
             if state == 1 or state == 3:
                 modes[c] = m
             if p <= 0.0 or m == 0:
