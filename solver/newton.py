@@ -28,7 +28,11 @@ docs/contact.md § 4). The strategy, in one place:
   the scaled residual, whose evaluation with its Jacobian is reused as the next iterate.
 * **Sea floor.** With a seabed (:mod:`solver.seabed`) and no self-contact, every
   correction is backtracked (Armijo on the scaled residual) and the Jacobian refactored
-  after a cut one: the contact law's kink at zero penetration made full steps cycle.
+  after a cut one: the contact law's kink at zero penetration made full steps cycle. The
+  damper's clamp is held on one branch per cell through the iterations and re-decided
+  near their solution, until the law's own residual passes (an active-set strategy,
+  :class:`solver.seabed.Seabed`): its bounds swapping between iterates made Newton cycle
+  while the cable settles onto the bottom.
 * **Fail fast.** A contact step that halves its residual less than once in four
   iterations, whose corrections are cut to 1/64 three times, or whose GMRES does not
   converge even with a fresh factorisation, fails at once: the step control
@@ -578,6 +582,15 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
     nr = cand[2].shape[0]
     contact = nr > 0
     seabed = rod[7][0][0] != 0.0
+    # the seabed damper's branches held within the solve (solver.seabed.Seabed.freeze_control)
+    hold = rod[7][7]
+    held = seabed and not contact and hold[1] != 0.0
+    hold_at = int(hold[2])
+    hold[0] = 0.0
+    if held:
+        # taken at the start, or (hold_at < 0) the last solve's
+        hold[0] = 1.0 if hold_at == 0 else (2.0 if hold_at < 0 else 0.0)
+    hold[4] = 0.0
     copy_into(Y, Y0)
     refactor = ctr[3] == 0 or contact
     res_prev = np.inf
@@ -593,6 +606,8 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
             residual_into(Y, refactor or contact, rod, step, cand,
                           frozen[:nr] if frozen_on else frozen[:0], cdata, buf, ev)
             fresh_sel = not frozen_on
+            if hold[0] == 1.0:
+                hold[0] = 2.0
         cached = False
         for i in range(R.shape[0]):
             if not np.isfinite(R[i]):
@@ -612,7 +627,25 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
         trace[it, 1] = 1.0
         trace[it, 2] = 1.0
         trace[it, 3] = 0.0
-        if res <= tol and it >= min_it:
+        done = res <= tol and it >= min_it
+        if held and hold[0] == 2.0 and hold[7] > 0.0 and (done or res <= hold[6]):
+            # converged, or near the held branches' solution, with touching cells off
+            # the law's branch (hold[7], counted at this iterate's evaluation): re-decide
+            # the branches here (after REDECISIONS, let the law's clamp act) and go on
+            hold[0] = 0.0
+            if hold[4] < hold[3]:
+                hold[4] += 1.0
+                hold[5] += 1.0
+                hold[0] = 3.0
+            residual_into(Y, True, rod, step, cand, frozen[:0], cdata, buf, ev)
+            if hold[0] == 3.0:
+                hold[0] = 2.0
+            cached = True
+            refactor = True
+            res_prev = np.inf
+            continue
+        if done:
+            # held branches all the law's at this iterate: its residual is the law's
             return it, res, True, 0
         if it == max_it:
             break
@@ -709,6 +742,8 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
             # (else the chord rule above decides)
             f0 = _norm_scaled(R, rs)
             step_frac = 1.0
+            if held and it + 1 == hold_at and hold[0] == 0.0:
+                hold[0] = 1.0       # the branches taken at the next iterate
             for _ in range(6):
                 for k in range(n1):
                     for j in range(NV):
@@ -718,6 +753,8 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
                 if np.isfinite(f1) and f1 <= (1.0 - 1e-4 * step_frac) * f0:
                     break
                 step_frac *= 0.5
+            if hold[0] == 1.0:
+                hold[0] = 2.0
             trace[it, 2] = step_frac
             copy_into(Y, Yt)
             cached = True
@@ -901,6 +938,7 @@ class Newton:
         its, res, ok, code = _newton_kernel(
             np.ascontiguousarray(Y_guess, dtype=float), self._params(), rod, step, cand, cdata,
             system.buf, system.ev, st["lin"], st["op"], st["gm"], st["ws"], st["ctr"])
+        rod[7][7][0] = 0.0          # the seabed's law at evaluations outside Newton
         if st["ctr"][0] != factorizations:
             self._factored_with_contact = contact
         self.last_failure = FAILURES[code]

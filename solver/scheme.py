@@ -790,6 +790,10 @@ class RodSystem:
             old.setdefault("cand_arrays", state["_no_candidates"])
             state["step"] = StepTerms(**old)
         self.__dict__.update(state)
+        # the seabed's kernel data as it is now (a checkpoint from before its last arrays)
+        seabed = state.get("seabed")
+        self.rod_data = tuple(self.rod_data[:7]) + (
+            NO_SEABED if seabed is None else seabed.data,)
         self.buf = self.buffers()
         cand = self.step.candidates
         self.ev = evaluation_arrays(cand.runs if cand is not None else 0)

@@ -51,6 +51,28 @@ this derivative through the cell's two nodes only is the band's approximation of
 (the exact product of :func:`solver.scheme.exact_loads_product` does not carry the
 seabed).
 
+**The damper's branch in a step.** Where the step is long against c/k (at Δt = 0.01 s
+with the default c/k = 0.1 s, c|n·ṙ| with ṙ ~ p/Δt is about ten times kp) N sits on the
+clamp's bounds 0 or 2kp, which swap with the sign of n·ṙ from one Newton iterate to the
+next (N is monotone in the penetration rate, with
+slopes differing tenfold between its three branches: Newton's iterates cycled and the
+step was refused). Newton therefore holds each cell's branch (0: N = 0, free: N = kp −
+c n·ṙ unclamped, 2kp: N = 2kp) fixed within a step's solve, with the held branch's exact
+derivative: taken from the law at the iterate after the first correction
+(``FREEZE_AT``); each evaluation counts the touching cells whose held branch is not the
+law's there, and an iterate with such cells re-decides the branches once its scaled
+residual is below ``RECHECK_BELOW`` or the tolerance, so that a solve ends only where
+every held branch is the law's (its residual is then the law's); a cell held
+at one bound whose law gives the other goes to the free branch between them
+(:func:`_next_mode`; the root lies between the two bounds' roots). After
+``REDECISIONS`` re-decisions the law's clamp acts at every iterate as before. The
+solution is the law's; only the path of the iterates changes.
+This is the primal-dual active-set strategy, a semismooth Newton method, applied to the
+clamp's two bounds (M. Hintermüller, K. Ito, K. Kunisch (2002), "The primal-dual active
+set strategy as a semismooth Newton method", SIAM J. Optim. 13(3), 865–888), with the
+set held through the Newton iterations of the smooth remainder and re-decided near their
+solution.
+
 Cost: one pass over the cells, O(N), and one more on the old level; cells whose
 midpoint is higher than the bottom's top plus its radius (times the steepest slope
 factor) are skipped, and the whole kernel when every node is (:func:`far_from_bottom`).
@@ -70,7 +92,7 @@ __all__ = ["Seabed", "seabed_into", "seabed_old_into", "seabed_cells", "node_pen
 
 #: the kernels' data of a run without a seabed (the scalars' kind 0)
 NO_SEABED = (np.zeros(10), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros((1, 1)),
-             np.zeros((1, 12)))
+             np.zeros((1, 12)), np.zeros(1), np.zeros(8))
 
 # rows and columns of the node's unknowns (solver.scheme's V, W, E3, E4)
 _V, _E3, _E4 = 0, 6, 9
@@ -112,7 +134,11 @@ class Seabed:
                          1.0 if fr is None else fr.slip_velocity, top, slope])
         #: the old level's share of the cell rows (N, 12), set by :meth:`begin_step`
         self.old_rows = np.zeros((radius.size - 1, 12))
-        self.data = (scal, radius, gx, gy, gz, self.old_rows)
+        #: the damper's branch per cell held in a step's Newton iterations, and the
+        #: control of that hold (:meth:`freeze`)
+        self.modes = np.full(radius.size - 1, -1.0)
+        self.control = self.freeze_control()
+        self.data = (scal, radius, gx, gy, gz, self.old_rows, self.modes, self.control)
         self.radius = radius
 
     def __setstate__(self, state):
@@ -121,6 +147,36 @@ class Seabed:
         if "old_rows" not in state:
             self.old_rows = np.zeros((self.radius.size - 1, 12))
             self.data = tuple(self.data[:5]) + (self.old_rows,)
+        if "modes" not in state:
+            # ... and from before the damper's branch was held within a step
+            self.modes = np.full(self.radius.size - 1, -1.0)
+            self.control = self.freeze_control()
+            self.data = tuple(self.data[:6]) + (self.modes, self.control)
+
+    #: hold the damper's branch within a step's Newton iterations (module docstring,
+    #: :meth:`freeze_control`)
+    FREEZE = True
+    #: the Newton iterate at which the branches are taken from the law (0: the start;
+    #: negative: the last solve's branches)
+    FREEZE_AT = 1
+    #: re-decisions of the branches in one Newton solve, after which the law's clamp
+    #: acts at every iterate
+    REDECISIONS = 4
+    #: the scaled residual below which an iterate with touching cells off the law's
+    #: branch re-decides them (a solve held on branches the law no longer takes is not
+    #: finished to the tolerance)
+    RECHECK_BELOW = 1e-4
+
+    @classmethod
+    def freeze_control(cls):
+        """The kernels' control of the held branches (6,): state (0 the law's clamp at
+        every evaluation, 1 take the branches from the law, 2 use the held ones, 3
+        re-decide them, :func:`_next_mode`), on (1) or off (0), the iterate at which they
+        are taken, the re-decisions allowed per solve, this solve's re-decisions, the
+        run's, the residual below which iterates re-decide, the touching cells off the
+        law's branch at the last held evaluation."""
+        return np.array([0.0, 1.0 if cls.FREEZE else 0.0, float(cls.FREEZE_AT),
+                         float(cls.REDECISIONS), 0.0, 0.0, float(cls.RECHECK_BELOW), 0.0])
 
     def begin_step(self, af, Y_old, q_old, r_old, v_old_global):
         """Freeze the old level's share αf ½(R_aᵀ + R_bᵀ)(F, M) of each cell's E3, E4 rows
@@ -194,7 +250,7 @@ def _locate(g, x):
 def _bottom(x, y, data):
     """(h, hx, hy, hxy) of the bottom at global (x, y) m: the flat elevation, or the
     grid's bilinear interpolation with its derivatives (0 across a clamped axis)."""
-    scal, _, gx, gy, gz, _ = data
+    scal, gx, gy, gz = data[0], data[2], data[3], data[4]
     if scal[0] == 1.0:
         return scal[1], 0.0, 0.0, 0.0
     i, tx, inx = _locate(gx, x)
@@ -254,6 +310,17 @@ def _node(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk):
     (3, m) for the derivatives of x, u, Om, t with respect to m unknowns X (Dr, Du, DOm,
     Dt (3, m)), by forward propagation through the formulas. wk: scratch (9, 3, m).
     Returns the penetration p (m, ≤ 0: no contact, every output 0)."""
+    return _law(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk, -1,
+                False)[0]
+
+
+@numba.njit(cache=True)
+def _law(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk, mode, rule):
+    """:func:`_node` with the damper's branch given: mode −1 the law's own (the clamp),
+    0 the lower bound (N = 0), 1 free (N = k p − c n·ṙ, unclamped), 2 the upper bound
+    (N = 2kp); with ``rule`` the branch is the one :func:`_next_mode` gives from mode and
+    the law's. Returns (p, the branch used, the law's own). The branch is decided (and returned) where
+    p ≤ 0 too: there the outputs are 0 whatever it is."""
     for i in range(3):
         Fn[i] = 0.0
         Ff[i] = 0.0
@@ -265,22 +332,34 @@ def _node(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk):
     n0, n1, n2 = -hx / sq, -hy / sq, 1.0 / sq
     d = (x[2] - h) / sq
     p = rho - d
-    if p <= 0.0:
-        if want:
-            _zero_derivatives(DF, DM)
-        return p
     sn = n0 * u[0] + n1 * u[1] + n2 * u[2]
     spring = kst * p
     damper = -cdp * sn
-    capped = damper > spring
+    if damper > spring:
+        law = 2
+    elif spring + damper <= 0.0:
+        law = 0
+    else:
+        law = 1
+    if rule:
+        m = _next_mode(mode, law)
+    elif mode < 0:
+        m = law
+    else:
+        m = mode
+    if p <= 0.0 or m == 0:
+        if want:
+            _zero_derivatives(DF, DM)
+        return p, m, law
+    capped = m == 2
     if capped:
         N = 2.0 * spring
     else:
         N = spring + damper
-    if N <= 0.0:
+    if N == 0.0:
         if want:
             _zero_derivatives(DF, DM)
-        return p
+        return p, m, law
     n = wk[7, 0]
     n[0], n[1], n[2] = n0, n1, n2
     for i in range(3):
@@ -314,7 +393,7 @@ def _node(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk):
         M[1] = -rho * (n2 * Ff[0] - n0 * Ff[2])
         M[2] = -rho * (n0 * Ff[1] - n1 * Ff[0])
     if not want:
-        return p
+        return p, m, law
     # ---- derivatives with respect to the unknowns X (3, m columns)
     Dn, Dw, Da, Dah, Dl, DFf = wk[0], wk[1], wk[2], wk[3], wk[4], wk[5]
     # ∂n/∂x and ∂d/∂x (bilinear: hxx = hyy = 0)
@@ -347,7 +426,7 @@ def _node(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk):
             DF[i, j] = DN[j] * n[i] + N * Dn[i, j]
             DM[i, j] = 0.0
     if not fric:
-        return p
+        return p, m, law
     # Dw = Du − ρ(DOm × n + Om × Dn)
     for i in range(3):
         for j in range(nc):
@@ -385,7 +464,20 @@ def _node(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk):
     # DM = −ρ (Dn × Ff + n × DFf)
     _cross_cols(Ff, Dn, DM, rho)
     _cross_cols(n, DFf, DM, -rho)
-    return p
+    return p, m, law
+
+
+@numba.njit(cache=True, inline="always")
+def _next_mode(frozen, law):
+    """The damper's branch after a re-decision (:meth:`Seabed.freeze`): the law's, except
+    that a cell held at one bound whose law gives the other goes to the free branch
+    between them (N is monotone in the penetration rate, so the root lies between the
+    two bounds' roots: held at one bound alone, the iterates would swap bounds)."""
+    if frozen < 0 or frozen == law:
+        return law
+    if frozen + law == 2 and frozen != 1:
+        return 1
+    return law
 
 
 @numba.njit(cache=True)
@@ -521,6 +613,12 @@ def seabed_into(Y, Rm, r, vg, theta, dt, af, data, want, cells, blocks):
     RS = np.empty((3, 3))
     b = np.empty(3)
     q = np.empty(3)
+    modes, state = data[6], int(data[7][0])
+    if state == 1:
+        for c in range(n_cells):
+            modes[c] = -1.0
+    if state >= 1:
+        data[7][7] = 0.0
     if not far_from_bottom(r, data):
         for c in range(n_cells):
             if not _cell_touches(r, radius, c, lim, f):
@@ -529,8 +627,14 @@ def seabed_into(Y, Rm, r, vg, theta, dt, af, data, want, cells, blocks):
             if want:
                 _seeds_into(Y, Rm[c], theta, c, hdt, 0, Dr, Du, DOm, Dt, Ja, S, RS)
                 _seeds_into(Y, Rm[c + 1], theta, c + 1, hdt, 6, Dr, Du, DOm, Dt, Jb, S, RS)
-            p = _node(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fnv, Ffv, Mv, DF, DM, wk)
-            if p <= 0.0:
+            held = int(modes[c]) if state >= 2 else -1
+            p, m, law = _law(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fnv, Ffv, Mv, DF,
+                             DM, wk, held, state == 3)
+            if state >= 2 and p > 0.0 and m != law:
+                data[7][7] += 1.0       # a touching cell off the law's branch
+            if state == 1 or state == 3:
+                modes[c] = m
+            if p <= 0.0 or m == 0:
                 continue
             for e in range(2):
                 k = c + e
