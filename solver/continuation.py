@@ -372,9 +372,10 @@ def continuation(problem_at: Callable[[float], StaticProblem], lam0: float, lam1
                max_turn=max_turn, stability=stability, modes=modes, locate=locate,
                switch=switch, on_point=on_point)
     S = _Scaled(problem_at, lam0, lam1, p0)
-    # band LUs, small dense blocks and ARPACK: BLAS threads only oversubscribe shared cores
-    # (the 200-point branch of benchmarks/continuation_speed.py at load 2.6 on 2 cores:
-    # 4.1 s with one thread, 18.5 s with two), as for solver.simulation.simulate
+    # band LUs, small dense blocks and ARPACK: BLAS threads only oversubscribe shared cores,
+    # as for solver.simulation.simulate (the 200-point branch of
+    # benchmarks/continuation_speed.py before this limit, one run each at load 2.6 on 2
+    # cores: 4.1 s under OPENBLAS_NUM_THREADS=1, 18.5 s under 2)
     with _blas_controller().limit(limits=1, user_api="blas"):
         if resume is not None:
             tr = _Tracer.restore(S, opt, resume)

@@ -233,20 +233,16 @@ class BorderedBandLU:
         if info != 0:
             raise BandSingular(f"band LU: zero pivot in column {info}")
         d = self.lu[KL + KU]
-        self.j_sign = int(np.prod(np.sign(d))) * (-1) ** int(np.count_nonzero(
+        sign = int(np.prod(np.sign(d))) * (-1) ** int(np.count_nonzero(
             self.piv != np.arange(n)))
         self.X = self._band_solve(self.W) if self.W.shape[1] else np.zeros((n, 0))
         # |J⁻¹W| |J| / |W|: a lower bound of J's condition number along the borders
         self.growth = (float(np.max(np.abs(self.X))) * self.norm
                        / max(float(np.max(np.abs(self.W))), 1e-300)) if self.W.size else 1.0
-        self._border(C, D)
-
-    def _border(self, C, D):
-        n, k = self.n, self.W.shape[1]
+        k = self.W.shape[1]
         self.C = np.zeros((n, 0)) if C is None else np.asarray(C, float).reshape(n, -1)
         self.D = np.zeros((k, k)) if D is None else np.asarray(D, float).reshape(k, k)
         self.S = self.D - self.C.T @ self.X
-        sign = self.j_sign
         if k:
             s = np.linalg.svd(self.S, compute_uv=False)
             if not (np.all(np.isfinite(s)) and s[-1] > 1e-14 * max(s[0], 1e-300)):

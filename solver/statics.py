@@ -606,14 +606,20 @@ def factor(A):
         lu = spla.splu(sp.csc_matrix(A))
     except RuntimeError as exc:
         raise StaticsError(f"singular Jacobian ({exc})") from exc
-    d = np.abs(lu.U.diagonal())
-    if not np.all(np.isfinite(d)) or d.min() <= 1e-14 * d.max():
-        raise StaticsError("singular Jacobian (a pivot is zero to rounding)")
+    _check_pivots(lu.U.diagonal())
     return lu
 
 
+def _check_pivots(d):
+    """Raise :class:`StaticsError` where a pivot of U's diagonal ``d`` is not finite or is
+    below 1e-14 of the largest in size (a matrix singular to rounding)."""
+    d = np.abs(d)
+    if not np.all(np.isfinite(d)) or d.min() <= 1e-14 * d.max():
+        raise StaticsError("singular Jacobian (a pivot is zero to rounding)")
+
+
 def factor_jacobian(Y: np.ndarray, prob: StaticProblem):
-    """The LU of ∂G/∂Y at Y: LAPACK's band LU (:class:`solver.static_band.BorderedBandLU`
+    """The LU of ∂G/∂Y at Y (N+1, 13), a 13(N+1)-square matrix: LAPACK's band LU (:class:`solver.static_band.BorderedBandLU`
     with no border) where the Jacobian is a band (:func:`band_ready`), else scipy's
     sparse LU (:func:`factor`); either has ``solve``. Raises :class:`StaticsError` when
     the Jacobian is singular (a pivot zero, or below 1e-14 of the largest)."""
@@ -622,9 +628,7 @@ def factor_jacobian(Y: np.ndarray, prob: StaticProblem):
             lu = BorderedBandLU(band_jacobian(Y, prob))
         except BandSingular as exc:
             raise StaticsError(f"singular Jacobian ({exc})") from exc
-        d = np.abs(lu.lu[KL + KU])
-        if not np.all(np.isfinite(d)) or d.min() <= 1e-14 * d.max():
-            raise StaticsError("singular Jacobian (a pivot is zero to rounding)")
+        _check_pivots(lu.lu[KL + KU])
         return lu
     return factor(jacobian(Y, prob))
 
