@@ -162,7 +162,8 @@ def _matvec_kernel(blocks, x, load_weight, dB, out):
 #          gaps g0, g1 (runs,), frozen (runs,) int, pose scratch q (N+1, 4), R (N+1, 3, 3),
 #          r, θ (N+1, 3), trace (max_it + 2, 4): per iteration the scaled residual, the
 #          feasibility fraction, the line-search fraction, GMRES's iterations; ṙ scratch
-#          (N+1, 3))
+#          (N+1, 3); the last iterate's positions (N+1, 3) and how far the last
+#          correction moved them (1,), for the position test)
 #   ctr = (factorisations, GMRES iterations, GMRES failures, factor valid) int64
 
 
@@ -555,6 +556,39 @@ def _feasible_start(Y_old, guess, step, rod, cand, cdata, ws, out):
 
 
 @numba.njit(cache=True)
+def _position_converged(r, r_prev, moved, it, res, tol, bound, trace):
+    """The position test of a contact step's Newton iterate ``it`` (module docstring).
+    r (N+1, 3): its space-route positions (m); r_prev (N+1, 3): the last iterate's,
+    overwritten by r; moved (1,): how far the last-but-one correction moved the positions
+    (m; < 0: unknown), overwritten by how far the last one did, d = max_k |r_k − r_prev,k|.
+    With the contraction ρ = d / moved[0] of two successive corrections the iterate's own
+    position error is about ρ/(1 − ρ)·d (Hairer & Wanner, Solving Ordinary Differential
+    Equations II, § IV.8, eq. (8.10), in the maximum norm of the positions). Converged
+    when that is at most ``bound`` (m), ρ < ½, the last correction was taken whole (cut
+    by the feasibility filter or the line search, d does not measure convergence), and
+    the scaled residual ``res`` is at most √tol (one more quadratic iteration would
+    reach tol). trace: the kernel's per-iteration record (feasible and line-search
+    fractions in columns 1, 2). Returns the verdict."""
+    d = 0.0
+    for k in range(r.shape[0]):
+        for c in range(3):
+            x = abs(r[k, c] - r_prev[k, c])
+            if x > d or x != x:
+                d = x
+            r_prev[k, c] = r[k, c]
+    last = moved[0]
+    moved[0] = d if it >= 1 else -1.0
+    if it < 2 or last <= 0.0 or not d == d:
+        return False
+    if trace[it - 1, 1] != 1.0 or trace[it - 1, 2] != 1.0:
+        return False
+    rho = d / last
+    if rho >= 0.5 or res > math.sqrt(tol):
+        return False
+    return rho / (1.0 - rho) * d <= bound
+
+
+@numba.njit(cache=True)
 def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ctr):
     """Newton's iterations for one step (the module docstring's strategy), compiled
     whole. Y0 (N+1, 12): the start; prm: tolerance, iteration limit, least iterations,
@@ -573,6 +607,7 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
     gm_rtol = prm[6]
     gm_max = int(prm[7])
     weight = prm[8]
+    pos_bound = prm[9]
     R, Fn = buf[0], buf[2]
     Y, Yt, delta_flat, rhs, stall_scale, history, frozen = ws[0], ws[1], ws[2], ws[3], ws[4], ws[5], ws[8]
     rs, cs = lin[1], lin[3]
@@ -601,6 +636,11 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
     cached = False
     frozen_on = False
     fresh_sel = True
+    # contact steps: the positions of the last iterate and how far the last correction
+    # moved them (m), for the position test of Newton.CONTACT_POSITION_FRACTION
+    r_prev, moved = ws[15], ws[16]
+    moved[0] = -1.0
+    position_test = contact and pos_bound > 0.0
     for it in range(max_it + 1):
         if not cached:
             residual_into(Y, refactor or contact, rod, step, cand,
@@ -628,6 +668,9 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
         trace[it, 2] = 1.0
         trace[it, 3] = 0.0
         done = res <= tol and it >= min_it
+        if position_test and not done:
+            done = _position_converged(buf[7], r_prev, moved, it, res, tol, pos_bound,
+                                       trace) and it >= min_it
         if held and hold[0] == 2.0 and hold[7] > 0.0 and (done or res <= hold[6]):
             # converged, or near the held branches' solution, with touching cells off
             # the law's branch (hold[7], counted at this iterate's evaluation): re-decide
@@ -813,6 +856,18 @@ class Newton:
     #: runs pickled before it existed resume; the run sets 1 under error control)
     min_iterations = 0
 
+    #: contact steps: an iterate whose estimated position error is at most this fraction
+    #: of ``position_tolerance`` (and whose scaled residual is at most √tolerance) is
+    #: converged (:func:`_position_converged`). The step's own position error is allowed
+    #: up to position_tolerance and its steps are sized for 0.35 of it
+    #: (docs/contact.md § 3), so Newton's share is under 0.3 % of the step's error.
+    CONTACT_POSITION_FRACTION = 1e-3
+
+    #: the accuracy of a contact step's positions (m): the route rule's bound, set by the
+    #: run (:meth:`solver.run.RodRun._route_tolerance`); 0: no position test (a class
+    #: default, so that runs pickled before it existed resume without it)
+    position_tolerance = 0.0
+
     def __init__(self, system, tolerance=1e-9, max_iterations=25):
         self.system = system
         self.tol = float(tolerance)
@@ -867,7 +922,7 @@ class Newton:
               np.zeros(self.max_iterations + 2), np.zeros(cap), np.zeros(cap),
               np.zeros(cap, np.intp), np.zeros((n1, 4)), np.zeros((n1, 3, 3)),
               np.zeros((n1, 3)), np.zeros((n1, 3)), np.zeros((self.max_iterations + 2, 4)),
-              np.zeros((n1, 3)))
+              np.zeros((n1, 3)), np.zeros((n1, 3)), np.zeros(1))
         self._state = {"cap": cap, "lin": lin, "op": op, "gm": gm, "ws": ws, "ctr": ctr}
 
     def __getstate__(self):
@@ -911,7 +966,8 @@ class Newton:
     def _params(self):
         return np.array([self.tol, self.max_iterations, self.min_iterations, self.FREEZE_AFTER,
                          self.GAP_KEEP, self.GMRES_REFACTOR, self.GMRES_RTOL, self.GMRES_MAX,
-                         self.CONTACT_BAND_WEIGHT])
+                         self.CONTACT_BAND_WEIGHT,
+                         self.CONTACT_POSITION_FRACTION * self.position_tolerance])
 
     # ------------------------------------------------------------------ solve
     def solve(self, Y_guess):
