@@ -19,13 +19,24 @@ docs/contact.md § 4). The strategy, in one place:
   contact forces depend on κ upstream of each node: the exact Jacobian is not banded.
   GMRES (right-preconditioned, Saad & Schultz 1986) solves with the exact operator
   applied matrix-free (:func:`solver.scheme.exact_loads_product`), preconditioned by the
-  band LU of the node-local (time-route) approximation with its contact blocks weighted
-  by ``CONTACT_BAND_WEIGHT``. That LU is kept across iterates while GMRES converges in at
+  band LU of the node-local (time-route) approximation without its contact blocks
+  (``CONTACT_BAND_WEIGHT`` = 0: the rod's own band Jacobian). That LU is kept across iterates while GMRES converges in at
   most ``GMRES_REFACTOR`` iterations and refactored when it needs more: about one
   factorisation per contact step (docs/contact.md).
 * **Feasible iterates.** A correction may close no candidate gap to less than
   ``GAP_KEEP`` of itself (halving; an IPC-like filter), then an Armijo backtracking on
   the scaled residual, whose evaluation with its Jacobian is reused as the next iterate.
+  Where the last correction passed the filter whole, the next one is first evaluated
+  whole and its gaps read off that evaluation, which is then the line search's first
+  trial (no separate gap evaluation for the filter).
+* **Converged contact steps.** The scaled residual below the tolerance, or (contact
+  steps) the iterate's position error estimated from the contraction of its last two
+  corrections (Hairer & Wanner) below ``CONTACT_POSITION_FRACTION`` of the step's
+  position bound (``contact.position_tolerance``) with the residual below √tolerance:
+  the route rule allows each step a position error up to that bound, so iterating
+  further only polishes digits the step does not have (one iteration fewer in most
+  contact steps of the seed example; its positions within ~3e-8 m of the fully
+  converged iterate's).
 * **Sea floor.** With a seabed (:mod:`solver.seabed`) and no self-contact, every
   correction is backtracked (Armijo on the scaled residual) and the Jacobian refactored
   after a cut one: the contact law's kink at zero penetration made full steps cycle. The
@@ -462,28 +473,19 @@ def _trial_gaps(Yt, step, rod, cand, cdata, ws, out):
 
 
 @numba.njit(cache=True)
-def _feasible_fraction(Y, delta, gap_keep, buf, ev, fresh, step, rod, cand, cdata, ws):
-    """Largest fraction 2^−k (k ≤ 10) of a Newton correction delta (N+1, 12) that keeps
-    every candidate gap at least gap_keep of its current value (a filter in the manner of
-    IPC's CCD-bounded line search: Li et al., ACM TOG 39(4), 2020, §4); delta is scaled
-    by it in place. Gaps are the closest-point gaps of the step's candidates re-selected
-    at each trial, so a correction cannot carry a strand through one it was not pressed
-    against. The current positions are those of the last residual evaluation (at Y);
-    ``fresh``: that evaluation selected afresh, so its per-run gaps (ev[14]) are the
-    current gaps and are not computed again (0.6 of a contact Newton iteration's ~8 ms at
-    the seed example's 1000 segments)."""
-    Yt, g0, g1 = ws[1], ws[6], ws[7]
-    nr = cand[2].shape[0]
-    g0 = g0[:nr]
-    g1 = g1[:nr]
+def _current_gaps(buf, ev, fresh, cand, cdata, g0):
+    """The candidate gaps (R,) at the current iterate, into g0, for the feasibility
+    filter: the last residual evaluation's positions (buf[7]); ``fresh``: that evaluation
+    selected afresh, so its per-run gaps (ev[14]) are these gaps and are not computed
+    again (0.6 of a contact Newton iteration's ~8 ms at the seed example's 1000
+    segments). Returns False where the filter does not apply (positions not finite, a
+    gap NaN or −inf): every correction is then feasible."""
+    nr = g0.shape[0]
     r = buf[7]
-    finite = True
     for k in range(r.shape[0]):
         for c in range(3):
             if not np.isfinite(r[k, c]):
-                finite = False
-    if not finite:
-        return 1.0
+                return False
     if fresh:
         run_gap = ev[14]
         for q in range(nr):
@@ -492,24 +494,41 @@ def _feasible_fraction(Y, delta, gap_keep, buf, ev, fresh, step, rod, cand, cdat
         candidate_gaps_into(r, cand, cdata, g0)
     for q in range(nr):
         if np.isnan(g0[q]) or g0[q] == -np.inf:
-            return 1.0
-    alpha = 1.0
+            return False
+    return True
+
+
+@numba.njit(cache=True)
+def _gaps_kept(g0, g1, gap_keep):
+    """Whether no candidate gap g1 (R,) of a trial closes to less than gap_keep of its
+    current value g0 (R,) (an open gap), or below twice a current penetration."""
+    for q in range(g0.shape[0]):
+        if np.isnan(g1[q]):
+            return False
+        if np.isfinite(g0[q]):
+            floor = gap_keep * g0[q] if g0[q] > 0.0 else 2.0 * g0[q]
+            if not g1[q] >= floor:
+                return False
+    return True
+
+
+@numba.njit(cache=True)
+def _feasible_fraction(Y, delta, g0, gap_keep, alpha, step, rod, cand, cdata, ws):
+    """Largest fraction alpha·2^−k (k ≤ 10) of a Newton correction delta (N+1, 12) that
+    keeps every candidate gap at least gap_keep of its current value g0 (R,)
+    (:func:`_gaps_kept`; a filter in the manner of IPC's CCD-bounded line search: Li et
+    al., ACM TOG 39(4), 2020, §4); delta is scaled by it in place. Gaps are the
+    closest-point gaps of the step's candidates re-selected at each trial, so a
+    correction cannot carry a strand through one it was not pressed against. alpha: the
+    first fraction tried (1, or ½ where the whole correction is known to fail)."""
+    Yt, g1 = ws[1], ws[7]
+    g1 = g1[:g0.shape[0]]
     for _ in range(10):
         for k in range(Y.shape[0]):
             for j in range(NV):
                 Yt[k, j] = Y[k, j] + alpha * delta[k, j]
         _trial_gaps(Yt, step, rod, cand, cdata, ws, g1)
-        ok = True
-        for q in range(nr):
-            if np.isnan(g1[q]):
-                ok = False
-                break
-            if np.isfinite(g0[q]):
-                floor = gap_keep * g0[q] if g0[q] > 0.0 else 2.0 * g0[q]
-                if not g1[q] >= floor:
-                    ok = False
-                    break
-        if ok:
+        if _gaps_kept(g0, g1, gap_keep):
             break
         alpha *= 0.5
     if alpha != 1.0:
@@ -641,6 +660,8 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
     r_prev, moved = ws[15], ws[16]
     moved[0] = -1.0
     position_test = contact and pos_bound > 0.0
+    flags = buf[-1]
+    whole = True            # the last correction passed the feasibility filter whole
     for it in range(max_it + 1):
         if not cached:
             residual_into(Y, refactor or contact, rod, step, cand,
@@ -746,8 +767,31 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
                 for q in range(nr):
                     frozen[q] = ev[0][q]
                 frozen_on = True
-            alpha = _feasible_fraction(Y, delta, gap_keep, buf, ev, fresh_sel, step, rod,
-                                       cand, cdata, ws)
+            # the feasibility filter, then the line search. Where the last correction
+            # was taken whole and the selection is not frozen, the whole correction's
+            # residual evaluation (which selects afresh, as the filter's trials do)
+            # gives its gaps: when they pass, it is the line search's first trial and
+            # the filter costs no evaluation of its own
+            g0 = ws[6][:nr]
+            f0 = _norm_scaled(R, rs)
+            alpha = 1.0
+            evaluated = False
+            if _current_gaps(buf, ev, fresh_sel, cand, cdata, g0):
+                if whole and not frozen_on:
+                    for k in range(n1):
+                        for j in range(NV):
+                            Yt[k, j] = Y[k, j] + delta[k, j]
+                    residual_into(Yt, True, rod, step, cand, frozen[:0], cdata, buf, ev)
+                    fresh_sel = True
+                    if flags[0] == 0 and _gaps_kept(g0, ev[14][:nr], gap_keep):
+                        evaluated = True
+                    else:
+                        alpha = _feasible_fraction(Y, delta, g0, gap_keep, 0.5, step, rod,
+                                                   cand, cdata, ws)
+                else:
+                    alpha = _feasible_fraction(Y, delta, g0, gap_keep, 1.0, step, rod,
+                                               cand, cdata, ws)
+            whole = alpha == 1.0
             trace[it, 1] = alpha
             trace[it, 3] = gmres_last
             # corrections cut to 1/64 or less three times in a row: the iterate sits
@@ -758,15 +802,16 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
             # backtracking on the row-scaled residual 2-norm: halve the correction, at
             # most 4 times, until the residual decreases (Armijo, c = 1e-4); the last
             # evaluation (with its Jacobian) is the next iterate's
-            f0 = _norm_scaled(R, rs)
             step_frac = 1.0
             for _ in range(4):
-                for k in range(n1):
-                    for j in range(NV):
-                        Yt[k, j] = Y[k, j] + step_frac * delta[k, j]
-                residual_into(Yt, True, rod, step, cand,
-                              frozen[:nr] if frozen_on else frozen[:0], cdata, buf, ev)
-                fresh_sel = not frozen_on
+                if not evaluated:
+                    for k in range(n1):
+                        for j in range(NV):
+                            Yt[k, j] = Y[k, j] + step_frac * delta[k, j]
+                    residual_into(Yt, True, rod, step, cand,
+                                  frozen[:nr] if frozen_on else frozen[:0], cdata, buf, ev)
+                    fresh_sel = not frozen_on
+                evaluated = False
                 f1 = _norm_scaled(R, rs)
                 if np.isfinite(f1) and f1 <= (1.0 - 1e-4 * step_frac) * f0:
                     break
@@ -836,11 +881,13 @@ class Newton:
     GMRES_REFACTOR = 20
 
     #: contact steps: the share of the node-local contact blocks that the band LU
-    #: preconditioning GMRES holds (the operator stays exact). With all of them GMRES
-    #: needs more iterations (each touching node is tied to a fixed partner); without
-    #: any, Newton's steps were worse late in the seed example's plies (measured on
-    #: replayed seed steps: docs/contact.md § 4)
-    CONTACT_BAND_WEIGHT = 0.05
+    #: preconditioning GMRES holds (the operator stays exact). None: the preconditioner
+    #: is the rod's band Jacobian without contact. With all of them GMRES needs more
+    #: iterations (each touching node is tied to a fixed partner, while the pair moves
+    #: together); on the seed example to 45 s with the position test, none against 5 %
+    #: took 17,941 against 26,498 GMRES and 4418 against 4711 Newton iterations, with
+    #: the same events and Wr at 45 s (docs/contact.md § 4)
+    CONTACT_BAND_WEIGHT = 0.0
 
     #: contact steps: from this iterate on, the closest-point selection is frozen
     FREEZE_AFTER = 6
