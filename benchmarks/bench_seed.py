@@ -153,6 +153,7 @@ def run(t_end: float = 45.0, out: str | None = None, newton_scale: float = 1.0,
            "share_contact_search": TIMERS["contact_search"] / wall,
            "share_writhe": TIMERS["writhe"] / wall,
            "factorizations": int(ds.attrs.get("factorizations", 0)),
+           "gmres_iterations": int(ds.attrs.get("gmres_iterations", 0)),
            "phases": phases,
            "events": {k: float(f"{v:.4g}") for k, v in ev.items()}}
     if out:
@@ -197,7 +198,8 @@ def report(res: dict) -> None:
     print(f"  wall time: {res['wall_s']:.1f} s  (bar 120 s: {res['wall_s'] / 120:.2f} of it; "
           f"goal 20 s: {res['wall_s'] / 20:.2f} of it)")
     print(f"  nominal steps: {res['nominal_steps']}; Newton iterations: "
-          f"{res['newton_iterations']}; smallest Δt: {res['min_dt']:.3g} s")
+          f"{res['newton_iterations']}; GMRES iterations: {res.get('gmres_iterations', 0)}; "
+          f"band factorisations: {res['factorizations']}; smallest Δt: {res['min_dt']:.3g} s")
     if res["steps_without_contact"]:
         print(f"  time per step without contact: median "
               f"{res['ms_per_step_without_contact']:.1f} ms ({res['steps_without_contact']} steps)")

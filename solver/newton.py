@@ -19,13 +19,24 @@ docs/contact.md § 4). The strategy, in one place:
   contact forces depend on κ upstream of each node: the exact Jacobian is not banded.
   GMRES (right-preconditioned, Saad & Schultz 1986) solves with the exact operator
   applied matrix-free (:func:`solver.scheme.exact_loads_product`), preconditioned by the
-  band LU of the node-local (time-route) approximation with its contact blocks weighted
-  by ``CONTACT_BAND_WEIGHT``. That LU is kept across iterates while GMRES converges in at
+  band LU of the node-local (time-route) approximation without its contact blocks
+  (``CONTACT_BAND_WEIGHT`` = 0: the rod's own band Jacobian). That LU is kept across iterates while GMRES converges in at
   most ``GMRES_REFACTOR`` iterations and refactored when it needs more: about one
   factorisation per contact step (docs/contact.md).
 * **Feasible iterates.** A correction may close no candidate gap to less than
   ``GAP_KEEP`` of itself (halving; an IPC-like filter), then an Armijo backtracking on
   the scaled residual, whose evaluation with its Jacobian is reused as the next iterate.
+  Where the last correction passed the filter whole, the next one is first evaluated
+  whole and its gaps read off that evaluation, which is then the line search's first
+  trial (no separate gap evaluation for the filter).
+* **Converged contact steps.** The scaled residual below the tolerance, or (contact
+  steps) the iterate's position error estimated from the contraction of its last two
+  corrections (Hairer & Wanner) below ``CONTACT_POSITION_FRACTION`` of the step's
+  position bound (``contact.position_tolerance``) with the residual below √tolerance:
+  the route rule allows each step a position error up to that bound, so iterating
+  further only polishes digits the step does not have (one iteration fewer in most
+  contact steps of the seed example; its positions within ~3e-8 m of the fully
+  converged iterate's).
 * **Sea floor.** With a seabed (:mod:`solver.seabed`) and no self-contact, every
   correction is backtracked (Armijo on the scaled residual) and the Jacobian refactored
   after a cut one: the contact law's kink at zero penetration made full steps cycle. The
@@ -162,7 +173,8 @@ def _matvec_kernel(blocks, x, load_weight, dB, out):
 #          gaps g0, g1 (runs,), frozen (runs,) int, pose scratch q (N+1, 4), R (N+1, 3, 3),
 #          r, θ (N+1, 3), trace (max_it + 2, 4): per iteration the scaled residual, the
 #          feasibility fraction, the line-search fraction, GMRES's iterations; ṙ scratch
-#          (N+1, 3))
+#          (N+1, 3); the last iterate's positions (N+1, 3) and how far the last
+#          correction moved them (1,), for the position test)
 #   ctr = (factorisations, GMRES iterations, GMRES failures, factor valid) int64
 
 
@@ -461,28 +473,19 @@ def _trial_gaps(Yt, step, rod, cand, cdata, ws, out):
 
 
 @numba.njit(cache=True)
-def _feasible_fraction(Y, delta, gap_keep, buf, ev, fresh, step, rod, cand, cdata, ws):
-    """Largest fraction 2^−k (k ≤ 10) of a Newton correction delta (N+1, 12) that keeps
-    every candidate gap at least gap_keep of its current value (a filter in the manner of
-    IPC's CCD-bounded line search: Li et al., ACM TOG 39(4), 2020, §4); delta is scaled
-    by it in place. Gaps are the closest-point gaps of the step's candidates re-selected
-    at each trial, so a correction cannot carry a strand through one it was not pressed
-    against. The current positions are those of the last residual evaluation (at Y);
-    ``fresh``: that evaluation selected afresh, so its per-run gaps (ev[14]) are the
-    current gaps and are not computed again (0.6 of a contact Newton iteration's ~8 ms at
-    the seed example's 1000 segments)."""
-    Yt, g0, g1 = ws[1], ws[6], ws[7]
-    nr = cand[2].shape[0]
-    g0 = g0[:nr]
-    g1 = g1[:nr]
+def _current_gaps(buf, ev, fresh, cand, cdata, g0):
+    """The candidate gaps (R,) at the current iterate, into g0, for the feasibility
+    filter: the last residual evaluation's positions (buf[7]); ``fresh``: that evaluation
+    selected afresh, so its per-run gaps (ev[14]) are these gaps and are not computed
+    again (0.6 of a contact Newton iteration's ~8 ms at the seed example's 1000
+    segments). Returns False where the filter does not apply (positions not finite, a
+    gap NaN or −inf): every correction is then feasible."""
+    nr = g0.shape[0]
     r = buf[7]
-    finite = True
     for k in range(r.shape[0]):
         for c in range(3):
             if not np.isfinite(r[k, c]):
-                finite = False
-    if not finite:
-        return 1.0
+                return False
     if fresh:
         run_gap = ev[14]
         for q in range(nr):
@@ -491,24 +494,41 @@ def _feasible_fraction(Y, delta, gap_keep, buf, ev, fresh, step, rod, cand, cdat
         candidate_gaps_into(r, cand, cdata, g0)
     for q in range(nr):
         if np.isnan(g0[q]) or g0[q] == -np.inf:
-            return 1.0
-    alpha = 1.0
+            return False
+    return True
+
+
+@numba.njit(cache=True)
+def _gaps_kept(g0, g1, gap_keep):
+    """Whether no candidate gap g1 (R,) of a trial closes to less than gap_keep of its
+    current value g0 (R,) (an open gap), or below twice a current penetration."""
+    for q in range(g0.shape[0]):
+        if np.isnan(g1[q]):
+            return False
+        if np.isfinite(g0[q]):
+            floor = gap_keep * g0[q] if g0[q] > 0.0 else 2.0 * g0[q]
+            if not g1[q] >= floor:
+                return False
+    return True
+
+
+@numba.njit(cache=True)
+def _feasible_fraction(Y, delta, g0, gap_keep, alpha, step, rod, cand, cdata, ws):
+    """Largest fraction alpha·2^−k (k ≤ 10) of a Newton correction delta (N+1, 12) that
+    keeps every candidate gap at least gap_keep of its current value g0 (R,)
+    (:func:`_gaps_kept`; a filter in the manner of IPC's CCD-bounded line search: Li et
+    al., ACM TOG 39(4), 2020, §4); delta is scaled by it in place. Gaps are the
+    closest-point gaps of the step's candidates re-selected at each trial, so a
+    correction cannot carry a strand through one it was not pressed against. alpha: the
+    first fraction tried (1, or ½ where the whole correction is known to fail)."""
+    Yt, g1 = ws[1], ws[7]
+    g1 = g1[:g0.shape[0]]
     for _ in range(10):
         for k in range(Y.shape[0]):
             for j in range(NV):
                 Yt[k, j] = Y[k, j] + alpha * delta[k, j]
         _trial_gaps(Yt, step, rod, cand, cdata, ws, g1)
-        ok = True
-        for q in range(nr):
-            if np.isnan(g1[q]):
-                ok = False
-                break
-            if np.isfinite(g0[q]):
-                floor = gap_keep * g0[q] if g0[q] > 0.0 else 2.0 * g0[q]
-                if not g1[q] >= floor:
-                    ok = False
-                    break
-        if ok:
+        if _gaps_kept(g0, g1, gap_keep):
             break
         alpha *= 0.5
     if alpha != 1.0:
@@ -555,6 +575,39 @@ def _feasible_start(Y_old, guess, step, rod, cand, cdata, ws, out):
 
 
 @numba.njit(cache=True)
+def _position_converged(r, r_prev, moved, it, res, tol, bound, trace):
+    """The position test of a contact step's Newton iterate ``it`` (module docstring).
+    r (N+1, 3): its space-route positions (m); r_prev (N+1, 3): the last iterate's,
+    overwritten by r; moved (1,): how far the last-but-one correction moved the positions
+    (m; < 0: unknown), overwritten by how far the last one did, d = max_k |r_k − r_prev,k|.
+    With the contraction ρ = d / moved[0] of two successive corrections the iterate's own
+    position error is about ρ/(1 − ρ)·d (Hairer & Wanner, Solving Ordinary Differential
+    Equations II, § IV.8, eq. (8.10), in the maximum norm of the positions). Converged
+    when that is at most ``bound`` (m), ρ < ½, the last correction was taken whole (cut
+    by the feasibility filter or the line search, d does not measure convergence), and
+    the scaled residual ``res`` is at most √tol (one more quadratic iteration would
+    reach tol). trace: the kernel's per-iteration record (feasible and line-search
+    fractions in columns 1, 2). Returns the verdict."""
+    d = 0.0
+    for k in range(r.shape[0]):
+        for c in range(3):
+            x = abs(r[k, c] - r_prev[k, c])
+            if x > d or x != x:
+                d = x
+            r_prev[k, c] = r[k, c]
+    last = moved[0]
+    moved[0] = d if it >= 1 else -1.0
+    if it < 2 or last <= 0.0 or not d == d:
+        return False
+    if trace[it - 1, 1] != 1.0 or trace[it - 1, 2] != 1.0:
+        return False
+    rho = d / last
+    if rho >= 0.5 or res > math.sqrt(tol):
+        return False
+    return rho / (1.0 - rho) * d <= bound
+
+
+@numba.njit(cache=True)
 def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ctr):
     """Newton's iterations for one step (the module docstring's strategy), compiled
     whole. Y0 (N+1, 12): the start; prm: tolerance, iteration limit, least iterations,
@@ -573,6 +626,7 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
     gm_rtol = prm[6]
     gm_max = int(prm[7])
     weight = prm[8]
+    pos_bound = prm[9]
     R, Fn = buf[0], buf[2]
     Y, Yt, delta_flat, rhs, stall_scale, history, frozen = ws[0], ws[1], ws[2], ws[3], ws[4], ws[5], ws[8]
     rs, cs = lin[1], lin[3]
@@ -601,6 +655,13 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
     cached = False
     frozen_on = False
     fresh_sel = True
+    # contact steps: the positions of the last iterate and how far the last correction
+    # moved them (m), for the position test of Newton.CONTACT_POSITION_FRACTION
+    r_prev, moved = ws[15], ws[16]
+    moved[0] = -1.0
+    position_test = contact and pos_bound > 0.0
+    flags = buf[-1]
+    whole = True            # the last correction passed the feasibility filter whole
     for it in range(max_it + 1):
         if not cached:
             residual_into(Y, refactor or contact, rod, step, cand,
@@ -628,6 +689,9 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
         trace[it, 2] = 1.0
         trace[it, 3] = 0.0
         done = res <= tol and it >= min_it
+        if position_test and not done:
+            done = _position_converged(buf[7], r_prev, moved, it, res, tol, pos_bound,
+                                       trace) and it >= min_it
         if held and hold[0] == 2.0 and hold[7] > 0.0 and (done or res <= hold[6]):
             # converged, or near the held branches' solution, with touching cells off
             # the law's branch (hold[7], counted at this iterate's evaluation): re-decide
@@ -703,8 +767,31 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
                 for q in range(nr):
                     frozen[q] = ev[0][q]
                 frozen_on = True
-            alpha = _feasible_fraction(Y, delta, gap_keep, buf, ev, fresh_sel, step, rod,
-                                       cand, cdata, ws)
+            # the feasibility filter, then the line search. Where the last correction
+            # was taken whole and the selection is not frozen, the whole correction's
+            # residual evaluation (which selects afresh, as the filter's trials do)
+            # gives its gaps: when they pass, it is the line search's first trial and
+            # the filter costs no evaluation of its own
+            g0 = ws[6][:nr]
+            f0 = _norm_scaled(R, rs)
+            alpha = 1.0
+            evaluated = False
+            if _current_gaps(buf, ev, fresh_sel, cand, cdata, g0):
+                if whole and not frozen_on:
+                    for k in range(n1):
+                        for j in range(NV):
+                            Yt[k, j] = Y[k, j] + delta[k, j]
+                    residual_into(Yt, True, rod, step, cand, frozen[:0], cdata, buf, ev)
+                    fresh_sel = True
+                    if flags[0] == 0 and _gaps_kept(g0, ev[14][:nr], gap_keep):
+                        evaluated = True
+                    else:
+                        alpha = _feasible_fraction(Y, delta, g0, gap_keep, 0.5, step, rod,
+                                                   cand, cdata, ws)
+                else:
+                    alpha = _feasible_fraction(Y, delta, g0, gap_keep, 1.0, step, rod,
+                                               cand, cdata, ws)
+            whole = alpha == 1.0
             trace[it, 1] = alpha
             trace[it, 3] = gmres_last
             # corrections cut to 1/64 or less three times in a row: the iterate sits
@@ -715,15 +802,16 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
             # backtracking on the row-scaled residual 2-norm: halve the correction, at
             # most 4 times, until the residual decreases (Armijo, c = 1e-4); the last
             # evaluation (with its Jacobian) is the next iterate's
-            f0 = _norm_scaled(R, rs)
             step_frac = 1.0
             for _ in range(4):
-                for k in range(n1):
-                    for j in range(NV):
-                        Yt[k, j] = Y[k, j] + step_frac * delta[k, j]
-                residual_into(Yt, True, rod, step, cand,
-                              frozen[:nr] if frozen_on else frozen[:0], cdata, buf, ev)
-                fresh_sel = not frozen_on
+                if not evaluated:
+                    for k in range(n1):
+                        for j in range(NV):
+                            Yt[k, j] = Y[k, j] + step_frac * delta[k, j]
+                    residual_into(Yt, True, rod, step, cand,
+                                  frozen[:nr] if frozen_on else frozen[:0], cdata, buf, ev)
+                    fresh_sel = not frozen_on
+                evaluated = False
                 f1 = _norm_scaled(R, rs)
                 if np.isfinite(f1) and f1 <= (1.0 - 1e-4 * step_frac) * f0:
                     break
@@ -793,11 +881,13 @@ class Newton:
     GMRES_REFACTOR = 20
 
     #: contact steps: the share of the node-local contact blocks that the band LU
-    #: preconditioning GMRES holds (the operator stays exact). With all of them GMRES
-    #: needs more iterations (each touching node is tied to a fixed partner); without
-    #: any, Newton's steps were worse late in the seed example's plies (measured on
-    #: replayed seed steps: docs/contact.md § 4)
-    CONTACT_BAND_WEIGHT = 0.05
+    #: preconditioning GMRES holds (the operator stays exact). None: the preconditioner
+    #: is the rod's band Jacobian without contact. With all of them GMRES needs more
+    #: iterations (each touching node is tied to a fixed partner, while the pair moves
+    #: together); on the seed example to 45 s with the position test, none against 5 %
+    #: took 17,941 against 26,498 GMRES and 4418 against 4711 Newton iterations, with
+    #: the same events and Wr at 45 s (docs/contact.md § 4)
+    CONTACT_BAND_WEIGHT = 0.0
 
     #: contact steps: from this iterate on, the closest-point selection is frozen
     FREEZE_AFTER = 6
@@ -812,6 +902,18 @@ class Newton:
     #: iterations taken even when the start passes the test (a class default, so that
     #: runs pickled before it existed resume; the run sets 1 under error control)
     min_iterations = 0
+
+    #: contact steps: an iterate whose estimated position error is at most this fraction
+    #: of ``position_tolerance`` (and whose scaled residual is at most √tolerance) is
+    #: converged (:func:`_position_converged`). The step's own position error is allowed
+    #: up to position_tolerance and its steps are sized for 0.35 of it
+    #: (docs/contact.md § 3), so Newton's share is under 0.3 % of the step's error.
+    CONTACT_POSITION_FRACTION = 1e-3
+
+    #: the accuracy of a contact step's positions (m): the route rule's bound, set by the
+    #: run (:meth:`solver.run.RodRun._route_tolerance`); 0: no position test (a class
+    #: default, so that runs pickled before it existed resume without it)
+    position_tolerance = 0.0
 
     def __init__(self, system, tolerance=1e-9, max_iterations=25):
         self.system = system
@@ -867,7 +969,7 @@ class Newton:
               np.zeros(self.max_iterations + 2), np.zeros(cap), np.zeros(cap),
               np.zeros(cap, np.intp), np.zeros((n1, 4)), np.zeros((n1, 3, 3)),
               np.zeros((n1, 3)), np.zeros((n1, 3)), np.zeros((self.max_iterations + 2, 4)),
-              np.zeros((n1, 3)))
+              np.zeros((n1, 3)), np.zeros((n1, 3)), np.zeros(1))
         self._state = {"cap": cap, "lin": lin, "op": op, "gm": gm, "ws": ws, "ctr": ctr}
 
     def __getstate__(self):
@@ -911,7 +1013,8 @@ class Newton:
     def _params(self):
         return np.array([self.tol, self.max_iterations, self.min_iterations, self.FREEZE_AFTER,
                          self.GAP_KEEP, self.GMRES_REFACTOR, self.GMRES_RTOL, self.GMRES_MAX,
-                         self.CONTACT_BAND_WEIGHT])
+                         self.CONTACT_BAND_WEIGHT,
+                         self.CONTACT_POSITION_FRACTION * self.position_tolerance])
 
     # ------------------------------------------------------------------ solve
     def solve(self, Y_guess):

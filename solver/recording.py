@@ -340,6 +340,7 @@ class Recorder:
             ds.attrs["hockle_stop_reason"] = reason
         ds.attrs["wall_time_s"] = self.wall_before + _time.perf_counter() - self.wall0
         ds.attrs["factorizations"] = run.newton.factorizations
+        ds.attrs["gmres_iterations"] = run.newton.gmres_iterations
         ds.attrs["hockle_refused_attempts"] = ", ".join(
             f"{k} {v}" for k, v in sorted(run.refusals.items()))
         if self.resume is not None:

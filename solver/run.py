@@ -98,6 +98,8 @@ class RodRun(ProblemAssembly):
         seabed = Seabed(case.seabed, props.diameter) if case.seabed is not None else None
         self.system = RodSystem(props, self.loads, contact=self.contact, seabed=seabed)
         self.newton = Newton(self.system, num.newton.tolerance, num.newton.max_iterations)
+        if self.contact is not None:
+            self.newton.position_tolerance = self.route_tolerance
         self.params = alpha_parameters(num.rho_inf)
         self.state = RunState.at_rest(case, props.s, start)
         self.bc_plan = boundary_plan(case, props, self.system.n)
