@@ -28,10 +28,11 @@ default (docs/numerics.md § 8, ``numerics.energy_tolerance``), printed:
 * the full-length right runs (``--only full``, several minutes): cases/seabed-hockle.yaml
   to 10 s and cases/goyal-writhing.yaml to 45 s without the check and at 0.05, 0.5 and 1
   (the seed without and at 0.5): status, where a failed run stops, energy refusals, Newton
-  iterations, |Wr| and the mid node at the end.
+  iterations, |Wr| and the mid node at the end;
+* what lies behind them (``--only diagnose``, :func:`diagnose`).
 
 Run: ``PYTHONPATH=$PWD python benchmarks/energy_check.py [--only cable|rest|cases|windows|
-newton|contact|tolerances|candidate|full]`` (about a minute after the kernels are compiled,
+newton|contact|tolerances|candidate|full|diagnose]`` (about a minute after the kernels are compiled,
 but ``full``).
 """
 from __future__ import annotations
@@ -382,13 +383,78 @@ def full():
                   + f", wall {time.perf_counter() - start:.0f} s")
 
 
+def diagnose():
+    """The figures behind the candidate defaults' reading (docs/numerics.md § 8): the
+    cable's first measured steps on the κ-integrated shape (Δt = 0.1 s) and its settling
+    steps on the turned shape (Δt = 0.2 s), the check measuring only; the candidate's
+    floor at 1e-4 and 1e-3 (E + U); the catenary with touchdown at 0.5 against a
+    Δt = 3.125-ms reference; the held end's reaction on the hockle's refused substeps."""
+    def measured(dt, t_end, lo=0.0):
+        run = RodRun(Case.model_validate(LV.catenary_spec(dt, 1e9)))    # measures only
+        run.advance(dt)
+        while run.t < t_end - 1e-9:
+            run.advance(run.t + dt)
+            b = run.last_balance
+            if run.t > lo and b.error > 0.5 * b.scale:
+                print(f"  t = {run.t:5.2f} s: ε {b.error:+.2e} J, Σ W {sum(b.work.values()):+.2e} J, "
+                      f"T {b.carry['kinetic']:.1e} J, E {b.energy:.3e} J, ε/scale {b.relative:.2f}")
+    print("hanging cable, Δt = 0.1 s, κ-integrated shape, the first 0.3 s (ε > 0.5 scale):")
+    measured(0.1, 0.3)
+    print("hanging cable, Δt = 0.2 s, the turned shape, floor 1e-5 (E + U), 5-9 s:")
+    with candidate_check():
+        measured(0.2, 9.0, 5.0)
+    for share in (1e-4, 1e-3):
+        print(f"candidate with the floor at {share:g} (E + U), tolerance 0.5:")
+        with candidate_check(share=share):
+            for dt in (0.1, 0.05, 0.04):
+                print("  " + _cantilever_row(dt, 0.5))
+            print("  " + _cable_row(0.2, 0.5))
+    root = Path(__file__).resolve().parents[1] / "cases"
+    spec = Case.from_file(root / "catenary-touchdown.yaml").model_dump(mode="json")
+    for dt, tol in ((0.05, None), (0.05, 0.5), (0.003125, None)):
+        spec["numerics"].update(dt=dt, energy_tolerance=tol)
+        ds = simulate(Case.model_validate(spec))
+        p = ds.position.values[-1]
+        print(f"catenary-touchdown.yaml, Δt = {dt:g} s, check {'off' if tol is None else tol}: "
+              f"{_refused(ds)} energy refusals, mid node x {p[p.shape[0] // 2, 0]:.5f} m")
+    print("seabed-hockle.yaml at 0.5 to 5.2 s: the refused steps with h < 1e-3 s after 5 s")
+    from solver import run as runmod
+    original, step = runmod.RodRun._refusal, B.GlobalLoadWork.step
+    seen = {}
+
+    def record(self, run, prob, sol, old):
+        work, carry = step(self, run, prob, sol, old)
+        seen.update(F_old=old[2][-1], F=carry[2][-1], dr=carry[1][-1] - old[1][-1], h=prob.h)
+        return work, carry
+
+    def refusal(self, prob, sol, estimate):
+        reason, summary = original(self, prob, sol, estimate)
+        if reason == "energy" and prob.h < 1e-3 and self.t > 5.0:
+            b = self.last_balance
+            print(f"  from t = {self.t:.4f} s, h {prob.h:.2e} s: ε {b.error:.2e} J = "
+                  f"{b.relative:.2f} scale, s = L end's reaction |F| {np.linalg.norm(seen['F_old']):.1f}"
+                  f" N (old level), {np.linalg.norm(seen['F']):.1f} N (new), |Δr| "
+                  f"{np.linalg.norm(seen['dr']):.1e} m, loads' work {b.work['loads']:+.2e} J")
+        return reason, summary
+
+    spec = Case.from_file(root / "seabed-hockle.yaml").model_dump(mode="json")
+    spec["numerics"].update(t_end=5.2, energy_tolerance=0.5)
+    B.GlobalLoadWork.step, runmod.RodRun._refusal = record, refusal
+    try:
+        _simulate(Case.model_validate(spec))
+    finally:
+        B.GlobalLoadWork.step, runmod.RodRun._refusal = step, original
+
+
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--only", choices=("cable", "rest", "cases", "windows", "newton",
-                                           "contact", "tolerances", "candidate", "full"))
+                                           "contact", "tolerances", "candidate", "full",
+                                           "diagnose"))
     only = parser.parse_args().only
     for name, fn in (("cable", cable), ("rest", rest), ("cases", cases),
                      ("windows", windows), ("newton", newton), ("contact", contact),
-                     ("tolerances", tolerances), ("candidate", candidate), ("full", full)):
+                     ("tolerances", tolerances), ("candidate", candidate), ("full", full),
+                     ("diagnose", diagnose)):
         if only in (None, name):
             fn()
