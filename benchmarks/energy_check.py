@@ -32,8 +32,8 @@ default (docs/numerics.md § 8, ``numerics.energy_tolerance``), printed:
 * what lies behind them (``--only diagnose``, :func:`diagnose`).
 
 Run: ``PYTHONPATH=$PWD python benchmarks/energy_check.py [--only cable|rest|cases|windows|
-newton|contact|tolerances|candidate|full|diagnose]`` (about a minute after the kernels are compiled,
-but ``full``).
+newton|contact|tolerances|candidate|full|diagnose]`` (about a minute each after the kernels
+are compiled; ``full`` several).
 """
 from __future__ import annotations
 
