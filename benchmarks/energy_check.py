@@ -396,8 +396,10 @@ def diagnose():
             run.advance(run.t + dt)
             b = run.last_balance
             if run.t > lo and b.error > 0.5 * b.scale:
-                print(f"  t = {run.t:5.2f} s: ε {b.error:+.2e} J, Σ W {sum(b.work.values()):+.2e} J, "
-                      f"T {b.carry['kinetic']:.1e} J, E {b.energy:.3e} J, ε/scale {b.relative:.2f}")
+                work = sum(b.work.values())
+                print(f"  t = {run.t:5.2f} s: ε {b.error:+.2e} J, Σ W {work:+.2e} J, "
+                      f"T {b.carry['kinetic']:.1e} J, E {b.energy:.3e} J, "
+                      f"ε/scale {b.relative:.2f}")
     print("hanging cable, Δt = 0.1 s, κ-integrated shape, the first 0.3 s (ε > 0.5 scale):")
     measured(0.1, 0.3)
     print("hanging cable, Δt = 0.2 s, the turned shape, floor 1e-5 (E + U), 5-9 s:")
@@ -432,8 +434,9 @@ def diagnose():
         if reason == "energy" and prob.h < 1e-3 and self.t > 5.0:
             b = self.last_balance
             print(f"  from t = {self.t:.4f} s, h {prob.h:.2e} s: ε {b.error:.2e} J = "
-                  f"{b.relative:.2f} scale, s = L end's reaction |F| {np.linalg.norm(seen['F_old']):.1f}"
-                  f" N (old level), {np.linalg.norm(seen['F']):.1f} N (new), |Δr| "
+                  f"{b.relative:.2f} scale, s = L end's reaction |F| "
+                  f"{np.linalg.norm(seen['F_old']):.1f} N (old level), "
+                  f"{np.linalg.norm(seen['F']):.1f} N (new), |Δr| "
                   f"{np.linalg.norm(seen['dr']):.1e} m, loads' work {b.work['loads']:+.2e} J")
         return reason, summary
 
