@@ -188,6 +188,8 @@ def test_warm_up_loads_every_compiled_kernel():
                "solver.newton._gmres", "solver.newton._back_substitute",
                "solver.newton._norm_scaled", "solver.newton._max_scaled",
                "solver.newton._trial_gaps", "solver.newton._feasible_fraction",
+               "solver.newton._current_gaps", "solver.newton._gaps_kept",
+               "solver.newton._position_converged",
                "solver.contact.geometry._project", "solver.contact.geometry._run_minimum",
                "solver.contact.geometry._curve_point", "solver.contact.geometry._run_point",
                "solver.contact.model._run_bounds", "solver.contact.model._at_contact",
