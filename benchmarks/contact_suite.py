@@ -52,7 +52,12 @@ sys.path.insert(0, str(ROOT / "tests"))
 RESULTS = HERE / "results" / "contact_suite.json"
 DOC = ROOT / "docs" / "benchmarks.md"
 MARK = "<!-- section: contact_suite -->"
-ENERGY_TOLERANCE = 0.05
+#: the energy check's tolerance in every case: 0.5, the lowest that leaves the right
+#: dead-load cantilever at Δt = 0.02 s unrefused while every Δt up to 0.2 s still settles
+#: within 0.1 % of the elastica (docs/numerics.md § 8, Candidate defaults); at 0.05 it
+#: refused right steps of the contact cases (the tension variant's steps after 22 s,
+#: route ratio 0.02-0.06, cut by 14-27 energy refusals per simulated second)
+ENERGY_TOLERANCE = 0.5
 BUDGET_S = 600.0          # wall-clock budget per case, s
 X_TIP = 0.44501           # Mattiasson's tip x/L under P L²/EI = 10
 
