@@ -219,8 +219,9 @@ class BorderedBandLU:
     D : (k, k) the corner (default zeros)
 
     ``det_sign`` is the sign of det A (±1). :meth:`solve` takes (n + k,) and returns
-    (n + k,). Raises :class:`BandSingular` where J's LU meets an exactly zero pivot or
-    the Schur complement is singular to rounding.
+    (n + k,). Raises :class:`BandSingular` where J's LU meets an exactly zero pivot
+    without borders (with borders it is perturbed to ε max|J| and the refinement works on
+    the true matrix) or the Schur complement is singular to rounding.
     """
 
     def __init__(self, ab: np.ndarray, W=None, C=None, D=None):
@@ -230,9 +231,19 @@ class BorderedBandLU:
         self.norm = float(np.max(np.abs(self.band)))
         self.W = np.zeros((n, 0)) if W is None else np.asarray(W, float).reshape(n, -1)
         self.lu, self.piv, info = dgbtrf(ab, KL, KU)
-        if info != 0:
-            raise BandSingular(f"band LU: zero pivot in column {info}")
         d = self.lu[KL + KU]
+        if info < 0 or not np.all(np.isfinite(d)):
+            raise BandSingular(f"band LU failed (dgbtrf info {info})")
+        if info > 0:
+            # an exactly zero pivot (J singular to rounding, as at a fold: where it falls
+            # depends on the LAPACK build): without borders the system is singular; with
+            # them it is perturbed to ε|J| (static pivoting, Li & Demmel 1998), which the
+            # refinement step of :meth:`solve` corrects on the true matrix, or the
+            # sparse LU takes over where it cannot
+            if self.W.shape[1] == 0:
+                raise BandSingular(f"band LU: zero pivot in column {info}")
+            zero = d == 0.0
+            d[zero] = np.finfo(float).eps * max(self.norm, 1e-300)
         sign = int(np.prod(np.sign(d))) * (-1) ** int(np.count_nonzero(
             self.piv != np.arange(n)))
         self.X = self._band_solve(self.W) if self.W.shape[1] else np.zeros((n, 0))
