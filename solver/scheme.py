@@ -856,8 +856,8 @@ class RodSystem:
             np.zeros((n1, 4)) if q_old is None else np.ascontiguousarray(q_old, dtype=float),
             np.ascontiguousarray(r_old, dtype=float) if has_r else np.zeros((n1, 3)),
             np.ascontiguousarray(v_old_global, dtype=float) if has_r else np.zeros((n1, 3)),
-            np.asarray(bc.rows, dtype=np.intp), np.asarray(bc.cols, dtype=np.intp),
-            np.asarray(bc.coef, dtype=float), np.asarray(bc.values, dtype=float),
+            # BoundaryRows makes these (12,) arrays intp and float
+            bc.rows, bc.cols, bc.coef, bc.values,
             np.array([dt, cm, af, float(glob is not None), float(has_r),
                       float(self.needs_pose), float(bc.turning[0]), float(bc.turning[1])])
         ) + self._point_data(t_new, dt, left_limit, Y_old, q_old, af)

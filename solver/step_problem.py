@@ -19,7 +19,7 @@ from typing import Any, NamedTuple, Optional
 
 import numpy as np
 
-from .boundary import BoundaryRows
+from .boundary import BoundaryRows, BoundarySchedule
 from .contact.geometry import max_distance
 from .kinematics import quat_to_matrix, relative_rotation, space_route
 from .scheme import BACKWARD_EULER, pose_into
@@ -92,6 +92,10 @@ class ProblemAssembly:
     #: are unchanged (the seed example's smallest is 1.1 ms = dt/90)
     DRIFT_STEP_FLOOR = 0.01
 
+    #: the run's :class:`solver.boundary.BoundarySchedule` (made at the first step when
+    #: a run resumed from an older checkpoint has none)
+    bc_schedule = None
+
     def step_problem(self, h: float, t_new=None, left_limit=False,
                      restart=False) -> StepProblem:
         """Assemble the problem of a step of h (s) from the current state, ending at
@@ -99,7 +103,11 @@ class ProblemAssembly:
         and contact candidates (``last_had_candidates`` is set)."""
         sysm = self.system
         t_new = self.t + h if t_new is None else t_new
-        bc = BoundaryRows(self.case, self.props, t_new, sysm.n, self.bc_plan)
+        schedule = self.bc_schedule
+        if schedule is None:           # a run kept in a checkpoint written before it
+            schedule = self.bc_schedule = BoundarySchedule(self.case, self.props, sysm.n,
+                                                           self.bc_plan)
+        bc = schedule.at(t_new)
         switched = bc.key != self.bc.key
         offset = self.end_correction(h, bc, restart)
         if offset is not None:
@@ -191,10 +199,9 @@ class ProblemAssembly:
         n1 = Y.shape[0]
         q_new, R_new, r_new, vg = (np.empty((n1, 4)), np.empty((n1, 3, 3)), np.empty((n1, 3)),
                                    np.empty((n1, 3)))
-        pose_into(np.ascontiguousarray(Y, dtype=float), np.ascontiguousarray(Y_old, dtype=float),
-                  float(h), False, np.ascontiguousarray(q, dtype=float),
-                  np.ascontiguousarray(r, dtype=float),
-                  np.ascontiguousarray(v_global, dtype=float), True, 0.0, q_new, R_new, r_new,
+        c = np.ascontiguousarray
+        pose_into(c(Y, dtype=float), c(Y_old, dtype=float), float(h), False, c(q, dtype=float),
+                  c(r, dtype=float), c(v_global, dtype=float), True, 0.0, q_new, R_new, r_new,
                   np.empty((n1, 3)), vg)
         return q_new, R_new, vg, r_new
 
@@ -314,6 +321,11 @@ class ProblemAssembly:
         alternates from step to step (a transient the step does not resolve, damped by
         ρ∞: the held end after 30 s) seven times instead of three (152 → 231 over
         30-33 s), so the last step's record decides."""
-        err = {k: float(np.sum((Y[:, 9:12] - g[:, 9:12]) ** 2))
-               for k, g in predictions.items()}
-        return min(err, key=err.get)
+        kappa = Y[:, 9:12]
+        best, least = None, None
+        for k, g in predictions.items():
+            d = kappa - g[:, 9:12]
+            err = float((d * d).sum())
+            if least is None or err < least:
+                best, least = k, err
+        return best
