@@ -151,8 +151,7 @@ def extrapolate(times, values, t_new: float):
     (``RodRun._predictions``). Raises ValueError for another number of levels."""
     if len(times) not in (2, 3):
         raise ValueError(f"extrapolate: 2 or 3 levels, got {len(times)}")
-    if all(isinstance(y, np.ndarray) and y.dtype == np.float64 and y.flags.c_contiguous
-           and y.shape == values[0].shape for y in values):
+    if _flat_floats(values):
         # one compiled pass, the same operations in the same order as below (a Newton
         # start of every step: ~10 array expressions of small arrays cost more in calls
         # than in arithmetic)
@@ -174,6 +173,16 @@ def extrapolate(times, values, t_new: float):
     second = (d12 - d01) / (z2 - z0)
     w0, w1 = t_new - z0, t_new - z1
     return y0 + d01 * w0 + second * w0 * w1
+
+
+def _flat_floats(values) -> bool:
+    """Whether the levels are C-contiguous float64 arrays of one shape."""
+    shape = values[0].shape if type(values[0]) is np.ndarray else None
+    for y in values:
+        if (type(y) is not np.ndarray or y.dtype != np.float64 or y.shape != shape
+                or not y.flags.c_contiguous):
+            return False
+    return True
 
 
 @numba.njit(cache=True)
