@@ -11,16 +11,19 @@ to 10 s.
 
 Run:
 
-* ``python benchmarks/step_overhead.py profile [--case plectoneme-20]``: cProfile of one
-  run (after a warm-up run), the time inside numba-compiled calls made from Python (each
-  compiled function the ``solver`` modules hold, timed by a wrapper in a second run) and
-  the Python calls per step attempt, with the functions of largest own time.
+* ``python benchmarks/step_overhead.py profile [--case plectoneme-20] [--root TREE]``:
+  after a warm-up run, the fastest of 5 runs, the time inside numba-compiled calls made
+  from Python (each compiled function the ``solver`` modules hold, timed by a wrapper;
+  the fastest of 5 such runs) and what is left per step attempt, and a cProfile of one
+  more run: Python-level calls per step attempt, the functions of largest own time.
 * ``python benchmarks/step_overhead.py compare OLD_ROOT [--rounds 3]``: this tree
   against another checkout of hockle (``OLD_ROOT``, e.g. the main branch's), each in a
   worker process of its own, one thread each, kernels warmed first, run interleaved
   (old, new, old, new, ... per case, ``--rounds`` rounds): the wall per run, per accepted
-  step and per Newton iteration, medians, the ratio old/new, and ``uptime``'s load before
-  and after each case. Results in ``benchmarks/results/step_overhead.json``.
+  step and per Newton iteration (medians; also the smallest wall and the median CPU time
+  of the worker process, which a shared machine's load inflates less), the ratios
+  old/new, and the load average before and after each case. Results in
+  ``benchmarks/results/step_overhead.json``.
 * ``python benchmarks/step_overhead.py save DIR [--root OTHER_ROOT]``: each case's result
   with every output field, from this tree or another, as DIR/NAME.nc; two such folders
   are compared by ``python benchmarks/compare_results.py DIR_A DIR_B``.
@@ -81,17 +84,18 @@ def build_case(name: str, full: bool = False):
 
 
 def run_once(case) -> dict:
-    """One timed ``simulate`` of a case: wall (s), accepted steps, attempts, Newton
+    """One timed ``simulate`` of a case: wall and CPU time (s), accepted steps, refused
+    attempts, Newton
     iterations, and the run's result dataset."""
     from solver import SolverDivergence, simulate
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     try:
         ds = simulate(case)
         status = "completed"
     except SolverDivergence as exc:
         ds, status = exc.partial, f"diverged at t = {exc.t:.4g} s"
-    wall = time.perf_counter() - t0
-    return {"wall": wall, "status": status, "ds": ds,
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    return {"wall": wall, "cpu": cpu, "status": status, "ds": ds,
             "steps": int(ds.sizes["step"]),
             "newton": int(ds.step_newton_iterations.sum()),
             "refused": int(ds.attrs.get("hockle_refused_attempts_total",
@@ -153,16 +157,15 @@ def time_compiled(case) -> dict:
                                 key=lambda x: -x[2])}
 
 
-def profile(name: str, top: int = 30) -> None:
+def profile(name: str, top: int = 30, repeats: int = 5) -> None:
     import cProfile
     import io
     import pstats
-    import solver.stepping.control as control
     case = build_case(name)
     run_once(case)                                   # warm: kernels, caches
-    # step attempts: count RodRun.try_step calls
-    base = run_once(case)
-    comp = time_compiled(case)
+    # the fastest of `repeats` runs, plain and with the compiled calls timed
+    base = min((run_once(case) for _ in range(repeats)), key=lambda r: r["wall"])
+    comp = min((time_compiled(case) for _ in range(repeats)), key=lambda r: r["wall"])
     prof = cProfile.Profile()
     prof.enable()
     r = run_once(case)
@@ -170,7 +173,8 @@ def profile(name: str, top: int = 30) -> None:
     st = pstats.Stats(prof)
     attempts = sum(v[1] for k, v in st.stats.items() if k[2] == "try_step")
     py_calls = sum(v[1] for v in st.stats.values())
-    del control
+    import solver
+    print(f"solver from {Path(solver.__file__).parent}; load {_load()}")
     print(f"{name}: wall {base['wall']:.3f} s, {base['steps']} nominal steps, "
           f"{attempts} step attempts, {base['newton']} Newton iterations "
           f"({base['status']})")
@@ -232,35 +236,43 @@ def compare(old_root: str, rounds: int, names: list[str]) -> dict:
         procs[key].stdin.flush()
         return json.loads(procs[key].stdout.readline())
 
-    res = {"trees": trees, "rounds": rounds, "cases": {}}
+    res = {"trees": trees, "rounds": rounds, "cases": {},
+           "utc_start": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}
     for name in names:
         for key in trees:                            # warm: this case's kernels
             ask(key, f"warm {name}")
-        load0, walls = _load(), {k: [] for k in trees}
+        load0, walls, cpus = _load(), {k: [] for k in trees}, {k: [] for k in trees}
         info = {}
         for _ in range(rounds):
             for key in trees:
                 r = ask(key, f"run {name}")
                 walls[key].append(r["wall"])
+                cpus[key].append(r["cpu"])
                 info[key] = r
         load1 = _load()
         row = {"load_before": load0, "load_after": load1}
         for key in trees:
             med = statistics.median(walls[key])
-            row[key] = {"walls": walls[key], "median": med, "steps": info[key]["steps"],
-                        "newton": info[key]["newton"], "status": info[key]["status"],
+            row[key] = {"walls": walls[key], "median": med, "min": min(walls[key]),
+                        "cpus": cpus[key], "cpu_median": statistics.median(cpus[key]),
+                        "steps": info[key]["steps"], "newton": info[key]["newton"],
+                        "status": info[key]["status"],
                         "per_step_ms": 1e3 * med / info[key]["steps"],
                         "per_newton_us": 1e6 * med / max(info[key]["newton"], 1)}
-        row["ratio_old_new"] = row["old"]["median"] / row["new"]["median"]
+        for stat in ("median", "min", "cpu_median"):
+            row[f"ratio_old_new_{stat}"] = row["old"][stat] / row["new"][stat]
         res["cases"][name] = row
         o, n = row["old"], row["new"]
-        print(f"{name}: load {load0} -> {load1}", flush=True)
+        print(f"{name}: {CASES[name]}, load {load0} -> {load1}", flush=True)
         for key, d in (("old", o), ("new", n)):
-            print(f"  {key}: walls {' '.join(f'{w:.3f}' for w in d['walls'])} s, median "
-                  f"{d['median']:.3f} s; {d['steps']} steps, {d['newton']} Newton "
+            print(f"  {key}: walls {' '.join(f'{w:.3f}' for w in d['walls'])} s; median "
+                  f"{d['median']:.3f} s, min {d['min']:.3f} s, CPU median "
+                  f"{d['cpu_median']:.3f} s; {d['steps']} steps, {d['newton']} Newton "
                   f"iterations: {d['per_step_ms']:.3f} ms per step, "
                   f"{d['per_newton_us']:.0f} µs per iteration ({d['status']})", flush=True)
-        print(f"  old/new {row['ratio_old_new']:.3f}", flush=True)
+        print(f"  old/new: wall median {row['ratio_old_new_median']:.3f}, wall min "
+              f"{row['ratio_old_new_min']:.3f}, CPU median "
+              f"{row['ratio_old_new_cpu_median']:.3f}", flush=True)
     for p in procs.values():
         p.stdin.close()
         p.wait()
@@ -290,6 +302,7 @@ def main() -> None:
     sub = ap.add_subparsers(dest="cmd", required=True)
     p = sub.add_parser("profile")
     p.add_argument("--case", default="plectoneme-20", choices=list(CASES))
+    p.add_argument("--root", default=str(ROOT), help="the hockle tree to profile")
     c = sub.add_parser("compare")
     c.add_argument("old_root")
     c.add_argument("--rounds", type=int, default=3)
@@ -302,7 +315,7 @@ def main() -> None:
     w.add_argument("root")
     args = ap.parse_args()
     if args.cmd == "profile":
-        sys.path.insert(0, str(ROOT))
+        sys.path.insert(0, str(Path(args.root).resolve()))
         profile(args.case)
     elif args.cmd == "save":
         save(args.root, args.folder, args.cases)
