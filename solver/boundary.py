@@ -176,10 +176,6 @@ class BoundaryRows:
 
     #: no towed end (the default of rows kept in a checkpoint written before towed ends)
     turning = np.zeros(2, dtype=bool)
-    #: what :meth:`project` and :meth:`end_kinematic_dofs` derive from the rows, made at
-    #: their first use and shared by the rows a :class:`BoundarySchedule` makes from one
-    #: template (None: not made yet, also in rows kept in an older checkpoint)
-    derived = None
 
     def __init__(self, case, props, t: float, n: int, plan=None, choice=None):
         plan = boundary_plan(case, props, n) if plan is None else plan
@@ -207,13 +203,9 @@ class BoundaryRows:
         self.kinematic = np.array(kin)
         self.turning = np.array([turn[0], turn[6]])
         self.key = tuple(cols) + (("turning", turn[0], turn[6]),) if self.turning.any() else tuple(cols)
+        # what project and end_kinematic_dofs derive from the rows, made at their first
+        # use (shared by the rows a BoundarySchedule makes from one template)
         self.derived = {}
-
-    def _derived(self) -> dict:
-        d = self.derived
-        if d is None:
-            d = self.derived = {}
-        return d
 
     def end_drift_offsets(self, n_last: int, position_error, rotation_error, rate: float):
         """Offsets (12,) to the prescribed values that steer the s = L end back onto its
@@ -241,7 +233,7 @@ class BoundaryRows:
         translation rows of a :attr:`turning` end are left as they are). Raises
         nothing (coef is 1, or a bending/torsional stiffness > 0, by construction)."""
         out = np.array(Y, dtype=float)
-        d = self._derived()
+        d = self.derived
         keep = d.get("keep")
         if keep is None:
             keep = np.ones(self.cols.size, bool)
@@ -258,7 +250,7 @@ class BoundaryRows:
         """The kinematic conditions at s = L as (row j in 6..11 of these 12 rows, degree of
         freedom 0-5: v1, v2, v3, ω1, ω2, ω3) pairs, a list. n_last: index N of the s = L
         node."""
-        d = self._derived()
+        d = self.derived
         dofs = d.get(("dofs", n_last))
         if dofs is None:
             dofs = d[("dofs", n_last)] = tuple(
@@ -283,10 +275,12 @@ class BoundarySchedule:
     (a constant, or the interpolated table), so that a step does not rebuild them from
     the plan. The rows are those ``BoundaryRows(case, props, t, n, plan)`` makes.
 
-    Parameters: as :class:`BoundaryRows` (plan: of the same case, props and n).
+    Parameters: as :class:`BoundaryRows` (plan None: :func:`boundary_plan` of case,
+    props and n, kept as ``plan``).
     """
 
-    def __init__(self, case, props, n: int, plan):
+    def __init__(self, case, props, n: int, plan=None):
+        plan = boundary_plan(case, props, n) if plan is None else plan
         self.case, self.props, self.n, self.plan = case, props, n, plan
         # rows whose condition switches: (row index, the untils of its choices)
         self.switching = tuple((k, tuple(ch[0] for ch in choices))

@@ -24,7 +24,7 @@ import operator
 import numpy as np
 
 from .balance import EnergyBalance
-from .boundary import BoundarySchedule, boundary_plan
+from .boundary import BoundarySchedule
 from .contact import SelfContact
 from .contact.search import CandidateSearch
 from .energies import (distributed_power, distributed_work_into, end_loads, end_power,
@@ -101,12 +101,12 @@ class RodRun(ProblemAssembly):
         self.newton = Newton(self.system, num.newton.tolerance, num.newton.max_iterations)
         self.params = alpha_parameters(num.rho_inf)
         self.state = RunState.at_rest(case, props.s, start)
-        self.bc_plan = boundary_plan(case, props, self.system.n)
-        if any(len(choice) > 5 and choice[5] for _, choices in self.bc_plan
+        # the boundary rows at any time, from the case's plan of conditions
+        self.bc_schedule = BoundarySchedule(case, props, self.system.n)
+        if any(len(choice) > 5 and choice[5] for _, choices in self.bc_schedule.plan
                for choice in choices):
             # an end towed with its rotation free: its boundary rows need the new frames
             self.system.needs_pose = True
-        self.bc_schedule = BoundarySchedule(case, props, self.system.n, self.bc_plan)
         self.state.bc = self.bc_schedule.at(self.state.t)
         self.control = StepControl(case, *self._controllers())
         # the last attempt: its error ratio (NaN: not estimated), why it was refused

@@ -215,7 +215,8 @@ def _apply_M_kernel(Y, mass_t, inertia, out):
 
 @numba.njit(cache=True)
 def _flux_kernel(Y, stiffness, out):
-    """K Y per node (N+1, 12) into out (:meth:`RodSystem._flux`)."""
+    """K Y per node (N+1, 12) into out: (ω, v, f, q = Bκ) for E1..E4 (:func:`_flux_row`;
+    the old level's αf K Y^n of :func:`_old_level_kernel`)."""
     row = np.empty(4)
     for k in range(Y.shape[0]):
         for i in range(3):
@@ -946,13 +947,6 @@ class RodSystem:
         :meth:`_apply_M`). ``c`` is the coefficient of the generalized-α relation,
         (1 − αm)/(γΔt) in 1/s, or any shift of it."""
         _add_inertia_kernel(blocks, float(c), self.p.mass_t, self.p.inertia)
-
-    def _flux(self, Y):
-        """K Y per node (N+1, 12): (ω, v, f, q = Bκ) for E1..E4 (compiled,
-        :func:`_flux_row`)."""
-        out = np.empty_like(Y, dtype=float)
-        _flux_kernel(np.ascontiguousarray(Y, dtype=float), self.p.stiffness, out)
-        return out
 
     def pose_new(self, Y):
         """Orientation and position at the new level from the old pose and the rates.

@@ -19,7 +19,7 @@ from typing import Any, NamedTuple, Optional
 
 import numpy as np
 
-from .boundary import BoundaryRows, BoundarySchedule
+from .boundary import BoundaryRows
 from .contact.geometry import max_distance
 from .kinematics import quat_to_matrix, relative_rotation, space_route
 from .scheme import BACKWARD_EULER, pose_into
@@ -92,10 +92,6 @@ class ProblemAssembly:
     #: are unchanged (the seed example's smallest is 1.1 ms = dt/90)
     DRIFT_STEP_FLOOR = 0.01
 
-    #: the run's :class:`solver.boundary.BoundarySchedule` (made at the first step when
-    #: a run resumed from an older checkpoint has none)
-    bc_schedule = None
-
     def step_problem(self, h: float, t_new=None, left_limit=False,
                      restart=False) -> StepProblem:
         """Assemble the problem of a step of h (s) from the current state, ending at
@@ -103,11 +99,7 @@ class ProblemAssembly:
         and contact candidates (``last_had_candidates`` is set)."""
         sysm = self.system
         t_new = self.t + h if t_new is None else t_new
-        schedule = self.bc_schedule
-        if schedule is None:           # a run kept in a checkpoint written before it
-            schedule = self.bc_schedule = BoundarySchedule(self.case, self.props, sysm.n,
-                                                           self.bc_plan)
-        bc = schedule.at(t_new)
+        bc = self.bc_schedule.at(t_new)
         switched = bc.key != self.bc.key
         offset = self.end_correction(h, bc, restart)
         if offset is not None:

@@ -56,7 +56,7 @@ import math
 import numba
 import numpy as np
 
-from ..banded import block_solve
+from ..banded import NV, block_solve
 from ..scheme import _apply_M_kernel
 
 __all__ = ["breakpoints", "RESTART_FRACTION", "RESTART_STEPS", "extrapolate", "ErrorControl",
@@ -253,7 +253,7 @@ def growth_rate(system, Y, shift: float, layout, v0=None):
     ½Δt factor is kept), so a gravity-driven growth (an inverted pendulum) is estimated
     only roughly.
     """
-    from scipy.sparse.linalg import ArpackNoConvergence, LinearOperator, eigs
+    from scipy.sparse.linalg import ArpackNoConvergence, eigs
 
     from ..banded import BandFactorError
     from ..newton import equilibrate, scale_blocks
@@ -270,22 +270,7 @@ def growth_rate(system, Y, shift: float, layout, v0=None):
     except BandFactorError:
         return -math.inf, None
     n = system.n
-    cs = np.tile(s12, system.n_nodes)
-    p = system.p
-    e, Me = np.empty(Y.shape), np.empty(Y.shape)
-
-    def apply(z):
-        # rs ⟨M (z·cs)⟩ solved with the LU: RodSystem.cell_inertia and BlockLU.solve
-        # in one compiled pass (the same operations; ARPACK calls it tens of times)
-        x = np.empty(n)
-        _shift_invert_apply(np.ascontiguousarray(np.real(z), dtype=float), cs, rs,
-                            p.mass_t, p.inertia, layout.lu, e, Me, x)
-        return x
-
-    op = LinearOperator((n, n), matvec=apply, dtype=float)
-    # ARPACK's reverse communication calls op.matvec with (n,) float vectors only: the
-    # function itself, without LinearOperator's shape checks around every call
-    op.matvec = apply
+    op = _shift_invert_operator(system, rs, np.tile(s12, system.n_nodes), layout)
     if v0 is None:
         # a fixed start: the same run gives the same steps
         v0 = np.random.default_rng(0).standard_normal(n)
@@ -307,6 +292,30 @@ def growth_rate(system, Y, shift: float, layout, v0=None):
     sigma = shift - 1.0 / ((1.0 - af) * mu[big])
     j = int(np.argmax(sigma.real))
     return float(sigma.real[j]), np.real(vec[:, np.flatnonzero(big)[j]])
+
+
+def _shift_invert_operator(system, rs, cs, layout):
+    """The operator T z = J(c_s)⁻¹ rs ⟨M (z·cs)⟩ of :func:`growth_rate` (rs, cs (n,) the
+    row and column scales; layout the factored :class:`solver.banded.BlockLU`), a
+    LinearOperator for ARPACK."""
+    from scipy.sparse.linalg import LinearOperator
+
+    n, p = system.n, system.p
+    e, Me = np.empty((system.n_nodes, NV)), np.empty((system.n_nodes, NV))
+
+    def apply(z):
+        # RodSystem.cell_inertia and BlockLU.solve in one compiled pass (the same
+        # operations; ARPACK calls it tens of times)
+        x = np.empty(n)
+        _shift_invert_apply(np.ascontiguousarray(np.real(z), dtype=float), cs, rs,
+                            p.mass_t, p.inertia, layout.lu, e, Me, x)
+        return x
+
+    op = LinearOperator((n, n), matvec=apply, dtype=float)
+    # ARPACK's reverse communication calls op.matvec with (n,) float vectors only: the
+    # function itself, without LinearOperator's shape checks around every call
+    op.matvec = apply
+    return op
 
 
 @numba.njit(cache=True)
