@@ -251,54 +251,57 @@ class RodRun(ProblemAssembly):
         return None, summary
 
     def _accept(self, prob, sol, summary) -> None:
-        """Advance the state to the accepted solution of the step's problem."""
+        """Advance the state to the accepted solution of the step's problem (the state's
+        fields read and written on ``self.state`` itself, not through the run's
+        delegating attributes: this runs at every step)."""
+        st = self.state
         Y, pose, h, bc, restart = sol.Y, sol.pose, prob.h, prob.bc, prob.restart
         g = prob.params.gamma
-        Ydot = (Y - self.Y) / (g * h) - ((1.0 - g) / g) * self.Ydot
+        Ydot = (Y - st.Y) / (g * h) - ((1.0 - g) / g) * st.Ydot
         # time route of every node (a diagnostic: its distance to the space route is a
         # discretisation-error indicator) and the end rotations (linking number)
-        q_t, _, vg_t, r_t = self._time_step(h, Y, self.q_time, self.r_time,
-                                            self.v_global_time,
-                                            offsets=((self.bc_offset, self.bc.cols),
+        q_t, _, vg_t, r_t = self._time_step(h, Y, st.q_time, st.r_time, st.v_global_time,
+                                            offsets=((st.bc_offset, st.bc.cols),
                                                      (prob.offset, bc.cols)))
         drift = normalize_quaternions(q_t)
         if self.contact is not None:
             self.contact_count, self.min_gap = summary
-        if self.errctl is not None:
+        errctl = self.control.errctl
+        if errctl is not None:
             if restart:
-                self.errctl.reset(prob.t_new, Y)
+                errctl.reset(prob.t_new, Y)
             else:
-                self.errctl.push(prob.t_new, Y)
-        self.quat_norm_error = max(self.quat_norm_error, drift)
-        self.r_time, self.q_time, self.v_global_time = r_t, q_t, vg_t
+                errctl.push(prob.t_new, Y)
+        st.quat_norm_error = max(st.quat_norm_error, drift)
+        st.r_time, st.q_time, st.v_global_time = r_t, q_t, vg_t
         self._advance_accounts(prob, Y, pose)
         if self.energy_check is not None:
             # restarts are not measured: the next step starts afresh
             bal = self.last_balance
-            self.balance = None if bal is None else bal.carry
+            st.balance = None if bal is None else bal.carry
             if bal is not None and (math.isnan(self.energy_error)
                                     or bal.relative > self.energy_error):
                 self.energy_error = bal.relative
         if not restart:
-            self.guard_since += 1
+            self.control.guard.since += 1
         if prob.predictions is not None and "quadratic" in prob.predictions:
             self.predictor = self._better_predictor(Y, prob.predictions)
         # after a restart the old level is inconsistent (f jumped): no extrapolation
         if restart:
-            self.Y_prev2 = self.h_prev2 = self.Y_prev = self.h_prev = None
+            st.Y_prev2 = st.h_prev2 = st.Y_prev = st.h_prev = None
         else:
-            self.Y_prev2, self.h_prev2 = self.Y_prev, self.h_prev
-            self.Y_prev, self.h_prev = self.Y, h
-        self.Y, self.Ydot, self.F_old = Y, Ydot, sol.Fn
-        self.t = prob.t_new
-        prev_bc, self.bc = self.bc, bc
-        self.bc_offset = prob.offset
+            st.Y_prev2, st.h_prev2 = st.Y_prev, st.h_prev
+            st.Y_prev, st.h_prev = st.Y, h
+        st.Y, st.Ydot, st.F_old = Y, Ydot, sol.Fn
+        st.t = prob.t_new
+        prev_bc, st.bc = st.bc, bc
+        st.bc_offset = prob.offset
         if self.contact is not None:
-            self.q = pose[0].copy()
-            normalize_quaternions(self.q)
-            self.r = pose[2]
-            self.v_global = np.empty_like(self.r)
-            rotate_rows(self.q, self.Y[:, 0:3], self.v_global)
+            st.q = q = pose[0].copy()
+            normalize_quaternions(q)
+            st.r = pose[2]
+            st.v_global = np.empty_like(st.r)
+            rotate_rows(q, Y[:, 0:3], st.v_global)
             if prob.switched:
                 self._hold_from_here(prev_bc, bc)
         elif self.system.needs_pose:
@@ -353,26 +356,28 @@ class RodRun(ProblemAssembly):
         body = self._body_force(glob, None if pose is None else (pose[1],))
         body = self.loads.with_points(body, prob.t_new, None if pose is None else pose[1],
                                       prob.left_limit)
+        st = self.state                 # read and written directly (every step)
         loads, xdot = np.empty((2, 6)), np.empty((2, 6))
-        work, power, dphi0, dphi1 = end_work_into(Y, self.Y, float(h), float(g), float(am),
-                                                  float(af), self.xdot_end, self.end_load,
+        work, power, dphi0, dphi1 = end_work_into(Y, st.Y, float(h), float(g), float(am),
+                                                  float(af), st.xdot_end, st.end_load,
                                                   props.stiffness, xdot, loads)
-        self.phi = self.phi + np.array([dphi0, dphi1])
-        self.work_in += work
-        self.xdot_end, self.end_load = xdot, loads
+        st.phi = st.phi + np.array([dphi0, dphi1])
+        st.work_in += work
+        st.xdot_end, st.end_load = xdot, loads
         if self.loads.has_global or self.loads.points is not None:
             # distributed global-frame loads (and point loads, as loads per node length):
             # the same per node, with the quadrature weights
-            vdot = np.empty_like(self.xdot_nodes)
+            vdot = np.empty_like(st.xdot_nodes)
             none = np.zeros((0, 3))
+            old = st.body_force
             work, dpower = distributed_work_into(
-                Y, self.Y, float(h), float(g), float(am), float(af), self.xdot_nodes,
-                none if self.body_force is None else self.body_force, self.body_force is not None,
+                Y, st.Y, float(h), float(g), float(am), float(af), st.xdot_nodes,
+                none if old is None else old, old is not None,
                 none if body is None else body, body is not None, props.quad_weights, vdot)
-            self.work_in += work
+            st.work_in += work
             power += dpower
-            self.xdot_nodes = vdot
-        self.power, self.body_force = power, body
+            st.xdot_nodes = vdot
+        st.power, st.body_force = power, body
 
     # ------------------------------------------------- step control (StepControl)
     def advance(self, t_target: float):

@@ -181,7 +181,7 @@ class ProblemAssembly:
         boundary offsets of :meth:`end_correction`, taken out of both levels' unknowns
         first, so that the end node's time route is its prescribed motion."""
         Y_old = self.Y
-        if offsets is not None and any(o is not None for o, _ in offsets):
+        if offsets is not None and (offsets[0][0] is not None or offsets[1][0] is not None):
             (old, old_cols), (new, new_cols) = offsets
             Y_old, Y = Y_old.copy(), Y.copy()
             if old is not None:
