@@ -14,7 +14,8 @@ Run:
 * ``python benchmarks/step_overhead.py profile [--case plectoneme-20] [--root TREE]``:
   after a warm-up run, the fastest of 5 runs, the time inside numba-compiled calls made
   from Python (each compiled function the ``solver`` modules hold, timed by a wrapper;
-  the fastest of 5 such runs) and what is left per step attempt, and a cProfile of one
+  the fastest of 5 such runs) and what is left per step attempt, the inclusive time of
+  the parts of an attempt (:data:`PARTS`, each wrapped in a timer), and a cProfile of one
   more run: Python-level calls per step attempt, the functions of largest own time.
 * ``python benchmarks/step_overhead.py compare OLD_ROOT [--rounds 3]``: this tree
   against another checkout of hockle (``OLD_ROOT``, e.g. the main branch's), each in a
@@ -157,6 +158,58 @@ def time_compiled(case) -> dict:
                                 key=lambda x: -x[2])}
 
 
+#: the parts of a step attempt timed by :func:`time_parts`: (module, class or None, name)
+PARTS = [("solver.run", "RodRun", "try_step"),
+         ("solver.step_problem", "ProblemAssembly", "step_problem"),
+         ("solver.step_problem", "ProblemAssembly", "solve_problem"),
+         ("solver.newton", "Newton", "solve"), ("solver.newton", None, "_newton_kernel"),
+         ("solver.run", "RodRun", "_refusal"), ("solver.run", "RodRun", "_accept"),
+         ("solver.stepping.guard", "GrowthGuard", "ok"),
+         ("solver.step_problem", "ProblemAssembly", "_candidates"),
+         ("solver.step_problem", "ProblemAssembly", "end_correction"),
+         ("solver.step_problem", "ProblemAssembly", "_predictions"),
+         ("solver.scheme", "RodSystem", "begin_step"),
+         ("solver.run", "RodRun", "_advance_accounts"),
+         ("solver.step_problem", "ProblemAssembly", "_better_predictor"),
+         ("solver.step_problem", "ProblemAssembly", "_local_error"),
+         ("solver.contact.model", "SelfContact", "passes_through"),
+         ("solver.recording", "Recorder", "accepted"), ("solver.recording", "Recorder", "record")]
+
+
+def time_parts(case, repeats: int) -> list:
+    """Inclusive wall time (s) and calls of each of PARTS present in this tree, summed
+    over ``repeats`` runs with each part wrapped in a timer, and the attempts:
+    (rows (name, calls, seconds), attempts)."""
+    import importlib
+    acc, patched = {}, []
+    for mod_name, cls_name, attr in PARTS:
+        mod = importlib.import_module(mod_name)
+        owner = getattr(mod, cls_name) if cls_name else mod
+        if attr not in vars(owner):
+            continue
+        fn = vars(owner)[attr]
+        label = f"{cls_name or mod_name}.{attr}"
+        acc[label] = [0, 0.0]
+
+        def wrapper(*a, _fn=fn, _e=acc[label], **k):
+            t0 = time.perf_counter()
+            try:
+                return _fn(*a, **k)
+            finally:
+                _e[0] += 1
+                _e[1] += time.perf_counter() - t0
+        setattr(owner, attr, wrapper)
+        patched.append((owner, attr, fn))
+    try:
+        for _ in range(repeats):
+            run_once(case)
+    finally:
+        for owner, attr, fn in patched:
+            setattr(owner, attr, fn)
+    attempts = acc["RodRun.try_step"][0] // repeats
+    return [(k, c // repeats, t / repeats) for k, (c, t) in acc.items()], attempts
+
+
 def profile(name: str, top: int = 30, repeats: int = 5) -> None:
     import cProfile
     import io
@@ -187,6 +240,11 @@ def profile(name: str, top: int = 30, repeats: int = 5) -> None:
           f"Newton iteration {1e6 * base['wall'] / max(base['newton'], 1):.0f} µs wall")
     for k, c, t in comp["by_kernel"][:8]:
         print(f"    {k:40s} {c:7d} calls {1e3 * t:9.1f} ms")
+    rows, att = time_parts(case, repeats)
+    print(f"  parts of a step attempt (inclusive, each wrapped in a timer; mean of "
+          f"{repeats} runs):")
+    for label, calls, t in rows:
+        print(f"    {label:38s} {calls / att:5.2f} calls {1e6 * t / att:7.1f} µs an attempt")
     for key in ("tottime", "cumulative"):
         buf = io.StringIO()
         pstats.Stats(prof, stream=buf).strip_dirs().sort_stats(key).print_stats(top)
