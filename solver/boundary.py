@@ -16,7 +16,7 @@ import numpy as np
 
 from .banded import NV
 
-__all__ = ["BoundaryRows", "boundary_plan", "global_translation", "position_rate", "towed_free"]
+__all__ = ["BoundaryRows", "BoundarySchedule", "boundary_plan", "global_translation", "position_rate", "towed_free"]
 
 _GROUPS = ("translation", "rotation")
 
@@ -177,13 +177,16 @@ class BoundaryRows:
     #: no towed end (the default of rows kept in a checkpoint written before towed ends)
     turning = np.zeros(2, dtype=bool)
 
-    def __init__(self, case, props, t: float, n: int, plan=None):
+    def __init__(self, case, props, t: float, n: int, plan=None, choice=None):
         plan = boundary_plan(case, props, n) if plan is None else plan
         rows, cols, coef, vals, kin, turn = [], [], [], [], [], []
-        for row, choices in plan:
-            for until, col, c, kinematic, value, *towed in choices:
-                if until is None or t <= until:
-                    break
+        for k, (row, choices) in enumerate(plan):
+            if choice is not None:
+                until, col, c, kinematic, value, *towed = choices[choice[k]]
+            else:
+                for until, col, c, kinematic, value, *towed in choices:
+                    if until is None or t <= until:
+                        break
             # a plan kept in a checkpoint written before towed ends has 5-field choices
             turning = bool(towed and towed[0])
             turn.append(turning)
@@ -200,6 +203,9 @@ class BoundaryRows:
         self.kinematic = np.array(kin)
         self.turning = np.array([turn[0], turn[6]])
         self.key = tuple(cols) + (("turning", turn[0], turn[6]),) if self.turning.any() else tuple(cols)
+        # what project and end_kinematic_dofs derive from the rows, made at their first
+        # use (shared by the rows a BoundarySchedule makes from one template)
+        self.derived = {}
 
     def end_drift_offsets(self, n_last: int, position_error, rotation_error, rate: float):
         """Offsets (12,) to the prescribed values that steer the s = L end back onto its
@@ -227,18 +233,29 @@ class BoundaryRows:
         translation rows of a :attr:`turning` end are left as they are). Raises
         nothing (coef is 1, or a bending/torsional stiffness > 0, by construction)."""
         out = np.array(Y, dtype=float)
-        keep = np.ones(self.cols.size, bool)
-        for e in np.flatnonzero(self.turning):
-            keep[6 * e:6 * e + 3] = False     # v = RᵀV: R is the iterate's
-        out.reshape(-1)[self.cols[keep]] = self.values[keep] / self.coef[keep]
+        d = self.derived
+        keep = d.get("keep")
+        if keep is None:
+            keep = np.ones(self.cols.size, bool)
+            for e in np.flatnonzero(self.turning):
+                keep[6 * e:6 * e + 3] = False     # v = RᵀV: R is the iterate's
+            if keep.all():
+                keep = slice(None)
+            d["keep"] = keep = (keep, self.cols[keep], self.coef[keep])
+        mask, cols, coef = keep
+        out.reshape(-1)[cols] = self.values[mask] / coef
         return out
 
     def end_kinematic_dofs(self, n_last: int):
         """The kinematic conditions at s = L as (row j in 6..11 of these 12 rows, degree of
         freedom 0-5: v1, v2, v3, ω1, ω2, ω3) pairs, a list. n_last: index N of the s = L
         node."""
-        return [(j, int(self.cols[j]) - NV * n_last) for j in range(6, 12)
-                if self.kinematic[j]]
+        d = self.derived
+        dofs = d.get(("dofs", n_last))
+        if dofs is None:
+            dofs = d[("dofs", n_last)] = tuple(
+                (j, int(self.cols[j]) - NV * n_last) for j in range(6, 12) if self.kinematic[j])
+        return list(dofs)
 
     def residual(self, Y: np.ndarray, R: np.ndarray) -> None:
         """Write the 12 boundary residuals coef·Y − value into R (n,) in place."""
@@ -247,3 +264,51 @@ class BoundaryRows:
     def jacobian_entries(self):
         """(rows, cols, values) of the boundary rows' Jacobian entries."""
         return self.rows, self.cols, self.coef
+
+
+class BoundarySchedule:
+    """The boundary rows of a run at any time (:meth:`at`), from its :func:`boundary_plan`.
+
+    Which condition holds on each row changes only at its ``until`` times; the rows,
+    columns, coefficients and kinds of each such combination are made once (a template
+    :class:`BoundaryRows`), and a step's rows copy them and set the values at its time
+    (a constant, or the interpolated table), so that a step does not rebuild them from
+    the plan. The rows are those ``BoundaryRows(case, props, t, n, plan)`` makes.
+
+    Parameters: as :class:`BoundaryRows` (plan None: :func:`boundary_plan` of case,
+    props and n, kept as ``plan``).
+    """
+
+    def __init__(self, case, props, n: int, plan=None):
+        plan = boundary_plan(case, props, n) if plan is None else plan
+        self.case, self.props, self.n, self.plan = case, props, n, plan
+        # rows whose condition switches: (row index, the untils of its choices)
+        self.switching = tuple((k, tuple(ch[0] for ch in choices))
+                               for k, (_, choices) in enumerate(plan)
+                               if len(choices) > 1 or choices[0][0] is not None)
+        self.templates = {}
+
+    def at(self, t: float) -> BoundaryRows:
+        """The rows in force at t (s), a new :class:`BoundaryRows` (its ``values`` its
+        own; the other arrays shared with the rows of the same conditions, read only)."""
+        choice = [0] * len(self.plan)
+        for k, untils in self.switching:
+            for i, until in enumerate(untils):
+                if until is None or t <= until:
+                    break
+            choice[k] = i
+        key = tuple(choice)
+        entry = self.templates.get(key)
+        if entry is None:
+            template = BoundaryRows(self.case, self.props, t, self.n, self.plan, choice=key)
+            tables = tuple((j, choices[key[j]][4]) for j, (_, choices) in enumerate(self.plan)
+                           if not isinstance(choices[key[j]][4], float))
+            entry = self.templates[key] = (template, tables)
+        template, tables = entry
+        out = BoundaryRows.__new__(BoundaryRows)
+        out.__dict__.update(template.__dict__)
+        values = template.values.copy()
+        for j, (times, series) in tables:
+            values[j] = float(np.interp(float(t), times, series))
+        out.values = values
+        return out

@@ -31,8 +31,8 @@ def warm_up() -> None:
     then run at once. Pure (no I/O of its own besides numba's cache). Raises nothing on
     a working installation."""
     from .case import Case
-    from .contact import point_curve, point_segment, smoothstep_off, swept_min_distance
-    from .contact.geometry import ALL_PAIRS_NODES, close_node_pairs, run_minima
+    from .contact import point_curve, point_segment, smoothstep_off
+    from .contact.geometry import run_minima
     from .kinematics import quat_slerp, right_jacobian
     from .run import RodRun
     from .energies import energies
@@ -60,22 +60,9 @@ def warm_up() -> None:
     # the writhe of a long rod sums its pairs on all cores (solver.topology)
     writhe(np.column_stack([np.cos(np.arange(PARALLEL_SEGMENTS + 1.0)), np.sin(
         np.arange(PARALLEL_SEGMENTS + 1.0)), np.arange(PARALLEL_SEGMENTS + 1.0)]))
-    # the search on a hairpin (a k-d tree's pairs, the cones, the runs, merge, coverage)
-    s = np.linspace(0.0, 1.0, 9)
-    hairpin = np.column_stack([np.where(s < 0.5, s, 1.0 - s), np.where(s < 0.5, 0.0, 0.03),
-                               np.zeros(9)])
-    tangents = np.gradient(hairpin, axis=0)
-    found = contact.candidates(hairpin, tangents, 0.01)
-    if contact.may_touch(hairpin, tangents) and found.runs:
-        contact.covers(contact.merge(found, cand), found)
-    contact.search(hairpin, tangents, 0.01)
-    swept_min_distance(hairpin, hairpin, np.array([0], np.intp), np.array([8], np.intp))
-    contact.passes_through(hairpin, hairpin * [1.0, -1.0, 1.0])   # one leg through the other
-    # the blocked k-d tree search of a longer grid (a helix, blocks of 5 nodes)
-    nh = ALL_PAIRS_NODES + 72
-    sh = np.linspace(0.0, 1.0, nh)
-    helix = np.column_stack([0.02 * np.cos(40.0 * sh), 0.02 * np.sin(40.0 * sh), 0.05 * sh])
-    close_node_pairs(helix, 5.5 * (sh[1] - sh[0]), sh, 0.1)
+    _warm_up_search(contact, cand)
+    # the error filter of error-controlled steps (the inertia's cell rows, the band LU)
+    run.newton.filtered(run.Y)
     # the Python faces of the kernels that runs without contact or with dense output use
     run.update_space_route()
     quat_slerp(run.q[0], run.q[-1], 0.5)
@@ -100,6 +87,39 @@ def warm_up() -> None:
     lu = BorderedBandLU(statics.band_jacobian(sol.Y, prob), np.ones(sol.Y.size),
                         np.ones(sol.Y.size))
     lu.solve(np.ones(sol.Y.size + 1))
+
+
+def _warm_up_search(contact, cand) -> None:
+    """The contact search's kernels for :func:`warm_up`: on a hairpin (the candidates,
+    merge, coverage, the swept distances) and on a helix longer than ALL_PAIRS_NODES (the
+    blocked k-d tree's pairs, and what the search and the tunnelling check do with
+    them). contact: the warm-up run's SelfContact; cand: candidates of its grid."""
+    from .contact import swept_min_distance
+    from .contact.geometry import ALL_PAIRS_NODES, close_node_pairs
+    from .contact.model import _search_kernel, _swept_any_within, _swept_reach
+
+    # the search on a hairpin (a k-d tree's pairs, the cones, the runs, merge, coverage)
+    s = np.linspace(0.0, 1.0, 9)
+    hairpin = np.column_stack([np.where(s < 0.5, s, 1.0 - s), np.where(s < 0.5, 0.0, 0.03),
+                               np.zeros(9)])
+    tangents = np.gradient(hairpin, axis=0)
+    found = contact.candidates(hairpin, tangents, 0.01)
+    if contact.may_touch(hairpin, tangents) and found.runs:
+        contact.covers(contact.merge(found, cand), found)
+    contact.search(hairpin, tangents, 0.01)
+    swept_min_distance(hairpin, hairpin, np.array([0], np.intp), np.array([8], np.intp))
+    contact.passes_through(hairpin, hairpin * [1.0, -1.0, 1.0])   # one leg through the other
+    # the blocked k-d tree search of a longer grid (a helix, blocks of 5 nodes)
+    nh = ALL_PAIRS_NODES + 72
+    sh = np.linspace(0.0, 1.0, nh)
+    helix = np.column_stack([0.02 * np.cos(40.0 * sh), 0.02 * np.sin(40.0 * sh), 0.05 * sh])
+    a, b = close_node_pairs(helix, 5.5 * (sh[1] - sh[0]), sh, 0.1)
+    # what the search and the tunnelling check do with such a grid's pairs (on grids of at
+    # most ALL_PAIRS_NODES nodes they are parts of one compiled call)
+    _search_kernel(helix, np.gradient(helix, axis=0), a, b, sh, 0.1, 1.0)
+    moved, dh = helix + [0.0, 0.0, 0.001], np.full(nh, 0.02)
+    _swept_reach(helix, moved, sh, dh, 0.1)
+    _swept_any_within(helix, moved, a, b, dh)
 
 
 def _warm_up_spec() -> dict:

@@ -155,8 +155,8 @@ def relative_rotation(q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
     the logarithm of q0⁻¹ ⊗ q1 taken the short way (|θ| ≤ π; either sign of q1 gives the
     same θ). q0, q1: unit quaternions (4,), (w, x, y, z); raises nothing (θ = 0 for equal
     rotations). The inverse of q0 ⊗ exp(θ), :func:`quat_exp`; Shoemake, SIGGRAPH 1985."""
-    aw, ax, ay, az = (float(c) for c in q0)
-    bw, bx, by, bz = (float(c) for c in q1)
+    aw, ax, ay, az = np.asarray(q0, dtype=float).tolist()
+    bw, bx, by, bz = np.asarray(q1, dtype=float).tolist()
     # rel = conj(q0) ⊗ q1, component by component (four numbers: plain floats are faster
     # than numpy's small-array calls, ~3 against ~30 µs)
     w = aw * bw + ax * bx + ay * by + az * bz

@@ -19,11 +19,12 @@ from __future__ import annotations
 
 import copy
 import math
+import operator
 
 import numpy as np
 
 from .balance import EnergyBalance
-from .boundary import BoundaryRows, boundary_plan
+from .boundary import BoundarySchedule
 from .contact import SelfContact
 from .contact.search import CandidateSearch
 from .energies import (distributed_power, distributed_work_into, end_loads, end_power,
@@ -102,12 +103,13 @@ class RodRun(ProblemAssembly):
             self.newton.position_tolerance = self.route_tolerance
         self.params = alpha_parameters(num.rho_inf)
         self.state = RunState.at_rest(case, props.s, start)
-        self.bc_plan = boundary_plan(case, props, self.system.n)
-        if any(len(choice) > 5 and choice[5] for _, choices in self.bc_plan
+        # the boundary rows at any time, from the case's plan of conditions
+        self.bc_schedule = BoundarySchedule(case, props, self.system.n)
+        if any(len(choice) > 5 and choice[5] for _, choices in self.bc_schedule.plan
                for choice in choices):
             # an end towed with its rotation free: its boundary rows need the new frames
             self.system.needs_pose = True
-        self.state.bc = BoundaryRows(case, props, self.state.t, self.system.n, self.bc_plan)
+        self.state.bc = self.bc_schedule.at(self.state.t)
         self.control = StepControl(case, *self._controllers())
         # the last attempt: its error ratio (NaN: not estimated), why it was refused
         # ("newton", "contact", "error", "growth"), whether it had contact candidates,
@@ -251,54 +253,57 @@ class RodRun(ProblemAssembly):
         return None, summary
 
     def _accept(self, prob, sol, summary) -> None:
-        """Advance the state to the accepted solution of the step's problem."""
+        """Advance the state to the accepted solution of the step's problem (the state's
+        fields read and written on ``self.state`` itself, not through the run's
+        delegating attributes: this runs at every step)."""
+        st = self.state
         Y, pose, h, bc, restart = sol.Y, sol.pose, prob.h, prob.bc, prob.restart
         g = prob.params.gamma
-        Ydot = (Y - self.Y) / (g * h) - ((1.0 - g) / g) * self.Ydot
+        Ydot = (Y - st.Y) / (g * h) - ((1.0 - g) / g) * st.Ydot
         # time route of every node (a diagnostic: its distance to the space route is a
         # discretisation-error indicator) and the end rotations (linking number)
-        q_t, _, vg_t, r_t = self._time_step(h, Y, self.q_time, self.r_time,
-                                            self.v_global_time,
-                                            offsets=((self.bc_offset, self.bc.cols),
+        q_t, _, vg_t, r_t = self._time_step(h, Y, st.q_time, st.r_time, st.v_global_time,
+                                            offsets=((st.bc_offset, st.bc.cols),
                                                      (prob.offset, bc.cols)))
         drift = normalize_quaternions(q_t)
         if self.contact is not None:
             self.contact_count, self.min_gap = summary
-        if self.errctl is not None:
+        errctl = self.control.errctl
+        if errctl is not None:
             if restart:
-                self.errctl.reset(prob.t_new, Y)
+                errctl.reset(prob.t_new, Y)
             else:
-                self.errctl.push(prob.t_new, Y)
-        self.quat_norm_error = max(self.quat_norm_error, drift)
-        self.r_time, self.q_time, self.v_global_time = r_t, q_t, vg_t
+                errctl.push(prob.t_new, Y)
+        st.quat_norm_error = max(st.quat_norm_error, drift)
+        st.r_time, st.q_time, st.v_global_time = r_t, q_t, vg_t
         self._advance_accounts(prob, Y, pose)
         if self.energy_check is not None:
             # restarts are not measured: the next step starts afresh
             bal = self.last_balance
-            self.balance = None if bal is None else bal.carry
+            st.balance = None if bal is None else bal.carry
             if bal is not None and (math.isnan(self.energy_error)
                                     or bal.relative > self.energy_error):
                 self.energy_error = bal.relative
         if not restart:
-            self.guard_since += 1
+            self.control.guard.since += 1
         if prob.predictions is not None and "quadratic" in prob.predictions:
             self.predictor = self._better_predictor(Y, prob.predictions)
         # after a restart the old level is inconsistent (f jumped): no extrapolation
         if restart:
-            self.Y_prev2 = self.h_prev2 = self.Y_prev = self.h_prev = None
+            st.Y_prev2 = st.h_prev2 = st.Y_prev = st.h_prev = None
         else:
-            self.Y_prev2, self.h_prev2 = self.Y_prev, self.h_prev
-            self.Y_prev, self.h_prev = self.Y, h
-        self.Y, self.Ydot, self.F_old = Y, Ydot, sol.Fn
-        self.t = prob.t_new
-        prev_bc, self.bc = self.bc, bc
-        self.bc_offset = prob.offset
+            st.Y_prev2, st.h_prev2 = st.Y_prev, st.h_prev
+            st.Y_prev, st.h_prev = st.Y, h
+        st.Y, st.Ydot, st.F_old = Y, Ydot, sol.Fn
+        st.t = prob.t_new
+        prev_bc, st.bc = st.bc, bc
+        st.bc_offset = prob.offset
         if self.contact is not None:
-            self.q = pose[0].copy()
-            normalize_quaternions(self.q)
-            self.r = pose[2]
-            self.v_global = np.empty_like(self.r)
-            rotate_rows(self.q, self.Y[:, 0:3], self.v_global)
+            st.q = q = pose[0].copy()
+            normalize_quaternions(q)
+            st.r = pose[2]
+            st.v_global = np.empty_like(st.r)
+            rotate_rows(q, Y[:, 0:3], st.v_global)
             if prob.switched:
                 self._hold_from_here(prev_bc, bc)
         elif self.system.needs_pose:
@@ -353,26 +358,28 @@ class RodRun(ProblemAssembly):
         body = self._body_force(glob, None if pose is None else (pose[1],))
         body = self.loads.with_points(body, prob.t_new, None if pose is None else pose[1],
                                       prob.left_limit)
+        st = self.state                 # read and written directly (every step)
         loads, xdot = np.empty((2, 6)), np.empty((2, 6))
-        work, power, dphi0, dphi1 = end_work_into(Y, self.Y, float(h), float(g), float(am),
-                                                  float(af), self.xdot_end, self.end_load,
+        work, power, dphi0, dphi1 = end_work_into(Y, st.Y, float(h), float(g), float(am),
+                                                  float(af), st.xdot_end, st.end_load,
                                                   props.stiffness, xdot, loads)
-        self.phi = self.phi + np.array([dphi0, dphi1])
-        self.work_in += work
-        self.xdot_end, self.end_load = xdot, loads
+        st.phi = st.phi + np.array([dphi0, dphi1])
+        st.work_in += work
+        st.xdot_end, st.end_load = xdot, loads
         if self.loads.has_global or self.loads.points is not None:
             # distributed global-frame loads (and point loads, as loads per node length):
             # the same per node, with the quadrature weights
-            vdot = np.empty_like(self.xdot_nodes)
+            vdot = np.empty_like(st.xdot_nodes)
             none = np.zeros((0, 3))
+            old = st.body_force
             work, dpower = distributed_work_into(
-                Y, self.Y, float(h), float(g), float(am), float(af), self.xdot_nodes,
-                none if self.body_force is None else self.body_force, self.body_force is not None,
+                Y, st.Y, float(h), float(g), float(am), float(af), st.xdot_nodes,
+                none if old is None else old, old is not None,
                 none if body is None else body, body is not None, props.quad_weights, vdot)
-            self.work_in += work
+            st.work_in += work
             power += dpower
-            self.xdot_nodes = vdot
-        self.power, self.body_force = power, body
+            st.xdot_nodes = vdot
+        st.power, st.body_force = power, body
 
     # ------------------------------------------------- step control (StepControl)
     def advance(self, t_target: float):
@@ -428,22 +435,14 @@ class RodRun(ProblemAssembly):
 
 
 def _delegate(owner: str, name: str, doc: str):
-    """A property of RodRun that reads and writes ``self.<owner>.<name>``."""
-    path = owner.split(".")
-
-    def holder(self):
-        obj = self
-        for part in path:
-            obj = getattr(obj, part)
-        return obj
-
-    def get(self):
-        return getattr(holder(self), name)
+    """A property of RodRun that reads and writes ``self.<owner>.<name>`` (read by a
+    compiled attribute getter: a step reads these ~80 times)."""
+    holder = operator.attrgetter(owner)
 
     def put(self, value):
         setattr(holder(self), name, value)
 
-    return property(get, put, doc=doc)
+    return property(operator.attrgetter(f"{owner}.{name}"), put, doc=doc)
 
 
 for _name in RunState.names():

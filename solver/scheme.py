@@ -181,6 +181,28 @@ def _flux_row(Y, k, i, stiffness, out):
 
 
 @numba.njit(cache=True)
+def _old_level_kernel(Y_old, Ydot_old, F_old, cm, cv, af, mass_t, inertia, stiffness, cY,
+                      zc, flux):
+    """The old level's constant parts of a step's equations (:meth:`RodSystem.begin_step`),
+    (N+1, 12) each: cY = −cm Y^n + cv Ẏ^n (scratch), zc = ½ M cY + ½αf F^n and
+    flux = αf K Y^n (:func:`_apply_M_kernel`, :func:`_flux_kernel`), each product in the
+    order of the array expressions it stands for."""
+    n1, nv = Y_old.shape
+    for k in range(n1):
+        for j in range(nv):
+            cY[k, j] = -cm * Y_old[k, j] + cv * Ydot_old[k, j]
+    _apply_M_kernel(cY, mass_t, inertia, zc)
+    half_af = 0.5 * af
+    for k in range(n1):
+        for j in range(nv):
+            zc[k, j] = 0.5 * zc[k, j] + half_af * F_old[k, j]
+    _flux_kernel(Y_old, stiffness, flux)
+    for k in range(n1):
+        for j in range(nv):
+            flux[k, j] = af * flux[k, j]
+
+
+@numba.njit(cache=True)
 def _apply_M_kernel(Y, mass_t, inertia, out):
     """M Y per node (N+1, 12) into out (:meth:`RodSystem._apply_M`)."""
     row = np.empty(4)
@@ -193,7 +215,8 @@ def _apply_M_kernel(Y, mass_t, inertia, out):
 
 @numba.njit(cache=True)
 def _flux_kernel(Y, stiffness, out):
-    """K Y per node (N+1, 12) into out (:meth:`RodSystem._flux`)."""
+    """K Y per node (N+1, 12) into out: (ω, v, f, q = Bκ) for E1..E4 (:func:`_flux_row`;
+    the old level's αf K Y^n of :func:`_old_level_kernel`)."""
     row = np.empty(4)
     for k in range(Y.shape[0]):
         for i in range(3):
@@ -834,10 +857,15 @@ class RodSystem:
         """
         am, af, g = params.alpha_m, params.alpha_f, params.gamma
         cm = (1.0 - am) / (g * dt)
-        # M Ẏ^{n+1-αm} = cm M Y + M·cY with cY = −cm Y^n + (αm − (1−αm)(1−γ)/γ) Ẏ^n
-        cY = -cm * Y_old + (am - (1.0 - am) * (1.0 - g) / g) * Ydot_old
-        zc = 0.5 * self._apply_M(cY) + 0.5 * af * F_old
-        flux_const = af * self._flux(Y_old)
+        # M Ẏ^{n+1-αm} = cm M Y + M·cY with cY = −cm Y^n + (αm − (1−αm)(1−γ)/γ) Ẏ^n;
+        # zc = ½ M cY + ½αf F^n and αf K Y^n in one compiled pass (_old_level_kernel)
+        Y_old = np.ascontiguousarray(Y_old, dtype=float)
+        zc, flux_const = np.empty_like(Y_old), np.empty_like(Y_old)
+        _old_level_kernel(Y_old, np.ascontiguousarray(Ydot_old, dtype=float),
+                          np.ascontiguousarray(F_old, dtype=float), cm,
+                          am - (1.0 - am) * (1.0 - g) / g, af, self.p.mass_t,
+                          self.p.inertia, self.p.stiffness, np.empty_like(Y_old), zc,
+                          flux_const)
         glob = self.loads.global_force(t_new, left=left_limit) if self.loads.has_global else None
         candidates = candidates if (candidates is not None and candidates.runs > 0) else None
         if candidates is not None:
@@ -851,13 +879,13 @@ class RodSystem:
         if self.seabed is not None:
             self.seabed.begin_step(af, Y_old, q_old, r_old, v_old_global)
         data = (
-            np.ascontiguousarray(Y_old, dtype=float), zc, flux_const,
+            Y_old, zc, flux_const,
             np.zeros((0, 3)) if glob is None else np.ascontiguousarray(glob, dtype=float),
             np.zeros((n1, 4)) if q_old is None else np.ascontiguousarray(q_old, dtype=float),
             np.ascontiguousarray(r_old, dtype=float) if has_r else np.zeros((n1, 3)),
             np.ascontiguousarray(v_old_global, dtype=float) if has_r else np.zeros((n1, 3)),
-            np.asarray(bc.rows, dtype=np.intp), np.asarray(bc.cols, dtype=np.intp),
-            np.asarray(bc.coef, dtype=float), np.asarray(bc.values, dtype=float),
+            # BoundaryRows makes these (12,) arrays intp and float
+            bc.rows, bc.cols, bc.coef, bc.values,
             np.array([dt, cm, af, float(glob is not None), float(has_r),
                       float(self.needs_pose), float(bc.turning[0]), float(bc.turning[1])])
         ) + self._point_data(t_new, dt, left_limit, Y_old, q_old, af)
@@ -919,13 +947,6 @@ class RodSystem:
         :meth:`_apply_M`). ``c`` is the coefficient of the generalized-α relation,
         (1 − αm)/(γΔt) in 1/s, or any shift of it."""
         _add_inertia_kernel(blocks, float(c), self.p.mass_t, self.p.inertia)
-
-    def _flux(self, Y):
-        """K Y per node (N+1, 12): (ω, v, f, q = Bκ) for E1..E4 (compiled,
-        :func:`_flux_row`)."""
-        out = np.empty_like(Y, dtype=float)
-        _flux_kernel(np.ascontiguousarray(Y, dtype=float), self.p.stiffness, out)
-        return out
 
     def pose_new(self, Y):
         """Orientation and position at the new level from the old pose and the rates.

@@ -99,7 +99,7 @@ class ProblemAssembly:
         and contact candidates (``last_had_candidates`` is set)."""
         sysm = self.system
         t_new = self.t + h if t_new is None else t_new
-        bc = BoundaryRows(self.case, self.props, t_new, sysm.n, self.bc_plan)
+        bc = self.bc_schedule.at(t_new)
         switched = bc.key != self.bc.key
         offset = self.end_correction(h, bc, restart)
         if offset is not None:
@@ -181,7 +181,7 @@ class ProblemAssembly:
         boundary offsets of :meth:`end_correction`, taken out of both levels' unknowns
         first, so that the end node's time route is its prescribed motion."""
         Y_old = self.Y
-        if offsets is not None and any(o is not None for o, _ in offsets):
+        if offsets is not None and (offsets[0][0] is not None or offsets[1][0] is not None):
             (old, old_cols), (new, new_cols) = offsets
             Y_old, Y = Y_old.copy(), Y.copy()
             if old is not None:
@@ -191,10 +191,9 @@ class ProblemAssembly:
         n1 = Y.shape[0]
         q_new, R_new, r_new, vg = (np.empty((n1, 4)), np.empty((n1, 3, 3)), np.empty((n1, 3)),
                                    np.empty((n1, 3)))
-        pose_into(np.ascontiguousarray(Y, dtype=float), np.ascontiguousarray(Y_old, dtype=float),
-                  float(h), False, np.ascontiguousarray(q, dtype=float),
-                  np.ascontiguousarray(r, dtype=float),
-                  np.ascontiguousarray(v_global, dtype=float), True, 0.0, q_new, R_new, r_new,
+        c = np.ascontiguousarray
+        pose_into(c(Y, dtype=float), c(Y_old, dtype=float), float(h), False, c(q, dtype=float),
+                  c(r, dtype=float), c(v_global, dtype=float), True, 0.0, q_new, R_new, r_new,
                   np.empty((n1, 3)), vg)
         return q_new, R_new, vg, r_new
 
@@ -314,6 +313,11 @@ class ProblemAssembly:
         alternates from step to step (a transient the step does not resolve, damped by
         ρ∞: the held end after 30 s) seven times instead of three (152 → 231 over
         30-33 s), so the last step's record decides."""
-        err = {k: float(np.sum((Y[:, 9:12] - g[:, 9:12]) ** 2))
-               for k, g in predictions.items()}
-        return min(err, key=err.get)
+        kappa = Y[:, 9:12]
+        best, least = None, None
+        for k, g in predictions.items():
+            d = kappa - g[:, 9:12]
+            err = float((d * d).sum())
+            if least is None or err < least:
+                best, least = k, err
+        return best

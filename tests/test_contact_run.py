@@ -429,7 +429,7 @@ def test_end_correction_within_a_step_vanishes_with_the_step():
     drift = np.array([0.03, -0.04, 0.0])            # global; the end's frame is the identity
     run.r_time = run.r_time.copy()
     run.r_time[-1] = run.r[-1] + drift
-    bc = BoundaryRows(case, run.props, 0.1, run.system.n, run.bc_plan)
+    bc = BoundaryRows(case, run.props, 0.1, run.system.n, run.bc_schedule.plan)
     floor = run.DRIFT_STEP_FLOOR * case.numerics.dt
     moved = {}
     for h in (0.1, 0.01, floor, floor / 10, floor / 1000):
@@ -452,7 +452,7 @@ def test_newton_start_takes_the_corrected_boundary_values():
 
     case = plectoneme_case(8, 0.1)
     run = RodRun(case)
-    bc = BoundaryRows(case, run.props, 0.1, run.system.n, run.bc_plan)
+    bc = BoundaryRows(case, run.props, 0.1, run.system.n, run.bc_schedule.plan)
     bc.values = bc.values + np.linspace(0.1, 1.2, 12)       # offsets on every row
     Y = np.random.default_rng(3).normal(size=run.Y.shape)
     before = Y.copy()

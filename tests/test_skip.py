@@ -15,6 +15,7 @@ import pytest
 
 import solver.contact as contact_mod
 import solver.contact.geometry as geometry_mod
+import solver.contact.model as model_mod
 import solver.recording as recording_mod
 import solver.simulation as sim_mod
 import solver.topology as topology_mod
@@ -67,11 +68,14 @@ def test_no_search_structure_without_contact(monkeypatch):
 
 def test_no_tree_while_no_contact_is_possible(monkeypatch):
     # the seed's rod with contact configured, early in the twist: straight, so the O(N)
-    # pre-test rules every pair out and no k-d tree is ever built
+    # pre-test rules every pair out and no k-d tree is ever built (on this grid of at
+    # most ALL_PAIRS_NODES nodes the pre-test and the pairs are one compiled call,
+    # _search_all_pairs)
+    assert 41 <= geometry_mod.ALL_PAIRS_NODES
     tree = Trap(original=geometry_mod.cKDTree)
     monkeypatch.setattr(geometry_mod, "cKDTree", tree)
-    pretest = Trap(original=contact_mod.SelfContact.may_touch_unchecked)
-    monkeypatch.setattr(contact_mod.SelfContact, "may_touch_unchecked", pretest.method())
+    pretest = Trap(original=model_mod._search_all_pairs)
+    monkeypatch.setattr(model_mod, "_search_all_pairs", pretest)
     ds = simulate(Case.model_validate(seed_spec(contact=True)))
     assert ds.attrs["hockle_status"] == "completed"
     assert pretest.calls > 0 and tree.calls == 0

@@ -174,6 +174,7 @@ def test_warm_up_loads_every_compiled_kernel():
     helpers = {"solver.topology._atan2_fast", "solver.topology._row_terms",
                "solver.topology._pair_setup", "solver.topology._row_sum",
                "solver.scheme._skew_into", "solver.scheme._mass_row", "solver.scheme._flux_row",
+               "solver.scheme._flux_kernel",
                "solver.scheme._mat3", "solver.scheme._qmul", "solver.scheme._node_jacobian_kernel",
                "solver.scheme._node_forces_kernel", "solver.scheme._cells_kernel",
                "solver.scheme._cell_blocks_kernel", "solver.scheme._contact_band_kernel",

@@ -31,9 +31,9 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from .geometry import (_candidate_pairs_kernel, _run_point, _segment_matrices,
-                       _segment_nodes, _swept_kernel, candidate_pairs, close_node_pairs,
-                       max_distance, run_closest)
+from .geometry import (ALL_PAIRS_NODES, _block_pairs_kernel, _candidate_pairs_kernel,
+                       _run_point, _segment_matrices, _segment_nodes, _swept_kernel,
+                       candidate_pairs, close_node_pairs, max_distance, run_closest)
 from .laws import BarrierLaw, SeedLaw, law_cutoff, law_force, law_potential
 
 __all__ = ["SelfContact", "ContactCandidates", "ContactEvaluation", "assemble_nodal",
@@ -310,6 +310,11 @@ class SelfContact:
         converged, finite ones."""
         r0 = np.ascontiguousarray(r_old, dtype=float)
         r1 = np.ascontiguousarray(r_new, dtype=float)
+        if 2 <= r1.shape[0] <= ALL_PAIRS_NODES:
+            # a small grid: the same steps in one compiled call
+            return bool(_passes_through_all_pairs(r0, r1, self.s, self.diameter,
+                                                  self.min_separation,
+                                                  float(self.separation_cut)))
         radius = _swept_reach(r0, r1, self.s, self.diameter, self.min_separation)
         if radius < 0.0:
             return False
@@ -345,6 +350,12 @@ class SelfContact:
         r = np.ascontiguousarray(positions, dtype=float)
         t = np.ascontiguousarray(tangents, dtype=float)
         radius = self.tolerance + reach
+        if 2 <= r.shape[0] <= ALL_PAIRS_NODES:
+            # a small grid: the same steps in one compiled call
+            searched, *arrays = _search_all_pairs(r, t, self.s, self.min_separation,
+                                                  float(radius), float(self.separation_cut),
+                                                  self.sin_half_aperture)
+            return ContactCandidates(*arrays) if searched and arrays[2].size else None
         if not self.may_touch_unchecked(r, t, reach):
             return None
         if not np.isfinite(r).all():
@@ -599,6 +610,44 @@ def _search_kernel(r, t, a, b, s, cut, sin_half_aperture):
             tu[k, c] = t[k, c] / nrm if nrm > 0.0 else 0.0
     own, par = _candidate_pairs_kernel(r, tu, a, b, sin_half_aperture)
     return _runs_kernel(own, par, s, cut, n, True)
+
+
+@numba.njit(cache=True)
+def _search_all_pairs(r, t, s, min_separation, radius, cut, sin_half_aperture):
+    """:meth:`SelfContact.search` on a grid of at most ALL_PAIRS_NODES nodes, in one
+    call: the pre-test (:func:`_may_touch_kernel` at ``radius`` = tolerance + reach), the
+    finiteness check, all node pairs within radius (:func:`~.geometry._block_pairs_kernel`
+    on the whole grid, as :func:`~.geometry.close_node_pairs` takes them) and
+    :func:`_search_kernel`. Returns (searched, owner, segment, run_start, first, last):
+    searched False (and no candidates) where the pre-test or the finiteness check
+    stopped the search."""
+    n = r.shape[0]
+    searched = _may_touch_kernel(r, t, s, min_separation, radius)
+    if searched:
+        for k in range(n):
+            for c in range(3):
+                if not np.isfinite(r[k, c]):
+                    searched = False
+    if searched:
+        a, b = _block_pairs_kernel(r, s, n, np.zeros((0, 2), np.intp), np.zeros(1),
+                                   radius, cut)
+    else:
+        a, b = np.zeros(0, np.intp), np.zeros(0, np.intp)
+    owner, segment, start, first, last = _search_kernel(r, t, a, b, s, cut, sin_half_aperture)
+    return searched, owner, segment, start, first, last
+
+
+@numba.njit(cache=True)
+def _passes_through_all_pairs(r0, r1, s, diameter, min_separation, cut):
+    """:meth:`SelfContact.passes_through` on a grid of at most ALL_PAIRS_NODES nodes, in
+    one call: :func:`_swept_reach`, the node pairs within it (as
+    :func:`~.geometry.close_node_pairs` takes them) and :func:`_swept_any_within`."""
+    radius = _swept_reach(r0, r1, s, diameter, min_separation)
+    if radius < 0.0:
+        return False
+    a, b = _block_pairs_kernel(r1, s, r1.shape[0], np.zeros((0, 2), np.intp), np.zeros(1),
+                               radius, cut)
+    return a.size > 0 and _swept_any_within(r0, r1, a, b, diameter)
 
 
 @numba.njit(cache=True)

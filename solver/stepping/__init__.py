@@ -53,7 +53,11 @@ from __future__ import annotations
 import functools
 import math
 
+import numba
 import numpy as np
+
+from ..banded import NV, block_solve
+from ..scheme import _apply_M_kernel
 
 __all__ = ["breakpoints", "RESTART_FRACTION", "RESTART_STEPS", "extrapolate", "ErrorControl",
            "PIController", "DisplacementWeight",
@@ -145,17 +149,59 @@ def extrapolate(times, values, t_new: float):
     (s); values: as many arrays of one shape; returns an array of that shape. The
     predictor of the error estimate (:meth:`ErrorControl.predict`) and the Newton start
     (``RodRun._predictions``). Raises ValueError for another number of levels."""
+    if len(times) not in (2, 3):
+        raise ValueError(f"extrapolate: 2 or 3 levels, got {len(times)}")
+    if _flat_floats(values):
+        # one compiled pass, the same operations in the same order as below (a Newton
+        # start of every step: ~10 array expressions of small arrays cost more in calls
+        # than in arithmetic)
+        out = np.empty_like(values[0])
+        if len(times) == 2:
+            _line_into(values[0].reshape(-1), values[1].reshape(-1), float(times[0]),
+                       float(times[1]), float(t_new), out.reshape(-1))
+        else:
+            _parabola_into(values[0].reshape(-1), values[1].reshape(-1),
+                           values[2].reshape(-1), float(times[0]), float(times[1]),
+                           float(times[2]), float(t_new), out.reshape(-1))
+        return out
     if len(times) == 2:
         (t0, t1), (y0, y1) = times, values
         return y1 + ((t_new - t1) / (t1 - t0)) * (y1 - y0)
-    if len(times) != 3:
-        raise ValueError(f"extrapolate: 2 or 3 levels, got {len(times)}")
     (z0, z1, z2), (y0, y1, y2) = times, values
     d01 = (y1 - y0) / (z1 - z0)
     d12 = (y2 - y1) / (z2 - z1)
     second = (d12 - d01) / (z2 - z0)
     w0, w1 = t_new - z0, t_new - z1
     return y0 + d01 * w0 + second * w0 * w1
+
+
+def _flat_floats(values) -> bool:
+    """Whether the levels are C-contiguous float64 arrays of one shape."""
+    shape = values[0].shape if type(values[0]) is np.ndarray else None
+    for y in values:
+        if (type(y) is not np.ndarray or y.dtype != np.float64 or y.shape != shape
+                or not y.flags.c_contiguous):
+            return False
+    return True
+
+
+@numba.njit(cache=True)
+def _line_into(y0, y1, t0, t1, t_new, out):
+    """:func:`extrapolate` through two levels, flat float arrays, into out."""
+    c = (t_new - t1) / (t1 - t0)
+    for i in range(out.size):
+        out[i] = y1[i] + c * (y1[i] - y0[i])
+
+
+@numba.njit(cache=True)
+def _parabola_into(y0, y1, y2, z0, z1, z2, t_new, out):
+    """:func:`extrapolate` through three levels, flat float arrays, into out."""
+    w0, w1 = t_new - z0, t_new - z1
+    for i in range(out.size):
+        d01 = (y1[i] - y0[i]) / (z1 - z0)
+        d12 = (y2[i] - y1[i]) / (z2 - z1)
+        second = (d12 - d01) / (z2 - z0)
+        out[i] = y0[i] + d01 * w0 + second * w0 * w1
 
 
 # --------------------------------------------------------------------------- dense output
@@ -207,7 +253,7 @@ def growth_rate(system, Y, shift: float, layout, v0=None):
     ½Δt factor is kept), so a gravity-driven growth (an inverted pendulum) is estimated
     only roughly.
     """
-    from scipy.sparse.linalg import ArpackNoConvergence, LinearOperator, eigs
+    from scipy.sparse.linalg import ArpackNoConvergence, eigs
 
     from ..banded import BandFactorError
     from ..newton import equilibrate, scale_blocks
@@ -224,12 +270,7 @@ def growth_rate(system, Y, shift: float, layout, v0=None):
     except BandFactorError:
         return -math.inf, None
     n = system.n
-    cs = np.tile(s12, system.n_nodes)
-
-    def apply(z):
-        return layout.solve(rs * system.cell_inertia((np.real(z) * cs).reshape(Y.shape)))
-
-    op = LinearOperator((n, n), matvec=apply, dtype=float)
+    op = _shift_invert_operator(system, rs, np.tile(s12, system.n_nodes), layout)
     if v0 is None:
         # a fixed start: the same run gives the same steps
         v0 = np.random.default_rng(0).standard_normal(n)
@@ -251,6 +292,51 @@ def growth_rate(system, Y, shift: float, layout, v0=None):
     sigma = shift - 1.0 / ((1.0 - af) * mu[big])
     j = int(np.argmax(sigma.real))
     return float(sigma.real[j]), np.real(vec[:, np.flatnonzero(big)[j]])
+
+
+def _shift_invert_operator(system, rs, cs, layout):
+    """The operator T z = J(c_s)⁻¹ rs ⟨M (z·cs)⟩ of :func:`growth_rate` (rs, cs (n,) the
+    row and column scales; layout the factored :class:`solver.banded.BlockLU`), a
+    LinearOperator for ARPACK."""
+    from scipy.sparse.linalg import LinearOperator
+
+    n, p = system.n, system.p
+    e, Me = np.empty((system.n_nodes, NV)), np.empty((system.n_nodes, NV))
+
+    def apply(z):
+        # RodSystem.cell_inertia and BlockLU.solve in one compiled pass (the same
+        # operations; ARPACK calls it tens of times)
+        x = np.empty(n)
+        _shift_invert_apply(np.ascontiguousarray(np.real(z), dtype=float), cs, rs,
+                            p.mass_t, p.inertia, layout.lu, e, Me, x)
+        return x
+
+    op = LinearOperator((n, n), matvec=apply, dtype=float)
+    # ARPACK's reverse communication calls op.matvec with (n,) float vectors only: the
+    # function itself, without LinearOperator's shape checks around every call
+    op.matvec = apply
+    return op
+
+
+@numba.njit(cache=True)
+def _shift_invert_apply(z, cs, rs, mass_t, inertia, lu, e, Me, x):
+    """x = J(c_s)⁻¹ rs ⟨M (z·cs)⟩ of :func:`growth_rate`: z, cs, rs, x (n,); e, Me
+    (N+1, 12) scratch; lu a :class:`solver.banded.BlockLU`'s factor. The operations of
+    ``layout.solve(rs * system.cell_inertia((z * cs).reshape(N+1, 12)))``, in order."""
+    n1, nv = e.shape
+    for k in range(n1):
+        for j in range(nv):
+            e[k, j] = z[nv * k + j] * cs[nv * k + j]
+    _apply_M_kernel(e, mass_t, inertia, Me)
+    for i in range(6):
+        x[i] = rs[i] * 0.0
+    for k in range(n1 - 1):
+        for j in range(nv):
+            i = 6 + nv * k + j
+            x[i] = rs[i] * (0.5 * (Me[k, j] + Me[k + 1, j]))
+    for i in range(6 + nv * (n1 - 1), x.size):
+        x[i] = rs[i] * 0.0
+    block_solve(lu, x)
 
 
 # --------------------------------------------------------------------------- local error
