@@ -151,8 +151,9 @@ def section(figdir: Path, quick: bool = False) -> str:
                      f"steps. Forcing the k-d tree search every step (tolerance 0.2 m on a "
                      f"straight 1 m rod: every node has ~400 candidates, all then refused by "
                      f"the aperture test) costs x{forced['ratio']:.2f}. Topology at every "
-                     "step is the dearest output: the writhe of 1000 segments is an O(N²) "
-                     "sum (Klenin & Langowski), ~20 ms per output.")
+                     "step costs the writhe of 1000 segments, an O(N²) sum (Klenin & "
+                     "Langowski), ~1 ms per output on one core (`python "
+                     "benchmarks/writhe_speed.py`).")
     lines.append("")
     return "\n".join(lines)
 

@@ -33,6 +33,26 @@ with T = (r34 × r12)·r13 in the numerator the result carries the K&L sign dire
 compare with an arcsine implementation), but atan2 is well conditioned for nearly coplanar
 pairs, where the arcsines sit at ±1, and it needs fewer transcendental calls.
 
+Well-separated pairs (most of them).  Row i of the upper triangle needs the distances from
+the vertices i and i+1 to every vertex; each row computes those of vertex i+1 once and
+hands them to the next row.  The five dot products then follow from the squared vertex
+distances and the segments by the law of cosines (a·b = (|a|² + |b|² − |s_j|²)/2 and
+alike, a·c with s_i·s_j), and the two arctangents combine into one,
+atan2(T, D1) + atan2(T, D2) = atan(x), x = T (D1 + D2)/(D1 D2 − T²), valid for D1, D2 > 0
+and D1 D2 > T², evaluated by its Taylor series to x¹⁵ for |x| ≤ 1/16 (the next term is
+below 5e-21·|x|).  This is the same closed form, not an approximation.  It is used where
+every vertex distance of the pair is at least the longer segment's length (and the
+conditions on x hold): then each angle of the triangles (a, b, s_j), (a, d, s_i), … facing
+a segment is at most 60°, D1 ≥ |a||b||c| and D2 ≥ |a||c||d|, and the rounding of the dot
+products (a few ε times the squared distances, at most 4.5 times |a||b| there) moves the
+denominators by a few ε relative: the value agrees with the direct evaluation to rounding
+(measured: 6.2e-15 turns over the 451 outputs of the seed example, 2e-14 on random walks;
+``python benchmarks/writhe_speed.py --result FILE.nc``).
+Pairs that fail the test (neighbours along the curve, pairs with the long end
+extensions, strands crossing closer than a segment length, degenerate pairs) take the
+direct evaluation from the vectors r13 … r23.  Source of the closed form: Klenin &
+Langowski (2000), Van Oosterom & Strackee, IEEE Trans. Biomed. Eng. 30 (1983) 125–126.
+
 Degenerate pairs.  Where T vanishes to working precision (|T| ≤ 64 ε |r12| |r34|
 (|r_i| + |r_j|), r measured from the centroid) and the solid angle would jump (a
 denominator ≤ 0: coplanar segments that intersect or share a vertex) the pair contributes
@@ -142,68 +162,10 @@ _EPS64 = 64.0 * float(np.finfo(float).eps)
 
 
 @numba.njit(cache=True)
-def _atan2_fast(t, den):
-    """atan2(t, den); where den > 0 and |t| ≤ den/16 by its Taylor series to x¹⁵ (the
-    next term is below 5e-21·|x|, x = t/den: exact to rounding), which the pairs of
-    strands far apart, most of them, need instead of a library atan2."""
-    if den > 0.0:
-        x = t / den
-        if abs(x) <= 0.0625:
-            x2 = x * x
-            p = -1.0 / 15.0
-            p = p * x2 + 1.0 / 13.0
-            p = p * x2 - 1.0 / 11.0
-            p = p * x2 + 1.0 / 9.0
-            p = p * x2 - 1.0 / 7.0
-            p = p * x2 + 1.0 / 5.0
-            p = p * x2 - 1.0 / 3.0
-            p = p * x2 + 1.0
-            return x * p
-    return math.atan2(t, den)
-
-
-@numba.njit(cache=True)
-def _row_terms(qx, qy, qz, sx, sy, sz, ux, uy, uz, i, j0, j1, T, D1, D2):
-    """Triple products T[j] and the two Van Oosterom-Strackee denominators D1[j], D2[j]
-    of the pairs (segment i, segment j), j0 ≤ j < j1 (module docstring). No recurrence
-    between columns, so the loop is vectorised."""
-    pix, piy, piz = qx[i], qy[i], qz[i]
-    pjx, pjy, pjz = qx[i + 1], qy[i + 1], qz[i + 1]
-    six, siy, siz = sx[i], sy[i], sz[i]
-    uix, uiy, uiz = ux[i], uy[i], uz[i]
-    for j in range(j0, j1):
-        # a = r13, b = r14, c = r24, d = r23 (segment i = p1 p2, segment j = p3 p4)
-        ax = qx[j] - pix
-        ay = qy[j] - piy
-        az = qz[j] - piz
-        bx = qx[j + 1] - pix
-        by = qy[j + 1] - piy
-        bz = qz[j + 1] - piz
-        cx = qx[j + 1] - pjx
-        cy = qy[j + 1] - pjy
-        cz = qz[j + 1] - pjz
-        dx = qx[j] - pjx
-        dy = qy[j] - pjy
-        dz = qz[j] - pjz
-        na = math.sqrt(ax * ax + ay * ay + az * az)
-        nb = math.sqrt(bx * bx + by * by + bz * bz)
-        nc = math.sqrt(cx * cx + cy * cy + cz * cz)
-        nd = math.sqrt(dx * dx + dy * dy + dz * dz)
-        ab = ax * bx + ay * by + az * bz
-        ac = ax * cx + ay * cy + az * cz
-        ad = ax * dx + ay * dy + az * dz
-        bc = bx * cx + by * cy + bz * cz
-        cd = cx * dx + cy * dy + cz * dz
-        # (r34 × r12)·r13 = seg_i·U_j + seg_j·U_i
-        T[j] = six * ux[j] + siy * uy[j] + siz * uz[j] + sx[j] * uix + sy[j] * uiy + sz[j] * uiz
-        D1[j] = na * nb * nc + ab * nc + ac * nb + bc * na
-        D2[j] = na * nc * nd + ac * nd + ad * nc + cd * na
-
-
-@numba.njit(cache=True)
 def _pair_setup(q):
-    """Per-segment data of the polyline q (M+1, 3) for :func:`_row_sum`: the coordinate
-    columns, segments, U_k = q_k × seg_k, segment lengths and the larger end radius."""
+    """Per-segment data of the centred polyline q (M+1, 3), m: the coordinate columns
+    (M+1,), the segments s_k = q_{k+1} − q_k, U_k = q_k × s_k, the squared segment lengths,
+    the segment lengths and the larger end radius |q| (all (M,))."""
     qx = np.ascontiguousarray(q[:, 0])
     qy = np.ascontiguousarray(q[:, 1])
     qz = np.ascontiguousarray(q[:, 2])
@@ -214,76 +176,223 @@ def _pair_setup(q):
     ux = qy[:-1] * sz - qz[:-1] * sy
     uy = qz[:-1] * sx - qx[:-1] * sz
     uz = qx[:-1] * sy - qy[:-1] * sx
-    seg_len = np.sqrt(sx * sx + sy * sy + sz * sz)
+    len2 = sx * sx + sy * sy + sz * sz
+    seg_len = np.sqrt(len2)
     radius = np.sqrt(qx * qx + qy * qy + qz * qz)
     rho = np.maximum(radius[:-1], radius[1:])
-    return qx, qy, qz, sx, sy, sz, ux, uy, uz, seg_len, rho
+    return qx, qy, qz, sx, sy, sz, ux, uy, uz, len2, seg_len, rho
 
 
 @numba.njit(cache=True)
-def _row_sum(data, i, closed, T, D1, D2):
-    """Σ_j Ω_ij over the row of segment i (j ≥ i + 2) of :func:`_pair_sum_kernel`."""
-    qx, qy, qz, sx, sy, sz, ux, uy, uz, seg_len, rho = data
-    m = seg_len.shape[0]
-    j0 = i + 2
-    j1 = m - 1 if (closed and i == 0) else m   # closed: (0, M−1) are adjacent
-    _row_terms(qx, qy, qz, sx, sy, sz, ux, uy, uz, i, j0, j1, T, D1, D2)
-    thr_a = _EPS64 * seg_len[i] * rho[i]
-    thr_b = _EPS64 * seg_len[i]
-    row = 0.0
-    for j in range(j0, j1):
-        t = T[j]
-        d1 = D1[j]
-        d2 = D2[j]
-        # degenerate pairs (coplanar to working precision, module docstring)
-        if min(d1, d2) <= 0.0 and abs(t) <= (thr_a + thr_b * rho[j]) * seg_len[j]:
-            continue
-        row += _atan2_fast(t, d1) + _atan2_fast(t, d2)
-    return row
+def _distance_row(qx, qy, qz, v, k0, k1, e, n):
+    """e[k] = |q_k − q_v|² and n[k] = |q_k − q_v| for k0 ≤ k < k1 (vertex distances of
+    one row). The loop runs over slices from index 0, which numba compiles to contiguous
+    vector loads (indices it cannot prove non-negative give gathers)."""
+    px, py, pz = qx[v], qy[v], qz[v]
+    xs = qx[k0:k1]
+    ys = qy[k0:k1]
+    zs = qz[k0:k1]
+    es = e[k0:k1]
+    ns = n[k0:k1]
+    for k in range(k1 - k0):
+        dx = xs[k] - px
+        dy = ys[k] - py
+        dz = zs[k] - pz
+        d2 = dx * dx + dy * dy + dz * dz
+        es[k] = d2
+        ns[k] = math.sqrt(d2)
+
+
+@numba.njit(cache=True, error_model="numpy", fastmath={"reassoc"})
+def _row_far(data, e0, n0, e1, n1, i, j0, j1, near):
+    """Σ Ω_ij/2 over the well-separated pairs (segment i, segment j), j0 ≤ j < j1, of one
+    row (module docstring, "Well-separated pairs"); near[j] = True marks the others,
+    which the caller sums by :func:`_pair_direct`. e0/n0 and e1/n1 hold the squared and
+    plain distances from vertices i and i+1 to the vertices j0 … j1. Branch-free, over
+    slices from index 0: compiled to a vector loop (the sum reassociated)."""
+    qx, qy, qz, sx, sy, sz, ux, uy, uz, len2, seg_len, rho = data
+    six, siy, siz = sx[i], sy[i], sz[i]
+    uix, uiy, uiz = ux[i], uy[i], uz[i]
+    li2 = len2[i]
+    ea_ = e0[j0:j1]
+    eb_ = e0[j0 + 1:j1 + 1]
+    ec_ = e1[j0 + 1:j1 + 1]
+    ed_ = e1[j0:j1]
+    na_ = n0[j0:j1]
+    nb_ = n0[j0 + 1:j1 + 1]
+    nc_ = n1[j0 + 1:j1 + 1]
+    nd_ = n1[j0:j1]
+    lj2_ = len2[j0:j1]
+    sjx = sx[j0:j1]
+    sjy = sy[j0:j1]
+    sjz = sz[j0:j1]
+    ujx = ux[j0:j1]
+    ujy = uy[j0:j1]
+    ujz = uz[j0:j1]
+    flag = near[j0:j1]
+    acc = 0.0
+    for k in range(j1 - j0):
+        ea = ea_[k]
+        eb = eb_[k]
+        ec = ec_[k]
+        ed = ed_[k]
+        na = na_[k]
+        nb = nb_[k]
+        nc = nc_[k]
+        nd = nd_[k]
+        lj2 = lj2_[k]
+        # a = r13, b = r14, c = r24, d = r23; dot products by the law of cosines
+        # (a − b = −s_j, b − c = s_i, a − d = s_i, c − d = s_j, a − c = s_i − s_j)
+        ab = 0.5 * (ea + eb - lj2)
+        bc = 0.5 * (eb + ec - li2)
+        ad = 0.5 * (ea + ed - li2)
+        cd = 0.5 * (ec + ed - lj2)
+        ac = 0.5 * (ea + ec - li2 - lj2) + (six * sjx[k] + siy * sjy[k] + siz * sjz[k])
+        # (r34 × r12)·r13 = seg_i·U_j + seg_j·U_i
+        t = (six * ujx[k] + siy * ujy[k] + siz * ujz[k]
+             + sjx[k] * uix + sjy[k] * uiy + sjz[k] * uiz)
+        d1 = na * nb * nc + ab * nc + ac * nb + bc * na
+        d2 = na * nc * nd + ac * nd + ad * nc + cd * na
+        # atan2(t, d1) + atan2(t, d2) = atan(x) for d1, d2 > 0 and d1 d2 > t²
+        den = d1 * d2 - t * t
+        x = t * (d1 + d2) / den
+        far = (min(min(ea, eb), min(ec, ed)) >= max(li2, lj2)) and den > 0.0 and abs(x) <= 0.0625
+        # atan(x) to x¹⁵: for |x| ≤ 1/16 the next term is below 5e-21·|x|
+        x2 = x * x
+        p = -1.0 / 15.0
+        p = p * x2 + 1.0 / 13.0
+        p = p * x2 - 1.0 / 11.0
+        p = p * x2 + 1.0 / 9.0
+        p = p * x2 - 1.0 / 7.0
+        p = p * x2 + 1.0 / 5.0
+        p = p * x2 - 1.0 / 3.0
+        p = p * x2 + 1.0
+        acc += x * p if far else 0.0
+        flag[k] = not far
+    return acc
+
+
+@numba.njit(cache=True)
+def _pair_direct(data, i, j):
+    """Ω_ij/2 of the pair (segment i, segment j) from the vectors r13, r14, r24, r23
+    themselves (module docstring), 0 for a degenerate pair."""
+    qx, qy, qz, sx, sy, sz, ux, uy, uz, len2, seg_len, rho = data
+    pix, piy, piz = qx[i], qy[i], qz[i]
+    pjx, pjy, pjz = qx[i + 1], qy[i + 1], qz[i + 1]
+    ax = qx[j] - pix
+    ay = qy[j] - piy
+    az = qz[j] - piz
+    bx = qx[j + 1] - pix
+    by = qy[j + 1] - piy
+    bz = qz[j + 1] - piz
+    cx = qx[j + 1] - pjx
+    cy = qy[j + 1] - pjy
+    cz = qz[j + 1] - pjz
+    dx = qx[j] - pjx
+    dy = qy[j] - pjy
+    dz = qz[j] - pjz
+    na = math.sqrt(ax * ax + ay * ay + az * az)
+    nb = math.sqrt(bx * bx + by * by + bz * bz)
+    nc = math.sqrt(cx * cx + cy * cy + cz * cz)
+    nd = math.sqrt(dx * dx + dy * dy + dz * dz)
+    ab = ax * bx + ay * by + az * bz
+    ac = ax * cx + ay * cy + az * cz
+    ad = ax * dx + ay * dy + az * dz
+    bc = bx * cx + by * cy + bz * cz
+    cd = cx * dx + cy * dy + cz * dz
+    t = sx[i] * ux[j] + sy[i] * uy[j] + sz[i] * uz[j] + sx[j] * ux[i] + sy[j] * uy[i] + sz[j] * uz[i]
+    d1 = na * nb * nc + ab * nc + ac * nb + bc * na
+    d2 = na * nc * nd + ac * nd + ad * nc + cd * na
+    # degenerate pairs (coplanar to working precision, module docstring)
+    if min(d1, d2) <= 0.0 and abs(t) <= _EPS64 * seg_len[i] * (rho[i] + rho[j]) * seg_len[j]:
+        return 0.0
+    return math.atan2(t, d1) + math.atan2(t, d2)
+
+
+@numba.njit(cache=True)
+def _rows(data, r0, r1, closed):
+    """Σ_{r0 ≤ i < r1} Σ_{j ≥ i+2} Ω_ij/2: the rows r0 … r1−1 of the upper triangle, the
+    vertex distances of each row computed once and shared with the next."""
+    qx, qy, qz = data[0], data[1], data[2]
+    m = qx.shape[0] - 1
+    e0 = np.empty(m + 1)
+    n0 = np.empty(m + 1)
+    e1 = np.empty(m + 1)
+    n1 = np.empty(m + 1)
+    near = np.empty(m, dtype=np.bool_)
+    _distance_row(qx, qy, qz, r0, r0 + 2, m + 1, e0, n0)
+    total = 0.0
+    for i in range(r0, r1):
+        j0 = i + 2
+        j1 = m - 1 if (closed and i == 0) else m   # closed: (0, M−1) are adjacent
+        _distance_row(qx, qy, qz, i + 1, j0, m + 1, e1, n1)
+        row = _row_far(data, e0, n0, e1, n1, i, j0, j1, near)
+        for j in range(j0, j1):
+            if near[j]:
+                row += _pair_direct(data, i, j)
+        total += row
+        e0, e1 = e1, e0
+        n0, n1 = n1, n0
+    return total
+
+
+#: the rows of the pair sum are cut into this many runs of consecutive rows holding
+#: about equal numbers of pairs, summed in this order on one core or on all: the result
+#: is the same number whatever the number of threads
+_CHUNKS = 16
+
+
+@numba.njit(cache=True)
+def _chunk_bounds(m):
+    """Row bounds (_CHUNKS + 1,) of the runs of rows of the M − 2 rows (row i has
+    M − 2 − i pairs) that hold about equal numbers of pairs."""
+    rows = max(m - 2, 0)
+    bounds = np.empty(_CHUNKS + 1, dtype=np.int64)
+    bounds[0] = 0
+    total = 0.5 * rows * (rows + 1)
+    r = 0
+    for c in range(1, _CHUNKS):
+        target = total * c / _CHUNKS
+        # pairs in rows 0 … r−1: r·rows − r(r−1)/2
+        while r < rows and r * rows - 0.5 * r * (r - 1) < target:
+            r += 1
+        bounds[c] = r
+    bounds[_CHUNKS] = rows
+    return bounds
 
 
 @numba.njit(cache=True)
 def _pair_sum_kernel(q, closed):
-    """Σ_{i<j, j ≥ i+2} Ω_ij of the (already centred) polyline q (M+1, 3), one row after
-    the other."""
+    """Σ_{i<j, j ≥ i+2} Ω_ij of the (already centred) polyline q (M+1, 3), the runs of
+    rows one after the other."""
     data = _pair_setup(q)
-    m = q.shape[0] - 1
-    T = np.empty(m)
-    D1 = np.empty(m)
-    D2 = np.empty(m)
+    bounds = _chunk_bounds(q.shape[0] - 1)
     total = 0.0
-    for i in range(m - 2):
-        total += _row_sum(data, i, closed, T, D1, D2)
+    for c in range(_CHUNKS):
+        if bounds[c + 1] > bounds[c]:
+            total += _rows(data, bounds[c], bounds[c + 1], closed)
     return 2.0 * total
 
 
 @numba.njit(cache=True, parallel=True)
 def _pair_sum_parallel(q, closed):
-    """:func:`_pair_sum_kernel` on all cores: the rows folded in pairs (i, m − 3 − i), so
-    that every parallel iteration holds the same number of segment pairs and a static
-    split of the iterations balances the cores. The sum's rounding then depends on the
-    number of threads (to ~1e-16 relative), not on anything else."""
+    """:func:`_pair_sum_kernel` on all cores: the runs of rows in parallel, their sums
+    added in the same order, so the result is the same number."""
     data = _pair_setup(q)
-    m = q.shape[0] - 1
-    rows = m - 2
-    half = (rows + 1) // 2
+    bounds = _chunk_bounds(q.shape[0] - 1)
+    parts = np.zeros(_CHUNKS)
+    for c in numba.prange(_CHUNKS):
+        if bounds[c + 1] > bounds[c]:
+            parts[c] = _rows(data, bounds[c], bounds[c + 1], closed)
     total = 0.0
-    for k in numba.prange(half):
-        T = np.empty(m)
-        D1 = np.empty(m)
-        D2 = np.empty(m)
-        part = _row_sum(data, k, closed, T, D1, D2)
-        other = rows - 1 - k
-        if other != k:
-            part += _row_sum(data, other, closed, T, D1, D2)
-        total += part
+    for c in range(_CHUNKS):
+        total += parts[c]
     return 2.0 * total
 
 
 #: polylines of at least this many segments sum their pairs on all cores
-#: (:func:`_pair_sum_parallel`): the writhe at every output of the seed example's 1000
-#: segments took ~6 % of its run on one core, and waking the threads costs more than the
-#: sum below a few hundred segments
+#: (:func:`_pair_sum_parallel`); waking the threads costs more than the sum below a few
+#: hundred segments
 PARALLEL_SEGMENTS = 400
 _PARALLEL_LOCK = threading.Lock()
 
@@ -297,12 +406,11 @@ def _pair_sum(q: np.ndarray, closed: bool, center: np.ndarray | None = None) -> 
     the mean of the rod's own nodes when q holds far-away extension vertices.  Returns
     Σ_{i<j} Ω_ij (radians of solid angle).
 
-    Compiled (numba): one row of pairs at a time, a vectorised pass for the triple
-    products and denominators and a second for the arctangents; about 9-12 ms for 1000
-    segments on one core of the 2-core development machine, against 50-60 ms for the
-    former numpy version in row blocks (same values to rounding); from
-    :data:`PARALLEL_SEGMENTS` segments on all cores (5.1 against 9.7 ms at 1000 on 2
-    cores, measured 2026-11-23).
+    Compiled (numba): one row of pairs at a time, a vector loop over the well-separated
+    pairs (module docstring) and the direct formula for the others; from
+    :data:`PARALLEL_SEGMENTS` segments on all cores, 16 runs of rows summed in a fixed
+    order (the same number on any number of threads).  Cost per writhe at 1000 segments:
+    ``python benchmarks/writhe_speed.py`` (docs/topology.md).
     """
     if center is None:
         center = q.mean(axis=0)
@@ -390,8 +498,9 @@ def writhe(points, extension=None) -> float:
         Points not of shape (N, 3) with N ≥ 2, non-finite points, or a negative or
         non-finite extension.
 
-    Cost: O(N²) pairs, one row of the upper triangle at a time (O(N) memory);
-    about 10 ms for 1000 segments on the 2-core development machine (compiled).
+    Cost: O(N²) pairs, one row of the upper triangle at a time (O(N) memory); about
+    1 ms for 1000 segments on one core of the 2-core development machine (compiled;
+    ``python benchmarks/writhe_speed.py``).
     """
     p = _as_points(points, "writhe", 2)
     if extension is None:

@@ -171,8 +171,9 @@ def test_warm_up_loads_every_compiled_kernel():
     # kernels called only from other kernels (compiled into their callers; loaded from
     # the cache they have no signatures of their own); Newton's linear-algebra kernels
     # are called from Python only by its test hooks (Newton.linearize, operator, gmres)
-    helpers = {"solver.topology._atan2_fast", "solver.topology._row_terms",
-               "solver.topology._pair_setup", "solver.topology._row_sum",
+    helpers = {"solver.topology._pair_setup", "solver.topology._distance_row",
+               "solver.topology._row_far", "solver.topology._pair_direct",
+               "solver.topology._rows", "solver.topology._chunk_bounds",
                "solver.scheme._skew_into", "solver.scheme._mass_row", "solver.scheme._flux_row",
                "solver.scheme._flux_kernel",
                "solver.scheme._mat3", "solver.scheme._qmul", "solver.scheme._node_jacobian_kernel",

@@ -255,6 +255,109 @@ def test_open_writhe_invariances():
     assert writhe(pts[::-1]) == pytest.approx(w, abs=1e-8)
 
 
+# ----------------------------------------------------------------- pair sum: both forms
+
+def direct_pair_sum(q):
+    """Independent numpy reference: Σ_{i<j, j≥i+2} Ω_ij of the open polyline q (M+1, 3),
+    each pair's solid angle from the vectors r13, r14, r24, r23 themselves (Van Oosterom-
+    Strackee triangles, the K&L sign), no law of cosines, no series."""
+    q = np.asarray(q, float) - np.mean(q, axis=0)
+    m = len(q) - 1
+    total = 0.0
+    for i in range(m - 2):
+        j = np.arange(i + 2, m)
+        a, b = q[j] - q[i], q[j + 1] - q[i]
+        c, d = q[j + 1] - q[i + 1], q[j] - q[i + 1]
+        na, nb, nc, nd = (np.linalg.norm(v, axis=1) for v in (a, b, c, d))
+        dot = lambda u, v: np.einsum("ij,ij->i", u, v)  # noqa: E731
+        t = np.einsum("ij,ij->i", np.cross(q[j + 1] - q[j], q[i + 1] - q[i]), a)
+        d1 = na * nb * nc + dot(a, b) * nc + dot(a, c) * nb + dot(b, c) * na
+        d2 = na * nc * nd + dot(a, c) * nd + dot(a, d) * nc + dot(c, d) * na
+        total += np.sum(np.arctan2(t, d1) + np.arctan2(t, d2))
+    return 2.0 * total
+
+
+def plectoneme(n_seg, radius=0.02, pitch=0.1, length=0.3, tail=0.5):
+    """Two strands interwound about the x axis (separation 2·radius, one turn per
+    pitch, over length), joined by a half-circle end loop, with straight tails along z;
+    n_seg segments of equal length."""
+    x = np.linspace(0.0, length, 4000)
+    k = TWO_PI / pitch
+    strand = np.c_[x, radius * np.cos(k * x), radius * np.sin(k * x)]
+    v = strand[-1] - [length, 0.0, 0.0]
+    phi = np.linspace(0.0, np.pi, 400)[1:-1, None]
+    loop = [length, 0.0, 0.0] + np.cos(phi) * v + np.sin(phi) * [radius, 0.0, 0.0]
+    back = (strand * [1, -1, -1])[::-1]
+    tail_in = strand[0] + np.linspace(-tail, 0.0, 500, endpoint=False)[:, None] * [0, 0, 1]
+    tail_out = back[-1] + np.linspace(0.0, tail, 500)[1:, None] * [0, 0, 1]
+    dense = np.vstack([tail_in, strand, loop, back, tail_out])
+    s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(dense, axis=0), axis=1))]
+    u = np.linspace(0.0, s[-1], n_seg + 1)
+    return np.column_stack([np.interp(u, s, dense[:, c]) for c in range(3)])
+
+
+def extended(points, factor=1e6):
+    """writhe()'s closure: one straight segment of factor × length at each end."""
+    p = np.asarray(points, float)
+    seg = np.diff(p, axis=0)
+    ell = factor * np.sum(np.linalg.norm(seg, axis=1))
+    t0, t1 = seg[0] / np.linalg.norm(seg[0]), seg[-1] / np.linalg.norm(seg[-1])
+    return np.vstack([p[0] - ell * t0, p, p[-1] + ell * t1])
+
+
+def test_pair_sum_matches_direct_evaluation_on_plectoneme_and_closed_curves():
+    """The compiled sum takes most pairs in the law-of-cosines form (module docstring):
+    the same closed form, so it must agree with the direct evaluation to rounding."""
+    pts = plectoneme(1000)
+    wr = writhe(pts)
+    assert abs(wr) > 1.0  # interwound strands writhe
+    assert wr == pytest.approx(direct_pair_sum(extended(pts)) / TWO_PI, abs=1e-11)
+    assert writhe_polyline(pts) == pytest.approx(direct_pair_sum(pts) / TWO_PI, abs=1e-11)
+    u = np.linspace(0, TWO_PI, 700, endpoint=False)
+    tre = trefoil(u)[0]
+    closed = np.vstack([tre, tre[:1]])
+    # the closing pair (0, M−1) is adjacent: take it out of the reference
+    ref = direct_pair_sum(closed) - 2.0 * _one_pair(closed, 0, len(closed) - 2)
+    assert writhe_closed(tre) == pytest.approx(ref / TWO_PI, abs=1e-11)
+
+
+def _one_pair(q, i, j):
+    """Ω_ij of one pair, as in direct_pair_sum."""
+    q = np.asarray(q, float) - np.mean(q, axis=0)
+    a, b, c, d = q[j] - q[i], q[j + 1] - q[i], q[j + 1] - q[i + 1], q[j] - q[i + 1]
+    na, nb, nc, nd = (np.linalg.norm(v) for v in (a, b, c, d))
+    t = np.dot(np.cross(q[j + 1] - q[j], q[i + 1] - q[i]), a)
+    d1 = na * nb * nc + a @ b * nc + a @ c * nb + b @ c * na
+    d2 = na * nc * nd + a @ c * nd + a @ d * nc + c @ d * na
+    return np.arctan2(t, d1) + np.arctan2(t, d2)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_pair_sum_matches_direct_evaluation_on_random_curves(seed):
+    """Random walks with segment lengths spread over six decades: pairs on either side
+    of the well-separated test (every vertex distance at least the longer segment)."""
+    rng = np.random.default_rng(seed)
+    steps = rng.normal(size=(600, 3))
+    steps *= 10.0 ** rng.uniform(-3, 3, size=(600, 1)) / np.linalg.norm(steps, axis=1)[:, None]
+    pts = np.cumsum(steps, axis=0)
+    ref = direct_pair_sum(pts) / TWO_PI
+    scale = 1e-13 * len(pts) ** 2 / TWO_PI  # rounding of ~N²/2 terms, each |Ω| ≤ 2π
+    assert writhe_polyline(pts) == pytest.approx(ref, abs=scale)
+    smooth = random_fourier_curve(rng, 900, n_modes=5)
+    ref = direct_pair_sum(smooth) / TWO_PI
+    assert abs(ref) > 1e-3
+    assert writhe_polyline(smooth) == pytest.approx(ref, abs=1e-11)
+
+
+def test_parallel_pair_sum_is_the_serial_number():
+    """The parallel sum adds the same runs of rows in the same order as the serial one."""
+    from solver.topology import _pair_sum_kernel, _pair_sum_parallel
+
+    pts = plectoneme(700)
+    q = np.ascontiguousarray(extended(pts) - np.mean(pts, axis=0))
+    assert _pair_sum_parallel(q, False) == _pair_sum_kernel(q, False)
+
+
 # ----------------------------------------------------------------- independent library
 
 def _pyknotid_closed_writhe(integral, pts):
