@@ -1,8 +1,8 @@
 """Every step attempt of a contact-suite case (benchmarks/contact_suite.py) over a window:
 how Δt is chosen and why attempts are refused.
 
-The case runs from t = 0 to ``--t-end`` (with ``numerics.energy_tolerance`` = 0.05 as in
-the suite); each attempt (RodRun.try_step) is recorded: its start time, Δt, accepted or
+The case runs from t = 0 to ``--t-end`` (with ``numerics.energy_tolerance`` = the suite's
+``ENERGY_TOLERANCE``); each attempt (RodRun.try_step) is recorded: its start time, Δt, accepted or
 the refusal's reason ("contact" covers the route rule, a negative gap and tunnelling;
 "newton" a Newton failure), Newton iterations, the route rule's error ratio and the
 contacts. Printed per ``--every`` seconds from ``--from`` on: attempts, accepted, refused

@@ -24,7 +24,8 @@ Run:
   step and per Newton iteration (medians; also the smallest wall and the median CPU time
   of the worker process, which a shared machine's load inflates less), the ratios
   old/new, and the load average before and after each case. Results in
-  ``benchmarks/results/step_overhead.json``.
+  ``benchmarks/results/step_overhead.json`` (other ``--cases``:
+  ``step_overhead_<case>_<case>.json``).
 * ``python benchmarks/step_overhead.py save DIR [--root OTHER_ROOT]``: each case's result
   with every output field, from this tree or another, as DIR/NAME.nc; two such folders
   are compared by ``python benchmarks/compare_results.py DIR_A DIR_B``.
@@ -55,7 +56,14 @@ CASES = {
     "plectoneme-20": ("plectoneme", 20, 0.05, T_END),
     "plectoneme-100": ("plectoneme", 100, 0.0125, T_END),
     "seed-1000-precontact": ("seed", 1000, 0.1, 10.0),
+    # whole runs, for ``compare --cases``: the seed example as its case file has it
+    # (to 45 s, every output field) and the plectoneme at hockle's 1-% setting to the
+    # 12 s of the PyElastica comparison (benchmarks/peer_compare.py)
+    "seed-1000": ("seed", 1000, 0.1, 45.0),
+    "plectoneme-100-12s": ("plectoneme", 100, 0.0125, 12.0),
 }
+#: the cases run when ``--cases`` is not given
+DEFAULT_CASES = ["plectoneme-20", "plectoneme-100", "seed-1000-precontact"]
 
 
 # --------------------------------------------------------------------------- the cases
@@ -335,7 +343,9 @@ def compare(old_root: str, rounds: int, names: list[str]) -> dict:
         p.stdin.close()
         p.wait()
     RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "step_overhead.json").write_text(json.dumps(res, indent=1))
+    name = ("step_overhead.json" if sorted(names) == sorted(DEFAULT_CASES)
+            else f"step_overhead_{'_'.join(names)}.json")
+    (RESULTS / name).write_text(json.dumps(res, indent=1))
     return res
 
 
@@ -364,11 +374,11 @@ def main() -> None:
     c = sub.add_parser("compare")
     c.add_argument("old_root")
     c.add_argument("--rounds", type=int, default=3)
-    c.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
+    c.add_argument("--cases", nargs="+", default=DEFAULT_CASES, choices=list(CASES))
     sv = sub.add_parser("save")
     sv.add_argument("folder")
     sv.add_argument("--root", default=str(ROOT))
-    sv.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
+    sv.add_argument("--cases", nargs="+", default=DEFAULT_CASES, choices=list(CASES))
     w = sub.add_parser("worker")
     w.add_argument("root")
     args = ap.parse_args()
