@@ -135,7 +135,8 @@ def main() -> None:
           f"{gm:.2f} GMRES iterations and {fa:.2f} factorisations per iteration, "
           f"{res['wall_s']:.2f} s")
     print(f"  per Newton iteration from the parts: {per_it:.2f} ms (residual and Jacobian "
-          f"{p['residual and Jacobian']:.2f}, GMRES {gm * (p['exact product'] + p['band solve']):.2f}, "
+          f"{p['residual and Jacobian']:.2f}, "
+          f"GMRES {gm * (p['exact product'] + p['band solve']):.2f}, "
           f"factorisation {fa * p['factorisation']:.2f}); measured "
           f"{res['wall_s'] * 1e3 / n:.2f} ms with the step's other work")
 

@@ -20,9 +20,9 @@ docs/contact.md § 4). The strategy, in one place:
   GMRES (right-preconditioned, Saad & Schultz 1986) solves with the exact operator
   applied matrix-free (:func:`solver.scheme.exact_loads_product`), preconditioned by the
   band LU of the node-local (time-route) approximation without its contact blocks
-  (``CONTACT_BAND_WEIGHT`` = 0: the rod's own band Jacobian). That LU is kept across iterates while GMRES converges in at
-  most ``GMRES_REFACTOR`` iterations and refactored when it needs more: about one
-  factorisation per contact step (docs/contact.md).
+  (``CONTACT_BAND_WEIGHT`` = 0: the rod's own band Jacobian). That LU is kept across
+  iterates while GMRES converges in at most ``GMRES_REFACTOR`` iterations and refactored
+  when it needs more: about one factorisation per contact step (docs/contact.md).
 * **Feasible iterates.** A correction may close no candidate gap to less than
   ``GAP_KEEP`` of itself (halving; an IPC-like filter), then an Armijo backtracking on
   the scaled residual, whose evaluation with its Jacobian is reused as the next iterate.
