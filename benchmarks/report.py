@@ -44,6 +44,9 @@ SECTIONS = [
     ("contact_suite", "contact_suite", "contact suite: completed or refused, contact cost"),
 ]
 MARK = "<!-- section: {} -->"
+#: sections written by hand (or by a benchmark of their own) that the page keeps after a
+#: generated one: "eta", the ETA accuracy of benchmarks/eta_accuracy.py, after "seed"
+KEPT_AFTER = {"seed": ["eta"]}
 
 
 def _load(name: str) -> dict | None:
@@ -97,7 +100,7 @@ def previous_sections() -> dict:
         return {}
     text = DOC.read_text()
     found = {}
-    for name, _, _ in SECTIONS:
+    for name in [n for n, _, _ in SECTIONS] + [k for v in KEPT_AFTER.values() for k in v]:
         m = re.search(re.escape(MARK.format(name)) + r"\n(.*?)(?=\n<!-- section: |\Z)", text,
                       flags=re.S)
         if m:
@@ -178,6 +181,10 @@ def main() -> None:
     for name, _, _ in SECTIONS:
         body.append(MARK.format(name))
         body.append(texts[name])
+        for kept in KEPT_AFTER.get(name, []):
+            if kept in keep:
+                body.append(MARK.format(kept))
+                body.append(keep[kept])
     DOC.write_text("\n".join(head) + "\n" + "\n".join(body))
     print(f"wrote {DOC} in {total:.0f} s")
 
