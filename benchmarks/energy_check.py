@@ -313,23 +313,16 @@ class AlignedLoadWork(B.GlobalLoadWork):
         q, r = self._turned(q, r, run.r_time[-1])
         return (self.force(run, run.t, q, False, glob), r, self.end_forces(run.Y, q))
 
-    def step(self, run, prob, sol, old):
+    def new_pose(self, run, prob, sol):
         if not self.applies(run):
-            return super().step(run, prob, sol, old)
-        G_old, r_old, F_old = old
+            return super().new_pose(run, prob, sol)
         q_t, _, _, r_t = run._time_step(prob.h, sol.Y, run.q_time, run.r_time,
                                         run.v_global_time,
                                         offsets=((run.bc_offset, run.bc.cols),
                                                  (prob.offset, prob.bc.cols)))
         normalize_quaternions(q_t)
         q, r = space_route(q_t[0], r_t[0], sol.Y[:, 9:12], float(run.props.ds))
-        q, r = self._turned(q, r, r_t[-1])
-        G = self.force(run, prob.t_new, q, prob.left_limit, run.system.step.glob_force)
-        work = 0.5 * float(np.dot(run.props.quad_weights,
-                                  np.einsum("ni,ni->n", G_old + G, r - r_old)))
-        F = self.end_forces(sol.Y, q)
-        work += 0.5 * float(np.sum((F_old + F) * (r[[0, -1]] - r_old[[0, -1]])))
-        return work, (G, r, F)
+        return self._turned(q, r, r_t[-1])
 
 
 @contextlib.contextmanager

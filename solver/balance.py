@@ -206,8 +206,21 @@ class GlobalLoadWork(WorkAccount):
 
     def step(self, run, prob, sol, old):
         G_old, r_old, F_old = old
+        q, r = self.new_pose(run, prob, sol)
+        G = self.force(run, prob.t_new, q, prob.left_limit, run.system.step.glob_force)
+        work = 0.5 * float(np.dot(run.props.quad_weights,
+                                  np.einsum("ni,ni->n", G_old + G, r - r_old)))
+        F = self.end_forces(sol.Y, q)
+        work += 0.5 * float(np.sum((F_old + F) * (r[[0, -1]] - r_old[[0, -1]])))
+        return work, (G, r, F)
+
+    def new_pose(self, run, prob, sol):
+        """The pose of the step's new level that the work is measured on (class
+        docstring): orientations (N+1, 4) and positions (N+1, 3) m. The space route of
+        the solution with self-contact, else each node's time route (``time_route``) or
+        the shape integrated from κ, anchored at node 0's time route. Raises nothing."""
         if run.contact is not None:
-            q, r = sol.pose[0], sol.pose[2]     # the space route already
+            return sol.pose[0], sol.pose[2]     # the space route already
         elif self.time_route:
             q, _, _, r = run._time_step(prob.h, sol.Y, run.q_time, run.r_time,
                                         run.v_global_time,
@@ -225,12 +238,7 @@ class GlobalLoadWork(WorkAccount):
                       np.empty((1, 3, 3)), r0, np.empty((1, 3)), np.empty((1, 3)))
             q0 /= np.linalg.norm(q0)
             q, r = space_route(q0[0], r0[0], sol.Y[:, 9:12], float(run.props.ds))
-        G = self.force(run, prob.t_new, q, prob.left_limit, run.system.step.glob_force)
-        work = 0.5 * float(np.dot(run.props.quad_weights,
-                                  np.einsum("ni,ni->n", G_old + G, r - r_old)))
-        F = self.end_forces(sol.Y, q)
-        work += 0.5 * float(np.sum((F_old + F) * (r[[0, -1]] - r_old[[0, -1]])))
-        return work, (G, r, F)
+        return q, r
 
 
 class DragWork(WorkAccount):
