@@ -81,16 +81,24 @@ class ProblemAssembly:
     #: roots have modulus √(g/2): g = 0.5 halves it per step (a damped oscillation).
     #: Measured with 0.25, 0.5 and 1 alike (docs/contact.md § 4)
     DRIFT_GAIN = 0.5
-    #: the correction's rate is DRIFT_GAIN / max(h, DRIFT_STEP_FLOOR · numerics.dt): on
-    #: substeps shorter than a hundredth of the case's Δt it moves the end by a share
-    #: ∝ h of its drift, not by DRIFT_GAIN of it. Why: at a fixed drift e the end moved
-    #: by ~g·e in every step however small, and the route rule read a part of that as
-    #: the step's position error, so no Δt could pass once g·e outgrew the tolerance
-    #: (PyElastica's plectoneme, N = 25, Δt = 0.1 s, ρ∞ = 0.8: a 44-mm drift in the
-    #: collapse, the route error 14.5-15.8 mm at h = 5e-5 s against 12.5 mm, the run
-    #: stopped at 7.50 s; docs/contact.md § 4). Steps at or above the floor
-    #: are unchanged (the seed example's smallest is 1.1 ms = dt/90)
-    DRIFT_STEP_FLOOR = 0.01
+    #: the correction's rate is DRIFT_GAIN / max(h, DRIFT_STEP_FLOOR · numerics.dt): a
+    #: step of at least a quarter of the case's Δt moves the end by g·e (halving the
+    #: drift per step), every shorter step prescribes the end velocity of the floor's
+    #: step, so a cut step's prescribed end velocity is at most 1/DRIFT_STEP_FLOOR times
+    #: the uncut one's and its correction within the step vanishes with h. Why a floor:
+    #: at the rate g/h a cut step prescribed a new end velocity g·e/h, a velocity jump
+    #: whose impulse on the held end (its reaction growing as 1/h, 37 N to 3.7 kN with
+    #: the floor at Δt/100) the energy check read as injected energy at every cut
+    #: (cases/seabed-hockle.yaml failed at 5.1 s), and at a fixed drift e the end moved
+    #: by g·e in every step however small, which the route rule read as the step's
+    #: position error (PyElastica's plectoneme, N = 25, Δt = 0.1 s, ρ∞ = 0.8: without a
+    #: floor it ended at 7.5 s, with the floor at Δt/100 at 11.4 s). Why not the floor
+    #: at Δt: the correction is then slow on the many cut steps of a collapse, and the
+    #: plectoneme's held end (Δt = 0.1 s, ρ∞ = 0.5) strays 31 mm from its axis against
+    #: 14 mm at Δt/4 and Δt/100. Measured (``benchmarks/drift_rate.py``, docs/contact.md
+    #: § 1): at Δt/4 all three complete and the seed example's events and |Wr| are those
+    #: of Δt/100
+    DRIFT_STEP_FLOOR = 0.25
 
     def step_problem(self, h: float, t_new=None, left_limit=False,
                      restart=False) -> StepProblem:
@@ -218,9 +226,10 @@ class ProblemAssembly:
         a Baumgarte stabilisation of the end's constraint at velocity level. The offset
         is O(route difference / h) = O(h²) on a smooth motion, so second order is kept,
         and it vanishes as Δt → 0 (measured: docs/contact.md § 4); on
-        substeps below DRIFT_STEP_FLOOR · numerics.dt the rate is that of the floor, so
-        that the end's correction within a step vanishes with h even where the drift
-        does not.
+        steps shorter than DRIFT_STEP_FLOOR · numerics.dt the rate is that of the floor,
+        so that the end's prescribed velocity jumps by at most 1/DRIFT_STEP_FLOOR when a
+        step is cut and the correction within a step vanishes with h even where the
+        drift does not.
         """
         if self.contact is None or self.DRIFT_GAIN is None or restart:
             return None

@@ -1,0 +1,137 @@
+"""The s = L end's drift correction at three rates (docs/contact.md § 1,
+``ProblemAssembly.DRIFT_STEP_FLOOR``): g / max(h, f·Δt) with the floor f = 1/100, 1/4
+(the code's) and 1. Below the floor a cut step prescribes the floor's end velocity; above
+it the rate g/h prescribes a new one, up to 1/f times the uncut step's. Printed per
+floor, the energy check at its default unless said:
+
+* the plectoneme of tests/test_contact_run.py (N = 25, Δt = 0.1 s, ρ∞ = 0.5): status,
+  the held end's largest distance from its axis, and after the collapse (t > 7.5 s);
+* PyElastica's plectoneme (benchmarks/peer_compare.py's case, N = 25, Δt = 0.1 s, to
+  12 s) at the default ρ∞ and at ρ∞ = 0.8: status, Newton iterations, and the relative
+  L1 error of its writhe history against hockle's N = 100, Δt = 0.0125-s run
+  (:func:`peer_compare.wr_error`);
+* the seed example (cases/goyal-writhing.yaml): status, Newton iterations, refused
+  attempts, |Wr| at 20, 25, 30 and 45 s, events;
+* cases/seabed-hockle.yaml to 10 s with and without the check: status (where a failed
+  run stops), Newton iterations, refused attempts, |Wr| at the end.
+
+Run: ``PYTHONPATH=$PWD python benchmarks/drift_rate.py [--only held,pyelastica,seed,hockle]``
+(about 8 minutes alone on 2 cores; counts and answers, the wall times only indicative).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(ROOT / "tests"))
+
+import peer_compare as pc  # noqa: E402
+from hockle.plots import run_events  # noqa: E402
+from solver.case import Case  # noqa: E402
+from solver.simulation import SolverDivergence, simulate  # noqa: E402
+from solver.step_problem import ProblemAssembly  # noqa: E402
+
+#: DRIFT_STEP_FLOOR values compared: the floor at Δt/100, Δt/4 (the code's) and Δt
+FLOORS = (0.01, 0.25, 1.0)
+
+
+def _run(spec):
+    """(dataset, status, wall s) of a case spec (dict); a failed run's partial result."""
+    t0 = time.perf_counter()
+    try:
+        ds, status = simulate(Case.model_validate(spec)), "completed"
+    except SolverDivergence as exc:
+        ds, status = exc.partial, f"failed at t = {exc.t:.4g} s"
+    return ds, status, time.perf_counter() - t0
+
+
+def _newton(ds) -> int:
+    return int(ds.step_newton_iterations.values.sum())
+
+
+def held(floor: float) -> str:
+    from test_contact_run import _end_offset, plectoneme_case
+    ds, status, wall = _run(plectoneme_case(25, 0.1).model_dump(mode="json"))
+    t, off = ds.time.values, _end_offset(ds)
+    return (f"plectoneme, N = 25, Δt = 0.1 s, ρ∞ = 0.5: {status}, held end at most "
+            f"{off.max() * 1e3:.1f} mm from its axis, {off[t > 7.5].max() * 1e3:.1f} mm "
+            f"after 7.5 s; {_newton(ds)} Newton iterations")
+
+
+def seed(floor: float) -> str:
+    spec = Case.from_file(ROOT / "cases" / "goyal-writhing.yaml").model_dump(mode="json")
+    ds, status, wall = _run(spec)
+    t, wr = ds.time.values, np.abs(ds.writhe.values)
+    at = " / ".join(f"{np.interp(x, t, wr):.4f}" for x in (20.0, 25.0, 30.0, 45.0))
+    ev = {k: (round(float(t[v]), 1) if v is not None else None)
+          for k, v in run_events(ds).items()}
+    return (f"seed example: {status}, {_newton(ds)} Newton iterations, refused "
+            f"{ds.attrs['hockle_refused_attempts']}; |Wr| at 20/25/30/45 s {at}; "
+            f"events {ev}; wall {wall:.1f} s")
+
+
+def hockle(floor: float) -> list[str]:
+    out = []
+    for tol in ("default", None):
+        spec = Case.from_file(ROOT / "cases" / "seabed-hockle.yaml").model_dump(mode="json")
+        if tol is None:
+            spec["numerics"]["energy_tolerance"] = None
+        ds, status, wall = _run(spec)
+        out.append(f"seabed-hockle.yaml to 10 s, check {'off' if tol is None else tol}: "
+                   f"{status}, {_newton(ds)} Newton iterations, refused "
+                   f"{ds.attrs['hockle_refused_attempts']}, |Wr| at the end "
+                   f"{abs(float(ds.writhe.values[-1])):.4f}; wall {wall:.1f} s")
+    return out
+
+
+_REFERENCE = {}
+
+
+def pyelastica(floor: float) -> list[str]:
+    if not _REFERENCE:
+        ref = pc.run_hockle(100, 0.0125, 12.0)
+        _REFERENCE.update(t=ref["t"], wr=pc.post(ref)["Wr"])
+    out = []
+    for rho in (None, 0.8):
+        spec = pc.hockle_case(25, 0.1, 12.0).model_dump(mode="json")
+        if rho is not None:
+            spec["numerics"]["rho_inf"] = rho
+        ds, status, wall = _run(spec)
+        run = {"t": ds.time.values, "pos": ds.position.values,
+               "finite": bool(np.isfinite(ds.position.values).all())
+               and status == "completed"}
+        err = pc.wr_error(run["t"], pc.post(run)["Wr"], _REFERENCE["t"], _REFERENCE["wr"])
+        out.append(f"PyElastica's plectoneme, N = 25, Δt = 0.1 s, ρ∞ "
+                   f"{spec['numerics']['rho_inf']}: {status}, {_newton(ds)} Newton "
+                   f"iterations, Wr history {err * 100:.1f} % (L1) off the N = 100 run")
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--only", default="held,pyelastica,seed,hockle")
+    names = ap.parse_args().only.split(",")
+    original = ProblemAssembly.DRIFT_STEP_FLOOR
+    try:
+        for name in ("held", "pyelastica", "seed", "hockle"):
+            if name not in names:
+                continue
+            for floor in FLOORS:                 # the two rates interleaved per case
+                ProblemAssembly.DRIFT_STEP_FLOOR = floor
+                rows = {"held": held, "seed": seed, "hockle": hockle,
+                        "pyelastica": pyelastica}[name](floor)
+                for row in [rows] if isinstance(rows, str) else rows:
+                    print(f"floor {floor:g} Δt: {row}", flush=True)
+    finally:
+        ProblemAssembly.DRIFT_STEP_FLOOR = original
+
+
+if __name__ == "__main__":
+    main()
