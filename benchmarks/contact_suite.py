@@ -2,7 +2,7 @@
 clear status, and what contact costs against the same run before contact.
 
 Cases (each run once, in one process after a warm-up that compiles the kernels, with
-``numerics.energy_tolerance`` = ENERGY_TOLERANCE unless ``--energy-tolerance 0``, and a
+``numerics.energy_tolerance`` at its default unless ``--energy-tolerance 0``, and a
 wall-clock budget per case, past which the run ends ``stopped``):
 
 * ``seed``: the seed example, cases/goyal-writhing.yaml (N = 1000, Δt = 0.1 s, 45 s);
@@ -49,15 +49,15 @@ ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(ROOT / "tests"))
 
+from solver.case import Numerics  # noqa: E402
+
 RESULTS = HERE / "results" / "contact_suite.json"
 DOC = ROOT / "docs" / "benchmarks.md"
 MARK = "<!-- section: contact_suite -->"
-#: the energy check's tolerance in every case: 0.5, the lowest that leaves the right
-#: dead-load cantilever at Δt = 0.02 s unrefused while every Δt up to 0.2 s still settles
-#: within 0.1 % of the elastica (docs/numerics.md § 8, Candidate defaults); at 0.05 it
-#: refused right steps of the contact cases (the tension variant's steps after 22 s,
-#: route ratio 0.02-0.06, cut by 14-27 energy refusals per simulated second)
-ENERGY_TOLERANCE = 0.5
+#: the energy check's tolerance in every case: the default (0.5, the lowest that leaves
+#: the right dead-load cantilever at Δt = 0.02 s unrefused while every Δt up to 0.2 s
+#: settles within 0.1 % of the elastica; docs/numerics.md § 8)
+ENERGY_TOLERANCE = Numerics.model_fields["energy_tolerance"].default
 BUDGET_S = 600.0          # wall-clock budget per case, s
 X_TIP = 0.44501           # Mattiasson's tip x/L under P L²/EI = 10
 

@@ -1,39 +1,40 @@
-"""The energy check's evidence on the cases that argue for and against turning it on by
-default (docs/numerics.md § 8, ``numerics.energy_tolerance``), printed:
+"""The energy check's evidence on the cases that argue for and against its default
+(docs/numerics.md § 8, ``numerics.energy_tolerance``, on by default at 0.5), printed:
 
-* the soft hanging cable of benchmarks/loads_verification.py with the check at
-  ``energy_tolerance: 0.05`` and without, at several Δt: status, refusals, settled sag
-  against the catenary, the κ-integrated centreline's held end against its hold;
+* the soft hanging cable of benchmarks/loads_verification.py with the check at the
+  default tolerance and without, at several Δt: status, refusals, settled sag against
+  the catenary, the κ-integrated centreline's held end against its hold;
 * the cable resting on a flat bottom (tests/test_seabed.py's 2-cm cable, touching at the
   start) at Δt = 1e-4 s over 0.05 s: refusals and the largest ε/scale;
 * the seabed cases cases/catenary-touchdown.yaml (to 20 s) and cases/seabed-hockle.yaml
   (to 1 s) without and with the check, interleaved: refusals, when, and wall time;
-* ε summed over 4 steps, the check measuring only, on the cantilever and the cable;
+* ε summed over 4 steps, the check measuring only, on the cantilever and the cable
+  (against STUDY_TOLERANCE);
 * Newton's history against the balance on the steel cantilever of
   tests/test_energy_check.py (the check measuring only): whether the steps that inject
-  energy (ε > 0.05 T) show a Newton that contracts worse than the others;
+  energy (ε > STUDY_TOLERANCE · T) show a Newton that contracts worse than the others;
 * self-contact (``contact``): the contact account's −ΔU_c against the contact forces'
   work (trapezoid on the two levels, and along each step's chord) in the crossing loop
   of tests/test_energy_check.py by Δt, both laws; the seed example
   cases/goyal-writhing.yaml to 30 s without and with the check (contact steps measured),
   interleaved: refusals (with and without candidates), the largest ε/scale, events
   (first contact, |Wr| through 1 and 1.5), Wr at 20, 25, 30 s, wall time;
-* candidate default tolerances (``--only tolerances``): the dead-load cantilever (100
-  segments) and the soft hanging cable at several Δt, without the check and at
-  ``energy_tolerance`` 0.05, 0.25, 0.5 and 1: status, the answer (tip x/L against the
-  elastica; sag against the catenary and the κ-integrated end from its hold), energy
-  refusals and Newton iterations (all attempts); then the same at 0.5 and 1 with the
-  candidate pose and floor of :func:`candidate_check`, and the cantilever at 0.5 with the
-  loads' work on each node's time route (``--only candidate``);
+* error control (``--only control``): the cantilever with ``numerics.tolerance`` at
+  relative 1e-2 and 1e-3, without the check and at the default;
+* the tolerances (``--only tolerances``): the dead-load cantilever (100 segments) and
+  the soft hanging cable at several Δt, without the check and at ``energy_tolerance``
+  0.05, 0.25, 0.5 and 1: status, the answer (tip x/L against the elastica; sag against
+  the catenary and the κ-integrated end from its hold), energy refusals and Newton
+  iterations (all attempts);
 * the full-length right runs (``--only full``, several minutes): cases/seabed-hockle.yaml
-  to 10 s and cases/goyal-writhing.yaml to 45 s without the check and at 0.05, 0.5 and 1
-  (the seed without and at 0.5): status, where a failed run stops, energy refusals, Newton
-  iterations, |Wr| and the mid node at the end;
+  to 10 s and cases/goyal-writhing.yaml to 45 s without the check and at the default:
+  status, where a failed run stops, energy refusals, Newton iterations, |Wr| and the mid
+  node at the end;
 * what lies behind them (``--only diagnose``, :func:`diagnose`).
 
 Run: ``PYTHONPATH=$PWD python benchmarks/energy_check.py [--only cable|rest|cases|windows|
-newton|contact|tolerances|candidate|full|diagnose]`` (about a minute each after the kernels
-are compiled; ``full`` several).
+newton|contact|control|tolerances|full|diagnose]`` (about a minute each after the kernels are
+compiled; ``tolerances`` and ``full`` several).
 """
 from __future__ import annotations
 
@@ -54,12 +55,13 @@ import test_energy_check as EC  # noqa: E402
 import test_seabed as SB  # noqa: E402
 from hockle.api import catenary_parameter  # noqa: E402
 from solver import balance as B  # noqa: E402
-from solver.case import Case  # noqa: E402
-from solver.kinematics import (normalize_quaternions, quat_exp, quat_multiply,  # noqa: E402
-                               quat_to_matrix, space_route)
+from solver.case import Case, Numerics  # noqa: E402
 from solver.simulation import RodRun, SolverDivergence, simulate  # noqa: E402
 
-TOLERANCE = 0.05
+#: the default tolerance (``numerics.energy_tolerance``)
+TOLERANCE = Numerics.model_fields["energy_tolerance"].default
+#: the threshold of the windows' and Newton's studies (ε > STUDY_TOLERANCE · T)
+STUDY_TOLERANCE = 0.05
 
 
 def _refused(ds, reason="energy"):
@@ -137,9 +139,9 @@ def windows(m=4):
             ("cantilever", EC.cantilever(0.1, n=50, energy_tolerance=1e9), 0.1, 8.0),
             ("hanging cable", Case.model_validate(LV.catenary_spec(0.2, 1e9)), 0.2, 16.0)):
         e = series(case, dt, t_end)
-        win = np.array([e[i:i + m, 0].sum() / (TOLERANCE * e[i:i + m, 1].max())
+        win = np.array([e[i:i + m, 0].sum() / (STUDY_TOLERANCE * e[i:i + m, 1].max())
                         for i in range(len(e) - m + 1)])
-        print(f"{name}, Δt = {dt} s: {np.sum(e[:, 0] > TOLERANCE * e[:, 1])} of {len(e)} "
+        print(f"{name}, Δt = {dt} s: {np.sum(e[:, 0] > STUDY_TOLERANCE * e[:, 1])} of {len(e)} "
               f"steps over the tolerance, {np.sum(win > 1)} of {len(win)} {m}-step windows")
 
 
@@ -155,9 +157,9 @@ def newton():
             prev = res[-2] / res[-3] if res.size > 2 else 0.0
             rows.append((run.last_balance.relative, res.size - 1, last, prev))
         r = np.array(rows)
-        bad = r[:, 0] > TOLERANCE
+        bad = r[:, 0] > STUDY_TOLERANCE
         print(f"cantilever, Δt = {dt} s, 50 segments, no check: {len(r)} steps, "
-              f"{bad.sum()} inject ε > {TOLERANCE} T")
+              f"{bad.sum()} inject ε > {STUDY_TOLERANCE} T")
         for name, col in (("Newton iterations", 1), ("last contraction", 2),
                           ("contraction before it", 3)):
             print(f"  {name}: injecting steps median {np.median(r[bad, col]):.3g}, "
@@ -271,6 +273,23 @@ def _cable_row(dt, tol):
             f"{np.linalg.norm(end - (X, 0.0, 0.0)) * 1e3:.2f} mm from its hold, {_cost(ds)}")
 
 
+def control():
+    """Error-controlled steps (``numerics.tolerance``, the first step Δt = 0.1 s) on the
+    cantilever (100 segments) at relative 1e-2 and 1e-3, without the check and at the
+    default: does the error estimate alone catch the injecting steps?"""
+    for rel in (1e-2, 1e-3):
+        for tol in (None, TOLERANCE):
+            ds, status = _simulate(EC.cantilever(0.1, n=100, energy_tolerance=tol,
+                                                 tolerance={"relative": rel}))
+            x = ds.position.values[-1, -1, 2] / EC.L
+            print(f"cantilever, error control relative {rel:g}, check "
+                  f"{'off' if tol is None else tol}: {status}, tip "
+                  f"{(x / EC.X_TIP - 1) * 100:+.3f} % off the elastica, kinetic energy at "
+                  f"8 s {float(ds.energy_kinetic.values[-1]):.2g} J, refused "
+                  f"{ds.attrs['hockle_refused_attempts']}, "
+                  f"{int(ds.step_newton_iterations.values.sum())} Newton iterations")
+
+
 def tolerances(tols=TOLERANCES):
     for dt in (0.2, 0.1, 0.05, 0.04, 0.02):
         for tol in tols:
@@ -280,88 +299,21 @@ def tolerances(tols=TOLERANCES):
             print(_cable_row(dt, tol))
 
 
-class AlignedLoadWork(B.GlobalLoadWork):
-    """A candidate pose for the global loads' work where the s = L end is held in
-    position (its three translations kinematic) and there is neither a seabed nor
-    self-contact: the shape integrated from κ (as :class:`solver.balance.GlobalLoadWork`)
-    turned about node 0 so that its chord points at the end's prescribed position (the
-    end's time route). The κ-integrated end otherwise drifts off the hold by a rotation
-    about node 0 (the end of the soft hanging cable jumps by ~1 mm in its first steps),
-    and gravity's and the held end's work on that drift read as injected energy."""
-
-    @staticmethod
-    def _turned(q, r, target):
-        a, b = r[-1] - r[0], target - r[0]
-        axis = np.cross(a, b)
-        sin = np.linalg.norm(axis)
-        if sin == 0.0:
-            return q, r
-        dq = quat_exp(axis / sin * math.atan2(sin, float(np.dot(a, b))))
-        R = quat_to_matrix(dq[None])[0]
-        return quat_multiply(dq[None], q), r[0] + (r - r[0]) @ R.T
-
-    @staticmethod
-    def applies(run):
-        return (run.contact is None and run.seabed is None
-                and bool(run.bc.kinematic[6:9].all()))
-
-    def start(self, run):
-        if not self.applies(run):
-            return super().start(run)
-        glob = run.loads.global_force(run.t) if run.loads.has_global else None
-        q, r = space_route(run.q_time[0], run.r_time[0], run.Y[:, 9:12], float(run.props.ds))
-        q, r = self._turned(q, r, run.r_time[-1])
-        return (self.force(run, run.t, q, False, glob), r, self.end_forces(run.Y, q))
-
-    def new_pose(self, run, prob, sol):
-        if not self.applies(run):
-            return super().new_pose(run, prob, sol)
-        q_t, _, _, r_t = run._time_step(prob.h, sol.Y, run.q_time, run.r_time,
-                                        run.v_global_time,
-                                        offsets=((run.bc_offset, run.bc.cols),
-                                                 (prob.offset, prob.bc.cols)))
-        normalize_quaternions(q_t)
-        q, r = space_route(q_t[0], r_t[0], sol.Y[:, 9:12], float(run.props.ds))
-        return self._turned(q, r, r_t[-1])
-
-
 @contextlib.contextmanager
-def candidate_check(share=1e-5, time_route=False):
-    """The candidate check in force: :class:`AlignedLoadWork` for the global loads (with
-    ``time_route`` instead each node's time route, as with a seabed) and the scale's
-    floor share(E + U) (``EnergyBalance.ENERGY_SHARE``, 1e-6 in the code)."""
-    original, floor = B.EnergyBalance.for_run.__func__, B.EnergyBalance.ENERGY_SHARE
-
-    def for_run(cls, run):
-        bal = original(cls, run)
-        if bal is not None:
-            bal.accounts = [(B.GlobalLoadWork(True) if time_route
-                             else AlignedLoadWork(a.time_route))
-                            if type(a) is B.GlobalLoadWork else a for a in bal.accounts]
-        return bal
-
-    B.EnergyBalance.for_run = classmethod(for_run)
+def energy_share(share):
+    """The energy scale's floor at share × (E + U) (``EnergyBalance.ENERGY_SHARE``) for the
+    runs inside."""
+    floor = B.EnergyBalance.ENERGY_SHARE
     B.EnergyBalance.ENERGY_SHARE = share
     try:
         yield
     finally:
-        B.EnergyBalance.for_run = classmethod(original)
         B.EnergyBalance.ENERGY_SHARE = floor
-
-
-def candidate():
-    print("candidate: the loads' work on the shape turned onto a held end, floor 1e-5 (E + U)")
-    with candidate_check():
-        tolerances((0.5, 1.0))
-    print("the loads' work on each node's time route (floor 1e-6 (E + U)), the cantilever:")
-    with candidate_check(share=B.EnergyBalance.ENERGY_SHARE, time_route=True):
-        for dt in (0.1, 0.05, 0.04, 0.02):
-            print(_cantilever_row(dt, 0.5))
 
 
 def full():
     root = Path(__file__).resolve().parents[1] / "cases"
-    for name, tols in (("seabed-hockle.yaml", (None, 0.05, 0.5, 1.0)),
+    for name, tols in (("seabed-hockle.yaml", (None, 0.5)),
                        ("goyal-writhing.yaml", (None, 0.5))):
         for tol in tols:
             spec = Case.from_file(root / name).model_dump(mode="json")
@@ -377,11 +329,10 @@ def full():
 
 
 def diagnose():
-    """The figures behind the candidate defaults' reading (docs/numerics.md § 8): the
-    cable's first measured steps on the κ-integrated shape (Δt = 0.1 s) and its settling
-    steps on the turned shape (Δt = 0.2 s), the check measuring only; the candidate's
-    floor at 1e-4 and 1e-3 (E + U); the catenary with touchdown at 0.5 against a
-    Δt = 3.125-ms reference; the held end's reaction on the hockle's refused substeps."""
+    """The figures behind the default's reading (docs/numerics.md § 8): the cable's
+    settling steps at Δt = 0.2 s that the check refuses (ε > 0.5 scale, the check
+    measuring only); the floor at 1e-4 and 1e-3 (E + U) at tolerance 0.5; the catenary
+    with touchdown without and with the check against a Δt = 3.125-ms reference."""
     def measured(dt, t_end, lo=0.0):
         run = RodRun(Case.model_validate(LV.catenary_spec(dt, 1e9)))    # measures only
         run.advance(dt)
@@ -393,14 +344,11 @@ def diagnose():
                 print(f"  t = {run.t:5.2f} s: ε {b.error:+.2e} J, Σ W {work:+.2e} J, "
                       f"T {b.carry['kinetic']:.1e} J, E {b.energy:.3e} J, "
                       f"ε/scale {b.relative:.2f}")
-    print("hanging cable, Δt = 0.1 s, κ-integrated shape, the first 0.3 s (ε > 0.5 scale):")
-    measured(0.1, 0.3)
-    print("hanging cable, Δt = 0.2 s, the turned shape, floor 1e-5 (E + U), 5-9 s:")
-    with candidate_check():
-        measured(0.2, 9.0, 5.0)
+    print("hanging cable, Δt = 0.2 s, 5-9 s (ε > 0.5 scale):")
+    measured(0.2, 9.0, 5.0)
     for share in (1e-4, 1e-3):
-        print(f"candidate with the floor at {share:g} (E + U), tolerance 0.5:")
-        with candidate_check(share=share):
+        print(f"the floor at {share:g} (E + U), tolerance 0.5:")
+        with energy_share(share):
             for dt in (0.1, 0.05, 0.04):
                 print("  " + _cantilever_row(dt, 0.5))
             print("  " + _cable_row(0.2, 0.5))
@@ -412,45 +360,17 @@ def diagnose():
         p = ds.position.values[-1]
         print(f"catenary-touchdown.yaml, Δt = {dt:g} s, check {'off' if tol is None else tol}: "
               f"{_refused(ds)} energy refusals, mid node x {p[p.shape[0] // 2, 0]:.5f} m")
-    print("seabed-hockle.yaml at 0.5 to 5.2 s: the refused steps with h < 1e-3 s after 5 s")
-    from solver import run as runmod
-    original, step = runmod.RodRun._refusal, B.GlobalLoadWork.step
-    seen = {}
-
-    def record(self, run, prob, sol, old):
-        work, carry = step(self, run, prob, sol, old)
-        seen.update(F_old=old[2][-1], F=carry[2][-1], dr=carry[1][-1] - old[1][-1], h=prob.h)
-        return work, carry
-
-    def refusal(self, prob, sol, estimate):
-        reason, summary = original(self, prob, sol, estimate)
-        if reason == "energy" and prob.h < 1e-3 and self.t > 5.0:
-            b = self.last_balance
-            print(f"  from t = {self.t:.4f} s, h {prob.h:.2e} s: ε {b.error:.2e} J = "
-                  f"{b.relative:.2f} scale, s = L end's reaction |F| "
-                  f"{np.linalg.norm(seen['F_old']):.1f} N (old level), "
-                  f"{np.linalg.norm(seen['F']):.1f} N (new), |Δr| "
-                  f"{np.linalg.norm(seen['dr']):.1e} m, loads' work {b.work['loads']:+.2e} J")
-        return reason, summary
-
-    spec = Case.from_file(root / "seabed-hockle.yaml").model_dump(mode="json")
-    spec["numerics"].update(t_end=5.2, energy_tolerance=0.5)
-    B.GlobalLoadWork.step, runmod.RodRun._refusal = record, refusal
-    try:
-        _simulate(Case.model_validate(spec))
-    finally:
-        B.GlobalLoadWork.step, runmod.RodRun._refusal = step, original
 
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--only", choices=("cable", "rest", "cases", "windows", "newton",
-                                           "contact", "tolerances", "candidate", "full",
+                                           "contact", "control", "tolerances", "full",
                                            "diagnose"))
     only = parser.parse_args().only
     for name, fn in (("cable", cable), ("rest", rest), ("cases", cases),
                      ("windows", windows), ("newton", newton), ("contact", contact),
-                     ("tolerances", tolerances), ("candidate", candidate), ("full", full),
+                     ("control", control), ("tolerances", tolerances), ("full", full),
                      ("diagnose", diagnose)):
         if only in (None, name):
             fn()

@@ -1260,11 +1260,12 @@ class Numerics(BaseModel):
         "(dimensionless); > 0; null: no check.",
     )
     energy_tolerance: Optional[Finite] = Field(
-        None,
+        0.5,
         gt=0,
         description="Energy check of every step: a step whose rod energy grows by more than the work "
-        "of its loads plus this share of the energy scale is refused and dt cut (a large step of a "
-        "nonlinear motion can inject energy); > 0; null: no check.",
+        "of its loads plus this share of the energy scale (the kinetic energy, floored at 1e-5 of "
+        "the stored energy) is refused and dt cut (a large step of a nonlinear motion can inject "
+        "energy); > 0; null: no check.",
     )
 
     @model_validator(mode="after")

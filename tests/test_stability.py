@@ -544,8 +544,10 @@ def test_large_time_step_column_beyond_euler_buckles(rho_inf):
 
 
 def test_large_time_step_column_without_growth_guard_stays_straight():
-    """The same column at ρ∞ = 0 with ``growth_guard: null``: the Δt = 1 s steps damp
-    the growing mode and the run completes straight (what the guard prevents)."""
+    """The same column at ρ∞ = 0 with ``growth_guard: null`` (and the energy check off):
+    the Δt = 1 s steps damp the growing mode and the run completes straight (what the
+    guard prevents). The energy check alone lets the column start to buckle (it cuts the
+    steps; measured 1.4e-3 L at 4 s) but is no substitute for the guard."""
     case = make_case(n_segments=20, dt=1.0, t_end=4.0, rho_inf=0.0, diameter=COL_D,
                      start=CLAMPED, end=sliding_end(-1.5 * COL_PCR),
                      forces=[{"value": [1e-4 * COL_PCR, 0.0, 0.0], "start": 0.0,
@@ -553,6 +555,7 @@ def test_large_time_step_column_without_growth_guard_stays_straight():
                      fields=("position",))
     spec = case.model_dump()
     spec["numerics"]["growth_guard"] = None
+    spec["numerics"]["energy_tolerance"] = None
     ds = simulate(Case.model_validate(spec))
     assert ds.attrs["hockle_status"] == "completed"
     assert np.abs(ds.position.values[:, :, 0]).max() < 1e-3 * COL_L
