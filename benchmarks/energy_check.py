@@ -29,7 +29,7 @@
 * the full-length right runs (``--only full``, several minutes): cases/seabed-hockle.yaml
   to 10 s and cases/goyal-writhing.yaml to 45 s without the check and at the default:
   status, where a failed run stops, energy refusals, Newton iterations, |Wr| and the mid
-  node at the end;
+  node at the end, wall time and the check's own share of it;
 * what lies behind them (``--only diagnose``, :func:`diagnose`).
 
 Run: ``PYTHONPATH=$PWD python benchmarks/energy_check.py [--only cable|rest|cases|windows|
@@ -311,6 +311,35 @@ def energy_share(share):
         B.EnergyBalance.ENERGY_SHARE = floor
 
 
+@contextlib.contextmanager
+def timed_check():
+    """Time the energy check inside (EnergyBalance.measure, and of it ContactWork.step):
+    yields a dict {"check": s, "contact": s, "contact_steps": count}."""
+    out = {"check": 0.0, "contact": 0.0, "contact_steps": 0}
+    measure, contact = B.EnergyBalance.measure, B.ContactWork.step
+
+    def timed_measure(self, *args):
+        t0 = time.perf_counter()
+        try:
+            return measure(self, *args)
+        finally:
+            out["check"] += time.perf_counter() - t0
+
+    def timed_contact(self, run, prob, sol, old):
+        t0 = time.perf_counter()
+        try:
+            return contact(self, run, prob, sol, old)
+        finally:
+            out["contact"] += time.perf_counter() - t0
+            out["contact_steps"] += sol.candidates is not None
+
+    B.EnergyBalance.measure, B.ContactWork.step = timed_measure, timed_contact
+    try:
+        yield out
+    finally:
+        B.EnergyBalance.measure, B.ContactWork.step = measure, contact
+
+
 def full():
     root = Path(__file__).resolve().parents[1] / "cases"
     for name, tols in (("seabed-hockle.yaml", (None, 0.5)),
@@ -319,13 +348,17 @@ def full():
             spec = Case.from_file(root / name).model_dump(mode="json")
             spec["numerics"]["energy_tolerance"] = tol
             start = time.perf_counter()
-            ds, status = _simulate(Case.model_validate(spec))
+            with timed_check() as spent:
+                ds, status = _simulate(Case.model_validate(spec))
             p = ds.position.values[-1]
             print(f"{name} to {spec['numerics']['t_end']:g} s, check "
                   f"{'off' if tol is None else tol}: {status}, {_cost(ds)}, |Wr| "
                   f"{abs(float(ds.writhe.values[-1])):.4f}, mid node "
                   + "(" + ", ".join(f"{v:.4f}" for v in p[p.shape[0] // 2]) + ") m"
-                  + f", wall {time.perf_counter() - start:.0f} s")
+                  + f", wall {time.perf_counter() - start:.0f} s"
+                  + (f" (the check {spent['check']:.1f} s, of it the contact account "
+                     f"{spent['contact']:.1f} s over {spent['contact_steps']} steps with "
+                     f"candidates)" if tol is not None else ""))
 
 
 def diagnose():
