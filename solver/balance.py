@@ -220,8 +220,12 @@ class GlobalLoadWork(WorkAccount):
     def turned(q, r, target):
         """The shape (q (N+1, 4), r (N+1, 3) m) turned rigidly about node 0 by the
         smallest rotation that points its chord r_N − r_0 at ``target`` − r_0 (target
-        (3,) m: the held end's prescribed position). Returns new arrays (q, r); the
-        shape itself where the chord already points there."""
+        (3,) m: the held end's prescribed position). The rotation is the axis-angle
+        vector (a × b)/|a × b| · atan2(|a × b|, a·b) of the chord a onto b = target − r_0
+        (Rodrigues), applied to every position about r_0 and to every frame by
+        left-multiplying its quaternion. Returns new arrays (q (N+1, 4), r (N+1, 3) m);
+        the inputs themselves where the chord already points there (or is zero).
+        Raises nothing."""
         a, b = r[-1] - r[0], np.asarray(target, dtype=float) - r[0]
         axis = np.cross(a, b)
         sin = float(np.linalg.norm(axis))
