@@ -256,35 +256,44 @@ def _cells_kernel(Y, Fn, zconst, flux_const, mass_t, stiffness, inertia, cm, af,
             x_prev[j] = x_next[j]
 
 
+@numba.njit(cache=True, inline="always")
+def _add_inertia_cell(blocks, k, hc, mass_t, inertia):
+    """2hc·∂⟨M Y⟩/∂Y added to cell k's block (12, 24) of blocks (N, 12, 24) in place: the
+    mass operator's diagonal (:func:`_mass_row`) at nodes k and k + 1, times −hc."""
+    for off, node in ((0, k), (NV, k + 1)):
+        for i in range(3):
+            blocks[k, E1 + i, off + K + i] -= hc
+            blocks[k, E3 + i, off + V + i] -= hc * mass_t[node, i]
+            blocks[k, E4 + i, off + W + i] -= hc * inertia[node, i]
+
+
 @numba.njit(cache=True)
 def _add_inertia_kernel(blocks, c, mass_t, inertia):
     """c·∂⟨M Y⟩/∂Y added to the cell blocks (N, 12, 24) in place (:meth:`RodSystem.
     add_inertia`)."""
     hc = 0.5 * c
     for k in range(blocks.shape[0]):
-        for off, node in ((0, k), (NV, k + 1)):
-            for i in range(3):
-                blocks[k, E1 + i, off + K + i] -= hc
-                blocks[k, E3 + i, off + V + i] -= hc * mass_t[node, i]
-                blocks[k, E4 + i, off + W + i] -= hc * inertia[node, i]
+        _add_inertia_cell(blocks, k, hc, mass_t, inertia)
 
 
 @numba.njit(cache=True)
 def _cell_blocks_kernel(dF, mass_t, stiffness, inertia, cm, af, ds, blocks):
     """The cell blocks (N, 12, 24) of the step's Jacobian on [node k−1 | node k] into
     blocks: ½(1 − αf) ∂F/∂Y of both nodes, the inertia c_m ∂⟨M Y⟩/∂Y and the flux
-    difference ±(1 − αf)/Δs ∂(KY)/∂Y. The same values as the array expressions it
+    difference ±(1 − αf)/Δs ∂(KY)/∂Y. One pass over the cells, each block finished while
+    it is in cache; the inertia and flux terms fall on different entries, each added
+    once to ½(1 − αf) ∂F/∂Y, so the values are those of the array expressions it
     replaces, bit for bit."""
     hf = 0.5 * (1.0 - af)
     qf = (1.0 - af) / ds
+    hc = 0.5 * cm
     n_cells = blocks.shape[0]
     for k in range(n_cells):
         for i in range(NV):
             for j in range(NV):
                 blocks[k, i, j] = hf * dF[k, i, j]
                 blocks[k, i, NV + j] = hf * dF[k + 1, i, j]
-    _add_inertia_kernel(blocks, cm, mass_t, inertia)
-    for k in range(n_cells):
+        _add_inertia_cell(blocks, k, hc, mass_t, inertia)
         for off, sgn, node in ((0, -1.0, k), (NV, 1.0, k + 1)):
             for i in range(3):
                 blocks[k, E1 + i, off + W + i] += sgn * qf

@@ -178,7 +178,8 @@ def test_warm_up_loads_every_compiled_kernel():
                "solver.scheme._flux_kernel",
                "solver.scheme._mat3", "solver.scheme._qmul", "solver.scheme._node_jacobian_kernel",
                "solver.scheme._node_forces_kernel", "solver.scheme._cells_kernel",
-               "solver.scheme._cell_blocks_kernel", "solver.scheme._contact_band_kernel",
+               "solver.scheme._cell_blocks_kernel", "solver.scheme._add_inertia_cell",
+               "solver.scheme._contact_band_kernel",
                "solver.scheme._exact_frames_kernel", "solver.scheme.exact_loads_product",
                "solver.kinematics._exp_one", "solver.kinematics._matrix_into",
                "solver.kinematics._right_jacobian_into", "solver.loads._drag_kernel",
@@ -198,7 +199,7 @@ def test_warm_up_loads_every_compiled_kernel():
                "solver.contact.laws._smoothstep", "solver.contact.laws._barrier_p",
                "solver.contact.laws._repulsion", "solver.contact.laws.law_cutoff",
                "solver.contact.laws.law_force", "solver.banded.copy_into",
-               "solver.banded.fill", "solver.banded._eliminate",
+               "solver.banded.fill", "solver.banded._eliminate", "solver.banded._window",
                "solver.static_band._rotation", "solver.static_band._cell"}
     names = {f"{m}.{k}" for m, k, _ in kernels}
     assert helpers <= names and len(names - helpers) >= 14, names
