@@ -1,5 +1,6 @@
-"""Where a contact Newton iteration's time goes: the parts of one iteration of the seed
-example (`cases/goyal-writhing.yaml`, 1000 segments) timed alone at a contact step.
+"""Where a contact Newton iteration's time goes, against a contact-free one at the same
+N: the parts of one iteration of the seed example (`cases/goyal-writhing.yaml`, 1000
+segments) timed alone at a contact step and at a step before contact.
 
 The case is run to ``--at`` s (default 30 s, the plies wrapped, ~430 candidate runs), a
 contact step of ``--dt`` s is set up from that state as the run would set it up, and Newton
@@ -7,16 +8,28 @@ is taken to its solution. At that iterate each compiled part is timed alone (med
 of ``--repeats`` calls, one BLAS thread): the residual with its Jacobian and without it
 (:func:`solver.scheme.residual_into`), the candidate gaps of a trial iterate
 (:func:`solver.newton._trial_gaps`: the space-route pose and the closest points), the
-band factorisation with its equilibration (:func:`solver.newton._factor`), one exact
+factorisation (:func:`solver.newton._factor`: the equilibration, the operator's set-up
+and the band LU) and the band LU alone (:func:`solver.banded.block_factor`; beside it
+LAPACK's band LU ``dgbtrf`` of the same matrix, its copy into the band storage not
+counted), one exact
 operator product (:func:`solver.newton._matvec`) and one band solve
 (:func:`solver.banded.block_solve`), the last two being one GMRES iteration's work. Then
 the next ``--steps`` nominal steps are advanced and their Newton and GMRES iterations,
 band factorisations and attempts counted, from which a contact Newton iteration's cost is
-put together from its parts.
+put together from its parts, and set beside the measured wall per iteration.
+
+The same is done for a contact-free iteration of the same rod: the run is taken back to
+its start and advanced to ``--free-at`` s (default 10 s, straight and twisting, before
+buckling), a nominal step set up, and its residual with and without the Jacobian, the
+factorisation and the band solve timed; then ``--free-steps`` nominal steps are counted.
+A contact-free iteration is the residual with its Jacobian, a band solve and (some
+iterations) a factorisation; the ratio of the two iterations' measured walls is printed
+last (the figure docs/contact.md § 4 quotes for the cost of contact per Newton
+iteration).
 
 Run: ``PYTHONPATH=$PWD python benchmarks/contact_iteration_cost.py [--at 30] [--dt 0.015]
-[--steps 3] [--repeats 200]`` (about 30 s of running to reach 30 s, plus the kernels'
-compilation the first time).
+[--steps 3] [--free-at 10] [--free-steps 20] [--repeats 200]`` (about 35 s of running,
+plus the kernels' compilation the first time).
 """
 from __future__ import annotations
 
@@ -26,13 +39,16 @@ import statistics
 import time
 
 import numpy as np
+from scipy.linalg import lapack
 from threadpoolctl import threadpool_limits
 
 from solver import Case
 from solver import newton as newton_mod
-from solver.banded import block_solve
+from solver.banded import block_factor, block_solve
 from solver.run import RodRun
 from solver.scheme import residual_into
+
+KL = KU = 17  # the Jacobian's band (solver.banded)
 
 
 def _median_ms(fn, repeats: int) -> float:
@@ -45,70 +61,141 @@ def _median_ms(fn, repeats: int) -> float:
     return statistics.median(times) * 1e3
 
 
-def measure(at: float, dt: float, steps: int, repeats: int) -> dict:
+def _advance_to(run: RodRun, at: float, h_nominal: float, k: int) -> int:
+    """Advance ``run`` by nominal steps to ``at`` (s); returns the step count k."""
+    while run.t < at - 1e-9:
+        k += 1
+        run.advance(round(k * h_nominal, 10))
+    return k
+
+
+def _lapack_band(blocks, bc_rows, bc_cols, bc_vals):
+    """The same Jacobian (cell blocks (N, 12, 24), boundary entries (12,)) in LAPACK's band
+    storage for ``dgbtrf`` (kl = ku = 17, (2kl + ku + 1, n), Fortran order)."""
+    n_cells = blocks.shape[0]
+    n = 12 * (n_cells + 1)
+    ab = np.zeros((2 * KL + KU + 1, n), order="F")
+    c, i, j = np.meshgrid(np.arange(n_cells), np.arange(12), np.arange(24), indexing="ij")
+    rows = 6 + 12 * c + i
+    cols = 12 * c + j
+    ab[KL + KU + rows - cols, cols] = blocks
+    ab[KL + KU + bc_rows - bc_cols, bc_cols] = bc_vals[:bc_rows.shape[0]]
+    return ab
+
+
+def _parts(run: RodRun, dt: float, repeats: int) -> tuple[dict, int, int]:
+    """Set up a step of ``dt`` (s) from the run's state as the run would, solve it, and
+    time the compiled parts of an iteration at the solution (ms, medians). Returns
+    (parts, candidate runs, the solve's iterations)."""
+    prob = run.step_problem(dt)
+    system, newton = run.system, run.newton
+    system.begin_step(prob.h, prob.params, prob.t_new, run.Y, run.Ydot, run.F_old,
+                      prob.bc, q_old=run.q, r_old=run.r, v_old_global=run.v_global,
+                      candidates=prob.candidates, left_limit=prob.left_limit)
+    guess = prob.guess if prob.candidates is None else run._feasible_guess(prob.guess)
+    Y, _, its, res, ok, _ = newton.solve(guess)
+    st = newton._state
+    rod, step, cand, cdata = system.kernel_args()
+    frozen = st["ws"][8][:0]
+    runs = cand[2].shape[0]
+    x = np.random.default_rng(0).standard_normal(Y.size)
+    out = np.empty_like(x)
+    parts = {
+        "residual and Jacobian": lambda: residual_into(Y, True, rod, step, cand, frozen,
+                                                       cdata, system.buf, system.ev),
+        "residual alone": lambda: residual_into(Y, False, rod, step, cand, frozen, cdata,
+                                                system.buf, system.ev),
+    }
+    if runs:
+        gaps = np.empty(runs)
+        parts["trial gaps"] = lambda: newton_mod._trial_gaps(Y, step, rod, cand, cdata,
+                                                             st["ws"], gaps)
+    timed = {name: _median_ms(fn, repeats) for name, fn in parts.items()}
+    residual_into(Y, True, rod, step, cand, frozen, cdata, system.buf, system.ev)
+    timed["factorisation"] = _median_ms(
+        lambda: newton_mod._factor(Y, system.buf, system.ev, st["lin"], st["op"], rod,
+                                   step, newton.CONTACT_BAND_WEIGHT, st["ctr"]),
+        max(repeats // 4, 5))
+    lu, op = st["lin"][0], st["op"]
+    timed["band LU alone"] = _median_ms(
+        lambda: block_factor(op[0], step[7], step[8], op[1], lu), max(repeats // 4, 5))
+    ab = _lapack_band(op[0], step[7], step[8], op[1])
+    work = np.empty_like(ab, order="F")
+    copy_ms = _median_ms(lambda: np.copyto(work, ab), max(repeats // 4, 5))
+
+    def lapack_factor():
+        np.copyto(work, ab)
+        if lapack.dgbtrf(work, KL, KU, overwrite_ab=True)[2] != 0:
+            raise RuntimeError("dgbtrf: singular")
+
+    timed["LAPACK dgbtrf"] = _median_ms(lapack_factor, max(repeats // 4, 5)) - copy_ms
+    if runs:
+        timed["exact product"] = _median_ms(
+            lambda: newton_mod._matvec(x, out, st["lin"], op, step, st["gm"]), repeats)
+    timed["band solve"] = _median_ms(lambda: block_solve(lu, out), repeats)
+    return timed, runs, its
+
+
+def _count(run: RodRun, steps: int, h_nominal: float, k: int) -> tuple[dict, int]:
+    """Advance ``steps`` nominal steps, counting Newton solves and iterations, GMRES
+    iterations and factorisations; returns (counts with the wall in s, k)."""
+    newton = run.newton
+    g0, f0 = newton.gmres_iterations, newton.factorizations
+    attempts = [0, 0]
+    solve = newton.solve
+
+    def counted(Y_guess):
+        out_ = solve(Y_guess)
+        attempts[0] += 1
+        attempts[1] += out_[2]
+        return out_
+
+    newton.solve = counted
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        k += 1
+        run.advance(round(k * h_nominal, 10))
+    wall = time.perf_counter() - t0
+    del newton.solve
+    return {"steps": steps, "solves": attempts[0], "newton": attempts[1],
+            "gmres": newton.gmres_iterations - g0,
+            "factorizations": newton.factorizations - f0, "wall_s": wall}, k
+
+
+def measure(at: float, dt: float, steps: int, repeats: int, free_at: float = 10.0,
+            free_steps: int = 20) -> dict:
     """Run the seed example to ``at`` (s), time the parts of a contact Newton iteration at
-    a step of ``dt`` (s) from there, and count the next ``steps`` nominal steps' work.
-    Returns a dict of the figures (ms and counts)."""
+    a step of ``dt`` (s) from there, and count the next ``steps`` nominal steps' work;
+    then the same for a contact-free iteration at ``free_at`` (s), a nominal step, and
+    ``free_steps`` steps. Returns a dict of the figures (ms and counts)."""
     case = Case.from_file(os.path.join(os.path.dirname(__file__), "..", "cases",
                                        "goyal-writhing.yaml"))
-    run = RodRun(case)
     h_nominal = case.numerics.dt
-    k = 0
     with threadpool_limits(limits=1, user_api="blas"):
-        while run.t < at - 1e-9:
-            k += 1
-            run.advance(round(k * h_nominal, 10))
-        prob = run.step_problem(dt)
-        system, newton = run.system, run.newton
-        system.begin_step(prob.h, prob.params, prob.t_new, run.Y, run.Ydot, run.F_old,
-                          prob.bc, q_old=run.q, r_old=run.r, v_old_global=run.v_global,
-                          candidates=prob.candidates, left_limit=prob.left_limit)
-        Y, _, its, res, ok, _ = newton.solve(run._feasible_guess(prob.guess))
-        st = newton._state
-        rod, step, cand, cdata = system.kernel_args()
-        frozen = st["ws"][8][:0]
-        runs = cand[2].shape[0]
-        gaps = np.empty(runs)
-        x = np.random.default_rng(0).standard_normal(Y.size)
-        out = np.empty_like(x)
-        parts = {
-            "residual and Jacobian": lambda: residual_into(Y, True, rod, step, cand, frozen,
-                                                           cdata, system.buf, system.ev),
-            "residual alone": lambda: residual_into(Y, False, rod, step, cand, frozen, cdata,
-                                                    system.buf, system.ev),
-            "trial gaps": lambda: newton_mod._trial_gaps(Y, step, rod, cand, cdata,
-                                                         st["ws"], gaps),
-        }
-        timed = {name: _median_ms(fn, repeats) for name, fn in parts.items()}
-        residual_into(Y, True, rod, step, cand, frozen, cdata, system.buf, system.ev)
-        timed["factorisation"] = _median_ms(
-            lambda: newton_mod._factor(Y, system.buf, system.ev, st["lin"], st["op"], rod,
-                                       step, newton.CONTACT_BAND_WEIGHT, st["ctr"]),
-            max(repeats // 4, 5))
-        timed["exact product"] = _median_ms(
-            lambda: newton_mod._matvec(x, out, st["lin"], st["op"], step, st["gm"]), repeats)
-        timed["band solve"] = _median_ms(lambda: block_solve(st["lin"][0], out), repeats)
-        g0, f0 = newton.gmres_iterations, newton.factorizations
-        attempts = [0, 0]
-        solve = newton.solve
-
-        def counted(Y_guess):
-            out_ = solve(Y_guess)
-            attempts[0] += 1
-            attempts[1] += out_[2]
-            return out_
-
-        newton.solve = counted
-        t0 = time.perf_counter()
-        for _ in range(steps):
-            k += 1
-            run.advance(round(k * h_nominal, 10))
-        wall = time.perf_counter() - t0
-        del newton.solve
+        run = RodRun(case)
+        k = _advance_to(run, at, h_nominal, 0)
+        timed, runs, its = _parts(run, dt, repeats)
+        counts, k = _count(run, steps, h_nominal, k)
+        free_run = RodRun(case)
+        kf = _advance_to(free_run, free_at, h_nominal, 0)
+        free_timed, free_runs, _ = _parts(free_run, h_nominal, repeats)
+        free_counts, kf = _count(free_run, free_steps, h_nominal, kf)
+    if free_runs:
+        raise RuntimeError(f"the rod has contact candidates at {free_at} s")
     return {"at": at, "dt": dt, "runs": runs, "start_iterations": its, "parts_ms": timed,
-            "steps": steps, "solves": attempts[0], "newton": attempts[1],
-            "gmres": newton.gmres_iterations - g0,
-            "factorizations": newton.factorizations - f0, "wall_s": wall}
+            **counts, "free": {"at": free_at, "parts_ms": free_timed, **free_counts}}
+
+
+def _per_iteration(p: dict, c: dict) -> tuple[float, float, float]:
+    """(GMRES iterations, factorisations, ms of the timed parts) per Newton iteration."""
+    n = max(c["newton"], 1)
+    gm = c["gmres"] / n
+    fa = c["factorizations"] / n
+    if "exact product" in p:
+        solve = gm * (p["exact product"] + p["band solve"])
+    else:
+        solve = p["band solve"]
+    return gm, fa, p["residual and Jacobian"] + solve + fa * p["factorisation"]
 
 
 def main() -> None:
@@ -116,29 +203,33 @@ def main() -> None:
     ap.add_argument("--at", type=float, default=30.0)
     ap.add_argument("--dt", type=float, default=0.015)
     ap.add_argument("--steps", type=int, default=3)
+    ap.add_argument("--free-at", type=float, default=10.0)
+    ap.add_argument("--free-steps", type=int, default=20)
     ap.add_argument("--repeats", type=int, default=200)
     args = ap.parse_args()
     load = os.getloadavg()[0]
-    res = measure(args.at, args.dt, args.steps, args.repeats)
-    p = res["parts_ms"]
-    print(f"seed example at {res['at']:g} s, a {res['dt']:g}-s contact step, "
-          f"{res['runs']} candidate runs (1-min load {load:.1f})")
-    for name, ms in p.items():
-        print(f"  {name:<22} {ms:6.3f} ms")
-    n = max(res["newton"], 1)
-    gm = res["gmres"] / n
-    fa = res["factorizations"] / n
-    per_it = (p["residual and Jacobian"] + gm * (p["exact product"] + p["band solve"])
-              + fa * p["factorisation"])
-    print(f"next {res['steps']} nominal steps: {res['solves']} Newton solves, "
-          f"{res['newton']} iterations ({res['newton'] / max(res['solves'], 1):.2f} per solve), "
-          f"{gm:.2f} GMRES iterations and {fa:.2f} factorisations per iteration, "
-          f"{res['wall_s']:.2f} s")
-    print(f"  per Newton iteration from the parts: {per_it:.2f} ms (residual and Jacobian "
-          f"{p['residual and Jacobian']:.2f}, "
-          f"GMRES {gm * (p['exact product'] + p['band solve']):.2f}, "
-          f"factorisation {fa * p['factorisation']:.2f}); measured "
-          f"{res['wall_s'] * 1e3 / n:.2f} ms with the step's other work")
+    res = measure(args.at, args.dt, args.steps, args.repeats, args.free_at, args.free_steps)
+    per_wall = {}
+    for label, p, c in (
+            (f"contact: the seed example at {res['at']:g} s, a {res['dt']:g}-s step, "
+             f"{res['runs']} candidate runs", res["parts_ms"], res),
+            (f"contact-free: the seed example at {res['free']['at']:g} s, a nominal step",
+             res["free"]["parts_ms"], res["free"])):
+        print(f"{label} (1-min load {load:.1f})")
+        for name, ms in p.items():
+            print(f"  {name:<22} {ms:6.3f} ms")
+        n = max(c["newton"], 1)
+        gm, fa, per_it = _per_iteration(p, c)
+        per_wall[label] = c["wall_s"] * 1e3 / n
+        print(f"  next {c['steps']} nominal steps: {c['solves']} Newton solves, "
+              f"{c['newton']} iterations ({c['newton'] / max(c['solves'], 1):.2f} per "
+              f"solve), {gm:.2f} GMRES iterations and {fa:.2f} factorisations per "
+              f"iteration, {c['wall_s']:.2f} s")
+        print(f"  per Newton iteration from the parts: {per_it:.2f} ms; measured "
+              f"{per_wall[label]:.2f} ms with the step's other work")
+    contact_ms, free_ms = per_wall.values()
+    print(f"a contact Newton iteration costs {contact_ms / free_ms:.2f}× a contact-free one "
+          f"(measured walls per iteration, {contact_ms:.2f} against {free_ms:.2f} ms)")
 
 
 if __name__ == "__main__":

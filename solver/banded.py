@@ -15,11 +15,13 @@ and node k + 1); 12 rows become U's, the other 6 carry over to the next window w
 on node k + 1 only, and the last window is the 6 carried rows with the 6 boundary rows of
 s = L (12 × 12). The pivots are those of LAPACK's band LU (``dgbtrf``: partial pivoting
 over the rows that have an entry in the column, the first of equal maxima), with a third
-of its flops: per node ~5,300 against ~14,000 (measured at N = 1000: 1.0 ms against
-2.9 ms for the assembly and ``dgbtrf``, the solve 0.26 ms against 0.39 ms for
-``dgbtrs``; 2026-11-23, 2 cores). The elimination order and pivots being the band LU's, so is
-its stability (Golub & Van Loan, *Matrix Computations*, § 4.3 on band LU with partial
-pivoting).
+of its flops: per node ~5,300 against ~14,000. A window's rows are updated whole, over
+all 24 columns with the eliminated entries held at an exact 0 (:func:`_window`), which the
+compiler vectorises: at N = 1000 on the seed example's contact Jacobian 1.16 ms per
+factor against 3.0 ms for ``dgbtrf`` on the same matrix (``python
+benchmarks/contact_iteration_cost.py``, "band LU alone"). The elimination order
+and pivots being the band LU's, so is its stability (Golub & Van Loan, *Matrix
+Computations*, § 4.3 on band LU with partial pivoting).
 
 The factor's storage (a tuple, :func:`block_storage`): LW (N, 18, 12) the windows' first
 12 columns after elimination (U's upper triangle in rows 0-11, the multipliers below),
@@ -111,9 +113,8 @@ def _window(W, LWk, pivk):
     as an exact 0 (the multiplier goes to LWk only), so every row update runs over all
     24 columns, a fixed trip count the compiler unrolls and vectorises: the entries left of
     column j are 0 in the pivot row and left unchanged, the arithmetic on the others is
-    the same, and so is the factor, bit for bit, in about half the time (1.0 ms against
-    1.9 ms at N = 1000 on the seed example's contact Jacobian; ``python
-    benchmarks/contact_iteration_cost.py`` times the factorisation). The upper triangle
+    the same, and so is the factor, bit for bit, in about half the time of updating the
+    shrinking rows (module docstring). The upper triangle
     (rows 0-11) is left in W for the caller. Returns 0, or 1 + the column whose pivot is
     exactly zero."""
     for j in range(NV):
