@@ -27,6 +27,11 @@ iterations) a factorisation; the ratio of the two iterations' measured walls is 
 last (the figure docs/contact.md § 4 quotes for the cost of contact per Newton
 iteration).
 
+Then ``--steps`` more nominal steps from the contact state with each contact Newton solve
+done twice from the same start, with and without the position test of
+``Newton.CONTACT_POSITION_FRACTION`` (docs/contact.md § 2): the iterations of each and how
+far the test's positions are from the fully converged ones.
+
 Run: ``PYTHONPATH=$PWD python benchmarks/contact_iteration_cost.py [--at 30] [--dt 0.015]
 [--steps 3] [--free-at 10] [--free-steps 20] [--repeats 200]`` (about 35 s of running,
 plus the kernels' compilation the first time).
@@ -162,6 +167,43 @@ def _count(run: RodRun, steps: int, h_nominal: float, k: int) -> tuple[dict, int
             "factorizations": newton.factorizations - f0, "wall_s": wall}, k
 
 
+def _position_test(run: RodRun, steps: int, h_nominal: float, k: int) -> tuple[dict, int]:
+    """Advance ``steps`` nominal steps with each contact Newton solve done twice from the
+    same start, with the position test (``Newton.CONTACT_POSITION_FRACTION`` of the
+    step's position bound) and without it (to the residual tolerance): the iterations of
+    each and the largest distance (m) between their positions. Returns (figures, k)."""
+    newton, system = run.newton, run.system
+    bound = newton.position_tolerance
+    solve = newton.solve
+    rows = []
+
+    def twice(Y_guess):
+        if system.step.candidates is None or not system.step.candidates.runs:
+            return solve(Y_guess)
+        newton.position_tolerance = 0.0
+        full = solve(Y_guess)
+        newton.position_tolerance = bound
+        out = solve(Y_guess)
+        if out[4] and full[4]:
+            r_full = system.pose_new(full[0])[2]
+            rows.append((out[2], full[2],
+                         float(np.abs(system.pose_new(out[0])[2] - r_full).max())))
+        return out
+
+    newton.solve = twice
+    try:
+        for _ in range(steps):
+            k += 1
+            run.advance(round(k * h_nominal, 10))
+    finally:
+        del newton.solve
+    its, its_full, moved = (np.array(rows).T if rows else (np.zeros(0),) * 3)
+    return {"solves": len(rows), "iterations": int(its.sum()),
+            "iterations_full": int(its_full.sum()),
+            "largest_difference_m": float(moved.max()) if rows else float("nan"),
+            "bound_m": bound, "fraction": newton.CONTACT_POSITION_FRACTION}, k
+
+
 def measure(at: float, dt: float, steps: int, repeats: int, free_at: float = 10.0,
             free_steps: int = 20) -> dict:
     """Run the seed example to ``at`` (s), time the parts of a contact Newton iteration at
@@ -176,6 +218,7 @@ def measure(at: float, dt: float, steps: int, repeats: int, free_at: float = 10.
         k = _advance_to(run, at, h_nominal, 0)
         timed, runs, its = _parts(run, dt, repeats)
         counts, k = _count(run, steps, h_nominal, k)
+        position, k = _position_test(run, steps, h_nominal, k)
         free_run = RodRun(case)
         kf = _advance_to(free_run, free_at, h_nominal, 0)
         free_timed, free_runs, _ = _parts(free_run, h_nominal, repeats)
@@ -183,7 +226,7 @@ def measure(at: float, dt: float, steps: int, repeats: int, free_at: float = 10.
     if free_runs:
         raise RuntimeError(f"the rod has contact candidates at {free_at} s")
     return {"at": at, "dt": dt, "runs": runs, "start_iterations": its, "parts_ms": timed,
-            **counts, "free": {"at": free_at, "parts_ms": free_timed, **free_counts}}
+            **counts, "position_test": position, "free": {"at": free_at, "parts_ms": free_timed, **free_counts}}
 
 
 def _per_iteration(p: dict, c: dict) -> tuple[float, float, float]:
@@ -227,6 +270,13 @@ def main() -> None:
               f"iteration, {c['wall_s']:.2f} s")
         print(f"  per Newton iteration from the parts: {per_it:.2f} ms; measured "
               f"{per_wall[label]:.2f} ms with the step's other work")
+    pt = res["position_test"]
+    print(f"position test (the next {args.steps} nominal steps, each contact solve twice): "
+          f"{pt['solves']} solves, {pt['iterations']} iterations against "
+          f"{pt['iterations_full']} to the residual tolerance; positions within "
+          f"{pt['largest_difference_m']:.2e} m of the fully converged ones (fraction "
+          f"{pt['fraction']:g} of the {pt['bound_m']:.2g}-m bound: "
+          f"{pt['fraction'] * pt['bound_m']:.1e} m)")
     contact_ms, free_ms = per_wall.values()
     print(f"a contact Newton iteration costs {contact_ms / free_ms:.2f}× a contact-free one "
           f"(measured walls per iteration, {contact_ms:.2f} against {free_ms:.2f} ms)")

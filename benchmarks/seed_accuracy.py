@@ -31,6 +31,13 @@ may meet): at the production step (rows ``position <x>``; with ``--dt-cut-factor
 also with the fixed steps cut by f instead of 4, rows ``position <x> cut <f>``) and with
 each tolerance of ``--tolerances`` (rows ``tolerance <tol> position <x>``).
 
+With ``--against STORED.json`` only the production run is made, from the case's own
+state at t0 to t1, and compared with the reference records a full run of this script
+stored there (e.g. ``benchmarks/results/seed_accuracy_18-45.json``; ``--windows`` as
+below): a change to the contact steps measured without recomputing the 6.25-ms reference,
+valid while the state at t0 is the same (the two states' writhe must agree within 0.1 %;
+the difference is printed).
+
 With ``--spread`` (Newton tolerances, default none) the measurement is repeated from
 the case's own state for each: the case (with ``--spread-position`` as its
 ``contact.position_tolerance``, default the case's) is run from t = 0 with that Newton
@@ -242,6 +249,38 @@ def spread(newton_tolerances, position, t0: float, t1: float, h_ref: float) -> l
     return rows
 
 
+def against(stored: Path, t0: float, t1: float, windows) -> dict:
+    """The production run from the case's own state at t0 to t1 (s) against the reference
+    records stored in ``stored`` (a JSON this script wrote over the same window): the
+    code's accuracy now without recomputing the 6.25-ms reference (valid while the code
+    before t0, and so the state, is unchanged: the first records' writhe must agree within
+    0.1 % of the window's largest, and the difference is printed). Prints and
+    returns :func:`compare`'s fields with the wall time (s), the largest |Tw + Wr − Lk|
+    and the smallest polyline surface gap (m)."""
+    from threadpoolctl import threadpool_limits
+
+    data = json.loads(stored.read_text())
+    ref = data["records"]["reference"]
+    with threadpool_limits(limits=1, user_api="blas"):
+        base = state_at(t0)
+        recs, wall = advance(copy.deepcopy(base), t1, 0.1)
+    start = abs(recs[0]["writhe"] - ref[0]["writhe"]) / data["writhe_scale"]
+    if len(recs) != len(ref) or not start <= 1e-3:
+        raise SystemExit(f"{stored}: its reference starts from another state at {t0} s "
+                         f"(writhe {100 * start:.3g} % of the window's apart) or covers "
+                         "another window")
+    out = {"wall_s": wall, "start_writhe_diff_rel": start, **compare(recs, ref, windows),
+           "max_topology_error": max(x["topology_error"] for x in recs),
+           "min_surface_gap_m": min(x["min_surface_gap"] for x in recs)}
+    print(f"production {t0:g}-{t1:g} s against the reference stored in {stored.name}: "
+          f"writhe {100 * out['writhe_rel_diff']:.3f} % off; by window "
+          + ", ".join(f"{k} {100 * v:.2f} %" for k, v in out.get("by_window", {}).items())
+          + f"; event time differences {out['event_time_diffs_s']}; max |Tw+Wr-Lk| "
+          f"{out['max_topology_error']:.1e}; min gap {1e3 * out['min_surface_gap_m']:.3f} mm;"
+          f" wall {wall:.1f} s; the states at {t0:g} s {100 * start:.4f} % apart in writhe")
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--t0", type=float, default=18.0)
@@ -265,7 +304,16 @@ def main() -> None:
     ap.add_argument("--windows", default="",
                     help="comma-separated sub-windows lo-hi (s), e.g. 18-21,26-30: the "
                          "writhe error of every row in each (by_window)")
+    ap.add_argument("--against", default="",
+                    help="a stored result JSON of this script (e.g. benchmarks/results/"
+                         "seed_accuracy_18-45.json): run only the production from t0 to "
+                         "t1 and compare it with that file's stored reference records")
     args = ap.parse_args()
+    if args.against:
+        against(Path(args.against), args.t0, args.t1,
+                [tuple(float(x) for x in w.split("-")) for w in args.windows.split(",")
+                 if w.strip()])
+        return
     if args.spread:
         from threadpoolctl import threadpool_limits
 

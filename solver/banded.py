@@ -17,8 +17,8 @@ s = L (12 × 12). The pivots are those of LAPACK's band LU (``dgbtrf``: partial 
 over the rows that have an entry in the column, the first of equal maxima), with a third
 of its flops: per node ~5,300 against ~14,000. A window's rows are updated whole, over
 all 24 columns with the eliminated entries held at an exact 0 (:func:`_window`), which the
-compiler vectorises: at N = 1000 on the seed example's contact Jacobian 1.16 ms per
-factor against 3.0 ms for ``dgbtrf`` on the same matrix (``python
+compiler vectorises: at N = 1000 on the seed example's contact Jacobian 1.1 ms per
+factor against 1.9 ms for ``dgbtrf`` on the same matrix (``python
 benchmarks/contact_iteration_cost.py``, "band LU alone"). The elimination order
 and pivots being the band LU's, so is its stability (Golub & Van Loan, *Matrix
 Computations*, § 4.3 on band LU with partial pivoting).
