@@ -392,7 +392,11 @@ class ContactWork(WorkAccount):
         if cand is None or not cand.runs:
             return 0.0, 0.0
         u_old = run.contact.potential(cand, run.r)
-        u_new = run.contact.potential(cand, sol.pose[2])
+        # the step's contact summary evaluated the contacts afresh at these positions:
+        # the same value without finding the closest points again
+        u_new = run.system.summary_potential(sol.pose[2])
+        if u_new is None:
+            u_new = run.contact.potential(cand, sol.pose[2])
         return u_old - u_new, u_new
 
 

@@ -48,7 +48,9 @@ def warm_up() -> None:
     sysm.begin_step(0.01, run.params, run.t + 0.01, run.Y, run.Ydot, run.F_old, run.bc,
                     q_old=run.q, r_old=run.r, v_old_global=run.v_global, candidates=cand)
     run.newton.feasible_start(run.Y)
-    run.newton.solve(run.Y)
+    pose = run.newton.solve(run.Y)[5]
+    sysm.contact_summary(pose[2], run.v_global, False)
+    sysm.summary_potential(pose[2])                      # the energy check's contact account
     sysm.residual(run.Y, want_jacobian=True)
     sysm.candidate_gaps(run.Y)
     contact.evaluate(cand, run.r, run.v_global)

@@ -36,7 +36,7 @@ import numba
 import numpy as np
 
 from .banded import NV, copy_into, fill
-from .contact.model import evaluate_into, evaluation_arrays
+from .contact.model import evaluate_into, evaluation_arrays, evaluation_potential
 from .kinematics import (_exp_one, _matrix_into, _right_jacobian_into, _space_route_kernel,
                          quat_to_matrix)
 from .loads import _drag_kernel, point_loads_into
@@ -901,6 +901,7 @@ class RodSystem:
         # frozen_selection None: set by Newton (see SelfContact.closest); key: what the
         # Jacobian's band part depends on besides the iterate (solver.newton keeps a
         # factorisation across steps while this is unchanged)
+        self._summary = None     # contact_summary of this step (summary_potential)
         self.step = StepTerms(
             cand_arrays=cand_arrays, dt=dt, params=params, t_new=t_new, bc=bc, cm=cm,
             Y_old=Y_old, Ydot_old=Ydot_old, zconst=zc, flux_const=flux_const, q_old=q_old,
@@ -1049,7 +1050,9 @@ class RodSystem:
         afresh, and its own numbers are returned; else (a frozen selection, see
         :meth:`solver.contact.SelfContact.closest`) the contacts are evaluated again with
         a fresh selection (:func:`solver.contact.model.evaluate_into`, into this step's
-        arrays). Coincident centreline points in a pair give a gap of −inf."""
+        arrays). Coincident centreline points in a pair give a gap of −inf. The fresh
+        evaluation is kept for :meth:`summary_potential` at the same positions r."""
+        self._summary = None
         if self.step.candidates is None:
             return None
         if fresh:
@@ -1060,7 +1063,20 @@ class RodSystem:
                               np.full(0, -1, np.intp), self.contact_data, self.ev)
             if p < 0:
                 return 0, -math.inf
+        self._summary = (r, p)
         return p, (float(self.ev[12][:p].min()) if p else math.inf)
+
+    def summary_potential(self, r):
+        """The contact law's stored energy (J) at the positions r (N+1, 3) m of the last
+        :meth:`contact_summary`, from its fresh evaluation
+        (:func:`solver.contact.model.evaluation_potential`: the value of
+        :meth:`solver.contact.SelfContact.potential` at r, bit for bit, without finding
+        the closest points again); None unless r is the very array that summary was
+        given, in this step."""
+        summary = getattr(self, "_summary", None)
+        if summary is None or summary[0] is not r:
+            return None
+        return float(evaluation_potential(self.ev, summary[1], self.contact_data))
 
     def column_scale(self, Y):
         """Scale of each unknown (n,): max(|Y| of its kind over the grid, its floor)."""

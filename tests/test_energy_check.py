@@ -301,3 +301,30 @@ def test_contact_account_is_the_contact_force_work_in_a_run(law):
     assert booked > 1e-4                      # the push-off releases stored energy
     assert abs(booked - chord) < 1e-4 * booked
     assert abs(booked - trap) < 0.05 * booked
+
+
+@pytest.mark.parametrize("law", ["seed", "barrier"])
+def test_contact_account_reads_the_solution_from_the_contact_summary(law, monkeypatch):
+    """The account's new-level U_c comes from the fresh evaluation the step's contact
+    summary made at the solution (RodSystem.summary_potential), not from finding the
+    closest points again: at every measured step of the crossing loop it is available
+    and equals SelfContact.potential at the solution's positions bit for bit; at any
+    other positions it is not offered."""
+    from solver import balance
+
+    step = balance.ContactWork.step
+    pairs = []
+
+    def checked(self, run, prob, sol, old):
+        r = sol.pose[2]
+        pairs.append((run.system.summary_potential(r), run.contact.potential(sol.candidates, r),
+                      run.system.summary_potential(r.copy())))
+        return step(self, run, prob, sol, old)
+
+    monkeypatch.setattr(balance.ContactWork, "step", checked)
+    run = RodRun(crossing_loop(1e-4, law, 0.002))
+    while run.t < 0.002 - 1e-12:
+        run.advance(run.t + 1e-4)
+    assert len(pairs) >= 15 and any(b > 0.0 for _, b, _ in pairs)
+    assert all(a == b for a, b, _ in pairs), pairs
+    assert all(c is None for _, _, c in pairs)

@@ -467,6 +467,25 @@ class SelfContact:
 
 
 @numba.njit(cache=True)
+def evaluation_potential(ev, P, data):
+    """The contact law's stored energy (J) of the first P contacts of an evaluation ev
+    (:func:`evaluate_into`'s arrays): Σ_p ½ Δs_i ρĀ Ψ(d_p; D̄) with ρĀ and D̄ at the
+    contact, each term and the order of the sum those of :func:`candidate_potential`, so
+    that where the evaluation selected its closest points afresh (no frozen selection) at
+    positions r the two are equal, bit for bit, to candidate_potential at r."""
+    pi, pj, pt, dist = ev[1], ev[2], ev[3], ev[13]
+    seg_nodes, seg_mats, diameter, rho_a, w, law = data
+    out = 0.0
+    for p in range(P):
+        i = pi[p]
+        j = pj[p]
+        t = pt[p]
+        dbar = _at_contact(diameter, i, j, t)
+        out += 0.5 * w[i] * _at_contact(rho_a, i, j, t) * law_potential(law, dist[p], dbar)
+    return out
+
+
+@numba.njit(cache=True)
 def _swept_reach(r0, r1, s, diameter, min_separation):
     """:meth:`SelfContact.passes_through`'s pre-test: the reach ½D_max + 2 max_k |r1_k −
     r0_k| (m) within which a pair of r1 (N, 3) must lie to come closer than ½D over the
