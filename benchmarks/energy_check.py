@@ -29,11 +29,12 @@
 * the full-length right runs (``--only full``, several minutes): cases/seabed-hockle.yaml
   to 10 s and cases/goyal-writhing.yaml to 45 s without the check and at the default:
   status, where a failed run stops, energy refusals, Newton iterations, |Wr| and the mid
-  node at the end, wall time and the check's own share of it;
+  node at the end, wall time and the check's own share of it (``--only full-seed``: the
+  seed example's pair alone);
 * what lies behind them (``--only diagnose``, :func:`diagnose`).
 
 Run: ``PYTHONPATH=$PWD python benchmarks/energy_check.py [--only cable|rest|cases|windows|
-newton|contact|control|tolerances|full|diagnose]`` (about a minute each after the kernels are
+newton|contact|control|tolerances|full|full-seed|diagnose]`` (about a minute each after the kernels are
 compiled; ``tolerances`` and ``full`` several).
 """
 from __future__ import annotations
@@ -340,10 +341,9 @@ def timed_check():
         B.EnergyBalance.measure, B.ContactWork.step = measure, contact
 
 
-def full():
+def full(names=("seabed-hockle.yaml", "goyal-writhing.yaml")):
     root = Path(__file__).resolve().parents[1] / "cases"
-    for name, tols in (("seabed-hockle.yaml", (None, 0.5)),
-                       ("goyal-writhing.yaml", (None, 0.5))):
+    for name, tols in ((name, (None, 0.5)) for name in names):
         for tol in tols:
             spec = Case.from_file(root / name).model_dump(mode="json")
             spec["numerics"]["energy_tolerance"] = tol
@@ -399,11 +399,12 @@ if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--only", choices=("cable", "rest", "cases", "windows", "newton",
                                            "contact", "control", "tolerances", "full",
-                                           "diagnose"))
+                                           "full-seed", "diagnose"))
     only = parser.parse_args().only
     for name, fn in (("cable", cable), ("rest", rest), ("cases", cases),
                      ("windows", windows), ("newton", newton), ("contact", contact),
                      ("control", control), ("tolerances", tolerances), ("full", full),
+                     ("full-seed", lambda: full(("goyal-writhing.yaml",))),
                      ("diagnose", diagnose)):
-        if only in (None, name):
+        if only == name or (only is None and name != "full-seed"):
             fn()
