@@ -373,7 +373,9 @@ class ContactWork(WorkAccount):
     −∇U_c (the closest point is stationary along the curve), so −ΔU_c is the repulsion's
     exact work, as ½kp² is the seabed spring's. Both levels are evaluated with the
     step's candidates (``sol.candidates``) on the pose the contact acts on (the space
-    route: the old level's ``run.r``, the solution's ``sol.pose``); a step without
+    route: the old level's ``run.r``, the solution's ``sol.pose``, read off the fresh
+    evaluation the step's contact summary made there, :meth:`solver.scheme.RodSystem.
+    summary_potential`); a step without
     candidates has U_c = 0 at both (no pair within the search distance, beyond every
     law's cut-off). The law's damper only takes energy out and is left out, as the
     scheme's own dissipation is. Carries U_c of the new level (J; None at the start,

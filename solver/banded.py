@@ -71,6 +71,21 @@ def block_storage(n_cells: int):
             np.zeros(_WIN))
 
 
+@numba.njit(cache=True, inline="always")
+def _pivot(W, rows, j):
+    """Partial pivoting's row for column j of W: the first row in j .. rows−1 whose
+    |W[i, j]| is largest (LAPACK's ``dgbtrf`` choice); −1 where the column is exactly 0
+    there (a singular matrix)."""
+    p = j
+    big = abs(W[j, j])
+    for i in range(j + 1, rows):
+        a = abs(W[i, j])
+        if a > big:
+            big = a
+            p = i
+    return p if big != 0.0 else -1
+
+
 @numba.njit(cache=True)
 def _eliminate(W, rows, cols, j, piv_row):
     """Partial pivoting on column j of W (rows j .. rows−1) and elimination below it in
@@ -79,14 +94,8 @@ def _eliminate(W, rows, cols, j, piv_row):
     computed for, so the solve interchanges and eliminates column by column, as LINPACK's
     dgesl). Records the pivot row in piv_row[j]; returns False for an exactly zero
     pivot. Used for the last window (12 × 12); the node windows use :func:`_window`."""
-    p = j
-    big = abs(W[j, j])
-    for i in range(j + 1, rows):
-        a = abs(W[i, j])
-        if a > big:
-            big = a
-            p = i
-    if big == 0.0:
+    p = _pivot(W, rows, j)
+    if p < 0:
         return False
     piv_row[j] = p
     if p != j:
@@ -113,19 +122,12 @@ def _window(W, LWk, pivk):
     as an exact 0 (the multiplier goes to LWk only), so every row update runs over all
     24 columns, a fixed trip count the compiler unrolls and vectorises: the entries left of
     column j are 0 in the pivot row and left unchanged, the arithmetic on the others is
-    the same, and so is the factor, bit for bit, in about half the time of updating the
-    shrinking rows (module docstring). The upper triangle
-    (rows 0-11) is left in W for the caller. Returns 0, or 1 + the column whose pivot is
-    exactly zero."""
+    the same, and so is the factor, bit for bit (its time: the module docstring). The
+    upper triangle (rows 0-11) is left in W for the caller. Returns 0, or 1 + the column
+    whose pivot is exactly zero."""
     for j in range(NV):
-        p = j
-        big = abs(W[j, j])
-        for i in range(j + 1, _WIN):
-            a = abs(W[i, j])
-            if a > big:
-                big = a
-                p = i
-        if big == 0.0:
+        p = _pivot(W, _WIN, j)
+        if p < 0:
             return j + 1
         pivk[j] = p
         if p != j:

@@ -258,8 +258,9 @@ def _cells_kernel(Y, Fn, zconst, flux_const, mass_t, stiffness, inertia, cm, af,
 
 @numba.njit(cache=True, inline="always")
 def _add_inertia_cell(blocks, k, hc, mass_t, inertia):
-    """2hc·∂⟨M Y⟩/∂Y added to cell k's block (12, 24) of blocks (N, 12, 24) in place: the
-    mass operator's diagonal (:func:`_mass_row`) at nodes k and k + 1, times −hc."""
+    """c·∂⟨M Y⟩/∂Y (hc = ½c) added to cell k's block (12, 24) of blocks (N, 12, 24) in
+    place: hc times the mass operator's diagonal (:func:`_mass_row`: −1 on κ in E1,
+    −M_t on v in E3, −I on ω in E4) at nodes k and k + 1."""
     for off, node in ((0, k), (NV, k + 1)):
         for i in range(3):
             blocks[k, E1 + i, off + K + i] -= hc
@@ -1072,7 +1073,8 @@ class RodSystem:
         (:func:`solver.contact.model.evaluation_potential`: the value of
         :meth:`solver.contact.SelfContact.potential` at r, bit for bit, without finding
         the closest points again); None unless r is the very array that summary was
-        given, in this step."""
+        given, in this step. Raises nothing. (``getattr``: a system restored from a
+        checkpoint written before this attribute existed has none until its next step.)"""
         summary = getattr(self, "_summary", None)
         if summary is None or summary[0] is not r:
             return None

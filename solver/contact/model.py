@@ -469,10 +469,14 @@ class SelfContact:
 @numba.njit(cache=True)
 def evaluation_potential(ev, P, data):
     """The contact law's stored energy (J) of the first P contacts of an evaluation ev
-    (:func:`evaluate_into`'s arrays): Σ_p ½ Δs_i ρĀ Ψ(d_p; D̄) with ρĀ and D̄ at the
-    contact, each term and the order of the sum those of :func:`candidate_potential`, so
-    that where the evaluation selected its closest points afresh (no frozen selection) at
-    positions r the two are equal, bit for bit, to candidate_potential at r."""
+    (:func:`evaluation_arrays`, filled by :func:`evaluate_into`: owner i (R,), partner
+    segment j (R,), its parameter t (R,), centreline distance d (R,) m): Σ_p ½ Δs_i ρĀ
+    Ψ(d_p; D̄) with ρĀ (kg/m) and D̄ (m) at the contact and Ψ the law's potential
+    (:func:`~.laws.law_potential`; docs/contact.md § 1, "Stored energy and the energy
+    check"). Each term and the order of the sum are those of :func:`candidate_potential`,
+    so that where the evaluation selected its closest points afresh (no frozen selection)
+    at positions r the two are equal, bit for bit, to candidate_potential at r. data:
+    :attr:`SelfContact.kernel_data`. Raises nothing."""
     pi, pj, pt, dist = ev[1], ev[2], ev[3], ev[13]
     seg_nodes, seg_mats, diameter, rho_a, w, law = data
     out = 0.0
