@@ -15,11 +15,15 @@ machine's moods; the counts are what to compare first).
 
 A variant is a set of class attributes of :class:`solver.newton.Newton` (the solver's
 tuning constants), e.g. ``CONTACT_BAND_WEIGHT=1.0`` (all node-local contact blocks in the
-preconditioner, the earlier setting) or ``GAP_KEEP=0.1``.
+preconditioner, the earlier setting) or ``GAP_KEEP=0.1``. Where a variant may change the
+solution (a looser stopping test), the largest distance of its centreline at the end of
+each replayed step from the baseline's (m) is printed with its window.
 
-Run: ``python benchmarks/replay_steps.py [--windows 18:21 26:29 34:36 41:44]
-[--variant NAME:ATTR=VALUE[,ATTR=VALUE...]] ...``; without ``--variant`` the baseline and
-``CONTACT_BAND_WEIGHT=1.0`` are compared. Results: benchmarks/results/replay_steps.json.
+Run: ``python benchmarks/replay_steps.py [--case CASE.yaml] [--windows 18:21 26:29 34:36
+41:44] [--variant NAME:ATTR=VALUE[,ATTR=VALUE...]] ...``; without ``--variant`` the
+baseline and ``CONTACT_BAND_WEIGHT=1.0`` are compared; ``--case`` another case file than
+the seed example's (e.g. cases/goyal-writhing-tension.yaml). Results:
+benchmarks/results/replay_steps.json (another case: replay_steps_<case name>.json).
 About 3 min per variant for the default windows, plus 1 min to reach 18 s.
 """
 from __future__ import annotations
@@ -30,6 +34,7 @@ import pickle
 import time
 from pathlib import Path
 
+import numpy as np
 from threadpoolctl import threadpool_limits
 
 from solver import Case
@@ -38,6 +43,7 @@ from solver.simulation import RodRun
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results" / "replay_steps.json"
+SEED = ROOT / "cases" / "goyal-writhing.yaml"
 
 
 def parse_variant(text: str) -> tuple[str, dict]:
@@ -56,7 +62,8 @@ def parse_variant(text: str) -> tuple[str, dict]:
 
 def replay_step(snapshot: bytes, t_target: float, settings: dict) -> dict:
     """One nominal step to t_target (s) from a pickled RodRun with the Newton class
-    attributes ``settings`` set for its duration; returns its counts and wall time."""
+    attributes ``settings`` set for its duration; returns its counts, wall time and
+    centreline at t_target (N+1, 3), m."""
     saved = {k: getattr(Newton, k) for k in settings}
     try:
         for k, v in settings.items():
@@ -67,17 +74,20 @@ def replay_step(snapshot: bytes, t_target: float, settings: dict) -> dict:
         its, _ = run.advance(t_target)
         wall = time.perf_counter() - t0
         return {"newton": its, "gmres": run.newton.gmres_iterations - g0,
-                "factorizations": run.newton.factorizations - f0, "wall": wall}
+                "factorizations": run.newton.factorizations - f0, "wall": wall,
+                "r": run.r.copy()}
     finally:
         for k, v in saved.items():
             setattr(Newton, k, v)
 
 
-def replay(windows: list[tuple[float, float]], variants: dict[str, dict]) -> dict:
-    """Advance the seed example with the baseline through the windows (s), replaying every
-    nominal step inside them with each variant; returns the sums per window and variant
-    and the per-step Newton iterations."""
-    case = Case.from_file(ROOT / "cases" / "goyal-writhing.yaml")
+def replay(windows: list[tuple[float, float]], variants: dict[str, dict],
+           case_path: Path = SEED) -> dict:
+    """Advance the case (default the seed example) with the baseline through the windows
+    (s), replaying every nominal step inside them with each variant; returns the sums per
+    window and variant, the per-step Newton iterations and the largest centreline
+    distance from the baseline's replay at the end of a step (m)."""
+    case = Case.from_file(case_path)
     dt = case.numerics.dt
     run = RodRun(case)
     out = {"windows": [list(w) for w in windows], "variants": variants, "results": {}}
@@ -89,16 +99,21 @@ def replay(windows: list[tuple[float, float]], variants: dict[str, dict]) -> dic
             window = next((w for w in windows if w[0] - 1e-9 <= run.t < w[1] - 1e-9), None)
             if window is not None:
                 snapshot = pickle.dumps(run, protocol=pickle.HIGHEST_PROTOCOL)
+                r_base = None
                 for name, settings in variants.items():
                     res = replay_step(snapshot, t_target, settings)
+                    if r_base is None:
+                        r_base = res["r"]
                     key = f"{window[0]:g}-{window[1]:g}"
                     acc = out["results"].setdefault(name, {}).setdefault(
                         key, {"steps": 0, "newton": 0, "gmres": 0, "factorizations": 0,
-                              "wall": 0.0, "per_step_newton": []})
+                              "wall": 0.0, "per_step_newton": [], "max_dr": 0.0})
                     acc["steps"] += 1
                     for f in ("newton", "gmres", "factorizations", "wall"):
                         acc[f] += res[f]
                     acc["per_step_newton"].append(res["newton"])
+                    acc["max_dr"] = max(acc["max_dr"],
+                                        float(np.abs(res["r"] - r_base).max()))
             run.advance(t_target)
             k += 1
     return out
@@ -106,6 +121,8 @@ def replay(windows: list[tuple[float, float]], variants: dict[str, dict]) -> dic
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--case", type=Path, default=SEED,
+                    help="case file (default: the seed example's)")
     ap.add_argument("--windows", nargs="+", default=["18:21", "26:29", "34:36", "41:44"],
                     help="windows START:END in s of simulated time")
     ap.add_argument("--variant", action="append", default=[],
@@ -120,17 +137,21 @@ def main() -> None:
         name, settings = parse_variant(text)
         variants[name] = settings
     t0 = time.perf_counter()
-    res = replay(sorted(windows), variants)
+    res = replay(sorted(windows), variants, args.case)
     res["wall_s"] = time.perf_counter() - t0
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(json.dumps(res, indent=1))
-    print(f"per-step replays of the seed example ({res['wall_s']:.0f} s); "
-          "Newton / GMRES iterations / factorisations / wall s")
+    res["case"] = str(args.case)
+    name = Case.from_file(args.case).name
+    path = (RESULTS if args.case.resolve() == SEED.resolve()
+            else RESULTS.with_name(f"replay_steps_{name}.json"))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(res, indent=1))
+    print(f"per-step replays of {name} ({res['wall_s']:.0f} s); Newton / GMRES iterations "
+          "/ factorisations / wall s; largest centreline distance from the baseline (m)")
     for name, per in res["results"].items():
         total = {f: sum(v[f] for v in per.values())
                  for f in ("steps", "newton", "gmres", "factorizations", "wall")}
         cells = "  ".join(f"{key}: {v['newton']} / {v['gmres']} / {v['factorizations']} / "
-                          f"{v['wall']:.1f}" for key, v in per.items())
+                          f"{v['wall']:.1f}, {v['max_dr']:.1e} m" for key, v in per.items())
         print(f"{name:>12}  all {total['steps']} steps: {total['newton']} / {total['gmres']} / "
               f"{total['factorizations']} / {total['wall']:.1f}   {cells}")
 
