@@ -32,7 +32,7 @@ docs/contact.md § 4). The strategy, in one place:
 * **Converged contact steps.** The scaled residual below the tolerance, or (contact
   steps) the iterate's position error estimated from the contraction of its last two
   corrections (Hairer & Wanner) below ``CONTACT_POSITION_FRACTION`` of the step's
-  position bound (``contact.position_tolerance``) with the residual below √tolerance:
+  position bound (``contact.position_tolerance``) with the residual below √10·√tolerance:
   the route rule allows each step a position error up to that bound, so iterating
   further only polishes digits the step does not have (one iteration fewer in most
   contact steps of the seed example; its positions within ~3e-8 m of the fully
@@ -575,7 +575,7 @@ def _feasible_start(Y_old, guess, step, rod, cand, cdata, ws, out):
 
 
 @numba.njit(cache=True)
-def _position_converged(r, r_prev, moved, it, res, tol, bound, trace):
+def _position_converged(r, r_prev, moved, it, res, res_limit, bound, trace):
     """The position test of a contact step's Newton iterate ``it`` (module docstring).
     r (N+1, 3): its space-route positions (m); r_prev (N+1, 3): the last iterate's,
     overwritten by r; moved (1,): how far the last-but-one correction moved the positions
@@ -585,8 +585,8 @@ def _position_converged(r, r_prev, moved, it, res, tol, bound, trace):
     Equations II, § IV.8, eq. (8.10), in the maximum norm of the positions). Converged
     when that is at most ``bound`` (m), ρ < ½, the last correction was taken whole (cut
     by the feasibility filter or the line search, d does not measure convergence), and
-    the scaled residual ``res`` is at most √tol (one more quadratic iteration would
-    reach tol). trace: the kernel's per-iteration record (feasible and line-search
+    the scaled residual ``res`` is at most ``res_limit`` (Newton.CONTACT_RESIDUAL_FACTOR
+    × √tol: one or two more quadratic iterations would reach tol). trace: the kernel's per-iteration record (feasible and line-search
     fractions in columns 1, 2). Returns the verdict."""
     d = 0.0
     for k in range(r.shape[0]):
@@ -602,7 +602,7 @@ def _position_converged(r, r_prev, moved, it, res, tol, bound, trace):
     if trace[it - 1, 1] != 1.0 or trace[it - 1, 2] != 1.0:
         return False
     rho = d / last
-    if rho >= 0.5 or res > math.sqrt(tol):
+    if rho >= 0.5 or res > res_limit:
         return False
     return rho / (1.0 - rho) * d <= bound
 
@@ -612,7 +612,8 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
     """Newton's iterations for one step (the module docstring's strategy), compiled
     whole. Y0 (N+1, 12): the start; prm: tolerance, iteration limit, least iterations,
     the iterate from which the selection is frozen, GAP_KEEP, GMRES_REFACTOR, GMRES's
-    relative residual and iteration limit, CONTACT_BAND_WEIGHT; rod, step, cand, cdata:
+    relative residual and iteration limit, CONTACT_BAND_WEIGHT, the position test's
+    bound (m, 0: no test) and residual limit; rod, step, cand, cdata:
     :meth:`solver.scheme.RodSystem.kernel_args`; buf, ev: the residual's buffers; lin,
     op, gm, ws, ctr: the Newton object's state (module comment above). The solution is
     left in ws[0], its residual evaluation in buf. Returns (iterations, scaled residual
@@ -627,6 +628,7 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
     gm_max = int(prm[7])
     weight = prm[8]
     pos_bound = prm[9]
+    res_limit = prm[10]
     R, Fn = buf[0], buf[2]
     Y, Yt, delta_flat, rhs, stall_scale, history, frozen = ws[0], ws[1], ws[2], ws[3], ws[4], ws[5], ws[8]
     rs, cs = lin[1], lin[3]
@@ -690,7 +692,7 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
         trace[it, 3] = 0.0
         done = res <= tol and it >= min_it
         if position_test and not done:
-            done = _position_converged(buf[7], r_prev, moved, it, res, tol, pos_bound,
+            done = _position_converged(buf[7], r_prev, moved, it, res, res_limit, pos_bound,
                                        trace) and it >= min_it
         if held and hold[0] == 2.0 and hold[7] > 0.0 and (done or res <= hold[6]):
             # converged, or near the held branches' solution, with touching cells off
@@ -904,7 +906,8 @@ class Newton:
     min_iterations = 0
 
     #: contact steps: an iterate whose estimated position error is at most this fraction
-    #: of ``position_tolerance`` (and whose scaled residual is at most √tolerance) is
+    #: of ``position_tolerance`` (and whose scaled residual is at most
+    #: CONTACT_RESIDUAL_FACTOR·√tolerance) is
     #: converged (:func:`_position_converged`). The step's own position error is allowed
     #: up to position_tolerance and its steps are sized for 0.35 of it
     #: (docs/contact.md § 3), so Newton's share is under 3 % of the step's error. The
@@ -917,6 +920,17 @@ class Newton:
     #: run (:meth:`solver.run.RodRun._route_tolerance`); 0: no position test (a class
     #: default, so that runs pickled before it existed resume without it)
     position_tolerance = 0.0
+
+    #: contact steps: the position test may stop Newton at a scaled residual of up to
+    #: this factor times √tolerance (1e-4 at the default tolerance 1e-9; one more
+    #: quadratic iteration would take it to ~10 tolerance). The seed example to 45 s: 3894
+    #: Newton iterations against 4052 at a factor of 1, 3.5 % less wall (medians of 3 run
+    #: alternately, python benchmarks/step_overhead.py compare OLD_TREE --cases seed-1000
+    #: --rounds 3), its writhe 0.852 % off the converged reference over 18-45 s against
+    #: 0.854 %, the centreline of each replayed step within 0.9 µm of the factor-1 one
+    #: (docs/contact.md § 2). A factor of 10 saved 7.7 % of the iterations of the
+    #: replayed steps against 4.8 % at the chosen one, for a writhe 0.856 % off
+    CONTACT_RESIDUAL_FACTOR = 10.0 ** 0.5
 
     def __init__(self, system, tolerance=1e-9, max_iterations=25):
         self.system = system
@@ -1017,7 +1031,8 @@ class Newton:
         return np.array([self.tol, self.max_iterations, self.min_iterations, self.FREEZE_AFTER,
                          self.GAP_KEEP, self.GMRES_REFACTOR, self.GMRES_RTOL, self.GMRES_MAX,
                          self.CONTACT_BAND_WEIGHT,
-                         self.CONTACT_POSITION_FRACTION * self.position_tolerance])
+                         self.CONTACT_POSITION_FRACTION * self.position_tolerance,
+                         self.CONTACT_RESIDUAL_FACTOR * math.sqrt(self.tol)])
 
     # ------------------------------------------------------------------ solve
     def solve(self, Y_guess):

@@ -7,6 +7,7 @@ output: |Tw + Wr − Lk| < 0.05 (Lk from the end rotations, Wr from the centreli
 κ3: three independent routes), surfaces never interpenetrate, and Lk follows the prescribed
 end rotation.
 """
+import math
 from pathlib import Path
 
 import numpy as np
@@ -209,6 +210,55 @@ def test_contact_newton_stops_at_its_position_error(monkeypatch):
     its, its_full, moved = np.array(rows).T
     assert its.sum() < its_full.sum()
     assert moved.max() <= 10.0 * Newton.CONTACT_POSITION_FRACTION * bound
+
+
+def test_position_test_stops_only_below_its_residual_limit(monkeypatch):
+    """The position test stops a contact step's Newton only at an iterate whose scaled
+    residual is at most Newton.CONTACT_RESIDUAL_FACTOR·√tolerance. Over ten contact
+    steps of the fast writhing case from 6.6 s, each solved from the same start with
+    factors putting that limit at the tolerance itself, at √tolerance, at the default
+    (√10·√tolerance) and at 1e-3: at the tolerance the test never stops earlier than the
+    residual test (the iterations of a solve without it); each looser limit stops no
+    later than the one before, √tolerance earlier in all than the residual test, and
+    each solve ends at a residual within its limit."""
+    from solver.newton import Newton
+
+    run = RodRun(fast_writhing_case(7.0))
+    root = math.sqrt(run.newton.tol)
+    factors = (root, 1.0, 1e-3 / root, Newton.CONTACT_RESIDUAL_FACTOR)
+    solve = Newton.solve
+    rows = []
+
+    def compare(self, Y_guess):
+        system = self.system
+        if (len(rows) < 10 and run.t >= 6.6 and system.step.candidates is not None
+                and system.evaluate(Y_guess, False)[1] >= 5):
+            its = {}
+            for factor in factors:      # the default last: its solution goes on
+                self.CONTACT_RESIDUAL_FACTOR = factor
+                out = solve(self, Y_guess)
+                assert out[4] and out[3] <= factor * root * (1.0 + 1e-12)
+                its[factor] = out[2]
+            del self.CONTACT_RESIDUAL_FACTOR
+            bound = self.position_tolerance
+            self.position_tolerance = 0.0
+            none = solve(self, Y_guess)[2]
+            self.position_tolerance = bound
+            rows.append([none] + [its[f] for f in sorted(factors)])
+            return solve(self, Y_guess)
+        return solve(self, Y_guess)
+
+    monkeypatch.setattr(Newton, "solve", compare)
+    k = 0
+    while len(rows) < 10 and run.t < 7.0 - 1e-9:
+        k += 1
+        run.advance(0.1 * k)
+    assert len(rows) == 10
+    none, at_tol, at_root, default, loose = np.array(rows).T
+    assert 1.0 < Newton.CONTACT_RESIDUAL_FACTOR < 1e-3 / root
+    assert np.array_equal(at_tol, none)
+    assert np.all(at_root <= none) and at_root.sum() < none.sum()
+    assert np.all(default <= at_root) and np.all(loose <= default)
 
 
 def test_position_tolerance_bounds_the_error_of_every_contact_step(monkeypatch):
