@@ -1,0 +1,322 @@
+"""What GMRES's iterations in a contact step are spent on: the spectrum of the Jacobian
+preconditioned by the contact-free band LU, and what deflating its outlying eigenvalues
+would save (docs/contact.md § 4, "What GMRES still takes").
+
+The case (default the tension variant, ``cases/goyal-writhing-tension.yaml``, 1000
+segments, ~640 contacts at 21 s) is run to ``--at`` s and a contact step of ``--dt`` s is
+set up from that state as the run would set it up. Newton solves it; its iterates are
+recovered (the same solve stopped after 1, 2, ... iterations). At each iterate the
+operator is the one GMRES sees there (the scaled exact Jacobian J, :func:`solver.newton.
+_matvec`) and the preconditioner M the band LU factored at the step's start (as the
+solver keeps it, :func:`solver.newton._set_operator`). Printed:
+
+1. the ``--k`` eigenvalues of J M⁻¹ farthest from 1 at the start (ARPACK through
+   :func:`scipy.sparse.linalg.eigs` on J M⁻¹ − I), the time and operator applications
+   it took to find them, and for each eigenvector's state-space direction M⁻¹u how many
+   nodes hold 90 % of its squared norm, its largest unknown (v, ω, f or κ) and its two
+   largest peaks at least 50 nodes apart;
+2. GMRES's iterations to the solver's relative residual (1e-3) on each iterate's system,
+   plain and right-deflated by an orthonormal basis U of those eigenvectors:
+   M⁻¹ P with P = I + U(T⁻¹ − I)Uᵀ, T = Uᵀ J M⁻¹ U (Erhel, Burrage & Pohl, J. Comput.
+   Appl. Math. 69 (1996) 303-318), U found (a) at that very iterate, (b) at the iterate
+   before it, (c) at the step's start, and (d) at the start of the step before (the next
+   ``--steps`` steps of the run);
+3. the same with U built without an eigensolver, from the Arnoldi basis of the last
+   GMRES solve of the step (its Ritz vectors with Ritz values more than ``--gap`` from 1,
+   merged with the last U, at most ``--k`` of them, T carried from the last solve's
+   Hessenberg matrix: a recycling of the Krylov subspaces in the manner of Parks et al.,
+   SIAM J. Sci. Comput. 28 (2006) 1651-1674, at no extra operator product).
+
+GMRES here is a plain Arnoldi in numpy (two Gram-Schmidt passes), started from zero: its
+counts are comparable with each other, not to the microsecond with the solver's kernel.
+
+Run: ``PYTHONPATH=$PWD python benchmarks/gmres_spectrum.py [--case CASE.yaml] [--at 21]
+[--dt 0.003] [--k 12] [--steps 3] [--gap 0.3]`` (about 2 min to reach 21 s of the tension
+variant, then ~20 s).
+"""
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.sparse.linalg import LinearOperator, eigs
+from threadpoolctl import threadpool_limits
+
+import solver.newton as newton_mod
+from solver import Case
+from solver.banded import block_solve
+from solver.run import RodRun
+from solver.scheme import residual_into
+
+ROOT = Path(__file__).resolve().parents[1]
+TENSION = ROOT / "cases" / "goyal-writhing-tension.yaml"
+RTOL = 1e-3            # the solver's GMRES relative residual (Newton.GMRES_RTOL)
+COMPONENTS = ("v", "ω", "f", "κ")
+
+
+def advance_to(run: RodRun, at: float, h_nominal: float) -> None:
+    """Advance ``run`` by nominal steps to ``at`` (s)."""
+    k = int(round(run.t / h_nominal))
+    while run.t < at - 1e-9:
+        k += 1
+        run.advance(round(k * h_nominal, 10))
+
+
+class StepSystems:
+    """The linear systems GMRES meets in one contact step of ``run``: set up a step of h
+    (s), solve it with the run's Newton, recover its iterates (N+1, 12) and, per iterate,
+    the scaled operator, preconditioner and right-hand side (n,) as the kernel has them."""
+
+    def __init__(self, run: RodRun, h: float):
+        self.run, self.h = run, h
+        self.prob = run.step_problem(h)
+        self._begin()
+        self.guess = run._feasible_guess(self.prob.guess)
+        newton = run.newton
+        Y, _, its, _, ok, _ = newton.solve(self.guess)
+        if not ok:
+            raise RuntimeError(f"Newton failed at t = {run.t} s with Δt = {h} s")
+        self.iterates = [self.guess.copy()]
+        saved = newton.max_iterations
+        try:
+            for m in range(1, its):
+                newton.max_iterations = m
+                self._begin()
+                newton.solve(self.guess)
+                self.iterates.append(newton._state["ws"][0].copy())
+        finally:
+            newton.max_iterations = saved
+        self._begin()
+        st = newton._state
+        self.lin, self.op, self.gm = st["lin"], st["op"], st["gm"]
+        self.n = self.lin[1].size
+
+    def _begin(self) -> None:
+        run, prob = self.run, self.prob
+        run.system.begin_step(prob.h, prob.params, prob.t_new, run.Y, run.Ydot, run.F_old,
+                              prob.bc, q_old=run.q, r_old=run.r,
+                              v_old_global=run.v_global, candidates=prob.candidates,
+                              left_limit=prob.left_limit)
+
+    def at(self, k: int) -> np.ndarray:
+        """Set the operator to iterate k's Jacobian (the band LU factored at iterate 0);
+        returns its scaled right-hand side (n,)."""
+        system, newton = self.run.system, self.run.newton
+        st = newton._state
+        rod, step, cand, cdata = system.kernel_args()
+        Y = self.iterates[k]
+        residual_into(Y, True, rod, step, cand, st["ws"][8][:0], cdata, system.buf, system.ev)
+        if k == 0:
+            newton_mod._factor(Y, system.buf, system.ev, self.lin, self.op, rod, step,
+                               newton.CONTACT_BAND_WEIGHT, st["ctr"])
+        else:
+            newton_mod._set_operator(system.buf, system.ev, self.lin, self.op, step,
+                                     newton.CONTACT_BAND_WEIGHT, step[11][2])
+        return -system.buf[0] * self.lin[1]
+
+    def matvec(self, x: np.ndarray) -> np.ndarray:
+        """J x (n,), the operator as last set by :meth:`at`."""
+        out = np.empty(self.n)
+        step = self.run.system.kernel_args()[1]
+        newton_mod._matvec(np.ascontiguousarray(x, dtype=float), out, self.lin, self.op,
+                           step, self.gm)
+        return out
+
+    def precondition(self, x: np.ndarray) -> np.ndarray:
+        """M⁻¹ x (n,): the band LU's solve."""
+        y = np.array(x, dtype=float)
+        block_solve(self.lin[0], y)
+        return y
+
+
+def gmres(sys_: StepSystems, rhs, U=None, T=None, m: int = 80):
+    """Right-preconditioned GMRES on J M⁻¹ P y = rhs (P the deflation of U, T; identity
+    without U) from zero to RTOL. Returns (iterations, Arnoldi basis V (n, j+1),
+    Hessenberg matrix H (j+1, j))."""
+    if U is not None:
+        shift = np.linalg.inv(T) - np.eye(U.shape[1])
+
+        def P(y):
+            return y + U @ (shift @ (U.T @ y))
+    else:
+        def P(y):
+            return y
+    beta = np.linalg.norm(rhs)
+    V = np.zeros((rhs.size, m + 1))
+    H = np.zeros((m + 1, m))
+    V[:, 0] = rhs / beta
+    for j in range(m):
+        w = sys_.matvec(sys_.precondition(P(V[:, j])))
+        for _ in range(2):
+            c = V[:, :j + 1].T @ w
+            H[:j + 1, j] += c
+            w -= V[:, :j + 1] @ c
+        H[j + 1, j] = np.linalg.norm(w)
+        V[:, j + 1] = w / H[j + 1, j]
+        e1 = np.zeros(j + 2)
+        e1[0] = beta
+        y = np.linalg.lstsq(H[:j + 2, :j + 1], e1, rcond=None)[0]
+        if np.linalg.norm(e1 - H[:j + 2, :j + 1] @ y) <= RTOL * beta:
+            break
+    return j + 1, V[:, :j + 2], H[:j + 2, :j + 1]
+
+
+def _real_basis(vectors: np.ndarray) -> np.ndarray:
+    """An orthonormal real basis (n, r) of the span of complex vectors (n, k)."""
+    q, r = np.linalg.qr(np.column_stack([vectors.real, vectors.imag]))
+    d = np.abs(np.diag(r))
+    return q[:, d > 1e-10 * d.max()]
+
+
+def eigen_basis(sys_: StepSystems, k: int):
+    """The k eigenvalues of J M⁻¹ farthest from 1 (ARPACK), an orthonormal basis U of
+    their eigenvectors and T = Uᵀ J M⁻¹ U; (values, vectors, U, T, (seconds, operator
+    applications))."""
+    n = sys_.n
+    applied = [0]
+
+    def shifted(x):
+        applied[0] += 1
+        x = np.real(x).ravel()
+        return sys_.matvec(sys_.precondition(x)) - x
+
+    E = LinearOperator((n, n), dtype=float, matvec=shifted)
+    t0 = time.perf_counter()
+    values, vectors = eigs(E, k=k, which="LM", maxiter=5000, tol=1e-4)
+    seconds = time.perf_counter() - t0
+    U = _real_basis(vectors)
+    return values + 1.0, vectors, U, _projected(sys_, U), (seconds, applied[0])
+
+
+def _projected(sys_: StepSystems, U: np.ndarray) -> np.ndarray:
+    """T = Uᵀ J M⁻¹ U (r, r) at the current operator."""
+    return U.T @ np.column_stack([sys_.matvec(sys_.precondition(U[:, j]))
+                                  for j in range(U.shape[1])])
+
+
+def recycled_basis(U, T, V, H, k: int, gap: float):
+    """The deflation basis after a GMRES solve on J M⁻¹ P (P from U, T; identity without
+    U): its Ritz vectors W = V S with Ritz values more than ``gap`` from 1, merged with U,
+    J M⁻¹ on the merged basis from the Arnoldi relation J M⁻¹ P V_j = V_{j+1} H and the
+    carried J M⁻¹ U ≈ U T (no operator product), cut to the k directions whose values are
+    farthest from 1. Returns (U, T)."""
+    j = H.shape[1]
+    theta, S = np.linalg.eig(H[:j, :j])
+    sel = np.flatnonzero(np.abs(theta - 1.0) > gap)
+    if sel.size == 0:
+        return U, T
+    Sr = _real_basis(S[:, sel])
+    W = V[:, :j] @ Sr
+    BPW = V @ (H @ Sr)
+    if U is None:
+        Q, BQ = W, BPW
+    else:
+        r = U.shape[1]
+        BW = BPW - U @ ((np.eye(r) - T) @ (U.T @ W))   # P W = W + U(T⁻¹ − I)UᵀW
+        q, rr = np.linalg.qr(np.column_stack([U, W]))
+        keep = np.flatnonzero(np.abs(np.diag(rr)) > 1e-8 * np.abs(rr).max())
+        Rinv = np.linalg.inv(rr[np.ix_(keep, keep)])
+        Q = np.column_stack([U, W])[:, keep] @ Rinv
+        BQ = np.column_stack([U @ T, BW])[:, keep] @ Rinv
+    Tq = Q.T @ BQ
+    if Q.shape[1] > k:
+        values, vectors = np.linalg.eig(Tq)
+        order = np.argsort(-np.abs(values - 1.0))[:k]
+        G = _real_basis(vectors[:, order])[:, :k]
+        Q, BQ = Q @ G, BQ @ G
+        Tq = Q.T @ BQ
+    return Q, Tq
+
+
+def localisation(sys_: StepSystems, vector: np.ndarray) -> tuple[int, str, int, int]:
+    """How many nodes hold 90 % of the eigenvector's state-space direction M⁻¹u (the
+    squared norm), which unknown dominates it, and its largest node and the largest at
+    least 50 nodes from that one."""
+    z = np.abs(sys_.precondition(vector.real) + 1j * sys_.precondition(vector.imag))
+    Z = z.reshape(-1, 12)
+    weight = (Z ** 2).sum(axis=1)
+    per_node = np.sort(weight)[::-1]
+    nodes = int(np.searchsorted(per_node.cumsum() / per_node.sum(), 0.9)) + 1
+    per_unknown = [(Z[:, 3 * i:3 * i + 3] ** 2).sum() for i in range(4)]
+    first = int(np.argmax(weight))
+    far = np.abs(np.arange(weight.size) - first) >= 50
+    second = int(np.flatnonzero(far)[np.argmax(weight[far])])
+    return nodes, COMPONENTS[int(np.argmax(per_unknown))], first, second
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--case", type=Path, default=TENSION)
+    ap.add_argument("--at", type=float, default=21.0)
+    ap.add_argument("--dt", type=float, default=0.003)
+    ap.add_argument("--k", type=int, default=12)
+    ap.add_argument("--steps", type=int, default=3)
+    ap.add_argument("--gap", type=float, default=0.3)
+    args = ap.parse_args()
+    case = Case.from_file(args.case)
+    with threadpool_limits(limits=1, user_api="blas"):
+        run = RodRun(case)
+        t0 = time.perf_counter()
+        advance_to(run, args.at, case.numerics.dt)
+        print(f"{case.name} to {run.t:g} s in {time.perf_counter() - t0:.0f} s; contact "
+              f"steps of {args.dt} s from there", flush=True)
+        previous_start = None
+        totals = [0, 0]
+        for s in range(args.steps + 1):
+            sys_ = StepSystems(run, args.dt)
+            runs = sys_.prob.candidates.runs if sys_.prob.candidates is not None else 0
+            rhs = sys_.at(0)
+            values, vectors, U0, T0, (secs, applied) = eigen_basis(sys_, args.k)
+            order = np.argsort(-np.abs(values - 1.0))
+            if s == 0:
+                print(f"eigenvalues λ of J M⁻¹ farthest from 1 at the start ({runs} "
+                      f"candidate runs; {args.k} found in {secs:.3f} s, {applied} operator "
+                      "applications):")
+                for i in order:
+                    nodes, unknown, a, b = localisation(sys_, vectors[:, i])
+                    print(f"  |λ − 1| = {abs(values[i] - 1.0):8.3f}   90 % on {nodes:4d} "
+                          f"nodes, mostly {unknown}; peaks at nodes {a} and {b}")
+            cells = []
+            own, before = (U0, T0), None
+            Ur = Tr = None
+            for k in range(len(sys_.iterates)):
+                if k:
+                    rhs = sys_.at(k)
+                    values_k, _, Uk, Tk, _ = eigen_basis(sys_, args.k)
+                    own = (Uk, Tk)
+                plain, V, H = gmres(sys_, rhs)
+                cell = [plain, gmres(sys_, rhs, *own)[0]]
+                cell.append(gmres(sys_, rhs, before[0], _projected(sys_, before[0]))[0]
+                            if before is not None else None)
+                cell.append(gmres(sys_, rhs, U0, _projected(sys_, U0))[0] if k else None)
+                cell.append(gmres(sys_, rhs, previous_start, _projected(sys_, previous_start))[0]
+                            if previous_start is not None and k == 0 else None)
+                its_r, Vr, Hr = gmres(sys_, rhs, Ur, Tr)
+                cell.append(its_r)
+                Ur, Tr = recycled_basis(Ur, Tr, Vr, Hr, args.k, args.gap)
+                before = own
+                cells.append(cell)
+            print(f"step at t = {run.t:.4f} s, {len(sys_.iterates)} Newton iterates; GMRES "
+                  "iterations per iterate: plain / deflated by U of (a) the iterate, (b) the "
+                  "iterate before, (c) the step's start, (d) the step before's start / (e) "
+                  "recycled Ritz vectors")
+            for k, c in enumerate(cells):
+                txt = " / ".join("–" if x is None else str(x) for x in c)
+                print(f"  iterate {k}: {txt}")
+            tot = [sum(c[i] or 0 for c in cells) for i in (0, 5)]
+            totals[0] += tot[0]
+            totals[1] += tot[1]
+            print(f"  step: plain {tot[0]}, recycled {tot[1]}", flush=True)
+            previous_start = U0
+            att = run.try_step(args.dt)
+            if not att.ok:
+                print(f"  (the step was refused: {att.reason}; the next one starts from the "
+                      "same state)")
+        print(f"all {args.steps + 1} steps: GMRES iterations plain {totals[0]}, with recycled "
+              f"Ritz vectors {totals[1]} ({100.0 * (totals[1] / totals[0] - 1.0):+.0f} %)")
+
+
+if __name__ == "__main__":
+    main()
