@@ -38,7 +38,7 @@ below): a change to the contact steps measured without recomputing the 6.25-ms r
 valid while the state at t0 is the same (the two states' writhe must agree within 0.1 %;
 the difference is printed). ``--newton ATTR=VALUE[,ATTR=VALUE...]`` sets class
 attributes of :class:`solver.newton.Newton` (its tuning constants, as
-``benchmarks/replay_steps.py --variant`` does) for that run, e.g.
+``benchmarks/replay_steps.py --variant`` does) for every run the script makes, e.g.
 ``--newton CONTACT_RESIDUAL_LIMIT=1e-4``.
 
 With ``--spread`` (Newton tolerances, default none) the measurement is repeated from
@@ -62,8 +62,8 @@ second collapse, the plies wrapped). The whole contact phase, as in docs/contact
 Run: ``python benchmarks/seed_accuracy.py [--t0 18.0] [--t1 21.0] [--quick]
 [--tolerances 1e-3,1e-4] [--position-tolerances 3e-4 [--dt-cut-factor 2]]
 [--fixed-steps 0.025,0.0125] [--windows 18-21,26-30] [--spread 1e-10,1e-9,1e-8
-[--spread-position 5e-4]] [--against STORED.json [--newton ATTR=VALUE]]`` (quick: references at 25 ms and 50 ms, to 19.5 s;
-``--tolerances ''``: none).
+[--spread-position 5e-4]] [--against STORED.json] [--newton ATTR=VALUE]`` (quick:
+references at 25 ms and 50 ms, to 19.5 s; ``--tolerances ''``: none).
 """
 from __future__ import annotations
 
@@ -312,8 +312,7 @@ def main() -> None:
                          "seed_accuracy_18-45.json): run only the production from t0 to "
                          "t1 and compare it with that file's stored reference records")
     ap.add_argument("--newton", default="",
-                    help="with --against: Newton class attributes ATTR=VALUE[,...] for "
-                         "the run")
+                    help="Newton class attributes ATTR=VALUE[,...] for every run made")
     args = ap.parse_args()
     if args.newton:
         from replay_steps import parse_variant

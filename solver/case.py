@@ -1197,7 +1197,7 @@ class Newton(BaseModel):
     tolerance: Finite = Field(
         1e-9, gt=0, description="Convergence tolerance on the scaled residual norm (dimensionless); > 0. Steps where "
         "strands may meet also stop once their positions are converged to 1e-2 of contact.position_tolerance with the "
-        "scaled residual below its square root (docs/contact.md § 2).")
+        "scaled residual below √10 times its square root (docs/contact.md § 2).")
     max_iterations: Integer = Field(25, ge=1, description="Iterations before a step counts as not converged; >= 1.")
 
 

@@ -35,7 +35,7 @@ docs/contact.md § 4). The strategy, in one place:
   position bound (``contact.position_tolerance``) with the residual below √10·√tolerance:
   the route rule allows each step a position error up to that bound, so iterating
   further only polishes digits the step does not have (one iteration fewer in most
-  contact steps of the seed example; its positions within ~3e-8 m of the fully
+  contact steps of the seed example; its positions within ~3e-7 m of the fully
   converged iterate's).
 * **Sea floor.** With a seabed (:mod:`solver.seabed`) and no self-contact, every
   correction is backtracked (Armijo on the scaled residual) and the Jacobian refactored
@@ -586,8 +586,9 @@ def _position_converged(r, r_prev, moved, it, res, res_limit, bound, trace):
     when that is at most ``bound`` (m), ρ < ½, the last correction was taken whole (cut
     by the feasibility filter or the line search, d does not measure convergence), and
     the scaled residual ``res`` is at most ``res_limit`` (Newton.CONTACT_RESIDUAL_FACTOR
-    × √tol: one or two more quadratic iterations would reach tol). trace: the kernel's per-iteration record (feasible and line-search
-    fractions in columns 1, 2). Returns the verdict."""
+    × √tol: one or two more quadratic iterations would reach tol). trace: the kernel's
+    per-iteration record (feasible and line-search fractions in columns 1, 2). Returns
+    the verdict."""
     d = 0.0
     for k in range(r.shape[0]):
         for c in range(3):
@@ -692,8 +693,8 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
         trace[it, 3] = 0.0
         done = res <= tol and it >= min_it
         if position_test and not done:
-            done = _position_converged(buf[7], r_prev, moved, it, res, res_limit, pos_bound,
-                                       trace) and it >= min_it
+            done = _position_converged(buf[7], r_prev, moved, it, res, res_limit,
+                                       pos_bound, trace) and it >= min_it
         if held and hold[0] == 2.0 and hold[7] > 0.0 and (done or res <= hold[6]):
             # converged, or near the held branches' solution, with touching cells off
             # the law's branch (hold[7], counted at this iterate's evaluation): re-decide
@@ -911,7 +912,8 @@ class Newton:
     #: converged (:func:`_position_converged`). The step's own position error is allowed
     #: up to position_tolerance and its steps are sized for 0.35 of it
     #: (docs/contact.md § 3), so Newton's share is under 3 % of the step's error. The
-    #: seed example to 45 s: 4052 Newton iterations against 4414 at 1e-3, its writhe
+    #: seed example to 45 s (the residual at √tolerance): 4052 Newton iterations against
+    #: 4414 at 1e-3, its writhe
     #: 0.854 % off the converged reference over 18-45 s against 0.853 % (docs/contact.md
     #: § 2)
     CONTACT_POSITION_FRACTION = 1e-2
