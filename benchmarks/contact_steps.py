@@ -107,11 +107,10 @@ def probe(name: str, at: float, sizes: list) -> None:
     spec = cs.CASES[name][1]()
     spec["numerics"]["energy_tolerance"] = cs.ENERGY_TOLERANCE
     case = Case.model_validate(spec)
+    from contact_iteration_cost import _advance_to
+
     run = RodRun(case)
-    dt, k = case.numerics.dt, 0
-    while run.t < at - 1e-9:
-        k += 1
-        run.advance(round(k * dt, 10))
+    _advance_to(run, at, case.numerics.dt, 0)
     snapshot = pickle.dumps(run, protocol=pickle.HIGHEST_PROTOCOL)
     print(f"{name} at t = {run.t:g} s, {run.contact_count} contacts:")
     for h in sizes:

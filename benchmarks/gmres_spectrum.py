@@ -50,24 +50,19 @@ from solver.banded import block_solve
 from solver.run import RodRun
 from solver.scheme import residual_into
 
+from contact_iteration_cost import _advance_to  # beside this script, in benchmarks/
+
 ROOT = Path(__file__).resolve().parents[1]
 TENSION = ROOT / "cases" / "goyal-writhing-tension.yaml"
 RTOL = 1e-3            # the solver's GMRES relative residual (Newton.GMRES_RTOL)
 COMPONENTS = ("v", "ω", "f", "κ")
 
 
-def advance_to(run: RodRun, at: float, h_nominal: float) -> None:
-    """Advance ``run`` by nominal steps to ``at`` (s)."""
-    k = int(round(run.t / h_nominal))
-    while run.t < at - 1e-9:
-        k += 1
-        run.advance(round(k * h_nominal, 10))
-
-
 class StepSystems:
     """The linear systems GMRES meets in one contact step of ``run``: set up a step of h
     (s), solve it with the run's Newton, recover its iterates (N+1, 12) and, per iterate,
-    the scaled operator, preconditioner and right-hand side (n,) as the kernel has them."""
+    the scaled operator, preconditioner and right-hand side (n,) as the kernel has them.
+    Raises RuntimeError when Newton does not converge at that Δt."""
 
     def __init__(self, run: RodRun, h: float):
         self.run, self.h = run, h
@@ -259,7 +254,7 @@ def main() -> None:
     with threadpool_limits(limits=1, user_api="blas"):
         run = RodRun(case)
         t0 = time.perf_counter()
-        advance_to(run, args.at, case.numerics.dt)
+        _advance_to(run, args.at, case.numerics.dt, 0)
         print(f"{case.name} to {run.t:g} s in {time.perf_counter() - t0:.0f} s; contact "
               f"steps of {args.dt} s from there", flush=True)
         previous_start = None

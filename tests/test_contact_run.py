@@ -171,6 +171,35 @@ def test_contact_operator_is_the_jacobian_of_the_residual(monkeypatch, weight):
         assert np.max(np.abs(product - central)) <= 1e-6 * np.max(np.abs(central))
 
 
+def _pressed_contact_solves(monkeypatch, run, compare, count=10):
+    """Run ``run`` (the fast writhing case to 7 s) until ``count`` of its Newton solves
+    from 6.6 s on are contact steps with at least 5 contacts at the start (the loop
+    pressed together); each of those is handed to ``compare(newton, Y_guess, solve)``
+    (``solve`` the unpatched Newton.solve), which returns (row, the solve's result the run
+    goes on with). Returns the rows as an array (count, ...)."""
+    from solver.newton import Newton
+
+    solve = Newton.solve
+    rows = []
+
+    def patched(self, Y_guess):
+        system = self.system
+        if (len(rows) < count and run.t >= 6.6 and system.step.candidates is not None
+                and system.evaluate(Y_guess, False)[1] >= 5):
+            row, out = compare(self, Y_guess, solve)
+            rows.append(row)
+            return out
+        return solve(self, Y_guess)
+
+    monkeypatch.setattr(Newton, "solve", patched)
+    k = 0
+    while len(rows) < count and run.t < 7.0 - 1e-9:
+        k += 1
+        run.advance(0.1 * k)
+    assert len(rows) == count
+    return np.array(rows)
+
+
 def test_contact_newton_stops_at_its_position_error(monkeypatch):
     """A contact step's Newton stops once its iterate's estimated position error is
     below Newton.CONTACT_POSITION_FRACTION of the step's position bound (the position
@@ -184,30 +213,18 @@ def test_contact_newton_stops_at_its_position_error(monkeypatch):
     run = RodRun(fast_writhing_case(7.0))
     bound = run.newton.position_tolerance
     assert bound == run.route_tolerance > 0.0
-    solve = Newton.solve
-    rows = []
 
-    def twice(self, Y_guess):
-        system = self.system
-        if (len(rows) < 10 and run.t >= 6.6 and system.step.candidates is not None
-                and system.evaluate(Y_guess, False)[1] >= 5):
-            self.position_tolerance = 0.0
-            full = solve(self, Y_guess)
-            r_full = system.pose_new(full[0])[2]
-            self.position_tolerance = bound
-            out = solve(self, Y_guess)
-            assert out[4] and full[4]
-            rows.append((out[2], full[2], np.abs(system.pose_new(out[0])[2] - r_full).max()))
-            return out
-        return solve(self, Y_guess)
+    def twice(newton, Y_guess, solve):
+        system = newton.system
+        newton.position_tolerance = 0.0
+        full = solve(newton, Y_guess)
+        r_full = system.pose_new(full[0])[2]
+        newton.position_tolerance = bound
+        out = solve(newton, Y_guess)
+        assert out[4] and full[4]
+        return (out[2], full[2], np.abs(system.pose_new(out[0])[2] - r_full).max()), out
 
-    monkeypatch.setattr(Newton, "solve", twice)
-    k = 0
-    while len(rows) < 10 and run.t < 7.0 - 1e-9:
-        k += 1
-        run.advance(0.1 * k)
-    assert len(rows) == 10
-    its, its_full, moved = np.array(rows).T
+    its, its_full, moved = _pressed_contact_solves(monkeypatch, run, twice).T
     assert its.sum() < its_full.sum()
     assert moved.max() <= 10.0 * Newton.CONTACT_POSITION_FRACTION * bound
 
@@ -226,35 +243,24 @@ def test_position_test_stops_only_below_its_residual_limit(monkeypatch):
     run = RodRun(fast_writhing_case(7.0))
     root = math.sqrt(run.newton.tol)
     factors = (root, 1.0, 1e-3 / root, Newton.CONTACT_RESIDUAL_FACTOR)
-    solve = Newton.solve
-    rows = []
 
-    def compare(self, Y_guess):
-        system = self.system
-        if (len(rows) < 10 and run.t >= 6.6 and system.step.candidates is not None
-                and system.evaluate(Y_guess, False)[1] >= 5):
-            its = {}
-            for factor in factors:      # the default last: its solution goes on
-                self.CONTACT_RESIDUAL_FACTOR = factor
-                out = solve(self, Y_guess)
-                assert out[4] and out[3] <= factor * root * (1.0 + 1e-12)
-                its[factor] = out[2]
-            del self.CONTACT_RESIDUAL_FACTOR
-            bound = self.position_tolerance
-            self.position_tolerance = 0.0
-            none = solve(self, Y_guess)[2]
-            self.position_tolerance = bound
-            rows.append([none] + [its[f] for f in sorted(factors)])
-            return solve(self, Y_guess)
-        return solve(self, Y_guess)
+    def compare(newton, Y_guess, solve):
+        its = {}
+        for factor in factors:
+            newton.CONTACT_RESIDUAL_FACTOR = factor
+            out = solve(newton, Y_guess)
+            assert out[4] and out[3] <= factor * root * (1.0 + 1e-12)
+            its[factor] = out[2]
+        del newton.CONTACT_RESIDUAL_FACTOR
+        bound = newton.position_tolerance
+        newton.position_tolerance = 0.0
+        none = solve(newton, Y_guess)[2]
+        newton.position_tolerance = bound
+        # the run goes on from the default's solution
+        return [none] + [its[f] for f in sorted(factors)], solve(newton, Y_guess)
 
-    monkeypatch.setattr(Newton, "solve", compare)
-    k = 0
-    while len(rows) < 10 and run.t < 7.0 - 1e-9:
-        k += 1
-        run.advance(0.1 * k)
-    assert len(rows) == 10
-    none, at_tol, at_root, default, loose = np.array(rows).T
+    none, at_tol, at_root, default, loose = _pressed_contact_solves(monkeypatch, run,
+                                                                    compare).T
     assert 1.0 < Newton.CONTACT_RESIDUAL_FACTOR < 1e-3 / root
     assert np.array_equal(at_tol, none)
     assert np.all(at_root <= none) and at_root.sum() < none.sum()
