@@ -30,6 +30,14 @@ the cases not run now, ``--table-only --merge x.json`` only prints the table);
 ``--write-docs`` puts the table into docs/benchmarks.md (its ``contact_suite`` section,
 also written by benchmarks/report.py); the figures go to
 benchmarks/results/contact_suite.json.
+
+``--spread`` runs each case of ``--only`` again with ``numerics.newton.tolerance`` scaled
+by each of :data:`SPREAD` and prints each run's outcome and Newton iterations per nominal
+step (nothing saved): a case whose count moves that much under a perturbation of the
+tolerance cannot rank two codes by one run. PyElastica's plectoneme at ρ∞ = 0.8, N = 25,
+Δt = 0.1 s is such a case (docs/contact.md § 4). ``--newton ATTR=VALUE[,...]`` sets
+class attributes of :class:`solver.newton.Newton` for every run (as
+benchmarks/seed_accuracy.py's option).
 """
 from __future__ import annotations
 
@@ -59,6 +67,9 @@ MARK = "<!-- section: contact_suite -->"
 #: settles within 0.1 % of the elastica; docs/numerics.md § 8)
 ENERGY_TOLERANCE = Numerics.model_fields["energy_tolerance"].default
 BUDGET_S = 600.0          # wall-clock budget per case, s
+#: ``--spread``: the factors on numerics.newton.tolerance (within ±25 %, each a setting a
+#: user could equally have chosen)
+SPREAD = (0.8, 0.9, 1.0, 1.1, 1.25)
 X_TIP = 0.44501           # Mattiasson's tip x/L under P L²/EI = 10
 
 
@@ -115,9 +126,11 @@ def _refused(ds) -> dict:
     return out
 
 
-def run_case(name: str, energy_tolerance: float | None, budget: float = BUDGET_S) -> dict:
+def run_case(name: str, energy_tolerance: float | None, budget: float = BUDGET_S,
+             tolerance_scale: float = 1.0) -> dict:
     """One suite case: simulate it with the progress traced and every accepted attempt's
-    Δt seen (a wrapper around RodRun.try_step for the run's duration)."""
+    Δt seen (a wrapper around RodRun.try_step for the run's duration); with
+    ``tolerance_scale`` its ``numerics.newton.tolerance`` times that factor."""
     from solver.case import Case
     from solver.run import RodRun
     from solver.simulation import SolverDivergence, simulate
@@ -125,6 +138,8 @@ def run_case(name: str, energy_tolerance: float | None, budget: float = BUDGET_S
     spec = CASES[name][1]()
     spec["numerics"]["energy_tolerance"] = energy_tolerance
     spec["numerics"]["wall_clock_budget"] = budget
+    if tolerance_scale != 1.0:
+        spec["numerics"]["newton"]["tolerance"] *= tolerance_scale
     case = Case.model_validate(spec)
     trace, smallest = [], [math.inf]
     original = RodRun.try_step
@@ -175,11 +190,14 @@ def run_case(name: str, energy_tolerance: float | None, budget: float = BUDGET_S
 
 
 def warm_up() -> None:
-    """Compile (or load) the kernels outside the timed cases: a short contact run."""
+    """Compile (or load) the kernels outside the timed cases: PyElastica's plectoneme to
+    8 s, past its first contact (~7.2 s), so that the contact kernels are compiled too
+    (a run that stopped before contact left their compilation, ~50 s on a fresh
+    install, in the first timed case)."""
     from solver.case import Case
     from solver.simulation import simulate
     spec = _pyelastica()
-    spec["numerics"]["t_end"] = 0.3
+    spec["numerics"]["t_end"] = 8.0
     spec["numerics"]["energy_tolerance"] = ENERGY_TOLERANCE
     simulate(Case.model_validate(spec))
 
@@ -228,7 +246,11 @@ def section_text(res: dict) -> str:
         "Newton iterations per nominal step: all iterations (refused attempts and restarts "
         "included) over t/Δt. Smallest Δt: the smallest accepted step, substeps included. "
         "Cost in contact / before: wall seconds per simulated second after the first "
-        "contact over the same before it (the before-phase includes the buckling).",
+        "contact over the same before it (the before-phase includes the buckling). "
+        "One run per case: where a case's count moves under a ±25 % change of Newton's "
+        "tolerance (`--only CASE --spread` prints it; PyElastica's plectoneme at ρ∞ = 0.8 "
+        "does, docs/contact.md § 4), a difference between two tables is not one between "
+        "two codes.",
         ""])
 
 
@@ -291,6 +313,27 @@ def section(figdir=None, quick: bool = False) -> str:
     return section_text(res)
 
 
+def spread(names, energy_tolerance, budget=BUDGET_S) -> None:
+    """Print each case's outcome and Newton iterations per nominal step at
+    ``numerics.newton.tolerance`` times each factor of SPREAD (after a warm-up run), and
+    their range and median."""
+    warm_up()
+    for name in names:
+        counts = []
+        for f in SPREAD:
+            r = run_case(name, energy_tolerance, budget, tolerance_scale=f)
+            status = r["status"] + (f" ({r['reason']})" if r["reason"] else "")
+            refused = ", ".join(f"{k} {v}" for k, v in sorted(r["refused"].items()))
+            print(f"{name}: tolerance × {f:g}: {status}, {r['newton_per_step']:.1f} Newton "
+                  f"iterations per nominal step, refused {refused or 'none'}", flush=True)
+            if r["status"] == "completed":
+                counts.append(r["newton_per_step"])
+        if counts:
+            print(f"{name}: {len(counts)} of {len(SPREAD)} completed; Newton iterations per "
+                  f"nominal step {min(counts):.1f}-{max(counts):.1f}, median "
+                  f"{float(np.median(counts)):.1f}", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", default="", help="comma-separated case names")
@@ -300,6 +343,10 @@ def main() -> None:
     ap.add_argument("--write-docs", action="store_true")
     ap.add_argument("--merge", default="", help="an earlier result JSON whose rows are "
                     "kept for the cases not run now")
+    ap.add_argument("--newton", default="", help="Newton class attributes "
+                    "ATTR=VALUE[,...] for every run (as seed_accuracy.py --newton)")
+    ap.add_argument("--spread", action="store_true", help="each case at newton.tolerance "
+                    "times each of SPREAD: outcome and Newton iterations (nothing saved)")
     ap.add_argument("--table-only", action="store_true",
                     help="print (and with --write-docs write) the table of --merge")
     args = ap.parse_args()
@@ -307,6 +354,12 @@ def main() -> None:
     for x in names:
         if x not in CASES:
             ap.error(f"unknown case {x!r}; known: {', '.join(CASES)}")
+    if args.newton:
+        from replay_steps import set_newton
+        set_newton(args.newton)
+    if args.spread:
+        spread(names, args.energy_tolerance or None, args.budget)
+        return
     earlier = json.loads(Path(args.merge).read_text()) if args.merge else None
     if args.table_only:
         res = earlier

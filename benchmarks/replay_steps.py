@@ -60,6 +60,16 @@ def parse_variant(text: str) -> tuple[str, dict]:
     return name, settings
 
 
+def set_newton(text: str) -> dict:
+    """Set the Newton class attributes ``ATTR=VALUE[,ATTR=VALUE...]`` (the ``--newton``
+    option of benchmarks/seed_accuracy.py and contact_suite.py) for the rest of the
+    process; returns them. Raises ValueError as :func:`parse_variant`."""
+    settings = parse_variant(f"newton:{text}")[1]
+    for attr, value in settings.items():
+        setattr(Newton, attr, value)
+    return settings
+
+
 def replay_step(snapshot: bytes, t_target: float, settings: dict) -> dict:
     """One nominal step to t_target (s) from a pickled RodRun with the Newton class
     attributes ``settings`` set for its duration; returns its counts, wall time and

@@ -39,7 +39,7 @@ valid while the state at t0 is the same (the two states' writhe must agree withi
 the difference is printed). ``--newton ATTR=VALUE[,ATTR=VALUE...]`` sets class
 attributes of :class:`solver.newton.Newton` (its tuning constants, as
 ``benchmarks/replay_steps.py --variant`` does) for every run the script makes, e.g.
-``--newton CONTACT_RESIDUAL_LIMIT=1e-4``.
+``--newton CONTACT_RESIDUAL_FACTOR=1``.
 
 With ``--spread`` (Newton tolerances, default none) the measurement is repeated from
 the case's own state for each: the case (with ``--spread-position`` as its
@@ -315,10 +315,8 @@ def main() -> None:
                     help="Newton class attributes ATTR=VALUE[,...] for every run made")
     args = ap.parse_args()
     if args.newton:
-        from replay_steps import parse_variant
-        from solver.newton import Newton
-        for attr, value in parse_variant(f"newton:{args.newton}")[1].items():
-            setattr(Newton, attr, value)
+        from replay_steps import set_newton
+        set_newton(args.newton)
     if args.against:
         against(Path(args.against), args.t0, args.t1,
                 [tuple(float(x) for x in w.split("-")) for w in args.windows.split(",")

@@ -1,6 +1,7 @@
 """The seed-accuracy benchmark's comparison (benchmarks/seed_accuracy.py): event times by
 interpolation between outputs and the writhe difference against a reference, on records
-with known answers. The solver runs of the benchmark are not repeated here."""
+with known answers, and the ``--newton`` option it shares with contact_suite.py. The
+solver runs of the benchmark are not repeated here."""
 from __future__ import annotations
 
 import sys
@@ -58,3 +59,20 @@ def test_compare_by_window_takes_each_windows_own_scale():
     assert out["by_window"]["18.2-18.3"] == pytest.approx(0.1 / 2.0)
     assert out["by_window"]["19-20"] is None
     assert "by_window" not in sa.compare(run, ref)
+
+
+def test_newton_option_sets_the_named_class_attributes_and_refuses_unknown_ones():
+    """``--newton ATTR=VALUE`` (seed_accuracy.py, contact_suite.py) sets Newton's class
+    attributes with their own types, and names an attribute Newton does not have."""
+    from replay_steps import set_newton
+    from solver.newton import Newton
+    saved = Newton.CONTACT_RESIDUAL_FACTOR, Newton.GMRES_MAX
+    try:
+        got = set_newton("CONTACT_RESIDUAL_FACTOR=2,GMRES_MAX=7")
+        assert got == {"CONTACT_RESIDUAL_FACTOR": 2.0, "GMRES_MAX": 7}
+        assert Newton.CONTACT_RESIDUAL_FACTOR == 2.0
+        assert Newton.GMRES_MAX == 7 and isinstance(Newton.GMRES_MAX, int)
+        with pytest.raises(ValueError, match="NO_SUCH"):
+            set_newton("NO_SUCH=1")
+    finally:
+        Newton.CONTACT_RESIDUAL_FACTOR, Newton.GMRES_MAX = saved
