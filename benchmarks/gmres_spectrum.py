@@ -27,12 +27,24 @@ solver keeps it, :func:`solver.newton._set_operator`). Printed:
    Hessenberg matrix: a recycling of the Krylov subspaces in the manner of Parks et al.,
    SIAM J. Sci. Comput. 28 (2006) 1651-1674, at no extra operator product).
 
+4. with ``--coarse`` (instead of 1-3), what a coarse space built without an eigensolver
+   holds: Q (n, k) orthonormal, the indicators of aggregates of b consecutive contact
+   cells (cells next to a node of a contact pair, split where they are not consecutive)
+   on chosen residual rows of each cell (the lateral linear momentum rows E3₁, E3₂, all
+   three E3 rows, or the compatibility rows E1 and E2), and the right preconditioner
+   M⁻¹B with B = I − X(QᵀY)⁻¹Qᵀ, Y = J M⁻¹ Q, X = Y − Q: the Woodbury inverse of
+   J M⁻¹ where J M⁻¹ − I vanishes off span(Q) (Woodbury 1950; a two-level correction of
+   the kind compared by Tang, Nabben, Vuik & Erlangga, J. Sci. Comput. 39 (2009)
+   340-370). It costs k operator applications to build. GMRES's iterations with B built
+   at each iterate, with B built at the step's first iterate (the same factorisation),
+   and at the next step's start with the last step's B.
+
 GMRES here is a plain Arnoldi in numpy (two Gram-Schmidt passes), started from zero: its
 counts are comparable with each other, not to the microsecond with the solver's kernel.
 
 Run: ``PYTHONPATH=$PWD python benchmarks/gmres_spectrum.py [--case CASE.yaml] [--at 21]
-[--dt 0.003] [--k 12] [--steps 3] [--gap 0.3]`` (about 2 min to reach 21 s of the tension
-variant, then ~20 s).
+[--dt 0.003] [--k 12] [--steps 3] [--gap 0.3] [--coarse]`` (about 2 min to reach 21 s of
+the tension variant, then ~20 s; ``--coarse`` ~2 min more).
 """
 from __future__ import annotations
 
@@ -126,11 +138,13 @@ class StepSystems:
         return y
 
 
-def gmres(sys_: StepSystems, rhs, U=None, T=None, m: int = 80):
+def gmres(sys_: StepSystems, rhs, U=None, T=None, m: int = 80, P=None):
     """Right-preconditioned GMRES on J M⁻¹ P y = rhs (P the deflation of U, T; identity
-    without U) from zero to RTOL. Returns (iterations, Arnoldi basis V (n, j+1),
-    Hessenberg matrix H (j+1, j))."""
-    if U is not None:
+    without U; or the callable ``P`` (n,) -> (n,)) from zero to RTOL. Returns (iterations,
+    Arnoldi basis V (n, j+1), Hessenberg matrix H (j+1, j))."""
+    if P is not None:
+        pass
+    elif U is not None:
         shift = np.linalg.inv(T) - np.eye(U.shape[1])
 
         def P(y):
@@ -241,6 +255,81 @@ def localisation(sys_: StepSystems, vector: np.ndarray) -> tuple[int, str, int, 
     return nodes, COMPONENTS[int(np.argmax(per_unknown))], first, second
 
 
+#: --coarse: residual rows of a cell (offsets in its 12 rows, E1..E4 at 0, 3, 6, 9) that
+#: the coarse space's aggregates cover
+COARSE_ROWS = {"E3 lateral": (6, 7), "E3": (6, 7, 8), "E1 and E2": (0, 1, 2, 3, 4, 5)}
+
+
+def contact_cells(sys_: StepSystems) -> np.ndarray:
+    """The cells (sorted) next to a node of the operator's contact pairs (the exact load
+    product's nodes, 5 per pair)."""
+    P = int(sys_.op[4][1])
+    nodes = np.unique(sys_.op[3][8][:P])
+    n_cells = sys_.n // 12 - 1
+    return np.unique(np.clip(np.concatenate([nodes - 1, nodes]), 0, n_cells - 1))
+
+
+def coarse_basis(n: int, cells: np.ndarray, b: int, rows) -> np.ndarray:
+    """Orthonormal Q (n, k): per aggregate of b consecutive cells of ``cells`` (the cells
+    split where they are not consecutive) and per row offset of ``rows``, the indicator of
+    those cells' rows (row 6 + 12c + offset of cell c)."""
+    cols = []
+    for run_ in np.split(cells, np.flatnonzero(np.diff(cells) > 1) + 1):
+        for a in range(0, run_.size, b):
+            for r in rows:
+                q = np.zeros(n)
+                q[6 + 12 * run_[a:a + b] + r] = 1.0
+                cols.append(q)
+    return np.linalg.qr(np.column_stack(cols))[0]
+
+
+def coarse_correction(sys_: StepSystems, Q: np.ndarray):
+    """B (a callable (n,) -> (n,)) = I − X(QᵀY)⁻¹Qᵀ with Y = J M⁻¹ Q (k operator
+    applications at the current operator) and X = Y − Q (module docstring, item 4)."""
+    Y = np.column_stack([sys_.matvec(sys_.precondition(Q[:, j])) for j in range(Q.shape[1])])
+    X = Y - Q
+    S = np.linalg.inv(Q.T @ Y)
+    return lambda y: y - X @ (S @ (Q.T @ y))
+
+
+def coarse_study(run: RodRun, h: float, sizes=(10, 25, 50)) -> None:
+    """Print GMRES's iterations with the coarse corrections of item 4 over one step of h
+    (s) and the first iterate of the next."""
+    sys_ = StepSystems(run, h)
+    rhs = sys_.at(0)
+    cells = contact_cells(sys_)
+    print(f"t = {run.t:.4f} s, {len(sys_.iterates)} Newton iterates, {cells.size} contact "
+          f"cells ({cells.min()}-{cells.max()}); GMRES iterations:", flush=True)
+    spaces = {(b, name): coarse_basis(sys_.n, cells, b, rows)
+              for name, rows in COARSE_ROWS.items() for b in sizes
+              if name == "E3 lateral" or b == 25}
+    first = {}
+    line = [f"plain {gmres(sys_, rhs)[0]}"]
+    for key, Q in spaces.items():
+        first[key] = coarse_correction(sys_, Q)
+        line.append(f"{key[1]}, b = {key[0]} (k = {Q.shape[1]}): "
+                    f"{gmres(sys_, rhs, P=first[key])[0]}")
+    print("  iterate 0, B built there: " + "; ".join(line), flush=True)
+    for it in range(1, len(sys_.iterates)):
+        rhs = sys_.at(it)
+        line = [f"plain {gmres(sys_, rhs)[0]}"]
+        for key, Q in spaces.items():
+            own = gmres(sys_, rhs, P=coarse_correction(sys_, Q))[0]
+            stale = gmres(sys_, rhs, P=first[key])[0]
+            line.append(f"{key[1]}, b = {key[0]}: {own} / {stale}")
+        print(f"  iterate {it}, B built there / at iterate 0: " + "; ".join(line), flush=True)
+    att = run.try_step(h)
+    nxt = StepSystems(run, h)
+    rhs = nxt.at(0)
+    line = [f"plain {gmres(nxt, rhs)[0]}"]
+    for key, Q in spaces.items():
+        Qn = coarse_basis(nxt.n, contact_cells(nxt), key[0], COARSE_ROWS[key[1]])
+        line.append(f"{key[1]}, b = {key[0]}: {gmres(nxt, rhs, P=coarse_correction(nxt, Qn))[0]}"
+                    f" / {gmres(nxt, rhs, P=first[key])[0]}")
+    print(f"  next step ({'accepted' if att.ok else 'refused: ' + str(att.reason)}), iterate "
+          "0, B built there / the last step's: " + "; ".join(line), flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--case", type=Path, default=TENSION)
@@ -249,6 +338,8 @@ def main() -> None:
     ap.add_argument("--k", type=int, default=12)
     ap.add_argument("--steps", type=int, default=3)
     ap.add_argument("--gap", type=float, default=0.3)
+    ap.add_argument("--coarse", action="store_true",
+                    help="item 4 of the docstring instead of items 1-3")
     args = ap.parse_args()
     case = Case.from_file(args.case)
     with threadpool_limits(limits=1, user_api="blas"):
@@ -257,6 +348,9 @@ def main() -> None:
         _advance_to(run, args.at, case.numerics.dt, 0)
         print(f"{case.name} to {run.t:g} s in {time.perf_counter() - t0:.0f} s; contact "
               f"steps of {args.dt} s from there", flush=True)
+        if args.coarse:
+            coarse_study(run, args.dt)
+            return
         previous_start = None
         totals = [0, 0]
         for s in range(args.steps + 1):
