@@ -285,7 +285,8 @@ def coarse_basis(n: int, cells: np.ndarray, b: int, rows) -> np.ndarray:
 
 def coarse_correction(sys_: StepSystems, Q: np.ndarray):
     """B (a callable (n,) -> (n,)) = I − X(QᵀY)⁻¹Qᵀ with Y = J M⁻¹ Q (k operator
-    applications at the current operator) and X = Y − Q (module docstring, item 4)."""
+    applications at the current operator) and X = Y − Q (module docstring, item 4).
+    Q: (n, k) orthonormal. Raises numpy.linalg.LinAlgError where QᵀY is singular."""
     Y = np.column_stack([sys_.matvec(sys_.precondition(Q[:, j])) for j in range(Q.shape[1])])
     X = Y - Q
     S = np.linalg.inv(Q.T @ Y)
@@ -294,7 +295,8 @@ def coarse_correction(sys_: StepSystems, Q: np.ndarray):
 
 def coarse_study(run: RodRun, h: float, sizes=(10, 25, 50)) -> None:
     """Print GMRES's iterations with the coarse corrections of item 4 over one step of h
-    (s) and the first iterate of the next."""
+    (s) and the first iterate of the next (``sizes``: the aggregates' cell counts b).
+    Raises RuntimeError as :class:`StepSystems` where Newton fails at h."""
     sys_ = StepSystems(run, h)
     rhs = sys_.at(0)
     cells = contact_cells(sys_)
