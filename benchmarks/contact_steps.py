@@ -23,6 +23,9 @@ Run: ``PYTHONPATH=$PWD python benchmarks/contact_steps.py seed-in-air --from 17.
 ``... tension --from 18.4 --t-end 18.7``, ``... tension --from 18 --t-end 45 --edges
 18,18.5,19,20,22,25,30,35,40,45`` (the tension variant's whole contact phase, ~3 min),
 ``... tension --probe 19 --probe-dt 0.0005,0.001,0.0017,0.003,0.005,0.01``.
+``--newton ATTR=VALUE[,...]`` sets class attributes of :class:`solver.newton.Newton` for
+the run (as contact_suite.py's option), e.g. ``... pyelastica-0.8 --from 7.5 --t-end 7.6
+--every 0.01 --newton CONTACT_RESIDUAL_FACTOR=2 --newton-failures 12``.
 """
 from __future__ import annotations
 
@@ -135,7 +138,12 @@ def main() -> None:
     ap.add_argument("--probe-dt", default="0.0005,0.001,0.002,0.005,0.01,0.02",
                     help="comma-separated Δt (s) of the probe's attempts")
     ap.add_argument("--newton-failures", type=int, default=0)
+    ap.add_argument("--newton", default="", help="Newton class attributes "
+                    "ATTR=VALUE[,...] for the run (as contact_suite.py --newton)")
     args = ap.parse_args()
+    if args.newton:
+        from replay_steps import set_newton
+        set_newton(args.newton)
     if args.probe is not None:
         probe(args.case, args.probe, [float(x) for x in args.probe_dt.split(",")])
         return

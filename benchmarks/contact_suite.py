@@ -206,18 +206,28 @@ def _fmt(x, f="{:.2f}"):
     return "–" if x is None or (isinstance(x, float) and not math.isfinite(x)) else f.format(x)
 
 
+def _status(r: dict) -> str:
+    """A result row's status with its reason."""
+    return r["status"] + (f" ({r['reason']})" if r["reason"] else "")
+
+
+def _refused_text(r: dict) -> str:
+    """A result row's refused attempts by reason ("none" without any)."""
+    return ", ".join(f"{k} {v}" for k, v in sorted(r["refused"].items())) or "none"
+
+
 def table(rows: list) -> str:
     """The suite's markdown table."""
     lines = ["| case | status | wall (s) | Newton its / nominal step | smallest Δt (s) | "
              "refused attempts | first contact (s) | cost in contact / before |",
              "|---|---|---:|---:|---:|---|---:|---:|"]
     for r in rows:
-        status = r["status"] + (f" ({r['reason']})" if r["reason"] else "")
+        status = _status(r)
         if r["status"] != "completed":
             status += f", reached {r['t_reached']:.2f} of {r['t_end']:g} s"
         if r.get("answer"):
             status += f"; {r['answer']}"
-        refused = ", ".join(f"{k} {v}" for k, v in sorted(r["refused"].items())) or "none"
+        refused = _refused_text(r)
         lines.append(f"| {r['what']} | {status} | {r['wall_s']:.1f} | "
                      f"{r['newton_per_step']:.1f} | {_fmt(r['smallest_dt'], '{:.3g}')} | "
                      f"{refused} | {_fmt(r['t_contact'])} | "
@@ -322,10 +332,9 @@ def spread(names, energy_tolerance, budget=BUDGET_S) -> None:
         counts = []
         for f in SPREAD:
             r = run_case(name, energy_tolerance, budget, tolerance_scale=f)
-            status = r["status"] + (f" ({r['reason']})" if r["reason"] else "")
-            refused = ", ".join(f"{k} {v}" for k, v in sorted(r["refused"].items()))
-            print(f"{name}: tolerance × {f:g}: {status}, {r['newton_per_step']:.1f} Newton "
-                  f"iterations per nominal step, refused {refused or 'none'}", flush=True)
+            print(f"{name}: tolerance × {f:g}: {_status(r)}, {r['newton_per_step']:.1f} "
+                  f"Newton iterations per nominal step, refused {_refused_text(r)}",
+                  flush=True)
             if r["status"] == "completed":
                 counts.append(r["newton_per_step"])
         if counts:

@@ -142,14 +142,12 @@ def gmres(sys_: StepSystems, rhs, U=None, T=None, m: int = 80, P=None):
     """Right-preconditioned GMRES on J M⁻¹ P y = rhs (P the deflation of U, T; identity
     without U; or the callable ``P`` (n,) -> (n,)) from zero to RTOL. Returns (iterations,
     Arnoldi basis V (n, j+1), Hessenberg matrix H (j+1, j))."""
-    if P is not None:
-        pass
-    elif U is not None:
+    if P is None and U is not None:
         shift = np.linalg.inv(T) - np.eye(U.shape[1])
 
         def P(y):
             return y + U @ (shift @ (U.T @ y))
-    else:
+    elif P is None:
         def P(y):
             return y
     beta = np.linalg.norm(rhs)
@@ -261,8 +259,8 @@ COARSE_ROWS = {"E3 lateral": (6, 7), "E3": (6, 7, 8), "E1 and E2": (0, 1, 2, 3, 
 
 
 def contact_cells(sys_: StepSystems) -> np.ndarray:
-    """The cells (sorted) next to a node of the operator's contact pairs (the exact load
-    product's nodes, 5 per pair)."""
+    """The cells (m,) int, sorted, next to a node of the operator's contact pairs (the
+    exact load product's nodes, 5 per pair)."""
     P = int(sys_.op[4][1])
     nodes = np.unique(sys_.op[3][8][:P])
     n_cells = sys_.n // 12 - 1
@@ -272,7 +270,8 @@ def contact_cells(sys_: StepSystems) -> np.ndarray:
 def coarse_basis(n: int, cells: np.ndarray, b: int, rows) -> np.ndarray:
     """Orthonormal Q (n, k): per aggregate of b consecutive cells of ``cells`` (the cells
     split where they are not consecutive) and per row offset of ``rows``, the indicator of
-    those cells' rows (row 6 + 12c + offset of cell c)."""
+    those cells' rows (row 6 + 12c + offset of cell c). cells (m,) int, m ≥ 1; b ≥ 1.
+    Raises ValueError for no cells."""
     cols = []
     for run_ in np.split(cells, np.flatnonzero(np.diff(cells) > 1) + 1):
         for a in range(0, run_.size, b):
