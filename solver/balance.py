@@ -78,11 +78,12 @@ from __future__ import annotations
 import math
 from typing import NamedTuple, Optional
 
+import numba
 import numpy as np
 
-from .energies import distributed_work_into, end_work_into, energies
-from .kinematics import (normalize_quaternions, quat_exp, quat_multiply, quat_to_matrix,
-                         rotate_rows, space_route)
+from .energies import _energies_kernel, distributed_work_into, end_work_into
+from .kinematics import (_matrix_into, normalize_quaternions, quat_exp, quat_multiply,
+                         quat_to_matrix, rotate_rows, space_route)
 from .scheme import pose_into
 from .loads import _drag_kernel
 
@@ -134,6 +135,58 @@ def _rates(params):
     return float(g), float(am), float(af)
 
 
+@numba.njit(cache=True)
+def _end_work(Y, Y_old, h, gamma, am, af, xdot_old, load_old, stiffness, moments_only,
+              xdot, loads):
+    """:func:`solver.energies.end_work_into`'s work Σ ½(F^n + F^{n+1})·Δx (J) of the end
+    loads, less the end forces' part Σ ½(f^n + f^{n+1})·Δx_{0:3} with ``moments_only``
+    (their work then measured on the shape, :class:`GlobalLoadWork`); the end loads and
+    displacement rates (2, 6) into ``loads`` and ``xdot``. Y, Y_old (N+1, 12)."""
+    work = end_work_into(Y, Y_old, h, gamma, am, af, xdot_old, load_old, stiffness, xdot,
+                         loads)[0]
+    if moments_only:
+        for e in range(2):
+            for i in range(3):
+                dx = h * ((1.0 - gamma) * xdot_old[e, i] + gamma * xdot[e, i])
+                work -= 0.5 * (load_old[e, i] + loads[e, i]) * dx
+    return work
+
+
+@numba.njit(cache=True)
+def _end_forces_into(Y, q, out):
+    """The end forces on the rod (2, 3) N in the global frame into ``out``: −f at s = 0,
+    +f at s = L (:func:`solver.energies.end_loads`), f turned by the frames of the
+    quaternions q[0] and q[N] (q (N+1, 4); Y (N+1, 12))."""
+    R = np.empty((1, 3, 3))
+    for e in range(2):
+        k = 0 if e == 0 else Y.shape[0] - 1
+        sign = -1.0 if e == 0 else 1.0
+        _matrix_into(q[k, 0], q[k, 1], q[k, 2], q[k, 3], R, 0)
+        for i in range(3):
+            out[e, i] = sign * (R[0, i, 0] * Y[k, 6] + R[0, i, 1] * Y[k, 7]
+                                + R[0, i, 2] * Y[k, 8])
+
+
+@numba.njit(cache=True)
+def _shape_work(weights, G_old, G, r, r_old, F_old, Y, q, F):
+    """:meth:`GlobalLoadWork.step`'s work (J): Σ_k w_k ½(G_k^n + G_k^{n+1})·(r_k − r_k^n)
+    plus Σ_ends ½(F^n + F^{n+1})·Δr_end, with the new level's end forces F (2, 3) N
+    (:func:`_end_forces_into` on Y (N+1, 12) and q (N+1, 4)) written into ``F``.
+    weights (N+1,) m; G_old, G (N+1, 3) N/m; r, r_old (N+1, 3) m; F_old (2, 3) N."""
+    work = 0.0
+    for k in range(r.shape[0]):
+        acc = 0.0
+        for i in range(3):
+            acc += (G_old[k, i] + G[k, i]) * (r[k, i] - r_old[k, i])
+        work += weights[k] * acc
+    _end_forces_into(Y, q, F)
+    last = r.shape[0] - 1
+    for i in range(3):
+        work += (F_old[0, i] + F[0, i]) * (r[0, i] - r_old[0, i])
+        work += (F_old[1, i] + F[1, i]) * (r[last, i] - r_old[last, i])
+    return 0.5 * work
+
+
 class EndWork(WorkAccount):
     """Work of the end loads (:func:`solver.energies.end_work_into`); carries the end
     loads (2, 6) and the end sections' displacement rates (2, 6)."""
@@ -151,12 +204,8 @@ class EndWork(WorkAccount):
         load_old, xdot_old = old
         loads, xdot = np.empty((2, 6)), np.empty((2, 6))
         g, am, af = _rates(prob.params)
-        h = float(prob.h)
-        work = end_work_into(sol.Y, run.Y, h, g, am, af, xdot_old, load_old,
-                             run.props.stiffness, xdot, loads)[0]
-        if self.moments_only:
-            dx = h * ((1.0 - g) * xdot_old[:, 0:3] + g * xdot[:, 0:3])
-            work -= 0.5 * float(np.sum((load_old[:, 0:3] + loads[:, 0:3]) * dx))
+        work = _end_work(sol.Y, run.Y, float(prob.h), g, am, af, xdot_old, load_old,
+                         run.props.stiffness, self.moments_only, xdot, loads)
         return work, (loads, xdot)
 
 
@@ -199,9 +248,9 @@ class GlobalLoadWork(WorkAccount):
     def end_forces(Y, q):
         """The end forces on the rod (2, 3) N in the global frame: −f at s = 0, +f at
         s = L (:func:`solver.energies.end_loads`), f turned by the node frames of q."""
-        R = quat_to_matrix(q[[0, -1]])
-        f = np.array([-Y[0, 6:9], Y[-1, 6:9]])
-        return np.einsum("nij,nj->ni", R, f)
+        out = np.empty((2, 3))
+        _end_forces_into(np.ascontiguousarray(Y), np.ascontiguousarray(q), out)
+        return out
 
     def __init__(self, time_route: bool = False):
         #: measure on each node's time route (where the seabed acts on it) instead of
@@ -250,11 +299,12 @@ class GlobalLoadWork(WorkAccount):
         G_old, r_old, F_old = old
         q, r = self.new_pose(run, prob, sol)
         G = self.force(run, prob.t_new, q, prob.left_limit, run.system.step.glob_force)
-        work = 0.5 * float(np.dot(run.props.quad_weights,
-                                  np.einsum("ni,ni->n", G_old + G, r - r_old)))
-        F = self.end_forces(sol.Y, q)
-        work += 0.5 * float(np.sum((F_old + F) * (r[[0, -1]] - r_old[[0, -1]])))
-        return work, (G, r, F)
+        F = np.empty((2, 3))
+        c = np.ascontiguousarray
+        r = c(r)
+        work = _shape_work(run.props.quad_weights, G_old, G, r, r_old, F_old, c(sol.Y),
+                           c(q), F)
+        return float(work), (G, r, F)
 
     def new_pose(self, run, prob, sol):
         """The pose of the step's new level that the work is measured on (class
@@ -402,6 +452,15 @@ class ContactWork(WorkAccount):
         return u_old - u_new, u_new
 
 
+def _energy(Y, props):
+    """The rod's energy E and its kinetic part with the added mass's (J, J) of the state
+    Y (N+1, 12) (:func:`solver.energies.energies`, without its dict)."""
+    e = np.empty(4)
+    _energies_kernel(np.ascontiguousarray(Y, dtype=float), props.stiffness, props.rho_a,
+                     props.inertia, props.added_mass, float(props.ds), e)
+    return float(e[0] + e[1] + e[2] + e[3]), float(e[2] + e[3])
+
+
 class EnergyBalance:
     """The per-step energy check of a run (module docstring).
 
@@ -460,10 +519,8 @@ class EnergyBalance:
     def start(self, run) -> dict:
         """What the run's first level carries: its energy and kinetic energy (J) and
         each account's old data."""
-        e = energies(run.Y, run.props)
         out = {a.name: a.start(run) for a in self.accounts}
-        out["energy"] = e["energy_total"]
-        out["kinetic"] = e["energy_kinetic"] + e["energy_kinetic_fluid"]
+        out["energy"], out["kinetic"] = _energy(run.Y, run.props)
         return out
 
     def measure(self, run, prob, sol) -> StepBalance:
@@ -482,9 +539,7 @@ class EnergyBalance:
         work, carry = {}, {}
         for a in self.accounts:
             work[a.name], carry[a.name] = a.step(run, prob, sol, old[a.name])
-        e = energies(sol.Y, run.props)
-        energy = e["energy_total"]
-        kinetic = e["energy_kinetic"] + e["energy_kinetic_fluid"]
+        energy, kinetic = _energy(sol.Y, run.props)
         total = sum(work.values())
         error = energy - old["energy"] - total
         stored_old = old["energy"] + sum(a.stored(old[a.name]) for a in self.accounts)
