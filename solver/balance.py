@@ -346,24 +346,33 @@ class DragWork(WorkAccount):
 
     name = "drag"
 
-    def _drag(self, run, Y):
-        b = np.empty((Y.shape[0], 3))
-        rod = run.system.rod_data
-        _drag_kernel(np.ascontiguousarray(Y[:, 0:3]), rod[3], rod[4], b, np.empty((0, 3, 3)),
-                     False)
-        return b
-
     def start(self, run):
-        return (self._drag(run, run.Y), np.array(run.Y[:, 0:3], dtype=float))
+        b = np.empty((run.Y.shape[0], 3))
+        rod = run.system.rod_data
+        _drag_kernel(np.ascontiguousarray(run.Y[:, 0:3]), rod[3], rod[4], b,
+                     np.empty((0, 3, 3)), False)
+        return b, np.array(run.Y[:, 0:3], dtype=float)
 
     def step(self, run, prob, sol, old):
         b_old, rate_old = old
-        b = self._drag(run, sol.Y)
-        rate = np.empty((sol.Y.shape[0], 3))
+        n1 = sol.Y.shape[0]
+        b, rate = np.empty((n1, 3)), np.empty((n1, 3))
         g, am, af = _rates(prob.params)
-        work = distributed_work_into(sol.Y, run.Y, float(prob.h), g, am, af, rate_old, b_old,
-                                     True, b, True, run.props.quad_weights, rate)[0]
+        rod = run.system.rod_data
+        work = _drag_work(np.ascontiguousarray(sol.Y), run.Y, float(prob.h), g, am, af,
+                          rate_old, b_old, rod[3], rod[4], run.props.quad_weights, b, rate)
         return work, (b, rate)
+
+
+@numba.njit(cache=True)
+def _drag_work(Y, Y_old, h, gamma, am, af, rate_old, b_old, cdn, cdt, weights, b, rate):
+    """:class:`DragWork`'s work (J): the new level's Morison drag (N+1, 3) N/m on the
+    body-frame velocities of Y (N+1, 12) into ``b`` (:func:`solver.loads._drag_kernel`,
+    c_n, c_t (N+1,) its coefficients) and its trapezoid work on the nodes' displacement
+    rates into ``rate`` (:func:`solver.energies.distributed_work_into`)."""
+    _drag_kernel(Y[:, 0:3], cdn, cdt, b, np.empty((0, 3, 3)), False)
+    return distributed_work_into(Y, Y_old, h, gamma, am, af, rate_old, b_old, True, b, True,
+                                 weights, rate)[0]
 
 
 class SeabedWork(WorkAccount):
