@@ -328,3 +328,31 @@ def test_contact_account_reads_the_solution_from_the_contact_summary(law, monkey
     assert len(pairs) >= 15 and any(b > 0.0 for _, b, _ in pairs)
     assert all(a == b for a, b, _ in pairs), pairs
     assert all(c is None for _, _, c in pairs)
+
+
+@pytest.mark.parametrize("law", ["seed", "barrier"])
+def test_contact_account_reuses_the_old_level_energy_it_carries(law, monkeypatch):
+    """Where a step keeps the last step's candidates (the kept search's very object) from
+    the very positions the level carries, the account's old-level U_c is the one it
+    carried, equal bit for bit to SelfContact.potential there; where the candidates are
+    new, it is evaluated again (both happen in the crossing loop)."""
+    from solver import balance
+
+    step = balance.ContactWork.step
+    seen = []
+
+    def checked(self, run, prob, sol, old):
+        cand = sol.candidates
+        if cand is not None and cand.runs:
+            kept = isinstance(old, tuple) and old[1] is cand and old[2] is run.r
+            seen.append((kept, old[0] if kept else None, run.contact.potential(cand, run.r)))
+        return step(self, run, prob, sol, old)
+
+    monkeypatch.setattr(balance.ContactWork, "step", checked)
+    run = RodRun(crossing_loop(1e-4, law, 0.002))
+    while run.t < 0.002 - 1e-12:
+        run.advance(run.t + 1e-4)
+    kept = [(a, b) for k, a, b in seen if k]
+    assert len(kept) >= 5 and len(kept) < len(seen), [k for k, _, _ in seen]
+    assert any(b > 0.0 for _, b in kept)
+    assert all(a == b for a, b in kept), kept
