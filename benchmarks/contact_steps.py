@@ -138,7 +138,7 @@ def main() -> None:
     ap.add_argument("--probe-dt", default="0.0005,0.001,0.002,0.005,0.01,0.02",
                     help="comma-separated Δt (s) of the probe's attempts")
     ap.add_argument("--newton-failures", type=int, default=0)
-    ap.add_argument("--newton", default="", help="Newton class attributes "
+    ap.add_argument("--newton", default="", help="Newton class attributes (or VERLET_SKIN) "
                     "ATTR=VALUE[,...] for the run (as contact_suite.py --newton)")
     args = ap.parse_args()
     if args.newton:

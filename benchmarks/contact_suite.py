@@ -352,7 +352,7 @@ def main() -> None:
     ap.add_argument("--write-docs", action="store_true")
     ap.add_argument("--merge", default="", help="an earlier result JSON whose rows are "
                     "kept for the cases not run now")
-    ap.add_argument("--newton", default="", help="Newton class attributes "
+    ap.add_argument("--newton", default="", help="Newton class attributes (or VERLET_SKIN) "
                     "ATTR=VALUE[,...] for every run (as seed_accuracy.py --newton)")
     ap.add_argument("--spread", action="store_true", help="each case at newton.tolerance "
                     "times each of SPREAD: outcome and Newton iterations (nothing saved)")

@@ -15,7 +15,8 @@ machine's moods; the counts are what to compare first).
 
 A variant is a set of class attributes of :class:`solver.newton.Newton` (the solver's
 tuning constants), e.g. ``CONTACT_BAND_WEIGHT=1.0`` (all node-local contact blocks in the
-preconditioner, the earlier setting) or ``GAP_KEEP=0.1``. Where a variant may change the
+preconditioner, the earlier setting) or ``GAP_KEEP=0.1``, or of the contact candidate
+search :class:`solver.contact.search.CandidateSearch` (``VERLET_SKIN``; :data:`OWNERS`). Where a variant may change the
 solution (a looser stopping test), the largest distance of its centreline at the end of
 each replayed step from the baseline's (m) is printed with its window.
 
@@ -38,6 +39,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from solver import Case
+from solver.contact.search import CandidateSearch
 from solver.newton import Newton
 from solver.simulation import RodRun
 
@@ -46,39 +48,53 @@ RESULTS = ROOT / "benchmarks" / "results" / "replay_steps.json"
 SEED = ROOT / "cases" / "goyal-writhing.yaml"
 
 
+#: the classes other than Newton whose class attributes a variant may set, by attribute
+OWNERS = {"VERLET_SKIN": CandidateSearch}
+
+
+def owner(attr: str):
+    """The class whose attribute ``attr`` a variant sets (:data:`OWNERS`, else Newton)."""
+    return OWNERS.get(attr, Newton)
+
+
 def parse_variant(text: str) -> tuple[str, dict]:
     """``NAME:ATTR=VALUE,...`` -> (NAME, {ATTR: float or int}); raises ValueError naming
-    an attribute that Newton does not have."""
+    an attribute that its class (:func:`owner`) does not have."""
     name, _, body = text.partition(":")
     settings = {}
     for item in filter(None, body.split(",")):
         attr, _, value = item.partition("=")
-        if not hasattr(Newton, attr):
-            raise ValueError(f"--variant {text!r}: Newton has no attribute {attr!r}")
-        current = getattr(Newton, attr)
+        cls = owner(attr)
+        if not hasattr(cls, attr):
+            raise ValueError(f"--variant {text!r}: {cls.__name__} has no attribute {attr!r}")
+        current = getattr(cls, attr)
         settings[attr] = int(value) if isinstance(current, int) else float(value)
     return name, settings
 
 
 def set_newton(text: str) -> dict:
-    """Set the Newton class attributes ``ATTR=VALUE[,ATTR=VALUE...]`` (the ``--newton``
-    option of benchmarks/seed_accuracy.py and contact_suite.py) for the rest of the
-    process; returns them. Raises ValueError as :func:`parse_variant`."""
+    """Set the class attributes ``ATTR=VALUE[,ATTR=VALUE...]`` of Newton or the candidate
+    search (:func:`owner`; the ``--newton`` option of benchmarks/seed_accuracy.py and
+    contact_suite.py) for the rest of the process; returns them. Raises ValueError as
+    :func:`parse_variant`."""
     settings = parse_variant(f"newton:{text}")[1]
     for attr, value in settings.items():
-        setattr(Newton, attr, value)
+        setattr(owner(attr), attr, value)
     return settings
 
 
 def replay_step(snapshot: bytes, t_target: float, settings: dict) -> dict:
-    """One nominal step to t_target (s) from a pickled RodRun with the Newton class
-    attributes ``settings`` set for its duration; returns its counts, wall time and
+    """One nominal step to t_target (s) from a pickled RodRun with the class attributes
+    ``settings`` (:func:`owner`) set for its duration; returns its counts, wall time and
     centreline at t_target (N+1, 3), m."""
-    saved = {k: getattr(Newton, k) for k in settings}
+    saved = {k: getattr(owner(k), k) for k in settings}
     try:
         for k, v in settings.items():
-            setattr(Newton, k, v)
+            setattr(owner(k), k, v)
         run = pickle.loads(snapshot)
+        if "VERLET_SKIN" in settings and getattr(run, "search", None) is not None:
+            # the snapshot's kept candidates and skin are those of the baseline's skin
+            run.search.verlet = run.search._skin_m = None
         g0, f0 = run.newton.gmres_iterations, run.newton.factorizations
         t0 = time.perf_counter()
         its, _ = run.advance(t_target)
@@ -88,7 +104,7 @@ def replay_step(snapshot: bytes, t_target: float, settings: dict) -> dict:
                 "r": run.r.copy()}
     finally:
         for k, v in saved.items():
-            setattr(Newton, k, v)
+            setattr(owner(k), k, v)
 
 
 def replay(windows: list[tuple[float, float]], variants: dict[str, dict],
@@ -136,7 +152,8 @@ def main() -> None:
     ap.add_argument("--windows", nargs="+", default=["18:21", "26:29", "34:36", "41:44"],
                     help="windows START:END in s of simulated time")
     ap.add_argument("--variant", action="append", default=[],
-                    help="NAME:ATTR=VALUE[,ATTR=VALUE...] (Newton class attributes)")
+                    help="NAME:ATTR=VALUE[,ATTR=VALUE...] (class attributes of Newton "
+                    "or, VERLET_SKIN, of CandidateSearch)")
     args = ap.parse_args()
     windows = []
     for w in args.windows:

@@ -312,7 +312,8 @@ def main() -> None:
                          "seed_accuracy_18-45.json): run only the production from t0 to "
                          "t1 and compare it with that file's stored reference records")
     ap.add_argument("--newton", default="",
-                    help="Newton class attributes ATTR=VALUE[,...] for every run made")
+                    help="Newton class attributes (or VERLET_SKIN) ATTR=VALUE[,...] for "
+                    "every run made")
     args = ap.parse_args()
     if args.newton:
         from replay_steps import set_newton

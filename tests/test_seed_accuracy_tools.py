@@ -76,3 +76,17 @@ def test_newton_option_sets_the_named_class_attributes_and_refuses_unknown_ones(
             set_newton("NO_SUCH=1")
     finally:
         Newton.CONTACT_RESIDUAL_FACTOR, Newton.GMRES_MAX = saved
+
+
+def test_variants_set_the_candidate_search_skin_on_its_own_class():
+    """``VERLET_SKIN`` in a variant or ``--newton`` is the candidate search's attribute
+    (replay_steps.OWNERS), set there and not on Newton."""
+    from replay_steps import set_newton
+    from solver.contact.search import CandidateSearch
+    from solver.newton import Newton
+    saved = CandidateSearch.VERLET_SKIN
+    try:
+        assert set_newton("VERLET_SKIN=0.5") == {"VERLET_SKIN": 0.5}
+        assert CandidateSearch.VERLET_SKIN == 0.5 and not hasattr(Newton, "VERLET_SKIN")
+    finally:
+        CandidateSearch.VERLET_SKIN = saved
