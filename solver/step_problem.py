@@ -23,7 +23,7 @@ from .boundary import BoundaryRows
 from .contact.geometry import max_distance
 from .kinematics import quat_to_matrix, relative_rotation, space_route
 from .scheme import BACKWARD_EULER, pose_into
-from .stepping import extrapolate
+from .stepping import extrapolate, kappa_distance
 
 __all__ = ["StepProblem", "Solution", "ProblemAssembly"]
 
@@ -322,11 +322,9 @@ class ProblemAssembly:
         alternates from step to step (a transient the step does not resolve, damped by
         ρ∞: the held end after 30 s) seven times instead of three (152 → 231 over
         30-33 s), so the last step's record decides."""
-        kappa = Y[:, 9:12]
         best, least = None, None
         for k, g in predictions.items():
-            d = kappa - g[:, 9:12]
-            err = float((d * d).sum())
+            err = kappa_distance(Y, g)
             if least is None or err < least:
                 best, least = k, err
         return best

@@ -59,7 +59,7 @@ import numpy as np
 from ..banded import NV, block_solve
 from ..scheme import _apply_M_kernel
 
-__all__ = ["breakpoints", "RESTART_FRACTION", "RESTART_STEPS", "extrapolate", "ErrorControl",
+__all__ = ["breakpoints", "RESTART_FRACTION", "RESTART_STEPS", "extrapolate", "kappa_distance", "ErrorControl",
            "PIController", "DisplacementWeight",
            "error_constant", "growth_rate", "hermite"]
 
@@ -173,6 +173,19 @@ def extrapolate(times, values, t_new: float):
     second = (d12 - d01) / (z2 - z0)
     w0, w1 = t_new - z0, t_new - z1
     return y0 + d01 * w0 + second * w0 * w1
+
+
+@numba.njit(cache=True)
+def kappa_distance(Y, G) -> float:
+    """Σ_k |κ_k(Y) − κ_k(G)|² (1/m², summed over the nodes) between two states Y, G
+    (N+1, 12) (κ their columns 9-11): how near a Newton start G put the curvature of the
+    accepted level Y (``ProblemAssembly._better_predictor``). One compiled pass."""
+    acc = 0.0
+    for k in range(Y.shape[0]):
+        for i in range(9, 12):
+            d = Y[k, i] - G[k, i]
+            acc += d * d
+    return acc
 
 
 def _flat_floats(values) -> bool:
