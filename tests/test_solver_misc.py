@@ -110,6 +110,19 @@ def test_newton_starts_extrapolate_the_accepted_levels_exactly():
     assert set(run._predictions(h)) == {"linear"}
 
 
+def test_kappa_distance_is_the_sum_of_squares_of_the_curvature_difference():
+    """solver.stepping.kappa_distance: Σ |κ(Y) − κ(G)|² over the nodes (columns 9-11),
+    blind to the other nine unknowns."""
+    from solver.stepping import kappa_distance
+    rng = np.random.default_rng(3)
+    Y, G = rng.standard_normal((2, 7, 12))
+    expected = float(np.sum((Y[:, 9:12] - G[:, 9:12]) ** 2))
+    assert kappa_distance(Y, G) == pytest.approx(expected, rel=1e-14)
+    G[:, 0:9] += 5.0
+    assert kappa_distance(Y, G) == pytest.approx(expected, rel=1e-14)
+    assert kappa_distance(Y, Y) == 0.0
+
+
 def test_the_newton_start_follows_the_predictor_that_placed_kappa_better():
     """The next step starts from whichever extrapolation put the last accepted step's κ
     nearer (κ sets the centreline and every contact gap), whatever the other unknowns
