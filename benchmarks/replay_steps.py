@@ -16,8 +16,8 @@ machine's moods; the counts are what to compare first).
 A variant is a set of class attributes of :class:`solver.newton.Newton` (the solver's
 tuning constants), e.g. ``CONTACT_BAND_WEIGHT=1.0`` (all node-local contact blocks in the
 preconditioner, the earlier setting) or ``GAP_KEEP=0.1``, or of the contact candidate
-search :class:`solver.contact.search.CandidateSearch` (``VERLET_SKIN``; :data:`OWNERS`). Where a variant may change the
-solution (a looser stopping test), the largest distance of its centreline at the end of
+search :class:`solver.contact.search.CandidateSearch` (``VERLET_SKIN``; :data:`OWNERS`).
+Where a variant may change the solution (a looser stopping test), the largest distance of its centreline at the end of
 each replayed step from the baseline's (m) is printed with its window.
 
 Run: ``python benchmarks/replay_steps.py [--case CASE.yaml] [--windows 18:21 26:29 34:36
@@ -94,7 +94,7 @@ def replay_step(snapshot: bytes, t_target: float, settings: dict) -> dict:
         run = pickle.loads(snapshot)
         if "VERLET_SKIN" in settings and getattr(run, "search", None) is not None:
             # the snapshot's kept candidates and skin are those of the baseline's skin
-            run.search.verlet = run.search._skin_m = None
+            run.search.reset()
         g0, f0 = run.newton.gmres_iterations, run.newton.factorizations
         t0 = time.perf_counter()
         its, _ = run.advance(t_target)

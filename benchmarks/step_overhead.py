@@ -174,7 +174,10 @@ PARTS = [("solver.run", "RodRun", "try_step"),
          ("solver.run", "RodRun", "_refusal"), ("solver.run", "RodRun", "_accept"),
          ("solver.stepping.guard", "GrowthGuard", "ok"),
          ("solver.balance", "EnergyBalance", "measure"),
-         ("solver.balance", None, "_energy"), ("solver.balance", "GlobalLoadWork", "step"),
+         # balance's own name for the function, the one its calls go through (``_energy``
+         # in trees before it moved to solver.energies)
+         ("solver.balance", None, "total_and_kinetic"), ("solver.balance", None, "_energy"),
+         ("solver.balance", "GlobalLoadWork", "step"),
          ("solver.balance", "EndWork", "step"), ("solver.balance", "DragWork", "step"),
          ("solver.balance", "ContactWork", "step"),
          ("solver.scheme", "RodSystem", "contact_summary"),

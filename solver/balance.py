@@ -81,7 +81,7 @@ from typing import NamedTuple, Optional
 import numba
 import numpy as np
 
-from .energies import _energies_kernel, distributed_work_into, end_work_into
+from .energies import distributed_work_into, end_work_into, total_and_kinetic
 from .kinematics import (_matrix_into, normalize_quaternions, quat_exp, quat_multiply,
                          quat_to_matrix, rotate_rows, space_route)
 from .scheme import pose_into
@@ -379,8 +379,8 @@ class SeabedWork(WorkAccount):
     """Work of the sea floor's normal spring (:mod:`solver.seabed`, the linear
     spring-damper per unit length of MoorDyn): minus the change of its stored energy
     U = Σ_c Δs ½ k max(p_c, 0)² (J; k the normal stiffness, Pa, p_c the surface
-    penetration at cell c's midpoint, m, where the seabed's law acts), exact for a flat bottom and for
-    each grid cell's tangent plane. U is not part of E, so the spring enters the balance
+    penetration at cell c's midpoint, m, where the seabed's law acts), exact for a flat
+    bottom and for each grid cell's tangent plane. U is not part of E, so the spring enters the balance
     as a work term, on the shape like gravity. The damper (clamped to the sign of −n·ṙ)
     and the Coulomb friction with its moment only take energy out at every instant
     (module :mod:`solver.seabed`), so they are left out like the scheme's own
@@ -472,15 +472,6 @@ class ContactWork(WorkAccount):
         return u_old - u_new, (u_new, cand, r_new)
 
 
-def _energy(Y, props):
-    """The rod's energy E and its kinetic part with the added mass's (J, J) of the state
-    Y (N+1, 12) (:func:`solver.energies.energies`, without its dict)."""
-    e = np.empty(4)
-    _energies_kernel(np.ascontiguousarray(Y, dtype=float), props.stiffness, props.rho_a,
-                     props.inertia, props.added_mass, float(props.ds), e)
-    return float(e[0] + e[1] + e[2] + e[3]), float(e[2] + e[3])
-
-
 class EnergyBalance:
     """The per-step energy check of a run (module docstring).
 
@@ -540,7 +531,7 @@ class EnergyBalance:
         """What the run's first level carries: its energy and kinetic energy (J) and
         each account's old data."""
         out = {a.name: a.start(run) for a in self.accounts}
-        out["energy"], out["kinetic"] = _energy(run.Y, run.props)
+        out["energy"], out["kinetic"] = total_and_kinetic(run.Y, run.props)
         return out
 
     def measure(self, run, prob, sol) -> StepBalance:
@@ -559,7 +550,7 @@ class EnergyBalance:
         work, carry = {}, {}
         for a in self.accounts:
             work[a.name], carry[a.name] = a.step(run, prob, sol, old[a.name])
-        energy, kinetic = _energy(sol.Y, run.props)
+        energy, kinetic = total_and_kinetic(sol.Y, run.props)
         total = sum(work.values())
         error = energy - old["energy"] - total
         stored_old = old["energy"] + sum(a.stored(old[a.name]) for a in self.accounts)

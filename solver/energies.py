@@ -21,7 +21,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["energies", "end_power", "distributed_power"]
+__all__ = ["energies", "total_and_kinetic", "end_power", "distributed_power"]
 
 
 @numba.njit(cache=True)
@@ -50,14 +50,21 @@ def _energies_kernel(Y, stiffness, rho_a, inertia, added_mass, ds, out):
     out[3] = 0.5 * ds * tf
 
 
-def energies(Y: np.ndarray, props) -> dict:
-    """Energies (J) of the state Y (N+1, 12): keys energy_bending, energy_torsion,
-    energy_kinetic, energy_kinetic_fluid, energy_total (module docstring; compiled,
-    :func:`_energies_kernel`)."""
+def _energy_parts(Y: np.ndarray, props) -> np.ndarray:
+    """Bending, torsion, kinetic and fluid energy (4,), J, of the state Y (N+1, 12)
+    (:func:`_energies_kernel`)."""
     e = np.empty(4)
     _energies_kernel(np.ascontiguousarray(Y, dtype=float), props.stiffness, props.rho_a,
                      props.inertia, props.added_mass, float(props.ds), e)
-    ub, ut, tk, tf = (float(x) for x in e)
+    return e
+
+
+def energies(Y: np.ndarray, props) -> dict:
+    """Energies (J) of the state Y (N+1, 12): keys energy_bending, energy_torsion,
+    energy_kinetic, energy_kinetic_fluid, energy_total (module docstring; compiled,
+    :func:`_energies_kernel`). Raises nothing for a well-formed Y; non-finite fields give
+    non-finite energies."""
+    ub, ut, tk, tf = (float(x) for x in _energy_parts(Y, props))
     return {
         "energy_bending": ub,
         "energy_torsion": ut,
@@ -65,6 +72,15 @@ def energies(Y: np.ndarray, props) -> dict:
         "energy_kinetic_fluid": tf,
         "energy_total": ub + ut + tk + tf,
     }
+
+
+def total_and_kinetic(Y: np.ndarray, props) -> tuple[float, float]:
+    """The total energy E = U_b + U_t + T + T_f and the kinetic part T + T_f (J, J) of the
+    state Y (N+1, 12) (module docstring; the per-step energy check's figures,
+    :class:`solver.balance.EnergyBalance`, without building :func:`energies`' dict).
+    Raises nothing for a well-formed Y."""
+    e = _energy_parts(Y, props)
+    return float(e[0] + e[1] + e[2] + e[3]), float(e[2] + e[3])
 
 
 def end_loads(Y: np.ndarray, props) -> np.ndarray:

@@ -90,3 +90,25 @@ def test_variants_set_the_candidate_search_skin_on_its_own_class():
         assert CandidateSearch.VERLET_SKIN == 0.5 and not hasattr(Newton, "VERLET_SKIN")
     finally:
         CandidateSearch.VERLET_SKIN = saved
+
+
+def test_candidate_search_reset_forgets_the_kept_candidates_and_the_skin():
+    """After :meth:`CandidateSearch.reset` the skin follows the present VERLET_SKIN and
+    nothing is covered until the next search (a replayed snapshot searches anew)."""
+    import numpy as np
+    from types import SimpleNamespace
+    from solver.contact.search import CandidateSearch
+    search = CandidateSearch(SimpleNamespace(tolerance=0.04), np.full(5, 0.02))
+    r = np.zeros((5, 3))
+    search.verlet = (None, r)
+    assert search.skin() == pytest.approx(CandidateSearch.VERLET_SKIN * 0.02)
+    assert search.covers(r)
+    saved = CandidateSearch.VERLET_SKIN
+    try:
+        CandidateSearch.VERLET_SKIN = 2 * saved
+        assert search.skin() == pytest.approx(saved * 0.02)  # kept until reset
+        search.reset()
+        assert search.verlet is None and not search.covers(r)
+        assert search.skin() == pytest.approx(2 * saved * 0.02)
+    finally:
+        CandidateSearch.VERLET_SKIN = saved

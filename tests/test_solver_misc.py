@@ -123,6 +123,24 @@ def test_kappa_distance_is_the_sum_of_squares_of_the_curvature_difference():
     assert kappa_distance(Y, Y) == 0.0
 
 
+def test_total_and_kinetic_are_the_energies_total_and_its_kinetic_parts():
+    """solver.energies.total_and_kinetic (the energy check's figures) gives energies()'s
+    total and the sum of its two kinetic parts (the rod's and the added mass's), for a
+    tapered rod in water."""
+    from solver import simulation as sim
+    from solver.energies import energies, total_and_kinetic
+    run = sim.RodRun(make_case(n_segments=6, end=SLIDING_END,
+                               diameter={"s": [0.0, 1.0], "value": [0.02, 0.01]},
+                               fluid={"density": 1000.0, "added_mass_coefficient": 1.0}))
+    Y = np.random.default_rng(5).standard_normal((7, 12))
+    e = energies(Y, run.props)
+    total, kinetic = total_and_kinetic(Y, run.props)
+    assert total == pytest.approx(e["energy_total"], rel=1e-14)
+    assert kinetic == pytest.approx(e["energy_kinetic"] + e["energy_kinetic_fluid"],
+                                    rel=1e-14)
+    assert e["energy_kinetic_fluid"] > 0.0 and kinetic > e["energy_kinetic_fluid"]
+
+
 def test_the_newton_start_follows_the_predictor_that_placed_kappa_better():
     """The next step starts from whichever extrapolation put the last accepted step's κ
     nearer (κ sets the centreline and every contact gap), whatever the other unknowns

@@ -36,6 +36,13 @@ class CandidateSearch:
         self.verlet = None
         self._skin_m = None
 
+    def reset(self) -> None:
+        """Forget the kept candidates and the skin, so that the next step searches anew
+        with the present :attr:`VERLET_SKIN` (a run restored from a snapshot whose skin
+        was another). Raises nothing."""
+        self.verlet = None
+        self._skin_m = None
+
     def search(self, positions, R, reach):
         """Contact candidates near the given positions (N+1, 3) and rotations (N+1, 3, 3)
         within tolerance + reach (m), or None when none is possible (the O(N) pre-test

@@ -59,8 +59,8 @@ import numpy as np
 from ..banded import NV, block_solve
 from ..scheme import _apply_M_kernel
 
-__all__ = ["breakpoints", "RESTART_FRACTION", "RESTART_STEPS", "extrapolate", "kappa_distance", "ErrorControl",
-           "PIController", "DisplacementWeight",
+__all__ = ["breakpoints", "RESTART_FRACTION", "RESTART_STEPS", "extrapolate",
+           "kappa_distance", "ErrorControl", "PIController", "DisplacementWeight",
            "error_constant", "growth_rate", "hermite"]
 
 #: size of the backward-Euler restart step, as a fraction of the nominal Δt
@@ -179,7 +179,8 @@ def extrapolate(times, values, t_new: float):
 def kappa_distance(Y, G) -> float:
     """Σ_k |κ_k(Y) − κ_k(G)|² (1/m², summed over the nodes) between two states Y, G
     (N+1, 12) (κ their columns 9-11): how near a Newton start G put the curvature of the
-    accepted level Y (``ProblemAssembly._better_predictor``). One compiled pass."""
+    accepted level Y (``ProblemAssembly._better_predictor``). One compiled pass. Raises
+    nothing: G must have Y's shape (not checked; the caller's levels share it)."""
     acc = 0.0
     for k in range(Y.shape[0]):
         for i in range(9, 12):
