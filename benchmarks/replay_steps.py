@@ -17,8 +17,9 @@ A variant is a set of class attributes of :class:`solver.newton.Newton` (the sol
 tuning constants), e.g. ``CONTACT_BAND_WEIGHT=1.0`` (all node-local contact blocks in the
 preconditioner, the earlier setting) or ``GAP_KEEP=0.1``, or of the contact candidate
 search :class:`solver.contact.search.CandidateSearch` (``VERLET_SKIN``; :data:`OWNERS`).
-Where a variant may change the solution (a looser stopping test), the largest distance of its centreline at the end of
-each replayed step from the baseline's (m) is printed with its window.
+Where a variant may change the solution (a looser stopping test), the largest distance of
+its centreline at the end of each replayed step from the baseline's (m) is printed with
+its window.
 
 Run: ``python benchmarks/replay_steps.py [--case CASE.yaml] [--windows 18:21 26:29 34:36
 41:44] [--variant NAME:ATTR=VALUE[,ATTR=VALUE...]] ...``; without ``--variant`` the

@@ -380,8 +380,8 @@ class SeabedWork(WorkAccount):
     spring-damper per unit length of MoorDyn): minus the change of its stored energy
     U = Σ_c Δs ½ k max(p_c, 0)² (J; k the normal stiffness, Pa, p_c the surface
     penetration at cell c's midpoint, m, where the seabed's law acts), exact for a flat
-    bottom and for each grid cell's tangent plane. U is not part of E, so the spring enters the balance
-    as a work term, on the shape like gravity. The damper (clamped to the sign of −n·ṙ)
+    bottom and for each grid cell's tangent plane. U is not part of E, so the spring enters
+    the balance as a work term, on the shape like gravity. The damper (clamped to the sign of −n·ṙ)
     and the Coulomb friction with its moment only take energy out at every instant
     (module :mod:`solver.seabed`), so they are left out like the scheme's own
     dissipation: they only make ε negative. Their trapezoid on the two levels' power
