@@ -138,7 +138,7 @@ def _parts(run: RodRun, dt: float, repeats: int) -> tuple[dict, int, int]:
 
     timed["LAPACK dgbtrf"] = _median_ms(lapack_factor, max(repeats // 4, 5)) - copy_ms
     if runs:
-        residual_into(Y, True, rod, step, cand, frozen, cdata, system.buf, system.ev)
+        # the buffers still hold the evaluation at Y made before the factorisation
         timed["operator set-up"] = _median_ms(
             lambda: newton_mod._set_operator(system.buf, system.ev, st["lin"], op, step,
                                              newton.CONTACT_BAND_WEIGHT, step[11][2]),
