@@ -13,6 +13,15 @@ iterations of the accepted steps, median contacts; then the totals over the wind
 with its iterations (Newton.last_trace: scaled residual, the feasibility filter's
 fraction, the line search's fraction, GMRES iterations) and why it failed.
 
+With ``--starts`` also, per window, how good each contact solve's Newton start was: the
+distance of the line and the parabola extrapolated from the last levels (the predictors
+of ``RodRun._predictions``) and of the start Newton was given (the feasible start, blended
+toward the old positions where a predicted gap closed below ``Newton.START_GAP_KEEP`` of
+itself) from the step's solution, per unknown (v, ω, f, κ), relative to the step's own
+change ‖Y − Yⁿ‖ (medians over the window's solves; 1 is no better than the old level),
+the share of solves whose start was blended, and the histogram of the accepted steps'
+Newton iterations.
+
 With ``--probe T`` instead: the case is advanced by nominal steps to T (s), and from that
 one state a single step of each Δt of ``--probe-dt`` is attempted: accepted or refused,
 Newton iterations, the route rule's ratio (how the step's position error grows with Δt,
@@ -23,9 +32,11 @@ Run: ``PYTHONPATH=$PWD python benchmarks/contact_steps.py seed-in-air --from 17.
 ``... tension --from 18.4 --t-end 18.7``, ``... tension --from 18 --t-end 45 --edges
 18,18.5,19,20,22,25,30,35,40,45`` (the tension variant's whole contact phase, ~3 min),
 ``... tension --probe 19 --probe-dt 0.0005,0.001,0.0017,0.003,0.005,0.01``.
-``--newton ATTR=VALUE[,...]`` sets class attributes of :class:`solver.newton.Newton` for
-the run (as contact_suite.py's option), e.g. ``... pyelastica-0.8 --from 7.5 --t-end 7.6
---every 0.01 --newton CONTACT_RESIDUAL_FACTOR=2 --newton-failures 12``.
+``... tension --from 19 --t-end 19.3 --starts`` (how far the starts of the collapse
+are from their solutions). ``--newton ATTR=VALUE[,...]`` sets class attributes of
+:class:`solver.newton.Newton` for the run (as contact_suite.py's option), e.g.
+``... pyelastica-0.8 --from 7.5 --t-end 7.6 --every 0.01 --newton
+CONTACT_RESIDUAL_FACTOR=2 --newton-failures 12``.
 """
 from __future__ import annotations
 
@@ -44,8 +55,58 @@ sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "tests"))
 
 
-def record(name: str, t_end: float) -> list:
-    """Run suite case ``name`` to t_end (s); the attempts as dicts."""
+#: the unknowns of a node's row of Y (N+1, 12), as --starts reports them
+GROUPS = {"v": slice(0, 3), "ω": slice(3, 6), "f": slice(6, 9), "κ": slice(9, 12)}
+
+
+def start_distances(Y_old, Y, starts: dict) -> dict:
+    """How far each Newton start is from a step's solution, per unknown: for each start
+    P (N+1, 12) of ``starts`` (name -> array) and each group g of :data:`GROUPS`,
+    ‖Y_g − P_g‖ / ‖Y_g − Yⁿ_g‖ (Frobenius norms over the nodes; Y_old = Yⁿ, Y the
+    solution, both (N+1, 12)); NaN where the step left the group unchanged. Returns
+    {name: {group: float}}."""
+    out = {}
+    for name, P in starts.items():
+        out[name] = {}
+        for g, cols in GROUPS.items():
+            change = float(np.linalg.norm(Y[:, cols] - Y_old[:, cols]))
+            miss = float(np.linalg.norm(Y[:, cols] - P[:, cols]))
+            out[name][g] = miss / change if change > 0.0 else math.nan
+    return out
+
+
+def start_summary(solves: list, accepted_its: list) -> list:
+    """Lines of the --starts report over one window: ``solves`` the dicts of
+    :func:`start_distances` of its contact solves (each with "blend": the feasible start's
+    blend factor, Newton.last_start_blend, 1 where the start is the predictor),
+    ``accepted_its`` the Newton iterations of its accepted steps."""
+    lines = []
+    if solves:
+        names = [k for k in solves[0] if k != "blend"]
+        for name in names:
+            med = {g: np.nanmedian([s[name][g] for s in solves if name in s]) for g in GROUPS}
+            lines.append(f"    {name:9s} " + "  ".join(f"{g} {v:5.2f}" for g, v in med.items()))
+        blend = np.array([s["blend"] for s in solves], float)
+        cut = blend[blend < 1.0]
+        lines.append(f"    start blended toward the old positions in {cut.size} of {blend.size} "
+                     "contact solves" + (f" (median factor {np.median(cut):.3g})"
+                                         if cut.size else ""))
+    hist = collections.Counter(accepted_its)
+    lines.append("    Newton iterations of the accepted steps: "
+                 + ", ".join(f"{k}: {hist[k]}" for k in sorted(hist)))
+    return lines
+
+
+def _starts_of(rows: list) -> list:
+    """:func:`start_summary` of recorded attempts (``record(..., starts=True)``)."""
+    return start_summary([r["starts"] for r in rows if r["starts"] is not None],
+                         [r["its"] for r in rows if r["ok"]])
+
+
+def record(name: str, t_end: float, starts: bool = False) -> list:
+    """Run suite case ``name`` to t_end (s); the attempts as dicts (with ``starts``, each
+    with "starts": :func:`start_distances` of its last Newton solve with contact
+    candidates, else None)."""
     import contact_suite as cs
     from solver.case import Case
     from solver.run import RodRun
@@ -55,11 +116,16 @@ def record(name: str, t_end: float) -> list:
     spec["numerics"]["energy_tolerance"] = cs.ENERGY_TOLERANCE
     spec["numerics"]["t_end"] = t_end
     case = Case.model_validate(spec)
-    attempts, plain = [], RodRun.try_step
+    from solver.newton import Newton
+
+    attempts, plain, plain_solve = [], RodRun.try_step, Newton.solve
+    current = {}
 
     def recording(self, h, *args, **kwargs):
         t0 = self.t
         g0 = self.newton.gmres_iterations
+        current.clear()
+        current["run"] = self
         w0 = time.perf_counter()
         att = plain(self, h, *args, **kwargs)
         wall = time.perf_counter() - w0
@@ -69,16 +135,49 @@ def record(name: str, t_end: float) -> list:
         attempts.append({"t": t0, "h": h, "ok": bool(att.ok), "why": att.reason,
                          "its": att.iterations, "ratio": self.last_route_ratio,
                          "gmres": self.newton.gmres_iterations - g0, "wall": wall,
-                         "contacts": self.contact_count, "trace": trace})
+                         "contacts": self.contact_count, "trace": trace,
+                         "starts": current.get("starts")})
         return att
 
+    def solving(self, guess):
+        out = plain_solve(self, guess)
+        run = current.get("run")
+        prob = getattr(run, "_last_problem", None)
+        if run is not None and prob is not None and prob.candidates is not None \
+                and prob.predictions and out[4]:
+            d = start_distances(run.Y, out[0], dict(prob.predictions, start=guess))
+            d["blend"] = current.pop("blend", 1.0)
+            current["starts"] = d
+        return out
+
+    plain_feasible = Newton.feasible_start
+
+    def feasible(self, guess):
+        out = plain_feasible(self, guess)
+        current["blend"] = self.last_start_blend
+        return out
+
+    plain_problem = RodRun.step_problem
+
+    def problem(self, h, *args, **kwargs):
+        prob = plain_problem(self, h, *args, **kwargs)
+        self._last_problem = prob
+        return prob
+
     RodRun.try_step = recording
+    if starts:
+        Newton.solve = solving
+        Newton.feasible_start = feasible
+        RodRun.step_problem = problem
     try:
         simulate(case)
     except SolverDivergence as exc:
         print(f"stopped: {exc.reason} at t = {exc.t:.4f} s")
     finally:
         RodRun.try_step = plain
+        Newton.solve = plain_solve
+        Newton.feasible_start = plain_feasible
+        RodRun.step_problem = plain_problem
     return attempts
 
 
@@ -138,6 +237,8 @@ def main() -> None:
     ap.add_argument("--probe-dt", default="0.0005,0.001,0.002,0.005,0.01,0.02",
                     help="comma-separated Δt (s) of the probe's attempts")
     ap.add_argument("--newton-failures", type=int, default=0)
+    ap.add_argument("--starts", action="store_true",
+                    help="also how far each contact solve's Newton start was from its solution")
     ap.add_argument("--newton", default="", help="Newton class attributes (or VERLET_SKIN) "
                     "ATTR=VALUE[,...] for the run (as contact_suite.py --newton)")
     args = ap.parse_args()
@@ -151,7 +252,8 @@ def main() -> None:
         ap.error("--t-end is required (without --probe)")
     load = os.getloadavg()[0]
     wall = time.perf_counter()
-    rows = [a for a in record(args.case, args.t_end) if a["t"] >= args.t_from - 1e-12]
+    rows = [a for a in record(args.case, args.t_end, args.starts)
+            if a["t"] >= args.t_from - 1e-12]
     wall = time.perf_counter() - wall
     edges = (np.array([float(x) for x in args.edges.split(",")]) if args.edges
              else np.arange(args.t_from, args.t_end + 1e-9, args.every))
@@ -159,7 +261,11 @@ def main() -> None:
         part = [r for r in rows if a - 1e-12 <= r["t"] < b - 1e-12]
         if part:
             print(f"{a:7.2f}-{b:<7.2f} {summary(part)}")
+            if args.starts:
+                print("\n".join(_starts_of(part)))
     print(f"{args.t_from:.2f}-{args.t_end:.2f}  {summary(rows)}")
+    if args.starts:
+        print("\n".join(_starts_of(rows)))
     failed = [r for r in rows if r["trace"] is not None][:args.newton_failures]
     for r in failed:
         print(f"Newton failed ({r['trace'][0]}) at t = {r['t']:.5f} s, Δt = {r['h']:.3g} s, "

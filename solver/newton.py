@@ -539,14 +539,15 @@ def _feasible_fraction(Y, delta, g0, gap_keep, alpha, step, rod, cand, cdata, ws
 
 
 @numba.njit(cache=True)
-def _feasible_start(Y_old, guess, step, rod, cand, cdata, ws, out):
+def _feasible_start(Y_old, guess, step, rod, cand, cdata, ws, out, keep):
     """A Newton start whose contact gaps are open, into out (N+1, 12): the
     zero-displacement state (v, ω) = −(v^n, ω^n) keeps every node where it is (the
     trapezoidal position update), and the start is blended from it toward ``guess`` by
-    the largest 2^−k (k ≤ 7) that keeps every candidate gap at least half its old value
-    (else the zero-displacement state). Why: the replay of the seed example's first
-    contact, where an extrapolated start penetrated and Newton died at the barrier
-    (docs/contact.md § 2). Returns the blend factor."""
+    the largest 2^−k (k ≤ 7) that keeps every candidate gap at least ``keep``
+    (Newton.START_GAP_KEEP) of its old value (else the zero-displacement state). Why:
+    the replay of the seed example's first contact, where an extrapolated start
+    penetrated and Newton died at the barrier (docs/contact.md § 2). Returns the blend
+    factor."""
     nr = cand[2].shape[0]
     g_old, g = ws[6][:nr], ws[7][:nr]
     n1 = Y_old.shape[0]
@@ -564,7 +565,7 @@ def _feasible_start(Y_old, guess, step, rod, cand, cdata, ws, out):
         _trial_gaps(out, step, rod, cand, cdata, ws, g)
         ok = True
         for q in range(nr):
-            if np.isfinite(g_old[q]) and not g[q] >= 0.5 * max(g_old[q], 0.0):
+            if np.isfinite(g_old[q]) and not g[q] >= keep * max(g_old[q], 0.0):
                 ok = False
                 break
         if ok:
@@ -876,6 +877,7 @@ class Newton:
         sets 1 under error control, docs/numerics.md § 7 "Newton's noise").
     factorizations, gmres_iterations, gmres_failures : counters over the run.
     last_failure : None, "singular", "stalled" or "gmres" (why the last solve failed).
+    last_start_blend : the blend factor of the last :meth:`feasible_start` (diagnostics).
     """
 
     #: contact steps: refactor the band LU when the last GMRES solve needed more
@@ -897,6 +899,18 @@ class Newton:
 
     #: a Newton correction may close no candidate gap to less than this fraction of itself
     GAP_KEEP = 0.2
+
+    #: contact steps: the Newton start may close no candidate gap to less than this
+    #: fraction of its old value (:func:`_feasible_start`). Newton iterations over the
+    #: tension variant's 19-19.3 s (where 154 of 177 starts are blended) with 0, 0.2,
+    #: 0.5, 0.8, 0.95: 1212, 1055, 910, 961, 1134; over the seed's 25-30 s (10 of 351
+    #: blended) 924 at 0.2, 919 at 0.5, 959 at 0.8 (``python benchmarks/contact_steps.py
+    #: tension --from 19 --t-end 19.3 --starts --newton START_GAP_KEEP=0.2``;
+    #: docs/contact.md § 4)
+    START_GAP_KEEP = 0.5
+
+    #: the blend factor of the last :meth:`feasible_start` (1 until one has run)
+    last_start_blend = 1.0
 
     #: GMRES: relative residual at which a solve stops, and its iteration limit
     GMRES_RTOL = 1e-3
@@ -1085,13 +1099,15 @@ class Newton:
         """A Newton start for the step set up by :meth:`RodSystem.begin_step` (with
         contact candidates) whose candidate gaps are open: blended from the
         zero-displacement state toward ``guess`` (N+1, 12) (:func:`_feasible_start`).
-        Returns (N+1, 12)."""
+        Returns (N+1, 12); sets ``last_start_blend``, the blend factor (1: the guess to
+        rounding; 2^−k, k ≤ 7; 0: the zero-displacement state)."""
         system = self.system
         self._allocate(system.step.candidates.runs)
         rod, step, cand, cdata = system.kernel_args()
         out = np.empty((system.n_nodes, NV))
-        _feasible_start(step[0], np.ascontiguousarray(guess, dtype=float), step, rod, cand,
-                        cdata, self._state["ws"], out)
+        self.last_start_blend = float(_feasible_start(
+            step[0], np.ascontiguousarray(guess, dtype=float), step, rod, cand, cdata,
+            self._state["ws"], out, self.START_GAP_KEEP))
         return out
 
     # ------------------------------------------------------------------ linear algebra

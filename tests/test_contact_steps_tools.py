@@ -1,0 +1,126 @@
+"""The Newton-start report of benchmarks/contact_steps.py (``--starts``) and the feasible
+start's blend factor it reads (:meth:`solver.newton.Newton.feasible_start`): distances
+with a known answer, and the blend on a contact step of a hairpin whose strands face
+each other."""
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from contact_steps import start_distances, start_summary  # noqa: E402
+
+
+def test_a_start_is_measured_against_the_step_it_had_to_cover():
+    """Y_old = 0, the solution 1 in every unknown: the solution itself is 0 away, the old
+    level 1, a start halfway 0.5; a group the step left unchanged reads NaN."""
+    y_old = np.zeros((5, 12))
+    y = np.ones((5, 12))
+    y[:, 6:9] = 0.0                               # f unchanged by the step
+    d = start_distances(y_old, y, {"exact": y, "old": y_old, "half": 0.5 * y})
+    assert d["exact"]["v"] == 0.0 and d["exact"]["κ"] == 0.0
+    assert d["old"]["ω"] == pytest.approx(1.0)
+    assert d["half"]["v"] == pytest.approx(0.5) and d["half"]["κ"] == pytest.approx(0.5)
+    assert math.isnan(d["half"]["f"])
+
+
+def test_the_start_report_counts_the_blended_starts_and_the_iterations():
+    solves = [dict(start_distances(np.zeros((3, 12)), np.ones((3, 12)),
+                                   {"start": np.full((3, 12), a)}), blend=b)
+              for a, b in ((0.5, 1.0), (0.25, 0.25), (0.0, 0.5))]
+    lines = start_summary(solves, [2, 2, 3])
+    assert "v  0.75" in lines[0]                  # median of 0.5, 0.75, 1
+    assert "2 of 3 contact solves (median factor 0.375)" in lines[1]
+    assert lines[2].endswith("2: 2, 3: 1")
+
+
+def _hairpin(length=1.0, radius=0.06 / math.pi, n=1001):
+    """Points (n, 3) of a hairpin of the given length (m): two parallel strands 2·radius
+    apart joined by a half circle. The default's half circle is 6 cells of a 100-segment
+    grid, from node 47 to node 53, so that the curvature's jumps fall on nodes (the
+    space route of the sampled κ is then within ~3 mm of the curve)."""
+    leg = 0.5 * (length - math.pi * radius)
+    s = np.linspace(0.0, length, n)
+    pts = np.empty((n, 3))
+    for i, x in enumerate(s):
+        if x <= leg:
+            pts[i] = (0.0, 0.0, x)
+        elif x <= leg + math.pi * radius:
+            a = (x - leg) / radius
+            pts[i] = (radius * (1.0 - math.cos(a)), 0.0, leg + radius * math.sin(a))
+        else:
+            pts[i] = (2.0 * radius, 0.0, leg - (x - leg - math.pi * radius))
+    return pts
+
+
+@pytest.fixture(scope="module")
+def contact_step():
+    """A hairpin at rest, its strands ~2 cm apart (surface to surface), with self-contact:
+    a step of 0.01 s set up as the run sets it up, with the candidates its search finds
+    (their gaps finite)."""
+    from solver.case import Case
+    from solver.compiled import _warm_up_spec
+    from solver.run import RodRun
+
+    spec = _warm_up_spec()
+    spec["numerics"]["n_segments"] = 100
+    spec["initial"] = {"centreline": {"points": _hairpin().tolist()}}
+    spec["boundary"]["start"]["rotation"][2] = {"angular_velocity": 0.0}
+    run = RodRun(Case.model_validate(spec))
+    prob = run.step_problem(0.01)
+    assert prob.candidates is not None and prob.candidates.runs > 0
+    run.system.begin_step(prob.h, prob.params, prob.t_new, run.Y, run.Ydot, run.F_old,
+                          prob.bc, q_old=run.q, r_old=run.r, v_old_global=run.v_global,
+                          candidates=prob.candidates)
+    gaps = run.system.candidate_gaps(run.Y)
+    assert np.isfinite(gaps).sum() > 50 and np.all(gaps[np.isfinite(gaps)] > 0.01)
+    return run
+
+
+def test_a_start_that_keeps_every_gap_is_the_guess(contact_step, monkeypatch):
+    """START_GAP_KEEP = 0 asks only that no gap be closed: the old level's guess passes
+    whole (blend 1, the guess to rounding)."""
+    newton = contact_step.newton
+    monkeypatch.setattr(type(newton), "START_GAP_KEEP", 0.0)
+    guess = contact_step.Y.copy()
+    out = newton.feasible_start(guess)
+    assert newton.last_start_blend == 1.0
+    np.testing.assert_allclose(out, guess, rtol=0, atol=1e-12 * np.abs(guess).max())
+
+
+def test_a_start_no_blend_can_make_feasible_is_the_zero_displacement_state(contact_step,
+                                                                           monkeypatch):
+    """START_GAP_KEEP = 2 asks every gap to double, which no blend does: the start is the
+    zero-displacement state, (v, ω) = −(vⁿ, ωⁿ) with f and κ of the old level (blend 0)."""
+    newton = contact_step.newton
+    monkeypatch.setattr(type(newton), "START_GAP_KEEP", 2.0)
+    y_old = contact_step.Y
+    out = newton.feasible_start(y_old + 0.01)
+    assert newton.last_start_blend == 0.0
+    np.testing.assert_array_equal(out[:, :6], -y_old[:, :6])
+    np.testing.assert_array_equal(out[:, 6:], y_old[:, 6:])
+
+
+def test_a_start_that_closes_a_gap_is_blended_back_until_it_keeps_half(contact_step):
+    """The guess bends the hairpin's half circle 20 % tighter, so its far strand swings
+    onto the near one: the start is blended toward the zero-displacement state by the
+    largest 2^−k that keeps every gap at least START_GAP_KEEP (½) of its old value."""
+    newton, system = contact_step.newton, contact_step.system
+    y_old = contact_step.Y
+    guess = y_old.copy()
+    guess[:, 9:11] *= 1.2                         # bending curvatures κ1, κ2
+    g_old = system.candidate_gaps(y_old)
+    ok = np.isfinite(g_old)
+    assert np.any(system.candidate_gaps(guess)[ok] < 0.5 * g_old[ok])
+    out = newton.feasible_start(guess)
+    beta = newton.last_start_blend
+    assert 0.0 < beta < 1.0 and math.log2(beta) == round(math.log2(beta))
+    assert np.all(system.candidate_gaps(out)[ok] >= 0.5 * g_old[ok])
+    still = np.concatenate([-y_old[:, :6], y_old[:, 6:]], axis=1)
+    np.testing.assert_allclose(out, still + beta * (guess - still), rtol=0, atol=1e-12)
+    twice = still + min(1.0, 2.0 * beta) * (guess - still)
+    assert np.any(system.candidate_gaps(twice)[ok] < 0.5 * g_old[ok])
