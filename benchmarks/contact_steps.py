@@ -25,13 +25,18 @@ Newton iterations.
 With ``--probe T`` instead: the case is advanced by nominal steps to T (s), and from that
 one state a single step of each Δt of ``--probe-dt`` is attempted: accepted or refused,
 Newton iterations, the route rule's ratio (how the step's position error grows with Δt,
-and whether Newton or the route rule limits it there).
+and whether Newton or the route rule limits it there). With ``--residuals`` also, per
+Newton iterate of each attempt, the largest scaled residual of each row group (E1, E2,
+E3 lateral, E3 axial, E4 and the end rows) with the cell where it sits, and the
+fractions of the correction the filter and the line search kept.
 
 Run: ``PYTHONPATH=$PWD python benchmarks/contact_steps.py seed-in-air --from 17.5
 --t-end 18.4`` (the seed example without its fluid, from just before its first contact),
 ``... tension --from 18.4 --t-end 18.7``, ``... tension --from 18 --t-end 45 --edges
 18,18.5,19,20,22,25,30,35,40,45`` (the tension variant's whole contact phase, ~3 min),
-``... tension --probe 19 --probe-dt 0.0005,0.001,0.0017,0.003,0.005,0.01``.
+``... tension --probe 19 --probe-dt 0.0005,0.001,0.0017,0.003,0.005,0.01``,
+``... tension --probe 18.6 --probe-dt 0.001 --residuals`` (where a collapse step's
+residual sits, iterate by iterate).
 ``... tension --from 19 --t-end 19.3 --starts`` (how far the starts of the collapse
 are from their solutions). ``--newton ATTR=VALUE[,...]`` sets class attributes of
 :class:`solver.newton.Newton` for the run (as contact_suite.py's option), e.g.
@@ -197,9 +202,62 @@ def summary(rows: list) -> str:
             f"{med(np.array([a['contacts'] for a in acc], float)):.0f}")
 
 
-def probe(name: str, at: float, sizes: list) -> None:
+#: the residual rows of a cell (offsets in its 12 rows) as --residuals groups them
+#: (solver/scheme.py: E1 compatibility, E2 inextensibility, E3 linear and E4 angular
+#: momentum, each in the body frame, component 3 along the tangent)
+ROW_GROUPS = {"E1": (0, 1, 2), "E2": (3, 4, 5), "E3 lateral": (6, 7), "E3 axial": (8,),
+              "E4": (9, 10, 11)}
+
+
+def residual_groups(scaled) -> dict:
+    """The largest |scaled residual| of each row group of :data:`ROW_GROUPS` and the cell
+    where it is, from a step's scaled residual (n,) = 6 boundary rows at s = 0, 12 rows
+    per cell, 6 at s = L; the boundary rows as one group "ends" (cell −1 / −2 for s = 0 /
+    s = L). Returns {group: (value, cell)}."""
+    r = np.abs(np.asarray(scaled, dtype=float))
+    cells = r[6:-6].reshape(-1, 12)
+    out = {}
+    for g, offs in ROW_GROUPS.items():
+        block = cells[:, offs].max(axis=1)
+        c = int(np.argmax(block))
+        out[g] = (float(block[c]), c)
+    ends = (float(r[:6].max()), -1) if r[:6].max() >= r[-6:].max() else (float(r[-6:].max()), -2)
+    out["ends"] = ends
+    return out
+
+
+def _iterates_residuals(snapshot: bytes, h: float, its: int) -> list:
+    """The scaled residual's row groups (:func:`residual_groups`) at each iterate 0 … its
+    of the first Newton solve of a step of h (s) from the pickled run ``snapshot``: the
+    solve repeated with at most k iterations, as the run sets it up (its first attempt,
+    with the feasible start and the end correction's projection)."""
+    import pickle
+
+    rows = []
+    for k in range(its + 1):
+        run = pickle.loads(snapshot)
+        prob = run.step_problem(h)
+        run.system.begin_step(prob.h, prob.params, prob.t_new, run.Y, run.Ydot, run.F_old,
+                              prob.bc, q_old=run.q, r_old=run.r, v_old_global=run.v_global,
+                              candidates=prob.candidates, left_limit=prob.left_limit)
+        guess = run._feasible_guess(prob.guess) if prob.candidates is not None else prob.guess
+        if prob.offset is not None:
+            guess = prob.bc.project(guess)
+        Y = guess
+        if k:
+            run.newton.max_iterations = k
+            Y = run.newton.solve(guess)[0]
+        R = run.system.residual(Y, want_jacobian=True)[0]
+        run.newton.linearize(Y)
+        rows.append(residual_groups(R * run.newton.row_scale))
+    return rows
+
+
+def probe(name: str, at: float, sizes: list, residuals: bool = False) -> None:
     """Advance suite case ``name`` by nominal steps to ``at`` (s), then attempt one step
-    of each Δt in ``sizes`` (s) from that state; prints each attempt."""
+    of each Δt in ``sizes`` (s) from that state; prints each attempt. ``residuals``: also,
+    per Newton iterate of each attempt, its filter and line-search fractions and where
+    its scaled residual is largest (:func:`residual_groups`)."""
     import pickle
 
     import contact_suite as cs
@@ -221,6 +279,14 @@ def probe(name: str, at: float, sizes: list) -> None:
         state = "accepted" if att.ok else f"refused ({att.reason})"
         print(f"  Δt = {h:<8g} s  {state:18s} Newton {att.iterations:3d}  route ratio "
               f"{trial.last_route_ratio:.3g}")
+        if residuals:
+            trace = trial.newton.last_trace
+            for k, groups in enumerate(_iterates_residuals(snapshot, h, att.iterations)):
+                cut = (f"filter {trace[k, 1]:.3g}, line search {trace[k, 2]:.3g}"
+                       if k < att.iterations and trace is not None and k < len(trace)
+                       else "")
+                where = ", ".join(f"{g} {v:.3g} @ {c}" for g, (v, c) in groups.items())
+                print(f"    iterate {k}: {where}" + (f"  ({cut})" if cut else ""))
 
 
 def main() -> None:
@@ -236,6 +302,8 @@ def main() -> None:
                     help="attempt single steps from the state at this time (s)")
     ap.add_argument("--probe-dt", default="0.0005,0.001,0.002,0.005,0.01,0.02",
                     help="comma-separated Δt (s) of the probe's attempts")
+    ap.add_argument("--residuals", action="store_true",
+                    help="with --probe: where each Newton iterate's residual is largest")
     ap.add_argument("--newton-failures", type=int, default=0)
     ap.add_argument("--starts", action="store_true",
                     help="also how far each contact solve's Newton start was from its solution")
@@ -246,7 +314,8 @@ def main() -> None:
         from replay_steps import set_newton
         set_newton(args.newton)
     if args.probe is not None:
-        probe(args.case, args.probe, [float(x) for x in args.probe_dt.split(",")])
+        probe(args.case, args.probe, [float(x) for x in args.probe_dt.split(",")],
+              args.residuals)
         return
     if args.t_end is None:
         ap.error("--t-end is required (without --probe)")
