@@ -70,7 +70,12 @@ def catenary_spec(dt=0.2, energy_tolerance=None):
 
 def catenary():
     L, X, D, rho, rho_f = 1.0, 0.8, 0.01, 7800.0, 1000.0
-    ds = simulate(Case.model_validate(catenary_spec()))
+    case = Case.model_validate(catenary_spec())
+    ds = simulate(case)
+    start_end = np.linalg.norm(ds.position.values[0, -1]
+                               - np.asarray(case.initial.centreline.points[-1]))
+    print(f"catenary, 40 segments: the start's s = L end {start_end:.2g} m from the arc's "
+          "last point (the space route of the resampled κ)")
     a = catenary_parameter(L, X)
     sag = a * (math.cosh(X / (2 * a)) - 1)
     w = (rho - rho_f) * math.pi * D**2 / 4 * 9.81

@@ -155,9 +155,11 @@ def start_shape(m: int = 20001) -> np.ndarray:
     """(m, 3) points, uniform in arclength, of hockle's start: the catenary's curvature
     a/(a² + u²) (u = s − s_c) times the smoothstep of u/SMOOTH, integrated from the
     anchor (flat), with (a, s_c) solved so that s = L lands on the fairlead (X0, HEIGHT).
-    The catenary itself has a curvature jump 1/a at the touchdown, which hockle's
-    resampling (cubic spline, node curvatures, the space route) carries into an O(Δs)
-    error of the far end: 9.9 mm at N = 80, and the held end then stays there."""
+    The catenary itself has a curvature jump 1/a at the touchdown; the smoothed start
+    keeps the curvature continuous, so that hockle's start is within O(Δs²) of it however
+    the resampling treats a jump (with the curvature taken at the nodes, the jump had put
+    the far end 9.9 mm off at N = 80, and the held end then stays there; the node
+    curvatures are now dual-cell means, solver/initial.py)."""
     from scipy.integrate import cumulative_trapezoid
     from scipy.optimize import fsolve
     s = np.linspace(0.0, LENGTH, m)

@@ -303,9 +303,14 @@ def test_contact_length_bridges_nodes_hovering_between_touching_ones():
 def test_catenary_with_touchdown_matches_its_suspended_length_and_span():
     """A cable pinned at height h = 1 m, its other end on the bottom pulled horizontally
     with H = 2 N (a dead force, free to turn; no friction, so the tension along the bottom
-    is H), bending length √(EI/H) = 2 cm: the suspended span is the catenary
+    is H), bending length λ = √(EI/H) = 2.2 cm: the suspended span is the catenary
     a(cosh(x/a) − 1), a = H/w, of length √(h² + 2ah), reaching the bottom a·acosh(1 + h/a)
-    from the pin (within 1 %). It starts on that shape and settles (ρ∞ = 0, Morison drag)."""
+    from the pin, within 1.5 %: the catenary has no bending stiffness, and the bending
+    boundary layer at touchdown makes the suspended length +0.85 % (0.7 λ) and the span
+    +1.06 % longer at 160 and at 320 segments (80 segments, Δs = 5 cm, coarser than λ:
+    +1.5 %). It starts on the catenary and settles (ρ∞ = 0, Morison drag).
+    (Before the initial κ were dual-cell means, solver/initial.py, the curvature jump at
+    touchdown had put the pinned end 2 cm off, 1.7 cm low, and 80 segments read +0.2 %.)"""
     from solver.seabed import touchdown
 
     L, h, H = 4.0, 1.0, 2.0
@@ -323,7 +328,7 @@ def test_catenary_with_touchdown_matches_its_suspended_length_and_span():
     end = {"frame": "global", "translation": [{"position": float(top[0])}, {"position": 0.0},
                                               {"position": float(top[2])}],
            "rotation": FREE_ROT}
-    spec = _spec(length=L, n=80, dt=0.05, t_end=30.0, start=start, end=end)
+    spec = _spec(length=L, n=160, dt=0.05, t_end=30.0, start=start, end=end)
     spec["rod"].update(youngs_modulus=1.25e5, shear_modulus=5e4)
     spec["initial"] = {"centreline": {"points": pts.tolist()}, "normal": [0, 1, 0]}
     spec["numerics"]["rho_inf"] = 0.0
@@ -331,8 +336,9 @@ def test_catenary_with_touchdown_matches_its_suspended_length_and_span():
     _, _, _, pen = run.seabed_loads()
     s_td = touchdown(pen, run.props.s)
     x_at = np.interp(s_td, run.props.s, run.r_time[:, 0])
-    assert abs((L - s_td) / suspended - 1.0) < 0.01, (L - s_td, suspended)
-    assert abs((top[0] - x_at) / span - 1.0) < 0.01, (top[0] - x_at, span)
+    assert np.linalg.norm(run.r_time[-1] - top) < 1e-3       # pinned where the case says
+    assert abs((L - s_td) / suspended - 1.0) < 0.015, (L - s_td, suspended)
+    assert abs((top[0] - x_at) / span - 1.0) < 0.015, (top[0] - x_at, span)
 
 
 @pytest.mark.parametrize("seed", range(6))
