@@ -95,3 +95,20 @@ def jacobian_fd_error(run, seed: int, t_new: float = 0.43, dt: float = 0.01) -> 
     # compare each entry's contribution J_ij y_j with the size of its row's terms
     row_size = (np.abs(J) * col_scale).sum(axis=1)
     return (np.abs(J - J_fd) * col_scale).max(axis=1) / row_size
+
+
+def hairpin(radius, n=4001, length=1.0):
+    """Points (n, 3) of a hairpin of the given length (m): a straight leg up z from the
+    origin, a half circle of the given radius (m) bending towards +x, a straight leg back
+    down, 2·radius from the first. Its curvature jumps from 0 to 1/radius and back."""
+    leg = 0.5 * (length - np.pi * radius)
+    pts = np.empty((n, 3))
+    for i, x in enumerate(np.linspace(0.0, length, n)):
+        if x <= leg:
+            pts[i] = (0.0, 0.0, x)
+        elif x <= leg + np.pi * radius:
+            a = (x - leg) / radius
+            pts[i] = (radius * (1.0 - np.cos(a)), 0.0, leg + radius * np.sin(a))
+        else:
+            pts[i] = (2.0 * radius, 0.0, length - x)
+    return pts

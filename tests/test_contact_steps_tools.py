@@ -13,6 +13,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from contact_steps import residual_groups, start_distances, start_summary  # noqa: E402
+from rodcases import hairpin  # noqa: E402
 
 
 def test_a_start_is_measured_against_the_step_it_had_to_cover():
@@ -38,40 +39,6 @@ def test_the_start_report_counts_the_blended_starts_and_the_iterations():
     assert lines[2].endswith("2: 2, 3: 1")
 
 
-def _hairpin(length=1.0, radius=0.06 / math.pi, n=1001):
-    """Points (n, 3) of a hairpin of the given length (m): two parallel strands 2·radius
-    apart joined by a half circle. The default's half circle is 6 cells of a 100-segment
-    grid, from node 47 to node 53, so that the curvature's jumps fall on nodes (the
-    space route of the sampled κ is then within ~3 mm of the curve)."""
-    leg = 0.5 * (length - math.pi * radius)
-    s = np.linspace(0.0, length, n)
-    pts = np.empty((n, 3))
-    for i, x in enumerate(s):
-        if x <= leg:
-            pts[i] = (0.0, 0.0, x)
-        elif x <= leg + math.pi * radius:
-            a = (x - leg) / radius
-            pts[i] = (radius * (1.0 - math.cos(a)), 0.0, leg + radius * math.sin(a))
-        else:
-            pts[i] = (2.0 * radius, 0.0, leg - (x - leg - math.pi * radius))
-    return pts
-
-
-def test_the_residual_is_located_by_row_group_and_cell():
-    """3 cells (6 + 36 + 6 rows): an axial momentum entry of cell 2, a lateral one of
-    cell 0, an E4 one of cell 1 and an s = L boundary row; each group reports its largest
-    entry and that entry's cell."""
-    r = np.zeros(48)
-    r[6 + 12 * 2 + 8] = -0.07                     # E3 axial, cell 2 (sign ignored)
-    r[6 + 12 * 0 + 7] = 0.05                      # E3 lateral (component 2), cell 0
-    r[6 + 12 * 0 + 6] = 0.01
-    r[6 + 12 * 1 + 10] = 1e-3                     # E4, cell 1
-    r[-2] = 2e-3                                  # a boundary row at s = L
-    g = residual_groups(r)
-    assert g["E3 axial"] == (0.07, 2) and g["E3 lateral"] == (0.05, 0)
-    assert g["E4"] == (1e-3, 1) and g["E1"] == (0.0, 0) and g["ends"] == (2e-3, -2)
-
-
 @pytest.fixture(scope="module")
 def contact_step():
     """A hairpin at rest, its strands ~2 cm apart (surface to surface), with self-contact:
@@ -83,7 +50,8 @@ def contact_step():
 
     spec = _warm_up_spec()
     spec["numerics"]["n_segments"] = 100
-    spec["initial"] = {"centreline": {"points": _hairpin().tolist()}}
+    # the half circle is 6 cells of the 100-segment grid, nodes 47 to 53
+    spec["initial"] = {"centreline": {"points": hairpin(0.06 / math.pi).tolist()}}
     spec["boundary"]["start"]["rotation"][2] = {"angular_velocity": 0.0}
     run = RodRun(Case.model_validate(spec))
     prob = run.step_problem(0.01)

@@ -10,6 +10,7 @@ import pytest
 
 from hockle.api import (catenary, catenary_parameter, circular_arc, clamped, end, free,
                         helix, make_case)
+from rodcases import hairpin
 from solver.case import Case, CaseError
 from solver.initial import initial_pose
 from solver.simulation import simulate
@@ -88,28 +89,12 @@ def test_arc_curvature_and_pose_second_order():
     assert 3.8 < errs[0] / errs[1] < 4.2, errs
 
 
-def _hairpin(radius, n=4001):
-    """Points (n, 3) of a 1-m hairpin: a straight leg up z, a half circle of the given
-    radius (m), a straight leg back down, 2·radius from the first."""
-    leg = 0.5 * (1.0 - np.pi * radius)
-    pts = []
-    for x in np.linspace(0.0, 1.0, n):
-        if x <= leg:
-            pts.append((0.0, 0.0, x))
-        elif x <= leg + np.pi * radius:
-            a = (x - leg) / radius
-            pts.append((radius * (1 - np.cos(a)), 0.0, leg + radius * np.sin(a)))
-        else:
-            pts.append((2 * radius, 0.0, 1.0 - x))
-    return np.array(pts)
-
-
 def test_a_curvature_jump_inside_a_cell_keeps_the_pose_second_order():
     """A hairpin (two 0.42-m legs and a 5-cm half circle): its curvature jumps from 0 to
     20 1/m inside cells. The node curvatures are dual-cell means, so the pose after the
     bend is not turned by the jump: the far end within 2 mm at 100 segments (1.1 mm; 61
     mm with the curvature at the nodes) and errors ×1/4 or better per halving."""
-    pts = _hairpin(0.05)
+    pts = hairpin(0.05)
     errs = []
     for n in (100, 200, 400):
         case = _case({"centreline": {"points": pts.tolist()}}, n)
