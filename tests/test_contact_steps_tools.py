@@ -39,6 +39,21 @@ def test_the_start_report_counts_the_blended_starts_and_the_iterations():
     assert lines[2].endswith("2: 2, 3: 1")
 
 
+def test_the_residual_is_located_by_row_group_and_cell():
+    """3 cells (6 + 36 + 6 rows): an axial momentum entry of cell 2, a lateral one of
+    cell 0, an E4 one of cell 1 and an s = L boundary row; each group reports its largest
+    entry and that entry's cell."""
+    r = np.zeros(48)
+    r[6 + 12 * 2 + 8] = -0.07                     # E3 axial, cell 2 (sign ignored)
+    r[6 + 12 * 0 + 7] = 0.05                      # E3 lateral (component 2), cell 0
+    r[6 + 12 * 0 + 6] = 0.01
+    r[6 + 12 * 1 + 10] = 1e-3                     # E4, cell 1
+    r[-2] = 2e-3                                  # a boundary row at s = L
+    g = residual_groups(r)
+    assert g["E3 axial"] == (0.07, 2) and g["E3 lateral"] == (0.05, 0)
+    assert g["E4"] == (1e-3, 1) and g["E1"] == (0.0, 0) and g["ends"] == (2e-3, -2)
+
+
 @pytest.fixture(scope="module")
 def contact_step():
     """A hairpin at rest, its strands ~2 cm apart (surface to surface), with self-contact:
