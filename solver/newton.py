@@ -906,7 +906,7 @@ class Newton:
     #: 0.5, 0.8, 0.95: 1212, 1055, 910, 961, 1134; over the seed's 25-30 s (10 of 351
     #: blended) 924 at 0.2, 919 at 0.5, 959 at 0.8 (``python benchmarks/contact_steps.py
     #: tension --from 19 --t-end 19.3 --starts --newton START_GAP_KEEP=0.2``;
-    #: docs/contact.md § 4)
+    #: docs/contact.md § 2)
     START_GAP_KEEP = 0.5
 
     #: the blend factor of the last :meth:`feasible_start` (1 until one has run)
