@@ -45,11 +45,11 @@ def test_case_validates_and_a_prefix_runs(name, tmp_path):
 
 @pytest.mark.slow
 def test_seabed_hockle_loops_on_the_bottom_and_is_pulled_tight():
-    """Measured (41 s at load 1 on 2 cores): the bend radius below the MBR (0.15 m) at
-    2.4 s; first self-contact at 3.5 s (|Wr| 1.09 then) after 0.53 m of end travel, on the
-    bottom (loop_formed), Tw 4.90 of Lk 6 turns then; Wr up to 2.39 turns with 19
-    contact pairs; pulled back, the loop tightens to a bend radius of 0.036 m at 8.8 s and
-    stays (Wr 1.03, 4 pairs at 10 s); Lk kept within 7e-7, |Tw + Wr − Lk| ≤ 0.016."""
+    """Measured (36 s at load 1 on 2 cores): the bend radius below the MBR (0.15 m) at
+    2.4 s; first self-contact at 3.5 s (|Wr| 1.01 then) after 0.54 m of end travel, on the
+    bottom (loop_formed), Tw 4.98 of Lk 6 turns then; Wr up to 2.48 turns, 18 contact
+    pairs at 4.7 s; pulled back, the loop tightens to a bend radius of 0.037 m at 8.5 s
+    and stays (Wr 1.03, 4 pairs at 10 s); Lk kept within 7e-7, |Tw + Wr − Lk| ≤ 0.016."""
     ds = simulate(_case("seabed-hockle.yaml"))
     assert ds.attrs["hockle_status"] == "completed"
     ev = run_events(ds)
