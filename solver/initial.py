@@ -66,7 +66,6 @@ class Curve:
         else:
             self.spline = CubicSpline(self.u, P, bc_type="not-a-knot")
         self.d1 = self.spline.derivative(1)
-        self.d2 = self.spline.derivative(2)
         # length table on a fine subdivision of every piece
         fine = np.concatenate([np.linspace(a, b, _SUB, endpoint=False)
                                for a, b in zip(self.u[:-1], self.u[1:])] + [[self.u[-1]]])
@@ -127,15 +126,14 @@ def _frames(curve, s, normal, twist_rate):
         a = aL - (2.0 / c2) * (v2 @ aL) * v2 if c2 > 0 else aL
         a -= (a @ t[j + 1]) * t[j + 1]
         a1[j + 1] = a / np.linalg.norm(a)
+    bishop = np.stack([a1, np.cross(t, a1), t], axis=2)
     idx = np.arange(n) * _SUB
-    T, A1 = t[idx], a1[idx]
-    A2 = np.cross(T, A1)
+    A1, A2, T = bishop[idx, :, 0], bishop[idx, :, 1], bishop[idx, :, 2]
     phi = twist_rate * s
     c, sn = np.cos(phi)[:, None], np.sin(phi)[:, None]
     B1, B2 = c * A1 + sn * A2, -sn * A1 + c * A2
     # bending curvatures over the nodes' dual cells in the rotation-minimising frames,
     # whose components do not turn with the twist, then in the twisted node frames
-    bishop = np.stack([a1, np.cross(t, a1), t], axis=2)
     theta = _dual_cell_curvatures(bishop, n, float(s[1] - s[0]))
     kappa = np.empty((n, 3))
     kappa[:, 0] = c[:, 0] * theta[:, 0] + sn[:, 0] * theta[:, 1]
