@@ -21,11 +21,11 @@ from .energies import energies
 from .loads import end_reactions
 from .results import build_dataset
 from .stepping import hermite
-from .kinematics import min_bend_radius, quat_slerp
+from .kinematics import min_bend_radius, quat_slerp, quat_to_matrix
 
 __all__ = ["Progress", "RateEstimate", "EtaModel", "Recorder", "snapshot",
            "interpolated_snapshot",
-           "dense_state"]
+           "dense_state", "end_drift"]
 
 
 @dataclass(frozen=True)
@@ -169,8 +169,27 @@ def snapshot(run, fields: set, route_current: bool = False, pose=None) -> dict:
     out["residual_norm"] = run.last_residual
     out["dt"] = run.last_dt
     out["position_route_difference"] = max_distance(run.r_time, run.r)
+    out["end_drift"] = end_drift(run)
     out["quaternion_norm_error"] = run.quat_norm_error
     return out
+
+
+def end_drift(run) -> float:
+    """How far the centreline's s = L end (integrated along s from κ, anchored at node 0)
+    is from the end's prescribed motion (its time route, the prescribed velocities
+    integrated in time) (m): the length of the body-frame components a_i·(r_time − r) at
+    node N along the end's prescribed translations i. With self-contact this is what
+    :meth:`solver.run.RodRun.end_correction` steers back; without it the dynamics never
+    see the integrated shape, which only the outputs show (docs/contact.md, "The far end
+    is steered onto its prescribed motion"). NaN while no translation is prescribed at
+    s = L (which may change at a breakpoint). Raises nothing."""
+    n_last = run.props.s.size - 1
+    axes = [idx for _, idx in run.bc.end_kinematic_dofs(n_last) if idx < 3]
+    if not axes:
+        return float("nan")
+    R = quat_to_matrix(run.q[-1:])[0]
+    e = R.T @ (run.r_time[-1] - run.r[-1])
+    return float(np.sqrt(sum(e[i] ** 2 for i in axes)))
 
 
 def _seabed(run, pose) -> dict:
@@ -259,6 +278,7 @@ def interpolated_snapshot(run, fields: set, t: float, start) -> dict:
     out = snapshot(view, fields, route_current=True, pose=pose)
     out["position_route_difference"] = float(
         max_distance(run.r_time, run.r))
+    out["end_drift"] = end_drift(run)
     return out
 
 

@@ -222,6 +222,16 @@ FIELD_VARIABLES: dict[str, tuple[tuple[str, ...], str, str, str | None]] = {
         "a discretisation-error indicator; with self-contact the positions integrated "
         "in t are the centreline (docs/numerics.md)",
     ),
+    "end_drift": (
+        ("time",),
+        "m",
+        "distance of the centreline's s = L end from the end's prescribed motion, along "
+        "its prescribed translations",
+        "the centreline is integrated along s from node 0; with self-contact its s = L "
+        "end is steered onto the end's prescribed path, not held on it (docs/contact.md, "
+        "\"The far end is steered onto its prescribed motion\"); NaN while no "
+        "translation is prescribed at s = L",
+    ),
     "quaternion_norm_error": (
         ("time",),
         "1",
@@ -253,6 +263,7 @@ COVERAGE_CONTENT_TYPES: dict[str, str] = {
     "newton_iterations": "qualityInformation",
     "residual_norm": "qualityInformation",
     "position_route_difference": "qualityInformation",
+    "end_drift": "qualityInformation",
     "quaternion_norm_error": "qualityInformation",
     "step_newton_iterations": "qualityInformation",
     "step_residual_norm": "qualityInformation",
@@ -266,7 +277,7 @@ COVERAGE_CONTENT_TYPES: dict[str, str] = {
 # CF-1.12 section 3.4: quality variables linked to the variable whose values they qualify
 # (written only when both are in the dataset).
 _ANCILLARY: dict[str, tuple[str, ...]] = {
-    "position": ("position_route_difference",),
+    "position": ("position_route_difference", "end_drift"),
     "orientation": ("quaternion_norm_error",),
     "twist": ("topology_error",),
     "writhe": ("topology_error", "writhe_closure_passages"),

@@ -72,6 +72,7 @@ EXPECTED = {
     "residual_norm": (("time",), "1"),
     "dt": (("time",), "s"),
     "position_route_difference": (("time",), "m"),
+    "end_drift": (("time",), "m"),
     "quaternion_norm_error": (("time",), "1"),
 }
 EXPECTED_DIAG = {
@@ -173,7 +174,7 @@ def test_standard_names_only_where_cf_has_one(full):
 def test_every_variable_has_a_coverage_content_type(full):
     ds = full[0]
     quality = {"topology_error", "newton_iterations", "residual_norm",
-               "position_route_difference", "quaternion_norm_error",
+               "position_route_difference", "end_drift", "quaternion_norm_error",
                "step_newton_iterations", "step_residual_norm"}
     auxiliary = {"dt", "step_dt", "step_growth_rate"}
     for name in ds.data_vars:
@@ -183,7 +184,8 @@ def test_every_variable_has_a_coverage_content_type(full):
     for name in ds.coords:
         assert ds[name].attrs["coverage_content_type"] == "coordinate", name
     # CF ancillary links from a variable to the indicators of its quality
-    assert ds["position"].attrs["ancillary_variables"] == "position_route_difference"
+    assert (ds["position"].attrs["ancillary_variables"]
+            == "position_route_difference end_drift")
     assert ds["orientation"].attrs["ancillary_variables"] == "quaternion_norm_error"
     assert ds["writhe"].attrs["ancillary_variables"] == "topology_error writhe_closure_passages"
 
