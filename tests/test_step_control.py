@@ -717,3 +717,44 @@ def test_the_estimate_sees_below_newtons_tolerance():
     assert int(np.sum(ds.step_newton_iterations.values == 0)) == 0
     assert ds.sizes["step"] < 1000, ds.sizes["step"]
     assert int(ds.step_rejected_attempts.sum()) < 50
+
+
+def test_a_failed_restart_reports_its_last_refused_attempt(monkeypatch):
+    """StepControl._restart tries backward-Euler steps of ε, ε/10, ... (five attempts for
+    its two steps). Where the last attempt is accepted but the restart still lacks its
+    second step, the error reports the last *refused* attempt: its Δt, its residual and
+    its reason (a converged attempt refused by the contact checks is not "Newton did not
+    converge")."""
+    from solver.run import RodRun
+    from solver.simulation import SolverDivergence
+    from solver.stepping import RESTART_FRACTION
+
+    case = make_case(n_segments=8, dt=0.01, t_end=0.02, end=free_end())
+    original = RodRun.try_step
+    tried = []
+
+    def try_step(run, h, *args, restart=False, **kwargs):
+        if not restart:
+            return original(run, h, *args, restart=restart, **kwargs)
+        tried.append(h)
+        att = original(run, h, *args, restart=restart, **kwargs)
+        if len(tried) == 4:
+            # converged, then refused as a contact check would
+            run.last_reject = "contact"
+            return att._replace(ok=False, residual=1.5e-3, reason="contact")
+        if len(tried) < 5 and att.ok:
+            # undo nothing (the state only advances on success): call it refused
+            run.last_reject = "newton"
+            return att._replace(ok=False, residual=0.25, reason="newton")
+        return att
+
+    monkeypatch.setattr(RodRun, "try_step", try_step)
+    with pytest.raises(SolverDivergence) as info:
+        simulate(case)
+    msg = str(info.value)
+    eps = RESTART_FRACTION * 0.01
+    assert len(tried) == 5
+    np.testing.assert_allclose(tried, eps * 10.0 ** -np.arange(5))
+    assert "1 of its 2 steps taken" in msg
+    assert f"Δt = {eps * 1e-3:.3g} s" in msg and "scaled residual 0.0015" in msg
+    assert "refused (contact)" in msg and "Newton did not converge" not in msg

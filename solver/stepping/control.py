@@ -424,6 +424,7 @@ class StepControl:
         eps = RESTART_FRACTION * run.case.numerics.dt
         its_total = 0
         taken = 0
+        failed = None
         for _ in range(RESTART_STEPS + 3):
             ok, its, res, nonfinite, _ = run.try_step(eps, restart=True)
             its_total += its
@@ -432,10 +433,15 @@ class StepControl:
                 if taken == RESTART_STEPS:
                     return its_total
             else:
+                # the last refused attempt is the one the error reports (a later
+                # accepted one does not finish the restart alone)
+                failed = (eps, res, nonfinite, run.last_reject,
+                          run.newton.last_failure)
                 eps *= 0.1
-        raise self._divergence(run, f"the consistent restart (a backward-Euler step) at "
-                               f"t = {run.t:.6g} s did not converge", 10.0 * eps, res,
-                               nonfinite)
+        eps, res, nonfinite, run.last_reject, run.newton.last_failure = failed
+        raise self._divergence(run, f"the consistent restart (backward-Euler steps) at "
+                               f"t = {run.t:.6g} s did not converge ({taken} of its "
+                               f"{RESTART_STEPS} steps taken)", eps, res, nonfinite)
 
     @staticmethod
     def _divergence(run, what, h, res, nonfinite) -> SolverDivergence:
@@ -448,6 +454,8 @@ class StepControl:
                "non-finite state" if nonfinite else
                "the last attempt converged but put in more energy than its loads' work "
                "(numerics.energy_tolerance): no step down to the smallest is trusted"
-               if run.last_reject == "energy" else "Newton did not converge")
+               if run.last_reject == "energy" else
+               "Newton did not converge" if run.last_reject in (None, "newton") else
+               f"the last attempt converged but was refused ({run.last_reject})")
         return SolverDivergence(f"{what} (Δt = {h:.3g} s, scaled residual {res:.3g}, {why})",
                                 t=run.t, step=None, residual=res, reason=reason)
