@@ -97,10 +97,7 @@ def _parts(run: RodRun, dt: float, repeats: int) -> tuple[dict, int, int]:
     (parts, candidate runs, the solve's iterations)."""
     prob = run.step_problem(dt)
     system, newton = run.system, run.newton
-    system.begin_step(prob.h, prob.params, prob.t_new, run.Y, run.Ydot, run.F_old,
-                      prob.bc, q_old=run.q, r_old=run.r, v_old_global=run.v_global,
-                      candidates=prob.candidates, left_limit=prob.left_limit)
-    guess = prob.guess if prob.candidates is None else run._feasible_guess(prob.guess)
+    guess = run.begin_solve(prob)
     Y, _, its, res, ok, _ = newton.solve(guess)
     st = newton._state
     rod, step, cand, cdata = system.kernel_args()

@@ -229,20 +229,14 @@ def residual_groups(scaled) -> dict:
 def _iterates_residuals(snapshot: bytes, h: float, its: int) -> list:
     """The scaled residual's row groups (:func:`residual_groups`) at each iterate 0 … its
     of the first Newton solve of a step of h (s) from the pickled run ``snapshot``: the
-    solve repeated with at most k iterations, as the run sets it up (its first attempt,
-    with the feasible start and the end correction's projection)."""
+    solve repeated with at most k iterations, set up as the run's first attempt
+    (:meth:`solver.step_problem.ProblemAssembly.begin_solve`)."""
     import pickle
 
     rows = []
     for k in range(its + 1):
         run = pickle.loads(snapshot)
-        prob = run.step_problem(h)
-        run.system.begin_step(prob.h, prob.params, prob.t_new, run.Y, run.Ydot, run.F_old,
-                              prob.bc, q_old=run.q, r_old=run.r, v_old_global=run.v_global,
-                              candidates=prob.candidates, left_limit=prob.left_limit)
-        guess = run._feasible_guess(prob.guess) if prob.candidates is not None else prob.guess
-        if prob.offset is not None:
-            guess = prob.bc.project(guess)
+        guess = run.begin_solve(run.step_problem(h))
         Y = guess
         if k:
             run.newton.max_iterations = k

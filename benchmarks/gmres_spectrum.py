@@ -79,8 +79,7 @@ class StepSystems:
     def __init__(self, run: RodRun, h: float):
         self.run, self.h = run, h
         self.prob = run.step_problem(h)
-        self._begin()
-        self.guess = run._feasible_guess(self.prob.guess)
+        self.guess = run.begin_solve(self.prob)
         newton = run.newton
         Y, _, its, _, ok, _ = newton.solve(self.guess)
         if not ok:
@@ -101,11 +100,8 @@ class StepSystems:
         self.n = self.lin[1].size
 
     def _begin(self) -> None:
-        run, prob = self.run, self.prob
-        run.system.begin_step(prob.h, prob.params, prob.t_new, run.Y, run.Ydot, run.F_old,
-                              prob.bc, q_old=run.q, r_old=run.r,
-                              v_old_global=run.v_global, candidates=prob.candidates,
-                              left_limit=prob.left_limit)
+        # the step set up again as the run does, from the start already made
+        self.run.begin_solve(self.prob, self.guess, first=False)
 
     def at(self, k: int) -> np.ndarray:
         """Set the operator to iterate k's Jacobian (the band LU factored at iterate 0);

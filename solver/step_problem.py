@@ -125,14 +125,19 @@ class ProblemAssembly:
         return StepProblem(h, t_new, left_limit, restart, bc, switched, offset, params,
                            predictions, guess, cand)
 
-    def solve_problem(self, prob: StepProblem) -> Solution:
-        """Hand the step's problem to Newton (:meth:`solver.newton.Newton.solve`). With
-        self-contact every pair within reach of the new positions must have been among
-        the candidates (the kept search holds them while the nodes stay within half its
-        skin); pairs found beyond them are added and the step solved again, at most three
-        times."""
-        sysm, cand, guess, bc = self.system, prob.candidates, prob.guess, prob.bc
-        its_total = 0
+    def begin_solve(self, prob: StepProblem, guess=None, candidates=None,
+                    first: bool = True) -> np.ndarray:
+        """Set the system up for the step of ``prob`` (:meth:`RodSystem.begin_step` on the
+        old pose the step takes: the carried centreline, or with a seabed and no
+        self-contact each node's time route) and return Newton's start (N+1, 12): ``guess``
+        (default ``prob.guess``), made feasible on a ``first`` attempt with contact
+        candidates (:meth:`_feasible_guess`), with the step's boundary values where the end
+        correction moves them. ``candidates``: default ``prob.candidates`` (a repeated
+        attempt passes the merged set). The one set-up of a step's Newton solve, which
+        :meth:`solve_problem` and the diagnostics that repeat a solve share. Raises
+        nothing."""
+        cand = prob.candidates if candidates is None else candidates
+        guess = prob.guess if guess is None else guess
         q_old, r_old, v_old = self.q, self.r, self.v_global
         if self.seabed is not None and self.contact is None:
             # the sea floor's spring acts on positions (a micrometre is a newton per metre
@@ -140,19 +145,30 @@ class ProblemAssembly:
             # it carries from step to step, not the shape integrated from κ, whose
             # difference from the last step's positions would jump the penetration
             q_old, r_old, v_old = self.q_time, self.r_time, self.v_global_time
+        self.system.begin_step(prob.h, prob.params, prob.t_new, self.Y, self.Ydot, self.F_old,
+                               prob.bc, q_old=q_old, r_old=r_old, v_old_global=v_old,
+                               candidates=cand, left_limit=prob.left_limit)
+        if first and cand is not None:
+            guess = self._feasible_guess(guess)
+        if prob.offset is not None:
+            # the end correction moves the s = L values in every step, which no
+            # extrapolation of earlier levels knows (nor the feasible start's blend):
+            # the Newton start takes the step's boundary values (PyElastica's
+            # plectoneme, N = 25, Δt = 0.1 s: 1066 against 1245 Newton iterations;
+            # docs/contact.md § 4)
+            guess = prob.bc.project(guess)
+        return guess
+
+    def solve_problem(self, prob: StepProblem) -> Solution:
+        """Hand the step's problem to Newton (:meth:`solver.newton.Newton.solve`), set up
+        by :meth:`begin_solve`. With self-contact every pair within reach of the new
+        positions must have been among the candidates (the kept search holds them while
+        the nodes stay within half its skin); pairs found beyond them are added and the
+        step solved again, at most three times."""
+        sysm, cand, guess = self.system, prob.candidates, prob.guess
+        its_total = 0
         for attempt in range(3):
-            sysm.begin_step(prob.h, prob.params, prob.t_new, self.Y, self.Ydot, self.F_old,
-                            bc, q_old=q_old, r_old=r_old, v_old_global=v_old,
-                            candidates=cand, left_limit=prob.left_limit)
-            if attempt == 0 and cand is not None:
-                guess = self._feasible_guess(guess)
-            if prob.offset is not None:
-                # the end correction moves the s = L values in every step, which no
-                # extrapolation of earlier levels knows (nor the feasible start's blend):
-                # the Newton start takes the step's boundary values (PyElastica's
-                # plectoneme, N = 25, Δt = 0.1 s: 1066 against 1245 Newton iterations;
-                # docs/contact.md § 4)
-                guess = bc.project(guess)
+            guess = self.begin_solve(prob, guess, cand, first=attempt == 0)
             Y, Fn, its, res, ok, pose = self.newton.solve(guess)
             its_total += its
             if not ok:
