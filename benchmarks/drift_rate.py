@@ -15,9 +15,13 @@ floor, the energy check at its default unless said:
 * cases/seabed-hockle.yaml to 10 s with and without the check, and without the seabed's
   friction: status (where a failed run stops), Newton iterations, refused attempts, |Wr|
   at the end, the carried end's largest distance from its prescribed motion
-  (``end_drift``) and the largest seabed reaction per unit length.
+  (``end_drift``) and the largest seabed reaction per unit length;
+* (``profile``, at the code's rate only) where along cases/seabed-hockle.yaml the route
+  differences that make its end drift arise: each accepted step's difference between the
+  time route and the centreline integrated from κ, summed from 3.8 to 4.0 s, at a few
+  arclengths.
 
-Run: ``PYTHONPATH=$PWD python benchmarks/drift_rate.py [--only held,pyelastica,seed,hockle]``
+Run: ``PYTHONPATH=$PWD python benchmarks/drift_rate.py [--only held,pyelastica,seed,hockle,profile]``
 (about 8 minutes alone on 2 cores; counts and answers, the wall times only indicative).
 """
 from __future__ import annotations
@@ -107,6 +111,36 @@ def hockle(floor: float) -> list[str]:
     return out
 
 
+def profile(t0: float = 3.8, t1: float = 4.0) -> list[str]:
+    """Where along the rod ``seabed-hockle.yaml``'s route differences arise: each accepted
+    step's difference between the time route (every node advanced in time from the
+    carried pose) and the new centreline integrated from κ, summed over the steps from t0
+    to t1 (s), at a few arclengths (the drift the end correction must take back)."""
+    from solver.run import RodRun
+
+    steps = []
+    accept = RodRun._accept
+
+    def recording(run, prob, sol, summary):
+        if t0 <= run.t <= t1 and not prob.restart:
+            r_time = run._time_step(prob.h, sol.Y, run.q, run.r, run.v_global)[3]
+            steps.append(r_time - sol.pose[2])
+        return accept(run, prob, sol, summary)
+
+    case = Case.from_file(ROOT / "cases" / "seabed-hockle.yaml")
+    RodRun._accept = recording
+    try:
+        simulate(case, observer=lambda run, step: run.t > t1)
+    finally:
+        RodRun._accept = accept
+    total = np.linalg.norm(np.sum(steps, axis=0), axis=1)
+    s = np.linspace(0.0, case.rod.length, total.size)
+    at = ", ".join(f"{x:g} m {np.interp(x, s, total) * 1e3:.2f} mm"
+                   for x in (1.0, 2.0, 3.0, 3.25, 3.5, 3.75, 4.0))
+    return [f"seabed-hockle.yaml, {len(steps)} steps from {t0:g} to {t1:g} s: summed route "
+            f"difference (time route − integrated centreline) at s = {at}"]
+
+
 _REFERENCE = {}
 
 
@@ -132,8 +166,11 @@ def pyelastica(floor: float) -> list[str]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--only", default="held,pyelastica,seed,hockle")
+    ap.add_argument("--only", default="held,pyelastica,seed,hockle,profile")
     names = ap.parse_args().only.split(",")
+    if "profile" in names:
+        for row in profile():
+            print(row, flush=True)
     original = ProblemAssembly.DRIFT_STEP_FLOOR
     try:
         for name in ("held", "pyelastica", "seed", "hockle"):
