@@ -181,12 +181,13 @@ def end_drift(run) -> float:
     node N along the end's prescribed translations i. With self-contact this is what
     :meth:`solver.run.RodRun.end_correction` steers back; without it the dynamics never
     see the integrated shape, which only the outputs show (docs/contact.md, "The far end
-    is steered onto its prescribed motion"). NaN while no translation is prescribed at
-    s = L (which may change at a breakpoint). Raises nothing."""
+    is steered onto its prescribed motion"). 0 while no translation is prescribed at
+    s = L (the length of no components; which translations are prescribed may change at
+    a breakpoint). Raises nothing."""
     n_last = run.props.s.size - 1
     axes = [idx for _, idx in run.bc.end_kinematic_dofs(n_last) if idx < 3]
     if not axes:
-        return float("nan")
+        return 0.0
     R = quat_to_matrix(run.q[-1:])[0]
     e = R.T @ (run.r_time[-1] - run.r[-1])
     return float(np.sqrt(sum(e[i] ** 2 for i in axes)))

@@ -229,7 +229,7 @@ FIELD_VARIABLES: dict[str, tuple[tuple[str, ...], str, str, str | None]] = {
         "its prescribed translations",
         "the centreline is integrated along s from node 0; with self-contact its s = L "
         "end is steered onto the end's prescribed path, not held on it (docs/contact.md, "
-        "\"The far end is steered onto its prescribed motion\"); NaN while no "
+        "\"The far end is steered onto its prescribed motion\"); 0 while no "
         "translation is prescribed at s = L",
     ),
     "quaternion_norm_error": (
