@@ -19,9 +19,11 @@ floor, the energy check at its default unless said:
 * (``profile``, at the code's rate only) where along cases/seabed-hockle.yaml the route
   differences that make its end drift arise: each accepted step's difference between the
   time route and the centreline integrated from κ, summed from 3.8 to 4.0 s, at a few
-  arclengths.
+  arclengths;
+* (``soft``, at the code's rate only) the case and its frictionless variant on a bottom
+  50 times softer (6e4 Pa: MoorDyn's default kBot times the cable's diameter).
 
-Run: ``PYTHONPATH=$PWD python benchmarks/drift_rate.py [--only held,pyelastica,seed,hockle,profile]``
+Run: ``PYTHONPATH=$PWD python benchmarks/drift_rate.py [--only held,pyelastica,seed,hockle,profile,soft]``
 (about 8 minutes alone on 2 cores; counts and answers, the wall times only indicative).
 """
 from __future__ import annotations
@@ -141,6 +143,25 @@ def profile(t0: float = 3.8, t1: float = 4.0) -> list[str]:
             f"difference (time route − integrated centreline) at s = {at}"]
 
 
+def soft() -> list[str]:
+    """``seabed-hockle.yaml`` and its frictionless variant on a bottom 50 times softer,
+    k = 6e4 Pa: MoorDyn's default kBot = 3e6 Pa/m times the cable's 2-cm diameter (the
+    case's 3e6 Pa is that default times 1 m): status, Newton iterations, the largest end
+    drift and seabed reaction, wall."""
+    out = []
+    for variant in ("soft bottom", "soft bottom, frictionless"):
+        spec = Case.from_file(ROOT / "cases" / "seabed-hockle.yaml").model_dump(mode="json")
+        spec["seabed"]["normal_stiffness"] = 6.0e4
+        if variant.endswith("frictionless"):
+            spec["seabed"]["friction"] = None
+        ds, status, wall = _run(spec)
+        out.append(f"seabed-hockle.yaml to 10 s, {variant} (6e4 Pa): {status}, "
+                   f"{_newton(ds)} Newton iterations, refused "
+                   f"{ds.attrs['hockle_refused_attempts']}; {_end_figures(ds)}; "
+                   f"wall {wall:.1f} s")
+    return out
+
+
 _REFERENCE = {}
 
 
@@ -166,11 +187,12 @@ def pyelastica(floor: float) -> list[str]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--only", default="held,pyelastica,seed,hockle,profile")
+    ap.add_argument("--only", default="held,pyelastica,seed,hockle,profile,soft")
     names = ap.parse_args().only.split(",")
-    if "profile" in names:
-        for row in profile():
-            print(row, flush=True)
+    for name, rows in (("profile", profile), ("soft", soft)):
+        if name in names:
+            for row in rows():
+                print(row, flush=True)
     original = ProblemAssembly.DRIFT_STEP_FLOOR
     try:
         for name in ("held", "pyelastica", "seed", "hockle"):
