@@ -87,18 +87,22 @@ def seed(floor: float) -> str:
 
 def _end_figures(ds) -> str:
     """The carried end's largest distance from its prescribed motion (``end_drift``) and
-    the largest seabed normal reaction per unit length, with where and when; the run's
+    the largest seabed normal reaction per unit length, with where and when; the s = L
+    end's largest and median reaction force; the run's
     events (:func:`hockle.plots.run_events`), largest writhe and smallest bend radius."""
     t, drift = ds.time.values, ds.end_drift.values
     i = int(np.nanargmax(drift))
     force = np.linalg.norm(ds.seabed_force.values, axis=2)
     k, j = np.unravel_index(int(np.argmax(force)), force.shape)
     radius = ds.bend_radius_min.values
+    reaction = np.linalg.norm(ds.reaction_force_end.values, axis=1)
+    m = int(np.nanargmax(reaction))
     ev = {name: round(float(t[at]), 2) for name, at in run_events(ds).items()
           if at is not None}
     return (f"end drift at most {drift[i] * 1e3:.1f} mm (t = {t[i]:.1f} s), seabed reaction "
-            f"at most {force[k, j]:.0f} N/m (s = {ds.s.values[j]:.2f} m, t = {t[k]:.1f} s); "
-            f"events {ev}, Wr at most {np.nanmax(ds.writhe.values):.2f}, bend radius at "
+            f"at most {force[k, j]:.0f} N/m (s = {ds.s.values[j]:.2f} m, t = {t[k]:.1f} s), "
+            f"s = L reaction at most {reaction[m]:.0f} N (t = {t[m]:.1f} s, median "
+            f"{np.nanmedian(reaction):.1f} N); events {ev}, Wr at most {np.nanmax(ds.writhe.values):.2f}, bend radius at "
             f"least {np.nanmin(radius):.4f} m (t = {t[np.nanargmin(radius)]:.1f} s)")
 
 

@@ -21,7 +21,7 @@ from .energies import energies
 from .loads import end_reactions
 from .results import build_dataset
 from .stepping import hermite
-from .kinematics import min_bend_radius, quat_slerp, quat_to_matrix
+from .kinematics import min_bend_radius, quat_slerp
 
 __all__ = ["Progress", "RateEstimate", "EtaModel", "Recorder", "snapshot",
            "interpolated_snapshot",
@@ -178,8 +178,9 @@ def end_drift(run) -> float:
     """How far the centreline's s = L end (integrated along s from κ, anchored at node 0)
     is from the end's prescribed motion (its time route, the prescribed velocities
     integrated in time) (m): the length of the body-frame components a_i·(r_time − r) at
-    node N along the end's prescribed translations i. With self-contact this is what
-    :meth:`solver.run.RodRun.end_correction` steers back; without it the dynamics never
+    node N (:meth:`solver.step_problem.ProblemAssembly.end_position_error`) along the
+    end's prescribed translations i. With self-contact this is what
+    :meth:`solver.step_problem.ProblemAssembly.end_correction` steers back; without it the dynamics never
     see the integrated shape, which only the outputs show (docs/contact.md, "The far end
     is steered onto its prescribed motion"). 0 while no translation is prescribed at
     s = L (the length of no components; which translations are prescribed may change at
@@ -188,8 +189,7 @@ def end_drift(run) -> float:
     axes = [idx for _, idx in run.bc.end_kinematic_dofs(n_last) if idx < 3]
     if not axes:
         return 0.0
-    R = quat_to_matrix(run.q[-1:])[0]
-    e = R.T @ (run.r_time[-1] - run.r[-1])
+    e = run.end_position_error()[1]
     return float(np.sqrt(sum(e[i] ** 2 for i in axes)))
 
 

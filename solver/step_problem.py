@@ -249,8 +249,7 @@ class ProblemAssembly:
         """
         if self.contact is None or self.DRIFT_GAIN is None or restart:
             return None
-        R = quat_to_matrix(self.q[-1:])[0]
-        e = R.T @ (self.r_time[-1] - self.r[-1])
+        R, e = self.end_position_error()
         theta = relative_rotation(self.q[-1], self.q_time[-1])
         h_rate = max(h, self.DRIFT_STEP_FLOOR * self.case.numerics.dt)
         off = bc.end_drift_offsets(self.props.s.size - 1, e, theta, self.DRIFT_GAIN / h_rate)
@@ -259,6 +258,14 @@ class ProblemAssembly:
             # frame): its body-frame offsets turned to global with the old-level frame
             off[6:9] = R @ off[6:9]
         return off
+
+    def end_position_error(self):
+        """(R, e): the carried s = L end's frame R (3, 3) and where the end's prescribed
+        motion (its time route ``r_time``) puts it relative to the carried end,
+        e = Rᵀ(r_time − r) at node N (3,) m, body frame: what :meth:`end_correction`
+        steers back and the output ``end_drift`` reports. Raises nothing."""
+        R = quat_to_matrix(self.q[-1:])[0]
+        return R, R.T @ (self.r_time[-1] - self.r[-1])
 
     def _hold_from_here(self, prev_bc, bc) -> None:
         """A degree of freedom of the s = L end that has just become kinematic (a sliding

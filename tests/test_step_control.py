@@ -743,7 +743,8 @@ def test_a_failed_restart_reports_its_last_refused_attempt(monkeypatch):
             run.last_reject = "contact"
             return att._replace(ok=False, residual=1.5e-3, reason="contact")
         if len(tried) < 5 and att.ok:
-            # undo nothing (the state only advances on success): call it refused
+            # reported as refused (the state has advanced; only the restart's count of
+            # taken steps and its report are under test)
             run.last_reject = "newton"
             return att._replace(ok=False, residual=0.25, reason="newton")
         return att

@@ -435,18 +435,24 @@ class StepControl:
             else:
                 # the last refused attempt is the one the error reports (a later
                 # accepted one does not finish the restart alone)
-                failed = (eps, res, nonfinite, run.last_reject,
-                          run.newton.last_failure)
+                failed = (eps, res, nonfinite, run.last_reject, run.newton.last_failure)
                 eps *= 0.1
-        eps, res, nonfinite, run.last_reject, run.newton.last_failure = failed
+        eps, res, nonfinite, reject, failure = failed
         raise self._divergence(run, f"the consistent restart (backward-Euler steps) at "
                                f"t = {run.t:.6g} s did not converge ({taken} of its "
-                               f"{RESTART_STEPS} steps taken)", eps, res, nonfinite)
+                               f"{RESTART_STEPS} steps taken)", eps, res, nonfinite,
+                               reject, failure)
 
     @staticmethod
-    def _divergence(run, what, h, res, nonfinite) -> SolverDivergence:
-        """The SolverDivergence of a step that cannot be completed, with the reason."""
-        singular = run.newton.last_failure == "singular"
+    def _divergence(run, what, h, res, nonfinite, reject=None,
+                    failure=None) -> SolverDivergence:
+        """The SolverDivergence of a step that cannot be completed, with the reason: that
+        of the attempt of Δt = h (s) with scaled residual ``res``, refused for ``reject``
+        (a refusal reason; default ``run.last_reject``) after Newton's ``failure``
+        (default ``run.newton.last_failure``)."""
+        reject = run.last_reject if reject is None else reject
+        failure = run.newton.last_failure if failure is None else failure
+        singular = failure == "singular"
         reason = "nonfinite_state" if (nonfinite and not singular) else "solver_diverged"
         why = ("singular Jacobian: the boundary conditions leave a force or moment "
                "undetermined (e.g. a straight inextensible rod held axially at both "
@@ -454,8 +460,8 @@ class StepControl:
                "non-finite state" if nonfinite else
                "the last attempt converged but put in more energy than its loads' work "
                "(numerics.energy_tolerance): no step down to the smallest is trusted"
-               if run.last_reject == "energy" else
-               "Newton did not converge" if run.last_reject in (None, "newton") else
-               f"the last attempt converged but was refused ({run.last_reject})")
+               if reject == "energy" else
+               "Newton did not converge" if reject in (None, "newton") else
+               f"the last attempt converged but was refused ({reject})")
         return SolverDivergence(f"{what} (Δt = {h:.3g} s, scaled residual {res:.3g}, {why})",
                                 t=run.t, step=None, residual=res, reason=reason)
