@@ -26,7 +26,10 @@ table and writes docs/figures/hockle-slack-threshold.png; 3 sweeps of 3 × 4 mem
 process, about 12 minutes at a load of 6 to 8 on 2 cores; ``--save DIR`` keeps the sweeps'
 NetCDF files, ``--load DIR`` redraws from them, ``--only SETTING --save DIR`` re-runs one);
 ``--tension`` (writes docs/figures/hockle-threshold.png; about 11 s); ``--quick``: 2 × 2
-members per setting, no figure.
+members per setting, no figure; ``--grid N:DT``: the slack map's members on N segments with
+step DT (s), no figure (``--only "seabed, friction 0.5" --grid 240:0.025``: the map with
+friction on a grid twice as fine in s and t, against the resolution the map's figure has;
+docs/hockle.md, "Resolution").
 """
 from __future__ import annotations
 
@@ -173,15 +176,19 @@ def slack_of(value) -> float:
     return float(-np.trapezoid(v, t)) if hasattr(np, "trapezoid") else float(-np.trapz(v, t))
 
 
-def slack_base(setting: str) -> dict:
+def slack_base(setting: str, grid: tuple | None = None) -> dict:
     """The slack-protocol member of a setting: cases/seabed-hockle.yaml moved in and held
-    (a dict; the end's velocity table and the twist are set by the sweep)."""
+    (a dict; the end's velocity table and the twist are set by the sweep); ``grid``:
+    (segments, Δt s) in place of :data:`SLACK_SEGMENTS` and the case's Δt."""
     from solver.case import parse_text
 
     doc = parse_text(CASE.read_bytes(), CASE.suffix, str(CASE))
     doc["name"] = f"hockle slack threshold: {setting}"
     doc["boundary"]["end"]["translation"][0] = {"velocity": slack_velocity(0.8)}
     doc["numerics"].update(n_segments=SLACK_SEGMENTS[setting], t_end=8.0)
+    if grid is not None:
+        doc["numerics"].update(n_segments=grid[0], dt=grid[1])
+        doc["output"]["every"] = max(1, round(0.1 / grid[1]))
     doc["output"]["fields"] = ["position", "topology", "contact", "bend_radius"]
     if setting == "free space":
         doc.pop("seabed")
@@ -191,13 +198,15 @@ def slack_base(setting: str) -> dict:
     return doc
 
 
-def run_slack(slacks, twists, save: Path | None = None, settings=SETTINGS) -> dict:
+def run_slack(slacks, twists, save: Path | None = None, settings=SETTINGS,
+              grid: tuple | None = None) -> dict:
     """{setting: combined sweep dataset} of the slack protocol, with each sweep's wall time;
-    each sweep is written to ``save``/<setting>.nc when given."""
+    each sweep is written to ``save``/<setting>.nc when given; ``grid`` as
+    :func:`slack_base`'s."""
     out = {}
     for setting in settings:
         t0 = time.perf_counter()
-        ds = sweep(slack_base(setting), {SLACK: [slack_velocity(x) for x in slacks],
+        ds = sweep(slack_base(setting, grid), {SLACK: [slack_velocity(x) for x in slacks],
                                          TWIST: list(twists)}, workers=1)
         ds.attrs["wall_s"] = time.perf_counter() - t0
         print(f"{setting}: {ds.attrs['wall_s']:.0f} s", flush=True)
@@ -308,7 +317,14 @@ def main(argv=None) -> int:
     parser.add_argument("--only", choices=SETTINGS, action="append",
                         help="run only this setting of the slack map (with --save: to "
                              "replace one sweep's file before --load)")
+    parser.add_argument("--grid", metavar="N:DT",
+                        help="the slack map's members on N segments with step DT (s) "
+                             "instead of the map's (a resolution check; no figure)")
     args = parser.parse_args(argv)
+    grid = None
+    if args.grid:
+        n, dt = args.grid.split(":")
+        grid = (int(n), float(dt))
     if args.tension:
         tensions = [0.1, 1.0] if args.quick else [0.0, 0.2, 0.5, 1.0]
         twists = [4.0, 16.0] if args.quick else [4.0, 8.0, 12.0, 16.0]
@@ -321,9 +337,9 @@ def main(argv=None) -> int:
     twists = ([2 * math.pi * n / L for n in (2, 6)] if args.quick
               else [2 * math.pi * n / L for n in (2, 4, 6, 8)])
     results = (load_slack(args.load) if args.load
-               else run_slack(slacks, twists, args.save, tuple(args.only or SETTINGS)))
+               else run_slack(slacks, twists, args.save, tuple(args.only or SETTINGS), grid))
     slack_table(results)
-    if not args.quick and not args.only:
+    if not args.quick and not args.only and grid is None:
         out = ROOT / "docs" / "figures" / "hockle-slack-threshold.png"
         print(f"\nwrote {slack_figure(results, out)}")
     return 0

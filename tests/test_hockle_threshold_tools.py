@@ -43,3 +43,15 @@ def test_slack_members_are_valid_cases():
         assert len(cases) == 4
         assert cases[0].numerics.n_segments == ht.SLACK_SEGMENTS[setting]
         assert (cases[0].contact is not None) and cases[0].numerics.t_end == 8.0
+
+
+def test_a_slack_map_on_another_grid():
+    """``--grid N:DT``: every member on N segments with step DT, outputs still every 0.1 s."""
+    from service import sweeps as sw
+
+    base = ht.slack_base("seabed, friction 0.5", (240, 0.025))
+    assert base["numerics"]["n_segments"] == 240 and base["numerics"]["dt"] == 0.025
+    assert base["output"]["every"] == 4
+    members = sw.expand(base, {ht.SLACK: [ht.slack_velocity(0.8)], ht.TWIST: [9.42]})
+    (case,) = sw.validate_members(members)
+    assert (case.numerics.n_segments, case.numerics.dt) == (240, 0.025)
