@@ -1,0 +1,169 @@
+"""How ``cases/seabed-hockle.yaml``'s figures move with its grid (docs/hockle.md, "How
+these figures move with the grid"; docs/contact.md, "On the sea floor the drift is
+pressed into the bottom"; docs/case-spec.md, "How a centreline is resampled").
+
+First, for 40 to 320 segments, how far the pose a run starts from (the space route of the
+resampled κ, solver/initial.py) lies from the case's given centreline: its s = L end from
+the centreline's last point, and its largest height above the plane z = 0 the centreline
+lies in, against Δs·τ0 (τ0 the twist rate), and the same without the twist.
+
+Then the case (160 segments, Δt = 0.05 s) and the same case on coarser and finer grids,
+with its friction to 4.5 s (through the loop's formation) and without friction to 5 s
+(the frictionless variant stops at 4.0 s on the case's grid); and, on the case's own grid
+and on 320 segments with Δt = 0.025 s, the case with small changes of its data (the twist
+rate by 0.1 %, ρ∞ 0.45 for 0.5), to tell a dependence on the grid from a dependence on
+any small change. Per run: status, Newton iterations, wall; when the bend radius first
+falls below the MBR (0.15 m; linear between outputs every 0.05 s) and when the loop forms
+(``loop_formed``, at an output time); where the cable has lifted at 3.0 s (the arclength
+of its highest point, and the height; a run that stopped earlier: at its last output);
+the carried s = L end's largest distance from its prescribed motion (``end_drift``); the
+largest difference between the time route and the centreline integrated from κ
+(``position_route_difference``); the largest seabed reaction per unit length on the rod's
+last node.
+
+Run: ``PYTHONPATH=$PWD python benchmarks/hockle_resolution.py [--quick]`` (about 11 minutes
+alone on 2 cores, 3 of them the frictionless 640-segment run; ``--quick`` leaves out the
+640-segment runs). Counts and answers are deterministic; the wall times are indicative.
+"""
+from __future__ import annotations
+
+import argparse
+import itertools
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from hockle.plots import run_events  # noqa: E402
+from solver.case import Case  # noqa: E402
+from solver.simulation import SolverDivergence, simulate  # noqa: E402
+
+CASE = ROOT / "cases" / "seabed-hockle.yaml"
+#: (segments, Δt s) with friction; the case's own grid first
+GRIDS = ((160, 0.05), (40, 0.05), (80, 0.05), (160, 0.025), (320, 0.05), (320, 0.025),
+         (320, 0.0125), (640, 0.05))
+#: the same without friction
+GRIDS_FRICTIONLESS = ((160, 0.05), (160, 0.025), (320, 0.025), (640, 0.05))
+#: small changes of the case's data, run on the grids of :data:`CHANGED_ON`: label ->
+#: (what, factor or value)
+CHANGES = {"twist rate × 1.001": ("twist", 1.001), "ρ∞ 0.45": ("rho_inf", 0.45)}
+CHANGED_ON = ((160, 0.05), (320, 0.025))
+OUTPUT_INTERVAL = 0.05          # s
+
+
+def spec_for(segments: int, dt: float, t_end: float, friction: bool = True,
+             change: tuple | None = None) -> dict:
+    """The case's spec (dict) on a grid of ``segments`` cells and step ``dt`` (s) to
+    ``t_end`` (s), outputs every 0.05 s; without the seabed's friction if not
+    ``friction``; ``change``: one entry of :data:`CHANGES`."""
+    spec = Case.from_file(CASE).model_dump(mode="json")
+    num = spec["numerics"]
+    num.pop("ds", None)
+    num.update(n_segments=segments, dt=dt, t_end=t_end)
+    spec["output"]["every"] = max(1, round(OUTPUT_INTERVAL / dt))
+    if not friction:
+        spec["seabed"]["friction"] = None
+    if change is not None:
+        what, value = change
+        if what == "twist":
+            spec["initial"]["twist_rate"] *= value
+        else:
+            num[what] = value
+    return spec
+
+
+def figures(spec: dict) -> dict:
+    """Run ``spec``; the figures of the module's docstring (a failed run's from its
+    partial result)."""
+    t0 = time.perf_counter()
+    try:
+        ds, status = simulate(Case.model_validate(spec)), "completed"
+    except SolverDivergence as exc:
+        ds, status = exc.partial, f"failed at {exc.t:.3g} s"
+    wall = time.perf_counter() - t0
+    t = ds.time.values
+    radius = ds.bend_radius_min.values
+    mbr = Case.model_validate(spec).rod.minimum_bend_radius
+    below = np.flatnonzero(radius < mbr)
+    crossing = None
+    if below.size and below[0] > 0:
+        i = below[0]
+        crossing = t[i - 1] + (mbr - radius[i - 1]) * (t[i] - t[i - 1]) / (radius[i] - radius[i - 1])
+    loop = run_events(ds).get("loop_formed")
+    k = int(np.argmin(np.abs(t - 3.0)))
+    z = ds.position.values[k, :, 2]
+    top = int(np.argmax(z))
+    seabed = np.linalg.norm(ds.seabed_force.values[:, -1], axis=1)
+    return {
+        "status": status, "newton": int(ds.step_newton_iterations.values.sum()), "wall": wall,
+        "mbr": crossing, "loop": None if loop is None else float(t[loop]),
+        "lift_s": float(ds.s.values[top]), "lift_z": float(z[top] - z[0]),
+        "drift": float(np.nanmax(ds.end_drift.values)),
+        "route": float(np.nanmax(ds.position_route_difference.values)),
+        "end_cell": float(np.nanmax(seabed)),
+    }
+
+
+def start_pose(segments: int) -> str:
+    """How far the start pose on ``segments`` cells lies from the case's centreline, with
+    the case's twist rate and without it."""
+    from solver.initial import initial_pose
+
+    cells = []
+    for twist in (True, False):
+        spec = spec_for(segments, 0.05, 1.0)
+        if not twist:
+            spec["initial"]["twist_rate"] = 0.0
+        case = Case.model_validate(spec)
+        s = np.linspace(0.0, case.rod.length, segments + 1)
+        _, r, kappa = initial_pose(case, s)
+        last = np.asarray(case.initial.centreline.points[-1], dtype=float)
+        if twist:
+            cells.append(f"{s[1] * kappa[0, 2]:.3f}")
+        cells += [f"{np.linalg.norm(r[-1] - last) * 1e3:.3g}", f"{np.max(r[:, 2]) * 1e3:.3g}"]
+    return f"| {segments} | " + " | ".join(cells) + " |"
+
+
+def row(label: str, f: dict) -> str:
+    def at(x):
+        return "–" if x is None else f"{x:.2f}"
+    return (f"| {label} | {f['status']} | {f['newton']} | {f['wall']:.0f} | {at(f['mbr'])} | "
+            f"{at(f['loop'])} | {f['lift_s']:.2f} m ({f['lift_z'] * 100:.0f} cm) | "
+            f"{f['drift'] * 1e3:.1f} | {f['route'] * 1e3:.1f} | {f['end_cell']:.0f} |")
+
+
+HEADER = ("| run | status | Newton | wall (s) | below the MBR (s) | loop (s) | "
+          "lifted at 3.0 s: s (height) | end drift (mm) | route difference (mm) | "
+          "last node's seabed reaction (N/m) |\n|---|---|---:|---:|---:|---:|---|---:|---:|---:|")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="leave out the 640-segment runs")
+    quick = ap.parse_args().quick
+    print("| segments | Δs·τ0 (rad) | start pose's s = L end from the centreline's last point "
+          "(mm) | its largest height above z = 0 (mm) | the same without twist: end (mm) | "
+          "height (mm) |\n|---:|---:|---:|---:|---:|---:|")
+    for segments in (40, 80, 160, 320):
+        print(start_pose(segments), flush=True)
+    print()
+    print(HEADER, flush=True)
+    for friction, grids, t_end in ((True, GRIDS, 4.5), (False, GRIDS_FRICTIONLESS, 5.0)):
+        for n, dt in grids:
+            if quick and n > 320:
+                continue
+            label = (f"{'with friction' if friction else 'frictionless'}, N = {n}, "
+                     f"Δt = {dt:g} s" + (" (the case)" if (n, dt) == GRIDS[0] else ""))
+            print(row(label, figures(spec_for(n, dt, t_end, friction))), flush=True)
+        if friction:
+            for (n, dt), (name, change) in itertools.product(CHANGED_ON, CHANGES.items()):
+                print(row(f"with friction, N = {n}, Δt = {dt:g} s, {name}",
+                          figures(spec_for(n, dt, t_end, change=change))), flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,50 @@
+"""The resolution study of cases/seabed-hockle.yaml (benchmarks/hockle_resolution.py):
+its members are the case on other grids, and the start pose's distance from the given
+centreline that docs/case-spec.md quotes; no run."""
+from __future__ import annotations
+
+import re
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+import hockle_resolution as hr  # noqa: E402
+
+from solver.case import Case  # noqa: E402
+
+
+@pytest.mark.parametrize("segments, dt, every", [(160, 0.05, 1), (320, 0.0125, 4)])
+def test_members_are_the_case_on_another_grid(segments, dt, every):
+    case = Case.model_validate(hr.spec_for(segments, dt, 4.5))
+    base = Case.from_file(hr.CASE)
+    assert (case.numerics.n_segments, case.numerics.dt, case.numerics.t_end) == (segments, dt, 4.5)
+    assert case.output.every == every                  # an output every 0.05 s
+    assert case.seabed.friction == base.seabed.friction
+    assert case.initial.twist_rate == base.initial.twist_rate
+    smooth = Case.model_validate(hr.spec_for(segments, dt, 5.0, friction=False))
+    assert smooth.seabed.friction is None
+    twisted = Case.model_validate(hr.spec_for(segments, dt, 4.5, change=hr.CHANGES["twist rate × 1.001"]))
+    assert twisted.initial.twist_rate == pytest.approx(1.001 * base.initial.twist_rate)
+    damped = Case.model_validate(hr.spec_for(segments, dt, 4.5, change=hr.CHANGES["ρ∞ 0.45"]))
+    assert damped.numerics.rho_inf == 0.45
+
+
+def _offsets(segments):
+    """(Δs·τ0, twisted end offset mm, twisted height mm, untwisted end mm, height mm)."""
+    cells = [float(c) for c in re.findall(r"[-+0-9.e]+", hr.start_pose(segments))]
+    return cells[1:]
+
+
+def test_the_twisted_start_is_second_order_with_a_constant_set_by_the_twist():
+    """The half-sine lay with 9.42 rad/m: its start pose's s = L end is off the
+    centreline's last point by ~1.5 mm at 160 segments, 4x less at twice the segments,
+    and by a few µm without the twist (docs/case-spec.md)."""
+    phi80, end80, z80, flat80, _ = _offsets(80)
+    phi160, end160, z160, flat160, zflat160 = _offsets(160)
+    assert phi160 == pytest.approx(0.236, abs=1e-3) and phi80 == pytest.approx(2 * phi160, abs=2e-3)
+    assert end160 == pytest.approx(1.46, rel=0.02)
+    assert end80 / end160 == pytest.approx(4.0, rel=0.05)
+    assert z80 / z160 == pytest.approx(4.0, rel=0.05)
+    assert flat80 < 0.01 and flat160 < 0.01 and zflat160 < 1e-6   # mm
