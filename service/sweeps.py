@@ -502,7 +502,9 @@ def _union_times(arrays: list[np.ndarray]) -> tuple[np.ndarray, bool]:
 
 def _onto(t_new: np.ndarray, t: np.ndarray, values: np.ndarray, step: bool) -> np.ndarray:
     """values (T, ...) at times t onto t_new: linear (or the last value, ``step``) within
-    [t0, t_last], NaN outside."""
+    [t0, t_last], NaN outside. At a stored time the stored value itself, infinite ones
+    included (``min_surface_gap`` is +inf where no pair is near); between two stored times
+    where one is infinite, that infinity."""
     out = np.full((t_new.size,) + values.shape[1:], np.nan)
     if t.size == 0:
         return out
@@ -517,7 +519,10 @@ def _onto(t_new: np.ndarray, t: np.ndarray, values: np.ndarray, step: bool) -> n
     if step:
         w = np.where(w >= 1.0 - 1e-9, 1.0, 0.0)
     w = w.reshape((-1,) + (1,) * (values.ndim - 1))
-    out[inside] = (1.0 - w) * values[j] + w * values[j + 1]
+    before, after = values[j], values[j + 1]
+    with np.errstate(invalid="ignore"):       # 0·inf where a stored value is infinite
+        between = (1.0 - w) * before + w * after
+    out[inside] = np.where(w == 0.0, before, np.where(w == 1.0, after, between))
     return out
 
 

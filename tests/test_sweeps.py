@@ -243,3 +243,33 @@ def test_hockle_sweep_here_and_its_threshold_map(tmp_path, capsys):
                  "-o", str(tmp_path / "bad.nc")])
     assert code == 2 and "members[1].rod.diameter" in capsys.readouterr().err
     assert not (tmp_path / "bad.nc").exists()
+
+
+def test_members_on_other_output_times_keep_their_infinite_values():
+    """min_surface_gap is +inf at an output without a near pair: a member whose outputs
+    are a subset of the union grid keeps it there (it had read NaN: 0·inf), and between
+    a finite and an infinite output it reads inf."""
+    members, res = results()
+    fine = fake_result(2.0, 1.0, dt=0.05)
+    fine["min_surface_gap"] = ("time", np.full(fine.sizes["time"], np.inf))
+    coarse = res[0].dataset.copy()
+    gap = np.full(coarse.sizes["time"], np.inf)
+    gap[:5] = 0.01
+    coarse["min_surface_gap"] = ("time", gap)
+    res[0] = MemberResult(0, members[0].values, "successful", coarse)
+    res[3] = MemberResult(3, members[3].values, "successful", fine)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        ds = combine_results(res, PARAMS)
+    assert ds.attrs["hockle_sweep_time_grid"] == "union_interpolated"
+    assert np.isposinf(ds["min_surface_gap"].values[1, 0]).all()
+    t = ds["time"].values
+    own = ds["min_surface_gap"].values[0, 0]
+    stored = coarse.time.values
+    assert own[np.isclose(t, stored[4])] == pytest.approx(0.01)
+    assert np.isposinf(own[np.isclose(t, stored[5])]).all()
+    halfway = (stored[4] + stored[5]) / 2
+    assert np.isposinf(own[np.isclose(t, halfway)]).all()
+    assert own[np.isclose(t, (stored[0] + stored[1]) / 2)] == pytest.approx(0.01)
