@@ -7,6 +7,10 @@ resampled κ, solver/initial.py) lies from the case's given centreline: its s = 
 the centreline's last point, and its largest height above the plane z = 0 the centreline
 lies in, against Δs·τ0 (τ0 the twist rate), and the same without the twist.
 
+Then where the runs on 320 segments with Δt = 0.05, 0.025 and 0.0125 s part (to 3 s:
+each run's largest distance from the 0.0125-s run at 1, 1.25, 2 and 3 s, and its smallest
+step and refused attempts over 0.95-1.3 s, where the end starts moving).
+
 Then the case (160 segments, Δt = 0.05 s) and the same case on coarser and finer grids,
 with its friction to 4.5 s (through the loop's formation) and without friction to 5 s
 (the frictionless variant stops at 4.0 s on the case's grid); and, on the case's own grid
@@ -21,7 +25,7 @@ largest difference between the time route and the centreline integrated from κ
 (``position_route_difference``); the largest seabed reaction per unit length on the rod's
 last node.
 
-Run: ``PYTHONPATH=$PWD python benchmarks/hockle_resolution.py [--quick]`` (about 11 minutes
+Run: ``PYTHONPATH=$PWD python benchmarks/hockle_resolution.py [--quick]`` (about 14 minutes
 alone on 2 cores, 3 of them the frictionless 640-segment run; ``--quick`` leaves out the
 640-segment runs). Counts and answers are deterministic; the wall times are indicative.
 """
@@ -45,7 +49,7 @@ from solver.simulation import SolverDivergence, simulate  # noqa: E402
 CASE = ROOT / "cases" / "seabed-hockle.yaml"
 #: (segments, Δt s) with friction; the case's own grid first
 GRIDS = ((160, 0.05), (40, 0.05), (80, 0.05), (160, 0.025), (320, 0.05), (320, 0.025),
-         (320, 0.0125), (640, 0.05))
+         (320, 0.0125), (640, 0.05), (640, 0.025))
 #: the same without friction
 GRIDS_FRICTIONLESS = ((160, 0.05), (160, 0.025), (320, 0.025), (640, 0.05))
 #: small changes of the case's data, run on the grids of :data:`CHANGED_ON`: label ->
@@ -128,6 +132,33 @@ def start_pose(segments: int) -> str:
     return f"| {segments} | " + " | ".join(cells) + " |"
 
 
+def parting(segments: int = 320, steps=(0.05, 0.025, 0.0125), t_end: float = 3.0) -> list[str]:
+    """Where the runs on ``segments`` cells with the Δt of ``steps`` part: each run's
+    largest distance from the last one's (the smallest Δt) at a few times (outputs every
+    0.05 s), and over 0.95-1.3 s (the end starts moving at 1 s) its smallest step and its
+    refused attempts."""
+    runs = {}
+    for dt in steps:
+        spec = spec_for(segments, dt, t_end)
+        spec["output"]["fields"] = ["position"]
+        runs[dt] = simulate(Case.model_validate(spec))
+    ref = runs[steps[-1]]
+    out = []
+    for dt, ds in runs.items():
+        at = []
+        for t in (1.0, 1.25, 2.0, t_end):
+            k = int(np.argmin(np.abs(ds.time.values - t)))
+            d = np.abs(ds.position.values[k] - ref.position.values[k]).max()
+            at.append(f"{t:g} s {d * 1e3:.3g} mm")
+        ts = ds.step_time.values
+        window = (ts > 0.95) & (ts < 1.3)
+        out.append(f"{segments} segments, Δt = {dt:g} s: from Δt = {steps[-1]:g} s "
+                   f"{', '.join(at)}; over 0.95-1.3 s smallest step "
+                   f"{ds.step_dt.values[window].min() * 1e3:.2g} ms, "
+                   f"{int(ds.step_rejected_attempts.values[window].sum())} refused attempts")
+    return out
+
+
 def row(label: str, f: dict) -> str:
     def at(x):
         return "–" if x is None else f"{x:.2f}"
@@ -152,6 +183,10 @@ def main() -> None:
         print(start_pose(segments), flush=True)
     print()
     print(HEADER, flush=True)
+    print()
+    for line in parting():
+        print(line, flush=True)
+    print()
     for friction, grids, t_end in ((True, GRIDS, 4.5), (False, GRIDS_FRICTIONLESS, 5.0)):
         for n, dt in grids:
             if quick and n > 320:
