@@ -182,11 +182,10 @@ def main() -> None:
     for segments in (40, 80, 160, 320):
         print(start_pose(segments), flush=True)
     print()
-    print(HEADER, flush=True)
-    print()
     for line in parting():
         print(line, flush=True)
     print()
+    print(HEADER, flush=True)
     for friction, grids, t_end in ((True, GRIDS, 4.5), (False, GRIDS_FRICTIONLESS, 5.0)):
         for n, dt in grids:
             if quick and n > 320:
