@@ -83,15 +83,16 @@ def spec_for(segments: int, dt: float, t_end: float, friction: bool = True,
 def figures(spec: dict) -> dict:
     """Run ``spec``; the figures of the module's docstring (a failed run's from its
     partial result)."""
+    case = Case.model_validate(spec)
     t0 = time.perf_counter()
     try:
-        ds, status = simulate(Case.model_validate(spec)), "completed"
+        ds, status = simulate(case), "completed"
     except SolverDivergence as exc:
         ds, status = exc.partial, f"failed at {exc.t:.3g} s"
     wall = time.perf_counter() - t0
     t = ds.time.values
     radius = ds.bend_radius_min.values
-    mbr = Case.model_validate(spec).rod.minimum_bend_radius
+    mbr = case.rod.minimum_bend_radius
     below = np.flatnonzero(radius < mbr)
     crossing = None
     if below.size and below[0] > 0:
@@ -108,28 +109,32 @@ def figures(spec: dict) -> dict:
         "lift_s": float(ds.s.values[top]), "lift_z": float(z[top] - z[0]),
         "drift": float(np.nanmax(ds.end_drift.values)),
         "route": float(np.nanmax(ds.position_route_difference.values)),
-        "end_cell": float(np.nanmax(seabed)),
+        "end_reaction": float(np.nanmax(seabed)),
     }
 
 
-def start_pose(segments: int) -> str:
-    """How far the start pose on ``segments`` cells lies from the case's centreline, with
-    the case's twist rate and without it."""
+def start_pose_offsets(segments: int, twist: bool = True) -> tuple[float, float, float]:
+    """The start pose on ``segments`` cells against the case's centreline (with its twist
+    rate, or none): (Δs·τ0 rad, the s = L end's distance from the centreline's last point
+    m, the largest height above z = 0 m)."""
     from solver.initial import initial_pose
 
-    cells = []
-    for twist in (True, False):
-        spec = spec_for(segments, 0.05, 1.0)
-        if not twist:
-            spec["initial"]["twist_rate"] = 0.0
-        case = Case.model_validate(spec)
-        s = np.linspace(0.0, case.rod.length, segments + 1)
-        _, r, kappa = initial_pose(case, s)
-        last = np.asarray(case.initial.centreline.points[-1], dtype=float)
-        if twist:
-            cells.append(f"{s[1] * kappa[0, 2]:.3f}")
-        cells += [f"{np.linalg.norm(r[-1] - last) * 1e3:.3g}", f"{np.max(r[:, 2]) * 1e3:.3g}"]
-    return f"| {segments} | " + " | ".join(cells) + " |"
+    spec = spec_for(segments, 0.05, 1.0)
+    if not twist:
+        spec["initial"]["twist_rate"] = 0.0
+    case = Case.model_validate(spec)
+    s = np.linspace(0.0, case.rod.length, segments + 1)
+    _, r, kappa = initial_pose(case, s)
+    last = np.asarray(case.initial.centreline.points[-1], dtype=float)
+    return float(s[1] * kappa[0, 2]), float(np.linalg.norm(r[-1] - last)), float(np.max(r[:, 2]))
+
+
+def start_pose(segments: int) -> str:
+    """The start pose's row of the first table: with the case's twist and without it."""
+    phi, end, height = start_pose_offsets(segments)
+    _, flat_end, flat_height = start_pose_offsets(segments, twist=False)
+    return (f"| {segments} | {phi:.3f} | {end * 1e3:.3g} | {height * 1e3:.3g} | "
+            f"{flat_end * 1e3:.3g} | {flat_height * 1e3:.3g} |")
 
 
 def parting(segments: int = 320, steps=(0.05, 0.025, 0.0125), t_end: float = 3.0) -> list[str]:
@@ -164,7 +169,7 @@ def row(label: str, f: dict) -> str:
         return "–" if x is None else f"{x:.2f}"
     return (f"| {label} | {f['status']} | {f['newton']} | {f['wall']:.0f} | {at(f['mbr'])} | "
             f"{at(f['loop'])} | {f['lift_s']:.2f} m ({f['lift_z'] * 100:.0f} cm) | "
-            f"{f['drift'] * 1e3:.1f} | {f['route'] * 1e3:.1f} | {f['end_cell']:.0f} |")
+            f"{f['drift'] * 1e3:.1f} | {f['route'] * 1e3:.1f} | {f['end_reaction']:.0f} |")
 
 
 HEADER = ("| run | status | Newton | wall (s) | below the MBR (s) | loop (s) | "

@@ -186,9 +186,10 @@ def slack_base(setting: str, grid: tuple | None = None) -> dict:
     doc["name"] = f"hockle slack threshold: {setting}"
     doc["boundary"]["end"]["translation"][0] = {"velocity": slack_velocity(0.8)}
     doc["numerics"].update(n_segments=SLACK_SEGMENTS[setting], t_end=8.0)
-    if grid is not None:
+    if grid is not None:              # the same output times on the other step
+        interval = doc["output"]["every"] * doc["numerics"]["dt"]
         doc["numerics"].update(n_segments=grid[0], dt=grid[1])
-        doc["output"]["every"] = max(1, round(0.1 / grid[1]))
+        doc["output"]["every"] = max(1, round(interval / grid[1]))
     doc["output"]["fields"] = ["position", "topology", "contact", "bend_radius"]
     if setting == "free space":
         doc.pop("seabed")

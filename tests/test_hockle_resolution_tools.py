@@ -3,7 +3,6 @@ its members are the case on other grids, and the start pose's distance from the 
 centreline that docs/case-spec.md quotes; no run."""
 from __future__ import annotations
 
-import re
 import sys
 from pathlib import Path
 
@@ -33,8 +32,9 @@ def test_members_are_the_case_on_another_grid(segments, dt, every):
 
 def _offsets(segments):
     """(Δs·τ0, twisted end offset mm, twisted height mm, untwisted end mm, height mm)."""
-    cells = [float(c) for c in re.findall(r"[-+0-9.e]+", hr.start_pose(segments))]
-    return cells[1:]
+    phi, end, height = hr.start_pose_offsets(segments)
+    _, flat_end, flat_height = hr.start_pose_offsets(segments, twist=False)
+    return phi, end * 1e3, height * 1e3, flat_end * 1e3, flat_height * 1e3
 
 
 def test_the_twisted_start_is_second_order_with_a_constant_set_by_the_twist():
