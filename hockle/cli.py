@@ -83,7 +83,20 @@ def cmd_validate(args: argparse.Namespace) -> int:
         f"{_n_steps(case)} steps (dt {num.dt:g} s, t_end {num.t_end:g} s), "
         f"spec hash {case.spec_hash()[:12]}"
     )
+    from solver.initial import start_offset
+
+    off = start_offset(case)
+    if off is not None:
+        print(f"start pose: within {off.distance * 1e3:.3g} mm ({off.share:.2g} diameters) "
+              f"of initial.centreline (farthest at s = {off.s:.4g} m)")
+        _print_advice(off.advice())
     return EXIT_OK
+
+
+def _print_advice(advice) -> None:
+    """Print a case's advice (solver.initial.StartOffset.advice) to stderr, if any."""
+    if advice:
+        _err(f"hockle: advice: {advice}")
 
 
 # --------------------------------------------------------------------------- run
@@ -284,6 +297,11 @@ def cmd_run(args: argparse.Namespace) -> int:
         except CaseError as exc:
             _err(f"hockle: {args.case}: {exc}")
             return EXIT_INVALID
+    if resume is None:
+        from solver.initial import start_offset
+
+        off = start_offset(case)
+        _print_advice(off.advice() if off is not None else None)
     ck_path = Path(args.checkpoint) if args.checkpoint else None
     latest = {}
 

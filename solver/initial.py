@@ -30,7 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Curve", "StartState", "initial_pose", "initial_state", "LENGTH_RTOL"]
+__all__ = ["Curve", "StartState", "StartOffset", "initial_pose", "initial_state",
+           "start_offset", "LENGTH_RTOL", "START_OFFSET_ADVICE"]
 
 #: relative tolerance with which a centreline's length must match rod.length
 LENGTH_RTOL = 1e-3
@@ -102,8 +103,9 @@ class Curve:
 
 
 def _frames(curve, s, normal, twist_rate):
-    """Frames R (n, 3, 3) [a1 a2 a3] and curvatures κ (n, 3) 1/m at arclengths s (n,)
-    (uniform, from 0) of the curve scaled to length s[-1] (module docstring)."""
+    """Frames R (n, 3, 3) [a1 a2 a3], curvatures κ (n, 3) 1/m and the curve's points
+    (n, 3) m at arclengths s (n,) (uniform, from 0) of the curve scaled to length s[-1]
+    (module docstring)."""
     n = s.size
     scale = curve.length / s[-1]
     sub = np.linspace(0.0, s[-1], (n - 1) * _SUB + 1)
@@ -140,7 +142,7 @@ def _frames(curve, s, normal, twist_rate):
     kappa[:, 1] = -sn[:, 0] * theta[:, 0] + c[:, 0] * theta[:, 1]
     kappa[:, 2] = float(twist_rate)
     R = np.stack([B1, B2, T], axis=2)
-    return R, kappa, r[0]
+    return R, kappa, r[idx]
 
 
 def _dual_cell_curvatures(frames, n, ds):
@@ -197,17 +199,10 @@ def initial_pose(case, s):
     """
     from .kinematics import quat_from_matrix, space_route
 
-    ini = case.initial
     s = np.asarray(s, dtype=float)
     n1 = s.size
-    tangent = np.asarray(ini.tangent, float)
-    tangent = tangent / np.linalg.norm(tangent)
-    normal = np.asarray(ini.normal, float)
-    normal = normal - np.dot(normal, tangent) * tangent
-    normal = normal / np.linalg.norm(normal)
-    centreline = getattr(ini, "centreline", None)
-    twist = float(getattr(ini, "twist_rate", 0.0) or 0.0)
-    if centreline is None:
+    tangent, normal, twist = _start_axes(case.initial)
+    if getattr(case.initial, "centreline", None) is None:
         R0 = np.column_stack([normal, np.cross(tangent, normal), tangent])
         q0 = quat_from_matrix(R0)
         if twist == 0.0:
@@ -216,11 +211,112 @@ def initial_pose(case, s):
         kappa[:, 2] = twist
         q, r = space_route(q0, np.zeros(3), kappa, float(s[1] - s[0]))
         return q, r, kappa
-    curve = Curve(centreline.points)
-    R, kappa, r0 = _frames(curve, s - s[0], normal, twist)
-    q0 = quat_from_matrix(R[0])
-    q, r = space_route(q0, np.asarray(r0, float), kappa, float(s[1] - s[0]))
+    q, r, kappa, _ = _curved_pose(case, s, normal, twist)
     return q, r, kappa
+
+
+def _start_axes(ini):
+    """(tangent (3,), normal (3,) made normal to it, both unit; twist rate τ0 rad/m) of
+    the case's ``initial`` section."""
+    tangent = np.asarray(ini.tangent, float)
+    tangent = tangent / np.linalg.norm(tangent)
+    normal = np.asarray(ini.normal, float)
+    normal = normal - np.dot(normal, tangent) * tangent
+    normal = normal / np.linalg.norm(normal)
+    return tangent, normal, float(getattr(ini, "twist_rate", 0.0) or 0.0)
+
+
+def _curved_pose(case, s, normal, twist):
+    """(q, r, κ) of :func:`initial_pose` for a start on the case's centreline, and the
+    centreline's points at the grid's arclengths (N+1, 3) m."""
+    from .kinematics import quat_from_matrix, space_route
+
+    curve = Curve(case.initial.centreline.points)
+    R, kappa, target = _frames(curve, s - s[0], normal, twist)
+    q0 = quat_from_matrix(R[0])
+    q, r = space_route(q0, np.asarray(target[0], float), kappa, float(s[1] - s[0]))
+    return q, r, kappa, target
+
+
+@dataclass(frozen=True)
+class StartOffset:
+    """How far the pose a run starts from lies from the centreline its case gives
+    (:func:`start_offset`).
+
+    distance: the largest distance of a node from the centreline's point at the node's
+    arclength, m; s: that node's arclength, m; share: distance over the rod's diameter
+    there; segments: the grid's cells; twist_step: Δs·|τ0| (rad), the twist of one cell.
+    """
+
+    distance: float
+    s: float
+    share: float
+    segments: int
+    twist_step: float
+
+    def advice(self, limit: float | None = None) -> str | None:
+        """A sentence naming the fields to change when ``share`` is above ``limit``
+        (default :data:`START_OFFSET_ADVICE`), else None. The segments it proposes follow
+        from the offset's O(Δs²) fall (the pose's error; module docstring): N·√(share/limit),
+        rounded up to a multiple of 10 (an estimate: on grids too coarse for the O(Δs²)
+        regime, a twisted arc's 10 segments propose 160 where its 40 propose 180)."""
+        limit = START_OFFSET_ADVICE if limit is None else float(limit)
+        if not self.share > limit:
+            return None
+        need = int(np.ceil(self.segments * np.sqrt(self.share / limit) / 10.0)) * 10
+        twist = (f" (Δs·τ0 = {self.twist_step:.2f} rad: a twisted start needs cells "
+                 "well under a radian of twist)" if self.twist_step > 0.0 else "")
+        return (f"initial.centreline: on {self.segments} segments the start pose lies "
+                f"{self.distance * 1e3:.3g} mm ({self.share:.2g} diameters) from the "
+                f"given centreline at s = {self.s:.4g} m{twist}; the offset falls as Δs²: "
+                f"numerics.n_segments of about {need} would bring it within "
+                f"{limit:g} diameters")
+
+
+#: the share of the rod's diameter by which the start pose may lie off the given
+#: centreline before :meth:`StartOffset.advice` speaks. Evidence (docs/case-spec.md,
+#: "Initial"): ``cases/seabed-hockle.yaml`` (τ0 = 9.42 rad/m) starts 1.12 / 0.29 / 0.073
+#: diameters off at 40 / 80 / 160 segments, and stops within 0.07 s / at 3.67 s /
+#: completes (``python benchmarks/hockle_resolution.py``)
+START_OFFSET_ADVICE = 0.1
+
+
+def start_offset(case, s=None, diameter=None) -> StartOffset | None:
+    """How far the start pose of ``case`` on the grid s lies from its given centreline.
+
+    Parameters
+    ----------
+    case : solver.case.Case (validated)
+    s : (N+1,) grid arclengths, m (uniform; default the case's grid)
+    diameter : (N+1,) the rod's diameter at s, m (default the case's ``rod.diameter``)
+
+    Returns
+    -------
+    StartOffset, or None where the case gives no centreline (a straight start, with or
+    without twist, is exact: its space route is the straight line) or starts from a
+    result. Raises nothing for a validated case.
+
+    The start pose is the space route of the resampled curvatures (module docstring),
+    which lies within O(Δs²) of the curve; the constant grows with the twist rate τ0,
+    because the route turns each cell by the mean of its two nodes' κ, whose bending
+    components differ in direction by Δs·τ0 in the twisted frames (a chord of the
+    bending's circle, shorter by cos(½Δs·τ0)).
+    """
+    ini = case.initial
+    if getattr(ini, "centreline", None) is None or getattr(ini, "from_result", None) is not None:
+        return None
+    if s is None:
+        s = np.linspace(0.0, case.rod.length, case.numerics.n_segments + 1)
+    s = np.asarray(s, dtype=float)
+    if diameter is None:
+        diameter = case.rod.evaluate("diameter", s)
+    _, normal, twist = _start_axes(ini)
+    _, r, _, target = _curved_pose(case, s, normal, twist)
+    d = np.linalg.norm(r - target, axis=1)
+    k = int(np.argmax(d))
+    share = float(d[k] / np.asarray(diameter, float)[k])
+    return StartOffset(distance=float(d[k]), s=float(s[k]), share=share,
+                       segments=s.size - 1, twist_step=float(abs(twist) * (s[1] - s[0])))
 
 
 @dataclass

@@ -18,6 +18,7 @@ import numpy as np
 from .checkpoint import Checkpoint, resume_key
 from .contact.geometry import max_distance
 from .energies import energies
+from .initial import start_offset
 from .loads import end_reactions
 from .results import build_dataset
 from .stepping import hermite
@@ -325,6 +326,8 @@ class Recorder:
         self.refused_before = sum(run.refusals.values())
         self.budget = case.numerics.wall_clock_budget
         self.rate = EtaModel()
+        # how far the start pose lies from the case's centreline (None: no centreline)
+        self.start_offset = start_offset(case, run.props.s, run.props.diameter)
 
     def save(self) -> None:
         """Hand a checkpoint of the last accepted state to the checkpoint hook."""
@@ -366,6 +369,13 @@ class Recorder:
             f"{k} {v}" for k, v in sorted(run.refusals.items()))
         if self.resume is not None:
             ds.attrs["hockle_resumed_at"] = self.resume.t
+        off = self.start_offset
+        if off is not None:
+            ds.attrs["hockle_start_offset"] = off.distance
+            ds.attrs["hockle_start_offset_s"] = off.s
+            advice = off.advice()
+            if advice is not None:
+                ds.attrs["hockle_advice"] = advice
         return ds
 
     def stopped(self):

@@ -4,6 +4,7 @@ closed forms of the arc and the helix, and a curved start that is an equilibrium
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,9 +13,10 @@ from hockle.api import (catenary, catenary_parameter, circular_arc, clamped, end
                         helix, make_case)
 from rodcases import hairpin
 from solver.case import Case, CaseError
-from solver.initial import initial_pose
+from solver.initial import initial_pose, start_offset
 from solver.simulation import simulate
 
+ROOT = Path(__file__).resolve().parents[1]
 E, D = 1.25e7, 0.02
 EI = E * np.pi * D**4 / 64
 
@@ -175,3 +177,46 @@ def test_a_twisted_start_has_its_twist_as_linking_number():
                         output={"fields": ["topology"]}))
     assert float(ds.topology_error[0]) < 1e-9
     assert abs(float(ds.writhe[0])) > 0.1
+
+
+def _seabed_hockle(n, twist=None):
+    doc = Case.from_file(ROOT / "cases" / "seabed-hockle.yaml").model_dump(mode="json")
+    doc["numerics"]["n_segments"] = n
+    doc["numerics"].pop("ds", None)
+    if twist is not None:
+        doc["initial"]["twist_rate"] = twist
+    return Case.model_validate(doc)
+
+
+def test_a_twisted_lays_start_offset_falls_as_ds2_and_is_advised_past_a_tenth_of_d():
+    """cases/seabed-hockle.yaml's half-sine lay with τ0 = 9.42 rad/m (D = 2 cm) starts
+    22.4 / 5.79 / 1.46 mm off at its s = L end on 40 / 80 / 160 segments (the figures of
+    benchmarks/hockle_resolution.py, where the 40- and 80-segment runs fail), ratio 4 per
+    halving; the advice names the field and a grid at 40 and 80 and is silent at 160;
+    without the twist the same lay starts within 0.1 mm."""
+    offs = {n: start_offset(_seabed_hockle(n)) for n in (40, 80, 160)}
+    assert [round(offs[n].distance * 1e3, 2) for n in (40, 80, 160)] == [22.37, 5.79, 1.46]
+    assert all(offs[n].s == 4.0 for n in offs)
+    assert offs[80].distance / offs[160].distance == pytest.approx(4.0, rel=0.02)
+    assert offs[160].share == pytest.approx(0.073, abs=1e-3)
+    assert offs[160].advice() is None
+    for n in (40, 80):
+        advice = offs[n].advice()
+        assert advice.startswith("initial.centreline: on ")
+        assert "numerics.n_segments of about 140" in advice and "Δs·τ0" in advice
+    flat = start_offset(_seabed_hockle(40, twist=0.0))
+    assert flat.distance < 1e-4 and flat.twist_step == 0.0 and flat.advice() is None
+
+
+def test_start_offset_is_none_for_a_straight_start_and_in_the_result_of_a_curved_one():
+    """A straight start is exact (None, twisted or not); a run from a curved one carries
+    the offset (``hockle_start_offset``, its s) and, past a tenth of the diameter, the
+    advice (``hockle_advice``), which a run within it does not carry."""
+    assert start_offset(_case({"twist_rate": 2.0}, 10)) is None
+    assert start_offset(_case({}, 10)) is None
+    ds = simulate(_case({"centreline": circular_arc(1.0, 0.5)}, 40))
+    assert 0.0 < ds.attrs["hockle_start_offset"] < 1e-3
+    assert ds.attrs["hockle_start_offset_s"] == 1.0 and "hockle_advice" not in ds.attrs
+    ds = simulate(_case({"centreline": circular_arc(1.0, 0.5), "twist_rate": 20.0}, 40))
+    assert ds.attrs["hockle_start_offset"] == pytest.approx(0.037, rel=0.01)
+    assert "numerics.n_segments of about 180" in ds.attrs["hockle_advice"]
