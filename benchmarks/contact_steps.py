@@ -30,8 +30,14 @@ Newton iterate of each attempt, the largest scaled residual of each row group (E
 E3 lateral, E3 axial, E4 and the end rows) with the cell where it sits, and the
 fractions of the correction the filter and the line search kept.
 
+The case is a suite case's name or the path of a case file; ``--set FIELD=VALUE``
+(repeatable, VALUE read as YAML) changes one of its fields first.
+
 Run: ``PYTHONPATH=$PWD python benchmarks/contact_steps.py seed-in-air --from 17.5
 --t-end 18.4`` (the seed example without its fluid, from just before its first contact),
+``... cases/seabed-hockle.yaml --t-end 10 --edges 0,0.5,1,1.5,2,3,3.5,4,5,6,8,10`` (where
+the sea floor's steps go, docs/seabed.md "Cost"; ``--set seabed.friction=null --set
+contact=null`` without its friction and self-contact),
 ``... tension --from 18.4 --t-end 18.7``, ``... tension --from 18 --t-end 45 --edges
 18,18.5,19,20,22,25,30,35,40,45`` (the tension variant's whole contact phase, ~3 min),
 ``... tension --probe 19 --probe-dt 0.0005,0.001,0.0017,0.003,0.005,0.01``,
@@ -108,16 +114,47 @@ def _starts_of(rows: list) -> list:
                          [r["its"] for r in rows if r["ok"]])
 
 
-def record(name: str, t_end: float, starts: bool = False) -> list:
-    """Run suite case ``name`` to t_end (s); the attempts as dicts (with ``starts``, each
-    with "starts": :func:`start_distances` of its last Newton solve with contact
-    candidates, else None)."""
+def case_spec(name: str, sets=()) -> dict:
+    """The spec (a dict) of suite case ``name``, or of the case file at the path
+    ``name``, with each "dotted.field=VALUE" of ``sets`` applied (VALUE read as YAML:
+    ``seabed.friction=null``, ``contact=null``, ``seabed.normal_damping=0``). Raises
+    SystemExit naming a field of ``sets`` that the spec does not hold."""
+    import contact_suite as cs
+    import yaml
+    from solver.case import Case
+
+    if name in cs.CASES:
+        spec = cs.CASES[name][1]()
+    else:
+        spec = Case.from_file(name).model_dump(mode="json")
+    for item in sets:
+        key, _, text = item.partition("=")
+        *path, last = key.split(".")
+        node = spec
+        for part in path:
+            if not isinstance(node.get(part), dict):
+                raise SystemExit(f"--set {item}: the case has no {key}")
+            node = node[part]
+        value = yaml.safe_load(text)
+        if isinstance(value, str):
+            try:
+                value = float(value)          # YAML 1.1 reads 3e5 as a string
+            except ValueError:
+                pass
+        node[last] = value
+    return spec
+
+
+def record(name: str, t_end: float, starts: bool = False, sets=()) -> list:
+    """Run ``name`` (:func:`case_spec`, with ``sets``) to t_end (s); the attempts as
+    dicts (with ``starts``, each with "starts": :func:`start_distances` of its last
+    Newton solve with contact candidates, else None)."""
     import contact_suite as cs
     from solver.case import Case
     from solver.run import RodRun
     from solver.simulation import SolverDivergence, simulate
 
-    spec = cs.CASES[name][1]()
+    spec = case_spec(name, sets)
     spec["numerics"]["energy_tolerance"] = cs.ENERGY_TOLERANCE
     spec["numerics"]["t_end"] = t_end
     case = Case.model_validate(spec)
@@ -247,7 +284,7 @@ def _iterates_residuals(snapshot: bytes, h: float, its: int) -> list:
     return rows
 
 
-def probe(name: str, at: float, sizes: list, residuals: bool = False) -> None:
+def probe(name: str, at: float, sizes: list, residuals: bool = False, sets=()) -> None:
     """Advance suite case ``name`` by nominal steps to ``at`` (s), then attempt one step
     of each Δt in ``sizes`` (s) from that state; prints each attempt. ``residuals``: also,
     per Newton iterate of each attempt, its filter and line-search fractions and where
@@ -258,7 +295,7 @@ def probe(name: str, at: float, sizes: list, residuals: bool = False) -> None:
     from solver.case import Case
     from solver.run import RodRun
 
-    spec = cs.CASES[name][1]()
+    spec = case_spec(name, sets)
     spec["numerics"]["energy_tolerance"] = cs.ENERGY_TOLERANCE
     case = Case.model_validate(spec)
     from contact_iteration_cost import _advance_to
@@ -286,7 +323,11 @@ def probe(name: str, at: float, sizes: list, residuals: bool = False) -> None:
 def main() -> None:
     import contact_suite as cs
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("case", choices=list(cs.CASES))
+    ap.add_argument("case", help="a suite case (" + ", ".join(cs.CASES)
+                    + ") or the path of a case file")
+    ap.add_argument("--set", dest="sets", action="append", default=[],
+                    metavar="FIELD=VALUE", help="change a field of the case, VALUE as YAML "
+                    "(repeatable): --set seabed.friction=null --set contact=null")
     ap.add_argument("--from", dest="t_from", type=float, default=0.0)
     ap.add_argument("--t-end", type=float, default=None)
     ap.add_argument("--every", type=float, default=0.1)
@@ -304,18 +345,20 @@ def main() -> None:
     ap.add_argument("--newton", default="", help="Newton class attributes (or VERLET_SKIN) "
                     "ATTR=VALUE[,...] for the run (as contact_suite.py --newton)")
     args = ap.parse_args()
+    if args.case not in cs.CASES and not os.path.isfile(args.case):
+        ap.error(f"{args.case}: neither a suite case nor a case file")
     if args.newton:
         from replay_steps import set_newton
         set_newton(args.newton)
     if args.probe is not None:
         probe(args.case, args.probe, [float(x) for x in args.probe_dt.split(",")],
-              args.residuals)
+              args.residuals, args.sets)
         return
     if args.t_end is None:
         ap.error("--t-end is required (without --probe)")
     load = os.getloadavg()[0]
     wall = time.perf_counter()
-    rows = [a for a in record(args.case, args.t_end, args.starts)
+    rows = [a for a in record(args.case, args.t_end, args.starts, args.sets)
             if a["t"] >= args.t_from - 1e-12]
     wall = time.perf_counter() - wall
     edges = (np.array([float(x) for x in args.edges.split(",")]) if args.edges
