@@ -162,6 +162,8 @@ def submit(args: argparse.Namespace) -> int:
             if reused:
                 print(f"hockle submit: {reused.format(id=job.id, finished=job.finished)}",
                       file=out)
+            for advice in job.advice:
+                print(f"hockle submit: advice: {advice}", file=sys.stderr)
             if not args.wait:
                 return 0
             last = [None]

@@ -67,6 +67,11 @@ class JobStatus(BaseModel):
         "solver version is reused (submit with ?fresh=true to run it again); "
         "idempotency_key, a retry of an earlier request with the same Idempotency-Key. Also "
         "in the Hockle-Reused header.")
+    advice: list[str] = Field(
+        default_factory=list, description="Set only on the answer to a submission: advice "
+        "on the case as given, each naming the fields to change (a start pose more than a "
+        "tenth of the diameter off its initial.centreline; docs/case-spec.md). The case "
+        "runs as given; its result carries the advice as the attribute hockle_advice.")
     links: JobLinks
 
     @property

@@ -109,10 +109,11 @@ REUSED_HEADER = "Hockle-Reused"
 
 def _submit(svc: Services, body: bytes, content_type: str | None, idempotency_key: str | None,
             fresh: bool, time_limit: float | None = None,
-            owner: str | None = None) -> tuple[Job, int, str | None]:
-    """Validate, record and queue a case: ``(job, status, reused)``; ``reused`` is None for a
-    new job (201), else why an earlier job answers (200): ``identical_case`` or
-    ``idempotency_key``."""
+            owner: str | None = None) -> tuple[Job, int, str | None, list[str]]:
+    """Validate, record and queue a case: ``(job, status, reused, advice)``; ``reused`` is
+    None for a new job (201), else why an earlier job answers (200): ``identical_case`` or
+    ``idempotency_key``; ``advice`` what the case as given is advised
+    (:func:`case_advice`)."""
     _check_time_limit(time_limit, svc.settings.time_limit_max)
     case = validate_case(parse_body(body, content_type), svc.settings.max_case_size)
     start_from_job(case, svc.registry, owner)       # checked now; the worker reads it again
@@ -120,11 +121,23 @@ def _submit(svc: Services, body: bytes, content_type: str | None, idempotency_ke
                                                   contact=case.contact is not None,
                                                   t_end=float(case.numerics.t_end),
                                                   requested=time_limit)
-    return record_and_enqueue(
+    job, status, reused = record_and_enqueue(
         svc, kind="dynamic", canonical=case.canonical_json(), spec_hash=case.spec_hash(),
         name=case.name, grid_points=case.grid_points, n_steps=case.n_steps,
         t_end=float(case.numerics.t_end), limits=(hard, soft, budget),
         idempotency_key=idempotency_key, fresh=fresh, time_limit=time_limit, owner=owner)
+    return job, status, reused, case_advice(case)
+
+
+def case_advice(case) -> list[str]:
+    """The advice on a validated case as given (the run's ``hockle_advice``): a start pose
+    more than a tenth of the diameter off its ``initial.centreline``
+    (:meth:`solver.initial.StartOffset.advice`); empty where there is none."""
+    from solver.initial import start_offset
+
+    off = start_offset(case)
+    advice = off.advice() if off is not None else None
+    return [advice] if advice else []
 
 
 def record_and_enqueue(svc: Services, *, kind: str, canonical: str, spec_hash: str,
@@ -238,7 +251,7 @@ async def submit_job(
     body = await read_body(request)
     # a burst of submissions waits here, not in the thread pool that status polls need
     async with submit_slots(request):
-        job, status, reused = await run_in_threadpool(
+        job, status, reused, advice = await run_in_threadpool(
             _submit, svc, body, request.headers.get("content-type"), idempotency_key, fresh,
             time_limit, owner
         )
@@ -246,7 +259,7 @@ async def submit_job(
     response.headers["Location"] = f"/v1/jobs/{job.id}"
     if reused is not None:
         response.headers[REUSED_HEADER] = reused
-    return job_status(job, _exists).model_copy(update={"reused": reused})
+    return job_status(job, _exists).model_copy(update={"reused": reused, "advice": advice})
 
 
 @router.get("/jobs", operation_id="list_jobs", summary="List jobs", response_model=JobList,

@@ -70,7 +70,7 @@ def _create(svc: Services, data, fresh: bool, time_limit: float | None,
                 job_ids.append(known)
                 continue
             extra = {"owner": owner} if owner is not None else {}
-            job, status, _ = jobs_router._submit(svc, body=case.canonical_json().encode(),
+            job, status, _, _ = jobs_router._submit(svc, body=case.canonical_json().encode(),
                                                  content_type="application/json",
                                                  idempotency_key=None, fresh=fresh,
                                                  time_limit=time_limit, **extra)

@@ -323,3 +323,31 @@ def test_job_status_eta_is_the_solvers_estimate(client, settings, monkeypatch):
     assert _run(settings, job["id"]) == "successful"
     [(solver_eta, shown)] = seen
     assert solver_eta - 5.0 <= shown <= solver_eta
+
+
+def test_a_submission_answers_the_advice_on_its_case_and_the_case_runs(client, settings):
+    """A twisted curved start 1.9 diameters off its centreline (a 1-m arc of radius 0.5 m,
+    τ0 = 20 rad/m, 40 segments) is accepted (201, advice is not a refusal) with the advice
+    naming numerics.n_segments in the answer, and its result carries it as hockle_advice;
+    a straight case's answer has none."""
+    from hockle.api import circular_arc
+    from hockle.io import open_result
+
+    plain = client.post("/v1/jobs", json=tiny_case("no advice"))
+    assert plain.status_code == 201 and plain.json()["advice"] == []
+    case = tiny_case("advised", n_segments=40)
+    case["initial"] = {"centreline": circular_arc(case["rod"]["length"], 0.5),
+                       "twist_rate": 20.0}
+    answer = client.post("/v1/jobs", json=case)
+    assert answer.status_code == 201, answer.text
+    body = answer.json()
+    assert len(body["advice"]) == 1
+    assert body["advice"][0].startswith("initial.centreline: on 40 segments")
+    assert "numerics.n_segments of about 180" in body["advice"][0]
+    assert client.get(f"/v1/jobs/{body['id']}").json()["advice"] == []
+    _run(settings, body["id"])
+    data = client.get(f"/v1/jobs/{body['id']}/results").content
+    path = settings.data_dir / "advised.nc"
+    path.write_bytes(data)
+    with open_result(path) as ds:
+        assert ds.attrs["hockle_advice"] == body["advice"][0]
