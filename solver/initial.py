@@ -103,9 +103,8 @@ class Curve:
 
 
 def _frames(curve, s, normal, twist_rate):
-    """Frames R (n, 3, 3) [a1 a2 a3], curvatures κ (n, 3) 1/m and the curve's points
-    (n, 3) m at arclengths s (n,) (uniform, from 0) of the curve scaled to length s[-1]
-    (module docstring)."""
+    """Frames R (n, 3, 3) [a1 a2 a3] and curvatures κ (n, 3) 1/m at arclengths s (n,)
+    (uniform, from 0) of the curve scaled to length s[-1] (module docstring)."""
     n = s.size
     scale = curve.length / s[-1]
     sub = np.linspace(0.0, s[-1], (n - 1) * _SUB + 1)
@@ -142,7 +141,7 @@ def _frames(curve, s, normal, twist_rate):
     kappa[:, 1] = -sn[:, 0] * theta[:, 0] + c[:, 0] * theta[:, 1]
     kappa[:, 2] = float(twist_rate)
     R = np.stack([B1, B2, T], axis=2)
-    return R, kappa, r[idx]
+    return R, kappa, r[0]
 
 
 def _dual_cell_curvatures(frames, n, ds):
@@ -199,10 +198,17 @@ def initial_pose(case, s):
     """
     from .kinematics import quat_from_matrix, space_route
 
+    ini = case.initial
     s = np.asarray(s, dtype=float)
     n1 = s.size
-    tangent, normal, twist = _start_axes(case.initial)
-    if getattr(case.initial, "centreline", None) is None:
+    tangent = np.asarray(ini.tangent, float)
+    tangent = tangent / np.linalg.norm(tangent)
+    normal = np.asarray(ini.normal, float)
+    normal = normal - np.dot(normal, tangent) * tangent
+    normal = normal / np.linalg.norm(normal)
+    centreline = getattr(ini, "centreline", None)
+    twist = float(getattr(ini, "twist_rate", 0.0) or 0.0)
+    if centreline is None:
         R0 = np.column_stack([normal, np.cross(tangent, normal), tangent])
         q0 = quat_from_matrix(R0)
         if twist == 0.0:
@@ -211,31 +217,11 @@ def initial_pose(case, s):
         kappa[:, 2] = twist
         q, r = space_route(q0, np.zeros(3), kappa, float(s[1] - s[0]))
         return q, r, kappa
-    q, r, kappa, _ = _curved_pose(case, s, normal, twist)
-    return q, r, kappa
-
-
-def _start_axes(ini):
-    """(tangent (3,), normal (3,) made normal to it, both unit; twist rate τ0 rad/m) of
-    the case's ``initial`` section."""
-    tangent = np.asarray(ini.tangent, float)
-    tangent = tangent / np.linalg.norm(tangent)
-    normal = np.asarray(ini.normal, float)
-    normal = normal - np.dot(normal, tangent) * tangent
-    normal = normal / np.linalg.norm(normal)
-    return tangent, normal, float(getattr(ini, "twist_rate", 0.0) or 0.0)
-
-
-def _curved_pose(case, s, normal, twist):
-    """(q, r, κ) of :func:`initial_pose` for a start on the case's centreline, and the
-    centreline's points at the grid's arclengths (N+1, 3) m."""
-    from .kinematics import quat_from_matrix, space_route
-
-    curve = Curve(case.initial.centreline.points)
-    R, kappa, target = _frames(curve, s - s[0], normal, twist)
+    curve = Curve(centreline.points)
+    R, kappa, r0 = _frames(curve, s - s[0], normal, twist)
     q0 = quat_from_matrix(R[0])
-    q, r = space_route(q0, np.asarray(target[0], float), kappa, float(s[1] - s[0]))
-    return q, r, kappa, target
+    q, r = space_route(q0, np.asarray(r0, float), kappa, float(s[1] - s[0]))
+    return q, r, kappa
 
 
 @dataclass(frozen=True)
@@ -281,7 +267,7 @@ class StartOffset:
 START_OFFSET_ADVICE = 0.1
 
 
-def start_offset(case, s=None, diameter=None) -> StartOffset | None:
+def start_offset(case, s=None, diameter=None, r=None) -> StartOffset | None:
     """How far the start pose of ``case`` on the grid s lies from its given centreline.
 
     Parameters
@@ -289,6 +275,8 @@ def start_offset(case, s=None, diameter=None) -> StartOffset | None:
     case : solver.case.Case (validated)
     s : (N+1,) grid arclengths, m (uniform; default the case's grid)
     diameter : (N+1,) the rod's diameter at s, m (default the case's ``rod.diameter``)
+    r : (N+1, 3) the start pose's positions, m, where the caller has them (a run at its
+        start); default :func:`initial_pose`'s
 
     Returns
     -------
@@ -303,20 +291,22 @@ def start_offset(case, s=None, diameter=None) -> StartOffset | None:
     bending's circle, shorter by cos(½Δs·τ0)).
     """
     ini = case.initial
-    if getattr(ini, "centreline", None) is None or getattr(ini, "from_result", None) is not None:
+    if getattr(ini, "centreline", None) is None:      # also a start from a result
         return None
     if s is None:
         s = np.linspace(0.0, case.rod.length, case.numerics.n_segments + 1)
     s = np.asarray(s, dtype=float)
     if diameter is None:
         diameter = case.rod.evaluate("diameter", s)
-    _, normal, twist = _start_axes(ini)
-    _, r, _, target = _curved_pose(case, s, normal, twist)
-    d = np.linalg.norm(r - target, axis=1)
+    if r is None:
+        r = initial_pose(case, s)[1]
+    curve = Curve(ini.centreline.points)
+    target = curve.spline(curve.parameter_at((s - s[0]) * (curve.length / (s[-1] - s[0]))))
+    d = np.linalg.norm(np.asarray(r, float) - target, axis=1)
     k = int(np.argmax(d))
     share = float(d[k] / np.asarray(diameter, float)[k])
-    return StartOffset(distance=float(d[k]), s=float(s[k]), share=share,
-                       segments=s.size - 1, twist_step=float(abs(twist) * (s[1] - s[0])))
+    return StartOffset(distance=float(d[k]), s=float(s[k]), share=share, segments=s.size - 1,
+                       twist_step=float(abs(float(ini.twist_rate or 0.0)) * (s[1] - s[0])))
 
 
 @dataclass

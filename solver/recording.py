@@ -326,8 +326,10 @@ class Recorder:
         self.refused_before = sum(run.refusals.values())
         self.budget = case.numerics.wall_clock_budget
         self.rate = EtaModel()
-        # how far the start pose lies from the case's centreline (None: no centreline)
-        self.start_offset = start_offset(case, run.props.s, run.props.diameter)
+        # how far the start pose lies from the case's centreline (None: no centreline); a
+        # fresh run is at its start pose
+        self.start_offset = start_offset(case, run.props.s, run.props.diameter,
+                                         r=run.r if resume is None else None)
 
     def save(self) -> None:
         """Hand a checkpoint of the last accepted state to the checkpoint hook."""

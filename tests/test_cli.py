@@ -89,9 +89,10 @@ def test_validate_bad_case_names_fields(tmp_path, capsys):
 
 
 def test_validate_says_how_far_a_curved_start_lies_and_advises_a_finer_grid(tmp_path, capsys):
-    """A twisted curved start (a 1-m arc of radius 0.5 m, τ0 = 20 rad/m) on 40 segments lies 37 mm (1.9 diameters) off its centreline: validate
-    prints the offset on stdout, and on stderr the advice naming numerics.n_segments;
-    the exit status stays 0 (advice, not an error)."""
+    """A twisted curved start (a 1-m arc of radius 0.5 m, τ0 = 20 rad/m) on 40 segments
+    lies 37 mm (1.9 diameters) off its centreline: validate prints the offset on stdout,
+    and on stderr the advice naming numerics.n_segments; the exit status stays 0 (advice,
+    not an error)."""
     from hockle.api import circular_arc
 
     spec = copy.deepcopy(TINY)
