@@ -58,7 +58,7 @@ import numpy as np
 
 from .banded import NV, block_factor, block_solve, block_storage, copy_into, fill
 from .contact.model import candidate_gaps_into
-from .scheme import E3, W, exact_loads_product, pose_into, residual_into
+from .scheme import E3, E4, W, exact_loads_product, pose_into, residual_into
 
 __all__ = ["Newton", "equilibrate", "scale_blocks", "FAILURES"]
 
@@ -166,9 +166,10 @@ def _matvec_kernel(blocks, x, load_weight, dB, out):
 #          column scale (n,))
 #   op  = (scaled band blocks (N, 12, 24), scaled boundary values (12,), load row weight
 #          (N, 3), exact product data (R, C, D, tmid, rdot, A0, G, L, contact pairs, scal,
-#          scratch: exact_loads_product's ``op``), flags (2,) int: [coupled, pairs])
+#          scratch, the seabed's linearisation: exact_loads_product's ``op``), flags (2,)
+#          int: [coupled, pairs])
 #   gm  = (V (m+1, n), Z (m, n), H (m+1, m), cs, sn (m,), g (m+1,), w, x, r (n,),
-#          dY (N+1, 12), dB (N+1, 3))
+#          dY (N+1, 12), dB (N+1, 3), dS (N, 6))
 #   ws  = (Y, Ytrial (N+1, 12), delta, rhs, stall scale (n,), history (max_it + 1,),
 #          gaps g0, g1 (runs,), frozen (runs,) int, pose scratch q (N+1, 4), R (N+1, 3, 3),
 #          r, θ (N+1, 3), trace (max_it + 2, 4): per iteration the scaled residual, the
@@ -176,6 +177,16 @@ def _matvec_kernel(blocks, x, load_weight, dB, out):
 #          (N+1, 3); the last iterate's positions (N+1, 3) and how far the last
 #          correction moved them (1,), for the position test)
 #   ctr = (factorisations, GMRES iterations, GMRES failures, factor valid) int64
+
+
+def _product_tail(n1, nc, ds):
+    """The exact product's scalars (Δt, Δs, αf), scratch dφ, dr, dG (N+1, 3) and the
+    seabed's linearisation (cells (N,) int, count (1,) int, partials (N, 6, 12), loads
+    (N, 6), R ω (N+1, 3), ½Δt R J_r(θ) (N+1, 3, 3)): the tail of the operator's ``ex``
+    (module comment), zero."""
+    return (np.array([0.0, float(ds), 0.0]), np.zeros((n1, 3)), np.zeros((n1, 3)),
+            np.zeros((n1, 3)), np.zeros(nc, np.int64), np.zeros(1, np.int64),
+            np.zeros((nc, 6, 12)), np.zeros((nc, 6)), np.zeros((n1, 3)), np.zeros((n1, 3, 3)))
 
 
 @numba.njit(cache=True)
@@ -209,7 +220,7 @@ def _set_operator(buf, ev, lin, op, step, weight, af):
         return
     P = bflags[1]
     (R, C, D, tmid, rdot, A0, G, L, nodes, w, Fp, d_dr, d_dv, dtdr, dwdt, scal, dphi, dr,
-     dG) = ex
+     dG, sbc, sbn, sbj, sbl, Og, Aphi) = ex
     copy_into(R, buf[6])
     copy_into(C, buf[14])
     copy_into(D, buf[15])
@@ -219,6 +230,20 @@ def _set_operator(buf, ev, lin, op, step, weight, af):
     copy_into(G, buf[10])
     copy_into(L, buf[19])
     scal[0] = step[11][0]
+    scal[2] = af
+    # the seabed's linearisation (solver.seabed.seabed_into's ``lin``), its cells only
+    nsb = buf[24][0]
+    sbn[0] = nsb
+    for j in range(nsb):
+        c = buf[23][j]
+        sbc[j] = c
+        for i in range(6):
+            sbl[c, i] = buf[26][c, i]
+            for m in range(12):
+                sbj[c, i, m] = buf[25][c, i, m]
+    if nsb > 0:
+        copy_into(Og, buf[27])
+        copy_into(Aphi, buf[28])
     for p in range(P):
         for b in range(5):
             nodes[p, b] = ev[4][p, b]
@@ -279,13 +304,21 @@ def _matvec(x, out, lin, op, step, gm):
     blocks, bc_scaled, lrw, ex, flags = op
     cs = lin[3]
     if flags[0]:
-        dY, dB = gm[9], gm[10]
+        dY, dB, dS = gm[9], gm[10], gm[11]
         n1 = dY.shape[0]
         for k in range(n1):
             for j in range(NV):
                 dY[k, j] = x[NV * k + j] * cs[NV * k + j]
-        exact_loads_product(dY, ex, flags[1], dB)
+        exact_loads_product(dY, ex, flags[1], dB, dS)
         _matvec_kernel(blocks, x, lrw, dB, out)
+        rs = lin[1]
+        sbc = ex[19]
+        for j in range(ex[20][0]):
+            c = sbc[j]
+            base = 6 + NV * c
+            for i in range(3):
+                out[base + E3 + i] += rs[base + E3 + i] * dS[c, i]
+                out[base + E4 + i] += rs[base + E4 + i] * dS[c, 3 + i]
     else:
         _matvec_kernel(blocks, x, lrw[:0], gm[10][:0], out)
     bc_rows, bc_cols = step[7], step[8]
@@ -848,6 +881,7 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
             if hold[0] == 1.0:
                 hold[0] = 2.0
             trace[it, 2] = step_frac
+            trace[it, 3] = gmres_last
             copy_into(Y, Yt)
             cached = True
             if step_frac < 1.0:
@@ -977,7 +1011,7 @@ class Newton:
             ctr = np.zeros(4, np.int64)
             gm = (np.zeros((m + 1, n)), np.zeros((m, n)), np.zeros((m + 1, m)), np.zeros(m),
                   np.zeros(m), np.zeros(m + 1), np.zeros(n), np.zeros(n), np.zeros(n),
-                  np.zeros((n1, NV)), np.zeros((n1, 3)))
+                  np.zeros((n1, NV)), np.zeros((n1, 3)), np.zeros((nc, 6)))
         else:
             lin, ctr, gm = old["lin"], old["ctr"], old["gm"]
         pairs = (np.zeros((cap, 5), np.intp), np.zeros((cap, 5)), np.zeros((cap, 3)),
@@ -987,6 +1021,7 @@ class Newton:
             for new, prev in zip(pairs, old["op"][3][8:15]):
                 new[:prev.shape[0]] = prev
             frame = old["op"][3][:8]
+            tail = old["op"][3][15:]
             head = old["op"][:3]
             flags = old["op"][4]
         else:
@@ -995,8 +1030,8 @@ class Newton:
                      np.zeros((n1, 3)), np.zeros((n1, 3, 6)))
             head = (np.zeros((nc, NV, 2 * NV)), np.zeros(30), np.zeros((nc, 3)))
             flags = np.zeros(2, np.int64)
-        ex = frame + pairs + (np.array([0.0, sysm.p.ds]), np.zeros((n1, 3)),
-                              np.zeros((n1, 3)), np.zeros((n1, 3)))
+            tail = _product_tail(n1, nc, sysm.p.ds)
+        ex = frame + pairs + tail
         op = head + (ex, flags)
         ws = (np.zeros((n1, NV)), np.zeros((n1, NV)), np.zeros(n), np.zeros(n), np.zeros(n),
               np.zeros(self.max_iterations + 2), np.zeros(cap), np.zeros(cap),
@@ -1020,6 +1055,15 @@ class Newton:
         self._state = None
         if saved is not None:
             self._allocate(saved["cap"])
+            ex = saved["op"][3]
+            if len(ex) < len(self._state["op"][3]):
+                # a checkpoint from before the seabed's exact product: its (Δt, Δs) and
+                # scratch, then the seabed's arrays (empty: the next factorisation fills them)
+                n1, nc = self.system.n_nodes, self.system.n_cells
+                tail = _product_tail(n1, nc, float(ex[15][1]))
+                tail[0][0] = ex[15][0]
+                ex = ex[:15] + tail
+                saved = dict(saved, op=saved["op"][:3] + (ex,) + saved["op"][4:])
             self._state.update(saved)
 
     @property

@@ -388,16 +388,31 @@ def _exact_frames_kernel(R, Y, theta, ds, dt, C, D, tmid, rdot, A0):
 
 
 @numba.njit(cache=True)
-def exact_loads_product(dY, op, P, dB):
+def exact_loads_product(dY, op, P, dB, dS):
     """The body-frame load change dB (N+1, 3) for a change dY (N+1, 12) of the unknowns,
-    exact for the space-route pose, minus the node-local part the band holds
-    (:meth:`RodSystem.linearization` gives the formulas); ``op``: the pose and contact
+    exact for the space-route pose, minus the node-local part the band holds, and the
+    same for the seabed's cell loads, dS (N, 6) (the E3 and E4 cell rows' change, unscaled;
+    only the rows of touching cells are written); ``op``: the pose, contact and seabed
     data of :func:`residual_into` at the linearisation point (R, C, D, tmid, rdot, A0,
     G, L and the first P contacts' nodes, weights, force, ∂F/∂r, ∂F/∂v, ∂t/∂r, ∂w/∂t;
-    (Δt, Δs) s, m; and scratch dφ, dr, dG (N+1, 3)).
-    Prefix sums along the rod, the pairs' load changes and the body-frame rotation in
-    one pass each: O(N + P)."""
-    R, C, D, tmid, rdot, A0, G, L, nodes, w, Fp, d_dr, d_dv, dtdr, dwdt, scal, dphi, dr, dG = op
+    (Δt, Δs, αf) s, m, 1; scratch dφ, dr, dG (N+1, 3); the seabed's cells, count,
+    partials and loads (:func:`solver.seabed.seabed_into`), R ω (N+1, 3) and
+    ½Δt R J_r(θ) (N+1, 3, 3)).
+
+    The pose's change is integrated along s (δφ_k, δr_k: the spatial rotation and the
+    displacement of node k, through κ upstream and node 0's time route): the contact
+    forces' change at the pairs' nodes and the global load's rotation give dB. For the
+    seabed only the difference from the band's linearisation is formed: per node
+    Δφ = δφ − ½Δt R J_r δω and Δr = δr − ½Δt(δφ_b × ṙ + R δv) (the band's time-route
+    change, :func:`solver.seabed._seeds_into`), Δṙ = Δφ × ṙ (R δv cancels); at a touching
+    cell's midpoint δx, δu = the means of Δr, Δṙ, δΩ = the mean of Δφ × Rω, δt = the mean
+    of Δφ × R a3; then [δF; δM] = ∂(F, M)/∂(x, u, Ω, t)·(δx, δu, δΩ, δt) and the cell rows
+    change by ½(1 − αf) Σ_k R_kᵀ(δF + F × Δφ_k) and ½(1 − αf) Σ_k R_kᵀ(δM + M × Δφ_k)
+    (δ(Rᵀ F) = Rᵀ(F × δφ) for δR = [δφ]× R). Prefix sums along the rod, the pairs' load
+    changes, the touching cells and the body-frame rotation in one pass each:
+    O(N + P)."""
+    (R, C, D, tmid, rdot, A0, G, L, nodes, w, Fp, d_dr, d_dv, dtdr, dwdt, scal, dphi, dr, dG,
+     sbc, sbn, sbj, sbl, Og, Aphi) = op
     n1 = dY.shape[0]
     dt = scal[0]
     ds = scal[1]
@@ -468,6 +483,75 @@ def exact_loads_product(dY, op, P, dB):
             for j in range(6):
                 acc -= L[k, i, j] * dY[k, j]
             dB[k, i] = acc
+    if sbn[0] > 0:
+        _seabed_product(dY, R, rdot, Og, Aphi, dphi, dr, sbc, sbn[0], sbj, sbl,
+                        0.5 * dt, 0.5 * (1.0 - scal[2]), dS)
+
+
+@numba.njit(cache=True)
+def _seabed_product(dY, R, rdot, Og, Aphi, dphi, dr, cells, count, J, FM, hdt, half_gf, dS):
+    """The seabed's part of :func:`exact_loads_product` (its docstring has the formulas)
+    into dS (N, 6) for the ``count`` touching cells listed in ``cells``: the space route's
+    change of each touching cell's E3 and E4 rows minus the band's. hdt = ½Δt (s),
+    half_gf = ½(1 − αf)."""
+    Dphi = np.empty((2, 3))
+    Dr = np.empty((2, 3))
+    z = np.empty(12)
+    d = np.empty(6)
+    for j in range(count):
+        c = cells[j]
+        for e in range(2):
+            k = c + e
+            # the band's δφ_b = ½Δt R J_r δω and δṙ_b = δφ_b × ṙ + R δv
+            b0 = Aphi[k, 0, 0] * dY[k, W] + Aphi[k, 0, 1] * dY[k, W + 1] + Aphi[k, 0, 2] * dY[k, W + 2]
+            b1 = Aphi[k, 1, 0] * dY[k, W] + Aphi[k, 1, 1] * dY[k, W + 1] + Aphi[k, 1, 2] * dY[k, W + 2]
+            b2 = Aphi[k, 2, 0] * dY[k, W] + Aphi[k, 2, 1] * dY[k, W + 1] + Aphi[k, 2, 2] * dY[k, W + 2]
+            v0, v1, v2 = dY[k, V], dY[k, V + 1], dY[k, V + 2]
+            u0 = b1 * rdot[k, 2] - b2 * rdot[k, 1] + R[k, 0, 0] * v0 + R[k, 0, 1] * v1 + R[k, 0, 2] * v2
+            u1 = b2 * rdot[k, 0] - b0 * rdot[k, 2] + R[k, 1, 0] * v0 + R[k, 1, 1] * v1 + R[k, 1, 2] * v2
+            u2 = b0 * rdot[k, 1] - b1 * rdot[k, 0] + R[k, 2, 0] * v0 + R[k, 2, 1] * v1 + R[k, 2, 2] * v2
+            Dphi[e, 0] = dphi[k, 0] - b0
+            Dphi[e, 1] = dphi[k, 1] - b1
+            Dphi[e, 2] = dphi[k, 2] - b2
+            Dr[e, 0] = dr[k, 0] - hdt * u0
+            Dr[e, 1] = dr[k, 1] - hdt * u1
+            Dr[e, 2] = dr[k, 2] - hdt * u2
+        for i in range(12):
+            z[i] = 0.0
+        for e in range(2):
+            k = c + e
+            p0, p1, p2 = Dphi[e, 0], Dphi[e, 1], Dphi[e, 2]
+            for i in range(3):
+                z[i] += 0.5 * Dr[e, i]
+            # Δṙ = Δφ × ṙ, Δφ × Rω, Δφ × R a3 (halved: the midpoint's means)
+            z[3] += 0.5 * (p1 * rdot[k, 2] - p2 * rdot[k, 1])
+            z[4] += 0.5 * (p2 * rdot[k, 0] - p0 * rdot[k, 2])
+            z[5] += 0.5 * (p0 * rdot[k, 1] - p1 * rdot[k, 0])
+            z[6] += 0.5 * (p1 * Og[k, 2] - p2 * Og[k, 1])
+            z[7] += 0.5 * (p2 * Og[k, 0] - p0 * Og[k, 2])
+            z[8] += 0.5 * (p0 * Og[k, 1] - p1 * Og[k, 0])
+            z[9] += 0.5 * (p1 * R[k, 2, 2] - p2 * R[k, 1, 2])
+            z[10] += 0.5 * (p2 * R[k, 0, 2] - p0 * R[k, 2, 2])
+            z[11] += 0.5 * (p0 * R[k, 1, 2] - p1 * R[k, 0, 2])
+        for i in range(6):
+            acc = 0.0
+            for m in range(12):
+                acc += J[c, i, m] * z[m]
+            d[i] = acc
+        for i in range(6):
+            dS[c, i] = 0.0
+        for e in range(2):
+            k = c + e
+            p0, p1, p2 = Dphi[e, 0], Dphi[e, 1], Dphi[e, 2]
+            for h in range(2):
+                o = 3 * h
+                # δF + F × Δφ (h = 0), δM + M × Δφ (h = 1), then Rᵀ
+                g0 = d[o] + FM[c, o + 1] * p2 - FM[c, o + 2] * p1
+                g1 = d[o + 1] + FM[c, o + 2] * p0 - FM[c, o] * p2
+                g2 = d[o + 2] + FM[c, o] * p1 - FM[c, o + 1] * p0
+                for i in range(3):
+                    dS[c, o + i] += half_gf * (R[k, 0, i] * g0 + R[k, 1, i] * g1
+                                               + R[k, 2, i] * g2)
 
 
 @numba.njit(cache=True, inline="always")
@@ -598,7 +682,7 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
     has_r_old = sscal[4] != 0.0
     has_points = pl_nodes.shape[0] > 0
     (R, cells, Fn, dF, blocks, q, Rm, r, theta, vg, G, diag, loadrot, brot, C, D, tmid,
-     rdot, A0, L, drag_b, drag_j, Jr, bcj, flags) = buf
+     rdot, A0, L, drag_b, drag_j, Jr, sbc, sbn, sbj, sbl, Og, Aphi, bcj, flags) = buf
     n1 = Y.shape[0]
     contact = cand[2].shape[0] > 0
     turning = sscal[6] != 0.0 or sscal[7] != 0.0
@@ -652,17 +736,6 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
     node_terms_into(Y, want_jac, mass_t, stiffness, inertia, has_drag, cdn, cdt, rotate, Rm,
                     theta, 0.5 * dt, G, add_diag, diag, Fn, dF, loadrot, brot, drag_b, drag_j,
                     Jr)
-    if want_jac and space and need_pose and have_G:
-        # the exact load product's data (self-contact configured: the pose is the space
-        # route, so every node's position and frame depends on κ upstream of it)
-        _exact_frames_kernel(Rm, Y, theta, ds, dt, C, D, tmid, rdot, A0)
-        for k in range(n1):
-            for a in range(3):
-                for b in range(6):
-                    L[k, a, b] = diag[k, a, b] if add_diag else 0.0
-                for b in range(3):
-                    L[k, a, 3 + b] += loadrot[k, a, b]
-        flags[3] = 1
     _cells_kernel(Y, Fn, zconst, flux_const, mass_t, stiffness, inertia, cm, af, ds, cells)
     for m in range(bc_rows.shape[0]):
         col = bc_cols[m]
@@ -690,11 +763,41 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
                         bcj[e, 2, j] = c * (-b[1] * Jr[k, 0, j] + b[0] * Jr[k, 1, j])
     if want_jac:
         _cell_blocks_kernel(dF, mass_t, stiffness, inertia, cm, af, ds, blocks)
+    exact = want_jac and space and has_r_old and need_pose
+    sbn[0] = 0
     if has_seabed:
         # the sea floor's loads per cell, at its midpoint on the new-level pose, and the
         # old level's share frozen by begin_step (solver.seabed), into the cell rows and
-        # blocks: exact for the time route
-        seabed_into(Y, Rm, r, vg, theta, dt, af, seabed, want_jac, cells, blocks)
+        # blocks: exact for the time route; on the space route the law's linearisation
+        # is kept for the exact product
+        seabed_into(Y, Rm, r, vg, theta, dt, af, seabed, want_jac, cells, blocks, exact,
+                    (sbc, sbn, sbj, sbl))
+    if exact and (have_G or sbn[0] > 0):
+        # the exact load product's data (self-contact configured: the pose is the space
+        # route, so every node's position and frame depends on κ upstream of it)
+        _exact_frames_kernel(Rm, Y, theta, ds, dt, C, D, tmid, rdot, A0)
+        if not have_G:
+            fill(G, 0.0)
+        for k in range(n1):
+            for a in range(3):
+                for b in range(6):
+                    L[k, a, b] = diag[k, a, b] if add_diag else 0.0
+                if rotate:
+                    for b in range(3):
+                        L[k, a, 3 + b] += loadrot[k, a, b]
+        if sbn[0] > 0:
+            # the seabed's: each node's global angular velocity R ω and the band's
+            # (time-route) frame change per unit ω^{n+1}, ½Δt R J_r(θ)
+            for k in range(n1):
+                _right_jacobian_into(theta[k, 0], theta[k, 1], theta[k, 2], Jr, k)
+                for i in range(3):
+                    Og[k, i] = (Rm[k, i, 0] * Y[k, W] + Rm[k, i, 1] * Y[k, W + 1]
+                                + Rm[k, i, 2] * Y[k, W + 2])
+                    for j in range(3):
+                        Aphi[k, i, j] = 0.5 * dt * (Rm[k, i, 0] * Jr[k, 0, j]
+                                                    + Rm[k, i, 1] * Jr[k, 1, j]
+                                                    + Rm[k, i, 2] * Jr[k, 2, j])
+        flags[3] = 1
     if has_points:
         point_loads_into(Y, Rm, theta, 0.5 * dt, ds, af, want_jac, pl_nodes, pl_cells, pl_side,
                          pl_vals, pl_dead, pl_old, cells, blocks, Jr)
@@ -838,8 +941,10 @@ class RodSystem:
         load G (N+1, 3), the node-local contact block (N+1, 3, 6), the load rotation's
         block (N+1, 3, 3), the body-frame load (N+1, 3), the exact product's C, D
         (N, 3, 3), mid-cell tangents (N, 3), ṙ (N+1, 3), A0 (3, 3), L (N+1, 3, 6), scratch
-        (N+1, 3), (N+1, 3, 3) ×2, the towed ends' ∂(v − RᵀV)/∂ω blocks (2, 3, 3) and the
-        flags (4,) int."""
+        (N+1, 3), (N+1, 3, 3) ×2, the seabed's linearisation for the exact product
+        (:func:`solver.seabed.seabed_into`'s ``lin``: cells (N,) int, count (1,) int,
+        partials (N, 6, 12), loads (N, 6)), R ω (N+1, 3), ½Δt R J_r(θ) (N+1, 3, 3), the
+        towed ends' ∂(v − RᵀV)/∂ω blocks (2, 3, 3) and the flags (4,) int."""
         n1, nc = self.n_nodes, self.n_cells
         R = np.zeros(self.n)
         return (R, R[6:6 + NV * nc].reshape(nc, NV), np.zeros((n1, NV)), np.zeros((n1, NV, NV)),
@@ -848,7 +953,9 @@ class RodSystem:
                 np.zeros((n1, 3, 6)), np.zeros((n1, 3, 3)), np.zeros((n1, 3)),
                 np.zeros((nc, 3, 3)), np.zeros((nc, 3, 3)), np.zeros((nc, 3)),
                 np.zeros((n1, 3)), np.zeros((3, 3)), np.zeros((n1, 3, 6)), np.zeros((n1, 3)),
-                np.zeros((n1, 3, 3)), np.zeros((n1, 3, 3)), np.zeros((2, 3, 3)),
+                np.zeros((n1, 3, 3)), np.zeros((n1, 3, 3)), np.zeros(nc, np.int64),
+                np.zeros(1, np.int64), np.zeros((nc, 6, 12)), np.zeros((nc, 6)),
+                np.zeros((n1, 3)), np.zeros((n1, 3, 3)), np.zeros((2, 3, 3)),
                 np.zeros(4, np.int64))
 
     # ------------------------------------------------------------------ per step setup

@@ -46,10 +46,11 @@ the time route (r = r^n + ½Δt(ṙ^n + R v), R = R^n exp(½Δt(ω^n + ω)), Ω 
 R a3): propagated forward through every step of the formulas above. The law at the
 nodes let a lying cable rest on every other node (the box rule's averaging hides a
 node-to-node alternation of the nodal loads: 2w, 0, 2w, ... has the cell means w).
-With self-contact configured the pose is the space route (integrated along s from κ), and
-this derivative through the cell's two nodes only is the band's approximation of it
-(the exact product of :func:`solver.scheme.exact_loads_product` does not carry the
-seabed).
+With self-contact configured the pose is the space route (integrated along s from κ), so
+each cell's loads depend on κ upstream of it and on node 0's motion too: this derivative
+through the cell's two nodes is then the band's part (Newton's preconditioner), and the
+rest is in the exact product that GMRES applies (:func:`solver.scheme.exact_loads_product`,
+from the law's partials that :func:`seabed_into` keeps).
 
 **The damper's branch in a step.** Where the step is long against c/k (at Δt = 0.01 s
 with the default c/k = 0.1 s, c|n·ṙ| with ṙ ~ p/Δt is about ten times kp) N sits on the
@@ -531,6 +532,17 @@ def _seeds_into(Y, R, theta, k, hdt, col, Dr, Du, DOm, Dt, J, S, RS):
                     Dt[i, col + 3 + j] = 0.5 * RS[i, j]
 
 
+@numba.njit(cache=True)
+def _unit_seeds():
+    """Unit seeds (4, 3, 12) for :func:`_law`: the derivatives of x, u, Ω and t with
+    respect to (x, u, Ω, t) themselves, so that its DF, DM are the law's partials."""
+    E = np.zeros((4, 3, 12))
+    for a in range(4):
+        for i in range(3):
+            E[a, i, 3 * a + i] = 1.0
+    return E
+
+
 @numba.njit(cache=True, inline="always")
 def _midpoint(r, vg, Rm, omega, radius, a, x, u, Om, t):
     """The midpoint of cell (a, a + 1): centreline x, velocity u, global angular velocity
@@ -571,7 +583,7 @@ def _cell_touches(r, radius, a, lim, f):
 
 
 @numba.njit(cache=True)
-def seabed_into(Y, Rm, r, vg, theta, dt, af, data, want, cells, blocks):
+def seabed_into(Y, Rm, r, vg, theta, dt, af, data, want, cells, blocks, record, lin):
     """Add the seabed's loads to the cell rows (N, 12) of the residual and with ``want``
     their exact derivative to the cell blocks (N, 12, 24) on [node k | node k + 1]
     (module docstring): for each cell the law at its midpoint (position, velocity,
@@ -584,7 +596,14 @@ def seabed_into(Y, Rm, r, vg, theta, dt, af, data, want, cells, blocks):
     old level's share is data[5], frozen at the step's start by
     :meth:`Seabed.begin_step`). The derivative is with respect to the cell's two nodes' v and ω
     at the new level. A cell whose midpoint is above the bottom's top plus its radius
-    is skipped."""
+    is skipped.
+
+    With ``record`` (and ``want``: the pose is the space route, so the positions and
+    frames depend on κ upstream too) the law's linearisation at each loaded cell is kept
+    for the exact product (:func:`solver.scheme.exact_loads_product`) in
+    lin = (cells (N,) int, their count (1,) int, ∂(F, M)/∂(x, u, Ω, t) (N, 6, 12) and
+    (F, M) (N, 6) N/m, N m/m, global, at the new level), the partials by one more call of
+    the law with unit seeds in the branch the cell was evaluated in."""
     scal, radius = data[0], data[1]
     if scal[0] == 0.0:
         return
@@ -613,6 +632,12 @@ def seabed_into(Y, Rm, r, vg, theta, dt, af, data, want, cells, blocks):
     RS = np.empty((3, 3))
     b = np.empty(3)
     q = np.empty(3)
+    sbc, sbn, sbj, sbl = lin
+    sbn[0] = 0
+    if record:
+        E = _unit_seeds()
+        PF = np.empty((3, 12))
+        PM = np.empty((3, 12))
     modes, state = data[6], int(data[7][0])
     if state == 1:
         for c in range(n_cells):
@@ -636,6 +661,18 @@ def seabed_into(Y, Rm, r, vg, theta, dt, af, data, want, cells, blocks):
                 modes[c] = m
             if p <= 0.0 or m == 0:
                 continue
+            if want and record:
+                _law(x, u, Om, t, rho, data, True, E[0], E[1], E[2], E[3], Fnv, Ffv, Mv, PF,
+                     PM, wk, m, False)
+                j = sbn[0]
+                sbc[j] = c
+                sbn[0] = j + 1
+                for i in range(3):
+                    sbl[c, i] = Fnv[i] + Ffv[i]
+                    sbl[c, 3 + i] = Mv[i]
+                    for col in range(12):
+                        sbj[c, i, col] = PF[i, col]
+                        sbj[c, 3 + i, col] = PM[i, col]
             for e in range(2):
                 k = c + e
                 R = Rm[k]

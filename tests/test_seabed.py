@@ -134,6 +134,61 @@ def test_seabed_jacobian_matches_finite_differences(seabed):
     assert err.max() < 1e-7, (err.max(), int(np.argmax(err)))
 
 
+@pytest.mark.parametrize("friction", [False, True])
+def test_space_route_operator_is_the_jacobian_with_the_seabed(friction):
+    """With self-contact configured the pose is the space route (integrated along s from
+    κ), so a touching cell's seabed load depends on κ upstream of it: the operator GMRES
+    solves with (the band plus the exact product, :func:`solver.scheme.exact_loads_product`)
+    against central differences of the step's residual along random directions, at a
+    random state (twisted, some cells under a flat bottom, no strands near)."""
+    from solver.boundary import BoundaryRows
+    from solver.scheme import alpha_parameters
+
+    seabed = {"elevation": 0.0, "normal_stiffness": 5e4, "normal_damping": 5e2}
+    if friction:
+        seabed["friction"] = {"axial": 0.3, "lateral": 0.7, "static_to_kinetic": 1.5,
+                              "slip_velocity": 0.8}
+    spec = _spec(seabed, n=12, start={"translation": [{"velocity": 0}] * 3,
+                                      "rotation": [{"moment": 0.01}] * 3})
+    spec["rod"]["diameter"] = 0.4
+    spec["initial"] = {"tangent": [1, 0, 0], "normal": [0, 1, 0],
+                       "centreline": {"points": [[0, 0, 5.0], [1.0, 0, 5.0]]}}
+    spec["contact"] = {"aperture": 90.0, "tolerance": 0.5, "k1": 1e-7, "k2": 3.0,
+                       "k3": 1e-6, "k4": 1.0}
+    run = RodRun(Case.model_validate(spec))
+    sysm, newton = run.system, run.newton
+    rng = np.random.default_rng(7)
+    n1 = sysm.n_nodes
+    scale = np.repeat([0.3, 1.0, 0.5, 2.0], 3)
+    Y_old = rng.standard_normal((n1, 12)) * scale
+    Ydot_old = rng.standard_normal((n1, 12)) * scale * 10
+    Y = rng.standard_normal((n1, 12)) * scale
+    q_old = rng.standard_normal((n1, 4))
+    q_old /= np.linalg.norm(q_old, axis=1)[:, None]
+    r_old, v_old = 0.3 * rng.standard_normal((n1, 3)), rng.standard_normal((n1, 3))
+    bc = BoundaryRows(run.case, run.props, 0.43, sysm.n)
+    F_old, _ = sysm.node_terms(Y_old, False, None, None)
+    sysm.begin_step(0.01, alpha_parameters(0.5), 0.43, Y_old, Ydot_old, F_old, bc,
+                    q_old=q_old, r_old=r_old, v_old_global=v_old)
+    newton.linearize(Y)
+    touching = int(sysm.buf[24][0])
+    assert newton.coupled and 2 <= touching < sysm.n_cells, touching
+    for _ in range(3):
+        x = rng.standard_normal(sysm.n)
+        dY = (x * newton.col_scale).reshape(Y.shape)
+        eps = 1e-6
+        central = newton.row_scale * (sysm.residual(Y + eps * dY)[0]
+                                      - sysm.residual(Y - eps * dY)[0]) / (2.0 * eps)
+        product = newton.operator(x)
+        assert np.max(np.abs(product - central)) <= 1e-6 * np.max(np.abs(central))
+        # without the product's seabed part (the band's two-node derivative) it is not
+        count = newton._state["op"][3][20]
+        count[0] = 0
+        band = newton.operator(x)
+        count[0] = touching
+        assert np.max(np.abs(band - central)) > 1e-3 * np.max(np.abs(central))
+
+
 # --------------------------------------------------------------------------- at rest
 def test_cable_at_rest_on_a_flat_bottom_carries_its_submerged_weight():
     case = Case.model_validate(_spec(t_end=2.0))

@@ -212,6 +212,7 @@ def test_warm_up_loads_every_compiled_kernel():
                "solver.scheme._cell_blocks_kernel", "solver.scheme._add_inertia_cell",
                "solver.scheme._contact_band_kernel",
                "solver.scheme._exact_frames_kernel", "solver.scheme.exact_loads_product",
+               "solver.scheme._seabed_product",
                "solver.kinematics._exp_one", "solver.kinematics._matrix_into",
                "solver.kinematics._right_jacobian_into", "solver.loads._drag_kernel",
                "solver.loads.point_loads_into",
