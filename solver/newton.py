@@ -37,9 +37,14 @@ docs/contact.md § 4). The strategy, in one place:
   further only polishes digits the step does not have (one iteration fewer in most
   contact steps of the seed example; its positions within ~3e-7 m of the fully
   converged iterate's).
-* **Sea floor.** With a seabed (:mod:`solver.seabed`) and no self-contact, every
+* **Sea floor.** With a seabed (:mod:`solver.seabed`) and no strands near (no contact
+  candidates), every
   correction is backtracked (Armijo on the scaled residual) and the Jacobian refactored
-  after a cut one: the contact law's kink at zero penetration made full steps cycle. The
+  after a cut one: the contact law's kink at zero penetration made full steps cycle.
+  With self-contact configured the pose is the space route, so a touching cell's seabed
+  load depends on κ upstream too: the operator is then the band plus the exact product
+  (its seabed part, :func:`solver.scheme.exact_loads_product`) whenever a cell touches,
+  and GMRES solves with it as in a contact step. The
   damper's clamp is held on one branch per cell through the iterations and re-decided
   near their solution, until the law's own residual passes (an active-set strategy,
   :class:`solver.seabed.Seabed`): its bounds swapping between iterates made Newton cycle

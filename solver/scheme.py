@@ -668,7 +668,8 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
     :attr:`~solver.contact.SelfContact.kernel_data`; ev: the contact evaluation arrays.
     Writes flags (4,): [0: 0 ok, 1 non-finite positions, 2 coincident contact points
     (the residual is NaN then), 1: active contacts P, 2: pose computed, 3: exact load
-    data computed]. The one implementation of the residual: Newton's compiled
+    data computed (with ``want_jac`` on the space route, where global or contact loads
+    act or a seabed cell touches)]. The one implementation of the residual: Newton's compiled
     iterations and the Python method both call it."""
     mass_t, stiffness, inertia, cdn, cdt, floor, rscal, seabed = rod
     ds = rscal[0]
