@@ -42,7 +42,10 @@ contact=null`` without its friction and self-contact),
 18,18.5,19,20,22,25,30,35,40,45`` (the tension variant's whole contact phase, ~3 min),
 ``... tension --probe 19 --probe-dt 0.0005,0.001,0.0017,0.003,0.005,0.01``,
 ``... tension --probe 18.6 --probe-dt 0.001 --residuals`` (where a collapse step's
-residual sits, iterate by iterate).
+residual sits, iterate by iterate), ``... cases/seabed-hockle.yaml --set contact=null
+--set seabed.friction=null --probe 2.2 --probe-dt 0.0125 --residuals --seabed-cells
+29:34`` (with it, cells 29-33's seabed penetration, force and E3 residual: the cell whose
+contact switches on and off between iterates).
 ``... tension --from 19 --t-end 19.3 --starts`` (how far the starts of the collapse
 are from their solutions). ``--newton ATTR=VALUE[,...]`` sets class attributes of
 :class:`solver.newton.Newton` for the run (as contact_suite.py's option), e.g.
@@ -263,11 +266,15 @@ def residual_groups(scaled) -> dict:
     return out
 
 
-def _iterates_residuals(snapshot: bytes, h: float, its: int) -> list:
+def _iterates_residuals(snapshot: bytes, h: float, its: int, cells=None) -> list:
     """The scaled residual's row groups (:func:`residual_groups`) at each iterate 0 … its
     of the first Newton solve of a step of h (s) from the pickled run ``snapshot``: the
     solve repeated with at most k iterations, set up as the run's first attempt
-    (:meth:`solver.step_problem.ProblemAssembly.begin_solve`)."""
+    (:meth:`solver.step_problem.ProblemAssembly.begin_solve`). With ``cells`` (a range of
+    cells, a case with a seabed) each row also holds, under "seabed", per cell its
+    midpoint's penetration (m), the seabed's force per unit length normal to the bottom
+    (N/m; :meth:`solver.seabed.Seabed.cell_loads` at the iterate's new-level pose) and the
+    largest |unscaled residual| of its E3 rows (N/m)."""
     import pickle
 
     rows = []
@@ -280,15 +287,26 @@ def _iterates_residuals(snapshot: bytes, h: float, its: int) -> list:
             Y = run.newton.solve(guess)[0]
         R = run.system.residual(Y, want_jacobian=True)[0]
         run.newton.linearize(Y)
-        rows.append(residual_groups(R * run.newton.row_scale))
+        row = residual_groups(R * run.newton.row_scale)
+        if cells is not None and run.seabed is not None:
+            _, Rm, r, _ = run.system.pose_new(Y)
+            vg = np.einsum("kij,kj->ki", Rm, Y[:, 0:3])
+            F, _, pen = run.seabed.cell_loads(r, vg, Rm, Y[:, 3:6])
+            e3 = np.abs(R[6:-6].reshape(-1, 12)[:, 6:9]).max(axis=1)
+            row["seabed"] = [(c, float(pen[c]), float(np.linalg.norm(F[c, 0:3])), float(e3[c]))
+                             for c in cells]
+        rows.append(row)
     return rows
 
 
-def probe(name: str, at: float, sizes: list, residuals: bool = False, sets=()) -> None:
+def probe(name: str, at: float, sizes: list, residuals: bool = False, sets=(),
+          cells=None) -> None:
     """Advance suite case ``name`` by nominal steps to ``at`` (s), then attempt one step
     of each Δt in ``sizes`` (s) from that state; prints each attempt. ``residuals``: also,
     per Newton iterate of each attempt, its filter and line-search fractions and where
-    its scaled residual is largest (:func:`residual_groups`)."""
+    its scaled residual is largest (:func:`residual_groups`), and with ``cells`` (a
+    range) those cells' seabed penetration, force and E3 residual
+    (:func:`_iterates_residuals`)."""
     import pickle
 
     import contact_suite as cs
@@ -312,12 +330,18 @@ def probe(name: str, at: float, sizes: list, residuals: bool = False, sets=()) -
               f"{trial.last_route_ratio:.3g}")
         if residuals:
             trace = trial.newton.last_trace
-            for k, groups in enumerate(_iterates_residuals(snapshot, h, att.iterations)):
+            for k, groups in enumerate(_iterates_residuals(snapshot, h, att.iterations,
+                                                           cells)):
                 cut = (f"filter {trace[k, 1]:.3g}, line search {trace[k, 2]:.3g}"
                        if k < att.iterations and trace is not None and k < len(trace)
                        else "")
+                floor = groups.pop("seabed", None)
                 where = ", ".join(f"{g} {v:.3g} @ {c}" for g, (v, c) in groups.items())
                 print(f"    iterate {k}: {where}" + (f"  ({cut})" if cut else ""))
+                if floor:
+                    print("      seabed: " + "; ".join(
+                        f"cell {c} p {1e6 * p:+.2f} µm, F {f:.3g} N/m, E3 {e:.2g}"
+                        for c, p, f, e in floor))
 
 
 def main() -> None:
@@ -339,6 +363,9 @@ def main() -> None:
                     help="comma-separated Δt (s) of the probe's attempts")
     ap.add_argument("--residuals", action="store_true",
                     help="with --probe: where each Newton iterate's residual is largest")
+    ap.add_argument("--seabed-cells", default="", metavar="A:B",
+                    help="with --probe --residuals: cells A to B-1's seabed penetration, "
+                    "force and E3 residual at each iterate")
     ap.add_argument("--newton-failures", type=int, default=0)
     ap.add_argument("--starts", action="store_true",
                     help="also how far each contact solve's Newton start was from its solution")
@@ -351,8 +378,12 @@ def main() -> None:
         from replay_steps import set_newton
         set_newton(args.newton)
     if args.probe is not None:
+        cells = None
+        if args.seabed_cells:
+            a, b = (int(x) for x in args.seabed_cells.split(":"))
+            cells = range(a, b)
         probe(args.case, args.probe, [float(x) for x in args.probe_dt.split(",")],
-              args.residuals, args.sets)
+              args.residuals, args.sets, cells)
         return
     if args.t_end is None:
         ap.error("--t-end is required (without --probe)")

@@ -122,3 +122,36 @@ def test_a_start_that_closes_a_gap_is_blended_back_until_it_keeps_half(contact_s
     np.testing.assert_allclose(out, still + beta * (guess - still), rtol=0, atol=1e-12)
     twice = still + min(1.0, 2.0 * beta) * (guess - still)
     assert np.any(system.candidate_gaps(twice)[ok] < 0.5 * g_old[ok])
+
+
+def test_the_probe_reports_a_resting_cables_seabed_cells():
+    """``--seabed-cells``: a 1-m cable (D = 2 cm, 1500 kg/m³ in water) settled on a flat
+    bottom for 0.5 s: at each iterate of the next step the listed cells' penetration,
+    normal force and E3 residual; at the last iterate each interior cell carries the
+    cable's submerged weight w = 1.54 N/m (within 5 %) at the penetration w/k of the
+    default stiffness k = 3·10⁶ Pa, and its E3 rows balance to 10⁻⁶ w."""
+    import pickle
+
+    from contact_steps import _iterates_residuals
+    from solver.case import Case
+    from solver.run import RodRun
+
+    d, free = 0.02, {"translation": [{"force": 0}] * 3, "rotation": [{"moment": 0}] * 3}
+    spec = {"schema_version": 1, "name": "resting",
+            "rod": {"length": 1.0, "youngs_modulus": 1.25e7, "shear_modulus": 5e6,
+                    "density": 1500.0, "diameter": d},
+            "fluid": {"density": 1000.0}, "gravity": [0, 0, -9.81],
+            "initial": {"tangent": [1, 0, 0], "normal": [0, 0, 1]},
+            "seabed": {"elevation": -d / 2}, "boundary": {"start": free, "end": free},
+            "numerics": {"n_segments": 20, "dt": 0.01, "t_end": 1.0}}
+    run = RodRun(Case.model_validate(spec))
+    for k in range(1, 51):
+        run.advance(0.01 * k)
+    rows = _iterates_residuals(pickle.dumps(run), 0.01, 3, range(8, 12))
+    assert len(rows) == 4 and all(len(r["seabed"]) == 4 for r in rows)
+    w = 500.0 * math.pi * d**2 / 4 * 9.81
+    for cell, p, force, e3 in rows[-1]["seabed"]:
+        assert 8 <= cell < 12
+        assert force == pytest.approx(w, rel=0.05)
+        assert p == pytest.approx(w / 3e6, rel=0.05)
+        assert e3 < 1e-6 * w
