@@ -66,7 +66,11 @@ residual is below ``RECHECK_BELOW`` or the tolerance, so that a solve ends only 
 every held branch is the law's (its residual is then the law's); a cell held
 at one bound whose law gives the other goes to the free branch between them
 (:func:`_next_mode`; the root lies between the two bounds' roots). After
-``REDECISIONS`` re-decisions the law's clamp acts at every iterate as before. The
+``REDECISIONS`` re-decisions the law's clamp acts at every iterate as before. A cell held
+on the free branch whose midpoint an iterate lifts clear of the bottom goes back to the
+law's clamp for the rest of the solve: held free, its force jumps at p = 0 from 0 to
+−c n·ṙ (the jump the clamp exists to remove), and Newton cycled across it (a cell
+arriving at 1 cm/s: 27 N/m; docs/seabed.md, "What a refused step looks like"). The
 solution is the law's; only the path of the iterates changes.
 This is the primal-dual active-set strategy, a semismooth Newton method, applied to the
 clamp's two bounds (M. Hintermüller, K. Ito, K. Kunisch (2002), "The primal-dual active
@@ -647,6 +651,10 @@ def seabed_into(Y, Rm, r, vg, theta, dt, af, data, want, cells, blocks, record, 
     if not far_from_bottom(r, data):
         for c in range(n_cells):
             if not _cell_touches(r, radius, c, lim, f):
+                if state == 2 and modes[c] == 1.0:
+                    # held on the free branch and now clear of the bottom: the law's clamp
+                    # from here on in this solve (held free, N jumps by c|n·ṙ| at p = 0)
+                    modes[c] = -1.0
                 continue
             rho = _midpoint(r, vg, Rm, Y[:, 3:6], radius, c, x, u, Om, t)
             if want:

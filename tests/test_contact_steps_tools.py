@@ -155,3 +155,19 @@ def test_the_probe_reports_a_resting_cables_seabed_cells():
         assert force == pytest.approx(w, rel=0.05)
         assert p == pytest.approx(w / 3e6, rel=0.05)
         assert e3 < 1e-6 * w
+
+
+def test_a_cell_held_free_across_the_bottom_does_not_stall_the_step(capsys):
+    """seabed-hockle's twisted lay on the bare bottom (no friction, no self-contact): a
+    step of 12.5 ms from 2.2 s. Before a cell held on the damper's free branch was
+    released to the law's clamp when an iterate lifts it clear (solver.seabed), the cell
+    where the cable lifted off arrived at the bottom at about 1 cm/s, its held force
+    jumped at p = 0 by c·|n·ṙ| (27 N/m), and Newton cycled across the jump until this
+    step was refused after 25 iterations (docs/seabed.md, "What a refused step looks
+    like"). Now it is accepted (measured: 9 iterations)."""
+    from contact_steps import probe
+
+    probe(str(Path(__file__).resolve().parents[1] / "cases" / "seabed-hockle.yaml"), 2.2,
+          [0.0125], sets=["contact=null", "seabed.friction=null"])
+    line = capsys.readouterr().out.splitlines()[-1]
+    assert "accepted" in line, line
