@@ -44,8 +44,8 @@ contact=null`` without its friction and self-contact),
 ``... tension --probe 18.6 --probe-dt 0.001 --residuals`` (where a collapse step's
 residual sits, iterate by iterate), ``... cases/seabed-hockle.yaml --set contact=null
 --set seabed.friction=null --probe 2.2 --probe-dt 0.0125 --residuals --seabed-cells
-29:34`` (with it, cells 29-33's seabed penetration, force and E3 residual: the cell whose
-contact switches on and off between iterates).
+29:34`` (with it, cells 29-33's seabed penetration, force and E3 residual at each
+iterate: a cell whose contact switches on and off between iterates shows there).
 ``... tension --from 19 --t-end 19.3 --starts`` (how far the starts of the collapse
 are from their solutions). ``--newton ATTR=VALUE[,...]`` sets class attributes of
 :class:`solver.newton.Newton` for the run (as contact_suite.py's option), e.g.

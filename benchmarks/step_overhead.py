@@ -7,7 +7,9 @@ into a plectoneme with self-contact, Morison drag, positions every 0.02 s) from 
 T_END = 8 s, through buckling (~6.5 s) and into contact (from ~7.2 s), at N = 20,
 Δt = 0.05 s and at hockle's 1-% setting N = 100, Δt = 12.5 ms; for reference the seed
 example (``cases/goyal-writhing.yaml``, N = 1000, Δt = 0.1 s) before its first contact,
-to 10 s.
+to 10 s. Whole runs for ``compare --cases``: the seed example to 45 s (``seed-1000``),
+the plectoneme at N = 100 to 12 s and ``cases/seabed-hockle.yaml`` to 10 s
+(``seabed-hockle``), each with its case file's outputs.
 
 Run:
 
@@ -61,7 +63,11 @@ CASES = {
     # 12 s of the PyElastica comparison (benchmarks/peer_compare.py)
     "seed-1000": ("seed", 1000, 0.1, 45.0),
     "plectoneme-100-12s": ("plectoneme", 100, 0.0125, 12.0),
+    # the twisted cable that loops on the sea floor (docs/hockle.md), as its case file has it
+    "seabed-hockle": ("seabed-hockle", 160, 0.05, 10.0),
 }
+#: the case files of the kinds built from one (their grid, Δt and end set from CASES)
+CASE_FILES = {"seed": "goyal-writhing.yaml", "seabed-hockle": "seabed-hockle.yaml"}
 #: the cases run when ``--cases`` is not given
 DEFAULT_CASES = ["plectoneme-20", "plectoneme-100", "seed-1000-precontact"]
 
@@ -73,8 +79,8 @@ def build_case(name: str, full: bool = False):
     compared by ``save``), else the plectoneme's positions alone."""
     from solver import Case
     kind, n, dt, t_end = CASES[name]
-    if kind == "seed":
-        spec = Case.from_file(ROOT / "cases" / "goyal-writhing.yaml").model_dump(mode="json")
+    if kind in CASE_FILES:
+        spec = Case.from_file(ROOT / "cases" / CASE_FILES[kind]).model_dump(mode="json")
         spec["numerics"]["t_end"] = t_end
         spec["numerics"]["dt"] = dt
         spec["numerics"].pop("ds", None)

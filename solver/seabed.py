@@ -663,13 +663,15 @@ def seabed_into(Y, Rm, r, vg, theta, dt, af, data, want, cells, blocks, record, 
             held = int(modes[c]) if state >= 2 else -1
             p, m, law = _law(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fnv, Ffv, Mv, DF,
                              DM, wk, held, state == 3)
+            if state == 2 and held == 1 and p <= 0.0:
+                modes[c] = -1.0         # clear of the bottom (a slope's skip test passed it)
             if state >= 2 and p > 0.0 and m != law:
                 data[7][7] += 1.0       # a touching cell off the law's branch
             if state == 1 or state == 3:
                 modes[c] = m
             if p <= 0.0 or m == 0:
                 continue
-            if want and record:
+            if record:
                 _law(x, u, Om, t, rho, data, True, E[0], E[1], E[2], E[3], Fnv, Ffv, Mv, PF,
                      PM, wk, m, False)
                 j = sbn[0]
