@@ -28,7 +28,11 @@ Newton iterations, the route rule's ratio (how the step's position error grows w
 and whether Newton or the route rule limits it there). With ``--residuals`` also, per
 Newton iterate of each attempt, the largest scaled residual of each row group (E1, E2,
 E3 lateral, E3 axial, E4 and the end rows) with the cell where it sits, and the
-fractions of the correction the filter and the line search kept.
+fractions of the correction the filter and the line search kept. With ``--modes K`` also
+the K smallest singular values of each step's (scaled) Jacobian at its Newton start,
+the weight each has in the exact first correction and the largest components of its
+vector, and the correction's own largest components (:func:`jacobian_modes`; dense, up to
+6000 unknowns).
 
 The case is a suite case's name or the path of a case file; ``--set FIELD=VALUE``
 (repeatable, VALUE read as YAML) changes one of its fields first.
@@ -46,6 +50,9 @@ residual sits, iterate by iterate), ``... cases/seabed-hockle.yaml --set contact
 --set seabed.friction=null --probe 2.2 --probe-dt 0.0125 --residuals --seabed-cells
 29:34`` (with it, cells 29-33's seabed penetration, force and E3 residual at each
 iterate: a cell whose contact switches on and off between iterates shows there).
+``... cases/seabed-hockle.yaml --set initial.twist_rate=0 --probe 1 --probe-dt 0.0125
+--modes 3`` (why that step's Newton struggles: the Jacobian's smallest singular values at
+the step's start, and how much of the first correction lies along each, docs/seabed.md).
 ``... tension --from 19 --t-end 19.3 --starts`` (how far the starts of the collapse
 are from their solutions). ``--newton ATTR=VALUE[,...]`` sets class attributes of
 :class:`solver.newton.Newton` for the run (as contact_suite.py's option), e.g.
@@ -299,14 +306,100 @@ def _iterates_residuals(snapshot: bytes, h: float, its: int, cells=None) -> list
     return rows
 
 
+#: the unknowns of a node's row of Y by component: body-frame v, ω, f, κ (1, 2, 3 the
+#: directions d1, d2, d3 of the section's frame, d3 the tangent)
+COMPONENTS = [f"{g}{i}" for g in ("v", "ω", "f", "κ") for i in (1, 2, 3)]
+
+#: the largest system :func:`jacobian_modes` forms densely (12 (N+1) unknowns)
+MODES_MAX_UNKNOWNS = 6000
+
+
+def _largest(x) -> dict:
+    """Per component of :data:`COMPONENTS`, the largest |x| of (N+1, 12) x over the nodes
+    and its node: {component: (value, node)}."""
+    a = np.abs(x)
+    nodes = np.argmax(a, axis=0)
+    return {c: (float(a[nodes[j], j]), int(nodes[j])) for j, c in enumerate(COMPONENTS)}
+
+
+def jacobian_modes(snapshot: bytes, h: float, k: int = 4) -> dict:
+    """The smallest singular values of a step's Jacobian at its Newton start, and what
+    the first Newton correction carries along them.
+
+    The step of h (s) from the pickled run ``snapshot`` is set up as the run's first
+    attempt (:meth:`solver.step_problem.ProblemAssembly.begin_solve`); the operator Newton
+    solves with there (row- and column-scaled, :meth:`solver.newton.Newton.operator`: the
+    exact Jacobian, the exact product included where the pose is the space route) is
+    formed densely, column by column, and decomposed, J = U diag(σ) Vᵀ (numpy's SVD). The
+    exact first correction δ = J⁻¹ b (b = the scaled residual's negative) is
+    Σ_i (u_i·b / σ_i) v_i: a right vector whose σ is tiny against the residual's part
+    along its left vector dominates it.
+
+    Returns {"n": unknowns, "sigma": the k smallest σ (ascending), "sigma_max",
+    "correction": :func:`_largest` of δ unscaled (N+1, 12), "modes": per one of the k
+    smallest σ, {"sigma", "coefficient": u·b/σ (its weight in δ, in the scaled
+    unknowns), "part": u·b, "vector": :func:`_largest` of its right vector unscaled}}.
+    Raises SystemExit where the system has more than :data:`MODES_MAX_UNKNOWNS` unknowns
+    (the dense SVD's O(n³))."""
+    import pickle
+
+    run = pickle.loads(snapshot)
+    Y = run.begin_solve(run.step_problem(h))
+    newton, system = run.newton, run.system
+    R = system.residual(Y, want_jacobian=True)[0]
+    n = R.size
+    if n > MODES_MAX_UNKNOWNS:
+        raise SystemExit(f"--modes: {n} unknowns, more than the {MODES_MAX_UNKNOWNS} a dense "
+                         "SVD takes in reasonable time")
+    newton.linearize(Y)
+    J = np.empty((n, n))
+    e = np.zeros(n)
+    for j in range(n):
+        e[j] = 1.0
+        J[:, j] = newton.operator(e)
+        e[j] = 0.0
+    U, S, Vt = np.linalg.svd(J)
+    b = -R * newton.row_scale
+    parts = U.T @ b
+    cs = newton.col_scale
+    shape = Y.shape
+    modes = []
+    for i in range(1, min(k, n) + 1):
+        modes.append({"sigma": float(S[-i]), "coefficient": float(parts[-i] / S[-i]),
+                      "part": float(parts[-i]),
+                      "vector": _largest((Vt[-i] * cs).reshape(shape))})
+    delta = (Vt.T @ (parts / S)) * cs
+    return {"n": n, "sigma": [m["sigma"] for m in modes], "sigma_max": float(S[0]),
+            "correction": _largest(delta.reshape(shape)), "modes": modes}
+
+
+def _print_modes(modes: dict, shown: int = 5) -> None:
+    """Print :func:`jacobian_modes`: the correction's and each mode's ``shown`` largest
+    components."""
+    def top(d):
+        items = sorted(d.items(), key=lambda kv: -kv[1][0])[:shown]
+        return ", ".join(f"{c} {v:.2g} @ {node}" for c, (v, node) in items)
+
+    print(f"    Jacobian at the start ({modes['n']} unknowns, scaled): σ max "
+          f"{modes['sigma_max']:.3g}, min {modes['sigma'][0]:.3g} (condition "
+          f"{modes['sigma_max'] / modes['sigma'][0]:.2g})")
+    print(f"    first Newton correction (unscaled, largest components @ node): "
+          f"{top(modes['correction'])}")
+    for m in modes["modes"]:
+        print(f"    σ {m['sigma']:.3g}: weight {m['coefficient']:+.3g} in the correction "
+              f"(the residual's part {m['part']:+.2g}); its vector: {top(m['vector'])}")
+
+
 def probe(name: str, at: float, sizes: list, residuals: bool = False, sets=(),
-          cells=None) -> None:
+          cells=None, modes: int = 0) -> None:
     """Advance suite case ``name`` by nominal steps to ``at`` (s), then attempt one step
     of each Δt in ``sizes`` (s) from that state; prints each attempt. ``residuals``: also,
     per Newton iterate of each attempt, its filter and line-search fractions and where
     its scaled residual is largest (:func:`residual_groups`), and with ``cells`` (a
     range) those cells' seabed penetration, force and E3 residual
-    (:func:`_iterates_residuals`)."""
+    (:func:`_iterates_residuals`). With ``modes`` > 0 also each step's ``modes`` smallest
+    singular values of the Jacobian at its start and what the first correction carries
+    along them (:func:`jacobian_modes`)."""
     import pickle
 
     import contact_suite as cs
@@ -328,6 +421,8 @@ def probe(name: str, at: float, sizes: list, residuals: bool = False, sets=(),
         state = "accepted" if att.ok else f"refused ({att.reason})"
         print(f"  Δt = {h:<8g} s  {state:18s} Newton {att.iterations:3d}  route ratio "
               f"{trial.last_route_ratio:.3g}")
+        if modes:
+            _print_modes(jacobian_modes(snapshot, h, modes))
         if residuals:
             trace = trial.newton.last_trace
             for k, groups in enumerate(_iterates_residuals(snapshot, h, att.iterations,
@@ -366,6 +461,9 @@ def main() -> None:
     ap.add_argument("--seabed-cells", default="", metavar="A:B",
                     help="with --probe --residuals: cells A to B-1's seabed penetration, "
                     "force and E3 residual at each iterate")
+    ap.add_argument("--modes", type=int, default=0, metavar="K",
+                    help="with --probe: the K smallest singular values of each step's "
+                    "Jacobian at its start and what the first correction carries along them")
     ap.add_argument("--newton-failures", type=int, default=0)
     ap.add_argument("--starts", action="store_true",
                     help="also how far each contact solve's Newton start was from its solution")
@@ -383,7 +481,7 @@ def main() -> None:
             a, b = (int(x) for x in args.seabed_cells.split(":"))
             cells = range(a, b)
         probe(args.case, args.probe, [float(x) for x in args.probe_dt.split(",")],
-              args.residuals, args.sets, cells)
+              args.residuals, args.sets, cells, args.modes)
         return
     if args.t_end is None:
         ap.error("--t-end is required (without --probe)")
