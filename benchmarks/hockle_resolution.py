@@ -25,8 +25,8 @@ largest difference between the time route and the centreline integrated from κ
 (``position_route_difference``); the largest seabed reaction per unit length on the rod's
 last node.
 
-Run: ``PYTHONPATH=$PWD python benchmarks/hockle_resolution.py [--quick]`` (about 14 minutes
-alone on 2 cores, 3 of them the frictionless 640-segment run; ``--quick`` leaves out the
+Run: ``PYTHONPATH=$PWD python benchmarks/hockle_resolution.py [--quick]`` (about 7 minutes
+alone on 2 cores, 1 of them the frictionless 640-segment run; ``--quick`` leaves out the
 640-segment runs). Counts and answers are deterministic; the wall times are indicative.
 """
 from __future__ import annotations
