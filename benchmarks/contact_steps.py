@@ -472,6 +472,8 @@ def main() -> None:
     args = ap.parse_args()
     if args.case not in cs.CASES and not os.path.isfile(args.case):
         ap.error(f"{args.case}: neither a suite case nor a case file")
+    if (args.modes or args.residuals or args.seabed_cells) and args.probe is None:
+        ap.error("--modes, --residuals and --seabed-cells need --probe")
     if args.newton:
         from replay_steps import set_newton
         set_newton(args.newton)
