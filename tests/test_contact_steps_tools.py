@@ -198,8 +198,8 @@ def test_the_modes_show_that_an_inextensible_rod_shortens_through_its_curvature(
     shortens it by ∫ κ w ds): the smallest singular value of a step's Jacobian belongs to
     the axial force, lies far below the next, and scales with the bow's square (κ ∝
     amplitude; measured 3.6e-8 at a tenth of the larger bow; a straight rod held so is
-    refused as ill-posed, its tension undetermined). This is the mode that dominates the first correction of
-    seabed-hockle's untwisted lay (docs/seabed.md)."""
+    refused as ill-posed, its tension undetermined). This is the mode that dominates the
+    first correction of seabed-hockle's untwisted lay (docs/seabed.md)."""
     import pickle
 
     from contact_steps import jacobian_modes
