@@ -22,6 +22,11 @@ change ‖Y − Yⁿ‖ (medians over the window's solves; 1 is no better than t
 the share of solves whose start was blended, and the histogram of the accepted steps'
 Newton iterations.
 
+With ``--watch NODE`` also, per window, how much that node's v and ω flip from one
+accepted step to the next (:func:`alternation` of each component: 0 for a motion smooth
+on the step's scale, 1 + ρ∞ where a stiff mode that generalized-α damps dominates, 2 for
+a pure alternation), the RMS of ω's change per accepted step and the largest |ω|.
+
 With ``--probe T`` instead: the case is advanced by nominal steps to T (s), and from that
 one state a single step of each Δt of ``--probe-dt`` is attempted: accepted or refused,
 Newton iterations, the route rule's ratio (how the step's position error grows with Δt,
@@ -53,6 +58,9 @@ iterate: a cell whose contact switches on and off between iterates shows there).
 ``... cases/seabed-hockle.yaml --set initial.twist_rate=0 --probe 1 --probe-dt 0.0125
 --modes 3`` (why that step's Newton struggles: the Jacobian's smallest singular values at
 the step's start, and how much of the first correction lies along each, docs/seabed.md).
+``... cases/seabed-hockle.yaml --set initial.twist_rate=0 --set numerics.rho_inf=0
+--t-end 3 --edges 0,1,2,3 --watch 115`` (the untwisted lay's spin: it flips from step to
+step at the case's ρ∞ = 0.5, not at 0; docs/seabed.md).
 ``... tension --from 19 --t-end 19.3 --starts`` (how far the starts of the collapse
 are from their solutions). ``--newton ATTR=VALUE[,...]`` sets class attributes of
 :class:`solver.newton.Newton` for the run (as contact_suite.py's option), e.g.
@@ -155,10 +163,30 @@ def case_spec(name: str, sets=()) -> dict:
     return spec
 
 
-def record(name: str, t_end: float, starts: bool = False, sets=()) -> list:
+def alternation(x) -> float:
+    """How much a series x (K,) flips from step to step: RMS(Δ²x_n) / RMS(Δx_n) over
+    n = 0..K−3 (Δx_n = x_{n+1} − x_n, Δ²x_n = Δx_{n+1} − Δx_n), from 0 (a straight line;
+    2 sin(φ/2) ≈ φ for a sine sampled every φ radians, so small for a series smooth on
+    the step's scale) to 2 (x alternating about a constant); NaN with fewer than three
+    values or a constant series. A sequence c + a(−ρ)^n gives exactly 1 + ρ: a stiff mode
+    that generalized-α damps per step by its spectral radius at infinite frequency ρ∞
+    alternates by the factor −ρ∞ (Chung & Hulbert 1993, the amplification matrix's
+    limit), so where such a mode dominates a series its alternation is 1 + ρ∞."""
+    x = np.asarray(x, float)
+    if x.size < 3:
+        return math.nan
+    d1 = np.diff(x)
+    r1 = float(np.sqrt(np.mean(d1[:-1] ** 2)))
+    if r1 == 0.0:
+        return math.nan
+    return float(np.sqrt(np.mean(np.diff(d1) ** 2))) / r1
+
+
+def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None) -> list:
     """Run ``name`` (:func:`case_spec`, with ``sets``) to t_end (s); the attempts as
     dicts (with ``starts``, each with "starts": :func:`start_distances` of its last
-    Newton solve with contact candidates, else None)."""
+    Newton solve with contact candidates, else None; with ``watch`` a node's index, each
+    accepted attempt with "node": that node's (v, ω) (6,) in the body frame after it)."""
     import contact_suite as cs
     from solver.case import Case
     from solver.run import RodRun
@@ -174,6 +202,8 @@ def record(name: str, t_end: float, starts: bool = False, sets=()) -> list:
     current = {}
 
     def recording(self, h, *args, **kwargs):
+        if watch is not None and not 0 <= watch < self.Y.shape[0]:
+            raise SystemExit(f"--watch {watch}: the case's nodes are 0 to {self.Y.shape[0] - 1}")
         t0 = self.t
         g0 = self.newton.gmres_iterations
         current.clear()
@@ -188,7 +218,9 @@ def record(name: str, t_end: float, starts: bool = False, sets=()) -> list:
                          "its": att.iterations, "ratio": self.last_route_ratio,
                          "gmres": self.newton.gmres_iterations - g0, "wall": wall,
                          "contacts": self.contact_count, "trace": trace,
-                         "starts": current.get("starts")})
+                         "starts": current.get("starts"),
+                         "node": (self.Y[watch, 0:6].copy()
+                                  if watch is not None and att.ok else None)})
         return att
 
     def solving(self, guess):
@@ -231,6 +263,22 @@ def record(name: str, t_end: float, starts: bool = False, sets=()) -> list:
         Newton.feasible_start = plain_feasible
         RodRun.step_problem = plain_problem
     return attempts
+
+
+def _watched(rows: list, node: int) -> str:
+    """The --watch line of recorded attempts: the :func:`alternation` of the watched
+    node's v and ω over the accepted steps, the RMS of |ω|'s change from one accepted
+    step to the next and the largest |ω| (rad/s)."""
+    vals = np.array([r["node"] for r in rows if r["ok"] and r["node"] is not None])
+    if vals.size == 0:
+        return f"    node {node}: no accepted step"
+    names = ("v1", "v2", "v3", "ω1", "ω2", "ω3")
+    alt = "  ".join(f"{n} {alternation(vals[:, j]):.2f}" for j, n in enumerate(names))
+    jump = (float(np.sqrt(np.mean(np.sum(np.diff(vals[:, 3:6], axis=0) ** 2, axis=1))))
+            if len(vals) > 1 else math.nan)
+    return (f"    node {node} over {len(vals)} accepted steps: alternation {alt};  "
+            f"ω's change per step RMS {jump:.3g}, |ω| max "
+            f"{np.linalg.norm(vals[:, 3:6], axis=1).max():.3g} rad/s")
 
 
 def summary(rows: list) -> str:
@@ -464,6 +512,9 @@ def main() -> None:
     ap.add_argument("--modes", type=int, default=0, metavar="K",
                     help="with --probe: the K smallest singular values of each step's "
                     "Jacobian at its start and what the first correction carries along them")
+    ap.add_argument("--watch", type=int, default=None, metavar="NODE",
+                    help="also, per window, how much NODE's v and ω flip from one accepted "
+                    "step to the next (alternation: 0 smooth, 2 alternating)")
     ap.add_argument("--newton-failures", type=int, default=0)
     ap.add_argument("--starts", action="store_true",
                     help="also how far each contact solve's Newton start was from its solution")
@@ -474,6 +525,8 @@ def main() -> None:
         ap.error(f"{args.case}: neither a suite case nor a case file")
     if (args.modes or args.residuals or args.seabed_cells) and args.probe is None:
         ap.error("--modes, --residuals and --seabed-cells need --probe")
+    if args.watch is not None and args.probe is not None:
+        ap.error("--watch reports a run's windows, not a probe: leave out --probe")
     if args.newton:
         from replay_steps import set_newton
         set_newton(args.newton)
@@ -489,7 +542,7 @@ def main() -> None:
         ap.error("--t-end is required (without --probe)")
     load = os.getloadavg()[0]
     wall = time.perf_counter()
-    rows = [a for a in record(args.case, args.t_end, args.starts, args.sets)
+    rows = [a for a in record(args.case, args.t_end, args.starts, args.sets, args.watch)
             if a["t"] >= args.t_from - 1e-12]
     wall = time.perf_counter() - wall
     edges = (np.array([float(x) for x in args.edges.split(",")]) if args.edges
@@ -500,9 +553,13 @@ def main() -> None:
             print(f"{a:7.2f}-{b:<7.2f} {summary(part)}")
             if args.starts:
                 print("\n".join(_starts_of(part)))
+            if args.watch is not None:
+                print(_watched(part, args.watch))
     print(f"{args.t_from:.2f}-{args.t_end:.2f}  {summary(rows)}")
     if args.starts:
         print("\n".join(_starts_of(rows)))
+    if args.watch is not None:
+        print(_watched(rows, args.watch))
     failed = [r for r in rows if r["trace"] is not None][:args.newton_failures]
     for r in failed:
         print(f"Newton failed ({r['trace'][0]}) at t = {r['t']:.5f} s, Δt = {r['h']:.3g} s, "

@@ -216,3 +216,24 @@ def test_the_modes_show_that_an_inextensible_rod_shortens_through_its_curvature(
         assert m["sigma"][0] < 1e-2 * m["sigma"][1]
         sigma.append(m["sigma"][0])
     assert sigma[0] / sigma[1] == pytest.approx(4.0, rel=0.02)
+
+
+def test_the_alternation_reads_a_stiff_modes_flip_and_not_a_smooth_motion():
+    """``--watch`` (:func:`contact_steps.alternation`): a straight line 0; a sine sampled
+    every φ = 2π/50 over two whole periods 2 sin(φ/2); a stiff mode damped by generalized-α's ρ∞ per step,
+    c + a(−ρ∞)^n, exactly 1 + ρ∞ (1.5 at seabed-hockle's ρ∞ = 0.5, whose untwisted lay's
+    spin flips so, docs/seabed.md); a constant series or fewer than three values NaN."""
+    from contact_steps import alternation
+
+    n = np.arange(40)
+    assert alternation(3.0 + 0.2 * n) == pytest.approx(0.0, abs=1e-12)
+    phi = 2 * math.pi / 50
+    assert alternation(np.sin(phi * np.arange(102))) == pytest.approx(2 * math.sin(phi / 2),
+                                                                      rel=1e-9)
+    for rho in (0.5, 0.8, 1.0):
+        assert alternation(2.0 + 7.0 * (-rho) ** n[:25]) == pytest.approx(1 + rho, rel=1e-9)
+    # the smooth part does not hide the flip where the flip dominates the changes
+    mixed = 0.01 * n + 0.5 * (-0.5) ** (n % 2)
+    assert alternation(mixed) > 1.9
+    assert math.isnan(alternation(np.ones(10)))
+    assert math.isnan(alternation([1.0, 2.0]))
