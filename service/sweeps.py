@@ -80,7 +80,8 @@ _UNITS = {"force": "N", "velocity": "m s-1", "angular_velocity": "rad s-1", "mom
           "length": "m", "diameter": "m", "density": "kg m-3", "youngs_modulus": "Pa",
           "shear_modulus": "Pa", "dt": "s", "t_end": "s", "ds": "m", "until": "s",
           "tolerance": "m", "drag_coefficient_normal": "1", "drag_coefficient_tangential": "1",
-          "added_mass_coefficient": "1", "n_segments": "1", "rho_inf": "1"}
+          "added_mass_coefficient": "1", "n_segments": "1", "rho_inf": "1",
+          "contact_rho_inf": "1"}
 
 class SweepError(ValueError):
     """A sweep request that cannot be expanded or whose members do not validate.

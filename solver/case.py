@@ -1236,6 +1236,11 @@ class Numerics(BaseModel):
     rho_inf: Finite = Field(
         0.5, ge=0, le=1, description="Spectral radius at infinite frequency of the generalized-alpha scheme, in [0, 1]."
     )
+    contact_rho_inf: Optional[Finite] = Field(
+        None, ge=0, le=1,
+        description="The scheme's rho_inf in steps where strands may meet (steps with self-contact "
+        "candidates), in [0, 1]; null: rho_inf there too. Ignored without contact.",
+    )
     newton: Newton = Field(default_factory=Newton, description="Newton iteration controls.")
     max_dt_cuts: Integer = Field(
         6, ge=0, le=50, description="Times a non-converging step may be retried with a smaller dt; 0 to 50."
@@ -1273,6 +1278,15 @@ class Numerics(BaseModel):
         if self.ds is None and self.n_segments is None:
             _raise("Numerics", [_err(("ds",), "missing", "give numerics.ds (m) or numerics.n_segments", None)])
         return self
+
+    @model_serializer(mode="wrap")
+    def _drop_unused(self, handler: Any):  # no return type: keeps the JSON schema
+        # added after schema 1's first release: written only when given, so that a case
+        # without it keeps its canonical JSON and spec_hash
+        out = handler(self)
+        if self.contact_rho_inf is None:
+            out.pop("contact_rho_inf", None)
+        return out
 
 
 def _check_output_field(value: Any, handler: Any) -> str:

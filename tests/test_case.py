@@ -392,6 +392,26 @@ def test_profile_length_mismatch_and_too_short(data):
     assert_refused(data, "rod.diameter.s", "at least 2")
 
 
+@pytest.mark.parametrize("value, fragment", [(-0.1, "greater than or equal to 0"), (1.1, "less than or equal to 1")])
+def test_contact_rho_inf_out_of_range(data, value, fragment):
+    data["numerics"]["contact_rho_inf"] = value
+    assert_refused(data, "numerics.contact_rho_inf", fragment)
+
+
+def test_contact_rho_inf_defaults_to_null(data):
+    """Unset, contact steps take numerics.rho_inf (solver.run.RodRun.contact_params)."""
+    data["numerics"].pop("contact_rho_inf", None)
+    case = Case.model_validate(data)
+    assert case.numerics.contact_rho_inf is None
+    # written only when given: a case without it keeps its canonical JSON and spec_hash
+    assert "contact_rho_inf" not in case.canonical_json()
+    data["numerics"]["contact_rho_inf"] = 0.0
+    given = Case.model_validate(data)
+    assert '"contact_rho_inf":0.0' in given.canonical_json()
+    assert given.spec_hash() != case.spec_hash()
+    assert Case.model_validate(json.loads(given.canonical_json())).numerics.contact_rho_inf == 0.0
+
+
 @pytest.mark.parametrize("rho_inf, fragment", [(-0.1, "greater than or equal to 0"), (1.1, "less than or equal to 1")])
 def test_rho_inf_out_of_range(data, rho_inf, fragment):
     data["numerics"]["rho_inf"] = rho_inf

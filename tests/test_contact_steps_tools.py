@@ -237,3 +237,32 @@ def test_the_alternation_reads_a_stiff_modes_flip_and_not_a_smooth_motion():
     assert alternation(mixed) > 1.9
     assert math.isnan(alternation(np.ones(10)))
     assert math.isnan(alternation([1.0, 2.0]))
+
+
+def test_contact_rho_inf_sets_the_scheme_only_in_steps_where_strands_may_meet():
+    """``numerics.contact_rho_inf``: a step whose search finds contact candidates (the
+    hairpin's facing strands) takes the generalized-α weights of that ρ∞; a step without
+    (the same rod straight) and a run without the field take ``numerics.rho_inf``'s."""
+    from solver.case import Case
+    from solver.compiled import _warm_up_spec
+    from solver.run import RodRun
+    from solver.scheme import alpha_parameters
+
+    def first_step(points, contact_rho_inf):
+        spec = _warm_up_spec()
+        spec["numerics"]["n_segments"] = 100
+        spec["numerics"]["contact_rho_inf"] = contact_rho_inf
+        spec["contact"]["aperture"] = 90.0   # the seed's: a straight rod has no candidates
+        spec["initial"] = {"centreline": {"points": points.tolist()}}
+        spec["boundary"]["start"]["rotation"][2] = {"angular_velocity": 0.0}
+        run = RodRun(Case.model_validate(spec))
+        return run, run.step_problem(0.01)
+
+    bent = hairpin(0.06 / math.pi)
+    run, prob = first_step(bent, 0.0)
+    assert prob.candidates is not None
+    assert prob.params == alpha_parameters(0.0) != run.params == alpha_parameters(0.5)
+    run, prob = first_step(np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 1.0]]), 0.0)
+    assert prob.candidates is None and prob.params == alpha_parameters(0.5)
+    run, prob = first_step(bent, None)
+    assert prob.candidates is not None and prob.params == alpha_parameters(0.5)
