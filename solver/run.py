@@ -102,11 +102,6 @@ class RodRun(ProblemAssembly):
         if self.contact is not None:
             self.newton.position_tolerance = self.route_tolerance
         self.params = alpha_parameters(num.rho_inf)
-        #: the scheme's weights in steps with contact candidates (numerics.contact_rho_inf;
-        #: None: self.params there too)
-        self.contact_params = (alpha_parameters(num.contact_rho_inf)
-                               if num.contact_rho_inf is not None and case.contact is not None
-                               else None)
         self.state = RunState.at_rest(case, props.s, start)
         # the boundary rows at any time, from the case's plan of conditions
         self.bc_schedule = BoundarySchedule(case, props, self.system.n)

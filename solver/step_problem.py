@@ -22,7 +22,7 @@ import numpy as np
 from .boundary import BoundaryRows
 from .contact.geometry import max_distance
 from .kinematics import quat_to_matrix, relative_rotation, space_route
-from .scheme import BACKWARD_EULER, pose_into
+from .scheme import BACKWARD_EULER, alpha_parameters, pose_into
 from .stepping import extrapolate, kappa_distance
 
 __all__ = ["StepProblem", "Solution", "ProblemAssembly"]
@@ -123,11 +123,11 @@ class ProblemAssembly:
         self.last_had_candidates = cand is not None
         if restart or switched:
             params = BACKWARD_EULER
-        elif cand is not None and getattr(self, "contact_params", None) is not None:
+        elif cand is not None and self.case.numerics.contact_rho_inf is not None:
             # numerics.contact_rho_inf: where strands may meet, the scheme damps the modes
             # above 1/Δt by that ρ∞ per step (the tension variant at 0: 49 s against 104 s
             # over 45 s, its onset and final writhe unchanged; docs/contact.md)
-            params = self.contact_params
+            params = alpha_parameters(self.case.numerics.contact_rho_inf)
         else:
             params = self.params
         return StepProblem(h, t_new, left_limit, restart, bc, switched, offset, params,

@@ -399,7 +399,7 @@ def test_contact_rho_inf_out_of_range(data, value, fragment):
 
 
 def test_contact_rho_inf_defaults_to_null(data):
-    """Unset, contact steps take numerics.rho_inf (solver.run.RodRun.contact_params)."""
+    """Unset, contact steps take numerics.rho_inf (solver.step_problem.ProblemAssembly.step_problem)."""
     data["numerics"].pop("contact_rho_inf", None)
     case = Case.model_validate(data)
     assert case.numerics.contact_rho_inf is None
