@@ -27,6 +27,9 @@ accepted step to the next (:func:`alternation` of each component: 0 for a motion
 on the step's scale, 1 + ρ∞ where a stiff mode that generalized-α damps dominates, 2 for
 a pure alternation), the RMS of ω's change per accepted step and the largest |ω|.
 
+With ``--writhe T1,T2,...`` also, from the run's outputs, when |Wr| first reaches 1, the
+largest |Wr|, Wr at those times and the tightest bend radius (:func:`writhe_readings`).
+
 With ``--probe T`` instead: the case is advanced by nominal steps to T (s), and from that
 one state a single step of each Δt of ``--probe-dt`` is attempted: accepted or refused,
 Newton iterations, the route rule's ratio (how the step's position error grows with Δt,
@@ -182,11 +185,14 @@ def alternation(x) -> float:
     return float(np.sqrt(np.mean(np.diff(d1) ** 2))) / r1
 
 
-def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None) -> list:
+def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None,
+           result=None) -> list:
     """Run ``name`` (:func:`case_spec`, with ``sets``) to t_end (s); the attempts as
     dicts (with ``starts``, each with "starts": :func:`start_distances` of its last
     Newton solve with contact candidates, else None; with ``watch`` a node's index, each
-    accepted attempt with "node": that node's (v, ω) (6,) in the body frame after it)."""
+    accepted attempt with "node": that node's (v, ω) (6,) in the body frame after it).
+    ``result``: a dict that receives the run's dataset under "ds" (absent where the run
+    stopped)."""
     import contact_suite as cs
     from solver.case import Case
     from solver.run import RodRun
@@ -254,7 +260,9 @@ def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None) -
         Newton.feasible_start = feasible
         RodRun.step_problem = problem
     try:
-        simulate(case)
+        ds = simulate(case)
+        if result is not None:
+            result["ds"] = ds
     except SolverDivergence as exc:
         print(f"stopped: {exc.reason} at t = {exc.t:.4f} s")
     finally:
@@ -279,6 +287,28 @@ def _watched(rows: list, node: int) -> str:
     return (f"    node {node} over {len(vals)} accepted steps: alternation {alt};  "
             f"ω's change per step RMS {jump:.3g}, |ω| max "
             f"{np.linalg.norm(vals[:, 3:6], axis=1).max():.3g} rad/s")
+
+
+def writhe_readings(ds, times) -> str:
+    """The --writhe line of a run's dataset ``ds`` (its ``writhe`` output, turns, on
+    ``time``, s): the first output time where |Wr| reaches 1, the largest |Wr| and when,
+    Wr at the output times nearest each of ``times`` (s), and with the ``bend_radius``
+    output the smallest ``bend_radius_min`` (m) and when."""
+    if "writhe" not in ds:
+        return "writhe: the case does not output it (output.fields without topology)"
+    t, wr = ds["time"].values, ds["writhe"].values
+    hit = np.nonzero(np.abs(wr) >= 1.0)[0]
+    first = f"{t[hit[0]]:.2f} s" if hit.size else "never"
+    at = "  ".join(f"Wr({t[i]:g} s) {wr[i]:.4f}"
+                   for i in (int(np.argmin(np.abs(t - x))) for x in times))
+    k = int(np.nanargmax(np.abs(wr)))
+    out = (f"writhe: |Wr| through 1 at {first} (output times), largest |Wr| "
+           f"{abs(wr[k]):.3f} at {t[k]:g} s;  {at}")
+    if "bend_radius_min" in ds:
+        r = ds["bend_radius_min"].values
+        j = int(np.nanargmin(r))
+        out += f";  tightest bend radius {r[j]:.4f} m at {t[j]:g} s"
+    return out
 
 
 def summary(rows: list) -> str:
@@ -515,6 +545,9 @@ def main() -> None:
     ap.add_argument("--watch", type=int, default=None, metavar="NODE",
                     help="also, per window, how much NODE's v and ω flip from one accepted "
                     "step to the next (alternation: 0 smooth, 2 alternating)")
+    ap.add_argument("--writhe", default="", metavar="T1,T2,...",
+                    help="also when |Wr| first reaches 1 and Wr at these times (s; the case "
+                    "must output topology)")
     ap.add_argument("--newton-failures", type=int, default=0)
     ap.add_argument("--starts", action="store_true",
                     help="also how far each contact solve's Newton start was from its solution")
@@ -542,7 +575,9 @@ def main() -> None:
         ap.error("--t-end is required (without --probe)")
     load = os.getloadavg()[0]
     wall = time.perf_counter()
-    rows = [a for a in record(args.case, args.t_end, args.starts, args.sets, args.watch)
+    result = {}
+    rows = [a for a in record(args.case, args.t_end, args.starts, args.sets, args.watch,
+                              result)
             if a["t"] >= args.t_from - 1e-12]
     wall = time.perf_counter() - wall
     edges = (np.array([float(x) for x in args.edges.split(",")]) if args.edges
@@ -560,6 +595,8 @@ def main() -> None:
         print("\n".join(_starts_of(rows)))
     if args.watch is not None:
         print(_watched(rows, args.watch))
+    if args.writhe and "ds" in result:
+        print(writhe_readings(result["ds"], [float(x) for x in args.writhe.split(",")]))
     failed = [r for r in rows if r["trace"] is not None][:args.newton_failures]
     for r in failed:
         print(f"Newton failed ({r['trace'][0]}) at t = {r['t']:.5f} s, Δt = {r['h']:.3g} s, "

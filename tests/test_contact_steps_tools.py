@@ -220,9 +220,10 @@ def test_the_modes_show_that_an_inextensible_rod_shortens_through_its_curvature(
 
 def test_the_alternation_reads_a_stiff_modes_flip_and_not_a_smooth_motion():
     """``--watch`` (:func:`contact_steps.alternation`): a straight line 0; a sine sampled
-    every φ = 2π/50 over two whole periods 2 sin(φ/2); a stiff mode damped by generalized-α's ρ∞ per step,
-    c + a(−ρ∞)^n, exactly 1 + ρ∞ (1.5 at seabed-hockle's ρ∞ = 0.5, whose untwisted lay's
-    spin flips so, docs/seabed.md); a constant series or fewer than three values NaN."""
+    every φ = 2π/50 over two whole periods 2 sin(φ/2); a stiff mode damped by
+    generalized-α's ρ∞ per step, c + a(−ρ∞)^n, exactly 1 + ρ∞ (1.5 at seabed-hockle's
+    ρ∞ = 0.5, whose untwisted lay's spin flips so, docs/seabed.md); a constant series or
+    fewer than three values NaN."""
     from contact_steps import alternation
 
     n = np.arange(40)
@@ -266,3 +267,21 @@ def test_contact_rho_inf_sets_the_scheme_only_in_steps_where_strands_may_meet():
     assert prob.candidates is None and prob.params == alpha_parameters(0.5)
     run, prob = first_step(bent, None)
     assert prob.candidates is not None and prob.params == alpha_parameters(0.5)
+
+
+def test_the_writhe_readings_name_the_first_loop_the_largest_writhe_and_the_tightest_bend():
+    """``--writhe`` (:func:`contact_steps.writhe_readings`) on a dataset with a known
+    answer: |Wr| reaches 1 first at 0.3 s, is largest (2.0) at 0.5 s, Wr at the output
+    nearest 0.42 s is the 0.4-s value, the tightest radius 0.01 m at 0.2 s; without the
+    topology output it says so."""
+    import xarray as xr
+    from contact_steps import writhe_readings
+
+    t = np.array([0.0, 0.1, 0.2, 0.3, 0.4, 0.5])
+    ds = xr.Dataset({"writhe": ("time", [0.0, 0.5, -0.9, -1.2, 1.5, -2.0]),
+                     "bend_radius_min": ("time", [1.0, 0.5, 0.01, 0.2, 0.3, 0.4])},
+                    coords={"time": t})
+    line = writhe_readings(ds, [0.42])
+    assert "through 1 at 0.30 s" in line and "largest |Wr| 2.000 at 0.5 s" in line
+    assert "Wr(0.4 s) 1.5000" in line and "tightest bend radius 0.0100 m at 0.2 s" in line
+    assert "does not output" in writhe_readings(xr.Dataset(coords={"time": t}), [0.1])
