@@ -14,6 +14,7 @@ For a solid circular section of diameter D (m):
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -73,3 +74,18 @@ class RodProperties:
         w[0] = w[-1] = 0.5 * ds
         return cls(s=s, ds=ds, diameter=d, area=area, stiffness=stiffness, rho_a=rho_a,
                    inertia=inertia, mass_t=mass_t, added_mass=added, quad_weights=w)
+
+    @cached_property
+    def fastest_wave_period(self) -> float:
+        """The period (s) of the fastest wave the grid carries: 2π/ω_max, ω_max the largest,
+        over the nodes, of the bending frequency at wavelength 2Δs (wavenumber k = π/Δs),
+        with the rotary inertia of a Rayleigh beam, ω² = EJ1 k⁴/(m + ρJ1 k²) (m the
+        translational mass per length with added mass), and the torsional frequency
+        ω = k·√(GJ3/ρJ3) of the wave equation GJ3 ∂²φ/∂s² = ρJ3 ∂²φ/∂t² (both: Graff,
+        Wave Motion in Elastic Solids, 1975). What :meth:`solver.run.RodRun.end_correction`
+        floors its time constant with. Raises nothing (the properties are positive)."""
+        k = np.pi / self.ds
+        bending = np.sqrt(self.stiffness[:, 0] * k**4
+                          / (self.mass_t[:, 0] + self.inertia[:, 0] * k**2))
+        torsion = k * np.sqrt(self.stiffness[:, 2] / self.inertia[:, 2])
+        return float(2.0 * np.pi / max(bending.max(), torsion.max()))

@@ -97,7 +97,14 @@ class ProblemAssembly:
     #: plectoneme's held end (Δt = 0.1 s, ρ∞ = 0.5) strays 31 mm from its axis against
     #: 14 mm at Δt/4 and Δt/100. Measured (``benchmarks/drift_rate.py``, docs/contact.md
     #: § 1): at Δt/4 all three complete and the seed example's events and |Wr| are those
-    #: of Δt/100
+    #: of Δt/100. Nor is the time constant ever shorter than one period of the fastest
+    #: wave the grid carries (:attr:`solver.properties.RodProperties.fastest_wave_period`),
+    #: which binds only where Δt/4 is shorter than that: at rates above it the correction
+    #: and the end's answer to it fed each other (cases/seabed-hockle.yaml untwisted at
+    #: Δt = 0.2 ms: the end's drift oscillated with a period of about ten steps, grew from
+    #: 8 µm to 0.5 mm in 0.3 s and the run failed in Newton; with the period, 0.87 ms
+    #: there, as the floor it completes; docs/contact.md, "Where the correction fed the
+    #: drift")
     DRIFT_STEP_FLOOR = 0.25
 
     def step_problem(self, h: float, t_new=None, left_limit=False,
@@ -254,13 +261,15 @@ class ProblemAssembly:
         steps shorter than DRIFT_STEP_FLOOR · numerics.dt the rate is that of the floor,
         so that the end's prescribed velocity jumps by at most 1/DRIFT_STEP_FLOOR when a
         step is cut and the correction within a step vanishes with h even where the
-        drift does not.
+        drift does not, and never faster than one period of the fastest wave the grid
+        carries (see DRIFT_STEP_FLOOR).
         """
         if self.contact is None or self.DRIFT_GAIN is None or restart:
             return None
         R, e = self.end_position_error()
         theta = relative_rotation(self.q[-1], self.q_time[-1])
-        h_rate = max(h, self.DRIFT_STEP_FLOOR * self.case.numerics.dt)
+        h_rate = max(h, self.DRIFT_STEP_FLOOR * self.case.numerics.dt,
+                     self.props.fastest_wave_period)
         off = bc.end_drift_offsets(self.props.s.size - 1, e, theta, self.DRIFT_GAIN / h_rate)
         if bc.turning[1]:
             # a towed end free to turn holds global values (V, imposed through the new

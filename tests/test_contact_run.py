@@ -518,6 +518,57 @@ def test_end_correction_within_a_step_vanishes_with_the_step():
     assert run.end_correction(0.01, bc, restart=True) is None
 
 
+def test_fastest_wave_period_reads_the_grids_torsion_and_bending_waves():
+    """RodProperties.fastest_wave_period, 2π/ω_max at the grid's shortest wavelength 2Δs:
+    on a coarse grid (Δs = 2.5 D) bending at that wavelength is slow (ω ∝ k²) and the
+    torsional wave sets it, T = 2Δs/√(G/ρ) exactly; on a fine grid (Δs = D/100) the
+    Rayleigh beam's bending tends to the bar wave, T → 2Δs/√(E/ρ), faster than torsion
+    (E > G)."""
+    from solver.properties import RodProperties
+
+    coarse = plectoneme_case(8, 0.1)
+    rod = coarse.rod
+    rho = rod.density
+    props = RodProperties.from_case(coarse)
+    assert props.ds == pytest.approx(2.5 * rod.diameter)
+    assert props.fastest_wave_period == pytest.approx(
+        2 * props.ds / np.sqrt(rod.shear_modulus / rho), rel=1e-12)
+    props = RodProperties.from_case(plectoneme_case(200, 0.1))
+    assert props.ds == pytest.approx(rod.diameter / 10)
+    bar = 2 * props.ds / np.sqrt(rod.youngs_modulus / rho)
+    assert props.fastest_wave_period == pytest.approx(bar, rel=0.02)
+    assert props.fastest_wave_period > bar            # the translational mass slows it
+    props = RodProperties.from_case(plectoneme_case(2000, 0.1))
+    bar = 2 * props.ds / np.sqrt(rod.youngs_modulus / rho)
+    assert props.fastest_wave_period == pytest.approx(bar, rel=1e-3)
+
+
+def test_end_correction_is_never_faster_than_the_grids_fastest_wave():
+    """Where a quarter of the case's Δt is shorter than one period T of the fastest wave
+    the grid carries, the correction's rate is DRIFT_GAIN / T: a step of at least T moves
+    the end by g·e, every shorter one prescribes the end velocity g·e/T. At the rate g/h
+    with h = 0.2 ms, cases/seabed-hockle.yaml untwisted failed at 1.65 s, the end's drift
+    oscillating and growing under the correction; with T (0.87 ms there) as the floor it
+    completes (docs/contact.md, "Where the correction fed the drift")."""
+    from solver.boundary import BoundaryRows
+
+    case = plectoneme_case(8, 0.01)
+    run = RodRun(case)
+    period = run.props.fastest_wave_period
+    assert run.DRIFT_STEP_FLOOR * case.numerics.dt < period < case.numerics.dt
+    drift = np.array([0.03, -0.04, 0.0])
+    run.r_time = run.r_time.copy()
+    run.r_time[-1] = run.r[-1] + drift
+    bc = BoundaryRows(case, run.props, 0.01, run.system.n, run.bc_schedule.plan)
+    g_e = run.DRIFT_GAIN * np.linalg.norm(drift)
+    for h in (case.numerics.dt, period):
+        off = run.end_correction(h, bc, restart=False)
+        assert np.linalg.norm(off[6:8]) * h == pytest.approx(g_e, rel=1e-9)
+    for h in (run.DRIFT_STEP_FLOOR * case.numerics.dt, period / 10):
+        off = run.end_correction(h, bc, restart=False)
+        assert np.linalg.norm(off[6:8]) == pytest.approx(g_e / period, rel=1e-9)
+
+
 def test_newton_start_takes_the_corrected_boundary_values():
     """BoundaryRows.project: the start of a step with end-correction offsets meets the
     step's 12 boundary rows (each unknown set to value/coef), and leaves every other
