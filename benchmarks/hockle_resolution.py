@@ -25,9 +25,15 @@ largest difference between the time route and the centreline integrated from κ
 (``position_route_difference``); the largest seabed reaction per unit length on the rod's
 last node.
 
-Run: ``PYTHONPATH=$PWD python benchmarks/hockle_resolution.py [--quick]`` (about 7 minutes
-alone on 2 cores, 1 of them the frictionless 640-segment run; ``--quick`` leaves out the
-640-segment runs). Counts and answers are deterministic; the wall times are indicative.
+With ``--untwisted`` instead: the untwisted lay (``initial.twist_rate`` 0) on the case's
+grid to 3 s at Δt = 0.05 s down to 0.2 ms, each run's nodes against the 0.2-ms run's, and
+at Δt = 3 ms the same lay with its imperfection scaled by 1 + 10⁻⁶ and 1 + 10⁻³ against
+the unscaled one (docs/contact.md, "Where the correction fed the drift"); ``--rho-inf R``
+runs them at ρ∞ = R, ``--without-self-contact`` with ``contact`` null.
+
+Run: ``PYTHONPATH=$PWD python benchmarks/hockle_resolution.py [--quick | --untwisted
+[--rho-inf R] [--without-self-contact]]`` (about 7 minutes alone on 2 cores, 1 of them the frictionless
+640-segment run; ``--quick`` leaves out the 640-segment runs). Counts and answers are deterministic; the wall times are indicative.
 """
 from __future__ import annotations
 
@@ -164,6 +170,61 @@ def parting(segments: int = 320, steps=(0.05, 0.025, 0.0125), t_end: float = 3.0
     return out
 
 
+def untwisted_lay(steps=(0.05, 0.0125, 0.003, 0.001, 0.0005, 0.0002), t_end: float = 3.0,
+                  rho_inf: float | None = None, sensitivity_dt: float = 0.003,
+                  self_contact: bool = True) -> list[str]:
+    """The untwisted lay (``initial.twist_rate`` 0) on the case's grid to ``t_end`` at each
+    Δt of ``steps`` (s), then at ``sensitivity_dt`` with the lay imperfection (the
+    centreline's y) scaled by 1 + 10⁻⁶ and 1 + 10⁻³: per run its status, Newton
+    iterations, largest ``end_drift``, and the largest distance of a node from the same
+    node of the last run of ``steps`` (of the unscaled run, for the scaled ones) at 1.5,
+    2, 2.5 s and ``t_end``. ``rho_inf``: the ρ∞ (None: the case's); not
+    ``self_contact``: ``contact`` null (the lay does not touch itself before 3.5 s, but
+    without self-contact the centreline is the time route, not carried along s, and the
+    s = L end is not corrected: docs/contact.md, "One geometry")."""
+    def run(dt, scale=1.0):
+        spec = spec_for(160, dt, t_end)
+        spec["initial"]["twist_rate"] = 0.0
+        if rho_inf is not None:
+            spec["numerics"]["rho_inf"] = rho_inf
+        if not self_contact:
+            spec["contact"] = None
+        if scale != 1.0:
+            pts = np.array(spec["initial"]["centreline"]["points"], dtype=float)
+            pts[:, 1] *= scale
+            spec["initial"]["centreline"]["points"] = pts.tolist()
+            spec["initial"].pop("tangent", None)
+        spec["output"].update(fields=["position"], every=1)   # 3 ms does not divide 0.05 s
+        try:
+            ds, status = simulate(Case.model_validate(spec)), "completed"
+        except SolverDivergence as exc:
+            ds, status = exc.partial, f"failed at {exc.t:.4g} s"
+        return ds, status
+
+    def line(label, ds, status, ref):
+        at = []
+        for t in (1.5, 2.0, 2.5, t_end):
+            if ds.time.values[-1] < t - 1e-9:
+                break
+            k = int(np.argmin(np.abs(ds.time.values - t)))
+            j = int(np.argmin(np.abs(ref.time.values - t)))
+            d = np.linalg.norm(ds.position.values[k] - ref.position.values[j], axis=-1).max()
+            at.append(f"{t:g} s {d * 1e3:.3g} mm")
+        drift = ds.end_drift.values if "end_drift" in ds else np.array([np.nan])
+        return (f"{label}: {status}, {int(ds.step_newton_iterations.values.sum())} Newton, "
+                f"end drift ≤ {np.nanmax(drift) * 1e3:.2g} mm; from the "
+                f"reference {', '.join(at) or '–'}")
+
+    runs = {dt: run(dt) for dt in steps}
+    ref = runs[steps[-1]][0]
+    out = [line(f"untwisted lay, Δt = {dt:g} s", *runs[dt], ref) for dt in steps]
+    base = runs[sensitivity_dt][0] if sensitivity_dt in runs else run(sensitivity_dt)[0]
+    for eps in (1e-6, 1e-3):
+        out.append(line(f"untwisted lay, Δt = {sensitivity_dt:g} s, imperfection × (1 + {eps:g})",
+                        *run(sensitivity_dt, 1 + eps), base))
+    return out
+
+
 def row(label: str, f: dict) -> str:
     def at(x):
         return "–" if x is None else f"{x:.2f}"
@@ -180,7 +241,21 @@ HEADER = ("| run | status | Newton | wall (s) | below the MBR (s) | loop (s) | "
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="leave out the 640-segment runs")
-    quick = ap.parse_args().quick
+    ap.add_argument("--untwisted", action="store_true",
+                    help="only the untwisted lay's Δt refinement and its sensitivity to "
+                         "the lay imperfection (about 4 minutes alone)")
+    ap.add_argument("--rho-inf", type=float, default=None,
+                    help="with --untwisted: the ρ∞ (default: the case's)")
+    ap.add_argument("--without-self-contact", action="store_true",
+                    help="with --untwisted: contact null (no carried centreline, no end "
+                         "correction)")
+    args = ap.parse_args()
+    if args.untwisted:
+        for line in untwisted_lay(rho_inf=args.rho_inf,
+                                  self_contact=not args.without_self_contact):
+            print(line, flush=True)
+        return
+    quick = args.quick
     print("| segments | Δs·τ0 (rad) | start pose's s = L end from the centreline's last point "
           "(mm) | its largest height above z = 0 (mm) | the same without twist: end (mm) | "
           "height (mm) |\n|---:|---:|---:|---:|---:|---:|")
