@@ -32,8 +32,10 @@ the unscaled one (docs/contact.md, "Where the correction fed the drift"); ``--rh
 runs them at ρ∞ = R, ``--without-self-contact`` with ``contact`` null.
 
 Run: ``PYTHONPATH=$PWD python benchmarks/hockle_resolution.py [--quick | --untwisted
-[--rho-inf R] [--without-self-contact]]`` (about 7 minutes alone on 2 cores, 1 of them the frictionless
-640-segment run; ``--quick`` leaves out the 640-segment runs). Counts and answers are deterministic; the wall times are indicative.
+[--rho-inf R] [--without-self-contact]]`` (about 7 minutes alone on 2 cores, 1 of them
+the frictionless 640-segment run; ``--quick`` leaves out the 640-segment runs;
+``--untwisted`` about 4 minutes). Counts and answers are deterministic; the wall times
+are indicative.
 """
 from __future__ import annotations
 

@@ -81,7 +81,7 @@ class ProblemAssembly:
     #: roots have modulus √(g/2): g = 0.5 halves it per step (a damped oscillation).
     #: Measured with 0.25, 0.5 and 1 alike (docs/contact.md § 4)
     DRIFT_GAIN = 0.5
-    #: the correction's rate is DRIFT_GAIN / max(h, DRIFT_STEP_FLOOR · numerics.dt): a
+    #: the correction's rate is DRIFT_GAIN / max(h, DRIFT_STEP_FLOOR · numerics.dt, T_w): a
     #: step of at least a quarter of the case's Δt moves the end by g·e (halving the
     #: drift per step), every shorter step prescribes the end velocity of the floor's
     #: step, so a cut step's prescribed end velocity is at most 1/DRIFT_STEP_FLOOR times
