@@ -261,8 +261,8 @@ class ProblemAssembly:
         steps shorter than DRIFT_STEP_FLOOR · numerics.dt the rate is that of the floor,
         so that the end's prescribed velocity jumps by at most 1/DRIFT_STEP_FLOOR when a
         step is cut and the correction within a step vanishes with h even where the
-        drift does not, and never faster than one period of the fastest wave the grid
-        carries (see DRIFT_STEP_FLOOR).
+        drift does not; nor is the rate's time constant ever shorter than one period of
+        the fastest wave the grid carries (see DRIFT_STEP_FLOOR).
         """
         if self.contact is None or self.DRIFT_GAIN is None or restart:
             return None
