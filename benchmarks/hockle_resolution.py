@@ -185,7 +185,7 @@ def untwisted_lay(steps=(0.05, 0.0125, 0.003, 0.001, 0.0005, 0.0002), t_end: flo
     without self-contact the centreline is the time route, not carried along s, and the
     s = L end is not corrected: docs/contact.md, "One geometry")."""
     def run(dt, scale=1.0):
-        spec = spec_for(160, dt, t_end)
+        spec = spec_for(GRIDS[0][0], dt, t_end)          # the case's own grid
         spec["initial"]["twist_rate"] = 0.0
         if rho_inf is not None:
             spec["numerics"]["rho_inf"] = rho_inf
