@@ -29,12 +29,19 @@ With ``--untwisted`` instead: the untwisted lay (``initial.twist_rate`` 0) on th
 grid to 3 s at Δt = 0.05 s down to 0.2 ms, each run's nodes against the 0.2-ms run's, and
 at Δt = 3 ms the same lay with its imperfection scaled by 1 + 10⁻⁶ and 1 + 10⁻³ against
 the unscaled one (docs/contact.md, "Where the correction fed the drift"); ``--rho-inf R``
-runs them at ρ∞ = R, ``--without-self-contact`` with ``contact`` null.
+runs them at ρ∞ = R, ``--without-self-contact`` with ``contact`` null,
+``--correction-time T`` with the end correction's rate floored at T in every run.
+
+With ``--route-difference`` instead: the untwisted lay without self-contact on 160, 320
+and 640 segments at Δt = 1 and 0.5 ms to 3 s, and how far its two routes part: the time
+route carried and the centreline integrated from κ (``position_route_difference``, and
+at the s = L end ``end_drift``).
 
 Run: ``PYTHONPATH=$PWD python benchmarks/hockle_resolution.py [--quick | --untwisted
-[--rho-inf R] [--without-self-contact]]`` (about 7 minutes alone on 2 cores, 1 of them
+[--rho-inf R] [--without-self-contact] [--correction-time T] |
+--route-difference]`` (about 7 minutes alone on 2 cores, 1 of them
 the frictionless 640-segment run; ``--quick`` leaves out the 640-segment runs;
-``--untwisted`` about 4 minutes). Counts and answers are deterministic; the wall times
+``--untwisted`` about 4 minutes, ``--route-difference`` about 2). Counts and answers are deterministic; the wall times
 are indicative.
 """
 from __future__ import annotations
@@ -53,6 +60,7 @@ sys.path.insert(0, str(ROOT))
 from hockle.plots import run_events  # noqa: E402
 from solver.case import Case  # noqa: E402
 from solver.simulation import SolverDivergence, simulate  # noqa: E402
+from solver.step_problem import ProblemAssembly  # noqa: E402
 
 CASE = ROOT / "cases" / "seabed-hockle.yaml"
 #: (segments, Δt s) with friction; the case's own grid first
@@ -172,9 +180,62 @@ def parting(segments: int = 320, steps=(0.05, 0.025, 0.0125), t_end: float = 3.0
     return out
 
 
+def lay_spec(segments: int, dt: float, t_end: float, rho_inf: float | None = None,
+             self_contact: bool = True, scale: float = 1.0) -> dict:
+    """The untwisted lay's spec (dict): the case with ``initial.twist_rate`` 0 on
+    ``segments`` cells at step ``dt`` (s) to ``t_end`` (s), ρ∞ ``rho_inf`` (None: the
+    case's), ``contact`` null unless ``self_contact``, the lay imperfection (the
+    centreline's y) scaled by ``scale``, the positions output at every step."""
+    spec = spec_for(segments, dt, t_end)
+    spec["initial"]["twist_rate"] = 0.0
+    if rho_inf is not None:
+        spec["numerics"]["rho_inf"] = rho_inf
+    if not self_contact:
+        spec["contact"] = None
+    if scale != 1.0:
+        pts = np.array(spec["initial"]["centreline"]["points"], dtype=float)
+        pts[:, 1] *= scale
+        spec["initial"]["centreline"]["points"] = pts.tolist()
+        spec["initial"].pop("tangent", None)
+    spec["output"].update(fields=["position"], every=1)   # 3 ms does not divide 0.05 s
+    return spec
+
+
+def _run(spec: dict):
+    """(result, status) of ``spec``: a failed run's partial result and where it failed."""
+    try:
+        return simulate(Case.model_validate(spec)), "completed"
+    except SolverDivergence as exc:
+        return exc.partial, f"failed at {exc.t:.4g} s"
+
+
+def route_difference(grids=((160, 0.001), (160, 0.0005), (320, 0.001), (320, 0.0005),
+                            (640, 0.001)), t_end: float = 3.0,
+                     rho_inf: float = 0.0) -> list[str]:
+    """The untwisted lay without self-contact (each node's time route carried, the
+    centreline integrated from κ only for the output) on each (segments, Δt (s)) of
+    ``grids`` to ``t_end`` at ρ∞ ``rho_inf``: per run its status, Newton iterations, and
+    the two routes' largest distance (``position_route_difference``) and the s = L end's
+    (``end_drift``), largest over the run and at its end, mm. The difference the carried
+    centreline of a self-contact run makes in each step (docs/contact.md, "Where the
+    correction fed the drift")."""
+    out = []
+    for segments, dt in grids:
+        ds, status = _run(lay_spec(segments, dt, t_end, rho_inf, self_contact=False))
+        route = ds.position_route_difference.values * 1e3
+        drift = ds.end_drift.values * 1e3
+        out.append(f"N = {segments}, Δt = {dt:g} s: {status}, "
+                   f"{int(ds.step_newton_iterations.values.sum())} Newton; routes apart "
+                   f"≤ {np.nanmax(route):.3g} mm, {route[-1]:.3g} mm at "
+                   f"{ds.time.values[-1]:g} s; end ≤ {np.nanmax(drift):.3g} mm, "
+                   f"{drift[-1]:.3g} mm")
+    return out
+
+
 def untwisted_lay(steps=(0.05, 0.0125, 0.003, 0.001, 0.0005, 0.0002), t_end: float = 3.0,
                   rho_inf: float | None = None, sensitivity_dt: float = 0.003,
-                  self_contact: bool = True) -> list[str]:
+                  self_contact: bool = True,
+                  correction_time: float | None = None) -> list[str]:
     """The untwisted lay (``initial.twist_rate`` 0) on the case's grid to ``t_end`` at each
     Δt of ``steps`` (s), then at ``sensitivity_dt`` with the lay imperfection (the
     centreline's y) scaled by 1 + 10⁻⁶ and 1 + 10⁻³: per run its status, Newton
@@ -183,25 +244,19 @@ def untwisted_lay(steps=(0.05, 0.0125, 0.003, 0.001, 0.0005, 0.0002), t_end: flo
     2, 2.5 s and ``t_end``. ``rho_inf``: the ρ∞ (None: the case's); not
     ``self_contact``: ``contact`` null (the lay does not touch itself before 3.5 s, but
     without self-contact the centreline is the time route, not carried along s, and the
-    s = L end is not corrected: docs/contact.md, "One geometry")."""
+    s = L end is not corrected: docs/contact.md, "One geometry"). ``correction_time``
+    T (s): the end correction's rate g/max(h, T, T_w) in every run, the same on steps
+    shorter than T whatever Δt (``ProblemAssembly.DRIFT_STEP_FLOOR`` set to T/Δt for each
+    run and restored after); None: the code's g/max(h, Δt/4, T_w)."""
     def run(dt, scale=1.0):
-        spec = spec_for(GRIDS[0][0], dt, t_end)          # the case's own grid
-        spec["initial"]["twist_rate"] = 0.0
-        if rho_inf is not None:
-            spec["numerics"]["rho_inf"] = rho_inf
-        if not self_contact:
-            spec["contact"] = None
-        if scale != 1.0:
-            pts = np.array(spec["initial"]["centreline"]["points"], dtype=float)
-            pts[:, 1] *= scale
-            spec["initial"]["centreline"]["points"] = pts.tolist()
-            spec["initial"].pop("tangent", None)
-        spec["output"].update(fields=["position"], every=1)   # 3 ms does not divide 0.05 s
+        spec = lay_spec(GRIDS[0][0], dt, t_end, rho_inf, self_contact, scale)
+        floor = ProblemAssembly.DRIFT_STEP_FLOOR
+        if correction_time is not None:
+            ProblemAssembly.DRIFT_STEP_FLOOR = correction_time / dt
         try:
-            ds, status = simulate(Case.model_validate(spec)), "completed"
-        except SolverDivergence as exc:
-            ds, status = exc.partial, f"failed at {exc.t:.4g} s"
-        return ds, status
+            return _run(spec)
+        finally:
+            ProblemAssembly.DRIFT_STEP_FLOOR = floor
 
     def line(label, ds, status, ref):
         at = []
@@ -251,10 +306,22 @@ def main() -> None:
     ap.add_argument("--without-self-contact", action="store_true",
                     help="with --untwisted: contact null (no carried centreline, no end "
                          "correction)")
+    ap.add_argument("--correction-time", type=float, default=None, metavar="T",
+                    help="with --untwisted: the end correction's time constant T (s) on "
+                         "every step of every run (default: the code's, Δt/4 or longer)")
+    ap.add_argument("--route-difference", action="store_true",
+                    help="only the untwisted lay without self-contact on 160-640 segments "
+                         "at Δt = 1 and 0.5 ms: how far the two routes part (about 2 "
+                         "minutes alone)")
     args = ap.parse_args()
+    if args.route_difference:
+        for line in route_difference():
+            print(line, flush=True)
+        return
     if args.untwisted:
         for line in untwisted_lay(rho_inf=args.rho_inf,
-                                  self_contact=not args.without_self_contact):
+                                  self_contact=not args.without_self_contact,
+                                  correction_time=args.correction_time):
             print(line, flush=True)
         return
     quick = args.quick

@@ -69,3 +69,43 @@ def test_the_untwisted_lay_study_measures_against_the_finest_run_and_the_unscale
     assert coarse > 1.0
     assert small < 0.01
     assert large > 100 * small
+
+
+def test_the_route_difference_study_shrinks_with_the_grid():
+    """hockle_resolution.route_difference (docs/contact.md, "Where the correction fed the
+    drift"), cut short to 1.6 s on coarse grids: each line reports a completed run, and
+    the two routes part about four times less on twice the segments (observed: 2.88 mm on
+    40, 0.97 mm on 80 segments at Δt = 5 ms)."""
+    import re
+
+    lines = hr.route_difference(grids=((40, 0.005), (80, 0.005)), t_end=1.6)
+    assert len(lines) == 2 and all(": completed, " in line for line in lines)
+    apart = [float(re.search(r"routes apart ≤ ([0-9.e+-]+) mm", line).group(1))
+             for line in lines]
+    assert apart[0] > 1.0
+    assert apart[0] / apart[1] > 2.5
+
+
+def test_the_correction_time_holds_the_rate_floor_for_the_run_and_restores_it():
+    """``correction_time`` sets ProblemAssembly.DRIFT_STEP_FLOOR to T/Δt for each run (the
+    rate g/max(h, T, T_w) whatever Δt) and puts the code's floor back after."""
+    from solver.step_problem import ProblemAssembly
+
+    seen = []
+    real = hr._run
+
+    def spy(spec):
+        seen.append((spec["numerics"]["dt"], ProblemAssembly.DRIFT_STEP_FLOOR))
+        return real(spec)
+
+    floor = ProblemAssembly.DRIFT_STEP_FLOOR
+    hr._run = spy
+    try:
+        lines = hr.untwisted_lay(steps=(0.05, 0.025), t_end=0.1, rho_inf=0.0,
+                                 sensitivity_dt=0.05, correction_time=0.002)
+    finally:
+        hr._run = real
+    assert ProblemAssembly.DRIFT_STEP_FLOOR == floor
+    assert len(lines) == 4
+    for dt, used in seen:
+        assert used * dt == pytest.approx(0.002)
