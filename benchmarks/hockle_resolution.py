@@ -30,7 +30,8 @@ grid to 3 s at Δt = 0.05 s down to 0.2 ms, each run's nodes against the 0.2-ms 
 at Δt = 3 ms the same lay with its imperfection scaled by 1 + 10⁻⁶ and 1 + 10⁻³ against
 the unscaled one (docs/contact.md, "Where the correction fed the drift"); ``--rho-inf R``
 runs them at ρ∞ = R, ``--without-self-contact`` with ``contact`` null,
-``--correction-time T`` with the end correction's rate floored at T in every run.
+``--correction-time T`` with the end correction's rate floored at T in every run,
+``--segments N`` on N segments.
 
 With ``--route-difference`` instead: the untwisted lay without self-contact on 160, 320
 and 640 segments at Δt = 1 and 0.5 ms to 3 s, and how far its two routes part: the time
@@ -38,7 +39,7 @@ route carried and the centreline integrated from κ (``position_route_difference
 at the s = L end ``end_drift``).
 
 Run: ``PYTHONPATH=$PWD python benchmarks/hockle_resolution.py [--quick | --untwisted
-[--rho-inf R] [--without-self-contact] [--correction-time T] |
+[--rho-inf R] [--without-self-contact] [--correction-time T] [--segments N] |
 --route-difference]`` (about 7 minutes alone on 2 cores, 1 of them
 the frictionless 640-segment run; ``--quick`` leaves out the 640-segment runs;
 ``--untwisted`` about 4 minutes, ``--route-difference`` about 2). Counts and answers are deterministic; the wall times
@@ -235,7 +236,8 @@ def route_difference(grids=((160, 0.001), (160, 0.0005), (320, 0.001), (320, 0.0
 def untwisted_lay(steps=(0.05, 0.0125, 0.003, 0.001, 0.0005, 0.0002), t_end: float = 3.0,
                   rho_inf: float | None = None, sensitivity_dt: float = 0.003,
                   self_contact: bool = True,
-                  correction_time: float | None = None) -> list[str]:
+                  correction_time: float | None = None,
+                  segments: int | None = None) -> list[str]:
     """The untwisted lay (``initial.twist_rate`` 0) on the case's grid to ``t_end`` at each
     Δt of ``steps`` (s), then at ``sensitivity_dt`` with the lay imperfection (the
     centreline's y) scaled by 1 + 10⁻⁶ and 1 + 10⁻³: per run its status, Newton
@@ -247,9 +249,10 @@ def untwisted_lay(steps=(0.05, 0.0125, 0.003, 0.001, 0.0005, 0.0002), t_end: flo
     s = L end is not corrected: docs/contact.md, "One geometry"). ``correction_time``
     T (s): the end correction's rate g/max(h, T, T_w) in every run, the same on steps
     shorter than T whatever Δt (``ProblemAssembly.DRIFT_STEP_FLOOR`` set to T/Δt for each
-    run and restored after); None: the code's g/max(h, Δt/4, T_w)."""
+    run and restored after); None: the code's g/max(h, Δt/4, T_w). ``segments``: the
+    grid (None: the case's)."""
     def run(dt, scale=1.0):
-        spec = lay_spec(GRIDS[0][0], dt, t_end, rho_inf, self_contact, scale)
+        spec = lay_spec(segments or GRIDS[0][0], dt, t_end, rho_inf, self_contact, scale)
         floor = ProblemAssembly.DRIFT_STEP_FLOOR
         if correction_time is not None:
             ProblemAssembly.DRIFT_STEP_FLOOR = correction_time / dt
@@ -309,6 +312,8 @@ def main() -> None:
     ap.add_argument("--correction-time", type=float, default=None, metavar="T",
                     help="with --untwisted: the end correction's time constant T (s) on "
                          "every step of every run (default: the code's, Δt/4 or longer)")
+    ap.add_argument("--segments", type=int, default=None, metavar="N",
+                    help="with --untwisted: N segments (default: the case's 160)")
     ap.add_argument("--route-difference", action="store_true",
                     help="only the untwisted lay without self-contact on 160-640 segments "
                          "at Δt = 1 and 0.5 ms: how far the two routes part (about 2 "
@@ -321,7 +326,8 @@ def main() -> None:
     if args.untwisted:
         for line in untwisted_lay(rho_inf=args.rho_inf,
                                   self_contact=not args.without_self_contact,
-                                  correction_time=args.correction_time):
+                                  correction_time=args.correction_time,
+                                  segments=args.segments):
             print(line, flush=True)
         return
     quick = args.quick

@@ -88,24 +88,28 @@ def test_the_route_difference_study_shrinks_with_the_grid():
 
 def test_the_correction_time_holds_the_rate_floor_for_the_run_and_restores_it():
     """``correction_time`` sets ProblemAssembly.DRIFT_STEP_FLOOR to T/Δt for each run (the
-    rate g/max(h, T, T_w) whatever Δt) and puts the code's floor back after."""
+    rate g/max(h, T, T_w) whatever Δt) and puts the code's floor back after; ``segments``
+    sets every run's grid."""
     from solver.step_problem import ProblemAssembly
 
     seen = []
     real = hr._run
 
     def spy(spec):
-        seen.append((spec["numerics"]["dt"], ProblemAssembly.DRIFT_STEP_FLOOR))
+        seen.append((spec["numerics"]["dt"], ProblemAssembly.DRIFT_STEP_FLOOR,
+                     spec["numerics"]["n_segments"]))
         return real(spec)
 
     floor = ProblemAssembly.DRIFT_STEP_FLOOR
     hr._run = spy
     try:
         lines = hr.untwisted_lay(steps=(0.05, 0.025), t_end=0.1, rho_inf=0.0,
-                                 sensitivity_dt=0.05, correction_time=0.002)
+                                 sensitivity_dt=0.05, correction_time=0.002, segments=80)
     finally:
         hr._run = real
     assert ProblemAssembly.DRIFT_STEP_FLOOR == floor
     assert len(lines) == 4
-    for dt, used in seen:
+    assert len(seen) == 4
+    for dt, used, segments in seen:
         assert used * dt == pytest.approx(0.002)
+        assert segments == 80
