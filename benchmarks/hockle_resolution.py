@@ -42,8 +42,8 @@ Run: ``PYTHONPATH=$PWD python benchmarks/hockle_resolution.py [--quick | --untwi
 [--rho-inf R] [--without-self-contact] [--correction-time T] [--segments N] |
 --route-difference]`` (about 7 minutes alone on 2 cores, 1 of them
 the frictionless 640-segment run; ``--quick`` leaves out the 640-segment runs;
-``--untwisted`` about 4 minutes, ``--route-difference`` about 2). Counts and answers are deterministic; the wall times
-are indicative.
+``--untwisted`` about 4 minutes, ``--route-difference`` about 2). Counts and answers are
+deterministic; the wall times are indicative.
 """
 from __future__ import annotations
 
@@ -217,9 +217,9 @@ def route_difference(grids=((160, 0.001), (160, 0.0005), (320, 0.001), (320, 0.0
     centreline integrated from κ only for the output) on each (segments, Δt (s)) of
     ``grids`` to ``t_end`` at ρ∞ ``rho_inf``: per run its status, Newton iterations, and
     the two routes' largest distance (``position_route_difference``) and the s = L end's
-    (``end_drift``), largest over the run and at its end, mm. The difference the carried
-    centreline of a self-contact run makes in each step (docs/contact.md, "Where the
-    correction fed the drift")."""
+    (``end_drift``), largest over the run and at its end, mm: by how much a self-contact
+    run's carried centreline would part from the time route if no end correction steered
+    it (docs/contact.md, "Where the correction fed the drift")."""
     out = []
     for segments, dt in grids:
         ds, status = _run(lay_spec(segments, dt, t_end, rho_inf, self_contact=False))
@@ -238,12 +238,12 @@ def untwisted_lay(steps=(0.05, 0.0125, 0.003, 0.001, 0.0005, 0.0002), t_end: flo
                   self_contact: bool = True,
                   correction_time: float | None = None,
                   segments: int | None = None) -> list[str]:
-    """The untwisted lay (``initial.twist_rate`` 0) on the case's grid to ``t_end`` at each
-    Δt of ``steps`` (s), then at ``sensitivity_dt`` with the lay imperfection (the
-    centreline's y) scaled by 1 + 10⁻⁶ and 1 + 10⁻³: per run its status, Newton
-    iterations, largest ``end_drift``, and the largest distance of a node from the same
-    node of the last run of ``steps`` (of the unscaled run, for the scaled ones) at 1.5,
-    2, 2.5 s and ``t_end``. ``rho_inf``: the ρ∞ (None: the case's); not
+    """The untwisted lay (``initial.twist_rate`` 0) on the case's grid (or ``segments``) to
+    ``t_end`` at each Δt of ``steps`` (s), then at ``sensitivity_dt`` with the lay
+    imperfection (the centreline's y) scaled by 1 + 10⁻⁶ and 1 + 10⁻³: per run its
+    status, Newton iterations, largest ``end_drift``, and the largest distance of a node
+    from the same node of the last run of ``steps`` (of the unscaled run, for the scaled
+    ones) at 1.5, 2, 2.5 s and ``t_end``. ``rho_inf``: the ρ∞ (None: the case's); not
     ``self_contact``: ``contact`` null (the lay does not touch itself before 3.5 s, but
     without self-contact the centreline is the time route, not carried along s, and the
     s = L end is not corrected: docs/contact.md, "One geometry"). ``correction_time``
@@ -310,8 +310,8 @@ def main() -> None:
                     help="with --untwisted: contact null (no carried centreline, no end "
                          "correction)")
     ap.add_argument("--correction-time", type=float, default=None, metavar="T",
-                    help="with --untwisted: the end correction's time constant T (s) on "
-                         "every step of every run (default: the code's, Δt/4 or longer)")
+                    help="with --untwisted: the floor T (s) of the end correction's time "
+                         "constant in every run, whatever Δt (default: the code's, Δt/4)")
     ap.add_argument("--segments", type=int, default=None, metavar="N",
                     help="with --untwisted: N segments (default: the case's 160)")
     ap.add_argument("--route-difference", action="store_true",
