@@ -219,7 +219,8 @@ def route_difference(grids=((160, 0.001), (160, 0.0005), (320, 0.001), (320, 0.0
     the two routes' largest distance (``position_route_difference``) and the s = L end's
     (``end_drift``), largest over the run and at its end, mm: by how much a self-contact
     run's carried centreline would part from the time route if no end correction steered
-    it (docs/contact.md, "Where the correction fed the drift")."""
+    it (docs/contact.md, "Where the correction fed the drift"). Raises nothing: a run
+    that fails is reported by its status, on its partial result."""
     out = []
     for segments, dt in grids:
         ds, status = _run(lay_spec(segments, dt, t_end, rho_inf, self_contact=False))

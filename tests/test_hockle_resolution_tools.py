@@ -86,7 +86,7 @@ def test_the_route_difference_study_shrinks_with_the_grid():
     assert apart[0] / apart[1] > 2.5
 
 
-def test_the_correction_time_holds_the_rate_floor_for_the_run_and_restores_it():
+def test_the_correction_time_holds_the_rate_floor_for_the_run_and_restores_it(monkeypatch):
     """``correction_time`` sets ProblemAssembly.DRIFT_STEP_FLOOR to T/Δt for each run (the
     rate g/max(h, T, T_w) whatever Δt) and puts the code's floor back after; ``segments``
     sets every run's grid."""
@@ -101,12 +101,9 @@ def test_the_correction_time_holds_the_rate_floor_for_the_run_and_restores_it():
         return real(spec)
 
     floor = ProblemAssembly.DRIFT_STEP_FLOOR
-    hr._run = spy
-    try:
-        lines = hr.untwisted_lay(steps=(0.05, 0.025), t_end=0.1, rho_inf=0.0,
-                                 sensitivity_dt=0.05, correction_time=0.002, segments=80)
-    finally:
-        hr._run = real
+    monkeypatch.setattr(hr, "_run", spy)
+    lines = hr.untwisted_lay(steps=(0.05, 0.025), t_end=0.1, rho_inf=0.0,
+                             sensitivity_dt=0.05, correction_time=0.002, segments=80)
     assert ProblemAssembly.DRIFT_STEP_FLOOR == floor
     assert len(lines) == 4
     assert len(seen) == 4
