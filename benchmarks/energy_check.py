@@ -31,11 +31,15 @@
   status, where a failed run stops, energy refusals, Newton iterations, |Wr| and the mid
   node at the end, wall time and the check's own share of it (``--only full-seed``: the
   seed example's pair alone);
-* what lies behind them (``--only diagnose``, :func:`diagnose`).
+* what lies behind them (``--only diagnose``, :func:`diagnose`);
+* PyElastica's plectoneme (``--only plectoneme``, :func:`plectoneme`, about 20 s): the
+  check measuring only, by grid, Δt, ρ∞, ``contact_rho_inf`` and with the s = L end's
+  drift correction on and off, where a run diverges and per window the accounts, ε, the
+  end forces' work on the end velocities and ε over the end moments' work.
 
 Run: ``PYTHONPATH=$PWD python benchmarks/energy_check.py [--only cable|rest|cases|windows|
-newton|contact|control|tolerances|full|full-seed|diagnose]`` (about a minute each after the kernels are
-compiled; ``tolerances`` and ``full`` several).
+newton|contact|control|tolerances|full|full-seed|diagnose|plectoneme]`` (about a minute
+each after the kernels are compiled; ``tolerances`` and ``full`` several).
 """
 from __future__ import annotations
 
@@ -395,16 +399,105 @@ def diagnose():
               f"{_refused(ds)} energy refusals, mid node x {p[p.shape[0] // 2, 0]:.5f} m")
 
 
+
+#: PyElastica's plectoneme (benchmarks/peer_compare.py's case) in :func:`plectoneme`:
+#: (segments N, Δt (s), ρ∞, the s = L end's drift correction on, contact_rho_inf)
+PLECTONEME_SETTINGS = ((25, 0.1, 0.8, True, None), (25, 0.025, 0.8, True, None),
+                       (25, 0.00625, 0.8, True, None), (25, 0.1, 1.0, True, None),
+                       (25, 0.025, 0.8, False, None), (25, 0.1, 0.5, True, None),
+                       (25, 0.025, 0.5, True, None), (50, 0.05, 0.8, True, None),
+                       (100, 0.0125, 0.8, True, None), (25, 0.1, 0.8, True, 0.0),
+                       (25, 0.1, 0.8, False, 0.0))
+
+
+def plectoneme_accounts(n, dt, rho_inf, correction=True, contact_rho_inf=None,
+                        t_end=12.0):
+    """PyElastica's plectoneme (:func:`peer_compare.hockle_case`, N segments, Δt s,
+    ``rho_inf``, ``numerics.contact_rho_inf``) with the energy check measuring only
+    (``energy_tolerance`` 1e9: every converged step's ε measured, none refused) and,
+    without ``correction``, the s = L end's drift correction off
+    (``ProblemAssembly.DRIFT_GAIN`` None for the run).
+
+    Returns (status, rows): status "completed" or "diverged at t = … s"; rows (S, 9)
+    over the S accepted steps: t (s), then the step's work (J) of the end moments
+    (``ends``), the end forces and the imperfection on the space route (``loads``),
+    the contact law (``contact``) and the drag (``drag``), the energy's change ΔE (J),
+    ε = ΔE − Σ W (J), the scale T (J), and the end forces' work on the end sections'
+    velocities, ½h(f^n·v^n + f^{n+1}·v^{n+1}) summed over both ends (J; the prescribed
+    velocities with the drift correction's offsets: what the correction's motion of the
+    held end does against its reaction). Read off each accepted step's balance
+    (:attr:`solver.run.RodRun.last_balance` when the step is accepted). Raises nothing
+    of its own; a run that fails returns its accepted steps."""
+    import peer_compare as pcmp
+    from solver.energies import end_loads
+    from solver.step_problem import ProblemAssembly
+
+    spec = pcmp.hockle_case(n, dt, t_end).model_dump(mode="json")
+    spec["numerics"]["rho_inf"] = rho_inf
+    spec["numerics"]["contact_rho_inf"] = contact_rho_inf
+    spec["numerics"]["energy_tolerance"] = 1e9
+    rows = []
+    original, gain = RodRun._accept, ProblemAssembly.DRIFT_GAIN
+
+    def accept(self, prob, sol, summary):
+        bal = self.last_balance
+        if bal is not None:
+            w = bal.work
+            old, new = end_loads(self.Y, self.props), end_loads(sol.Y, self.props)
+            power = [float(np.sum(L[:, :3] * Y[[0, -1], 0:3]))
+                     for L, Y in ((old, self.Y), (new, sol.Y))]
+            total = sum(w.values())
+            rows.append((prob.t_new, w.get("ends", 0.0), w.get("loads", 0.0),
+                         w.get("contact", 0.0), w.get("drag", 0.0), bal.error + total,
+                         bal.error, bal.scale, 0.5 * float(prob.h) * sum(power)))
+        return original(self, prob, sol, summary)
+
+    RodRun._accept = accept
+    if not correction:
+        ProblemAssembly.DRIFT_GAIN = None
+    try:
+        simulate(Case.model_validate(spec))
+        status = "completed"
+    except SolverDivergence as exc:
+        status = f"diverged at t = {exc.t:.2f} s"
+    finally:
+        RodRun._accept, ProblemAssembly.DRIFT_GAIN = original, gain
+    return status, np.array(rows).reshape(-1, 9)
+
+
+def plectoneme(settings=PLECTONEME_SETTINGS,
+               edges=(0.0, 7.0, 8.0, 9.0, 10.0, 10.75, 11.0, 12.0)):
+    """The balance of PyElastica's plectoneme by setting (:func:`plectoneme_accounts`),
+    the check measuring only: where a run diverges, and per window of ``edges`` the
+    accounts summed over its accepted steps (J), ε's sum and the median scale T."""
+    print("PyElastica's plectoneme (peer_compare.hockle_case), the check measuring only: "
+          "per window the work of each account, dE, eps = dE - sum W (J), median T (J), "
+          "the end forces' work on the end velocities (J) and eps over the end moments' work")
+    for n, dt, rho, corr, crho in settings:
+        status, r = plectoneme_accounts(n, dt, rho, corr, crho)
+        print(f"N = {n}, dt = {dt:g} s, rho_inf = {rho:g}"
+              + ("" if crho is None else f", contact_rho_inf = {crho:g}")
+              + ("" if corr else ", no end correction") + f": {status}, {len(r)} steps")
+        print("    window        ends    loads  contact     drag       dE      eps  "
+              "median T  end f.v  eps/ends")
+        for a, b in zip(edges[:-1], edges[1:]):
+            m = (r[:, 0] > a) & (r[:, 0] <= b)
+            if not m.any():
+                continue
+            s = r[m].sum(axis=0)
+            print(f"  {a:5.2f}-{b:5.2f} s " + " ".join(f"{x:8.3f}" for x in s[1:7])
+                  + f"  {np.median(r[m, 7]):8.2e} {s[8]:8.3f}  {s[6] / s[1]:+8.3f}")
+
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--only", choices=("cable", "rest", "cases", "windows", "newton",
                                            "contact", "control", "tolerances", "full",
-                                           "full-seed", "diagnose"))
+                                           "full-seed", "diagnose", "plectoneme"))
     only = parser.parse_args().only
     for name, fn in (("cable", cable), ("rest", rest), ("cases", cases),
                      ("windows", windows), ("newton", newton), ("contact", contact),
                      ("control", control), ("tolerances", tolerances), ("full", full),
                      ("full-seed", lambda: full(("goyal-writhing.yaml",))),
-                     ("diagnose", diagnose)):
+                     ("diagnose", diagnose), ("plectoneme", plectoneme)):
         if only == name or (only is None and name != "full-seed"):
             fn()
