@@ -32,10 +32,11 @@
   node at the end, wall time and the check's own share of it (``--only full-seed``: the
   seed example's pair alone);
 * what lies behind them (``--only diagnose``, :func:`diagnose`);
-* PyElastica's plectoneme (``--only plectoneme``, :func:`plectoneme`, about 20 s): the
-  check measuring only, by grid, Δt, ρ∞, ``contact_rho_inf`` and with the s = L end's
-  drift correction on and off, where a run diverges and per window the accounts, ε, the
-  end forces' work on the end velocities and ε over the end moments' work.
+* PyElastica's plectoneme (``--only plectoneme``, :func:`plectoneme`, about 75 s): the
+  check measuring only, by grid, Δt, ρ∞, ``contact_rho_inf``, the route rule's bound and
+  with the s = L end's drift correction on and off, where a run diverges and per window
+  the accounts, ε, the end forces' work on the end velocities, ε over the end moments'
+  work and the median step.
 
 Run: ``PYTHONPATH=$PWD python benchmarks/energy_check.py [--only cable|rest|cases|windows|
 newton|contact|control|tolerances|full|full-seed|diagnose|plectoneme]`` (about a minute
@@ -401,19 +402,23 @@ def diagnose():
 
 
 #: PyElastica's plectoneme (benchmarks/peer_compare.py's case) in :func:`plectoneme`:
-#: (segments N, Δt (s), ρ∞, the s = L end's drift correction on, contact_rho_inf)
-PLECTONEME_SETTINGS = ((25, 0.1, 0.8, True, None), (25, 0.025, 0.8, True, None),
-                       (25, 0.00625, 0.8, True, None), (25, 0.1, 1.0, True, None),
-                       (25, 0.025, 0.8, False, None), (25, 0.1, 0.5, True, None),
-                       (25, 0.025, 0.5, True, None), (50, 0.05, 0.8, True, None),
-                       (100, 0.0125, 0.8, True, None), (25, 0.1, 0.8, True, 0.0),
-                       (25, 0.1, 0.8, False, 0.0))
+#: (segments N, Δt (s), ρ∞, the s = L end's drift correction on, contact_rho_inf,
+#: contact.position_tolerance (m; None: the default, a quarter of the search margin,
+#: 12.5 mm here))
+PLECTONEME_SETTINGS = ((25, 0.1, 0.8, True, None, None), (25, 0.025, 0.8, True, None, None),
+                       (25, 0.00625, 0.8, True, None, None),
+                       (25, 0.025, 0.8, True, None, 3.75e-5),
+                       (25, 0.1, 1.0, True, None, None), (25, 0.025, 0.8, False, None, None),
+                       (25, 0.1, 0.5, True, None, None), (25, 0.025, 0.5, True, None, None),
+                       (50, 0.05, 0.8, True, None, None), (100, 0.0125, 0.8, True, None, None),
+                       (25, 0.1, 0.8, True, 0.0, None), (25, 0.1, 0.8, False, 0.0, None))
 
 
 def plectoneme_accounts(n, dt, rho_inf, correction=True, contact_rho_inf=None,
-                        t_end=12.0):
+                        position_tolerance=None, t_end=12.0):
     """PyElastica's plectoneme (:func:`peer_compare.hockle_case`, N segments, Δt s,
-    ``rho_inf``, ``numerics.contact_rho_inf``) with the energy check measuring only
+    ``rho_inf``, ``numerics.contact_rho_inf``, ``contact.position_tolerance`` (m), the
+    route rule's bound that sizes the contact steps) with the energy check measuring only
     (``energy_tolerance`` 1e9: every converged step's ε measured, none refused) and,
     without ``correction``, the s = L end's drift correction off
     (``ProblemAssembly.DRIFT_GAIN`` None for the run).
@@ -435,6 +440,7 @@ def plectoneme_accounts(n, dt, rho_inf, correction=True, contact_rho_inf=None,
     spec = pcmp.hockle_case(n, dt, t_end).model_dump(mode="json")
     spec["numerics"]["rho_inf"] = rho_inf
     spec["numerics"]["contact_rho_inf"] = contact_rho_inf
+    spec["contact"]["position_tolerance"] = position_tolerance
     spec["numerics"]["energy_tolerance"] = 1e9
     rows = []
     original, gain = RodRun._accept, ProblemAssembly.DRIFT_GAIN
@@ -472,21 +478,26 @@ def plectoneme(settings=PLECTONEME_SETTINGS,
     accounts summed over its accepted steps (J), ε's sum and the median scale T."""
     print("PyElastica's plectoneme (peer_compare.hockle_case), the check measuring only: "
           "per window the work of each account, dE, eps = dE - sum W (J), median T (J), "
-          "the end forces' work on the end velocities (J) and eps over the end moments' work")
-    for n, dt, rho, corr, crho in settings:
-        status, r = plectoneme_accounts(n, dt, rho, corr, crho)
+          "the end forces' work on the end velocities (J), eps over the end moments' work "
+          "and the median accepted step")
+    for n, dt, rho, corr, crho, ptol in settings:
+        status, r = plectoneme_accounts(n, dt, rho, corr, crho, ptol)
+        steps = np.diff(np.concatenate([[0.0], r[:, 0]]))
         print(f"N = {n}, dt = {dt:g} s, rho_inf = {rho:g}"
               + ("" if crho is None else f", contact_rho_inf = {crho:g}")
+              + ("" if ptol is None else f", position_tolerance = {ptol:g} m")
               + ("" if corr else ", no end correction") + f": {status}, {len(r)} steps")
         print("    window        ends    loads  contact     drag       dE      eps  "
-              "median T  end f.v  eps/ends")
+              "median T  end f.v  eps/ends  median step (ms)")
         for a, b in zip(edges[:-1], edges[1:]):
             m = (r[:, 0] > a) & (r[:, 0] <= b)
             if not m.any():
                 continue
             s = r[m].sum(axis=0)
             print(f"  {a:5.2f}-{b:5.2f} s " + " ".join(f"{x:8.3f}" for x in s[1:7])
-                  + f"  {np.median(r[m, 7]):8.2e} {s[8]:8.3f}  {s[6] / s[1]:+8.3f}")
+                  + f"  {np.median(r[m, 7]):8.2e} {s[8]:8.3f}  {s[6] / s[1]:+8.3f}"
+                  + f"  {1e3 * np.median(steps[m]):8.3f}")
+
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
