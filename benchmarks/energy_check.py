@@ -400,7 +400,6 @@ def diagnose():
               f"{_refused(ds)} energy refusals, mid node x {p[p.shape[0] // 2, 0]:.5f} m")
 
 
-
 #: PyElastica's plectoneme (benchmarks/peer_compare.py's case) in :func:`plectoneme`:
 #: (segments N, Δt (s), ρ∞, the s = L end's drift correction on, contact_rho_inf,
 #: contact.position_tolerance (m; None: the default, a quarter of the search margin,
@@ -474,8 +473,10 @@ def plectoneme_accounts(n, dt, rho_inf, correction=True, contact_rho_inf=None,
 def plectoneme(settings=PLECTONEME_SETTINGS,
                edges=(0.0, 7.0, 8.0, 9.0, 10.0, 10.75, 11.0, 12.0)):
     """The balance of PyElastica's plectoneme by setting (:func:`plectoneme_accounts`),
-    the check measuring only: where a run diverges, and per window of ``edges`` the
-    accounts summed over its accepted steps (J), ε's sum and the median scale T."""
+    the check measuring only: where a run diverges, and per window of ``edges`` (s) the
+    columns of :func:`plectoneme_accounts` summed over its accepted steps (J), the median
+    scale T (J), ε over the end moments' work and the median accepted step (ms).
+    ``settings``: tuples as :data:`PLECTONEME_SETTINGS`. Prints; returns nothing."""
     print("PyElastica's plectoneme (peer_compare.hockle_case), the check measuring only: "
           "per window the work of each account, dE, eps = dE - sum W (J), median T (J), "
           "the end forces' work on the end velocities (J), eps over the end moments' work "

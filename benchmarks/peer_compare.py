@@ -94,9 +94,9 @@ FULL = {
     # (n = 25, 0.011 against 0.0055) and 0.01 % (n = 50, 0.015 against 0.011) to 9 s, Δs
     # by 2.8 % (n = 25 against 50): the Δs refinement is the one that matters. n = 20-160:
     # to 12 s at load 7 n = 100 took ~150 s and n = 200 ~980 s (extrapolated from 1 and
-    # 0.5 s), beyond one run's budget with the rest of the grid. At load 1, n = 80 takes
-    # 12 s and n = 160 77 s (×6.4 per doubling: n = 320 about 8 min): n = 160 is the
-    # finest candidate whose refinement one run can afford as the reference
+    # 0.5 s), beyond one run's budget with the rest of the grid. In the run of 2026-11-27
+    # (load 1, AMD EPYC) n = 80 took 18 s, n = 160 108 s and n = 320 770 s: n = 160 is
+    # the finest candidate whose refinement one run can afford as the reference
     "pyelastica": [(20, 0.015), (20, 0.011), (20, 0.0055), (40, 0.015), (40, 0.011),
                    (80, 0.011), (160, 0.011)],
     "pyelastica_ref": (320, 0.011),
