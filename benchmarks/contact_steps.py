@@ -33,7 +33,11 @@ largest |Wr|, Wr at those times and the tightest bend radius (:func:`writhe_read
 With ``--probe T`` instead: the case is advanced by nominal steps to T (s), and from that
 one state a single step of each Δt of ``--probe-dt`` is attempted: accepted or refused,
 Newton iterations, the route rule's ratio (how the step's position error grows with Δt,
-and whether Newton or the route rule limits it there). With ``--residuals`` also, per
+and whether Newton or the route rule limits it there) and, for an accepted step of a
+case with self-contact, the route difference over Δt (m/s) and as a share of the fastest
+node's speed at T: it falls as Δt² where the step's own error dominates, and stays
+where the κ-integrated centreline and the node velocities part at a rate of their own
+(the route difference's rate, an error in s: docs/contact.md § 1). With ``--residuals`` also, per
 Newton iterate of each attempt, the largest scaled residual of each row group (E1, E2,
 E3 lateral, E3 axial, E4 and the end rows) with the cell where it sits, and the
 fractions of the correction the filter and the line search kept. With ``--modes K`` also
@@ -492,13 +496,21 @@ def probe(name: str, at: float, sizes: list, residuals: bool = False, sets=(),
     run = RodRun(case)
     _advance_to(run, at, case.numerics.dt, 0)
     snapshot = pickle.dumps(run, protocol=pickle.HIGHEST_PROTOCOL)
-    print(f"{name} at t = {run.t:g} s, {run.contact_count} contacts:")
+    fastest = float(np.linalg.norm(run.v_global, axis=1).max())
+    print(f"{name} at t = {run.t:g} s, {run.contact_count} contacts, fastest node "
+          f"{fastest:.3g} m/s:")
     for h in sizes:
         trial = pickle.loads(snapshot)
         att = trial.try_step(h)
         state = "accepted" if att.ok else f"refused ({att.reason})"
+        rate = ""
+        if att.ok and trial.contact is not None:
+            # the route difference per unit time: O(h²) where the step's own error
+            # dominates, a constant where the two routes part at a rate of their own
+            per_s = trial.last_step_error / h
+            rate = f"  route difference / Δt {per_s:.3g} m/s ({per_s / fastest:.2%})"
         print(f"  Δt = {h:<8g} s  {state:18s} Newton {att.iterations:3d}  route ratio "
-              f"{trial.last_route_ratio:.3g}")
+              f"{trial.last_route_ratio:.3g}{rate}")
         if modes:
             _print_modes(jacobian_modes(snapshot, h, modes))
         if residuals:
