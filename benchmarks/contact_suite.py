@@ -22,7 +22,10 @@ wall-clock budget per case, past which the run ends ``stopped``):
 Per case: status (and reason), wall time (s), Newton iterations per nominal step, the
 smallest accepted step (s, every substep counted), refused attempts by reason, the
 first contact time (s) and the cost per simulated second in contact over the cost before
-contact (wall s per simulated s after the first contact over the same before it).
+contact (wall s per simulated s after the first contact over the same before it), with its
+three factors (:func:`phase_factors`): how many more steps per simulated second contact
+takes, how many more Newton iterations per step, and how much more each iteration costs.
+The processor's name and clock head the table: wall times compare on one host only.
 
 Run: ``PYTHONPATH=$PWD python benchmarks/contact_suite.py [--only a,b] [--write-docs]``
 (about 15 min alone on 2 cores; ``--merge earlier.json`` keeps an earlier run's rows for
@@ -141,12 +144,16 @@ def run_case(name: str, energy_tolerance: float | None, budget: float = BUDGET_S
     if tolerance_scale != 1.0:
         spec["numerics"]["newton"]["tolerance"] *= tolerance_scale
     case = Case.model_validate(spec)
-    trace, smallest = [], [math.inf]
+    trace, smallest, attempts = [], [math.inf], []
     original = RodRun.try_step
 
     def try_step(self, h, *args, **kwargs):
+        t_start, w0 = self.t, time.perf_counter()
         att = original(self, h, *args, **kwargs)
-        if att.ok and not kwargs.get("restart", False):
+        restart = kwargs.get("restart", False)
+        attempts.append((t_start, bool(att.ok) and not restart, att.iterations,
+                         time.perf_counter() - w0))
+        if att.ok and not restart:
             smallest[0] = min(smallest[0], h)
         return att
 
@@ -180,12 +187,37 @@ def run_case(name: str, energy_tolerance: float | None, budget: float = BUDGET_S
         t_last, w_last = float(tr[-1, 0]), float(tr[-1, 1])
         if t_c > 0 and t_last > t_c:
             out["contact_cost_ratio"] = ((w_last - w_c) / (t_last - t_c)) / (w_c / t_c)
+            out["phases"] = phase_factors(attempts, t_c, t_last)
     if name == "cantilever":
         x = float(ds.position.values[-1, -1, 2])
         out["answer"] = f"tip x/L {x:.5f} ({(x / X_TIP - 1) * 100:+.3f} % off the elastica)"
     if "step_energy_error" in ds:
         e = ds.step_energy_error.values
         out["energy_error_max"] = float(np.nanmax(e)) if np.isfinite(e).any() else math.nan
+    return out
+
+
+def phase_factors(attempts, t_c: float, t_last: float) -> dict:
+    """What the cost per simulated second is made of before contact (attempts starting
+    before t_c, s) and in contact (from t_c to t_last): accepted steps per simulated
+    second (restarts not counted), Newton iterations per accepted step (every attempt's,
+    refused and restarts included) and wall seconds per Newton iteration (the attempts'
+    own wall: the outputs' topology and the progress hook are outside it). attempts:
+    (t at the attempt's start (s), accepted, Newton iterations, wall (s)) per attempt.
+    The product of the three ratios contact/before is the ratio of the attempts' wall per
+    simulated second."""
+    out = {}
+    for name, lo, hi in (("before", 0.0, t_c), ("contact", t_c, t_last)):
+        sel = [a for a in attempts if lo <= a[0] < hi]
+        steps = sum(1 for a in sel if a[1])
+        its = sum(a[2] for a in sel)
+        wall = sum(a[3] for a in sel)
+        out[name] = {"steps_per_s": steps / (hi - lo), "its_per_step":
+                     its / steps if steps else math.nan,
+                     "wall_per_it_ms": 1e3 * wall / its if its else math.nan}
+    b, c = out["before"], out["contact"]
+    out["ratios"] = [c[k] / b[k] if b[k] else math.nan
+                     for k in ("steps_per_s", "its_per_step", "wall_per_it_ms")]
     return out
 
 
@@ -216,11 +248,25 @@ def _refused_text(r: dict) -> str:
     return ", ".join(f"{k} {v}" for k, v in sorted(r["refused"].items())) or "none"
 
 
+def _factors(r: dict) -> str:
+    """A result row's contact/before ratios of steps per simulated second, Newton
+    iterations per step and wall per Newton iteration (:func:`phase_factors`), with the
+    before-contact figures of the last two."""
+    ph = r.get("phases")
+    if not ph:
+        return "–"
+    a, b, c = ph["ratios"]
+    bf, cf = ph["before"], ph["contact"]
+    return (f"{a:.1f} × {b:.1f} ({bf['its_per_step']:.1f} → {cf['its_per_step']:.1f}) × "
+            f"{c:.1f} ({bf['wall_per_it_ms']:.2f} → {cf['wall_per_it_ms']:.2f} ms)")
+
+
 def table(rows: list) -> str:
     """The suite's markdown table."""
     lines = ["| case | status | wall (s) | Newton its / nominal step | smallest Δt (s) | "
-             "refused attempts | first contact (s) | cost in contact / before |",
-             "|---|---|---:|---:|---:|---|---:|---:|"]
+             "refused attempts | first contact (s) | cost in contact / before | "
+             "= steps × Newton its per step × wall per Newton it |",
+             "|---|---|---:|---:|---:|---|---:|---:|---|"]
     for r in rows:
         status = _status(r)
         if r["status"] != "completed":
@@ -231,7 +277,7 @@ def table(rows: list) -> str:
         lines.append(f"| {r['what']} | {status} | {r['wall_s']:.1f} | "
                      f"{r['newton_per_step']:.1f} | {_fmt(r['smallest_dt'], '{:.3g}')} | "
                      f"{refused} | {_fmt(r['t_contact'])} | "
-                     f"{_fmt(r['contact_cost_ratio'], '{:.1f}×')} |")
+                     f"{_fmt(r['contact_cost_ratio'], '{:.1f}×')} | {_factors(r)} |")
     return "\n".join(lines)
 
 
@@ -245,7 +291,8 @@ def section_text(res: dict) -> str:
         f"after a warm-up run"
         + (f" ({res['parts']} invocations, merged)" if res.get("parts", 1) > 1 else "")
         + f"; 1-min load {res['load_start']:.1f} at the start, "
-        f"{res['load_end']:.1f} at the end (2 cores, shared). "
+        f"{res['load_end']:.1f} at the end (2 cores, shared"
+        + (f", {res['host']}" if res.get("host") else "") + "). "
         + (f"Energy check on (`numerics.energy_tolerance: {res['energy_tolerance']}`). "
            if res["energy_tolerance"] else "Energy check off. ")
         + (res.get("budget_note") or f"Wall-clock budget {res['budget_s']:.0f} s per case.")
@@ -256,7 +303,13 @@ def section_text(res: dict) -> str:
         "Newton iterations per nominal step: all iterations (refused attempts and restarts "
         "included) over t/Δt. Smallest Δt: the smallest accepted step, substeps included. "
         "Cost in contact / before: wall seconds per simulated second after the first "
-        "contact over the same before it (the before-phase includes the buckling). "
+        "contact over the same before it (the before-phase includes the buckling); its "
+        "factors, each contact over before: accepted steps per simulated second, Newton "
+        "iterations per accepted step (refused attempts included) and the step "
+        "attempts' own wall per Newton iteration, with the before and contact figures of "
+        "the last two in brackets; their product is the ratio of the attempts' wall alone, "
+        "which leaves out the outputs (the writhe every 0.1 s) and the rest around the "
+        "steps, a larger share of the cheap steps before contact. "
         "One run per case: where a case's count moves under a ±25 % change of Newton's "
         "tolerance (`--only CASE --spread` prints it; PyElastica's plectoneme at ρ∞ = 0.8 "
         "does, docs/contact.md § 4), a difference between two tables is not one between "
@@ -276,6 +329,19 @@ def write_docs(text: str) -> None:
     DOC.write_text(page)
 
 
+def host() -> str:
+    """The processor the suite ran on (/proc/cpuinfo's model name and clock; "" where it
+    cannot be read): wall times compare only on one host."""
+    try:
+        info = Path("/proc/cpuinfo").read_text()
+    except OSError:
+        return ""
+    model = re.search(r"^model name\s*:\s*(.+)$", info, re.M)
+    mhz = re.search(r"^cpu MHz\s*:\s*([\d.]+)", info, re.M)
+    return ((model.group(1).strip() if model else "")
+            + (f" at {float(mhz.group(1)) / 1000:.1f} GHz" if mhz else "")).strip()
+
+
 def collect(names, energy_tolerance, budget=BUDGET_S, log=print) -> dict:
     load_start = os.getloadavg()[0]
     t0 = time.perf_counter()
@@ -288,6 +354,7 @@ def collect(names, energy_tolerance, budget=BUDGET_S, log=print) -> dict:
         log(f"   {r}", flush=True)
         rows.append(r)
         res = {"stamp": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+               "host": host(),
                "energy_tolerance": energy_tolerance, "budget_s": budget,
                "load_start": load_start, "load_end": os.getloadavg()[0],
                "total_s": time.perf_counter() - t0, "rows": rows}
