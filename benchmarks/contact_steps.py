@@ -36,8 +36,10 @@ Newton iterations, the route rule's ratio (how the step's position error grows w
 and whether Newton or the route rule limits it there) and, for an accepted step of a
 case with self-contact, the route difference over Δt (m/s) and as a share of the fastest
 node's speed at T: it falls as Δt² where the step's own error dominates, and stays
-where the κ-integrated centreline and the node velocities part at a rate of their own
-(the route difference's rate, an error in s: docs/contact.md § 1). With ``--residuals`` also, per
+where the κ-integrated centreline and the node velocities part at a rate of their own,
+or where the rates carried from the (longer) step that reached T set the new κ. The
+first of those is printed with T's state: the box rule's route rate
+(:func:`semi_discrete_route_rate`, an error in s alone: docs/contact.md § 1). With ``--residuals`` also, per
 Newton iterate of each attempt, the largest scaled residual of each row group (E1, E2,
 E3 lateral, E3 axial, E4 and the end rows) with the cell where it sits, and the
 fractions of the correction the filter and the line search kept. With ``--modes K`` also
@@ -472,6 +474,35 @@ def _print_modes(modes: dict, shown: int = 5) -> None:
               f"(the residual's part {m['part']:+.2g}); its vector: {top(m['vector'])}")
 
 
+def semi_discrete_route_rate(run) -> np.ndarray:
+    """How fast the κ-integrated centreline moves away from the nodes' own motion at the
+    run's level, from that level alone (no time step): ṙ_space − R v per node (N+1, 3),
+    m/s, global. ṙ_space is the space route's derivative (central difference, ε = 1e-6 s,
+    of :func:`solver.kinematics.space_route`) along each cell's κ̄ rate that the box
+    rule's compatibility row E1 gives at this level, (ω_k − ω_{k−1})/Δs + ⟨κ×ω⟩ (seed
+    eq. 2, solver/scheme.py), with node 0's pose moved by its v and ω; R v are the
+    nodes' velocities on the space route's frames. The continuous model makes the two
+    equal, so this is the box rule's own error in s, free of the time step's. Raises
+    nothing."""
+    from solver.kinematics import quat_exp, quat_multiply, quat_to_matrix, space_route
+
+    Y = run.Y
+    v, w, k = Y[:, 0:3], Y[:, 3:6], Y[:, 9:12]
+    ds = np.diff(run.props.s)[:, None]
+    cell = (w[1:] - w[:-1]) / ds + 0.5 * (np.cross(k[:-1], w[:-1]) + np.cross(k[1:], w[1:]))
+    # nodal rates whose cell means are ``cell`` (the space route reads κ̄ = ⟨κ⟩ only)
+    nodal = np.zeros_like(k)
+    for c in range(cell.shape[0]):
+        nodal[c + 1] = 2.0 * cell[c] - nodal[c]
+    q0, r0 = run.q_time[0], run.r_time[0]
+    R0 = quat_to_matrix(q0[None])[0]
+    eps = 1e-6
+    ends = [space_route(quat_multiply(q0, quat_exp(sg * eps * w[0])), r0 + sg * eps * R0 @ v[0],
+                        k + sg * eps * nodal, float(ds.mean()))[1] for sg in (1.0, -1.0)]
+    q, _ = space_route(q0, r0, k, float(ds.mean()))
+    return (ends[0] - ends[1]) / (2.0 * eps) - np.einsum("nij,nj->ni", quat_to_matrix(q), v)
+
+
 def probe(name: str, at: float, sizes: list, residuals: bool = False, sets=(),
           cells=None, modes: int = 0) -> None:
     """Advance suite case ``name`` by nominal steps to ``at`` (s), then attempt one step
@@ -497,8 +528,10 @@ def probe(name: str, at: float, sizes: list, residuals: bool = False, sets=(),
     _advance_to(run, at, case.numerics.dt, 0)
     snapshot = pickle.dumps(run, protocol=pickle.HIGHEST_PROTOCOL)
     fastest = float(np.linalg.norm(run.v_global, axis=1).max())
+    rate = float(np.linalg.norm(semi_discrete_route_rate(run), axis=1).max())
     print(f"{name} at t = {run.t:g} s, {run.contact_count} contacts, fastest node "
-          f"{fastest:.3g} m/s:")
+          f"{fastest:.3g} m/s, the box rule's route rate {rate:.3g} m/s "
+          f"({rate / fastest:.2%} of it):")
     for h in sizes:
         trial = pickle.loads(snapshot)
         att = trial.try_step(h)
@@ -506,7 +539,9 @@ def probe(name: str, at: float, sizes: list, residuals: bool = False, sets=(),
         rate = ""
         if att.ok and trial.contact is not None:
             # the route difference per unit time: O(h²) where the step's own error
-            # dominates, a constant where the two routes part at a rate of their own
+            # dominates; a constant where the two routes part at a rate of their own
+            # (the box rule's, above) or where the rates carried from a longer step
+            # than h (generalized-α's Ẏⁿ) set the new level's κ
             per_s = trial.last_step_error / h
             rate = f"  route difference / Δt {per_s:.3g} m/s ({per_s / fastest:.2%})"
         print(f"  Δt = {h:<8g} s  {state:18s} Newton {att.iterations:3d}  route ratio "
