@@ -39,8 +39,8 @@ node's speed at T: it falls as Δt² where the step's own error dominates, and s
 where the κ-integrated centreline and the node velocities part at a rate of their own,
 or where the rates carried from the (longer) step that reached T set the new κ. The
 first of those is printed with T's state: the box rule's route rate
-(:func:`semi_discrete_route_rate`, an error in s alone: docs/contact.md § 1). With ``--residuals`` also, per
-Newton iterate of each attempt, the largest scaled residual of each row group (E1, E2,
+(:func:`semi_discrete_route_rate`, an error in s alone: docs/contact.md § 1). With
+``--residuals`` also, per Newton iterate of each attempt, the largest scaled residual of each row group (E1, E2,
 E3 lateral, E3 axial, E4 and the end rows) with the cell where it sits, and the
 fractions of the correction the filter and the line search kept. With ``--modes K`` also
 the K smallest singular values of each step's (scaled) Jacobian at its Newton start,
@@ -482,8 +482,8 @@ def semi_discrete_route_rate(run) -> np.ndarray:
     rule's compatibility row E1 gives at this level, (ω_k − ω_{k−1})/Δs + ⟨κ×ω⟩ (seed
     eq. 2, solver/scheme.py), with node 0's pose moved by its v and ω; R v are the
     nodes' velocities on the space route's frames. The continuous model makes the two
-    equal, so this is the box rule's own error in s, free of the time step's. Raises
-    nothing."""
+    equal, so this is the box rule's own error in s, free of the time step's. The grid
+    is uniform (the space route's Δs is its mean spacing). Raises nothing."""
     from solver.kinematics import quat_exp, quat_multiply, quat_to_matrix, space_route
 
     Y = run.Y
@@ -497,8 +497,9 @@ def semi_discrete_route_rate(run) -> np.ndarray:
     q0, r0 = run.q_time[0], run.r_time[0]
     R0 = quat_to_matrix(q0[None])[0]
     eps = 1e-6
-    ends = [space_route(quat_multiply(q0, quat_exp(sg * eps * w[0])), r0 + sg * eps * R0 @ v[0],
-                        k + sg * eps * nodal, float(ds.mean()))[1] for sg in (1.0, -1.0)]
+    ends = [space_route(quat_multiply(q0, quat_exp(sg * eps * w[0])),
+                        r0 + sg * eps * R0 @ v[0], k + sg * eps * nodal, float(ds.mean()))[1]
+            for sg in (1.0, -1.0)]
     q, _ = space_route(q0, r0, k, float(ds.mean()))
     return (ends[0] - ends[1]) / (2.0 * eps) - np.einsum("nij,nj->ni", quat_to_matrix(q), v)
 
