@@ -40,9 +40,9 @@ where the κ-integrated centreline and the node velocities part at a rate of the
 or where the rates carried from the (longer) step that reached T set the new κ. The
 first of those is printed with T's state: the box rule's route rate
 (:func:`semi_discrete_route_rate`, an error in s alone: docs/contact.md § 1). With
-``--residuals`` also, per Newton iterate of each attempt, the largest scaled residual of each row group (E1, E2,
-E3 lateral, E3 axial, E4 and the end rows) with the cell where it sits, and the
-fractions of the correction the filter and the line search kept. With ``--modes K`` also
+``--residuals`` also, per Newton iterate of each attempt, the largest scaled residual of
+each row group (E1, E2, E3 lateral, E3 axial, E4 and the end rows) with the cell where
+it sits, and the fractions of the correction the filter and the line search kept. With ``--modes K`` also
 the K smallest singular values of each step's (scaled) Jacobian at its Newton start,
 the weight each has in the exact first correction and the largest components of its
 vector, and the correction's own largest components (:func:`jacobian_modes`; dense, up to
