@@ -42,11 +42,11 @@ first of those is printed with T's state: the box rule's route rate
 (:func:`semi_discrete_route_rate`, an error in s alone: docs/contact.md § 1). With
 ``--residuals`` also, per Newton iterate of each attempt, the largest scaled residual of
 each row group (E1, E2, E3 lateral, E3 axial, E4 and the end rows) with the cell where
-it sits, and the fractions of the correction the filter and the line search kept. With ``--modes K`` also
-the K smallest singular values of each step's (scaled) Jacobian at its Newton start,
-the weight each has in the exact first correction and the largest components of its
-vector, and the correction's own largest components (:func:`jacobian_modes`; dense, up to
-6000 unknowns).
+it sits, and the fractions of the correction the filter and the line search kept. With
+``--modes K`` also the K smallest singular values of each step's (scaled) Jacobian at
+its Newton start, the weight each has in the exact first correction and the largest
+components of its vector, and the correction's own largest components
+(:func:`jacobian_modes`; dense, up to 6000 unknowns).
 
 The case is a suite case's name or the path of a case file; ``--set FIELD=VALUE``
 (repeatable, VALUE read as YAML) changes one of its fields first.
