@@ -311,7 +311,7 @@ def _arc_in_rigid_motion(n, V, Omega, kappa=(0.0, 2.0, 0.0), length=1.0):
 def test_the_box_rules_route_rate_vanishes_for_a_translation_and_is_second_order_in_s():
     """A rigid motion keeps the centreline on the nodes' velocities in the continuous
     model. Translated, the discrete arc does too (to rounding). Turning, the box rule's
-    κ̄ rate from E1 is the exact one to O(Δs²) only: the rate halves four-fold per
+    κ̄ rate from E1 is the exact one to O(Δs²) only: the rate falls four-fold per
     halving of Δs."""
     from contact_steps import semi_discrete_route_rate
 
