@@ -39,7 +39,11 @@ node's speed at T: it falls as Δt² where the step's own error dominates, and s
 where the κ-integrated centreline and the node velocities part at a rate of their own,
 or where the rates carried from the (longer) step that reached T set the new κ. The
 first of those is printed with T's state: the box rule's route rate
-(:func:`semi_discrete_route_rate`, an error in s alone: docs/contact.md § 1). With
+(:func:`semi_discrete_route_rate`, an error in s alone: docs/contact.md § 1), then the
+limit of a step's route difference over Δt as Δt → 0 (:func:`step_route_rate`: that rate
+and the part of the generalized-α rates carried to T); with ``--probe-steps K`` each
+accepted probe step is followed by K − 1 more of its Δt, each beside that limit at its
+start (how the carried part fades, by |αm|/(1 − αm) a step). With
 ``--residuals`` also, per Newton iterate of each attempt, the largest scaled residual of
 each row group (E1, E2, E3 lateral, E3 axial, E4 and the end rows) with the cell where
 it sits, and the fractions of the correction the filter and the line search kept. With
@@ -474,7 +478,7 @@ def _print_modes(modes: dict, shown: int = 5) -> None:
               f"(the residual's part {m['part']:+.2g}); its vector: {top(m['vector'])}")
 
 
-def semi_discrete_route_rate(run) -> np.ndarray:
+def semi_discrete_route_rate(run, kappa_rate=None) -> np.ndarray:
     """How fast the κ-integrated centreline moves away from the nodes' own motion at the
     run's level, from that level alone (no time step): ṙ_space − R v per node (N+1, 3),
     m/s, global. ṙ_space is the space route's derivative (central difference, ε = 1e-6 s,
@@ -482,18 +486,25 @@ def semi_discrete_route_rate(run) -> np.ndarray:
     rule's compatibility row E1 gives at this level, (ω_k − ω_{k−1})/Δs + ⟨κ×ω⟩ (seed
     eq. 2, solver/scheme.py), with node 0's pose moved by its v and ω; R v are the
     nodes' velocities on the space route's frames. The continuous model makes the two
-    equal, so this is the box rule's own error in s, free of the time step's. The grid
-    is uniform (the space route's Δs is its mean spacing). Raises nothing."""
+    equal, so this is the box rule's own error in s, free of the time step's. With
+    ``kappa_rate`` (N+1, 3; rad/m/s, body frame) the space route moves along those nodal
+    rates instead (their cell means are what it reads), e.g. the generalized-α rates κ̇ⁿ
+    the run carries (:func:`step_route_rate`). The grid is uniform (the space route's Δs
+    is its mean spacing). Raises nothing."""
     from solver.kinematics import quat_exp, quat_multiply, quat_to_matrix, space_route
 
     Y = run.Y
     v, w, k = Y[:, 0:3], Y[:, 3:6], Y[:, 9:12]
     ds = np.diff(run.props.s)[:, None]
-    cell = (w[1:] - w[:-1]) / ds + 0.5 * (np.cross(k[:-1], w[:-1]) + np.cross(k[1:], w[1:]))
-    # nodal rates whose cell means are ``cell`` (the space route reads κ̄ = ⟨κ⟩ only)
-    nodal = np.zeros_like(k)
-    for c in range(cell.shape[0]):
-        nodal[c + 1] = 2.0 * cell[c] - nodal[c]
+    if kappa_rate is None:
+        cell = (w[1:] - w[:-1]) / ds + 0.5 * (np.cross(k[:-1], w[:-1])
+                                               + np.cross(k[1:], w[1:]))
+        # nodal rates whose cell means are ``cell`` (the space route reads κ̄ = ⟨κ⟩ only)
+        nodal = np.zeros_like(k)
+        for c in range(cell.shape[0]):
+            nodal[c + 1] = 2.0 * cell[c] - nodal[c]
+    else:
+        nodal = np.asarray(kappa_rate, float)
     q0, r0 = run.q_time[0], run.r_time[0]
     R0 = quat_to_matrix(q0[None])[0]
     eps = 1e-6
@@ -504,10 +515,69 @@ def semi_discrete_route_rate(run) -> np.ndarray:
     return (ends[0] - ends[1]) / (2.0 * eps) - np.einsum("nij,nj->ni", quat_to_matrix(q), v)
 
 
+def carried_rate_weight(params) -> float:
+    """The weight c = 1 − γ/(1 − αm) of the carried rate Ẏⁿ in the first step of a
+    generalized-α step (hockle's weights on the old level, :func:`solver.scheme.
+    alpha_parameters`) as Δt → 0: the step's equations at level n + 1 − αm,
+    (1 − αm) Ẏⁿ⁺¹ + αm Ẏⁿ = Ẏ_E(Yⁿ) (Ẏ_E the rate the equations give at Yⁿ), with
+    Yⁿ⁺¹ = Yⁿ + Δt((1 − γ)Ẏⁿ + γẎⁿ⁺¹), move Y at (Yⁿ⁺¹ − Yⁿ)/Δt = Ẏ_E + c(Ẏⁿ − Ẏ_E).
+    0 at ρ∞ = 1 (the trapezoidal rule), 1/11 at 0.8, 1/5 at 0.5, 1/3 at 0. Raises
+    nothing."""
+    return 1.0 - params.gamma / (1.0 - params.alpha_m)
+
+
+def step_route_rate(run, params=None) -> tuple[np.ndarray, np.ndarray]:
+    """What a step from the run's level, as Δt → 0, does to the route rule's distance
+    per unit time (the route difference over Δt, m/s): the space route moves along
+    κ̇_E + c(κ̇ⁿ − κ̇_E) (:func:`carried_rate_weight`; κ̇_E the box rule's rate of E1,
+    κ̇ⁿ the generalized-α rates the run carries, ``run.state.Ydot``), the time route along
+    R vⁿ. Returns (that rate, the carried rates' own route rate), each (N+1, 3) m/s:
+    the first is :func:`semi_discrete_route_rate` plus c times the difference of the
+    two. The carried κ̇ⁿ satisfy the equations at the level n − αm of the step that
+    reached n, not at n, so the second part is as large as the rates' change over that
+    step. ``params``: the step's :class:`solver.scheme.StepParameters` (default the run's
+    ρ∞). Raises nothing."""
+    params = run.params if params is None else params
+    box = semi_discrete_route_rate(run)
+    carried = semi_discrete_route_rate(run, run.state.Ydot[:, 9:12])
+    return box + carried_rate_weight(params) * (carried - box), carried
+
+
+def _probe_params(run, case):
+    """The generalized-α parameters of a contact step from the run's level: the case's
+    ``numerics.contact_rho_inf`` where set and the last step had contact candidates (as
+    :meth:`solver.step_problem.ProblemAssembly.step_problem` picks), else the run's."""
+    from solver.scheme import alpha_parameters
+
+    rho = case.numerics.contact_rho_inf
+    if rho is not None and getattr(run, "last_had_candidates", False):
+        return alpha_parameters(rho)
+    return run.params
+
+
+def _steady_steps(run, h: float, count: int, params) -> str:
+    """``count`` more steps of h (s) on ``run`` (changed): per step the route difference
+    over h and, in brackets, :func:`step_route_rate`'s limit at the level it started from
+    (m/s); stops at a refused step."""
+    out = []
+    for _ in range(count):
+        limit = float(np.linalg.norm(step_route_rate(run, params)[0], axis=1).max())
+        att = run.try_step(h)
+        if not att.ok:
+            out.append(f"refused ({att.reason})")
+            break
+        out.append(f"{run.last_step_error / h:.3g} ({limit:.3g})")
+    return ", ".join(out)
+
+
 def probe(name: str, at: float, sizes: list, residuals: bool = False, sets=(),
-          cells=None, modes: int = 0) -> None:
+          cells=None, modes: int = 0, steps: int = 1) -> None:
     """Advance suite case ``name`` by nominal steps to ``at`` (s), then attempt one step
-    of each Δt in ``sizes`` (s) from that state; prints each attempt. ``residuals``: also,
+    of each Δt in ``sizes`` (s) from that state; prints each attempt, and with a self-
+    contact the route rates of that state (:func:`step_route_rate`). With ``steps`` > 1
+    each accepted first step is followed by ``steps`` − 1 more of the same Δt, each with
+    its route difference over Δt beside the limit :func:`step_route_rate` gives at the
+    level it starts from (how the carried rates' part fades at a steady Δt). ``residuals``: also,
     per Newton iterate of each attempt, its filter and line-search fractions and where
     its scaled residual is largest (:func:`residual_groups`), and with ``cells`` (a
     range) those cells' seabed penetration, force and E3 residual
@@ -533,6 +603,13 @@ def probe(name: str, at: float, sizes: list, residuals: bool = False, sets=(),
     print(f"{name} at t = {run.t:g} s, {run.contact_count} contacts, fastest node "
           f"{fastest:.3g} m/s, the box rule's route rate {rate:.3g} m/s "
           f"({rate / fastest:.2%} of it):")
+    params = _probe_params(run, case)
+    if run.contact is not None:
+        limit, carried = (np.linalg.norm(x, axis=1).max() for x in step_route_rate(run, params))
+        print(f"  the carried generalized-α rates κ̇ⁿ (from steps of {run.state.h_prev:.3g} s)"
+              f" move the space route {carried:.3g} m/s off the nodes; with weight "
+              f"{carried_rate_weight(params):.3g} and the box rule's rate, a step's route "
+              f"difference over Δt → {limit:.3g} m/s ({limit / fastest:.2%}) as Δt → 0")
     for h in sizes:
         trial = pickle.loads(snapshot)
         att = trial.try_step(h)
@@ -547,6 +624,9 @@ def probe(name: str, at: float, sizes: list, residuals: bool = False, sets=(),
             rate = f"  route difference / Δt {per_s:.3g} m/s ({per_s / fastest:.2%})"
         print(f"  Δt = {h:<8g} s  {state:18s} Newton {att.iterations:3d}  route ratio "
               f"{trial.last_route_ratio:.3g}{rate}")
+        if steps > 1 and att.ok and trial.contact is not None:
+            print("    the next steps of Δt: route difference / Δt (the limit at the step's "
+                  "start), m/s: " + _steady_steps(trial, h, steps - 1, params))
         if modes:
             _print_modes(jacobian_modes(snapshot, h, modes))
         if residuals:
@@ -580,6 +660,8 @@ def main() -> None:
                     help="comma-separated times (s) bounding the printed windows")
     ap.add_argument("--probe", type=float, default=None,
                     help="attempt single steps from the state at this time (s)")
+    ap.add_argument("--probe-steps", type=int, default=1, metavar="K",
+                    help="with --probe: K steps of each Δt in a row")
     ap.add_argument("--probe-dt", default="0.0005,0.001,0.002,0.005,0.01,0.02",
                     help="comma-separated Δt (s) of the probe's attempts")
     ap.add_argument("--residuals", action="store_true",
@@ -604,8 +686,9 @@ def main() -> None:
     args = ap.parse_args()
     if args.case not in cs.CASES and not os.path.isfile(args.case):
         ap.error(f"{args.case}: neither a suite case nor a case file")
-    if (args.modes or args.residuals or args.seabed_cells) and args.probe is None:
-        ap.error("--modes, --residuals and --seabed-cells need --probe")
+    if (args.modes or args.residuals or args.seabed_cells or args.probe_steps > 1) \
+            and args.probe is None:
+        ap.error("--modes, --residuals, --seabed-cells and --probe-steps need --probe")
     if args.watch is not None and args.probe is not None:
         ap.error("--watch reports a run's windows, not a probe: leave out --probe")
     if args.newton:
@@ -617,7 +700,7 @@ def main() -> None:
             a, b = (int(x) for x in args.seabed_cells.split(":"))
             cells = range(a, b)
         probe(args.case, args.probe, [float(x) for x in args.probe_dt.split(",")],
-              args.residuals, args.sets, cells, args.modes)
+              args.residuals, args.sets, cells, args.modes, args.probe_steps)
         return
     if args.t_end is None:
         ap.error("--t-end is required (without --probe)")

@@ -310,7 +310,9 @@ class ProblemAssembly:
         trapezoidal step in time from the old centreline, r^n + ½h(ṙ^n + R^{n+1} v^{n+1})
         (R^{n+1} = R^n exp(½h(ω^n + ω^{n+1})) per node). Both are second-order routes to
         the same positions, so their difference is O(h³) per step and measures the step's
-        position error (docs/contact.md, "Step control")."""
+        position error (docs/contact.md, "Step control"); after a cut of h it also holds
+        h·c(Ẏⁿ − Ẏ_E), the generalized-α rates carried from the longer step (docs/contact.md
+        § 1)."""
         r_t = self._time_step(h, Y, self.q, self.r, self.v_global)[3]
         return max_distance(r_t, np.ascontiguousarray(r_new, dtype=float))
 
