@@ -600,16 +600,21 @@ def probe(name: str, at: float, sizes: list, residuals: bool = False, sets=(),
     snapshot = pickle.dumps(run, protocol=pickle.HIGHEST_PROTOCOL)
     fastest = float(np.linalg.norm(run.v_global, axis=1).max())
     rate = float(np.linalg.norm(semi_discrete_route_rate(run), axis=1).max())
+    def share(x):
+        return f"{x / fastest:.2%} of it" if fastest > 0.0 else "the rod at rest"
+
     print(f"{name} at t = {run.t:g} s, {run.contact_count} contacts, fastest node "
           f"{fastest:.3g} m/s, the box rule's route rate {rate:.3g} m/s "
-          f"({rate / fastest:.2%} of it):")
+          f"({share(rate)}):")
     params = _probe_params(run, case)
     if run.contact is not None:
         limit, carried = (np.linalg.norm(x, axis=1).max() for x in step_route_rate(run, params))
-        print(f"  the carried generalized-α rates κ̇ⁿ (from steps of {run.state.h_prev:.3g} s)"
-              f" move the space route {carried:.3g} m/s off the nodes; with weight "
+        last = run.state.h_prev
+        print(f"  the carried generalized-α rates κ̇ⁿ"
+              + (f" (from steps of {last:.3g} s)" if last else "")
+              + f" move the space route {carried:.3g} m/s off the nodes; with weight "
               f"{carried_rate_weight(params):.3g} and the box rule's rate, a step's route "
-              f"difference over Δt → {limit:.3g} m/s ({limit / fastest:.2%}) as Δt → 0")
+              f"difference over Δt → {limit:.3g} m/s ({share(limit)}) as Δt → 0")
     for h in sizes:
         trial = pickle.loads(snapshot)
         att = trial.try_step(h)
@@ -621,7 +626,7 @@ def probe(name: str, at: float, sizes: list, residuals: bool = False, sets=(),
             # (the box rule's, above) or where the rates carried from a longer step
             # than h (generalized-α's Ẏⁿ) set the new level's κ
             per_s = trial.last_step_error / h
-            rate = f"  route difference / Δt {per_s:.3g} m/s ({per_s / fastest:.2%})"
+            rate = f"  route difference / Δt {per_s:.3g} m/s ({share(per_s)})"
         print(f"  Δt = {h:<8g} s  {state:18s} Newton {att.iterations:3d}  route ratio "
               f"{trial.last_route_ratio:.3g}{rate}")
         if steps > 1 and att.ok and trial.contact is not None:
