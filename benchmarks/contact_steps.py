@@ -600,6 +600,7 @@ def probe(name: str, at: float, sizes: list, residuals: bool = False, sets=(),
     snapshot = pickle.dumps(run, protocol=pickle.HIGHEST_PROTOCOL)
     fastest = float(np.linalg.norm(run.v_global, axis=1).max())
     rate = float(np.linalg.norm(semi_discrete_route_rate(run), axis=1).max())
+
     def share(x):
         return f"{x / fastest:.2%} of it" if fastest > 0.0 else "the rod at rest"
 
