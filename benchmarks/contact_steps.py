@@ -74,6 +74,8 @@ the step's start, and how much of the first correction lies along each, docs/sea
 ``... cases/seabed-hockle.yaml --set initial.twist_rate=0 --set numerics.rho_inf=0
 --t-end 3 --edges 0,1,2,3 --watch 115`` (the untwisted lay's spin: it flips from step to
 step at the case's ρ∞ = 0.5, not at 0; docs/seabed.md).
+``... seed --t-end 45 --out a.nc`` (the run's outputs, for ``python
+benchmarks/compare_results.py a.nc b.nc --largest 25:45``).
 ``... tension --from 19 --t-end 19.3 --starts`` (how far the starts of the collapse
 are from their solutions). ``--newton ATTR=VALUE[,...]`` sets class attributes of
 :class:`solver.newton.Newton` for the run (as contact_suite.py's option), e.g.
@@ -666,6 +668,9 @@ def main() -> None:
                     help="comma-separated times (s) bounding the printed windows")
     ap.add_argument("--probe", type=float, default=None,
                     help="attempt single steps from the state at this time (s)")
+    ap.add_argument("--out", default="", metavar="FILE.nc",
+                    help="without --probe: write the run's outputs there (e.g. for "
+                         "compare_results.py --largest)")
     ap.add_argument("--probe-steps", type=int, default=1, metavar="K",
                     help="with --probe: K steps of each Δt in a row")
     ap.add_argument("--probe-dt", default="0.0005,0.001,0.002,0.005,0.01,0.02",
@@ -732,6 +737,9 @@ def main() -> None:
         print("\n".join(_starts_of(rows)))
     if args.watch is not None:
         print(_watched(rows, args.watch))
+    if args.out and "ds" in result:
+        result["ds"].to_netcdf(args.out)
+        print(f"outputs written to {args.out}")
     if args.writhe and "ds" in result:
         print(writhe_readings(result["ds"], [float(x) for x in args.writhe.split(",")]))
     failed = [r for r in rows if r["trace"] is not None][:args.newton_failures]
