@@ -759,3 +759,59 @@ def test_a_failed_restart_reports_its_last_refused_attempt(monkeypatch):
     assert "1 of its 2 steps taken" in msg
     assert f"Δt = {eps * 1e-3:.3g} s" in msg and "scaled residual 0.0015" in msg
     assert "refused (contact)" in msg and "Newton did not converge" not in msg
+
+
+def _route_run(case, refuse_above: float, reason: str):
+    """A stand-in run for StepControl._route_step: every attempt of Δt above
+    ``refuse_above`` (s) is refused for ``reason``, the others accepted (the state's time
+    advances); the sizes tried are kept in ``tried``."""
+    from types import SimpleNamespace
+
+    from solver.stepping.control import Attempt
+
+    run = SimpleNamespace(case=case, t=0.0, tried=[], last_route_ratio=0.5,
+                          last_had_candidates=True, last_reject=None,
+                          newton=SimpleNamespace(last_failure="stalled"))
+
+    def try_step(h, t_new=None, left_limit=False):
+        run.tried.append(h)
+        if h > refuse_above:
+            run.last_reject = reason
+            return Attempt(False, 3, 1e-12, False, reason)
+        run.t = t_new if t_new is not None else run.t + h
+        return Attempt(True, 2, 1e-12)
+
+    run.try_step = try_step
+    return run
+
+
+@pytest.mark.parametrize("reason", ["energy", "newton"])
+def test_a_refused_route_step_tries_the_smallest_step_before_giving_up(reason):
+    """Where Δt/dt_cut_factor of a refused step falls below the floor
+    dt/dt_cut_factor^max_dt_cuts, the floor itself is tried before the run is given up
+    (PyElastica's plectoneme with Newton's tolerance ×1.1 ended "no step down to the
+    smallest is trusted" after an energy refusal at 80 µs whose next cut, 20 µs, was
+    below the floor of 24 µs: the floor was never tried). A refusal at the floor ends
+    the run, naming it."""
+    from solver.simulation import SolverDivergence
+    from solver.stepping import PIController
+    from solver.stepping.control import StepControl
+
+    case = make_case(n_segments=8, dt=0.1, t_end=1.0, end=free_end())
+    case.numerics.dt_cut_factor, case.numerics.max_dt_cuts = 4.0, 2
+    h_min = 0.1 / 4.0 ** 2
+    ctl = StepControl(case, route_pi=PIController())
+    ctl.h_route = 0.01            # its cut, 2.5 ms, is below the floor of 6.25 ms
+    run = _route_run(case, refuse_above=h_min * 1.0001, reason=reason)
+    ctl._route_step(run, stop=1.0, h_full=0.1, at_break=False)
+    np.testing.assert_allclose(run.tried, [0.01, h_min])
+    assert run.t == pytest.approx(h_min)
+
+    ctl = StepControl(case, route_pi=PIController())
+    ctl.h_route = 0.01
+    run = _route_run(case, refuse_above=0.0, reason=reason)
+    with pytest.raises(SolverDivergence) as info:
+        ctl._route_step(run, stop=1.0, h_full=0.1, at_break=False)
+    np.testing.assert_allclose(run.tried, [0.01, h_min])
+    assert "down to the smallest step" in str(info.value)
+    assert f"last refusal: {reason}" in str(info.value)

@@ -231,8 +231,9 @@ class StepControl:
         than on the levels h_full/factor^k the seed example's contact phase is more
         accurate for its cost (docs/contact.md § 4). When the accepted step has no
         candidates and the controller's next size reaches h_full the levels take over
-        again, at the level of that step. Raises
-        SolverDivergence below h_full/dt_cut_factor^max_dt_cuts. Returns the Newton
+        again, at the level of that step. A refused step whose cut falls below the floor
+        h_full/dt_cut_factor^max_dt_cuts is retried at the floor (:meth:`_floored`).
+        Raises SolverDivergence when a step at the floor is refused. Returns the Newton
         iterations."""
         num = run.case.numerics
         ctl = self.route_pi
@@ -272,10 +273,11 @@ class StepControl:
             h, refused = self._retry_size(
                 run, h_try, ctl, run.last_route_ratio,
                 run.last_reject == "contact" and run.last_route_ratio > 1.0, refused)
-            if h < h_min * (1.0 - 1e-9):
+            h = self._floored(h, h_try, h_min)
+            if h is None:
                 raise self._divergence(
-                    run, f"time step from t = {run.t:.6g} s did not converge above the "
-                    f"smallest step dt/dt_cut_factor^max_dt_cuts = {h_min:.3g} s (last "
+                    run, f"time step from t = {run.t:.6g} s could not be completed down to "
+                    f"the smallest step dt/dt_cut_factor^max_dt_cuts = {h_min:.3g} s (last "
                     f"refusal: {run.last_reject})", h_try, res, nonfinite)
 
     # ------------------------------------------------------- error-controlled steps
@@ -284,8 +286,9 @@ class StepControl:
         never past t_stop or the next breakpoint, landing on them exactly (a step that
         would leave less than itself before the stop is halved instead). A step refused
         for its error is retried at the controller's smaller size, one refused by the
-        growth guard at g/σ, one whose Newton or contact checks fail at Δt/dt_cut_factor;
-        below 1e-9 t_end SolverDivergence is raised. Returns
+        growth guard at g/σ, one whose Newton or contact checks fail at Δt/dt_cut_factor,
+        at 1e-9 t_end where that is smaller (:meth:`_floored`); SolverDivergence is raised
+        when a step at that floor is refused. Returns
         (iterations of all attempts, residual)."""
         num = run.case.numerics
         ctl = self.errctl
@@ -325,9 +328,10 @@ class StepControl:
             self._count_refusal(run, "route" if ok is None else None)
             h, refused = self._retry_size(run, h_try, ctl, run.last_error_ratio,
                                           run.last_reject == "error", refused)
-            if h < h_min * (1.0 - 1e-9):
+            h = self._floored(h, h_try, h_min)
+            if h is None:
                 raise self._divergence(
-                    run, f"time step from t = {run.t:.6g} s could not be completed above "
+                    run, f"time step from t = {run.t:.6g} s could not be completed down to "
                     f"the smallest step 1e-9 t_end = {h_min:.3g} s "
                     f"(last refusal: {run.last_reject})", h_try, res, nonfinite)
 
@@ -397,6 +401,23 @@ class StepControl:
         if run.last_reject == "growth":
             return min(0.5 * h_try, self.guard.cap()), refused
         return h_try / run.case.numerics.dt_cut_factor, refused
+
+    @staticmethod
+    def _floored(h: float, h_try: float, h_min: float):
+        """The retry size (s) after a refused attempt of h_try (s) whose next size would be
+        h (s), with the floor h_min (s): h where it is not below the floor; h_min where
+        it is but the refused attempt was above the floor, so that the smallest step is
+        tried before the run is given up; None where the refused attempt was itself at
+        (or, landing on a stop, below) the floor. Without the floor's own try a run could
+        end "no step down to the smallest is trusted" with the smallest never tried
+        (PyElastica's plectoneme, ρ∞ = 0.8, N = 25, Δt = 0.1 s, with Newton's tolerance
+        ×1.1: an energy refusal at 80 µs, the next cut 20 µs below the floor of 24 µs,
+        after a step of 40 µs had passed; docs/contact.md § 3)."""
+        if h >= h_min * (1.0 - 1e-9):
+            return h
+        if h_try > h_min * (1.0 + 1e-9):
+            return h_min
+        return None
 
     def _count_refusal(self, run, reason=None) -> None:
         """Count the attempt just refused under ``reason`` (default ``run.last_reject``)."""
