@@ -1241,6 +1241,12 @@ class Numerics(BaseModel):
         description="The scheme's rho_inf in steps where strands may meet (steps with self-contact "
         "candidates), in [0, 1]; null: rho_inf there too. Ignored without contact.",
     )
+    backward_euler_retry: StrictBool = Field(
+        False,
+        description="Fixed steps: after a step refused by Newton or the energy check, take the cut retry by "
+        "backward Euler, which does not read the generalized-alpha rates carried from the longer step "
+        "(docs/contact.md section 3); false: generalized-alpha. Not with numerics.tolerance.",
+    )
     newton: Newton = Field(default_factory=Newton, description="Newton iteration controls.")
     max_dt_cuts: Integer = Field(
         6, ge=0, le=50, description="Times a non-converging step may be retried with a smaller dt; 0 to 50."
@@ -1277,6 +1283,11 @@ class Numerics(BaseModel):
     def _one_of(self) -> "Numerics":
         if self.ds is None and self.n_segments is None:
             _raise("Numerics", [_err(("ds",), "missing", "give numerics.ds (m) or numerics.n_segments", None)])
+        if self.backward_euler_retry and self.tolerance is not None:
+            _raise("Numerics", [_err(("backward_euler_retry",), "unsupported",
+                                     "fixed steps only (the error estimate of numerics.tolerance is "
+                                     "generalized-alpha's): leave out numerics.tolerance or set false",
+                                     True)])
         return self
 
     @model_serializer(mode="wrap")
@@ -1286,6 +1297,8 @@ class Numerics(BaseModel):
         out = handler(self)
         if self.contact_rho_inf is None:
             out.pop("contact_rho_inf", None)
+        if not self.backward_euler_retry:
+            out.pop("backward_euler_retry", None)
         return out
 
 

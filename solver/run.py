@@ -112,7 +112,8 @@ class RodRun(ProblemAssembly):
         self.state.bc = self.bc_schedule.at(self.state.t)
         self.control = StepControl(case, *self._controllers())
         # the last attempt: its error ratio (NaN: not estimated), why it was refused
-        # ("newton", "contact", "error", "growth"), whether it had contact candidates,
+        # ("newton", "contact", "error", "growth", "energy"; None: accepted), whether it
+        # had contact candidates,
         # its route ratio; the last accepted step's Newton figures and contacts
         self.last_error_ratio = math.nan
         self.last_reject = None
@@ -184,7 +185,8 @@ class RodRun(ProblemAssembly):
         (:mod:`solver.stepping`); ``estimate=False``: no error estimate (the steps of a
         step-doubling estimate). On success the state advances and Attempt(True,
         iterations, residual) is returned; on failure the state is untouched and the
-        Attempt has ok False and the reason (also in ``last_reject``)."""
+        Attempt has ok False and the reason (also in ``last_reject``, which an accepted
+        attempt sets to None)."""
         self.last_route_ratio = math.nan
         prob = self.step_problem(h, t_new, left_limit, restart)
         sol = self.solve_problem(prob)
@@ -195,6 +197,7 @@ class RodRun(ProblemAssembly):
             self.last_reject = reason
             return Attempt(False, sol.iterations, sol.residual, sol.nonfinite, reason)
         self._accept(prob, sol, summary)
+        self.last_reject = None
         return Attempt(True, sol.iterations, sol.residual)
 
     def _refusal(self, prob, sol, estimate):

@@ -107,11 +107,29 @@ class ProblemAssembly:
     #: drift")
     DRIFT_STEP_FLOOR = 0.25
 
+    #: with ``numerics.backward_euler_retry`` (fixed steps only: the error estimate of
+    #: ``numerics.tolerance`` is generalized-α's), the refusal reasons after which the
+    #: retry (and any further one) is a backward-Euler step. The first step after a cut
+    #: reads the rates Ẏⁿ carried from the longer step, an error that fades by
+    #: |αm|/(1 − αm) per step (0.64 at ρ∞ = 0.8);
+    #: on PyElastica's plectoneme (ρ∞ = 0.8, N = 25, Δt = 0.1 s) the first steps after
+    #: a refusal put in 2.7 J over 10.4-11.2 s with Newton's tolerance ×1.1 while the
+    #: others took out 0.5 J, the run's energy grew from 16 to 40 J and it failed at
+    #: 11.46 s; with these retries every tolerance ×0.8-1.25 completes, in 14.1-17.3
+    #: Newton iterations per nominal step against 32.1-35.1 for the four of six that
+    #: complete without, its writhe as far from the N = 100 run (docs/contact.md § 3). Not after a route refusal: that step is cut for its
+    #: accuracy, which a first-order step lowers (the seed example: 70 route refusals
+    #: against 40)
+    BACKWARD_EULER_AFTER = ("newton", "energy")
+
     def step_problem(self, h: float, t_new=None, left_limit=False,
                      restart=False) -> StepProblem:
         """Assemble the problem of a step of h (s) from the current state, ending at
-        t_new (default t + h): boundary rows, end correction, time scheme, predicted start
-        and contact candidates (``last_had_candidates`` is set)."""
+        t_new (default t + h): boundary rows, end correction, time scheme (backward Euler
+        for a restart, after a switch of the conditions and, with
+        ``numerics.backward_euler_retry``, after a refusal of
+        :data:`BACKWARD_EULER_AFTER`; else generalized-α), predicted start and
+        contact candidates (``last_had_candidates`` is set)."""
         sysm = self.system
         t_new = self.t + h if t_new is None else t_new
         bc = self.bc_schedule.at(t_new)
@@ -129,6 +147,12 @@ class ProblemAssembly:
             cand = self._candidates(h, guess)
         self.last_had_candidates = cand is not None
         if restart or switched:
+            params = BACKWARD_EULER
+        elif (self.case.numerics.backward_euler_retry
+              and self.last_reject in self.BACKWARD_EULER_AFTER):
+            # the step after a Newton or energy refusal is cut, and generalized-α's
+            # carried rates Ẏⁿ belong to the longer step: backward Euler, which does not
+            # read them (docs/contact.md § 3, "The step after a refusal")
             params = BACKWARD_EULER
         elif cand is not None and self.case.numerics.contact_rho_inf is not None:
             # numerics.contact_rho_inf: where strands may meet, the scheme damps the modes

@@ -412,6 +412,24 @@ def test_contact_rho_inf_defaults_to_null(data):
     assert Case.model_validate(json.loads(given.canonical_json())).numerics.contact_rho_inf == 0.0
 
 
+def test_backward_euler_retry_is_off_by_default_and_for_fixed_steps_only(data):
+    """Unset, a retry after a Newton or energy refusal is a generalized-α step and the
+    field stays out of the canonical JSON; true is written; with numerics.tolerance it
+    is refused, naming the field (the error estimate is generalized-α's)."""
+    case = Case.model_validate(data)
+    assert case.numerics.backward_euler_retry is False
+    assert "backward_euler_retry" not in case.canonical_json()
+    data["numerics"]["backward_euler_retry"] = True
+    given = Case.model_validate(data)
+    assert '"backward_euler_retry":true' in given.canonical_json()
+    assert given.spec_hash() != case.spec_hash()
+    data["numerics"]["backward_euler_retry"] = "yes"
+    assert_refused(data, "numerics.backward_euler_retry", "valid boolean")
+    data["numerics"]["backward_euler_retry"] = True
+    data["numerics"]["tolerance"] = {"relative": 1e-3}
+    assert_refused(data, "numerics.backward_euler_retry", "fixed steps only", "unsupported")
+
+
 @pytest.mark.parametrize("rho_inf, fragment", [(-0.1, "greater than or equal to 0"), (1.1, "less than or equal to 1")])
 def test_rho_inf_out_of_range(data, rho_inf, fragment):
     data["numerics"]["rho_inf"] = rho_inf

@@ -10,6 +10,7 @@ import inspect
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from rodcases import free_end, make_case
 
@@ -153,6 +154,42 @@ def test_a_step_attempt_reports_acceptance_or_the_reason(monkeypatch):
     assert not refused.ok and refused.reason == "newton" and refused.nonfinite
     assert run.last_reject == "newton"
     assert run.t == state.t and run.Y is state.Y and run.q is state.q
+
+
+@pytest.mark.parametrize("retry", [False, True])
+def test_the_retry_after_a_newton_refusal_is_backward_euler_where_asked(monkeypatch, retry):
+    """With numerics.backward_euler_retry the step after a Newton refusal (and after an
+    energy refusal) is a backward-Euler step, which does not read the carried rates;
+    without it, and after an accepted step either way, generalized-α's. An accepted
+    attempt sets last_reject to None."""
+    from solver.run import RodRun
+    from solver.scheme import BACKWARD_EULER
+
+    load = [{"value": [0.0, 1.0, 0.0], "start": 0.0}]
+    case = make_case(n_segments=6, dt=0.01, t_end=0.05, end=free_end(), forces=load)
+    case.numerics.backward_euler_retry = retry
+    run = RodRun(case)
+    assert run.try_step(1e-6, restart=True).ok and run.try_step(0.01).ok
+    assert run.last_reject is None
+    alpha = run.step_problem(0.01).params
+    assert alpha is not BACKWARD_EULER
+    solve = run.newton.solve
+
+    def failing(guess):
+        Y, Fn, its, res, _, pose = solve(guess)
+        return Y, Fn, its, 1.0, False, pose
+
+    monkeypatch.setattr(run.newton, "solve", failing)
+    assert run.try_step(0.01).reason == "newton"
+    monkeypatch.setattr(run.newton, "solve", solve)
+    prob = run.step_problem(0.0025)
+    assert (prob.params is BACKWARD_EULER) == retry
+    assert run.try_step(0.0025).ok and run.last_reject is None
+    assert run.step_problem(0.01).params == alpha
+    run.last_reject = "energy"
+    assert (run.step_problem(0.0025).params is BACKWARD_EULER) == retry
+    run.last_reject = "contact"
+    assert run.step_problem(0.0025).params == alpha
 
 
 def test_a_rolled_back_state_is_a_copy_that_serves_twice():
