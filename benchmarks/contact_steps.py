@@ -153,29 +153,13 @@ def case_spec(name: str, sets=()) -> dict:
     ``seabed.friction=null``, ``contact=null``, ``seabed.normal_damping=0``). Raises
     SystemExit naming a field of ``sets`` that the spec does not hold."""
     import contact_suite as cs
-    import yaml
     from solver.case import Case
 
     if name in cs.CASES:
         spec = cs.CASES[name][1]()
     else:
         spec = Case.from_file(name).model_dump(mode="json")
-    for item in sets:
-        key, _, text = item.partition("=")
-        *path, last = key.split(".")
-        node = spec
-        for part in path:
-            if not isinstance(node.get(part), dict):
-                raise SystemExit(f"--set {item}: the case has no {key}")
-            node = node[part]
-        value = yaml.safe_load(text)
-        if isinstance(value, str):
-            try:
-                value = float(value)          # YAML 1.1 reads 3e5 as a string
-            except ValueError:
-                pass
-        node[last] = value
-    return spec
+    return cs.with_sets(spec, sets)
 
 
 def alternation(x) -> float:

@@ -37,9 +37,12 @@ benchmarks/results/contact_suite.json.
 
 ``--spread`` runs each case of ``--only`` again with ``numerics.newton.tolerance`` scaled
 by each of :data:`SPREAD` and prints each run's outcome and Newton iterations per nominal
-step (nothing saved): a case whose count moves that much under a perturbation of the
-tolerance cannot rank two codes by one run. PyElastica's plectoneme at ρ∞ = 0.8, N = 25,
-Δt = 0.1 s is such a case (docs/contact.md § 4). ``--newton ATTR=VALUE[,...]`` sets
+step, its energy at the end and its largest net energy injection over two nominal steps
+(:func:`window_injection`; nothing saved): a case whose count moves that much under a
+perturbation of the tolerance cannot rank two codes by one run. PyElastica's plectoneme at
+ρ∞ = 0.8, N = 25, Δt = 0.1 s is such a case (docs/contact.md § 4). ``--factors
+F1,F2,...`` replaces SPREAD; ``--set FIELD=VALUE`` (repeatable) sets a case field in
+every run. ``--newton ATTR=VALUE[,...]`` sets
 class attributes of :class:`solver.newton.Newton` for every run (as
 benchmarks/seed_accuracy.py's option).
 """
@@ -77,6 +80,8 @@ BUDGET_S = 1500.0
 #: ``--spread``: the factors on numerics.newton.tolerance (within ±25 %, each a setting a
 #: user could equally have chosen)
 SPREAD = (0.8, 0.9, 1.0, 1.1, 1.25)
+#: :func:`window_injection`'s window, in nominal steps Δt
+WINDOW_STEPS = 2
 X_TIP = 0.44501           # Mattiasson's tip x/L under P L²/EI = 10
 
 
@@ -133,22 +138,48 @@ def _refused(ds) -> dict:
     return out
 
 
+def with_sets(spec: dict, sets=()) -> dict:
+    """``spec`` (a case as a dict) with each "dotted.field=VALUE" of ``sets`` applied in
+    place (VALUE read as YAML: ``seabed.friction=null``, ``contact=null``,
+    ``numerics.backward_euler_retry=true``) and returned. Raises SystemExit naming a
+    field of ``sets`` whose parent the spec does not hold."""
+    import yaml
+
+    for item in sets:
+        key, _, text = item.partition("=")
+        *path, last = key.split(".")
+        node = spec
+        for part in path:
+            if not isinstance(node.get(part), dict):
+                raise SystemExit(f"--set {item}: the case has no {key}")
+            node = node[part]
+        value = yaml.safe_load(text)
+        if isinstance(value, str):
+            try:
+                value = float(value)          # YAML 1.1 reads 3e5 as a string
+            except ValueError:
+                pass
+        node[last] = value
+    return spec
+
+
 def run_case(name: str, energy_tolerance: float | None, budget: float = BUDGET_S,
-             tolerance_scale: float = 1.0) -> dict:
+             tolerance_scale: float = 1.0, sets=()) -> dict:
     """One suite case: simulate it with the progress traced and every accepted attempt's
     Δt seen (a wrapper around RodRun.try_step for the run's duration); with
-    ``tolerance_scale`` its ``numerics.newton.tolerance`` times that factor."""
+    ``tolerance_scale`` its ``numerics.newton.tolerance`` times that factor, with
+    ``sets`` its fields set as :func:`with_sets` does."""
     from solver.case import Case
     from solver.run import RodRun
     from solver.simulation import SolverDivergence, simulate
 
-    spec = CASES[name][1]()
+    spec = with_sets(CASES[name][1](), sets)
     spec["numerics"]["energy_tolerance"] = energy_tolerance
     spec["numerics"]["wall_clock_budget"] = budget
     if tolerance_scale != 1.0:
         spec["numerics"]["newton"]["tolerance"] *= tolerance_scale
     case = Case.model_validate(spec)
-    trace, smallest, attempts = [], [math.inf], []
+    trace, smallest, attempts, balances = [], [math.inf], [], []
     original = RodRun.try_step
 
     def try_step(self, h, *args, **kwargs):
@@ -159,6 +190,9 @@ def run_case(name: str, energy_tolerance: float | None, budget: float = BUDGET_S
                          time.perf_counter() - w0))
         if att.ok and not restart:
             smallest[0] = min(smallest[0], h)
+            bal = self.last_balance
+            if bal is not None:
+                balances.append((self.t, bal.error, bal.energy))
         return att
 
     RodRun.try_step = try_step
@@ -195,10 +229,39 @@ def run_case(name: str, energy_tolerance: float | None, budget: float = BUDGET_S
     if name == "cantilever":
         x = float(ds.position.values[-1, -1, 2])
         out["answer"] = f"tip x/L {x:.5f} ({(x / X_TIP - 1) * 100:+.3f} % off the elastica)"
+    if balances:
+        b = np.array(balances)
+        out["energy_final"] = float(b[-1, 2])
+        out["energy_window"] = window_injection(b[:, 0], b[:, 1], b[:, 2],
+                                                WINDOW_STEPS * num.dt)
     if "step_energy_error" in ds:
         e = ds.step_energy_error.values
         out["energy_error_max"] = float(np.nanmax(e)) if np.isfinite(e).any() else math.nan
     return out
+
+
+def window_injection(t, error, energy, width: float) -> tuple[float, float]:
+    """The largest net energy the accepted steps put in over any window of ``width`` (s),
+    as a share of the largest energy in it, and the window's end (s): max over the steps
+    j of Σ ε_i over the steps i ending in (t_j − width, t_j], over max E_i there. t (n,):
+    each step's end (s, increasing); error (n,): its balance error ε (J,
+    :class:`solver.balance.StepBalance`); energy (n,): the rod's energy at its end (J).
+    The per-step check bounds each ε by a share of the kinetic energy, which grows with
+    what the steps put in: a run whose steps each pass can still gain energy step after
+    step (docs/contact.md § 3, "Right or refused over many steps"); the sum over a window
+    is where that shows. (NaN, NaN) without steps."""
+    t, error, energy = (np.asarray(a, dtype=float) for a in (t, error, energy))
+    if t.size == 0:
+        return math.nan, math.nan
+    csum = np.concatenate([[0.0], np.cumsum(error)])
+    first = np.searchsorted(t, t - width, side="right")
+    best, at = -math.inf, math.nan
+    for j in range(t.size):
+        i = first[j]
+        share = (csum[j + 1] - csum[i]) / max(float(energy[i:j + 1].max()), 1e-300)
+        if share > best:
+            best, at = share, float(t[j])
+    return float(best), at
 
 
 def phase_factors(attempts, t_c: float, t_last: float) -> dict:
@@ -250,6 +313,16 @@ def _status(r: dict) -> str:
 def _refused_text(r: dict) -> str:
     """A result row's refused attempts by reason ("none" without any)."""
     return ", ".join(f"{k} {v}" for k, v in sorted(r["refused"].items())) or "none"
+
+
+def _energy_text(r: dict) -> str:
+    """The run's energy at its end and its largest net injection over a window
+    (:func:`window_injection`), or "" where the energy check did not measure."""
+    if "energy_window" not in r:
+        return ""
+    share, at = r["energy_window"]
+    return (f"; energy at the end {r['energy_final']:.3f} J, largest net injection over "
+            f"{WINDOW_STEPS} Δt {100 * share:.1f} % of E (at {at:.2f} s)")
 
 
 def _factors(r: dict) -> str:
@@ -394,22 +467,24 @@ def section(figdir=None, quick: bool = False) -> str:
     return section_text(res)
 
 
-def spread(names, energy_tolerance, budget=BUDGET_S) -> None:
-    """Print each case's outcome and Newton iterations per nominal step at
-    ``numerics.newton.tolerance`` times each factor of SPREAD (after a warm-up run), and
-    their range and median."""
+def spread(names, energy_tolerance, budget=BUDGET_S, factors=SPREAD, sets=()) -> None:
+    """Print each case's outcome, Newton iterations per nominal step and energy
+    (:func:`_energy_text`) at ``numerics.newton.tolerance`` times each of ``factors``
+    (default SPREAD; after a warm-up run), and the counts' range and median; ``sets``
+    as :func:`run_case`'s."""
     warm_up()
     for name in names:
         counts = []
-        for f in SPREAD:
-            r = run_case(name, energy_tolerance, budget, tolerance_scale=f)
+        for f in factors:
+            r = run_case(name, energy_tolerance, budget, tolerance_scale=f, sets=sets)
             print(f"{name}: tolerance × {f:g}: {_status(r)}, {r['newton_per_step']:.1f} "
-                  f"Newton iterations per nominal step, refused {_refused_text(r)}",
+                  f"Newton iterations per nominal step, refused {_refused_text(r)}"
+                  f"{_energy_text(r)}" + (f"; {r['answer']}" if "answer" in r else ""),
                   flush=True)
             if r["status"] == "completed":
                 counts.append(r["newton_per_step"])
         if counts:
-            print(f"{name}: {len(counts)} of {len(SPREAD)} completed; Newton iterations per "
+            print(f"{name}: {len(counts)} of {len(factors)} completed; Newton iterations per "
                   f"nominal step {min(counts):.1f}-{max(counts):.1f}, median "
                   f"{float(np.median(counts)):.1f}", flush=True)
 
@@ -427,6 +502,11 @@ def main() -> None:
                     "ATTR=VALUE[,...] for every run (as seed_accuracy.py --newton)")
     ap.add_argument("--spread", action="store_true", help="each case at newton.tolerance "
                     "times each of SPREAD: outcome and Newton iterations (nothing saved)")
+    ap.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
+                    help="with --spread: a case field for every run, as contact_steps.py's "
+                    "(e.g. numerics.backward_euler_retry=true); repeatable")
+    ap.add_argument("--factors", default="", help="with --spread: the factors on "
+                    "newton.tolerance, comma-separated (default: SPREAD)")
     ap.add_argument("--table-only", action="store_true",
                     help="print (and with --write-docs write) the table of --merge")
     args = ap.parse_args()
@@ -438,7 +518,8 @@ def main() -> None:
         from replay_steps import set_newton
         set_newton(args.newton)
     if args.spread:
-        spread(names, args.energy_tolerance or None, args.budget)
+        factors = tuple(float(x) for x in args.factors.split(",") if x) or SPREAD
+        spread(names, args.energy_tolerance or None, args.budget, factors, args.set)
         return
     earlier = json.loads(Path(args.merge).read_text()) if args.merge else None
     if args.table_only:

@@ -8,6 +8,7 @@ import math
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
@@ -39,3 +40,33 @@ def test_phase_factors_without_steps_in_a_phase_give_nan_not_an_error():
     assert math.isnan(ph["before"]["its_per_step"])
     assert math.isnan(ph["ratios"][1])
     assert cs._factors({}) == "–"
+
+
+def test_window_injection_sums_the_errors_of_each_window_over_its_largest_energy():
+    """Steps every 0.1 s; ε of +1 J in the steps ending at 0.3 and 0.4 s and −0.5 J at
+    0.5 s, the energy 10 J but 15 J at 0.4 s: over windows of 0.2 s the largest net
+    injection is the window (0.2, 0.4] s, 2 J over 15 J; over windows of 0.1 s the step
+    at 0.3 s, 1 J over 10 J."""
+    t = np.arange(1, 8) * 0.1
+    eps = np.array([0.0, 0.0, 1.0, 1.0, -0.5, 0.0, 0.0])
+    energy = np.array([10.0, 10.0, 10.0, 15.0, 10.0, 10.0, 10.0])
+    share, at = cs.window_injection(t, eps, energy, 0.2 + 1e-9)
+    assert share == pytest.approx(2.0 / 15.0) and at == pytest.approx(0.4)
+    share, at = cs.window_injection(t, eps, energy, 0.1 - 1e-9)
+    assert share == pytest.approx(0.1) and at == pytest.approx(0.3)
+    assert np.isnan(cs.window_injection([], [], [], 0.2)[0])
+
+
+def test_backward_euler_retries_carry_pyelasticas_plectoneme_through_its_tolerance_spread():
+    """PyElastica's plectoneme (ρ∞ = 0.8, N = 25, Δt = 0.1 s, to 12 s) with Newton's
+    tolerance ×1.1: without numerics.backward_euler_retry the cut steps after refusals
+    put energy in until the run fails (on the development hosts at 11.46 s, its energy
+    40 J); with it the run completes with the energy of the runs that complete either
+    way (18.6-19.4 J) and well under their 32-35 Newton iterations per nominal step
+    (docs/contact.md § 3, "The step after a refusal")."""
+    r = cs.run_case("pyelastica-0.8", cs.ENERGY_TOLERANCE, tolerance_scale=1.1,
+                    sets=["numerics.backward_euler_retry=true"])
+    assert r["status"] == "completed", r["reason"]
+    assert 18.5 < r["energy_final"] < 19.5
+    assert r["energy_window"][0] < 0.04
+    assert r["newton_per_step"] < 25.0
