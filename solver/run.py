@@ -113,8 +113,8 @@ class RodRun(ProblemAssembly):
         self.control = StepControl(case, *self._controllers())
         # the last attempt: its error ratio (NaN: not estimated), why it was refused
         # ("newton", "contact", "error", "growth", "energy"; None: accepted), whether it
-        # had contact candidates,
-        # its route ratio; the last accepted step's Newton figures and contacts
+        # had contact candidates, its route ratio; the last accepted step's Newton
+        # figures and contacts
         self.last_error_ratio = math.nan
         self.last_reject = None
         self.last_had_candidates = False

@@ -111,15 +111,15 @@ class ProblemAssembly:
     #: ``numerics.tolerance`` is generalized-α's), the refusal reasons after which the
     #: retry (and any further one) is a backward-Euler step. The first step after a cut
     #: reads the rates Ẏⁿ carried from the longer step, an error that fades by
-    #: |αm|/(1 − αm) per step (0.64 at ρ∞ = 0.8);
-    #: on PyElastica's plectoneme (ρ∞ = 0.8, N = 25, Δt = 0.1 s) the first steps after
-    #: a refusal put in 2.7 J over 10.4-11.2 s with Newton's tolerance ×1.1 while the
-    #: others took out 0.5 J, the run's energy grew from 16 to 40 J and it failed at
-    #: 11.46 s; with these retries every tolerance ×0.8-1.25 completes, in 14.1-17.3
-    #: Newton iterations per nominal step against 32.1-35.1 for the four of six that
-    #: complete without, its writhe as far from the N = 100 run (docs/contact.md § 3). Not after a route refusal: that step is cut for its
-    #: accuracy, which a first-order step lowers (the seed example: 70 route refusals
-    #: against 40)
+    #: |αm|/(1 − αm) per step (0.64 at ρ∞ = 0.8). On PyElastica's plectoneme (ρ∞ = 0.8,
+    #: N = 25, Δt = 0.1 s) the first steps after a refusal put in 2.7 J over 10.4-11.2 s
+    #: with Newton's tolerance ×1.1 while the others took out 0.5 J, the run's energy
+    #: grew from 16 to 40 J and it failed at 11.46 s; with these retries every tolerance
+    #: ×0.8-1.25 completes, in 14.1-17.3 Newton iterations per nominal step against
+    #: 32.1-35.1 for the four of six that complete without, its writhe as far from the
+    #: N = 100 run (docs/contact.md § 3). Not after a route refusal: that step is cut for
+    #: its accuracy, which a first-order step lowers (the seed example: 70 route
+    #: refusals against 40)
     BACKWARD_EULER_AFTER = ("newton", "energy")
 
     def step_problem(self, h: float, t_new=None, left_limit=False,
