@@ -24,6 +24,7 @@ floor, the energy check at its default unless said:
   50 times softer (6e4 Pa: MoorDyn's default kBot times the cable's diameter).
 
 Run: ``PYTHONPATH=$PWD python benchmarks/drift_rate.py [--only held,pyelastica,seed,hockle,profile,soft]``
+``[--set FIELD=VALUE]`` (a field of PyElastica's plectoneme, repeatable)
 (about 8 minutes alone on 2 cores; counts and answers, the wall times only indicative).
 """
 from __future__ import annotations
@@ -41,6 +42,7 @@ sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(ROOT / "tests"))
 
 import peer_compare as pc  # noqa: E402
+from contact_suite import with_sets  # noqa: E402
 from hockle.plots import run_events  # noqa: E402
 from solver.case import Case  # noqa: E402
 from solver.simulation import SolverDivergence, simulate  # noqa: E402
@@ -175,13 +177,17 @@ def soft() -> list[str]:
 _REFERENCE = {}
 
 
+#: ``--set FIELD=VALUE`` items applied to PyElastica's plectoneme (as contact_suite.py's)
+SETS: list = []
+
+
 def pyelastica(floor: float) -> list[str]:
     if not _REFERENCE:
         ref = pc.run_hockle(100, 0.0125, 12.0)
         _REFERENCE.update(t=ref["t"], wr=pc.post(ref)["Wr"])
     out = []
     for rho in (None, 0.8):
-        spec = pc.hockle_case(25, 0.1, 12.0).model_dump(mode="json")
+        spec = with_sets(pc.hockle_case(25, 0.1, 12.0).model_dump(mode="json"), SETS)
         if rho is not None:
             spec["numerics"]["rho_inf"] = rho
         ds, status, wall = _run(spec)
@@ -198,7 +204,12 @@ def pyelastica(floor: float) -> list[str]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", default="held,pyelastica,seed,hockle,profile,soft")
-    names = ap.parse_args().only.split(",")
+    ap.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
+                    help="a field of PyElastica's plectoneme for its runs (e.g. "
+                    "numerics.backward_euler_retry=true); repeatable")
+    args = ap.parse_args()
+    names = args.only.split(",")
+    SETS[:] = args.set
     for name, rows in (("profile", profile), ("soft", soft)):
         if name in names:
             for row in rows():
