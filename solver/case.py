@@ -1242,10 +1242,11 @@ class Numerics(BaseModel):
         "candidates), in [0, 1]; null: rho_inf there too. Ignored without contact.",
     )
     backward_euler_retry: StrictBool = Field(
-        False,
+        True,
         description="Fixed steps: after a step refused by Newton or the energy check, take the cut retry by "
         "backward Euler, which does not read the generalized-alpha rates carried from the longer step "
-        "(docs/contact.md section 3); false: generalized-alpha. Not with numerics.tolerance.",
+        "(docs/contact.md section 3); false: generalized-alpha. With numerics.tolerance not applied (its "
+        "error estimate is generalized-alpha's): true given with it is refused.",
     )
     newton: Newton = Field(default_factory=Newton, description="Newton iteration controls.")
     max_dt_cuts: Integer = Field(
@@ -1283,11 +1284,14 @@ class Numerics(BaseModel):
     def _one_of(self) -> "Numerics":
         if self.ds is None and self.n_segments is None:
             _raise("Numerics", [_err(("ds",), "missing", "give numerics.ds (m) or numerics.n_segments", None)])
-        if self.backward_euler_retry and self.tolerance is not None:
-            _raise("Numerics", [_err(("backward_euler_retry",), "unsupported",
-                                     "fixed steps only (the error estimate of numerics.tolerance is "
-                                     "generalized-alpha's): leave out numerics.tolerance or set false",
-                                     True)])
+        if self.tolerance is not None and self.backward_euler_retry:
+            if "backward_euler_retry" in self.model_fields_set:
+                _raise("Numerics", [_err(("backward_euler_retry",), "unsupported",
+                                         "fixed steps only (the error estimate of numerics.tolerance "
+                                         "is generalized-alpha's): leave out numerics.tolerance or "
+                                         "set false", True)])
+            # the default does not apply to error-controlled steps: the field says what runs
+            self.backward_euler_retry = False
         return self
 
     @model_serializer(mode="wrap")
@@ -1297,7 +1301,9 @@ class Numerics(BaseModel):
         out = handler(self)
         if self.contact_rho_inf is None:
             out.pop("contact_rho_inf", None)
-        if not self.backward_euler_retry:
+        if self.backward_euler_retry or self.tolerance is not None:
+            # written only where it differs from the default for fixed steps (false): a
+            # case without it keeps its spec_hash, which now means the backward-Euler retry
             out.pop("backward_euler_retry", None)
         return out
 

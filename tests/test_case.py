@@ -412,21 +412,35 @@ def test_contact_rho_inf_defaults_to_null(data):
     assert Case.model_validate(json.loads(given.canonical_json())).numerics.contact_rho_inf == 0.0
 
 
-def test_backward_euler_retry_is_off_by_default_and_for_fixed_steps_only(data):
-    """Unset, a retry after a Newton or energy refusal is a generalized-α step and the
-    field stays out of the canonical JSON; true is written; with numerics.tolerance it
-    is refused, naming the field (the error estimate is generalized-α's)."""
+def test_backward_euler_retry_is_on_by_default_for_fixed_steps_only(data):
+    """Unset, a fixed-step retry after a Newton or energy refusal is a backward-Euler step
+    and the field stays out of the canonical JSON (a case without it keeps its spec_hash);
+    false is written and re-validates; with numerics.tolerance the default does not apply
+    (the field reads false and is not written) and true given is refused, naming the
+    field (the error estimate is generalized-α's)."""
     case = Case.model_validate(data)
-    assert case.numerics.backward_euler_retry is False
+    assert case.numerics.backward_euler_retry is True
     assert "backward_euler_retry" not in case.canonical_json()
     data["numerics"]["backward_euler_retry"] = True
+    assert Case.model_validate(data).spec_hash() == case.spec_hash()
+    data["numerics"]["backward_euler_retry"] = False
     given = Case.model_validate(data)
-    assert '"backward_euler_retry":true' in given.canonical_json()
+    assert '"backward_euler_retry":false' in given.canonical_json()
     assert given.spec_hash() != case.spec_hash()
+    again = Case.model_validate(json.loads(given.canonical_json()))
+    assert again.numerics.backward_euler_retry is False
     data["numerics"]["backward_euler_retry"] = "yes"
     assert_refused(data, "numerics.backward_euler_retry", "valid boolean")
-    data["numerics"]["backward_euler_retry"] = True
+    del data["numerics"]["backward_euler_retry"]
     data["numerics"]["tolerance"] = {"relative": 1e-3}
+    controlled = Case.model_validate(data)
+    assert controlled.numerics.backward_euler_retry is False
+    assert "backward_euler_retry" not in controlled.canonical_json()
+    again = Case.model_validate(json.loads(controlled.canonical_json()))
+    assert again.spec_hash() == controlled.spec_hash()
+    data["numerics"]["backward_euler_retry"] = False
+    assert Case.model_validate(data).spec_hash() == controlled.spec_hash()
+    data["numerics"]["backward_euler_retry"] = True
     assert_refused(data, "numerics.backward_euler_retry", "fixed steps only", "unsupported")
 
 

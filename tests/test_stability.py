@@ -497,9 +497,15 @@ def test_large_time_step_seed_twist(rho_inf):
     (trapezoid); for ρ∞ < 1 within ½Δt²|dω/dt| = 1 rad (the end rotation's generalized-α
     recursion). The rod stays straight below 0.9 Lk_cr. Past critical the growth guard
     finds the buckling mode (σ = 1.2 1/s at 15 s, rising to 3.7) and cuts Δt to 0.25 s,
-    and the rod buckles by 19-20 s (at Δt = 1 s it used to stay straight to 20 s). At
-    ρ∞ = 0 |Tw + Wr − Lk| then reaches 0.15 turns at 20 s: the end rotation's recursion
-    after the Δt change (docs/numerics.md § 7, step-size changes); 0.05 elsewhere.
+    and the rod buckles by 19-20 s (at Δt = 1 s it used to stay straight to 20 s). Then
+    |Tw + Wr − Lk| grows with the buckle, whose lateral deflection at 20 s depends on
+    the steps taken: 0.14, 0.063 and 0.045 turns at ρ∞ = 0, ½ and 1 with
+    deflections of 0.46, 0.34 and 0.26 m (0.12, 0.046, 0.045 turns and 0.43, 0.29,
+    0.26 m with generalized-α retries after the Newton refusals,
+    numerics.backward_euler_retry false), where Lk stays within 0.053, 0.011 and 3e-9
+    turns of the end rotation either way: the shape's Tw + Wr on 40 segments, and at
+    ρ∞ = 0 the end rotation's recursion after the Δt change (docs/numerics.md § 7,
+    step-size changes).
     (work_in was once the trapezoid rule on the power, which read energy_total − work_in
     = +0.7 % of W here at ρ∞ = 0 and 0.5; it is now the scheme's discrete work,
     docs/numerics.md § 6.)"""
@@ -508,7 +514,7 @@ def test_large_time_step_seed_twist(rho_inf):
     spec["output"]["fields"] = ["position", "orientation", "energies", "topology"]
     case = Case.model_validate(spec)
     ds = run_checked(case, must_complete=True, energy_tol=0.02,
-                     lk_tol=0.2 if rho_inf == 0.0 else 0.05)
+                     lk_tol=0.2 if rho_inf == 0.0 else 0.08)
     t = ds.time.values
     lk_exact = -seed_twist_rotation(t) / (2 * np.pi)
     tol = 1e-9 if rho_inf == 1.0 else 1.0**2 * 2.0 / (2 * np.pi)
