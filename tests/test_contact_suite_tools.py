@@ -59,13 +59,12 @@ def test_window_injection_sums_the_errors_of_each_window_over_its_largest_energy
 
 def test_backward_euler_retries_carry_pyelasticas_plectoneme_through_its_tolerance_spread():
     """PyElastica's plectoneme (ρ∞ = 0.8, N = 25, Δt = 0.1 s, to 12 s) with Newton's
-    tolerance ×1.1: without numerics.backward_euler_retry the cut steps after refusals
-    put energy in until the run fails (on the development hosts at 11.46 s, its energy
-    40 J); with it the run completes with the energy of the runs that complete either
-    way (18.6-19.4 J) and well under their 32-35 Newton iterations per nominal step
-    (docs/contact.md § 3, "The step after a refusal")."""
-    r = cs.run_case("pyelastica-0.8", cs.ENERGY_TOLERANCE, tolerance_scale=1.1,
-                    sets=["numerics.backward_euler_retry=true"])
+    tolerance ×1.1: with numerics.backward_euler_retry false the cut steps after refusals
+    put energy in until the run fails (on a development host at 11.46 s, its energy
+    40 J); with the default (true) the run completes with the energy of the runs that
+    complete either way (18.6-19.4 J) and well under their 32-35 Newton iterations per
+    nominal step (docs/contact.md § 3, "The step after a refusal")."""
+    r = cs.run_case("pyelastica-0.8", cs.ENERGY_TOLERANCE, tolerance_scale=1.1)
     assert r["status"] == "completed", r["reason"]
     assert 18.5 < r["energy_final"] < 19.5
     assert r["energy_window"][0] < 0.04
