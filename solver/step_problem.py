@@ -107,8 +107,8 @@ class ProblemAssembly:
     #: drift")
     DRIFT_STEP_FLOOR = 0.25
 
-    #: with ``numerics.backward_euler_retry`` (fixed steps only: the error estimate of
-    #: ``numerics.tolerance`` is generalized-α's), the refusal reasons after which the
+    #: with ``numerics.backward_euler_retry`` (true by default; fixed steps only: the error
+    #: estimate of ``numerics.tolerance`` is generalized-α's), the refusal reasons after which the
     #: retry (and any further one) is a backward-Euler step. The first step after a cut
     #: reads the rates Ẏⁿ carried from the longer step, an error that fades by
     #: |αm|/(1 − αm) per step (0.64 at ρ∞ = 0.8). On PyElastica's plectoneme (ρ∞ = 0.8,
@@ -119,7 +119,9 @@ class ProblemAssembly:
     #: 32.1-35.1 for the four of six that complete without, its writhe as far from the
     #: N = 100 run (docs/contact.md § 3). Not after a route refusal: that step is cut for
     #: its accuracy, which a first-order step lowers (the seed example: 70 route
-    #: refusals against 40)
+    #: refusals against 40). After energy refusals only, PyElastica's spread completes too
+    #: but in 24-38 Newton iterations per nominal step; the retries after Newton refusals
+    #: leave a held end more drift on a frictionless bottom (docs/hockle.md)
     BACKWARD_EULER_AFTER = ("newton", "energy")
 
     def step_problem(self, h: float, t_new=None, left_limit=False,
