@@ -121,7 +121,8 @@ class ProblemAssembly:
     #: its accuracy, which a first-order step lowers (the seed example: 70 route
     #: refusals against 40). After energy refusals only, PyElastica's spread completes too
     #: but in 24-38 Newton iterations per nominal step; the retries after Newton refusals
-    #: leave a held end more drift on a frictionless bottom (docs/hockle.md)
+    #: stop more frictionless-bottom runs at the consistent restart at a knot of the held
+    #: end's motion (docs/hockle.md, "Friction under imposed slack")
     BACKWARD_EULER_AFTER = ("newton", "energy")
 
     def step_problem(self, h: float, t_new=None, left_limit=False,
