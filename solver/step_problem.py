@@ -107,11 +107,11 @@ class ProblemAssembly:
     #: drift")
     DRIFT_STEP_FLOOR = 0.25
 
-    #: with ``numerics.backward_euler_retry`` (true by default; fixed steps only: the error
-    #: estimate of ``numerics.tolerance`` is generalized-α's), the refusal reasons after which the
-    #: retry (and any further one) is a backward-Euler step. The first step after a cut
-    #: reads the rates Ẏⁿ carried from the longer step, an error that fades by
-    #: |αm|/(1 − αm) per step (0.64 at ρ∞ = 0.8). On PyElastica's plectoneme (ρ∞ = 0.8,
+    #: with ``numerics.backward_euler_retry`` (true by default; fixed steps only: the
+    #: error estimate of ``numerics.tolerance`` is generalized-α's), the refusal reasons
+    #: after which the retry (and any further one) is a backward-Euler step. The first
+    #: step after a cut reads the rates Ẏⁿ carried from the longer step, an error that
+    #: fades by |αm|/(1 − αm) per step (0.64 at ρ∞ = 0.8). On PyElastica's plectoneme (ρ∞ = 0.8,
     #: N = 25, Δt = 0.1 s) the first steps after a refusal put in 2.7 J over 10.4-11.2 s
     #: with Newton's tolerance ×1.1 while the others took out 0.5 J, the run's energy
     #: grew from 16 to 40 J and it failed at 11.46 s; with these retries every tolerance

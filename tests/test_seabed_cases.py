@@ -45,7 +45,7 @@ def test_case_validates_and_a_prefix_runs(name, tmp_path):
 
 @pytest.mark.slow
 def test_seabed_hockle_loops_on_the_bottom_and_is_pulled_tight():
-    """Measured (28 s on 2 cores of a 2.1-GHz Intel Xeon host): the bend radius below the
+    """Measured (25 s on 2 cores of a 2.1-GHz Intel Xeon host): the bend radius below the
     MBR (0.15 m) at 2.4 s; first self-contact at 3.5 s (Wr 1.09 then) after 0.54 m of end
     travel, on the bottom (loop_formed), Tw 4.90 of Lk 6 turns then; Wr up to 2.40 turns,
     18 contact pairs at 4.8 s; pulled back, the loop tightens to a bend radius of 0.038 m
