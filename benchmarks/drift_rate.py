@@ -135,11 +135,11 @@ def profile(t0: float = 3.8, t1: float = 4.0) -> list[str]:
     steps = []
     accept = RodRun._accept
 
-    def recording(run, prob, sol, summary):
+    def recording(run, prob, sol, summary, timed):
         if t0 <= run.t <= t1 and not prob.restart:
             r_time = run._time_step(prob.h, sol.Y, run.q, run.r, run.v_global)[3]
             steps.append(r_time - sol.pose[2])
-        return accept(run, prob, sol, summary)
+        return accept(run, prob, sol, summary, timed)
 
     case = Case.from_file(ROOT / "cases" / "seabed-hockle.yaml")
     RodRun._accept = recording

@@ -420,7 +420,9 @@ def plectoneme_accounts(n, dt, rho_inf, correction=True, contact_rho_inf=None,
     route rule's bound that sizes the contact steps) with the energy check measuring only
     (``energy_tolerance`` 1e9: every converged step's ε measured, none refused) and,
     without ``correction``, the s = L end's drift correction off
-    (``ProblemAssembly.DRIFT_GAIN`` None for the run).
+    (``ProblemAssembly.DRIFT_GAIN`` None for the run) and its drift unbounded
+    (``contact.end_drift_tolerance`` 1 m: the uncorrected end drifts past the 50-mm
+    diameter, the default bound, at 7.15 s at N = 25, Δt = 0.1 s).
 
     Returns (status, rows): status "completed" or "diverged at t = … s"; rows (S, 9)
     over the S accepted steps: t (s), then the step's work (J) of the end moments
@@ -441,10 +443,12 @@ def plectoneme_accounts(n, dt, rho_inf, correction=True, contact_rho_inf=None,
     spec["numerics"]["contact_rho_inf"] = contact_rho_inf
     spec["contact"]["position_tolerance"] = position_tolerance
     spec["numerics"]["energy_tolerance"] = 1e9
+    if not correction:
+        spec["contact"]["end_drift_tolerance"] = 1.0
     rows = []
     original, gain = RodRun._accept, ProblemAssembly.DRIFT_GAIN
 
-    def accept(self, prob, sol, summary):
+    def accept(self, prob, sol, summary, timed):
         bal = self.last_balance
         if bal is not None:
             w = bal.work
@@ -455,7 +459,7 @@ def plectoneme_accounts(n, dt, rho_inf, correction=True, contact_rho_inf=None,
             rows.append((prob.t_new, w.get("ends", 0.0), w.get("loads", 0.0),
                          w.get("contact", 0.0), w.get("drag", 0.0), bal.error + total,
                          bal.error, bal.scale, 0.5 * float(prob.h) * sum(power)))
-        return original(self, prob, sol, summary)
+        return original(self, prob, sol, summary, timed)
 
     RodRun._accept = accept
     if not correction:

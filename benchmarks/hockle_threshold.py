@@ -259,7 +259,7 @@ def slack_table(results: dict) -> None:
             print(f"{x:9.2f} " + " ".join(f"{c:>24}" for c in cells))
         for i, j in zip(*np.nonzero(failed)):
             print(f"  failed at slack {slacks[i]:.2f}, tau {twists[j]:.2f}: "
-                  f"{ds.transpose(SLACK, TWIST, ...)['member_message'].values[i, j][:100]}")
+                  f"{ds.transpose(SLACK, TWIST, ...)['member_message'].values[i, j][:160]}")
     print(f"Greenhill, clamped ends, no end force: tau = 8.99 B/(C L) = "
           f"{8.9868 * B / (C * L):.2f} rad/m")
 
@@ -299,7 +299,7 @@ def slack_figure(results: dict, path: Path) -> Path:
         if k == 0:
             ax.plot([], [], "o", mfc="C3", mec="C3", label="loop formed (label: when)")
             ax.plot([], [], "o", mfc="white", mec="0.4", label="no loop by 8 s")
-            ax.plot([], [], "x", color="k", label="Newton failed (values up to then)")
+            ax.plot([], [], "x", color="k", label="run failed (values up to then)")
             ax.legend(fontsize=7, loc="lower right")
     fig.suptitle("Where a twisted 4 m cable loops under end slack (R: smallest bend radius); "
                  "benchmarks/hockle_threshold.py", fontsize=10)

@@ -1065,6 +1065,14 @@ class Contact(BaseModel):
         "Null: a quarter of (tolerance - largest diameter), and with "
         "numerics.tolerance at most its relative value x the rod length (docs/contact.md).",
     )
+    end_drift_tolerance: Optional[Finite] = Field(
+        None, gt=0,
+        description="Largest distance, m, between the s = L end of the centreline integrated from the curvature "
+        "(the positions the output reports) and the end's prescribed motion, along its prescribed translations; "
+        "> 0. A step that would exceed it ends the run (solver_diverged): the two part at a rate that "
+        "shorter steps do not lower (a finer grid lowers it in some runs). "
+        "Null: the rod's largest diameter (docs/contact.md).",
+    )
 
     @model_validator(mode="after")
     def _barrier_parameters(self) -> "Contact":
@@ -1083,6 +1091,10 @@ class Contact(BaseModel):
             for name in ("barrier_gap", "barrier_stiffness"):
                 if out.get(name) is None:
                     out.pop(name, None)
+        if self.end_drift_tolerance is None:
+            # added after schema 1's first release: written only when given, so that a
+            # case without it keeps its canonical JSON and spec_hash
+            out.pop("end_drift_tolerance", None)
         return out
 
 

@@ -170,28 +170,9 @@ def snapshot(run, fields: set, route_current: bool = False, pose=None) -> dict:
     out["residual_norm"] = run.last_residual
     out["dt"] = run.last_dt
     out["position_route_difference"] = max_distance(run.r_time, run.r)
-    out["end_drift"] = end_drift(run)
+    out["end_drift"] = run.end_drift()
     out["quaternion_norm_error"] = run.quat_norm_error
     return out
-
-
-def end_drift(run) -> float:
-    """How far the centreline's s = L end (integrated along s from κ, anchored at node 0)
-    is from the end's prescribed motion (its time route, the prescribed velocities
-    integrated in time) (m): the length of the body-frame components a_i·(r_time − r) at
-    node N (:meth:`solver.step_problem.ProblemAssembly.end_position_error`) along the
-    end's prescribed translations i. With self-contact this is what
-    :meth:`solver.step_problem.ProblemAssembly.end_correction` steers back; without it the dynamics never
-    see the integrated shape, which only the outputs show (docs/contact.md, "The far end
-    is steered onto its prescribed motion"). 0 while no translation is prescribed at
-    s = L (the length of no components; which translations are prescribed may change at
-    a breakpoint). Raises nothing."""
-    n_last = run.props.s.size - 1
-    axes = [idx for _, idx in run.bc.end_kinematic_dofs(n_last) if idx < 3]
-    if not axes:
-        return 0.0
-    e = run.end_position_error()[1]
-    return float(np.sqrt(sum(e[i] ** 2 for i in axes)))
 
 
 def _seabed(run, pose) -> dict:
@@ -280,7 +261,7 @@ def interpolated_snapshot(run, fields: set, t: float, start) -> dict:
     out = snapshot(view, fields, route_current=True, pose=pose)
     out["position_route_difference"] = float(
         max_distance(run.r_time, run.r))
-    out["end_drift"] = end_drift(run)
+    out["end_drift"] = run.end_drift()
     return out
 
 

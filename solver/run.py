@@ -112,9 +112,9 @@ class RodRun(ProblemAssembly):
         self.state.bc = self.bc_schedule.at(self.state.t)
         self.control = StepControl(case, *self._controllers())
         # the last attempt: its error ratio (NaN: not estimated), why it was refused
-        # ("newton", "contact", "error", "growth", "energy"; None: accepted), whether it
-        # had contact candidates, its route ratio; the last accepted step's Newton
-        # figures and contacts
+        # ("newton", "contact", "error", "growth", "energy", "drift"; None: accepted),
+        # whether it had contact candidates, its route ratio; the last accepted step's
+        # Newton figures and contacts
         self.last_error_ratio = math.nan
         self.last_reject = None
         self.last_had_candidates = False
@@ -186,17 +186,24 @@ class RodRun(ProblemAssembly):
         step-doubling estimate). On success the state advances and Attempt(True,
         iterations, residual) is returned; on failure the state is untouched and the
         Attempt has ok False and the reason (also in ``last_reject``, which an accepted
-        attempt sets to None)."""
+        attempt sets to None): Newton's or :meth:`_refusal`'s, or "drift" where the step
+        passes them but leaves the s = L end beyond ``contact.end_drift_tolerance`` from
+        its prescribed motion (:meth:`drifts_off`; the step control then ends the run)."""
         self.last_route_ratio = math.nan
         prob = self.step_problem(h, t_new, left_limit, restart)
         sol = self.solve_problem(prob)
         reason = sol.reason
         if reason is None:
             reason, summary = self._refusal(prob, sol, estimate)
+        timed = None
+        if reason is None:
+            timed = self._time_route(prob, sol)
+            if self.drifts_off(prob, sol, timed[3][-1]):
+                reason = "drift"             # the end strays off its prescribed motion
         if reason is not None:
             self.last_reject = reason
             return Attempt(False, sol.iterations, sol.residual, sol.nonfinite, reason)
-        self._accept(prob, sol, summary)
+        self._accept(prob, sol, summary, timed)
         self.last_reject = None
         return Attempt(True, sol.iterations, sol.residual)
 
@@ -255,19 +262,27 @@ class RodRun(ProblemAssembly):
                 return "growth", summary
         return None, summary
 
-    def _accept(self, prob, sol, summary) -> None:
-        """Advance the state to the accepted solution of the step's problem (the state's
-        fields read and written on ``self.state`` itself, not through the run's
-        delegating attributes: this runs at every step)."""
+    def _time_route(self, prob, sol):
+        """Every node advanced in time by the step of ``prob`` to its solution ``sol`` on
+        its own, the end correction's offsets taken out (:meth:`_time_step`): (q', R', ṙ',
+        r') at the new level. A diagnostic (its distance to the space route is a
+        discretisation-error indicator), the end rotations of the linking number, and node
+        N's prescribed motion (:meth:`drifts_off`)."""
+        st = self.state
+        return self._time_step(prob.h, sol.Y, st.q_time, st.r_time, st.v_global_time,
+                               offsets=((st.bc_offset, st.bc.cols),
+                                        (prob.offset, prob.bc.cols)))
+
+    def _accept(self, prob, sol, summary, timed) -> None:
+        """Advance the state to the accepted solution of the step's problem, ``timed`` its
+        time route (:meth:`_time_route`) (the state's fields read and written on
+        ``self.state`` itself, not through the run's delegating attributes: this runs at
+        every step)."""
         st = self.state
         Y, pose, h, bc, restart = sol.Y, sol.pose, prob.h, prob.bc, prob.restart
         g = prob.params.gamma
         Ydot = (Y - st.Y) / (g * h) - ((1.0 - g) / g) * st.Ydot
-        # time route of every node (a diagnostic: its distance to the space route is a
-        # discretisation-error indicator) and the end rotations (linking number)
-        q_t, _, vg_t, r_t = self._time_step(h, Y, st.q_time, st.r_time, st.v_global_time,
-                                            offsets=((st.bc_offset, st.bc.cols),
-                                                     (prob.offset, bc.cols)))
+        q_t, _, vg_t, r_t = timed
         drift = normalize_quaternions(q_t)
         if self.contact is not None:
             self.contact_count, self.min_gap = summary

@@ -70,6 +70,21 @@ class Solution(NamedTuple):
     nonfinite: bool = False
 
 
+def end_drift_length(bc: BoundaryRows, n_last: int, q_end, r_end, r_time_end) -> float:
+    """How far the carried s = L end ``r_end`` (3,) m, frame quaternion ``q_end`` (4,), lies
+    from the end's prescribed motion ``r_time_end`` (3,) m: the length of the components
+    a_i·(r_time − r) along the translations i that ``bc`` prescribes at node ``n_last``
+    (a_i the end's body axes; 0 where none is prescribed). The output ``end_drift`` and
+    the bound of :meth:`ProblemAssembly.drifts_off`. Raises nothing."""
+    axes = [idx for _, idx in bc.end_kinematic_dofs(n_last) if idx < 3]
+    if not axes:
+        return 0.0
+    q = np.asarray(q_end, dtype=float)
+    R = quat_to_matrix((q / np.linalg.norm(q))[None, :])[0]
+    e = R.T @ (np.asarray(r_time_end, dtype=float) - np.asarray(r_end, dtype=float))
+    return float(np.sqrt(sum(e[i] ** 2 for i in axes)))
+
+
 class ProblemAssembly:
     """The run's methods that assemble one step's problem and solve it (a mixin of
     :class:`solver.run.RodRun`: they read its state, system, Newton and contact search)."""
@@ -311,6 +326,51 @@ class ProblemAssembly:
         steers back and the output ``end_drift`` reports. Raises nothing."""
         R = quat_to_matrix(self.q[-1:])[0]
         return R, R.T @ (self.r_time[-1] - self.r[-1])
+
+    def end_drift(self) -> float:
+        """How far the centreline's s = L end (integrated along s from κ, anchored at node
+        0) is from the end's prescribed motion (its time route, the prescribed velocities
+        integrated in time) (m): :func:`end_drift_length` of the carried end, the
+        body-frame components a_i·(r_time − r) at node N along the end's prescribed
+        translations i (:meth:`end_position_error`'s e). The output ``end_drift``. With
+        self-contact this is what :meth:`end_correction` steers back and
+        :meth:`drifts_off` bounds; without it the dynamics never see the integrated
+        shape, which only the outputs show (docs/contact.md, "The far end is steered onto
+        its prescribed motion"). 0 while no translation is prescribed at s = L (which
+        translations are prescribed may change at a breakpoint). Raises nothing."""
+        return end_drift_length(self.bc, self.props.s.size - 1, self.q[-1], self.r[-1],
+                                self.r_time[-1])
+
+    def end_drift_tolerance(self) -> float:
+        """The largest end drift a step may leave (m): ``contact.end_drift_tolerance``, by
+        default the rod's largest diameter (used with self-contact only)."""
+        tol = self.case.contact.end_drift_tolerance
+        return float(np.max(self.props.diameter)) if tol is None else float(tol)
+
+    def drifts_off(self, prob: StepProblem, sol: Solution, r_time_end) -> bool:
+        """Whether the converged step of ``prob`` leaves the carried s = L end farther than
+        :meth:`end_drift_tolerance` from its prescribed motion (``r_time_end`` (3,) m, the
+        end's time route at the new level): :func:`end_drift_length` at the new level.
+        Not on a step that switches the end's conditions, where a newly held degree of
+        freedom takes the carried end as its reference (:meth:`_hold_from_here`).
+
+        Why a bound and not a cut of Δt: the two ends part at a rate, the difference
+        between the end's prescribed velocity and the rate of the end integrated from κ,
+        that shorter steps do not lower. On a member of docs/hockle.md's slack map in free
+        space (160 segments, 8 turns, δ = 0.8 m) the route difference of one step from
+        t = 3.6 s falls as h, 0.82, 0.19 and 0.048 mm at h = 1.25, 0.31 and 0.078 ms, all
+        at node N (the rate about 0.65 m/s), and with ``contact.position_tolerance``
+        1e-3 or 2.5e-4 m instead of 5 mm the run still drifted 34-36 mm and then failed. A
+        finer grid lowers the drift in some runs (cases/seabed-hockle.yaml: 11.3 mm on 160
+        segments, 2.3 mm on 320 with Δt halved) and not in others (that member on 320
+        segments, Δt = 0.025 s, route tolerance 0.5 mm: from 3.6 to 20 mm within 0.08 s
+        as its loop wraps; docs/contact.md § 1). Raises nothing."""
+        if self.contact is None or prob.switched:
+            return False
+        q_end = sol.pose[0][-1]
+        drift = end_drift_length(prob.bc, self.props.s.size - 1, q_end, sol.pose[2][-1],
+                                 r_time_end)
+        return drift > self.end_drift_tolerance()
 
     def _hold_from_here(self, prev_bc, bc) -> None:
         """A degree of freedom of the s = L end that has just become kinematic (a sliding

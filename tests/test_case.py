@@ -444,6 +444,29 @@ def test_backward_euler_retry_is_on_by_default_for_fixed_steps_only(data):
     assert_refused(data, "numerics.backward_euler_retry", "fixed steps only", "unsupported")
 
 
+def test_end_drift_tolerance_defaults_to_the_diameter_and_keeps_the_hash(data):
+    """contact.end_drift_tolerance: unset (null: the rod's largest diameter, read by the
+    run) it stays out of the canonical JSON, so a case without it keeps its spec_hash; a
+    value is written and re-validates; 0 and a negative value are refused, naming the
+    field."""
+    from solver.run import RodRun
+
+    case = Case.model_validate(data)
+    assert case.contact.end_drift_tolerance is None
+    assert "end_drift_tolerance" not in case.canonical_json()
+    assert RodRun(case).end_drift_tolerance() == pytest.approx(case.rod.diameter)
+    data["contact"]["end_drift_tolerance"] = 0.005
+    given = Case.model_validate(data)
+    assert '"end_drift_tolerance":0.005' in given.canonical_json()
+    assert given.spec_hash() != case.spec_hash()
+    again = Case.model_validate(json.loads(given.canonical_json()))
+    assert again.spec_hash() == given.spec_hash()
+    assert RodRun(again).end_drift_tolerance() == 0.005
+    for bad in (0.0, -1.0):
+        data["contact"]["end_drift_tolerance"] = bad
+        assert_refused(data, "contact.end_drift_tolerance", "greater than 0")
+
+
 @pytest.mark.parametrize("rho_inf, fragment", [(-0.1, "greater than or equal to 0"), (1.1, "less than or equal to 1")])
 def test_rho_inf_out_of_range(data, rho_inf, fragment):
     data["numerics"]["rho_inf"] = rho_inf

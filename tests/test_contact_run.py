@@ -14,7 +14,6 @@ import numpy as np
 import pytest
 
 from solver import Case, simulate
-from solver.recording import end_drift
 from solver.simulation import RodRun
 
 SEED = Path(__file__).resolve().parents[1] / "cases" / "goyal-writhing.yaml"
@@ -76,7 +75,7 @@ def test_no_contact_machinery_without_contact():
     # the end's time route is where the case holds it; the integrated centreline's end
     # is reported, not corrected, without contact (observed: 4e-9 m at 0.3 s)
     run.update_space_route()
-    assert 0.0 <= end_drift(run) < 1e-6
+    assert 0.0 <= run.end_drift() < 1e-6
 
 
 class _Captured(Exception):
@@ -438,6 +437,32 @@ def plectoneme_case(n_segments, dt, t_end=9.0):
     return Case.model_validate(spec)
 
 
+def test_a_step_leaving_the_end_beyond_its_drift_tolerance_ends_the_run():
+    """contact.end_drift_tolerance bounds how far the output's s = L end (integrated from
+    κ) may lie from the end's prescribed motion. PyElastica's plectoneme at N = 25,
+    Δt = 0.1 s drifts 14 mm in its collapse (observed; the default bound is the 50-mm
+    diameter, and it completes: the test below); with a bound of 5 mm the run ends with
+    solver_diverged, the field named, at the step that would cross it, and no output of
+    the partial run lies beyond the bound. A shorter step does not lower the rate at which
+    the two part, so the step is not cut (ProblemAssembly.drifts_off)."""
+    from solver.simulation import SolverDivergence
+
+    spec = plectoneme_case(25, 0.1).model_dump(mode="json")
+    spec["contact"]["end_drift_tolerance"] = 0.005
+    case = Case.model_validate(spec)
+    with pytest.raises(SolverDivergence) as info:
+        simulate(case)
+    err = info.value
+    assert err.reason == "solver_diverged"
+    assert "contact.end_drift_tolerance = 5 mm" in str(err)
+    assert "a finer grid (numerics.n_segments) may help" in str(err)
+    ds = err.partial
+    assert ds.attrs["hockle_status"] == "failed"
+    assert 6.5 < float(ds.time[-1]) < 9.0           # in the collapse, not at the start
+    assert float(ds.end_drift.max()) <= 0.005
+    assert "drift 1" in ds.attrs["hockle_refused_attempts"]
+
+
 def _end_offset(ds):
     """Distance (m) of the s = L end from the axis it is held on, at every output (T,)."""
     return np.linalg.norm(ds.position.values[:, -1, :2], axis=1)
@@ -462,6 +487,7 @@ def test_held_end_stays_on_its_axis_through_the_collapse(monkeypatch):
     # axis only by the axial sliding along a tilted a3: observed 0.27 mm at most)
     assert "end_drift" in ds.position.attrs["ancillary_variables"]
     assert np.abs(ds.end_drift.values - off).max() < 1e-3
+    assert "drift" not in ds.attrs["hockle_refused_attempts"]
     # the same case at Δt = 0.05 s without the correction: the drift it removes
     monkeypatch.setattr(RodRun, "DRIFT_GAIN", None)
     ds = simulate(plectoneme_case(25, 0.05))

@@ -171,7 +171,7 @@ class StepControl:
                     self.h_route = self.route_pi.accepted(h_try, run.last_route_ratio)
                 continue
             self.accepted_at_level = 0
-            self._count_refusal(run)
+            self._count_refusal(run, h_try, res, nonfinite)
             if grew and level == 0:
                 # a growth to the nominal Δt that failed at once: wait twice as long
                 # before the next one (below the nominal Δt a growth is cheap to retry)
@@ -269,7 +269,7 @@ class StepControl:
                         math.log(h_full / h_try) / math.log(num.dt_cut_factor) - 1e-9))
                     self.accepted_at_level = 0
                 return total_its
-            self._count_refusal(run)
+            self._count_refusal(run, h_try, res, nonfinite)
             h, refused = self._retry_size(
                 run, h_try, ctl, run.last_route_ratio,
                 run.last_reject == "contact" and run.last_route_ratio > 1.0, refused)
@@ -325,7 +325,7 @@ class StepControl:
                 run.last_iterations = total_its
                 return total_its, res
             # ok None: a doubled step whose strands may meet goes to the route rule
-            self._count_refusal(run, "route" if ok is None else None)
+            self._count_refusal(run, h_try, res, nonfinite, "route" if ok is None else None)
             h, refused = self._retry_size(run, h_try, ctl, run.last_error_ratio,
                                           run.last_reject == "error", refused)
             h = self._floored(h, h_try, h_min)
@@ -419,10 +419,21 @@ class StepControl:
             return h_min
         return None
 
-    def _count_refusal(self, run, reason=None) -> None:
-        """Count the attempt just refused under ``reason`` (default ``run.last_reject``)."""
+    def _count_refusal(self, run, h, res, nonfinite, reason=None) -> None:
+        """Count the attempt of h (s) just refused (scaled residual ``res``) under
+        ``reason`` (default ``run.last_reject``). A step refused for the end's drift
+        ("drift") ends the run here, raising SolverDivergence: no shorter step lowers the
+        rate at which the end integrated from κ leaves its prescribed motion
+        (:meth:`solver.step_problem.ProblemAssembly.drifts_off`)."""
         reason = run.last_reject if reason is None else reason
         self.refusals[reason] = self.refusals.get(reason, 0) + 1
+        if reason == "drift":
+            drift = run.end_drift()
+            raise self._divergence(
+                run, f"the step from t = {run.t:.6g} s would leave the s = L end beyond "
+                f"contact.end_drift_tolerance = {run.end_drift_tolerance() * 1e3:.3g} mm from "
+                f"its prescribed motion ({drift * 1e3:.3g} mm at the step's start)", h, res,
+                nonfinite, reason)
 
     def _next_stop(self, run, t_stop: float, snap: float):
         """Take the pending consistent restart, if any, and return (its Newton iterations,
@@ -482,6 +493,10 @@ class StepControl:
                "the last attempt converged but put in more energy than its loads' work "
                "(numerics.energy_tolerance): no step down to the smallest is trusted"
                if reject == "energy" else
+               "the centreline integrated from κ and the end's prescribed motion part "
+               "faster than the end correction steers them together, at a rate that "
+               "shorter steps do not lower; a finer grid (numerics.n_segments) may help "
+               "(docs/contact.md § 1, \"A bound on the drift\")" if reject == "drift" else
                "Newton did not converge" if reject in (None, "newton") else
                f"the last attempt converged but was refused ({reject})")
         return SolverDivergence(f"{what} (Δt = {h:.3g} s, scaled residual {res:.3g}, {why})",
