@@ -1069,8 +1069,8 @@ class Contact(BaseModel):
         None, gt=0,
         description="Largest distance, m, between the s = L end of the centreline integrated from the curvature "
         "(the positions the output reports) and the end's prescribed motion, along its prescribed translations; "
-        "> 0. A step that would exceed it ends the run (solver_diverged): the two part at a rate that "
-        "shorter steps do not lower (a finer grid lowers it in some runs). "
+        "> 0. A step that would exceed it ends the run (solver_diverged): the two part at the box rule's "
+        "route rate, an error in s that shorter steps do not lower (refine numerics.n_segments). "
         "Null: the rod's largest diameter (docs/contact.md).",
     )
 

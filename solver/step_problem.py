@@ -356,15 +356,15 @@ class ProblemAssembly:
 
         Why a bound and not a cut of Δt: the two ends part at a rate, the difference
         between the end's prescribed velocity and the rate of the end integrated from κ,
-        that shorter steps do not lower. On a member of docs/hockle.md's slack map in free
-        space (160 segments, 8 turns, δ = 0.8 m) the route difference of one step from
-        t = 3.6 s falls as h, 0.82, 0.19 and 0.048 mm at h = 1.25, 0.31 and 0.078 ms, all
-        at node N (the rate about 0.65 m/s), and with ``contact.position_tolerance``
-        1e-3 or 2.5e-4 m instead of 5 mm the run still drifted 34-36 mm and then failed. A
-        finer grid lowers the drift in some runs (cases/seabed-hockle.yaml: 11.3 mm on 160
-        segments, 2.3 mm on 320 with Δt halved) and not in others (that member on 320
-        segments, Δt = 0.025 s, route tolerance 0.5 mm: from 3.6 to 20 mm within 0.08 s
-        as its loop wraps; docs/contact.md § 1). Raises nothing."""
+        that shorter steps do not lower: the box rule's route rate, an error in s. On a
+        member of docs/hockle.md's slack map in free space (160 segments, 8 turns,
+        δ = 0.8 m) the route difference of one step from t = 3.6 s falls as h, 0.82, 0.19
+        and 0.048 mm at h = 1.25, 0.31 and 0.078 ms, all at node N (0.62 m/s as Δt → 0,
+        the box rule's route rate 0.674 m/s of it; 0.092 and 0.020 m/s on 320 and 640
+        segments), and with ``contact.position_tolerance`` 1e-3 or 2.5e-4 m instead of
+        5 mm the run still drifted 34-36 mm and then failed. In its wrapped loop the rate
+        reaches 84 % of the fastest node's speed on 320 segments, which stop at the bound;
+        640 complete with 8.6 mm (docs/contact.md § 1). Raises nothing."""
         if self.contact is None or prob.switched:
             return False
         q_end = sol.pose[0][-1]

@@ -494,9 +494,10 @@ class StepControl:
                "(numerics.energy_tolerance): no step down to the smallest is trusted"
                if reject == "energy" else
                "the centreline integrated from κ and the end's prescribed motion part "
-               "faster than the end correction steers them together, at a rate that "
-               "shorter steps do not lower; a finer grid (numerics.n_segments) may help "
-               "(docs/contact.md § 1, \"A bound on the drift\")" if reject == "drift" else
+               "faster than the end correction steers them together, at the box rule's "
+               "route rate, an error in s that shorter steps do not lower: refine "
+               "numerics.n_segments (docs/contact.md § 1, \"A bound on the drift\")"
+               if reject == "drift" else
                "Newton did not converge" if reject in (None, "newton") else
                f"the last attempt converged but was refused ({reject})")
         return SolverDivergence(f"{what} (Δt = {h:.3g} s, scaled residual {res:.3g}, {why})",
