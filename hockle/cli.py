@@ -357,6 +357,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         f"{status}: t = {t_last:g} of {case.numerics.t_end:g} s in {wall:.1f} s wall time: "
         f"wrote {out}"
     )
+    if ds.attrs.get("hockle_warning"):
+        _err(f"hockle: warning: {ds.attrs['hockle_warning']}")
     if status == "completed":
         return EXIT_OK
     reason = ds.attrs.get("hockle_stop_reason", "stopped")

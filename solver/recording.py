@@ -208,6 +208,31 @@ def _topology(run) -> dict:
                 writhe_closure_passages=float(k))
 
 
+def closure_warning(case, times, passages) -> str | None:
+    """The warning a run with fixed steps carries where its writhe crossed the closure of
+    its end tangents (``writhe_closure_passages`` changed), else None: such a run may have
+    taken a path the converged motion does not (docs/numerics.md § 6: the thin-rod
+    plectoneme at Δt = 0.2 s, 10× its own, sweeps a loop across the closure ray and ends
+    with Wr 2.01 against 2.83, each step passing every check). times (T,) s; passages
+    (T,) the output series, or None where the run has no topology outputs or no
+    self-contact. Not with ``numerics.tolerance``, whose steps are error-controlled.
+    Raises nothing."""
+    if passages is None or case.numerics.tolerance is not None:
+        return None
+    k = np.nan_to_num(np.asarray(passages, float))
+    jumps = np.abs(np.diff(np.concatenate([[0.0], k])))
+    count = int(round(float(jumps.sum())))
+    if count == 0:
+        return None
+    first = float(times[int(np.argmax(jumps > 0.5))])
+    return (f"the writhe crossed the closure of the end tangents {count} time"
+            f"{'s' if count > 1 else ''}, first by t = {first:g} s "
+            "(writhe_closure_passages): a loop swept across the line beyond an end. With "
+            "fixed steps a numerics.dt that does not resolve a loop's formation can do "
+            "that where the converged motion does not: compare with a smaller "
+            "numerics.dt, or run with numerics.tolerance (docs/numerics.md § 6)")
+
+
 def dense_state(run):
     """What :func:`interpolated_snapshot` needs of the level a step starts from (the
     accepted-step path rebinds every array it changes, so references suffice)."""
@@ -345,6 +370,10 @@ class Recorder:
                            {k: np.asarray(v) for k, v in self.diag.items()}, status, message)
         if reason is not None:
             ds.attrs["hockle_stop_reason"] = reason
+        warning = closure_warning(self.case, np.asarray(self.times),
+                                  stacked.get("writhe_closure_passages"))
+        if warning is not None:
+            ds.attrs["hockle_warning"] = warning
         ds.attrs["wall_time_s"] = self.wall_before + _time.perf_counter() - self.wall0
         ds.attrs["factorizations"] = run.newton.factorizations
         ds.attrs["gmres_iterations"] = run.newton.gmres_iterations

@@ -8,6 +8,7 @@ output: |Tw + Wr − Lk| < 0.05 (Lk from the end rotations, Wr from the centreli
 end rotation.
 """
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -682,3 +683,49 @@ def test_end_correction_keeps_second_order():
     orders = np.log2(np.array(d[:-1]) / np.array(d[1:]))
     assert np.all(orders > 1.8), orders
     assert np.linalg.norm(finals[-1][-1, :2]) < 1e-5
+
+
+def thin_plectoneme_case(dt, t_end):
+    """The contact suite's thin-rod plectoneme (benchmarks/contact_suite.py): PyElastica's
+    plectoneme of :func:`plectoneme_case` with a 1-cm rod (L/D = 100) on 200 segments,
+    the search margin twice the diameter; resolved at Δt = 0.02 s."""
+    spec = plectoneme_case(200, dt, t_end).model_dump(mode="json")
+    spec["rod"]["diameter"] = 0.01
+    spec["contact"]["tolerance"] = 0.02
+    return Case.model_validate(spec)
+
+
+def test_a_fixed_step_run_whose_writhe_crosses_the_closure_carries_a_warning():
+    """At Δt = 0.2 s, 10x the step it is resolved at, the thin-rod plectoneme sweeps a
+    loop across the closure ray beyond an end at 9.4 s and goes on to a wrong writhe,
+    every step passing its checks (docs/numerics.md § 6): the run completes, and its
+    result says so (``hockle_warning``). At its own Δt over the same window it does not
+    cross, and carries no warning."""
+    coarse = simulate(thin_plectoneme_case(0.2, 10.0))
+    assert coarse.attrs["hockle_status"] == "completed"
+    assert coarse["writhe_closure_passages"].values.max() == 1.0
+    warning = coarse.attrs["hockle_warning"]
+    assert "crossed the closure of the end tangents 1 time," in warning
+    first = float(re.search(r"first by t = ([0-9.]+) s", warning).group(1))
+    assert 9.0 <= first <= 10.0 and "numerics.tolerance" in warning
+    fine = simulate(thin_plectoneme_case(0.02, 10.0))
+    assert fine["writhe_closure_passages"].values.max() == 0.0
+    assert "hockle_warning" not in fine.attrs
+
+
+def test_closure_warning_counts_the_passages_of_fixed_steps_only():
+    """:func:`solver.recording.closure_warning`: every change of the passage count is a
+    passage (±1 each, either way); none, no topology outputs or error-controlled steps:
+    no warning."""
+    from solver.recording import closure_warning
+
+    case = plectoneme_case(20, 0.1, 1.0)
+    times = np.arange(6) * 0.1
+    warning = closure_warning(case, times, np.array([0.0, 0.0, 1.0, 1.0, 0.0, -1.0]))
+    assert "3 times, first by t = 0.2 s" in warning
+    assert closure_warning(case, times, np.zeros(6)) is None
+    assert closure_warning(case, times, None) is None
+    spec = case.model_dump(mode="json")
+    spec["numerics"]["tolerance"] = {"relative": 1e-2, "absolute": 1e-8}
+    adaptive = Case.model_validate(spec)
+    assert closure_warning(adaptive, times, np.array([0.0, 1.0, 1.0, 1.0, 1.0, 1.0])) is None
