@@ -189,6 +189,10 @@ def submit(args: argparse.Namespace) -> int:
                 print(f"job {job.id} {job.state} ({job.reason}){where}: {job.message}", file=out)
             else:
                 print(f"job {job.id} {job.state}", file=out)
+                if job.message and not branch:
+                    # a completed run's warning (the result's hockle_warning; a branch's
+                    # message says how far it went)
+                    print(f"hockle submit: warning: {job.message}", file=sys.stderr)
             if args.output and job.result_available:
                 client.download(job.id, args.output)
                 print(f"wrote {args.output}" + (" (partial)" if job.result_partial else ""),

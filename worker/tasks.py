@@ -700,7 +700,10 @@ def _solve(run: JobRun, case, start=None) -> str:
         return "failed:internal_error"
     position = run._position()
     position["progress"] = 100.0
-    run.finish(state=SUCCESSFUL, result_path=path, **position)
+    # a completed run's warning (hockle_warning: its writhe crossed an end's closure with
+    # fixed steps, docs/numerics.md § 6) is the job's message
+    run.finish(state=SUCCESSFUL, result_path=path, message=ds.attrs.get("hockle_warning"),
+               **position)
     return "successful"
 
 

@@ -351,3 +351,72 @@ def test_a_submission_answers_the_advice_on_its_case_and_the_case_runs(client, s
     path.write_bytes(data)
     with open_result(path) as ds:
         assert ds.attrs["hockle_advice"] == body["advice"][0]
+
+
+
+def _thin_plectoneme_at_ten_times_its_step():
+    """The contact suite's thin-rod plectoneme (L/D = 100, 200 segments, resolved at
+    Δt = 0.02 s) at Δt = 0.2 s to 10 s: its loop sweeps across the closure of an end's
+    tangent at 9.4 s (docs/numerics.md § 6), and its result carries hockle_warning."""
+    import math
+
+    still, zero = {"angular_velocity": 0.0}, {"velocity": 0.0}
+    return {
+        "schema_version": 1, "name": "thin plectoneme at 10x its step",
+        "rod": {"length": 1.0, "youngs_modulus": 1e6, "shear_modulus": 1e6 / 1.5,
+                "density": 1.0 / (math.pi * 0.025**2), "diameter": 0.01},
+        "distributed_forces": [{"value": [1e-4, 0.0, 0.0]}],
+        "fluid": {"density": 1000.0, "added_mass_coefficient": 0.0,
+                  "drag_coefficient_normal": 0.04,
+                  "drag_coefficient_tangential": 0.04 / math.pi},
+        "contact": {"aperture": 90.0, "tolerance": 0.02, "k1": 1e-7, "k2": 3.0, "k3": 5.0,
+                    "k4": 0.0},
+        "boundary": {
+            "start": {"translation": [zero] * 3, "rotation": [still] * 3},
+            "end": {"translation": [zero, zero, {"force": 0.0}],
+                    "rotation": [still, still, {"angular_velocity": {
+                        "t": [0.0, 0.5], "value": [0.0, 2.0 * math.pi / 5.0]}}]}},
+        "numerics": {"n_segments": 200, "dt": 0.2, "t_end": 10.0, "rho_inf": 0.5},
+        "output": {"every": 1, "fields": ["position", "topology", "contact"]},
+    }
+
+
+def test_a_completed_run_with_a_warning_says_it_in_the_job_message(client, settings):
+    """A run whose result carries hockle_warning ends successful with that warning as
+    the job's message; a run without one has no message."""
+    job = client.post("/v1/jobs", json=_thin_plectoneme_at_ten_times_its_step())
+    assert job.status_code == 201, job.text
+    assert _run(settings, job.json()["id"]) == "successful"
+    status = client.get(f"/v1/jobs/{job.json()['id']}").json()
+    assert status["state"] == "successful"
+    assert "crossed the closure of the end tangents" in status["message"]
+    plain = client.post("/v1/jobs", json=tiny_case("no warning")).json()
+    assert _run(settings, plain["id"]) == "successful"
+    assert client.get(f"/v1/jobs/{plain['id']}").json()["message"] is None
+
+
+def test_hockle_submit_wait_prints_a_completed_runs_warning(client, settings, monkeypatch,
+                                                            tmp_path, capsys):
+    """`hockle submit CASE --wait` prints a successful job's warning to stderr (the job
+    run here by the worker's code while the client waits)."""
+    from hockle.cli import main
+    from service import client as client_module
+
+    monkeypatch.delenv("HOCKLE_API_KEY", raising=False)
+    real_init, real_wait = client_module.HockleClient.__init__, client_module.HockleClient.wait
+
+    def through_the_test_client(self, url=None, **kwargs):
+        real_init(self, "http://testserver", transport=client._transport, **kwargs)
+
+    def run_then_wait(self, job_id, **kwargs):
+        _run(settings, job_id)
+        return real_wait(self, job_id, **kwargs)
+
+    monkeypatch.setattr(client_module.HockleClient, "__init__", through_the_test_client)
+    monkeypatch.setattr(client_module.HockleClient, "wait", run_then_wait)
+    case = tmp_path / "thin.json"
+    case.write_text(json.dumps(_thin_plectoneme_at_ten_times_its_step()))
+    assert main(["submit", str(case), "--wait", "--fresh"]) == 0
+    captured = capsys.readouterr()
+    assert "successful" in captured.out
+    assert "hockle submit: warning: the writhe crossed the closure" in captured.err
