@@ -554,7 +554,8 @@ def _run_member(case_json: str, out_path: str) -> tuple[str, str]:
         return "failed", f"{exc.reason}: {exc}"
     write_netcdf(ds, out_path)
     if ds.attrs.get("hockle_status") == "completed":
-        return "successful", ""
+        # a completed run's warning (hockle_warning), as a service job's message
+        return "successful", str(ds.attrs.get("hockle_warning", ""))
     return "failed", str(ds.attrs.get("hockle_message") or ds.attrs.get("hockle_stop_reason"))
 
 

@@ -723,8 +723,9 @@ def _member_vars(layout: _Layout) -> dict[str, Any]:
                    {"long_name": "job id of the member"}),
         "member_message": (dims, arr(np.asarray([m.message or "" for m in ordered],
                                                 dtype=object)),
-                           {"long_name": "why the member failed or stopped (empty when it "
-                                         "succeeded)"}),
+                           {"long_name": "why the member failed or stopped; for a "
+                                         "successful member its result's hockle_warning "
+                                         "(empty without one)"}),
         "member_t_reached": (dims, arr(reached), {
             "long_name": "last stored time of the member's result", "units": "s"}),
     }

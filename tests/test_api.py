@@ -165,3 +165,15 @@ def test_local_sweep_runs_and_combines():
     assert cell["energy_total"].values == pytest.approx(alone["energy_total"].values, abs=0)
     with pytest.raises(SweepError, match=r"members\[1\]\.rod\.diameter"):
         sweep(base, {"rod.diameter": [0.02, -0.02]}, workers=1)
+
+
+def test_a_local_sweeps_successful_member_keeps_its_warning():
+    """A member whose result carries hockle_warning (the thin-rod plectoneme at 10x its
+    Δt: its loop sweeps across an end's closure, docs/numerics.md § 6) is successful with
+    the warning as its member_message; the member at the case's own Δt has none."""
+    from test_contact_run import thin_plectoneme_case
+
+    ds = sweep(thin_plectoneme_case(0.02, 10.0), {"numerics.dt": [0.02, 0.2]}, workers=1)
+    assert (ds["member_status"].values == "successful").all()
+    assert str(ds["member_message"].values[0]) == ""
+    assert "crossed the closure of the end tangents" in str(ds["member_message"].values[1])
