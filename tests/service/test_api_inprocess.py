@@ -354,32 +354,14 @@ def test_a_submission_answers_the_advice_on_its_case_and_the_case_runs(client, s
 
 
 
+
 def _thin_plectoneme_at_ten_times_its_step():
-    """The contact suite's thin-rod plectoneme (L/D = 100, 200 segments, resolved at
-    Δt = 0.02 s) at Δt = 0.2 s to 10 s: its loop sweeps across the closure of an end's
-    tangent at 9.4 s (docs/numerics.md § 6), and its result carries hockle_warning."""
-    import math
+    """The contact suite's thin-rod plectoneme (tests/test_contact_run.py) at Δt = 0.2 s,
+    10x its own, to 10 s: its loop sweeps across the closure of an end's tangent at
+    9.4 s (docs/numerics.md § 6), and its result carries hockle_warning."""
+    from test_contact_run import thin_plectoneme_case
 
-    still, zero = {"angular_velocity": 0.0}, {"velocity": 0.0}
-    return {
-        "schema_version": 1, "name": "thin plectoneme at 10x its step",
-        "rod": {"length": 1.0, "youngs_modulus": 1e6, "shear_modulus": 1e6 / 1.5,
-                "density": 1.0 / (math.pi * 0.025**2), "diameter": 0.01},
-        "distributed_forces": [{"value": [1e-4, 0.0, 0.0]}],
-        "fluid": {"density": 1000.0, "added_mass_coefficient": 0.0,
-                  "drag_coefficient_normal": 0.04,
-                  "drag_coefficient_tangential": 0.04 / math.pi},
-        "contact": {"aperture": 90.0, "tolerance": 0.02, "k1": 1e-7, "k2": 3.0, "k3": 5.0,
-                    "k4": 0.0},
-        "boundary": {
-            "start": {"translation": [zero] * 3, "rotation": [still] * 3},
-            "end": {"translation": [zero, zero, {"force": 0.0}],
-                    "rotation": [still, still, {"angular_velocity": {
-                        "t": [0.0, 0.5], "value": [0.0, 2.0 * math.pi / 5.0]}}]}},
-        "numerics": {"n_segments": 200, "dt": 0.2, "t_end": 10.0, "rho_inf": 0.5},
-        "output": {"every": 1, "fields": ["position", "topology", "contact"]},
-    }
-
+    return thin_plectoneme_case(0.2, 10.0).model_dump(mode="json")
 
 def test_a_completed_run_with_a_warning_says_it_in_the_job_message(client, settings):
     """A run whose result carries hockle_warning ends successful with that warning as
