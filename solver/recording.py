@@ -213,10 +213,12 @@ def closure_warning(case, times, passages) -> str | None:
     its end tangents (``writhe_closure_passages`` changed), else None: such a run may have
     taken a path the converged motion does not (docs/numerics.md § 6: the thin-rod
     plectoneme at Δt = 0.2 s, 10× its own, sweeps a loop across the closure ray and ends
-    with Wr 2.01 against 2.83, each step passing every check). times (T,) s; passages
-    (T,) the output series, or None where the run has no topology outputs or no
-    self-contact. Not with ``numerics.tolerance``, whose steps are error-controlled.
-    Raises nothing."""
+    with Wr 2.01 against 2.83, each step passing every check). case: the run's
+    :class:`solver.case.Case`; times (T,) s, the output times; passages (T,) the output
+    series ``writhe_closure_passages`` (signed count, 1), or None where the run has no
+    topology outputs or no self-contact. Each change of the count by one is a passage.
+    Not with ``numerics.tolerance``, whose steps are error-controlled. Returns the text
+    or None. Raises nothing."""
     if passages is None or case.numerics.tolerance is not None:
         return None
     k = np.nan_to_num(np.asarray(passages, float))

@@ -353,8 +353,6 @@ def test_a_submission_answers_the_advice_on_its_case_and_the_case_runs(client, s
         assert ds.attrs["hockle_advice"] == body["advice"][0]
 
 
-
-
 def _thin_plectoneme_at_ten_times_its_step():
     """The contact suite's thin-rod plectoneme (tests/test_contact_run.py) at Δt = 0.2 s,
     10x its own, to 10 s: its loop sweeps across the closure of an end's tangent at
@@ -362,6 +360,7 @@ def _thin_plectoneme_at_ten_times_its_step():
     from test_contact_run import thin_plectoneme_case
 
     return thin_plectoneme_case(0.2, 10.0).model_dump(mode="json")
+
 
 def test_a_completed_run_with_a_warning_says_it_in_the_job_message(client, settings):
     """A run whose result carries hockle_warning ends successful with that warning as
