@@ -286,6 +286,39 @@ def test_job_page_draws_the_seabed_under_the_rod(browser, stack):
     _shot(browser, "job-seabed")
 
 
+def test_a_successful_runs_warning_is_shown_on_its_page_and_in_the_list(browser, stack):
+    """A run that completes with hockle_warning (the thin-rod plectoneme at 10x its step
+    crosses the closure of an end's tangent; docs/numerics.md § 6) shows the warning on its
+    page, under the state, and marks its row in the list; a run without one shows neither
+    (the buckling rod of the test above)."""
+    from selenium.webdriver.common.by import By
+    from test_contact_run import thin_plectoneme_case
+
+    case = thin_plectoneme_case(0.2, 10.0).model_dump(mode="json")
+    case["name"] = "warned plectoneme"
+    warned = _successful_job(stack, case)
+    plain = _successful_job(stack, buckling_case("no warning"))
+    _open(browser, stack, f"/job/{warned}")
+    _wait(browser, lambda d: d.find_elements(By.ID, "job-message"), 60, "the warning")
+    note = browser.find_element(By.ID, "job-message")
+    assert "warning" in note.get_attribute("class")
+    assert note.text.startswith("Warning: ")
+    assert "crossed the closure of the end tangents 1 time" in note.text
+    _shot(browser, "job-warning")
+    _open(browser, stack, f"/job/{plain}")
+    _wait(browser, lambda d: d.find_element(By.ID, "job-head").get_attribute("data-state")
+          == "successful", 60, "the plain job's state")
+    assert browser.find_elements(By.ID, "job-message") == []
+    _open(browser, stack, "/jobs")
+    _wait(browser, lambda d: _row_state(d, warned) == "successful"
+          and _row_state(d, plain) == "successful", 60, "both rows")
+    row = browser.find_element(By.CSS_SELECTOR, f'tr[data-job-id="{warned}"]')
+    marks = row.find_elements(By.CSS_SELECTOR, "[data-warning]")
+    assert len(marks) == 1 and "closure" in marks[0].get_attribute("title")
+    row = browser.find_element(By.CSS_SELECTOR, f'tr[data-job-id="{plain}"]')
+    assert row.find_elements(By.CSS_SELECTOR, "[data-warning]") == []
+
+
 def test_a_running_job_is_dismissed_from_the_list(browser, stack):
     from selenium.webdriver.common.by import By
 

@@ -85,6 +85,13 @@
     if (job.state !== "running") return "—";
     return job.eta_seconds === null || job.eta_seconds === undefined ? "estimating" : "≈ " + fmtDuration(job.eta_seconds);
   }
+  // A successful job's message: a run's warning (hockle_warning: its writhe crossed the
+  // closure of the end tangents with fixed steps; docs/numerics.md § 6), a continuation's
+  // account of its branch.
+  function successNote(job) {
+    if (job.kind === "continuation") return el("p.muted", { id: "job-message", text: job.message });
+    return el("p.warning", { id: "job-message", role: "status", text: "Warning: " + job.message });
+  }
   function stateBadge(s) { return el("span.state." + (STATES.indexOf(s) >= 0 ? s : "unknown"), { text: s }); }
   function progressBar(p) {
     var bar = el("span.bar", el("span")), pct = Math.max(0, Math.min(100, Number(p) || 0));
@@ -234,9 +241,10 @@
         b.addEventListener("click", function () { dismissJob(job.id, b); });
         actions.appendChild(b);
       }
+      var warned = job.state === "successful" && job.kind !== "continuation" && job.message;
       return el("tr", { dataset: { jobId: job.id, state: job.state } },
         el("td.name", el("a", { href: "#/job/" + encodeURIComponent(job.id), text: job.name || job.id })),
-        el("td", stateBadge(job.state)),
+        el("td", stateBadge(job.state), warned ? el("span.warning", { title: job.message, dataset: { warning: "1" }, text: " ⚠ warning" }) : null),
         el("td", progressBar(job.progress)),
         el("td", { title: job.state === "running" ? ETA_NOTE : null, text: etaText(job) }),
         el("td.num", { text: job.attempts }),
@@ -412,7 +420,8 @@
         el("dt", { text: "wall time" }), el("dd", { text: fmtDuration(job.wall_time) }),
         el("dt", { text: "worker" }), el("dd", { text: job.worker || "—" }),
         el("dt", { text: "id" }), el("dd.mono", { text: job.id }));
-      var msg = job.error ? el("p.error", { text: (job.error.reason || "") + ": " + (job.error.message || "") }) : null;
+      var msg = job.error ? el("p.error", { text: (job.error.reason || "") + ": " + (job.error.message || "") })
+        : job.state === "successful" && job.message ? successNote(job) : null;
       fill(head, el("h1", { id: "job-name", text: job.name || job.id }), kv, msg, buttons);
       head.dataset.state = job.state;
     }
