@@ -414,6 +414,8 @@ class SweepMember(BaseModel):
     state: Literal["accepted", "running", "successful", "failed", "dismissed"]
     reason: str | None = None
     progress: float = Field(..., ge=0, le=100)
+    message: str | None = Field(None, description="The member job's message: why it failed or "
+                                "stopped, or a successful run's warning (hockle_warning).")
 
 
 class SweepLinks(BaseModel):

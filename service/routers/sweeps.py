@@ -115,7 +115,8 @@ def sweep_status(sweep: SweepRecord, jobs: dict[str, Job]) -> sw.SweepStatus:
             min(max((job.progress if job is not None else 0.0) or 0.0, 0.0), 100.0))
         rows.append(sw.SweepMember(index=index, values=member, job_id=job_id,
                                    state=state, reason=job.reason if job is not None
-                                   else "internal_error", progress=round(done, 3)))
+                                   else "internal_error", progress=round(done, 3),
+                                   message=job.message if job is not None else None))
         states.append(state)
         progress.append(done)
     counts = {s: states.count(s) for s in sw.STATES if states.count(s)}
@@ -277,8 +278,7 @@ def _build(svc: Services, sweep: SweepRecord, jobs: dict[str, Job], fields: list
         results.append(sw.MemberResult(
             index=index, values=member,
             state=job.state if job is not None else "failed", dataset=loaded[job_id],
-            job_id=job_id, message=(job.message or "") if job is not None and
-            job.state != "successful" else ""))
+            job_id=job_id, message=(job.message or "") if job is not None else ""))
     try:
         ds = sw.combine_results(results, sweep.parameters, sweep.combine, fields=fields,
                                 attrs={"id": sweep.id, "hockle_sweep_id": sweep.id,

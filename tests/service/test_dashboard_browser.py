@@ -289,8 +289,8 @@ def test_job_page_draws_the_seabed_under_the_rod(browser, stack):
 def test_a_successful_runs_warning_is_shown_on_its_page_and_in_the_list(browser, stack):
     """A run that completes with hockle_warning (the thin-rod plectoneme at 10x its step
     crosses the closure of an end's tangent; docs/numerics.md § 6) shows the warning on its
-    page, under the state, and marks its row in the list; a run without one shows neither
-    (the buckling rod of the test above)."""
+    page, under the state, and marks its row in the list and in a sweep's member table; a
+    run without one shows neither (the buckling rod of the test above)."""
     from selenium.webdriver.common.by import By
     from test_contact_run import thin_plectoneme_case
 
@@ -317,6 +317,21 @@ def test_a_successful_runs_warning_is_shown_on_its_page_and_in_the_list(browser,
     assert len(marks) == 1 and "closure" in marks[0].get_attribute("title")
     row = browser.find_element(By.CSS_SELECTOR, f'tr[data-job-id="{plain}"]')
     assert row.find_elements(By.CSS_SELECTOR, "[data-warning]") == []
+    # a sweep's member table marks the warned member (Δt 0.2 s) and not the other (0.1 s)
+    sweep = stack.http.post("/v1/sweeps", params={"fresh": "true"}, json={
+        "base": case, "combine": "zip", "parameters": {"numerics.dt": [0.1, 0.2]}})
+    assert sweep.status_code == 201, sweep.text
+    sweep_id = sweep.json()["id"]
+    wait_until(lambda: stack.http.get(f"/v1/sweeps/{sweep_id}").json()["state"]
+               in ("successful", "failed", "dismissed"), 300, 0.5, "the sweep")
+    _open(browser, stack, f"/sweep/{sweep_id}")
+    _wait(browser, lambda d: len(d.find_elements(By.CSS_SELECTOR, "#members tbody tr")) == 2,
+          60, "the members")
+    rows = browser.find_elements(By.CSS_SELECTOR, "#members tbody tr")
+    assert [r.get_attribute("data-state") for r in rows] == ["successful"] * 2
+    assert rows[0].find_elements(By.CSS_SELECTOR, "[data-warning]") == []
+    marks = rows[1].find_elements(By.CSS_SELECTOR, "[data-warning]")
+    assert len(marks) == 1 and "closure" in marks[0].get_attribute("title")
 
 
 def test_a_running_job_is_dismissed_from_the_list(browser, stack):

@@ -70,6 +70,35 @@ def test_results_wait_for_every_member_and_a_failed_one_is_marked(client, settin
     assert bad_field.status_code == 422 and bad_field.json()["errors"][0]["loc"] == "query.fields"
 
 
+def test_a_successful_members_warning_reaches_the_status_and_the_combined_result(
+        client, settings, tmp_path):
+    """A member whose run completes with hockle_warning (the thin-rod plectoneme at 10x
+    its step: its loop sweeps across an end's closure, docs/numerics.md § 6) is successful;
+    its warning is the member's ``message`` in the sweep's status and its
+    ``member_message`` in the combined dataset (it was dropped there for successful
+    members); the member at the case's own step has neither."""
+    from test_contact_run import thin_plectoneme_case
+
+    base = thin_plectoneme_case(0.02, 10.0).model_dump(mode="json")
+    body = {"base": base, "combine": "zip", "parameters": {"numerics.dt": [0.02, 0.2]}}
+    sweep = client.post("/v1/sweeps", json=body, headers=A).json()
+    for member in sweep["members"]:
+        assert _run(settings, member["job_id"]) == "successful"
+    status = client.get(f"/v1/sweeps/{sweep['id']}", headers=A).json()
+    assert status["state"] == "successful"
+    plain, warned = status["members"]
+    assert plain["message"] is None
+    assert "crossed the closure of the end tangents" in warned["message"]
+    response = client.get(f"/v1/sweeps/{sweep['id']}/results", headers=A)
+    assert response.status_code == 200
+    path = tmp_path / "warned.nc"
+    path.write_bytes(response.content)
+    with xr.open_dataset(path, engine="netcdf4") as ds:
+        assert list(ds["member_status"].values) == ["successful", "successful"]
+        assert str(ds["member_message"].values[0]) == ""
+        assert str(ds["member_message"].values[1]) == warned["message"]
+
+
 def test_a_sweep_belongs_to_its_key(client, settings):
     assert client.post("/v1/sweeps", json={}).status_code == 401
     body = {"base": tiny_case("alice-sweep"), "parameters": {TENSION: [0.0, 0.5]}}

@@ -618,7 +618,9 @@
           el("tbody", sw.members.map(function (m) {
             return el("tr", { dataset: { state: m.state } }, el("td.num", { text: m.index }),
               paths.map(function (p) { return el("td.mono", { text: JSON.stringify(m.values[p]) }); }),
-              el("td", stateBadge(m.state)), el("td", progressBar(m.progress)),
+              el("td", stateBadge(m.state), m.state === "successful" && m.message
+                ? el("span.warning", { title: m.message, dataset: { warning: "1" }, text: " ⚠ warning" }) : null),
+              el("td", progressBar(m.progress)),
               el("td", el("a.mono", { href: "#/job/" + encodeURIComponent(m.job_id), text: m.job_id.slice(0, 8) })));
           }))));
       var counts = JSON.stringify(sw.counts);
