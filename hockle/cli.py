@@ -260,7 +260,7 @@ def _compile_kernels_first(quiet: bool) -> None:
 
     if not quiet:
         _err("hockle: compiling the solver's kernels (once after installing or changing "
-             "the solver; about 80 s on 2 idle cores, longer on a busy machine) ...")
+             "the solver; 1.5 to 6 minutes on 2 cores, depending on the machine) ...")
     t0 = time.perf_counter()
     warm_up()
     if not quiet:
