@@ -92,6 +92,10 @@
     if (job.kind === "continuation") return el("p.muted", { id: "job-message", text: job.message });
     return el("p.warning", { id: "job-message", role: "status", text: "Warning: " + job.message });
   }
+  /** The mark beside a successful run's state when it carries a warning (in the tooltip). */
+  function warningMark(message) {
+    return el("span.warning", { title: message, dataset: { warning: "1" }, text: " ⚠ warning" });
+  }
   function stateBadge(s) { return el("span.state." + (STATES.indexOf(s) >= 0 ? s : "unknown"), { text: s }); }
   function progressBar(p) {
     var bar = el("span.bar", el("span")), pct = Math.max(0, Math.min(100, Number(p) || 0));
@@ -244,7 +248,7 @@
       var warned = job.state === "successful" && job.kind !== "continuation" && job.message;
       return el("tr", { dataset: { jobId: job.id, state: job.state } },
         el("td.name", el("a", { href: "#/job/" + encodeURIComponent(job.id), text: job.name || job.id })),
-        el("td", stateBadge(job.state), warned ? el("span.warning", { title: job.message, dataset: { warning: "1" }, text: " ⚠ warning" }) : null),
+        el("td", stateBadge(job.state), warned ? warningMark(job.message) : null),
         el("td", progressBar(job.progress)),
         el("td", { title: job.state === "running" ? ETA_NOTE : null, text: etaText(job) }),
         el("td.num", { text: job.attempts }),
@@ -618,8 +622,7 @@
           el("tbody", sw.members.map(function (m) {
             return el("tr", { dataset: { state: m.state } }, el("td.num", { text: m.index }),
               paths.map(function (p) { return el("td.mono", { text: JSON.stringify(m.values[p]) }); }),
-              el("td", stateBadge(m.state), m.state === "successful" && m.message
-                ? el("span.warning", { title: m.message, dataset: { warning: "1" }, text: " ⚠ warning" }) : null),
+              el("td", stateBadge(m.state), m.state === "successful" && m.message ? warningMark(m.message) : null),
               el("td", progressBar(m.progress)),
               el("td", el("a.mono", { href: "#/job/" + encodeURIComponent(m.job_id), text: m.job_id.slice(0, 8) })));
           }))));
