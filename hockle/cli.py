@@ -237,17 +237,18 @@ def _kernels_cached() -> bool:
     """Whether numba's on-disk cache holds compiled solver kernels. Importing
     :mod:`solver` first purges a cache written for other sources
     (``solver/_kernel_cache.py``), so after an installation or a change of the solver's
-    sources this is False until the kernels have been compiled once."""
+    sources this is False until the kernels have been compiled once. With
+    ``NUMBA_CACHE_DIR`` set numba reads and writes its cache there only, so only the
+    solver's files there count."""
     import os
 
     import solver
 
-    root = Path(solver.__file__).resolve().parent
-    dirs = list(root.rglob("__pycache__"))
     user = os.environ.get("NUMBA_CACHE_DIR")
-    if user and Path(user).is_dir():
-        dirs.append(Path(user))
-    return any(next(d.rglob("*.nbi"), None) is not None for d in dirs)
+    if user:
+        return any("solver" in f.parts for f in Path(user).rglob("*.nbi"))
+    root = Path(solver.__file__).resolve().parent
+    return any(next(d.rglob("*.nbi"), None) is not None for d in root.rglob("__pycache__"))
 
 
 def _compile_kernels_first(quiet: bool) -> None:

@@ -25,3 +25,23 @@ def test_nothing_said_when_the_kernels_are_cached(monkeypatch, capsys):
     monkeypatch.setattr("solver.compiled.warm_up", lambda: (_ for _ in ()).throw(AssertionError))
     cli._compile_kernels_first(quiet=False)
     assert capsys.readouterr().err == ""
+
+
+def test_an_empty_numba_cache_dir_means_not_compiled(monkeypatch, tmp_path):
+    """With NUMBA_CACHE_DIR set numba keeps its cache there only: an empty folder means
+    the kernels will be compiled (and the run says so) even where the package's own
+    __pycache__ holds kernels; the solver's kernels there mean cached, another package's
+    do not."""
+    from solver.compiled import warm_up
+
+    warm_up()                                     # the package's __pycache__ holds kernels
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    assert not cli._kernels_cached()
+    other = tmp_path / "site" / "other_package"
+    other.mkdir(parents=True)
+    (other / "kernel-1.py311.nbi").write_bytes(b"")
+    assert not cli._kernels_cached()
+    ours = tmp_path / "work" / "solver"
+    ours.mkdir(parents=True)
+    (ours / "newton._newton_kernel-1.py311.nbi").write_bytes(b"")
+    assert cli._kernels_cached()
