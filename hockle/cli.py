@@ -238,17 +238,11 @@ def _kernels_cached() -> bool:
     :mod:`solver` first purges a cache written for other sources
     (``solver/_kernel_cache.py``), so after an installation or a change of the solver's
     sources this is False until the kernels have been compiled once. With
-    ``NUMBA_CACHE_DIR`` set numba reads and writes its cache there only, so only the
-    solver's files there count."""
-    import os
+    ``NUMBA_CACHE_DIR`` set only the solver's folders there count
+    (:func:`solver._kernel_cache.kernels_cached`)."""
+    from solver._kernel_cache import kernels_cached
 
-    import solver
-
-    user = os.environ.get("NUMBA_CACHE_DIR")
-    if user:
-        return any("solver" in f.parts for f in Path(user).rglob("*.nbi"))
-    root = Path(solver.__file__).resolve().parent
-    return any(next(d.rglob("*.nbi"), None) is not None for d in root.rglob("__pycache__"))
+    return kernels_cached()
 
 
 def _compile_kernels_first(quiet: bool) -> None:

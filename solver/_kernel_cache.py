@@ -30,12 +30,38 @@ def fingerprint() -> str:
     return h.hexdigest()
 
 
-def _cache_dirs():
-    dirs = list(_ROOT.rglob("__pycache__"))
+def _user_cache_dirs() -> list[Path]:
+    """The folders under ``NUMBA_CACHE_DIR`` (none when it is unset) where numba keeps this
+    package's kernels: one per source folder, named by numba after the folder and the
+    SHA-1 of its path (``solver_<sha1>``, ``contact_<sha1>``, ...;
+    ``numba.core.caching.UserProvidedCacheLocator.get_suitable_cache_subpath``), whether
+    or not they exist yet."""
     user = os.environ.get("NUMBA_CACHE_DIR")
-    if user:
-        dirs += [d for d in Path(user).rglob("*") if d.is_dir() and "solver" in d.parts]
-    return dirs
+    if not user:
+        return []
+    try:
+        from numba.core.caching import UserProvidedCacheLocator
+    except ImportError:
+        return []
+    folders = sorted({f.parent for f in _ROOT.rglob("*.py")})
+    return [Path(user) / UserProvidedCacheLocator.get_suitable_cache_subpath(str(d / "_.py"))
+            for d in folders]
+
+
+def _cache_dirs() -> list[Path]:
+    """Every folder that may hold this package's cache files: its ``__pycache__`` folders
+    and its folders under ``NUMBA_CACHE_DIR`` (:func:`_user_cache_dirs`)."""
+    return list(_ROOT.rglob("__pycache__")) + [d for d in _user_cache_dirs() if d.is_dir()]
+
+
+def kernels_cached() -> bool:
+    """Whether numba's on-disk cache holds compiled kernels of this package: under
+    ``NUMBA_CACHE_DIR`` when it is set (numba then reads only there), else in the
+    package's ``__pycache__`` folders. After :func:`purge_stale` has run (at the import
+    of :mod:`solver`) these are kernels of the current sources."""
+    dirs = _user_cache_dirs() if os.environ.get("NUMBA_CACHE_DIR") else list(
+        _ROOT.rglob("__pycache__"))
+    return any(next(d.glob("*.nbi"), None) is not None for d in dirs if d.is_dir())
 
 
 def purge_stale() -> bool:

@@ -2,6 +2,8 @@
 took, instead of showing a progress bar that stands still at step 0."""
 from __future__ import annotations
 
+from pathlib import Path
+
 from hockle import cli
 
 
@@ -30,18 +32,39 @@ def test_nothing_said_when_the_kernels_are_cached(monkeypatch, capsys):
 def test_an_empty_numba_cache_dir_means_not_compiled(monkeypatch, tmp_path):
     """With NUMBA_CACHE_DIR set numba keeps its cache there only: an empty folder means
     the kernels will be compiled (and the run says so) even where the package's own
-    __pycache__ holds kernels; the solver's kernels there mean cached, another package's
-    do not."""
+    __pycache__ holds kernels; the solver's kernels there, in the folder numba names after
+    the source folder (solver_<sha1 of its path>), mean cached, another package's do not."""
+    from numba.core.caching import UserProvidedCacheLocator
+
+    import solver
     from solver.compiled import warm_up
 
     warm_up()                                     # the package's __pycache__ holds kernels
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
     assert not cli._kernels_cached()
-    other = tmp_path / "site" / "other_package"
-    other.mkdir(parents=True)
+    other = tmp_path / "other_0123456789abcdef"
+    other.mkdir()
     (other / "kernel-1.py311.nbi").write_bytes(b"")
     assert not cli._kernels_cached()
-    ours = tmp_path / "work" / "solver"
-    ours.mkdir(parents=True)
+    ours = tmp_path / UserProvidedCacheLocator.get_suitable_cache_subpath(
+        str(Path(solver.__file__).resolve().parent / "newton.py"))
+    ours.mkdir()
     (ours / "newton._newton_kernel-1.py311.nbi").write_bytes(b"")
     assert cli._kernels_cached()
+
+
+def test_the_purge_reaches_the_packages_folders_under_numba_cache_dir(monkeypatch, tmp_path):
+    """purge_stale deletes the files of every folder _cache_dirs lists: under
+    NUMBA_CACHE_DIR those are numba's folders for the package's sources (solver_<sha1>,
+    contact_<sha1>, ...), not another package's folder of the same name."""
+    from solver import _kernel_cache
+
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    ours = _kernel_cache._user_cache_dirs()
+    assert {d.name.rsplit("_", 1)[0] for d in ours} >= {"solver", "contact", "stepping"}
+    for d in ours:
+        d.mkdir()
+    other = tmp_path / "contact_0123456789abcdef"      # a folder of another package
+    other.mkdir()
+    listed = set(_kernel_cache._cache_dirs())
+    assert set(ours) <= listed and other not in listed
