@@ -81,6 +81,7 @@ from typing import NamedTuple, Optional
 import numba
 import numpy as np
 
+from .banded import true_at_run_time
 from .energies import distributed_work_into, end_work_into, total_and_kinetic
 from .kinematics import (_matrix_into, normalize_quaternions, quat_exp, quat_multiply,
                          quat_to_matrix, rotate_rows, space_route)
@@ -370,8 +371,9 @@ def _drag_work(Y, Y_old, h, gamma, am, af, rate_old, b_old, cdn, cdt, weights, b
     body-frame velocities of Y (N+1, 12) into ``b`` (:func:`solver.loads._drag_kernel`,
     c_n, c_t (N+1,) its coefficients) and its trapezoid work on the nodes' displacement
     rates into ``rate`` (:func:`solver.energies.distributed_work_into`)."""
-    _drag_kernel(Y[:, 0:3], cdn, cdt, b, np.empty((0, 3, 3)), False)
-    return distributed_work_into(Y, Y_old, h, gamma, am, af, rate_old, b_old, True, b, True,
+    yes = true_at_run_time(Y)
+    _drag_kernel(Y[:, 0:3], cdn, cdt, b, np.empty((0, 3, 3)), not yes)
+    return distributed_work_into(Y, Y_old, h, gamma, am, af, rate_old, b_old, yes, b, yes,
                                  weights, rate)[0]
 
 

@@ -61,7 +61,8 @@ import math
 import numba
 import numpy as np
 
-from .banded import NV, block_factor, block_solve, block_storage, copy_into, fill
+from .banded import (NV, block_factor, block_solve, block_storage, copy_into, fill,
+                     true_at_run_time)
 from .contact.model import candidate_gaps_into
 from .scheme import E3, E4, W, exact_loads_product, pose_into, residual_into
 
@@ -500,7 +501,8 @@ def _trial_gaps(Yt, step, rod, cand, cdata, ws, out):
     """The candidate gaps (R,) at the trial iterate Yt (:meth:`RodSystem.candidate_gaps`):
     its space-route positions, −inf everywhere when they are not finite."""
     q, Rm, r, th = ws[9], ws[10], ws[11], ws[12]
-    pose_into(Yt, step[0], step[11][0], True, step[4], step[5], step[6], True, rod[6][0],
+    yes = true_at_run_time(Yt)
+    pose_into(Yt, step[0], step[11][0], yes, step[4], step[5], step[6], yes, rod[6][0],
               q, Rm, r, th, ws[14])
     for k in range(r.shape[0]):
         for c in range(3):
@@ -688,6 +690,8 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
         hold[0] = 1.0 if hold_at == 0 else (2.0 if hold_at < 0 else 0.0)
     hold[4] = 0.0
     copy_into(Y, Y0)
+    yes = true_at_run_time(Y0)      # want_jac's values, never literals (see its docstring)
+    no = not yes
     refactor = ctr[3] == 0 or contact
     res_prev = np.inf
     res = np.inf
@@ -743,7 +747,7 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
                 hold[4] += 1.0
                 hold[5] += 1.0
                 hold[0] = 3.0
-            residual_into(Y, True, rod, step, cand, frozen[:0], cdata, buf, ev)
+            residual_into(Y, yes, rod, step, cand, frozen[:0], cdata, buf, ev)
             if hold[0] == 3.0:
                 hold[0] = 2.0
             cached = True
@@ -767,7 +771,7 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
                 return it, res, False, _STALLED
         elif not fresh and res > 0.25 * res_prev:
             # the reused factor converges slowly: refactor at this iterate
-            residual_into(Y, True, rod, step, cand, frozen[:0], cdata, buf, ev)
+            residual_into(Y, yes, rod, step, cand, frozen[:0], cdata, buf, ev)
             if not _factor(Y, buf, ev, lin, op, rod, step, weight, ctr):
                 return it, np.inf, False, _SINGULAR
             res = _max_scaled(R, rs)
@@ -781,7 +785,7 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
                 if not fresh:
                     # a stale preconditioner: refactor here and solve again
                     if not contact:
-                        residual_into(Y, True, rod, step, cand, frozen[:0], cdata, buf, ev)
+                        residual_into(Y, yes, rod, step, cand, frozen[:0], cdata, buf, ev)
                     if not _factor(Y, buf, ev, lin, op, rod, step, weight, ctr):
                         return it, np.inf, False, _SINGULAR
                     for i in range(rhs.shape[0]):
@@ -823,7 +827,7 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
                     for k in range(n1):
                         for j in range(NV):
                             Yt[k, j] = Y[k, j] + delta[k, j]
-                    residual_into(Yt, True, rod, step, cand, frozen[:0], cdata, buf, ev)
+                    residual_into(Yt, yes, rod, step, cand, frozen[:0], cdata, buf, ev)
                     fresh_sel = True
                     if flags[0] == 0 and _gaps_kept(g0, ev[14][:nr], gap_keep):
                         evaluated = True
@@ -850,7 +854,7 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
                     for k in range(n1):
                         for j in range(NV):
                             Yt[k, j] = Y[k, j] + step_frac * delta[k, j]
-                    residual_into(Yt, True, rod, step, cand,
+                    residual_into(Yt, yes, rod, step, cand,
                                   frozen[:nr] if frozen_on else frozen[:0], cdata, buf, ev)
                     fresh_sel = not frozen_on
                 evaluated = False
@@ -878,7 +882,7 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
                 for k in range(n1):
                     for j in range(NV):
                         Yt[k, j] = Y[k, j] + step_frac * delta[k, j]
-                residual_into(Yt, False, rod, step, cand, frozen[:0], cdata, buf, ev)
+                residual_into(Yt, no, rod, step, cand, frozen[:0], cdata, buf, ev)
                 f1 = _norm_scaled(R, rs)
                 if np.isfinite(f1) and f1 <= (1.0 - 1e-4 * step_frac) * f0:
                     break
@@ -890,7 +894,7 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
             copy_into(Y, Yt)
             cached = True
             if step_frac < 1.0:
-                residual_into(Y, True, rod, step, cand, frozen[:0], cdata, buf, ev)
+                residual_into(Y, yes, rod, step, cand, frozen[:0], cdata, buf, ev)
                 refactor = True
         else:
             for k in range(n1):

@@ -89,6 +89,7 @@ import math
 import numba
 import numpy as np
 
+from .banded import true_at_run_time
 from .kinematics import _right_jacobian_into
 
 __all__ = ["Seabed", "seabed_into", "seabed_old_into", "seabed_cells", "node_penetration", "to_nodes",
@@ -616,6 +617,7 @@ def seabed_into(Y, Rm, r, vg, theta, dt, af, data, want, cells, blocks, record, 
     hdt = 0.5 * dt
     gf = 1.0 - af
     n_cells = r.shape[0] - 1
+    yes = true_at_run_time(r)       # the recorded law's flags (see its docstring)
     x = np.empty(3)
     u = np.empty(3)
     Om = np.empty(3)
@@ -672,8 +674,8 @@ def seabed_into(Y, Rm, r, vg, theta, dt, af, data, want, cells, blocks, record, 
             if p <= 0.0 or m == 0:
                 continue
             if record:
-                _law(x, u, Om, t, rho, data, True, E[0], E[1], E[2], E[3], Fnv, Ffv, Mv, PF,
-                     PM, wk, m, False)
+                _law(x, u, Om, t, rho, data, yes, E[0], E[1], E[2], E[3], Fnv, Ffv, Mv, PF,
+                     PM, wk, m, not yes)
                 j = sbn[0]
                 sbc[j] = c
                 sbn[0] = j + 1

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from ..banded import true_at_run_time
 from .geometry import (ALL_PAIRS_NODES, _block_pairs_kernel, _candidate_pairs_kernel,
                        _run_point, _segment_matrices, _segment_nodes, _swept_kernel,
                        candidate_pairs, close_node_pairs, max_distance, run_closest)
@@ -632,7 +633,7 @@ def _search_kernel(r, t, a, b, s, cut, sin_half_aperture):
         for c in range(3):
             tu[k, c] = t[k, c] / nrm if nrm > 0.0 else 0.0
     own, par = _candidate_pairs_kernel(r, tu, a, b, sin_half_aperture)
-    return _runs_kernel(own, par, s, cut, n, True)
+    return _runs_kernel(own, par, s, cut, n, true_at_run_time(r))
 
 
 @numba.njit(cache=True)
