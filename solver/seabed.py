@@ -316,8 +316,11 @@ def _node(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk):
     (3, m) for the derivatives of x, u, Om, t with respect to m unknowns X (Dr, Du, DOm,
     Dt (3, m)), by forward propagation through the formulas. wk: scratch (9, 3, m).
     Returns the penetration p (m, ≤ 0: no contact, every output 0)."""
-    return _law(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk, -1,
-                False)[0]
+    # mode −1 and rule off, typed as run-time values: the same compiled _law as
+    # seabed_into's (solver.banded.true_at_run_time)
+    yes = true_at_run_time(x)
+    return _law(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk,
+                -1 if yes else 0, not yes)[0]
 
 
 @numba.njit(cache=True)
@@ -746,7 +749,8 @@ def seabed_old_into(Y_old, q_old, r_old, vg_old, af, data, out):
         if not _cell_touches(r_old, radius, c, lim, f):
             continue
         rho = _midpoint(r_old, vg_old, R_old, Y_old[:, 3:6], radius, c, x, u, Om, t)
-        p = _node(x, u, Om, t, rho, data, False, z, z, z, z, Fnv, Ffv, Mv, z, z, wk)
+        p = _node(x, u, Om, t, rho, data, not true_at_run_time(x), z, z, z, z, Fnv, Ffv,
+                  Mv, z, z, wk)
         if p <= 0.0:
             continue
         for e in range(2):
@@ -778,7 +782,8 @@ def seabed_cells(r, vg, Rm, omega, data, F, M, pen):
     wk = np.zeros((9, 3, 12))
     for k in range(r.shape[0] - 1):
         rho = _midpoint(r, vg, Rm, omega, data[1], k, x, u, Om, t)
-        pen[k] = _node(x, u, Om, t, rho, data, False, z, z, z, z, a, b, c, z, z, wk)
+        pen[k] = _node(x, u, Om, t, rho, data, not true_at_run_time(x), z, z, z, z, a, b,
+                       c, z, z, wk)
         for i in range(3):
             F[k, i] = a[i]
             F[k, 3 + i] = b[i]

@@ -128,6 +128,60 @@ def test_no_class_holds_more_than_25_attributes():
     assert not big, big
 
 
+def _compiled_functions(tree) -> dict:
+    """name -> whether numba inlines it into its callers (``inline="always"``), for the
+    functions of a module's syntax tree decorated with numba.njit."""
+    out = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.FunctionDef):
+            for d in node.decorator_list:
+                text = ast.unparse(d)
+                if "njit" in text:
+                    out[node.name] = "inline='always'" in text.replace('"', "'")
+    return out
+
+
+def _literal_bool_calls(trees: dict) -> list[str]:
+    """Calls, inside compiled functions, of compiled functions numba does not inline,
+    with True or False as an argument: numba compiles such a callee, and all it calls,
+    once per literal (solver.banded.true_at_run_time)."""
+    compiled = {}
+    for tree in trees.values():
+        compiled.update(_compiled_functions(tree))
+    found = []
+    for path, tree in trees.items():
+        for fn in ast.walk(tree):
+            if not (isinstance(fn, ast.FunctionDef) and fn.name in compiled
+                    and any("njit" in ast.unparse(d) for d in fn.decorator_list)):
+                continue
+            for call in ast.walk(fn):
+                if not isinstance(call, ast.Call):
+                    continue
+                f = call.func
+                name = f.id if isinstance(f, ast.Name) else getattr(f, "attr", None)
+                if name not in compiled or compiled[name]:
+                    continue
+                args = list(call.args) + [k.value for k in call.keywords]
+                if any(isinstance(a, ast.Constant) and isinstance(a.value, bool)
+                       for a in args):
+                    found.append(f"{path}:{call.lineno} {fn.name} -> {name}")
+    return found
+
+
+def test_compiled_functions_pass_no_literal_booleans_to_compiled_functions():
+    # the residual was compiled three times (want_jac True, False and run-time), a
+    # third of a fresh installation's compile time (python benchmarks/compile_time.py)
+    trees = {f.relative_to(SOLVER.parent).as_posix(): ast.parse(f.read_text())
+             for f in SOLVER.rglob("*.py")}
+    assert not _literal_bool_calls(trees), _literal_bool_calls(trees)
+    # the check itself finds such a call, and leaves inlined callees and Python alone
+    demo = ast.parse("@numba.njit\ndef g(a, w):\n    return a\n"
+                     "@numba.njit(inline='always')\ndef h(a, w):\n    return a\n"
+                     "@numba.njit(cache=True)\ndef f(a):\n    return g(a, True) + h(a, False)\n"
+                     "def p(a):\n    return g(a, False)\n")
+    assert _literal_bool_calls({"demo.py": demo}) == ["demo.py:9 f -> g"]
+
+
 def _run():
     from solver.run import RodRun
 
