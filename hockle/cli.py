@@ -245,10 +245,72 @@ def _kernels_cached() -> bool:
     return kernels_cached()
 
 
+class _CompileProgress:
+    """What numba has compiled so far while :func:`solver.compiled.warm_up` runs, on
+    stderr: the count of compiled function signatures (numba's ``numba:compile`` events
+    that end) and the time since the start, as a rich status line on a terminal;
+    otherwise (a log file, a pipe) a plain line every LINE_EVERY_S. Used as a context
+    manager around the compilation; ``count`` holds the total after it."""
+
+    LINE_EVERY_S = 30.0
+
+    def __init__(self, enabled: bool) -> None:
+        self.enabled = enabled
+        self.count = 0
+        self._t0 = time.perf_counter()
+        self._last_line = self._t0
+        self._status = None
+        self._installed = None
+
+    def __enter__(self) -> "_CompileProgress":
+        from numba.core import event
+
+        progress = self
+
+        class _Listener(event.Listener):
+            def on_start(self, ev: Any) -> None:
+                pass
+
+            def on_end(self, ev: Any) -> None:
+                progress.compiled()
+
+        self._installed = event.install_listener("numba:compile", _Listener())
+        self._installed.__enter__()
+        if self.enabled:
+            from rich.console import Console
+
+            console = Console(stderr=True)
+            if console.is_terminal:
+                self._status = console.status(self._text())
+                self._status.start()
+        return self
+
+    def __exit__(self, *exc_info: Any) -> None:
+        if self._status is not None:
+            self._status.stop()
+        self._installed.__exit__(*exc_info)
+
+    def _text(self) -> str:
+        return (f"compiling the solver's kernels: {self.count} function signatures, "
+                f"{time.perf_counter() - self._t0:.0f} s")
+
+    def compiled(self) -> None:
+        """One compilation ended (a function signature, its callees counted apart)."""
+        self.count += 1
+        if not self.enabled:
+            return
+        if self._status is not None:
+            self._status.update(self._text())
+        elif time.perf_counter() - self._last_line >= self.LINE_EVERY_S:
+            self._last_line = time.perf_counter()
+            _err(f"hockle: {self._text()} ...")
+
+
 def _compile_kernels_first(quiet: bool) -> None:
-    """Compile the solver's kernels up front, saying so, when none are cached: otherwise
-    the first run's progress bar would stand still at step 0 for a minute or more while
-    numba compiles them at their first call."""
+    """Compile the solver's kernels up front, saying so and showing how far it got
+    (:class:`_CompileProgress`), when none are cached: otherwise the first run's
+    progress bar would stand still at step 0 for a minute or more while numba compiles
+    them at their first call."""
     if _kernels_cached():
         return
     from solver.compiled import warm_up
@@ -257,10 +319,11 @@ def _compile_kernels_first(quiet: bool) -> None:
         _err("hockle: compiling the solver's kernels (once after installing or changing "
              "the solver; 1.5 to 6 minutes on 2 cores, depending on the machine) ...")
     t0 = time.perf_counter()
-    warm_up()
+    with _CompileProgress(not quiet) as progress:
+        warm_up()
     if not quiet:
-        _err(f"hockle: kernels compiled in {time.perf_counter() - t0:.0f} s; later runs "
-             "load them from the cache")
+        _err(f"hockle: kernels compiled in {time.perf_counter() - t0:.0f} s "
+             f"({progress.count} function signatures); later runs load them from the cache")
 
 
 def cmd_run(args: argparse.Namespace) -> int:

@@ -19,6 +19,37 @@ def test_compilation_is_announced_and_timed(monkeypatch, capsys):
     assert calls == ["warm_up", "warm_up"] and capsys.readouterr().err == ""
 
 
+def test_the_compilation_shows_how_far_it_got(monkeypatch, capsys):
+    """Off a terminal, a line every LINE_EVERY_S with the count of function signatures
+    numba compiled so far (its compile events, counted as they end), and the total at
+    the end; quiet: nothing."""
+    import numba
+
+    def fake_warm_up():
+        # two fresh functions, one calling the other: two compilations
+        @numba.njit
+        def inner(x):
+            return x + 1.0
+
+        @numba.njit
+        def outer(x):
+            return inner(x) * 2.0
+
+        assert outer(1.0) == 4.0
+
+    monkeypatch.setattr(cli, "_kernels_cached", lambda: False)
+    monkeypatch.setattr("solver.compiled.warm_up", fake_warm_up)
+    monkeypatch.setattr(cli._CompileProgress, "LINE_EVERY_S", 0.0)
+    cli._compile_kernels_first(quiet=False)
+    lines = capsys.readouterr().err.splitlines()
+    assert [line.rsplit(",", 1)[0] for line in lines[1:3]] == [
+        f"hockle: compiling the solver's kernels: {k} function signatures" for k in (1, 2)]
+    assert all(line.endswith(" s ...") for line in lines[1:3])
+    assert "kernels compiled in" in lines[-1] and "(2 function signatures)" in lines[-1]
+    cli._compile_kernels_first(quiet=True)
+    assert capsys.readouterr().err == ""
+
+
 def test_nothing_said_when_the_kernels_are_cached(monkeypatch, capsys):
     from solver.compiled import warm_up
 
