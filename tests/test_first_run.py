@@ -99,3 +99,22 @@ def test_the_purge_reaches_the_packages_folders_under_numba_cache_dir(monkeypatc
     other.mkdir()
     listed = set(_kernel_cache._cache_dirs())
     assert set(ours) <= listed and other not in listed
+
+
+def test_a_worker_says_when_it_compiles_the_kernels(monkeypatch, capsys):
+    """A worker loads the kernels before its pool forks; the first start after an
+    installation compiles them and says so, with how long it took; later starts say
+    nothing."""
+    from worker import cli as worker_cli
+
+    calls = []
+    monkeypatch.setattr("solver._kernel_cache.kernels_cached", lambda: False)
+    monkeypatch.setattr("solver.warm_up", lambda: calls.append("warm_up"))
+    worker_cli.load_kernels()
+    err = capsys.readouterr().err
+    assert calls == ["warm_up"]
+    assert "hockle worker: compiling the solver's kernels" in err
+    assert "hockle worker: kernels compiled in" in err
+    monkeypatch.setattr("solver._kernel_cache.kernels_cached", lambda: True)
+    worker_cli.load_kernels()
+    assert calls == ["warm_up", "warm_up"] and capsys.readouterr().err == ""

@@ -73,14 +73,32 @@ def run(args: argparse.Namespace) -> int:
         return 1
     from worker.app import app  # pins BLAS threads before numpy is imported
 
-    # load the solver's compiled kernels before the pool forks, so that no job pays for
-    # them (the first start after an installation compiles them into numba's cache, about
-    # a minute on 2 cores; later starts load them in about a second)
-    from solver import warm_up
-
-    warm_up()
+    load_kernels()
     app.worker_main(argv=argv)
     return 0
+
+
+def load_kernels() -> None:
+    """Load the solver's compiled kernels before the pool forks, so that no job pays for
+    them. The first start after an installation (or a change of the solver) compiles
+    them into numba's cache, 1.5 to 6 minutes on 2 cores (``python
+    benchmarks/compile_time.py``), and says so on stderr, with how long it took; later
+    starts load them in about 2 s and say nothing."""
+    import time
+
+    from solver import warm_up
+    from solver._kernel_cache import kernels_cached
+
+    cached = kernels_cached()
+    if not cached:
+        print("hockle worker: compiling the solver's kernels before the pool starts (once "
+              "after installing or changing the solver; 1.5 to 6 minutes on 2 cores) ...",
+              file=sys.stderr, flush=True)
+    t0 = time.perf_counter()
+    warm_up()
+    if not cached:
+        print(f"hockle worker: kernels compiled in {time.perf_counter() - t0:.0f} s",
+              file=sys.stderr, flush=True)
 
 
 def main(argv: list[str] | None = None) -> int:
