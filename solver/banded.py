@@ -64,8 +64,9 @@ def true_at_run_time(a):
     (a comparison the compiler cannot type as a constant). A compiled function that
     passes the literal True or False to another makes numba compile the callee, and
     everything it calls, once per literal: the step's residual was compiled three times
-    (want_jac True, False and run-time), 40 % of a fresh installation's compile time
-    (``python benchmarks/compile_time.py``). Callers pass ``yes = true_at_run_time(a)``
+    (want_jac True, False and run-time), which with the sea floor's and the loads' copies
+    made a fresh installation's compilation 124 s instead of 91 s (``python
+    benchmarks/compile_time.py``). Callers pass ``yes = true_at_run_time(a)``
     and ``not yes`` instead."""
     return a.shape[0] >= 0
 

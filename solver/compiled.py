@@ -9,10 +9,11 @@ pose data (:mod:`solver.scheme`); the Morison drag (:mod:`solver.loads`); the sc
 Jacobian's blocks and GMRES's operator product (:mod:`solver.newton`); the candidate
 search and the closest points (:mod:`solver.contact.geometry`) and the contact forces'
 derivatives (:mod:`solver.contact.model`); the static Jacobian's band, the static cell
-rows and the band product (:mod:`solver.static_band`). They are compiled once per installation and
-cached on disk (``cache=True``; 91 s on an idle 2-core AMD EPYC, measured by ``python
-benchmarks/compile_time.py``, which also says where the time goes; 1.9 s once cached);
-``hockle run`` says when it compiles and how long it took. A process still loads each kernel from the cache at its first call, about
+rows and the band product (:mod:`solver.static_band`). They are compiled once per
+installation and cached on disk (``cache=True``; 91 s on an idle 2-core AMD EPYC,
+measured by ``python benchmarks/compile_time.py``, which also says where the time goes;
+1.9 s once cached); ``hockle run`` and ``hockle worker`` say when they compile and how
+long it took. A process still loads each kernel from the cache at its first call, about
 1 s in all. :func:`warm_up` does that at once, for benchmarks that time single runs and for
 processes that serve many short ones.
 """
