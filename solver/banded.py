@@ -72,6 +72,19 @@ def true_at_run_time(a):
     return a.shape[0] >= 0
 
 
+@numba.njit(cache=True, inline="always")
+def int_at_run_time(a, value):
+    """``value``, typed ``int64`` rather than ``Literal[int](value)``, for any array ``a``
+    (:func:`true_at_run_time`'s counterpart for integers). numba compiles a function once
+    per literal integer it is called with from compiled code as well: the contact's
+    closest-point search ``_run_point`` was compiled three times (its frozen segment −1
+    and its iteration count 3 as literals from two callers, as run-time values from a
+    third), 2.6 s of a fresh installation's compilation (``python
+    benchmarks/compile_time.py``). a: an array of at least one dimension (its length is
+    read); value: an integer; returns value; raises nothing."""
+    return value + 0 * a.shape[0]
+
+
 class BandFactorError(ArithmeticError):
     """The LU factorisation met an exactly singular pivot."""
 

@@ -232,6 +232,7 @@ def test_warm_up_loads_every_compiled_kernel():
                "solver.contact.laws._repulsion", "solver.contact.laws.law_cutoff",
                "solver.contact.laws.law_force", "solver.banded.copy_into",
                "solver.banded.fill", "solver.banded.true_at_run_time",
+               "solver.banded.int_at_run_time",
                "solver.banded._eliminate", "solver.banded._window",
                "solver.banded._pivot",
                "solver.static_band._rotation", "solver.static_band._cell"}

@@ -143,12 +143,13 @@ def _compiled_functions(tree) -> dict:
 
 def _literal_bool_calls(trees: dict) -> list[str]:
     """Calls, inside compiled functions, of compiled functions numba does not inline,
-    with True or False as an argument: numba compiles such a callee, and all it calls,
-    once per literal (solver.banded.true_at_run_time)."""
+    with True or False as an argument, or with a literal integer where another such call
+    of the same function passes something else: numba compiles such a callee, and all it
+    calls, once per literal (solver.banded.true_at_run_time, int_at_run_time)."""
     compiled = {}
     for tree in trees.values():
         compiled.update(_compiled_functions(tree))
-    found = []
+    calls = []
     for path, tree in trees.items():
         for fn in ast.walk(tree):
             if not (isinstance(fn, ast.FunctionDef) and fn.name in compiled
@@ -159,16 +160,31 @@ def _literal_bool_calls(trees: dict) -> list[str]:
                     continue
                 f = call.func
                 name = f.id if isinstance(f, ast.Name) else getattr(f, "attr", None)
-                if name not in compiled or compiled[name]:
-                    continue
-                args = list(call.args) + [k.value for k in call.keywords]
-                if any(isinstance(a, ast.Constant) and isinstance(a.value, bool)
-                       for a in args):
-                    found.append(f"{path}:{call.lineno} {fn.name} -> {name}")
+                if name in compiled and not compiled[name]:
+                    calls.append((f"{path}:{call.lineno} {fn.name} -> {name}", name, call))
+
+    def integer(a):
+        if isinstance(a, ast.UnaryOp) and isinstance(a.op, ast.USub):
+            a = a.operand
+        return (isinstance(a, ast.Constant) and isinstance(a.value, int)
+                and not isinstance(a.value, bool))
+
+    # per callee and argument position, the argument texts its compiled callers pass
+    passed = {}
+    for _, name, call in calls:
+        for k, a in enumerate(call.args):
+            passed.setdefault((name, k), set()).add(ast.unparse(a))
+    found = []
+    for where, name, call in calls:
+        args = list(call.args) + [k.value for k in call.keywords]
+        if any(isinstance(a, ast.Constant) and isinstance(a.value, bool) for a in args) \
+                or any(integer(a) and len(passed[(name, k)]) > 1
+                       for k, a in enumerate(call.args)):
+            found.append(where)
     return found
 
 
-def test_compiled_functions_pass_no_literal_booleans_to_compiled_functions():
+def test_compiled_functions_pass_no_literal_booleans_or_varying_integers():
     # the residual was compiled three times (want_jac True, False and run-time), a
     # third of a fresh installation's compile time (python benchmarks/compile_time.py)
     trees = {f.relative_to(SOLVER.parent).as_posix(): ast.parse(f.read_text())
@@ -180,6 +196,14 @@ def test_compiled_functions_pass_no_literal_booleans_to_compiled_functions():
                      "@numba.njit(cache=True)\ndef f(a):\n    return g(a, True) + h(a, False)\n"
                      "def p(a):\n    return g(a, False)\n")
     assert _literal_bool_calls({"demo.py": demo}) == ["demo.py:9 f -> g"]
+    # a literal integer counts where another compiled caller passes something else
+    demo = ast.parse("@numba.njit\ndef g(a, k):\n    return a\n"
+                     "@numba.njit\ndef f(a, j):\n    return g(a, -1) + g(a, j)\n"
+                     "@numba.njit\ndef e(a):\n    return g(a, 3)\n")
+    assert _literal_bool_calls({"demo.py": demo}) == ["demo.py:6 f -> g", "demo.py:9 e -> g"]
+    demo = ast.parse("@numba.njit\ndef g(a, k):\n    return a\n"
+                     "@numba.njit\ndef f(a):\n    return g(a, 0) + g(a, 0)\n")
+    assert _literal_bool_calls({"demo.py": demo}) == []
 
 
 def _run():
