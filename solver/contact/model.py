@@ -748,13 +748,13 @@ def candidate_gaps_into(r, cand, data, out):
     seg_nodes, seg_mats, diameter = data[0], data[1], data[2]
     tb0 = np.empty((3, 4))
     tb1 = np.empty((3, 4))
-    # the search's frozen segment (none) and iterations as run-time integers (one
+    # no frozen segment (-1) and the search's iterations as run-time integers (one
     # compiled _run_point for every caller: solver.banded.int_at_run_time)
-    none, iterations = int_at_run_time(r, -1), int_at_run_time(r, 3)
+    not_frozen, iterations = int_at_run_time(r, -1), int_at_run_time(r, 3)
     for q in range(out.shape[0]):
         lo, hi, first_end, last_end = _run_bounds(cand, q)
         k, t, x0, x1, x2, d, c0, c1, c2, g, row = _run_point(
-            r, own, seg, lo, hi, none, iterations, seg_nodes, seg_mats, tb0, tb1)
+            r, own, seg, lo, hi, not_frozen, iterations, seg_nodes, seg_mats, tb0, tb1)
         if (k == lo and t == 0.0 and not first_end) or (k == hi and t == 1.0
                                                         and not last_end):
             out[q] = np.inf
@@ -774,11 +774,11 @@ def candidate_potential(r, cand, data):
     tb0 = np.empty((3, 4))
     tb1 = np.empty((3, 4))
     out = 0.0
-    none, iterations = int_at_run_time(r, -1), int_at_run_time(r, 3)
+    not_frozen, iterations = int_at_run_time(r, -1), int_at_run_time(r, 3)
     for q in range(cand[2].shape[0]):
         lo, hi, first_end, last_end = _run_bounds(cand, q)
         k, t, x0, x1, x2, d, c0, c1, c2, g, row = _run_point(
-            r, own, seg, lo, hi, none, iterations, seg_nodes, seg_mats, tb0, tb1)
+            r, own, seg, lo, hi, not_frozen, iterations, seg_nodes, seg_mats, tb0, tb1)
         if (k == lo and t == 0.0 and not first_end) or (k == hi and t == 1.0
                                                         and not last_end):
             continue
