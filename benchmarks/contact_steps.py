@@ -19,8 +19,9 @@ of ``RodRun._predictions``) and of the start Newton was given (the feasible star
 toward the old positions where a predicted gap closed below ``Newton.START_GAP_KEEP`` of
 itself) from the step's solution, per unknown (v, ω, f, κ), relative to the step's own
 change ‖Y − Yⁿ‖ (medians over the window's solves; 1 is no better than the old level),
-the share of solves whose start was blended, and the histogram of the accepted steps'
-Newton iterations.
+the share of solves whose start was blended, the histogram of the accepted steps'
+Newton iterations, and how the corrections of every attempt's contact solves were taken:
+whole, cut by the feasibility filter, or by the line search alone (Newton.last_trace).
 
 With ``--watch NODE`` also, per window, how much that node's v and ω flip from one
 accepted step to the next (:func:`alternation` of each component: 0 for a motion smooth
@@ -119,11 +120,25 @@ def start_distances(Y_old, Y, starts: dict) -> dict:
     return out
 
 
-def start_summary(solves: list, accepted_its: list) -> list:
+def correction_cuts(trace) -> np.ndarray:
+    """How a Newton solve's corrections were taken, from its ``Newton.last_trace``
+    (K+1, 4: per iterate the scaled residual, the feasibility filter's fraction, the line
+    search's fraction, GMRES iterations; the last row is the final iterate, which made no
+    correction): the counts (3,) int of corrections taken whole, cut by the filter, and
+    cut by the line search alone."""
+    rows = np.asarray(trace, float)[:-1]
+    filtered = rows[:, 1] < 1.0
+    backtracked = ~filtered & (rows[:, 2] < 1.0)
+    return np.array([rows.shape[0] - filtered.sum() - backtracked.sum(), filtered.sum(),
+                     backtracked.sum()], int)
+
+
+def start_summary(solves: list, accepted_its: list, cuts=None) -> list:
     """Lines of the --starts report over one window: ``solves`` the dicts of
     :func:`start_distances` of its contact solves (each with "blend": the feasible start's
     blend factor, Newton.last_start_blend, 1 where the start is the predictor),
-    ``accepted_its`` the Newton iterations of its accepted steps."""
+    ``accepted_its`` the Newton iterations of its accepted steps, ``cuts`` the
+    :func:`correction_cuts` (3,) of each attempt's contact solves, summed (None: no line)."""
     lines = []
     if solves:
         names = [k for k in solves[0] if k != "blend"]
@@ -138,13 +153,19 @@ def start_summary(solves: list, accepted_its: list) -> list:
     hist = collections.Counter(accepted_its)
     lines.append("    Newton iterations of the accepted steps: "
                  + ", ".join(f"{k}: {hist[k]}" for k in sorted(hist)))
+    if cuts:
+        whole, filtered, backtracked = np.sum(cuts, axis=0)
+        lines.append(f"    corrections of the contact solves (every attempt): {whole} of "
+                     f"{whole + filtered + backtracked} taken whole, {filtered} cut by the "
+                     f"feasibility filter, {backtracked} by the line search alone")
     return lines
 
 
 def _starts_of(rows: list) -> list:
     """:func:`start_summary` of recorded attempts (``record(..., starts=True)``)."""
     return start_summary([r["starts"] for r in rows if r["starts"] is not None],
-                         [r["its"] for r in rows if r["ok"]])
+                         [r["its"] for r in rows if r["ok"]],
+                         [r["cuts"] for r in rows if r.get("cuts") is not None])
 
 
 def case_spec(name: str, sets=()) -> dict:
@@ -220,7 +241,7 @@ def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None,
                          "its": att.iterations, "ratio": self.last_route_ratio,
                          "gmres": self.newton.gmres_iterations - g0, "wall": wall,
                          "contacts": self.contact_count, "trace": trace,
-                         "starts": current.get("starts"),
+                         "starts": current.get("starts"), "cuts": current.get("cuts"),
                          "node": (self.Y[watch, 0:6].copy()
                                   if watch is not None and att.ok else None)})
         return att
@@ -229,6 +250,9 @@ def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None,
         out = plain_solve(self, guess)
         run = current.get("run")
         prob = getattr(run, "_last_problem", None)
+        if prob is not None and prob.candidates is not None \
+                and self.last_trace is not None:
+            current["cuts"] = current.get("cuts", 0) + correction_cuts(self.last_trace)
         if run is not None and prob is not None and prob.candidates is not None \
                 and prob.predictions and out[4]:
             d = start_distances(run.Y, out[0], dict(prob.predictions, start=guess))

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from contact_steps import residual_groups, start_distances, start_summary  # noqa: E402
+from contact_steps import (correction_cuts, residual_groups, start_distances,  # noqa: E402
+                           start_summary)
 from rodcases import hairpin  # noqa: E402
 
 
@@ -37,6 +38,20 @@ def test_the_start_report_counts_the_blended_starts_and_the_iterations():
     assert "v  0.75" in lines[0]                  # median of 0.5, 0.75, 1
     assert "2 of 3 contact solves (median factor 0.375)" in lines[1]
     assert lines[2].endswith("2: 2, 3: 1")
+    assert len(lines) == 3                        # no correction counts given: no line
+
+
+def test_the_corrections_are_counted_by_what_cut_them():
+    """Newton.last_trace rows (residual, filter's fraction, line search's fraction,
+    GMRES): a whole correction, one the filter halved (the line search too: the filter's
+    count), one only the line search halved, a whole one, and the final iterate's row,
+    which made no correction and is not counted."""
+    trace = np.array([[1.0, 1.0, 1.0, 5], [0.5, 0.5, 0.5, 6], [0.3, 1.0, 0.25, 6],
+                      [0.1, 1.0, 1.0, 4], [1e-9, 1.0, 1.0, 0]])
+    assert correction_cuts(trace).tolist() == [2, 1, 1]
+    lines = start_summary([], [3], [correction_cuts(trace), np.array([3, 0, 0])])
+    assert lines[-1].endswith("5 of 7 taken whole, 1 cut by the feasibility filter, 1 by "
+                              "the line search alone")
 
 
 def test_the_residual_is_located_by_row_group_and_cell():
