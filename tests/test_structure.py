@@ -141,7 +141,7 @@ def _compiled_functions(tree) -> dict:
     return out
 
 
-def _literal_bool_calls(trees: dict) -> list[str]:
+def _literal_argument_calls(trees: dict) -> list[str]:
     """Calls, inside compiled functions, of compiled functions numba does not inline,
     with True or False as an argument, or with a literal integer where another such call
     of the same function passes something else: numba compiles such a callee, and all it
@@ -189,21 +189,21 @@ def test_compiled_functions_pass_no_literal_booleans_or_varying_integers():
     # third of a fresh installation's compile time (python benchmarks/compile_time.py)
     trees = {f.relative_to(SOLVER.parent).as_posix(): ast.parse(f.read_text())
              for f in SOLVER.rglob("*.py")}
-    assert not _literal_bool_calls(trees), _literal_bool_calls(trees)
+    assert not _literal_argument_calls(trees), _literal_argument_calls(trees)
     # the check itself finds such a call, and leaves inlined callees and Python alone
     demo = ast.parse("@numba.njit\ndef g(a, w):\n    return a\n"
                      "@numba.njit(inline='always')\ndef h(a, w):\n    return a\n"
                      "@numba.njit(cache=True)\ndef f(a):\n    return g(a, True) + h(a, False)\n"
                      "def p(a):\n    return g(a, False)\n")
-    assert _literal_bool_calls({"demo.py": demo}) == ["demo.py:9 f -> g"]
+    assert _literal_argument_calls({"demo.py": demo}) == ["demo.py:9 f -> g"]
     # a literal integer counts where another compiled caller passes something else
     demo = ast.parse("@numba.njit\ndef g(a, k):\n    return a\n"
                      "@numba.njit\ndef f(a, j):\n    return g(a, -1) + g(a, j)\n"
                      "@numba.njit\ndef e(a):\n    return g(a, 3)\n")
-    assert _literal_bool_calls({"demo.py": demo}) == ["demo.py:6 f -> g", "demo.py:9 e -> g"]
+    assert _literal_argument_calls({"demo.py": demo}) == ["demo.py:6 f -> g", "demo.py:9 e -> g"]
     demo = ast.parse("@numba.njit\ndef g(a, k):\n    return a\n"
                      "@numba.njit\ndef f(a):\n    return g(a, 0) + g(a, 0)\n")
-    assert _literal_bool_calls({"demo.py": demo}) == []
+    assert _literal_argument_calls({"demo.py": demo}) == []
 
 
 def _run():
