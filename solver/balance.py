@@ -350,7 +350,9 @@ class DragWork(WorkAccount):
     def start(self, run):
         b = np.empty((run.Y.shape[0], 3))
         rod = run.system.rod_data
-        _drag_kernel(np.ascontiguousarray(run.Y[:, 0:3]), rod[3], rod[4], b,
+        # a column view of the (N+1, 12) unknowns, as the compiled callers pass it (one
+        # signature of the kernel)
+        _drag_kernel(np.ascontiguousarray(run.Y, dtype=float)[:, 0:3], rod[3], rod[4], b,
                      np.empty((0, 3, 3)), False)
         return b, np.array(run.Y[:, 0:3], dtype=float)
 

@@ -304,12 +304,16 @@ def space_route(q0: np.ndarray, r0: np.ndarray, kappa: np.ndarray, ds: float):
     along the rod (numba; 1000 nodes in ~0.06 ms, against ~0.5 ms for the former
     prefix scan of numpy products); each q_k is normalised.
     """
-    kappa = np.ascontiguousarray(kappa, dtype=float)
+    kappa = np.asarray(kappa, dtype=float)
     n = kappa.shape[0]
     q = np.empty((n, 4))
     r = np.empty((n, 3))
+    # κ as a column view of a wider array, as the compiled pose passes a step's unknowns
+    # (Y[:, K:K + 3]): one compiled signature of the kernel for both callers
+    wide = np.empty((n, 4))
+    wide[:, :3] = kappa
     _space_route_kernel(np.ascontiguousarray(q0, dtype=float),
-                        np.ascontiguousarray(r0, dtype=float), kappa, float(ds), q, r)
+                        np.ascontiguousarray(r0, dtype=float), wide[:, :3], float(ds), q, r)
     return q, r
 
 
