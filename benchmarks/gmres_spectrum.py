@@ -39,12 +39,25 @@ solver keeps it, :func:`solver.newton._set_operator`). Printed:
    at each iterate, with B built at the step's first iterate (the same factorisation),
    and at the next step's start with the last step's B.
 
+5. with ``--augmented`` (instead of 1-3), what holding the whole contact coupling would
+   cost: the exact Jacobian J as a sparse matrix with the space route's linearised pose
+   as auxiliary unknowns (per node δφ_k, δr_k, the prefix sums of
+   :func:`solver.scheme.exact_loads_product` written as its recurrence rows, so that a
+   pair couples only its own nodes: :func:`augmented_matrix`), factorised by SuperLU
+   (COLAMD) as GMRES's preconditioner. Per iterate: GMRES's iterations plain, with that
+   LU fresh, with the LU of the step's start (of the last step's start at a step's first
+   iterate), the factorisation's and a solve's time against the band LU's solve, and the
+   LU's nonzeros; at the first iterate also SuperLU with the MMD_ATA ordering and an
+   incomplete LU (SuperLU's ILUTP, rows equilibrated, drop tolerance 1e-3 and 1e-4, fill
+   factor 4) as the preconditioner.
+
 GMRES here is a plain Arnoldi in numpy (two Gram-Schmidt passes), started from zero: its
 counts are comparable with each other, not to the microsecond with the solver's kernel.
 
 Run: ``PYTHONPATH=$PWD python benchmarks/gmres_spectrum.py [--case CASE.yaml] [--at 21]
-[--dt 0.003] [--k 12] [--steps 3] [--gap 0.3] [--coarse]`` (about 2 min to reach 21 s of
-the tension variant, then ~20 s; ``--coarse`` ~2 min more).
+[--dt 0.003] [--k 12] [--steps 3] [--gap 0.3] [--coarse | --augmented]`` (about 2 min to
+reach 21 s of the tension variant, then ~20 s; ``--coarse`` ~2 min more, ``--augmented``
+~10 s per iterate).
 """
 from __future__ import annotations
 
@@ -53,14 +66,15 @@ import time
 from pathlib import Path
 
 import numpy as np
-from scipy.sparse.linalg import LinearOperator, eigs
+import scipy.sparse as sparse
+from scipy.sparse.linalg import LinearOperator, eigs, spilu, splu
 from threadpoolctl import threadpool_limits
 
 import solver.newton as newton_mod
 from solver import Case
 from solver.banded import block_solve
 from solver.run import RodRun
-from solver.scheme import residual_into
+from solver.scheme import K, V, W, residual_into
 
 from contact_iteration_cost import _advance_to  # beside this script, in benchmarks/
 
@@ -327,6 +341,201 @@ def coarse_study(run: RodRun, h: float, sizes=(10, 25, 50)) -> None:
           "0, B built there / the last step's: " + "; ".join(line), flush=True)
 
 
+def _skew(a: np.ndarray) -> np.ndarray:
+    """[a]× (..., 3, 3) for vectors a (..., 3): [a]× b = a × b."""
+    out = np.zeros(a.shape[:-1] + (3, 3))
+    out[..., 0, 1], out[..., 0, 2] = -a[..., 2], a[..., 1]
+    out[..., 1, 0], out[..., 1, 2] = a[..., 2], -a[..., 0]
+    out[..., 2, 0], out[..., 2, 1] = -a[..., 1], a[..., 0]
+    return out
+
+
+def augmented_matrix(sys_: StepSystems) -> tuple[sparse.csc_matrix, int]:
+    """The operator last set (:meth:`StepSystems.at`) as a sparse square matrix of
+    n + 6(N+1) unknowns: the scaled unknowns x (n,) and per node k the unscaled pose
+    change δφ_k (rad), δr_k (m) at columns n + 6k + (0..2, 3..5). Rows 0..n−1: the band
+    cells, the boundary rows and the E3 rows' exact load change (:func:`solver.newton.
+    _matvec`) with the pose change as unknowns; rows n + 6k + (0..5): the recurrence of
+    :func:`solver.scheme.exact_loads_product` (δφ_0 = A₀ δω_0, δr_0 = ½Δt(δφ_0 × ṙ_0 +
+    R_0 δv_0); δφ_k = δφ_{k−1} + C κ̄, δr_k = δr_{k−1} + Δs (δφ_{k−1} + D κ̄) × t_mid with
+    κ̄ the mean of δκ over cell k − 1), each minus its left side. Eliminating the pose
+    unknowns gives J x back (:func:`augmented_product`); a pair couples only its own five
+    nodes. Returns (matrix, n). No seabed terms (raises ValueError where cells touch)."""
+    lin, op = sys_.lin, sys_.op
+    step = sys_.run.system.kernel_args()[1]
+    blocks, bc_scaled, lrw, ex, flags = op
+    R, C, D, tmid, rdot, A0, G, L, nodes, w, Fp, d_dr, d_dv, dtdr, dwdt, scal = ex[:16]
+    if ex[20][0] > 0:
+        raise ValueError("augmented_matrix: seabed cells touch; their terms are not assembled")
+    P = int(flags[1]) if flags[0] else 0
+    cs = lin[3]
+    nc = blocks.shape[0]
+    n1 = nc + 1
+    n = 12 * n1
+    h, ds = scal[0], scal[1]
+    rows, cols, vals = [], [], []
+
+    def put(r, c, v):
+        r, c, v = np.broadcast_arrays(np.asarray(r), np.asarray(c), np.asarray(v, dtype=float))
+        rows.append(r.ravel())
+        cols.append(c.ravel())
+        vals.append(v.ravel())
+
+    def pose(k, a):
+        return n + 6 * np.asarray(k)[..., None] + np.asarray(a)
+
+    c_, i_, j_ = np.meshgrid(np.arange(nc), np.arange(12), np.arange(24), indexing="ij")
+    put(6 + 12 * c_ + i_, 12 * c_ + j_, blocks)
+    bc_rows, bc_cols = step[7], step[8]
+    put(bc_rows, bc_cols, bc_scaled[:bc_rows.shape[0]])
+    for e in range(2):
+        if step[11][6 + e] != 0.0:
+            k = 0 if e == 0 else n1 - 1
+            ii, jj = np.meshgrid(np.arange(3), np.arange(3), indexing="ij")
+            put(bc_rows[6 * e + ii], 12 * k + W + jj, bc_scaled[12 + 9 * e + 3 * ii + jj])
+
+    def load_rows(node, col, coef):
+        """dB at nodes node (m,) changes by coef (m, 3, q) times the unknowns col (m, q):
+        rows E3 of the cells on either side, weighted as the operator weighs them."""
+        for c in (node - 1, node):
+            ok = (c >= 0) & (c < nc)
+            cc = c[ok]
+            for i in range(3):
+                put((6 + 12 * cc + 6 + i)[:, None], col[ok], lrw[cc, i][:, None] * coef[ok, i])
+    k = np.arange(n1)
+    # node-local: Rᵀ [G]× δφ − L δ(v, ω)
+    load_rows(k, pose(k, np.arange(3)), np.einsum("kmi,kmj->kij", R, _skew(G)))
+    load_rows(k, 12 * k[:, None] + np.arange(6), -L * cs[:6][None, None, :])
+    if P:
+        a = nodes[:P]                                             # (P, 5)
+        Fm = np.empty((P, 3, 5, 9))
+        Fm[..., 0:3] = np.moveaxis(d_dr[:P], 1, 2)
+        Fm[..., 3:6] = np.moveaxis(d_dv[:P] @ -_skew(rdot[a]), 1, 2)
+        Fm[..., 6:9] = np.moveaxis(d_dv[:P] @ R[a], 1, 2) * cs[V:V + 3]
+        Tm = np.zeros((P, 5, 9))
+        Tm[..., 0:3] = dtdr[:P]
+        col = np.concatenate([pose(a, np.arange(3, 6)), pose(a, np.arange(3)),
+                              12 * a[..., None] + V + np.arange(3)], axis=-1)   # (P, 5, 9)
+        col = col.reshape(P, 45)
+        Fm = Fm.reshape(P, 3, 45)
+        Tm = Tm.reshape(P, 45)
+        for b in range(5):
+            dG = w[:P, b, None, None] * Fm + (dwdt[:P, b, None] * Fp[:P])[:, :, None] * Tm[:, None, :]
+            load_rows(a[:, b], col, np.einsum("pmi,pmq->piq", R[a[:, b]], dG))
+    # the recurrence rows
+    base = n + 6 * k
+    put(base[:, None] + np.arange(6), base[:, None] + np.arange(6), 1.0)
+    ii, jj = np.meshgrid(np.arange(3), np.arange(3), indexing="ij")
+    put(n + ii, W + jj, -A0[ii, jj] * cs[W + jj])
+    put(n + 3 + ii, n + jj, 0.5 * h * _skew(rdot[0])[ii, jj])
+    put(n + 3 + ii, V + jj, -0.5 * h * R[0][ii, jj] * cs[V + jj])
+    kk = np.arange(1, n1)
+    c = kk - 1
+    St = -_skew(tmid[:nc])                                  # s × t = −[t]× s
+    SD = St @ D[:nc]
+    r3 = 6 * kk[:, None, None] + ii
+    put(n + r3, n + 6 * c[:, None, None] + ii, -(ii == jj).astype(float))
+    put(n + 3 + r3, n + 6 * c[:, None, None] + 3 + ii, -(ii == jj).astype(float))
+    put(n + 3 + r3, n + 6 * c[:, None, None] + jj, -ds * St)
+    for node in (kk, c):
+        kcol = 12 * node[:, None, None] + K + jj
+        put(n + r3, kcol, -0.5 * C[:nc] * cs[K + jj])
+        put(n + 3 + r3, kcol, -0.5 * ds * SD * cs[K + jj])
+    size = n + 6 * n1
+    A = sparse.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                          shape=(size, size)).tocsc()
+    A.sum_duplicates()
+    return A, n
+
+
+def augmented_product(A: sparse.csc_matrix, n: int, x: np.ndarray) -> np.ndarray:
+    """J x (n,) from the augmented matrix of :func:`augmented_matrix`: the pose unknowns
+    solved from their recurrence rows, then the first n rows."""
+    z = splu(A[n:, n:].tocsc()).solve(-(A[n:, :n] @ x))
+    return A[:n, :n] @ x + A[:n, n:] @ z
+
+
+class _AugmentedPreconditioner:
+    """GMRES's operator with the augmented matrix's LU as its preconditioner."""
+
+    def __init__(self, sys_: StepSystems, lu, n: int):
+        self.sys_, self.lu, self.n = sys_, lu, n
+
+    def matvec(self, x):
+        return self.sys_.matvec(x)
+
+    def precondition(self, x):
+        b = np.zeros(self.lu.shape[0])
+        b[:self.n] = x
+        return self.lu.solve(b)[:self.n]
+
+
+def _median_time(f, repeats: int):
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = f()
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times)), out
+
+
+def _other_factorisations(sys_: StepSystems, A: sparse.csc_matrix, n: int, rhs) -> str:
+    """The first iterate's extra line of :func:`augmented_study`."""
+    parts = []
+    t, lu = _median_time(lambda: splu(A, permc_spec="MMD_ATA"), 3)
+    parts.append(f"SuperLU with MMD_ATA {1e3 * t:.1f} ms (LU {lu.L.nnz + lu.U.nnz})")
+    scale = 1.0 / np.maximum(abs(A).max(axis=1).toarray().ravel(), 1e-300)
+    As = (sparse.diags(scale) @ A).tocsc()
+
+    class _Scaled(_AugmentedPreconditioner):
+        def precondition(self, x):
+            return super().precondition(x * scale[:self.n])
+    for drop in (1e-3, 1e-4):
+        t, ilu = _median_time(lambda: spilu(As, drop_tol=drop, fill_factor=4,
+                                            permc_spec="COLAMD"), 3)
+        its = gmres(_Scaled(sys_, ilu, n), rhs, m=120)[0]
+        parts.append(f"ILU drop {drop:g}: {its} GMRES iterations (of at most 120), "
+                     f"{1e3 * t:.1f} ms (LU {ilu.L.nnz + ilu.U.nnz})")
+    return "; ".join(parts)
+
+
+def augmented_study(run: RodRun, h: float, steps: int) -> None:
+    """Print item 5 of the module docstring over ``steps`` steps of h (s). Raises
+    RuntimeError as :class:`StepSystems` where Newton fails at h."""
+    last = None
+    for _ in range(steps):
+        sys_ = StepSystems(run, h)
+        print(f"t = {run.t:.4f} s, {int(sys_.op[4][1])} pairs, {len(sys_.iterates)} Newton "
+              "iterates; GMRES iterations plain / augmented LU fresh / of the step's start "
+              "(at iterate 0: of the last step's start)", flush=True)
+        start = None
+        for it in range(len(sys_.iterates)):
+            rhs = sys_.at(it)
+            A, n = augmented_matrix(sys_)
+            t_lu, lu = _median_time(lambda: splu(A, permc_spec="COLAMD"), 3)
+            b = np.zeros(A.shape[0])
+            b[:n] = rhs
+            t_solve = _median_time(lambda: lu.solve(b), 5)[0]
+            t_band = _median_time(lambda: sys_.precondition(rhs), 5)[0]
+            stale = last if it == 0 else start
+            counts = [gmres(sys_, rhs)[0], gmres(_AugmentedPreconditioner(sys_, lu, n), rhs)[0],
+                      gmres(_AugmentedPreconditioner(sys_, stale, n), rhs)[0]
+                      if stale is not None else "–"]
+            print(f"  iterate {it}: {' / '.join(str(c) for c in counts)}; {A.shape[0]} "
+                  f"unknowns, {A.nnz} nonzeros, LU {lu.L.nnz + lu.U.nnz}; SuperLU "
+                  f"{1e3 * t_lu:.1f} ms, its solve {1e3 * t_solve:.2f} ms, the band LU's "
+                  f"solve {1e3 * t_band:.2f} ms", flush=True)
+            if it == 0:
+                start = lu
+                if last is None:
+                    print("    " + _other_factorisations(sys_, A, n, rhs), flush=True)
+        last = start
+        att = run.try_step(h)
+        if not att.ok:
+            print(f"  (the step was refused: {att.reason}; the next one starts from the same "
+                  "state)")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--case", type=Path, default=TENSION)
@@ -337,6 +546,8 @@ def main() -> None:
     ap.add_argument("--gap", type=float, default=0.3)
     ap.add_argument("--coarse", action="store_true",
                     help="item 4 of the docstring instead of items 1-3")
+    ap.add_argument("--augmented", action="store_true",
+                    help="item 5 of the docstring instead of items 1-3")
     args = ap.parse_args()
     case = Case.from_file(args.case)
     with threadpool_limits(limits=1, user_api="blas"):
@@ -347,6 +558,9 @@ def main() -> None:
               f"steps of {args.dt} s from there", flush=True)
         if args.coarse:
             coarse_study(run, args.dt)
+            return
+        if args.augmented:
+            augmented_study(run, args.dt, args.steps)
             return
         previous_start = None
         totals = [0, 0]
