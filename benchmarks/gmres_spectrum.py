@@ -74,7 +74,7 @@ import solver.newton as newton_mod
 from solver import Case
 from solver.banded import block_solve
 from solver.run import RodRun
-from solver.scheme import K, V, W, residual_into
+from solver.scheme import E3, K, V, W, residual_into
 
 from contact_iteration_cost import _advance_to  # beside this script, in benchmarks/
 
@@ -401,7 +401,7 @@ def augmented_matrix(sys_: StepSystems) -> tuple[sparse.csc_matrix, int]:
             ok = (c >= 0) & (c < nc)
             cc = c[ok]
             for i in range(3):
-                put((6 + 12 * cc + 6 + i)[:, None], col[ok], lrw[cc, i][:, None] * coef[ok, i])
+                put((6 + 12 * cc + E3 + i)[:, None], col[ok], lrw[cc, i][:, None] * coef[ok, i])
     k = np.arange(n1)
     # node-local: Rᵀ [G]× δφ − L δ(v, ω)
     load_rows(k, pose(k, np.arange(3)), np.einsum("kmi,kmj->kij", R, _skew(G)))
@@ -420,7 +420,8 @@ def augmented_matrix(sys_: StepSystems) -> tuple[sparse.csc_matrix, int]:
         Fm = Fm.reshape(P, 3, 45)
         Tm = Tm.reshape(P, 45)
         for b in range(5):
-            dG = w[:P, b, None, None] * Fm + (dwdt[:P, b, None] * Fp[:P])[:, :, None] * Tm[:, None, :]
+            turn = (dwdt[:P, b, None] * Fp[:P])[:, :, None] * Tm[:, None, :]
+            dG = w[:P, b, None, None] * Fm + turn
             load_rows(a[:, b], col, np.einsum("pmi,pmq->piq", R[a[:, b]], dG))
     # the recurrence rows
     base = n + 6 * k
