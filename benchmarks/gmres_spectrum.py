@@ -420,8 +420,9 @@ def augmented_matrix(sys_: StepSystems) -> tuple[sparse.csc_matrix, int]:
         Fm = Fm.reshape(P, 3, 45)
         Tm = Tm.reshape(P, 45)
         for b in range(5):
-            turn = (dwdt[:P, b, None] * Fp[:P])[:, :, None] * Tm[:, None, :]
-            dG = w[:P, b, None, None] * Fm + turn
+            # the weights' change as the closest point slides along the partner (∂w/∂t δt)
+            slide = (dwdt[:P, b, None] * Fp[:P])[:, :, None] * Tm[:, None, :]
+            dG = w[:P, b, None, None] * Fm + slide
             load_rows(a[:, b], col, np.einsum("pmi,pmq->piq", R[a[:, b]], dG))
     # the recurrence rows
     base = n + 6 * k
