@@ -46,8 +46,8 @@ solver keeps it, :func:`solver.newton._set_operator`). Printed:
    pair couples only its own nodes: :func:`augmented_matrix`), factorised by SuperLU
    (COLAMD) as GMRES's preconditioner. Per iterate: GMRES's iterations plain, with that
    LU fresh, with the LU of the step's start (of the last step's start at a step's first
-   iterate), the factorisation's and a solve's time against the band LU's solve, and the
-   LU's nonzeros; at the first iterate also SuperLU with the MMD_ATA ordering and an
+   iterate), the factorisation's and a solve's time against the band LU's solve (and, at
+   a step's first iterate, against the band factorisation), and the LU's nonzeros; at the first iterate also SuperLU with the MMD_ATA ordering and an
    incomplete LU (SuperLU's ILUTP, rows equilibrated, drop tolerance 1e-3 and 1e-4, fill
    factor 4) as the preconditioner.
 
@@ -73,10 +73,11 @@ from threadpoolctl import threadpool_limits
 import solver.newton as newton_mod
 from solver import Case
 from solver.banded import block_solve
+from solver.kinematics import skew
 from solver.run import RodRun
 from solver.scheme import E3, K, V, W, residual_into
 
-from contact_iteration_cost import _advance_to  # beside this script, in benchmarks/
+from contact_iteration_cost import _advance_to, _median_ms  # beside this script
 
 ROOT = Path(__file__).resolve().parents[1]
 TENSION = ROOT / "cases" / "goyal-writhing-tension.yaml"
@@ -341,15 +342,6 @@ def coarse_study(run: RodRun, h: float, sizes=(10, 25, 50)) -> None:
           "0, B built there / the last step's: " + "; ".join(line), flush=True)
 
 
-def _skew(a: np.ndarray) -> np.ndarray:
-    """[a]× (..., 3, 3) for vectors a (..., 3): [a]× b = a × b."""
-    out = np.zeros(a.shape[:-1] + (3, 3))
-    out[..., 0, 1], out[..., 0, 2] = -a[..., 2], a[..., 1]
-    out[..., 1, 0], out[..., 1, 2] = a[..., 2], -a[..., 0]
-    out[..., 2, 0], out[..., 2, 1] = -a[..., 1], a[..., 0]
-    return out
-
-
 def augmented_matrix(sys_: StepSystems) -> tuple[sparse.csc_matrix, int]:
     """The operator last set (:meth:`StepSystems.at`) as a sparse square matrix of
     n + 6(N+1) unknowns: the scaled unknowns x (n,) and per node k the unscaled pose
@@ -404,13 +396,13 @@ def augmented_matrix(sys_: StepSystems) -> tuple[sparse.csc_matrix, int]:
                 put((6 + 12 * cc + E3 + i)[:, None], col[ok], lrw[cc, i][:, None] * coef[ok, i])
     k = np.arange(n1)
     # node-local: Rᵀ [G]× δφ − L δ(v, ω)
-    load_rows(k, pose(k, np.arange(3)), np.einsum("kmi,kmj->kij", R, _skew(G)))
+    load_rows(k, pose(k, np.arange(3)), np.einsum("kmi,kmj->kij", R, skew(G)))
     load_rows(k, 12 * k[:, None] + np.arange(6), -L * cs[:6][None, None, :])
     if P:
         a = nodes[:P]                                             # (P, 5)
         Fm = np.empty((P, 3, 5, 9))
         Fm[..., 0:3] = np.moveaxis(d_dr[:P], 1, 2)
-        Fm[..., 3:6] = np.moveaxis(d_dv[:P] @ -_skew(rdot[a]), 1, 2)
+        Fm[..., 3:6] = np.moveaxis(d_dv[:P] @ -skew(rdot[a]), 1, 2)
         Fm[..., 6:9] = np.moveaxis(d_dv[:P] @ R[a], 1, 2) * cs[V:V + 3]
         Tm = np.zeros((P, 5, 9))
         Tm[..., 0:3] = dtdr[:P]
@@ -429,11 +421,11 @@ def augmented_matrix(sys_: StepSystems) -> tuple[sparse.csc_matrix, int]:
     put(base[:, None] + np.arange(6), base[:, None] + np.arange(6), 1.0)
     ii, jj = np.meshgrid(np.arange(3), np.arange(3), indexing="ij")
     put(n + ii, W + jj, -A0[ii, jj] * cs[W + jj])
-    put(n + 3 + ii, n + jj, 0.5 * h * _skew(rdot[0])[ii, jj])
+    put(n + 3 + ii, n + jj, 0.5 * h * skew(rdot[0])[ii, jj])
     put(n + 3 + ii, V + jj, -0.5 * h * R[0][ii, jj] * cs[V + jj])
     kk = np.arange(1, n1)
     c = kk - 1
-    St = -_skew(tmid[:nc])                                  # s × t = −[t]× s
+    St = -skew(tmid[:nc])                                  # s × t = −[t]× s
     SD = St @ D[:nc]
     r3 = 6 * kk[:, None, None] + ii
     put(n + r3, n + 6 * c[:, None, None] + ii, -(ii == jj).astype(float))
@@ -451,8 +443,9 @@ def augmented_matrix(sys_: StepSystems) -> tuple[sparse.csc_matrix, int]:
 
 
 def augmented_product(A: sparse.csc_matrix, n: int, x: np.ndarray) -> np.ndarray:
-    """J x (n,) from the augmented matrix of :func:`augmented_matrix`: the pose unknowns
-    solved from their recurrence rows, then the first n rows."""
+    """J x (n,) for x (n,) from the augmented matrix of :func:`augmented_matrix`: the pose
+    unknowns solved from their recurrence rows (SuperLU; RuntimeError where that block is
+    singular), then the first n rows."""
     z = splu(A[n:, n:].tocsc()).solve(-(A[n:, :n] @ x))
     return A[:n, :n] @ x + A[:n, n:] @ z
 
@@ -472,20 +465,12 @@ class _AugmentedPreconditioner:
         return self.lu.solve(b)[:self.n]
 
 
-def _median_time(f, repeats: int):
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = f()
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times)), out
-
-
 def _other_factorisations(sys_: StepSystems, A: sparse.csc_matrix, n: int, rhs) -> str:
     """The first iterate's extra line of :func:`augmented_study`."""
     parts = []
-    t, lu = _median_time(lambda: splu(A, permc_spec="MMD_ATA"), 3)
-    parts.append(f"SuperLU with MMD_ATA {1e3 * t:.1f} ms (LU {lu.L.nnz + lu.U.nnz})")
+    lu = splu(A, permc_spec="MMD_ATA")
+    t = _median_ms(lambda: splu(A, permc_spec="MMD_ATA"), 3)
+    parts.append(f"SuperLU with MMD_ATA {t:.1f} ms (LU {lu.L.nnz + lu.U.nnz})")
     scale = 1.0 / np.maximum(abs(A).max(axis=1).toarray().ravel(), 1e-300)
     As = (sparse.diags(scale) @ A).tocsc()
 
@@ -493,12 +478,27 @@ def _other_factorisations(sys_: StepSystems, A: sparse.csc_matrix, n: int, rhs) 
         def precondition(self, x):
             return super().precondition(x * scale[:self.n])
     for drop in (1e-3, 1e-4):
-        t, ilu = _median_time(lambda: spilu(As, drop_tol=drop, fill_factor=4,
-                                            permc_spec="COLAMD"), 3)
+        def factor():
+            return spilu(As, drop_tol=drop, fill_factor=4, permc_spec="COLAMD")
+        ilu = factor()
+        t = _median_ms(factor, 3)
         its = gmres(_Scaled(sys_, ilu, n), rhs, m=120)[0]
         parts.append(f"ILU drop {drop:g}: {its} GMRES iterations (of at most 120), "
-                     f"{1e3 * t:.1f} ms (LU {ilu.L.nnz + ilu.U.nnz})")
+                     f"{t:.1f} ms (LU {ilu.L.nnz + ilu.U.nnz})")
     return "; ".join(parts)
+
+
+def _band_factorisation_ms(sys_: StepSystems) -> float:
+    """The median time (ms) of :func:`solver.newton._factor` at the step's first iterate,
+    which :meth:`StepSystems.at` (0) has just evaluated and factorised: refactoring it
+    there leaves the operator and the LU as they were."""
+    system, newton = sys_.run.system, sys_.run.newton
+    st = newton._state
+    rod, step, cand, cdata = system.kernel_args()
+    Y = sys_.iterates[0]
+    return _median_ms(lambda: newton_mod._factor(Y, system.buf, system.ev, sys_.lin, sys_.op,
+                                                 rod, step, newton.CONTACT_BAND_WEIGHT,
+                                                 st["ctr"]), 9)
 
 
 def augmented_study(run: RodRun, h: float, steps: int) -> None:
@@ -514,21 +514,25 @@ def augmented_study(run: RodRun, h: float, steps: int) -> None:
         for it in range(len(sys_.iterates)):
             rhs = sys_.at(it)
             A, n = augmented_matrix(sys_)
-            t_lu, lu = _median_time(lambda: splu(A, permc_spec="COLAMD"), 3)
+            lu = splu(A, permc_spec="COLAMD")
+            t_lu = _median_ms(lambda: splu(A, permc_spec="COLAMD"), 3)
             b = np.zeros(A.shape[0])
             b[:n] = rhs
-            t_solve = _median_time(lambda: lu.solve(b), 5)[0]
-            t_band = _median_time(lambda: sys_.precondition(rhs), 5)[0]
+            t_solve = _median_ms(lambda: lu.solve(b), 5)
+            t_band = _median_ms(lambda: sys_.precondition(rhs), 5)
             stale = last if it == 0 else start
             counts = [gmres(sys_, rhs)[0], gmres(_AugmentedPreconditioner(sys_, lu, n), rhs)[0],
                       gmres(_AugmentedPreconditioner(sys_, stale, n), rhs)[0]
                       if stale is not None else "–"]
             print(f"  iterate {it}: {' / '.join(str(c) for c in counts)}; {A.shape[0]} "
                   f"unknowns, {A.nnz} nonzeros, LU {lu.L.nnz + lu.U.nnz}; SuperLU "
-                  f"{1e3 * t_lu:.1f} ms, its solve {1e3 * t_solve:.2f} ms, the band LU's "
-                  f"solve {1e3 * t_band:.2f} ms", flush=True)
+                  f"{t_lu:.1f} ms, its solve {t_solve:.2f} ms, the band LU's solve "
+                  f"{t_band:.2f} ms", flush=True)
             if it == 0:
                 start = lu
+                print(f"    the band factorisation at this iterate (equilibration, operator "
+                      f"and LU, as Newton makes it): {_band_factorisation_ms(sys_):.2f} ms",
+                      flush=True)
                 if last is None:
                     print("    " + _other_factorisations(sys_, A, n, rhs), flush=True)
         last = start
