@@ -552,7 +552,7 @@ def cmd_animate(args: argparse.Namespace) -> int:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from hockle.export import ExportError, export_vtk
+    from service.export import ExportError, export_vtk
     from hockle.io import open_result
 
     path = Path(args.result)

@@ -294,7 +294,7 @@ PARAVIEW_MAX_FRAMES = 100
 def ui_job_paraview(job_id: str, svc: Annotated[Services, Depends(services)],
                     owner: Annotated[str | None, Depends(caller)]) -> Response:
     """The job's result as a ParaView time series, zipped: ``<id>.pvd`` and its ``.vtu``
-    frames (:func:`hockle.export.export_vtk`, the function behind ``hockle export``), at
+    frames (:func:`service.export.export_vtk`, the function behind ``hockle export``), at
     most :data:`PARAVIEW_MAX_FRAMES` frames (every k-th output time, the last one kept).
     404 ``result-not-ready`` before there is a result; 422 ``not-exportable`` for a result
     without positions."""
@@ -302,8 +302,7 @@ def ui_job_paraview(job_id: str, svc: Annotated[Services, Depends(services)],
     import tempfile
     import zipfile
 
-    from hockle.export import ExportError, export_vtk
-
+    from ..export import ExportError, export_vtk
     from ..routers.jobs import get_job_or_404
 
     job = get_job_or_404(svc, job_id, owner)

@@ -220,7 +220,7 @@ def test_seabed_grid_for_the_3d_view(client, settings, tmp_path):
 
 def test_paraview_download_is_the_export_zipped(client, settings, tmp_path, monkeypatch):
     """The job page's ParaView download: a zip of the .pvd and its .vtu frames written by
-    hockle.export, whose positions are the result's; at most PARAVIEW_MAX_FRAMES frames."""
+    service.export, whose positions are the result's; at most PARAVIEW_MAX_FRAMES frames."""
     import io
     import zipfile
 
@@ -229,7 +229,7 @@ def test_paraview_download_is_the_export_zipped(client, settings, tmp_path, monk
     import xarray as xr
 
     import service.dashboard as dashboard
-    from hockle.export import read_pvd
+    from service.export import read_pvd
 
     case = tiny_case("paraview")
     job = client.post("/v1/jobs", json=case, headers=AUTH).json()
