@@ -161,11 +161,11 @@ def start_from_job(case, registry, owner: str | None):
     The job must be the caller's (``owner``, :func:`service.auth.caller`; None, a service
     without API keys: any job), have finished successfully and still hold its result,
     which must be of the same rod with ``time`` among its output times
-    (:func:`hockle.io.start_state_from`). Another owner's job is answered exactly
+    (:func:`solver.results.start_state_from`). Another owner's job is answered exactly
     as an unknown id, so that ids cannot be probed. Raises a 422 :class:`ProblemError`
     naming ``initial.from_result.job`` or ``initial.from_result.time``."""
-    from hockle.io import start_state_from
     from solver.case import CaseError
+    from solver.results import start_state_from
 
     from .registry import SUCCESSFUL
     from .store import open_result

@@ -313,7 +313,7 @@ def start_offset(case, s=None, diameter=None, r=None) -> StartOffset | None:
 class StartState:
     """The state a run starts from instead of its case's initial configuration
     (``initial.from_result``), read by the caller from an earlier result
-    (:func:`hockle.io.start_state_from`): time ``t`` (s) and per node v, ω, f, κ
+    (:func:`solver.results.start_state_from`): time ``t`` (s) and per node v, ω, f, κ
     (N+1, 3) body frame (m/s, rad/s, N, rad/m), ``q`` (N+1, 4) unit quaternions, ``r``
     (N+1, 3) m; ``phi`` (2,) the end rotations about a3 (rad) of the linking number and
     ``work_in`` (J), or None where the result did not store them."""
