@@ -1,10 +1,10 @@
 """Continuation jobs (issue 42): a case's static branch in one parameter, computed by a worker
-with :func:`hockle.api.continue_branch` and stored as the job's result (the branch dataset,
+with :func:`service.branches.continue_branch` and stored as the job's result (the branch dataset,
 dimension ``point``; docs/statics.md).
 
 The request (``POST /v1/continuations``) is ``{"case": {...}, "continuation": {...}}``;
 :class:`ContinuationOptions` is the second part. :func:`validate_request` checks both before any
-work, with the checks :func:`hockle.api.continuation_family` makes for ``hockle continue`` (a
+work, with the checks :func:`service.branches.continuation_family` makes for ``hockle continue`` (a
 path that is not a scalar of the case, a range that does not move, a ``to`` that makes the case
 invalid or changes its grid, a case the static problem does not support), and answers a 422
 naming ``case.<field>`` or ``continuation.<field>``. The job's ``spec_json`` is
@@ -36,7 +36,7 @@ POINT_COST_STEPS = 20
 
 
 class ContinuationOptions(BaseModel):
-    """How the branch is followed: the arguments of :func:`hockle.api.continue_branch`
+    """How the branch is followed: the arguments of :func:`service.branches.continue_branch`
     (the options of ``hockle continue``)."""
 
     model_config = ConfigDict(extra="forbid")
@@ -137,10 +137,11 @@ def validate_request(data: Any, max_case_size: int):
 
 
 def _check_family(case, options: ContinuationOptions) -> None:
-    """The checks of ``hockle continue`` (:func:`hockle.api.continuation_family`), as 422s."""
-    from hockle.api import continuation_family
+    """The checks of ``hockle continue`` (:func:`service.branches.continuation_family`), as 422s."""
     from solver.continuation import ContinuationError
     from solver.statics import StaticsError
+
+    from .branches import continuation_family
 
     try:
         continuation_family(case, options.parameter, options.to, time=options.time)

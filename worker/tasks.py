@@ -315,7 +315,7 @@ class JobRun:
 
     def load_branch_checkpoint(self, key: str):
         """The continuation job's last :class:`solver.checkpoint.BranchCheckpoint` bound to
-        ``key`` (:func:`hockle.api.branch_key`), or None (then from the first point)."""
+        ``key`` (:func:`service.branches.branch_key`), or None (then from the first point)."""
         from solver.checkpoint import BranchCheckpoint
 
         ck = self._read_checkpoint(lambda data: BranchCheckpoint.loads(data, key),
@@ -502,7 +502,7 @@ class _PointInfo:
 
 
 def _continue(run: JobRun, case, options) -> str:
-    """Follow the branch with :func:`hockle.api.continue_branch`; progress after every point
+    """Follow the branch with :func:`service.branches.continue_branch`; progress after every point
     (``step`` = points done), the job's should_stop before every step (dismissal, the
     wall-clock budget, a shutdown: the branch so far is kept as a partial result), the
     branch dataset as the result. The branch is checkpointed in the result store as a
@@ -510,7 +510,7 @@ def _continue(run: JobRun, case, options) -> str:
     ``max_points``); a shutdown hands the job back and the next attempt continues from the
     last checkpoint. An exception after the first point fails the job with the branch so
     far as its (partial) result."""
-    from hockle.api import branch_key, continue_branch
+    from service.branches import branch_key, continue_branch
     from solver.statics import StaticsError
 
     start: list[float] = []
