@@ -31,12 +31,12 @@ if settings.worker_nice:
 from service.queue import make_celery  # noqa: E402
 
 app = make_celery(settings, main="worker")
+# the worker imports its task module at start (it registers hockle.run_job, a shared_task,
+# and the worker signals); the tasks never import this module
 app.conf.imports = ("worker.tasks",)
 app.conf.update(
     worker_concurrency=settings.worker_concurrency,
     worker_max_tasks_per_child=200,
 )
-
-import worker.tasks  # noqa: E402,F401  (registers hockle.run_job and the worker signals)
 
 celery = app

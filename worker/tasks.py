@@ -39,6 +39,7 @@ import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 
+from celery import current_app, shared_task
 from celery.exceptions import Reject, SoftTimeLimitExceeded
 from celery.signals import worker_process_init, worker_ready, worker_shutdown, \
     worker_shutting_down
@@ -49,7 +50,6 @@ from service.settings import Settings, get_settings
 from service.problems import ProblemError
 from service.store import ResultStore
 from service.validation import start_from_job
-from worker.app import app
 
 log = logging.getLogger("hockle.worker")
 
@@ -739,7 +739,7 @@ def _hand_back(run: JobRun) -> str:
     if action == "requeued":
         job = run.registry.get(run.job_id)
         if job is not None:
-            enqueuer = Enqueuer(run.settings, app)
+            enqueuer = Enqueuer(run.settings, current_app._get_current_object())
             try:
                 send_job(run.registry, enqueuer, job, log)
             finally:
@@ -793,7 +793,7 @@ def _int_or_none(value):
         return None
 
 
-@app.task(
+@shared_task(
     name=TASK_NAME,
     bind=True,
     acks_late=True,
@@ -910,7 +910,7 @@ def _start_heartbeat(sender=None, **_kwargs) -> None:
     registry.create_schema()
     _main_registry.append(registry)
     name = getattr(sender, "hostname", None) or f"pid-{os.getpid()}"
-    enqueuer = Enqueuer(settings, app)
+    enqueuer = Enqueuer(settings, current_app._get_current_object())
 
     def beat() -> None:
         while not _heartbeat_stop.is_set():
