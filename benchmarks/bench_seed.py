@@ -29,7 +29,7 @@ from seed_events import events  # noqa: E402
 import solver.contact as contact_mod  # noqa: E402
 import solver.simulation as sim_mod  # noqa: E402
 import solver.topology as topology_mod  # noqa: E402
-from solver import Case, SolverDivergence, simulate  # noqa: E402
+from solver import Case, SolverDivergence, integrate  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
@@ -106,7 +106,7 @@ def run(t_end: float = 45.0, out: str | None = None, newton_scale: float = 1.0,
         t0 = time.perf_counter()
         message = "completed"
         try:
-            ds = simulate(case, progress=progress)
+            ds = integrate(case, progress=progress)
         except SolverDivergence as exc:
             message = f"solver diverged: {exc}"
             ds = exc.partial

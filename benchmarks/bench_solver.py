@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from solver import Case, simulate
+from solver import Case, integrate
 
 ROOT = Path(__file__).resolve().parents[1]
 SEED = ROOT / "cases" / "goyal-writhing.yaml"
@@ -36,7 +36,7 @@ def time_run(case: Case, repeats: int):
     walls, its = [], []
     for _ in range(repeats):
         t0 = time.perf_counter()
-        ds = simulate(case)
+        ds = integrate(case)
         walls.append(time.perf_counter() - t0)
         its.append(int(ds.step_newton_iterations.sum()))
     n_steps = int(ds.sizes["step"])

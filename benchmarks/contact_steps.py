@@ -213,7 +213,7 @@ def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None,
     import contact_suite as cs
     from solver.case import Case
     from solver.run import RodRun
-    from solver.simulation import SolverDivergence, simulate
+    from solver.simulation import SolverDivergence, integrate
 
     spec = case_spec(name, sets)
     spec["numerics"]["energy_tolerance"] = cs.ENERGY_TOLERANCE
@@ -280,7 +280,7 @@ def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None,
         Newton.feasible_start = feasible
         RodRun.step_problem = problem
     try:
-        ds = simulate(case)
+        ds = integrate(case)
         if result is not None:
             result["ds"] = ds
     except SolverDivergence as exc:

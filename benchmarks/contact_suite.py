@@ -170,7 +170,7 @@ def run_case(name: str, energy_tolerance: float | None, budget: float = BUDGET_S
     ``sets`` its fields set as :func:`with_sets` does."""
     from solver.case import Case
     from solver.run import RodRun
-    from solver.simulation import SolverDivergence, simulate
+    from solver.simulation import SolverDivergence, integrate
 
     spec = with_sets(CASES[name][1](), sets)
     spec["numerics"]["energy_tolerance"] = energy_tolerance
@@ -198,7 +198,7 @@ def run_case(name: str, energy_tolerance: float | None, budget: float = BUDGET_S
     status, reason = "completed", ""
     t0 = time.perf_counter()
     try:
-        ds = simulate(case, progress=lambda p: trace.append((p.t, p.wall_time,
+        ds = integrate(case, progress=lambda p: trace.append((p.t, p.wall_time,
                                                              p.contact_count)))
         status = ds.attrs["hockle_status"]
         reason = ds.attrs.get("hockle_stop_reason", "")
@@ -293,11 +293,11 @@ def warm_up() -> None:
     (a run that stopped before contact left their compilation, ~50 s on a fresh
     install, in the first timed case)."""
     from solver.case import Case
-    from solver.simulation import simulate
+    from solver.simulation import integrate
     spec = _pyelastica()
     spec["numerics"]["t_end"] = 8.0
     spec["numerics"]["energy_tolerance"] = ENERGY_TOLERANCE
-    simulate(Case.model_validate(spec))
+    integrate(Case.model_validate(spec))
 
 
 def _fmt(x, f="{:.2f}"):

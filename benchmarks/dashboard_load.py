@@ -53,12 +53,12 @@ def make_result(path: Path) -> None:
     """Run the seed example (1000 segments, 45 s) and write its dataset to ``path``."""
     from hockle.io import write_netcdf
     from solver.case import Case
-    from solver.simulation import simulate
+    from solver.simulation import integrate
 
     print(f"running {SEED_CASE.name} once for its 1000-segment result (a few minutes) ...",
           flush=True)
     t0 = time.perf_counter()
-    ds = simulate(Case.from_file(SEED_CASE))
+    ds = integrate(Case.from_file(SEED_CASE))
     path.parent.mkdir(parents=True, exist_ok=True)
     write_netcdf(ds, path)
     print(f"  {time.perf_counter() - t0:.0f} s -> {path}", flush=True)

@@ -45,7 +45,7 @@ import peer_compare as pc  # noqa: E402
 from contact_suite import with_sets  # noqa: E402
 from hockle.plots import run_events  # noqa: E402
 from solver.case import Case  # noqa: E402
-from solver.simulation import SolverDivergence, simulate  # noqa: E402
+from solver.simulation import SolverDivergence, integrate  # noqa: E402
 from solver.step_problem import ProblemAssembly  # noqa: E402
 
 #: DRIFT_STEP_FLOOR values compared: the floor at Δt/100, Δt/4 (the code's) and Δt
@@ -56,7 +56,7 @@ def _run(spec):
     """(dataset, status, wall s) of a case spec (dict); a failed run's partial result."""
     t0 = time.perf_counter()
     try:
-        ds, status = simulate(Case.model_validate(spec)), "completed"
+        ds, status = integrate(Case.model_validate(spec)), "completed"
     except SolverDivergence as exc:
         ds, status = exc.partial, f"failed at t = {exc.t:.4g} s"
     return ds, status, time.perf_counter() - t0
@@ -144,7 +144,7 @@ def profile(t0: float = 3.8, t1: float = 4.0) -> list[str]:
     case = Case.from_file(ROOT / "cases" / "seabed-hockle.yaml")
     RodRun._accept = recording
     try:
-        simulate(case, observer=lambda run, step: run.t > t1)
+        integrate(case, observer=lambda run, step: run.t > t1)
     finally:
         RodRun._accept = accept
     total = np.linalg.norm(np.sum(steps, axis=0), axis=1)

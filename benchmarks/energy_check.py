@@ -62,7 +62,7 @@ import test_seabed as SB  # noqa: E402
 from hockle.api import catenary_parameter  # noqa: E402
 from solver import balance as B  # noqa: E402
 from solver.case import Case, Numerics  # noqa: E402
-from solver.simulation import RodRun, SolverDivergence, simulate  # noqa: E402
+from solver.simulation import RodRun, SolverDivergence, integrate  # noqa: E402
 
 #: the default tolerance (``numerics.energy_tolerance``)
 TOLERANCE = Numerics.model_fields["energy_tolerance"].default
@@ -85,7 +85,7 @@ def cable():
             spec = LV.catenary_spec(dt, tol)
             spec["output"]["fields"] = ["position", "energies"]
             try:
-                ds, status = simulate(Case.model_validate(spec)), "completed"
+                ds, status = integrate(Case.model_validate(spec)), "completed"
             except SolverDivergence as exc:
                 ds, status = exc.partial, f"failed at t = {exc.partial.time.values[-1]:.4g} s"
             z = ds.position.values[-1, :, 2]
@@ -100,7 +100,7 @@ def cable():
 def rest():
     spec = SB._spec({"elevation": -SB.D / 2}, dt=1e-4, t_end=0.05)
     spec["numerics"]["energy_tolerance"] = TOLERANCE
-    ds = simulate(Case.model_validate(spec))
+    ds = integrate(Case.model_validate(spec))
     print(f"cable resting on the bottom, Δt = 1e-4 s, 0.05 s: {ds.attrs['hockle_status']}, "
           f"{_refused(ds)} energy refusals, largest ε/scale "
           f"{np.nanmax(ds.step_energy_error.values):.2e}")
@@ -216,7 +216,7 @@ def contact(t_end=30.0):
             runmod.RodRun._refusal = refusal
             try:
                 start = time.perf_counter()
-                ds = simulate(Case.model_validate(spec))
+                ds = integrate(Case.model_validate(spec))
                 wall = time.perf_counter() - start
             finally:
                 runmod.RodRun._refusal = original
@@ -249,7 +249,7 @@ TOLERANCES = (None, 0.05, 0.25, 0.5, 1.0)
 def _simulate(case):
     """(dataset, status): a failed run's partial result and its last accepted step."""
     try:
-        return simulate(case), "completed"
+        return integrate(case), "completed"
     except SolverDivergence as exc:
         return exc.partial, f"failed after t = {exc.partial.step_time.values[-1]:.4g} s"
 
@@ -394,7 +394,7 @@ def diagnose():
     spec = Case.from_file(root / "catenary-touchdown.yaml").model_dump(mode="json")
     for dt, tol in ((0.05, None), (0.05, 0.5), (0.003125, None)):
         spec["numerics"].update(dt=dt, energy_tolerance=tol)
-        ds = simulate(Case.model_validate(spec))
+        ds = integrate(Case.model_validate(spec))
         p = ds.position.values[-1]
         print(f"catenary-touchdown.yaml, Δt = {dt:g} s, check {'off' if tol is None else tol}: "
               f"{_refused(ds)} energy refusals, mid node x {p[p.shape[0] // 2, 0]:.5f} m")
@@ -465,7 +465,7 @@ def plectoneme_accounts(n, dt, rho_inf, correction=True, contact_rho_inf=None,
     if not correction:
         ProblemAssembly.DRIFT_GAIN = None
     try:
-        simulate(Case.model_validate(spec))
+        integrate(Case.model_validate(spec))
         status = "completed"
     except SolverDivergence as exc:
         status = f"diverged at t = {exc.t:.2f} s"

@@ -26,7 +26,7 @@ import sys
 import time
 from pathlib import Path
 
-from solver import Case, simulate
+from solver import Case, integrate
 from solver.compiled import warm_up
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -51,7 +51,7 @@ def run_trace(t_end=None) -> dict:
                             substep=bool(getattr(info, "substep", False))))
 
     t0 = time.perf_counter()
-    ds = simulate(case, progress=progress)
+    ds = integrate(case, progress=progress)
     wall = time.perf_counter() - t0
     return dict(updates=updates, wall_total=wall, t_end=case.numerics.t_end,
                 status=ds.attrs.get("hockle_status"), load=os.getloadavg()[0])

@@ -18,7 +18,7 @@ import statistics
 import time
 from pathlib import Path
 
-from solver import Case, simulate, warm_up
+from solver import Case, integrate, warm_up
 
 ROOT = Path(__file__).resolve().parents[1]
 SEED = ROOT / "cases" / "goyal-writhing.yaml"
@@ -83,7 +83,7 @@ def measure(spec: dict, repeats: int) -> tuple[float, dict]:
     walls = []
     for _ in range(repeats):
         t0 = time.perf_counter()
-        ds = simulate(case)
+        ds = integrate(case)
         walls.append(time.perf_counter() - t0)
     steps = int(ds.sizes["step"])
     info = {"steps": steps, "outputs": int(ds.sizes["time"]),
@@ -97,7 +97,7 @@ def run(quick: bool = False, repeats: int | None = None) -> dict:
     n_segments = 250 if quick else 1000
     t_end = 1.0 if quick else 2.0
     repeats = repeats or (1 if quick else 5)
-    simulate(Case.model_validate(bare_spec(50, 0.3)))          # warm-up (imports, caches)
+    integrate(Case.model_validate(bare_spec(50, 0.3)))          # warm-up (imports, caches)
     warm_up()                                                   # the compiled kernels
     out = []
     base = None

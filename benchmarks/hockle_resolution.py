@@ -60,7 +60,7 @@ sys.path.insert(0, str(ROOT))
 
 from hockle.plots import run_events  # noqa: E402
 from solver.case import Case  # noqa: E402
-from solver.simulation import SolverDivergence, simulate  # noqa: E402
+from solver.simulation import SolverDivergence, integrate  # noqa: E402
 from solver.step_problem import ProblemAssembly  # noqa: E402
 
 CASE = ROOT / "cases" / "seabed-hockle.yaml"
@@ -103,7 +103,7 @@ def figures(spec: dict) -> dict:
     case = Case.model_validate(spec)
     t0 = time.perf_counter()
     try:
-        ds, status = simulate(case), "completed"
+        ds, status = integrate(case), "completed"
     except SolverDivergence as exc:
         ds, status = exc.partial, f"failed at {exc.t:.3g} s"
     wall = time.perf_counter() - t0
@@ -163,7 +163,7 @@ def parting(segments: int = 320, steps=(0.05, 0.025, 0.0125), t_end: float = 3.0
     for dt in steps:
         spec = spec_for(segments, dt, t_end)
         spec["output"]["fields"] = ["position"]
-        runs[dt] = simulate(Case.model_validate(spec))
+        runs[dt] = integrate(Case.model_validate(spec))
     ref = runs[steps[-1]]
     out = []
     for dt, ds in runs.items():
@@ -205,7 +205,7 @@ def lay_spec(segments: int, dt: float, t_end: float, rho_inf: float | None = Non
 def _run(spec: dict):
     """(result, status) of ``spec``: a failed run's partial result and where it failed."""
     try:
-        return simulate(Case.model_validate(spec)), "completed"
+        return integrate(Case.model_validate(spec)), "completed"
     except SolverDivergence as exc:
         return exc.partial, f"failed at {exc.t:.4g} s"
 

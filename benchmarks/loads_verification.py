@@ -22,7 +22,7 @@ import test_global_ends as G  # noqa: E402
 import test_point_loads as P  # noqa: E402
 from hockle.api import catenary_parameter  # noqa: E402
 from solver.case import Case  # noqa: E402
-from solver.simulation import simulate  # noqa: E402
+from solver.simulation import integrate  # noqa: E402
 
 
 def mattiasson():
@@ -71,7 +71,7 @@ def catenary_spec(dt=0.2, energy_tolerance=None):
 def catenary():
     L, X, D, rho, rho_f = 1.0, 0.8, 0.01, 7800.0, 1000.0
     case = Case.model_validate(catenary_spec())
-    ds = simulate(case)
+    ds = integrate(case)
     start_end = np.linalg.norm(ds.position.values[0, -1]
                                - np.asarray(case.initial.centreline.points[-1]))
     print(f"catenary, 40 segments: the start's s = L end {start_end:.2g} m from the arc's "
@@ -102,7 +102,7 @@ def tow():
                    initial={"tangent": d.tolist(), "normal": [d[2], 0.0, -d[0]]},
                    output={"fields": ["f"]})
     spec["numerics"] = {"n_segments": 20, "dt": 0.05, "t_end": 3.0, "rho_inf": 0.5}
-    ds = simulate(Case.model_validate(spec))
+    ds = integrate(Case.model_validate(spec))
     expected = 0.5 * rho_f * math.pi * D * cdt * U**2 * 1.0
     print(f"towed rod: tension at the tow point / integrated Morison drag = "
           f"{ds.f.values[-1, 0, 2] / expected:.10f}")

@@ -21,7 +21,7 @@ MoorDyn has neither torsion nor self-contact, so it cannot run the plectoneme of
 
 Timing: both codes in this process, alternating (A B A B …) over rounds after a warm-up,
 one thread each, ``os.getloadavg()`` before and after each run. hockle's wall is
-``simulate()`` with positions every 0.02 s; MoorDyn's is its ``Step`` calls, one per
+``integrate()`` with positions every 0.02 s; MoorDyn's is its ``Step`` calls, one per
 0.02 s, with the tip position read after each (its own time step inside,
 :func:`moordyn_step`). Accuracy: the tip's path, e = mean over the outputs of
 |r_tip − r_tip,ref| / L, against each code's finest run and against the other's; a
@@ -91,12 +91,12 @@ def hockle_case(n: int, dt: float, t_end: float):
 
 def run_hockle(n: int, dt: float, t_end: float) -> dict:
     """One hockle run: {"t" (T,) s, "tip" (T, 3) m from the pin, "wall" s, "status"}."""
-    from solver import SolverDivergence, simulate
+    from solver import SolverDivergence, integrate
     case = hockle_case(n, dt, t_end)
     status = "completed"
     t0 = time.perf_counter()
     try:
-        ds = simulate(case)
+        ds = integrate(case)
     except SolverDivergence as exc:
         ds, status = exc.partial, f"diverged at t = {exc.t:.3f} s"
     wall = time.perf_counter() - t0

@@ -49,7 +49,7 @@ the fairlead tension and of the touchdown point between the two codes' histories
 Timing: both codes in this process, alternating over rounds after a warm-up, one thread
 each, ``os.getloadavg()`` before and after each run; MoorDyn's wall includes its
 initial-condition solve (``Init``, dynamic relaxation) and its ``Step`` calls, hockle's is
-``simulate()``.
+``integrate()``.
 """
 from __future__ import annotations
 
@@ -236,12 +236,12 @@ def measures(t, pos, tension) -> dict:
 
 
 def run_hockle(n: int, dt: float, t_end: float) -> dict:
-    from solver import SolverDivergence, simulate
+    from solver import SolverDivergence, integrate
     case = hockle_case(n, dt, t_end)
     status = "completed"
     t0 = time.perf_counter()
     try:
-        ds = simulate(case)
+        ds = integrate(case)
     except SolverDivergence as exc:
         ds, status = exc.partial, f"diverged at t = {exc.t:.3f} s"
     wall = time.perf_counter() - t0

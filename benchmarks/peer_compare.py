@@ -29,7 +29,7 @@ Method (the section written by :func:`render` states it with the figures):
   limit), alternating hockle and PyElastica runs (A B A B …) over repeated rounds, after a
   warm-up of each (``solver.compiled.warm_up`` and a full run of each code's cheapest
   setting; PyElastica's numba compilation is its first warm-up call). Walls: hockle's
-  ``simulate()`` (positions every 0.02 s as output), PyElastica's time-step loop with the
+  ``integrate()`` (positions every 0.02 s as output), PyElastica's time-step loop with the
   position copies every 0.02 s; Wr and gaps are computed afterwards for both, untimed.
   ``os.getloadavg()`` is recorded before and after every timed run.
 * **Accuracy.** The writhe history Wr(t) over the whole run (Lk is the prescribed end
@@ -307,14 +307,14 @@ def hockle_case(n: int, dt: float, t_end: float):
 
 
 def run_hockle(n: int, dt: float, t_end: float) -> dict:
-    """One hockle run; the same dict as :func:`run_pyelastica` (wall: ``simulate()``),
+    """One hockle run; the same dict as :func:`run_pyelastica` (wall: ``integrate()``),
     plus "status" (completed, or where it diverged)."""
-    from solver import SolverDivergence, simulate
+    from solver import SolverDivergence, integrate
     case = hockle_case(n, dt, t_end)
     status = "completed"
     t0 = time.perf_counter()
     try:
-        ds = simulate(case)
+        ds = integrate(case)
     except SolverDivergence as exc:
         ds, status = exc.partial, f"diverged at t = {exc.t:.3f} s"
     wall = time.perf_counter() - t0
@@ -620,7 +620,7 @@ def render(res: dict, fig_name: str | None) -> str:
              "run of each code's cheapest setting, untimed), alternating hockle and PyElastica "
              f"settings (A B A B …) over {cfg['repeats']} rounds (settings slower than "
              f"{cfg['repeat_below_s']:g} s run in two rounds only). Wall times: hockle's "
-             "`simulate()` with positions every 0.02 s as its only output; PyElastica's "
+             "`integrate()` with positions every 0.02 s as its only output; PyElastica's "
              "time-step loop with the position copies every 0.02 s; the writhe and the gaps "
              "are computed afterwards for both codes, untimed. The PyElastica harness is the "
              "lean one (plain-float end schedules, one evaluation per call; "

@@ -75,7 +75,7 @@ def end_angle(t: float) -> float:
 
 
 def run_hockle(n: int, dt: float, t_end: float) -> dict:
-    from solver import Case, SolverDivergence, simulate
+    from solver import Case, SolverDivergence, integrate
     every = max(1, int(round(peer.OUT_DT / dt)))
     spec = pc._hockle_spec(n, dt, t_end, every,
                            end_rate_table={"t": RATE_T, "value": RATE_V},
@@ -84,7 +84,7 @@ def run_hockle(n: int, dt: float, t_end: float) -> dict:
     status = "completed"
     t0 = time.perf_counter()
     try:
-        ds = simulate(Case.model_validate(spec))
+        ds = integrate(Case.model_validate(spec))
     except SolverDivergence as exc:
         ds, status = exc.partial, f"diverged at t = {exc.t:.3f} s ({exc.reason})"
     wall = time.perf_counter() - t0

@@ -16,7 +16,7 @@ import pstats
 import time
 from pathlib import Path
 
-from solver import Case, SolverDivergence, simulate
+from solver import Case, SolverDivergence, integrate
 
 ROOT = Path(__file__).resolve().parents[1]
 SEED = ROOT / "cases" / "goyal-writhing.yaml"
@@ -33,12 +33,12 @@ def profile(t_end: float, n_segments: int | None = None, top: int = 22) -> dict:
     warm = dict(spec, numerics=dict(spec["numerics"], t_end=0.2))
     warm["numerics"].pop("ds", None)
     warm["numerics"]["n_segments"] = 20
-    simulate(Case.model_validate(warm))         # imports and caches outside the profile
+    integrate(Case.model_validate(warm))         # imports and caches outside the profile
     prof = cProfile.Profile()
     t0 = time.perf_counter()
     prof.enable()
     try:
-        ds = simulate(case)
+        ds = integrate(case)
     except SolverDivergence as exc:
         ds = exc.partial
     prof.disable()

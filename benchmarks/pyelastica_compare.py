@@ -199,15 +199,15 @@ def hockle_plectoneme_case(n, dt, t_end, out_dt=0.02, damped=True, contact=True,
 
 
 def simulate_traced(case):
-    """``solver.simulate`` of a case with its progress traced: (dataset, status, wall time
+    """``solver.integrate`` of a case with its progress traced: (dataset, status, wall time
     (s), trace (K, 2) of (simulated t, wall time) pairs). A divergence is reported in the
     status ("diverged at t = … s: reason") with the partial dataset, not raised."""
-    from solver import SolverDivergence, simulate
+    from solver import SolverDivergence, integrate
     status = "completed"
     trace = []
     t0 = time.perf_counter()
     try:
-        ds = simulate(case, progress=lambda p: trace.append((p.t, p.wall_time)))
+        ds = integrate(case, progress=lambda p: trace.append((p.t, p.wall_time)))
     except SolverDivergence as exc:        # reported, not hidden
         ds, status = exc.partial, f"diverged at t = {exc.t:.3f} s: {exc.reason}"
     wall = time.perf_counter() - t0
@@ -224,7 +224,7 @@ def wall_before(trace, t):
 
 def run_hockle_plectoneme(n, dt, t_end, out_dt=0.02, damped=True, contact=True, k3=None):
     """Run the plectoneme case with hockle. Returns a dict of (T,) time series (s, m, J,
-    turns), the final centreline (N+1, 3) m, the wall time (s, simulate() only) and step
+    turns), the final centreline (N+1, 3) m, the wall time (s, integrate() only) and step
     counts."""
     case = hockle_plectoneme_case(n, dt, t_end, out_dt, damped, contact, k3)
     ds, status, wall, trace = simulate_traced(case)
@@ -273,7 +273,7 @@ G_FACTORS = (1.02, 1.04, 1.06, 1.08)
 def hockle_greenhill(n, factor, dt=0.01):
     """hockle Greenhill run at end rotation factor·φ_cr. Returns (t (T,) s, lateral (T,) m,
     wall s, steps)."""
-    from solver import Case, simulate
+    from solver import Case, integrate
     rate, _ = _sin2_rate(factor * PHI_CR, G_RAMP)
     tt = np.linspace(0.0, G_RAMP, 401)
     k = int(round(G_PUSH_LEN / dt))
@@ -285,7 +285,7 @@ def hockle_greenhill(n, factor, dt=0.01):
                         fluid=False, forces=forces, contact=False, fields=["position"])
     spec["numerics"]["newton"] = {"tolerance": 1e-11, "max_iterations": 30}
     t0 = time.perf_counter()
-    ds = simulate(Case.model_validate(spec))
+    ds = integrate(Case.model_validate(spec))
     wall = time.perf_counter() - t0
     return ds.time.values, lateral(ds.position.values), wall, int(ds.sizes["step"])
 
@@ -1067,7 +1067,7 @@ def render_section(res, names):
                  "wall times are the time-step loop with the state copies of its callback; "
                  "Tw/Wr/gaps are computed afterwards (median "
                  f"{statistics.median([r['post_wall'] for r in _pe_runs(res, 'setting')]):.2f}"
-                 " s a run, not counted). hockle's are `simulate()`, which includes its Tw/Wr "
+                 " s a run, not counted). hockle's are `integrate()`, which includes its Tw/Wr "
                  "at every output.")
         L.append("")
     # runs table

@@ -28,7 +28,7 @@ import time
 
 import numpy as np
 
-from solver import Case, simulate
+from solver import Case, integrate
 
 D = 0.02
 CLAMPED = {"translation": [{"velocity": 0}] * 3, "rotation": [{"angular_velocity": 0}] * 3}
@@ -93,13 +93,13 @@ def cases_side_by_side(repeats: int):
     for _, case in loaded:               # warm-up: kernels loaded, a few steps
         short = case.model_copy(deep=True)
         short.numerics.t_end = 5 * short.numerics.dt
-        simulate(short)
+        integrate(short)
     walls = {label: [] for label, _ in loaded}
     info = {}
     for _ in range(repeats):
         for label, case in loaded:
             t0 = time.perf_counter()
-            ds = simulate(case)
+            ds = integrate(case)
             walls[label].append(time.perf_counter() - t0)
             info[label] = (ds.attrs.get("hockle_status", "?"), float(ds["time"].values[-1]),
                            int(ds["step_newton_iterations"].sum())

@@ -16,7 +16,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from seed_events import events  # noqa: E402
 
-from solver import Case, SolverDivergence, simulate  # noqa: E402
+from solver import Case, SolverDivergence, integrate  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 BASE = ROOT / "cases" / "goyal-writhing.yaml"
@@ -58,7 +58,7 @@ def main() -> None:
     for name in args.variants.split(","):
         t0 = time.perf_counter()
         try:
-            ds = simulate(variant(name, args.t_end))
+            ds = integrate(variant(name, args.t_end))
         except SolverDivergence as exc:
             ds = exc.partial
         ev = events(ds)

@@ -57,9 +57,9 @@ def hold_case(tension, n_segments=100, dt=0.02, t_end=8.0, push=1e-5):
 
 
 def lateral_history(tension, **kw):
-    from solver.simulation import simulate
+    from solver.simulation import integrate
 
-    ds = simulate(hold_case(tension, **kw))
+    ds = integrate(hold_case(tension, **kw))
     t = ds.time.values
     lateral = np.linalg.norm(ds.position.values[:, :, :2], axis=2).max(axis=1)
     return t, lateral, ds

@@ -43,7 +43,7 @@ sys.path.insert(0, str(HERE))
 
 from work_precision import seed_observables  # noqa: E402
 
-from solver import Case, simulate  # noqa: E402
+from solver import Case, integrate  # noqa: E402
 
 ROOT = HERE.parent
 RESULTS = HERE / "results" / "seed_tolerance.json"
@@ -77,7 +77,7 @@ def measure(spec: dict) -> dict:
     """Run a spec; return wall time, steps, Newton iterations and the events (s)."""
     case = Case.model_validate(spec)
     t0 = time.perf_counter()
-    ds = simulate(case)
+    ds = integrate(case)
     wall = time.perf_counter() - t0
     t = ds.time.values
     wr = np.abs(np.nan_to_num(ds.writhe.values))

@@ -59,7 +59,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import brentq
 
-from solver import Case, SolverDivergence, simulate
+from solver import Case, SolverDivergence, integrate
 from solver import simulation as _simulation
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -238,7 +238,7 @@ def run_one(dt: float, rho_inf: float) -> dict:
     t0 = time.perf_counter()
     with counting_attempts() as counts:
         try:
-            ds = simulate(case)
+            ds = integrate(case)
             res["outcome"] = "completed"
         except SolverDivergence as exc:
             ds = exc.partial

@@ -102,10 +102,10 @@ def run_once(case) -> dict:
     """One timed ``simulate`` of a case: wall and CPU time (s), accepted steps, refused
     attempts, Newton
     iterations, and the run's result dataset."""
-    from solver import SolverDivergence, simulate
+    from solver import SolverDivergence, integrate
     t0, c0 = time.perf_counter(), time.process_time()
     try:
-        ds = simulate(case)
+        ds = integrate(case)
         status = "completed"
     except SolverDivergence as exc:
         ds, status = exc.partial, f"diverged at t = {exc.t:.4g} s"

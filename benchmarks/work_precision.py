@@ -54,7 +54,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import brentq, least_squares, minimize_scalar
 
-from solver import Case, SolverDivergence, simulate
+from solver import Case, SolverDivergence, integrate
 
 ROOT = Path(__file__).resolve().parents[1]
 SEED = ROOT / "cases" / "goyal-writhing.yaml"
@@ -185,7 +185,7 @@ def timed_simulate(spec: dict, repeats: int) -> tuple[object, float, list[float]
     while True:
         t0 = time.perf_counter()
         try:
-            ds = simulate(case)
+            ds = integrate(case)
         except SolverDivergence as exc:
             walls.append(time.perf_counter() - t0)
             return exc.partial, walls[-1], walls, f"failed: {exc.reason} at t = {exc.t:.3g} s"
@@ -739,7 +739,7 @@ def history_figure(runs: list[dict], ref: dict, n_sweep: int, path: Path) -> Non
 def run(quick: bool = False, recompute_reference: bool = False) -> dict:
     t_start = time.perf_counter()
     repeats = 1 if quick else 3
-    simulate(Case.model_validate(dict(Vibration().spec(8, 0.1, 0.5),
+    integrate(Case.model_validate(dict(Vibration().spec(8, 0.1, 0.5),
                                       numerics={"n_segments": 8, "dt": 0.1, "t_end": 0.3})))
     results = {"quick": quick, "repeats": repeats, "repeat_below_s": REPEAT_BELOW_S,
                "problems": {}}

@@ -135,7 +135,7 @@ def _write_api_reference() -> None:
     lines = ["# API reference", "",
              "Generated from the docstrings (array shapes, units, errors raised, sources).",
              "", "## Entry points", "", "```{eval-rst}", ".. autosummary::", "",
-             "   solver.simulate", "   solver.Case", "   solver.SolverDivergence",
+             "   hockle.api.simulate", "   solver.Case", "   solver.SolverDivergence",
              "   service.client.HockleClient", "```", ""]
     for package in ("solver", "hockle", "service", "worker"):
         mod = importlib.import_module(package)

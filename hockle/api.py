@@ -14,9 +14,9 @@ add distributed loads written as Python functions, and run sweeps on the local c
     ds = simulate(case, callbacks=[rec, stop])                  # the result dataset
     grid = sweep(case, {"boundary.end.translation.2.force": [0.1, 0.5, 1.0]})
 
-:func:`simulate` is :func:`solver.simulate` with its ``observer`` hook (the callbacks) and
-its ``extra_force`` hook (the loads): the same time loop, steps, outputs, checkpoints and
-result dataset.
+:func:`simulate`, hockle's one ``simulate``, is :func:`solver.integrate` with its
+``observer`` hook (the callbacks) and its ``extra_force`` hook (the loads): the same time
+loop, steps, outputs, checkpoints and result dataset.
 """
 from __future__ import annotations
 
@@ -274,7 +274,7 @@ class DistributedLoad:
 # a force on the rod that the case never had, so that the run assembles global-frame
 # distributed loads (needs_pose, the work of distributed forces); removed at once
 class _LoadSum:
-    """The ``extra_force`` hook of :func:`solver.simulate`: the sum of the user's loads at
+    """The ``extra_force`` hook of :func:`solver.integrate`: the sum of the user's loads at
     time t, with the :class:`State` of the run's last accepted step for state-aware ones."""
 
     def __init__(self, loads: Sequence["DistributedLoad"]):
@@ -291,7 +291,7 @@ class _LoadSum:
 
 
 class _CallbackSet:
-    """The ``observer`` hook of :func:`solver.simulate`: the callbacks that are due, in
+    """The ``observer`` hook of :func:`solver.integrate`: the callbacks that are due, in
     order; the first that asks to stop stops the run (with its reason)."""
 
     def __init__(self, callbacks: Sequence["Callback"]):
@@ -335,11 +335,11 @@ def simulate(case, callbacks: Iterable[Any] = (), loads: Iterable[Any] = (),
     (global frame) added to the case's distributed forces; the dataset then has
     ``hockle_custom_loads`` naming them (its ``case`` alone no longer reproduces the run).
     ``progress``, ``should_stop`` and the other options (``checkpoint``,
-    ``checkpoint_interval``, ``resume``) are :func:`solver.simulate`'s; with loads a
+    ``checkpoint_interval``, ``resume``) are :func:`solver.integrate`'s; with loads a
     checkpoint needs picklable (module-level) load functions. Raises ``SolverDivergence``
-    (with ``.partial``) as :func:`solver.simulate` does.
+    (with ``.partial``) as :func:`solver.integrate` does.
     """
-    from solver.simulation import simulate as solver_simulate
+    from solver.simulation import integrate
 
     case = _as_case(case)
     callbacks = [_as_callback(c) for c in callbacks]
@@ -352,7 +352,7 @@ def simulate(case, callbacks: Iterable[Any] = (), loads: Iterable[Any] = (),
             and solver_options.get("resume") is None):
         from .io import read_start_state
         solver_options["start"] = read_start_state(case)    # CaseError naming the field
-    ds = solver_simulate(case, progress=progress, should_stop=should_stop,
+    ds = integrate(case, progress=progress, should_stop=should_stop,
                          observer=_CallbackSet(callbacks) if callbacks else None,
                          extra_force=_LoadSum(loads) if loads else None, **solver_options)
     if loads:
@@ -537,11 +537,11 @@ def _run_member(case_json: str, out_path: str) -> tuple[str, str]:
     from hockle.io import write_netcdf
     from solver.case import Case
     from solver.simulation import SolverDivergence
-    from solver.simulation import simulate as solver_simulate
+    from solver.simulation import integrate
 
     case = Case.model_validate_json(case_json)
     try:
-        ds = solver_simulate(case)
+        ds = integrate(case)
     except SolverDivergence as exc:
         if exc.partial is not None:
             write_netcdf(exc.partial, out_path)

@@ -333,7 +333,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     out = Path(args.output) if args.output else Path(Path(args.case).stem + ".nc")
 
     from solver.checkpoint import Checkpoint, CheckpointError
-    from solver.simulation import SolverDivergence, simulate
+    from solver.simulation import SolverDivergence, integrate
 
     resume = None
     if args.resume:
@@ -386,7 +386,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             )
         try:
             with _ProgressBar(case.name, case.numerics.t_end, enabled=not args.quiet) as bar:
-                ds = simulate(case, progress=bar.update, should_stop=interrupt.should_stop,
+                ds = integrate(case, progress=bar.update, should_stop=interrupt.should_stop,
                               checkpoint=keep if ck_path else None,
                               checkpoint_interval=args.checkpoint_every, resume=resume,
                               start=start)

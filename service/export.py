@@ -49,7 +49,7 @@ def export_vtk(ds: xr.Dataset, out: str | Path, *, stride: int = 1,
     Parameters
     ----------
     ds : xarray.Dataset
-        A result of :func:`solver.simulate` or ``hockle run`` (``hockle.io.open_result``);
+        A result of :func:`hockle.api.simulate` or ``hockle run`` (``hockle.io.open_result``);
         it must hold ``position`` (time, s, xyz) in m.
     out : path
         The ``.pvd`` collection to write; the frames go to ``<stem>/<stem>_NNNNN.vtu``

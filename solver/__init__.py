@@ -2,7 +2,10 @@
 
 Pure numerics: no I/O, no web or queue imports. Public API (docs/interfaces.md, "Python API")::
 
-    from solver import Case, simulate, SolverDivergence, Progress, warm_up
+    from solver import Case, integrate, SolverDivergence, Progress, warm_up
+
+``integrate`` is the time loop on a validated ``Case``; ``hockle.api.simulate`` is the
+public ``simulate`` on top of it (any case form, callbacks, loads in Python).
 
 Names are resolved lazily so that importing :mod:`solver.case` alone (as the service's
 API process does) does not import the numerics.
@@ -39,7 +42,7 @@ if "NUMBA_THREADING_LAYER" not in _os.environ:
 _LAZY = {
     "Case": ("solver.case", "Case"),
     "CaseError": ("solver.case", "CaseError"),
-    "simulate": ("solver.simulation", "simulate"),
+    "integrate": ("solver.simulation", "integrate"),
     "SolverDivergence": ("solver.simulation", "SolverDivergence"),
     "Progress": ("solver.simulation", "Progress"),
     "warm_up": ("solver.compiled", "warm_up"),

@@ -640,7 +640,7 @@ class FromResult(BaseModel):
     is never read over HTTP), or ``job``, the id of an earlier successful job of the same
     owner (resolved by the service only). Exactly one of the two. The solver itself reads
     nothing: the caller reads the state (:func:`hockle.io.read_start_state`, the service's
-    :func:`service.validation.start_from_job`) and hands it to :func:`solver.simulate`."""
+    :func:`service.validation.start_from_job`) and hands it to :func:`solver.integrate`."""
 
     model_config = _MODEL_CONFIG
 

@@ -1,11 +1,11 @@
-"""Checkpoints of a run: everything :func:`solver.simulate` needs to continue bit for bit.
+"""Checkpoints of a run: everything :func:`solver.integrate` needs to continue bit for bit.
 
 A :class:`Checkpoint` holds the run (:class:`solver.run.RodRun`: its state, step control,
 Newton's factorisation and counters, pickled whole, so that this module needs to know
 nothing of the step logic and imports nothing of the solver), the output records and step diagnostics kept so far,
 the number of accepted steps, and the case it belongs to. :meth:`Checkpoint.dumps` /
 :meth:`Checkpoint.loads` turn it into bytes and back; the solver itself does no I/O: the
-caller of ``simulate(..., checkpoint=...)`` decides where the bytes go (``hockle run
+caller of ``integrate(..., checkpoint=...)`` decides where the bytes go (``hockle run
 --checkpoint``, the service's result store).
 
 The bytes are a header line (format name, version, case hash) and a pickle of the

@@ -262,7 +262,7 @@ class LoadModel:
     props : solver.properties.RodProperties
     extra : callable(t, owner) -> (N+1, 3) array or None, optional
         A further global-frame distributed force (N/m) written as code (in-process runs:
-        ``simulate(..., extra_force=...)``), evaluated like the case's forces at every
+        ``integrate(..., extra_force=...)``), evaluated like the case's forces at every
         Newton iterate's time level; ``owner`` (the :class:`~solver.simulation.RodRun`) is
         handed to it so that it may read the last accepted state. None: the case's loads
         only.

@@ -1,6 +1,6 @@
 """What a run keeps: the output records, the per-step diagnostics, progress and checkpoints.
 
-:class:`Recorder` is the output side of :func:`solver.simulation.simulate`: it takes the
+:class:`Recorder` is the output side of :func:`solver.simulation.integrate`: it takes the
 run's state at the output times (:func:`snapshot`, or inside an error-controlled step its
 dense output, :func:`interpolated_snapshot`), the diagnostics of every accepted step, calls
 the caller's progress, checkpoint and observer hooks, and builds the result dataset
@@ -294,7 +294,7 @@ def interpolated_snapshot(run, fields: set, t: float, start) -> dict:
 
 # ------------------------------------------------------------------------------ recorder
 class Recorder:
-    """The records, diagnostics and hooks of one :func:`solver.simulation.simulate` call.
+    """The records, diagnostics and hooks of one :func:`solver.simulation.integrate` call.
 
     Parameters
     ----------
@@ -302,7 +302,7 @@ class Recorder:
     run : solver.run.RodRun
     hooks : dict
         ``progress``, ``should_stop``, ``checkpoint``, ``checkpoint_interval`` (s),
-        ``observer`` as :func:`solver.simulation.simulate` takes them.
+        ``observer`` as :func:`solver.simulation.integrate` takes them.
     resume : solver.checkpoint.Checkpoint or None
         The checkpoint the run continues from, as the caller gave it.
     state : solver.checkpoint.Checkpoint or None

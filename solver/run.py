@@ -12,7 +12,7 @@
   contact candidates from :class:`solver.contact.search.CandidateSearch`), handed to
   Newton (:class:`solver.newton.Newton`).
 
-:func:`solver.simulation.simulate` drives it; tests and benchmarks use it to reach the
+:func:`solver.simulation.integrate` drives it; tests and benchmarks use it to reach the
 state between steps.
 """
 from __future__ import annotations
@@ -45,7 +45,7 @@ __all__ = ["RodRun"]
 
 
 class RodRun(ProblemAssembly):
-    """The state of one run, its step control, and one step; :func:`simulate` drives it.
+    """The state of one run, its step control, and one step; :func:`solver.integrate` drives it.
 
     Exposed for tests and benchmarks that need the state between steps.
 
@@ -55,7 +55,7 @@ class RodRun(ProblemAssembly):
     extra_force : callable(t, run) -> (N+1, 3) or None, optional
         A further global-frame distributed force, N/m (:class:`solver.loads.LoadModel`).
     start : solver.initial.StartState or None, optional
-        The state to start from (:func:`solver.simulation.simulate`); None: the case's
+        The state to start from (:func:`solver.simulation.integrate`); None: the case's
         initial configuration.
     """
 

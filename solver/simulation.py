@@ -1,4 +1,8 @@
-"""The time loop: ``simulate(case) -> xarray.Dataset`` (docs/interfaces.md, "Python API").
+"""The time loop: ``integrate(case) -> xarray.Dataset`` (docs/interfaces.md, "Python API").
+
+:func:`integrate` integrates a validated case in time with the solver's own hooks;
+:func:`hockle.api.simulate`, the public ``simulate``, takes a case in any form, reads an
+``initial.from_result`` file and adds callbacks and loads written in Python on top of it.
 
 The loop builds the run (:class:`solver.run.RodRun`: the state, the step control, the
 step's problem), steps it to each output time, records, and finishes (:mod:`solver.
@@ -28,14 +32,14 @@ from .initial import start_step
 from .run import RodRun
 from .stepping.control import SolverDivergence
 
-__all__ = ["simulate", "SolverDivergence", "Progress", "RodRun", "RateEstimate",
+__all__ = ["integrate", "SolverDivergence", "Progress", "RodRun", "RateEstimate",
            "EtaModel"]
 
 
-def simulate(case, progress=None, should_stop=None, checkpoint=None,
-             checkpoint_interval=300.0, resume=None, observer=None, extra_force=None,
-             start=None):
-    """Run a case and return its result dataset (docs/interfaces.md, "Result dataset").
+def integrate(case, progress=None, should_stop=None, checkpoint=None,
+              checkpoint_interval=300.0, resume=None, observer=None, extra_force=None,
+              start=None):
+    """Integrate a case in time and return its result dataset (docs/interfaces.md, "Result dataset").
 
     Parameters
     ----------
@@ -106,7 +110,7 @@ def _blas_controller():
 
 def _simulate(case, progress, should_stop, checkpoint=None, checkpoint_interval=300.0,
               resume=None, observer=None, extra_force=None, start=None):
-    """:func:`simulate` under the BLAS thread limit: build (or resume) the run, then step
+    """:func:`integrate` under the BLAS thread limit: build (or resume) the run, then step
     it with fixed or error-controlled steps."""
     wall0 = _time.perf_counter()
     hooks = dict(progress=progress, should_stop=should_stop, checkpoint=checkpoint,

@@ -1,5 +1,5 @@
 """hockle.api: callbacks at a cadence that may stop a run, custom distributed loads, the case
-builders, and the local sweep runner; each against the solver's own simulate or the case
+builders, and the local sweep runner; each against the solver's own time loop (solver.integrate) or the case
 spec's own loads."""
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ from hockle.api import (
     sweep,
     twisted,
 )
-from solver import simulate as solver_simulate
+from solver import integrate
 
 KW = dict(start=twisted(1.0), end=sliding(0.0), n_segments=20, dt=0.02, t_end=0.4)
 
@@ -48,12 +48,12 @@ def test_callbacks_watch_without_changing_the_run():
         state.position, state.kappa, state.writhe, state.energies  # noqa: B018 - read them
         return np.zeros(3)           # not True or a string: ignored
 
-    _identical(solver_simulate(case), simulate(case, callbacks=[look]))
+    _identical(integrate(case), simulate(case, callbacks=[look]))
     assert seen[0] == (0, 0.0) and len(seen) == 21 and seen[-1][1] == pytest.approx(0.4)
 
     adaptive = make_case("adaptive", **KW,
                          numerics={"tolerance": {"relative": 1e-2, "absolute": 1e-6}})
-    _identical(solver_simulate(adaptive), simulate(adaptive, callbacks=[look]))
+    _identical(integrate(adaptive), simulate(adaptive, callbacks=[look]))
 
 
 def test_cadence_in_steps_and_in_simulated_time():
@@ -97,7 +97,7 @@ def test_custom_loads_are_the_case_loads_written_as_code():
     nothing."""
     plain = make_case("plain", **KW)
     force = [1e-2, 0.0, 0.0]
-    _identical(solver_simulate(make_case("f", distributed_forces=[{"value": force}], **KW)),
+    _identical(integrate(make_case("f", distributed_forces=[{"value": force}], **KW)),
                _without_attr(simulate(plain, loads=[lambda t, s: force])), rtol=1e-10)
     window = make_case("w", distributed_forces=[{"value": force, "s_range": [0.25, 0.75]}], **KW)
 
@@ -107,8 +107,8 @@ def test_custom_loads_are_the_case_loads_written_as_code():
 
     ds = simulate(plain, loads=[DistributedLoad(windowed, name="window")])
     assert ds.attrs["hockle_custom_loads"] == "window"
-    _identical(solver_simulate(window), _without_attr(ds), rtol=1e-10)
-    _identical(solver_simulate(plain),
+    _identical(integrate(window), _without_attr(ds), rtol=1e-10)
+    _identical(integrate(plain),
                _without_attr(simulate(plain, loads=[lambda t, s: np.zeros((s.size, 3))])))
 
     # a state-aware load (a spring back to the axis) runs and pulls the rod back
@@ -158,7 +158,7 @@ def test_local_sweep_runs_and_combines():
     assert ds["writhe"].dims == ("boundary.end.translation.2.force",
                                  "boundary.start.rotation.2.angular_velocity", "time")
     assert (ds["member_status"].values == "successful").all()
-    alone = solver_simulate(make_case("alone", **{**KW, "t_end": 0.1, "end": sliding(1.0),
+    alone = integrate(make_case("alone", **{**KW, "t_end": 0.1, "end": sliding(1.0),
                                                   "start": twisted(2.0)}))
     cell = ds.isel({"boundary.end.translation.2.force": 1,
                     "boundary.start.rotation.2.angular_velocity": 1})

@@ -16,7 +16,7 @@ from hockle.plots import event_times
 from solver.case import Case, CaseError
 from solver.kinematics import min_bend_radius
 from solver.results import build_dataset, run_events
-from solver.simulation import simulate
+from solver.simulation import integrate
 
 E, D = 1.25e7, 0.02
 EI = E * np.pi * D**4 / 64
@@ -66,7 +66,7 @@ def test_an_arc_held_by_its_end_moment_has_its_radius():
                      n_segments=40, dt=0.01, t_end=0.1,
                      initial={"centreline": circular_arc(1.0, R)},
                      output={"fields": ["kappa", "bend_radius"]})
-    ds = simulate(case)
+    ds = integrate(case)
     radius = ds["bend_radius_min"].values
     assert ds["bend_radius_min"].attrs["units"] == "m"
     assert np.abs(radius / R - 1).max() < 1e-4, radius
@@ -92,7 +92,7 @@ def test_mbr_event_fires_when_the_end_moment_bends_the_rod_below_it():
                               {"moment": 0}]),
                      n_segments=10, dt=0.01, t_end=2.0,
                      output={"fields": ["kappa", "bend_radius"], "every": 5})
-    ds = simulate(_with_mbr(case, X))
+    ds = integrate(_with_mbr(case, X))
     t = ds.time.values
     radius = ds["bend_radius_min"].values
     M = np.interp(t, [0.0, t_ramp], [0.0, M1])
@@ -106,7 +106,7 @@ def test_mbr_event_fires_when_the_end_moment_bends_the_rod_below_it():
     labels = [label for _, label in event_times(ds)]
     assert "MBR below 0.4 m" in labels
     # without the MBR in the case there is no such event
-    assert "bend_radius_below_mbr" not in run_events(simulate(case))
+    assert "bend_radius_below_mbr" not in run_events(integrate(case))
 
 
 def _series(case, **series):

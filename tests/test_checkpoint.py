@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rodcases import clamped_end, free_end, make_case
-from solver import simulate
+from solver import integrate
 from solver.checkpoint import Checkpoint, CheckpointError, resume_key
 from test_contact_run import fast_writhing_case
 
@@ -20,7 +20,7 @@ def run_with_checkpoint_at(case, t_pick):
         if "data" not in saved and ck.t >= t_pick:
             saved["data"] = ck.dumps()
 
-    ds = simulate(case, checkpoint=keep, checkpoint_interval=0.0)
+    ds = integrate(case, checkpoint=keep, checkpoint_interval=0.0)
     return ds, saved["data"]
 
 
@@ -40,16 +40,16 @@ def test_resume_in_contact_repeats_the_run_bit_for_bit():
     ck = Checkpoint.loads(data, case)
     assert ck.run.contact_count > 0                      # in contact at the checkpoint
     steps_before = ck.step
-    resumed = simulate(case, resume=ck)
+    resumed = integrate(case, resume=ck)
     assert_identical(full, resumed)
     assert resumed.attrs["hockle_resumed_at"] == pytest.approx(ck.t)
     # nothing before the checkpoint was recomputed: the resumed run took the remaining steps
     assert resumed.sizes["step"] == full.sizes["step"] and steps_before > 0
     # the checkpoint object is untouched by the resume (another resume gives the same)
-    assert_identical(full, simulate(case, resume=ck))
+    assert_identical(full, integrate(case, resume=ck))
     # a checkpoint pickled before the step's data were one StepTerms resumes the same
     assert ck.run.system.step.candidates is not None
-    assert_identical(full, simulate(case, resume=Checkpoint.loads(old_layout(ck), case)))
+    assert_identical(full, integrate(case, resume=Checkpoint.loads(old_layout(ck), case)))
 
 
 def old_layout(ck) -> bytes:
@@ -81,7 +81,7 @@ def test_resume_of_an_error_controlled_run():
     spec["output"]["interval"] = 0.05
     case = type(case).model_validate(spec)
     full, data = run_with_checkpoint_at(case, 0.12)
-    resumed = simulate(case, resume=Checkpoint.loads(data, case))
+    resumed = integrate(case, resume=Checkpoint.loads(data, case))
     assert_identical(full, resumed)
 
 
@@ -93,7 +93,7 @@ def test_bad_checkpoints_are_refused_with_the_reason():
     with pytest.raises(CheckpointError, match="another case"):
         Checkpoint.loads(data, other)
     with pytest.raises(CheckpointError, match="another case"):
-        simulate(other, resume=Checkpoint.loads(data))
+        integrate(other, resume=Checkpoint.loads(data))
     with pytest.raises(CheckpointError, match="not a hockle checkpoint"):
         Checkpoint.loads(b"\x89HDF\r\n\x1a\n garbage")
     with pytest.raises(CheckpointError, match="version"):
@@ -105,16 +105,16 @@ def test_a_stopped_run_leaves_a_checkpoint_that_finishes_it(tmp_path):
     handed out at the stop continues to the uninterrupted result."""
     load = [{"value": [0.0, 1.0, 0.0], "start": 0.0}]
     case = make_case(n_segments=8, dt=0.01, t_end=0.2, end=free_end(), forces=load)
-    full = simulate(case)
+    full = integrate(case)
     saved = []
     steps = []
-    part = simulate(case, progress=lambda p: steps.append(p.step),
+    part = integrate(case, progress=lambda p: steps.append(p.step),
                     should_stop=lambda: len(steps) >= 7,
                     checkpoint=lambda ck: saved.append(ck.dumps()), checkpoint_interval=1e9)
     assert part.attrs["hockle_status"] == "stopped" and len(saved) == 1
     ck = Checkpoint.loads(saved[0], case)
     assert ck.step == 7 and ck.t == pytest.approx(0.07)
-    assert_identical(full, simulate(case, resume=ck))
+    assert_identical(full, integrate(case, resume=ck))
 
 
 def test_a_checkpoint_of_an_older_solver_is_refused_with_the_reason():

@@ -24,7 +24,7 @@ from service.settings import DatasetMetadata
 from solver.case import Case
 from solver.results import (DIAGNOSTIC_VARIABLES, FIELD_VARIABLES, METADATA_ATTRIBUTES,
                             apply_metadata)
-from solver.simulation import simulate
+from solver.simulation import integrate
 
 ALL_FIELDS = ["v", "omega", "f", "kappa", "moment", "position", "orientation", "energies",
               "topology", "contact", "reactions", "bend_radius"]
@@ -85,7 +85,7 @@ def test_every_metadata_attribute_is_a_setting():
 
 @pytest.fixture(scope="module")
 def result_file(tmp_path_factory):
-    ds = simulate(Case.model_validate(CASE))
+    ds = integrate(Case.model_validate(CASE))
     assert set(FIELD_VARIABLES) <= set(ds.data_vars), "the tiny run must have every field"
     apply_metadata(ds, DatasetMetadata(**OPERATOR).dataset_metadata(),
                    dataset_id="3f0c9a52-6f0e-4d8e-9a57-0d7f1f3b2c11")

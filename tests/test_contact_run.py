@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from solver import Case, simulate
+from solver import Case, integrate
 from solver.simulation import RodRun
 
 SEED = Path(__file__).resolve().parents[1] / "cases" / "goyal-writhing.yaml"
@@ -46,7 +46,7 @@ def check_topology_and_gaps(ds):
 
 
 def test_buckling_collapse_and_first_contact():
-    ds = simulate(fast_writhing_case(6.8))
+    ds = integrate(fast_writhing_case(6.8))
     check_topology_and_gaps(ds)
     assert int(ds.contact_count.max()) > 0
     first = float(ds.time[np.argmax(ds.contact_count.values > 0)])
@@ -57,7 +57,7 @@ def test_buckling_collapse_and_first_contact():
 
 @pytest.mark.slow
 def test_intertwining_to_writhe_above_two():
-    ds = simulate(fast_writhing_case(10.0))
+    ds = integrate(fast_writhing_case(10.0))
     check_topology_and_gaps(ds)
     assert float(ds.writhe.max()) > 2.0
     assert int(ds.contact_count[-1]) > 20
@@ -294,11 +294,11 @@ def test_position_tolerance_bounds_the_error_of_every_contact_step(monkeypatch):
     spec["contact"]["position_tolerance"] = None
     spec["numerics"]["energy_tolerance"] = None
     assert RodRun(Case.model_validate(spec)).route_tolerance == pytest.approx(0.005)
-    simulate(Case.model_validate(spec))
+    integrate(Case.model_validate(spec))
     assert max(errors) > 1e-3
     spec["contact"]["position_tolerance"] = 2e-4
     errors.clear()
-    ds = simulate(Case.model_validate(spec))
+    ds = integrate(Case.model_validate(spec))
     assert ds.attrs["hockle_status"] == "completed"
     assert errors and max(errors) <= 2e-4
 
@@ -323,7 +323,7 @@ def test_fixed_contact_steps_take_their_size_from_the_route_ratio(monkeypatch):
 
     monkeypatch.setattr(RodRun, "try_step", recording)
     case = fast_writhing_case(6.6)
-    ds = simulate(case)
+    ds = integrate(case)
     check_topology_and_gaps(ds)
     contact_ok = [a for a in attempts if a["ok"] and a["cand"]]
     assert len(contact_ok) > 10
@@ -452,7 +452,7 @@ def test_a_step_leaving_the_end_beyond_its_drift_tolerance_ends_the_run():
     spec["contact"]["end_drift_tolerance"] = 0.005
     case = Case.model_validate(spec)
     with pytest.raises(SolverDivergence) as info:
-        simulate(case)
+        integrate(case)
     err = info.value
     assert err.reason == "solver_diverged"
     assert "contact.end_drift_tolerance = 5 mm" in str(err)
@@ -478,7 +478,7 @@ def test_held_end_stays_on_its_axis_through_the_collapse(monkeypatch):
     docs/contact.md § 4). With it the coarse run completes and the end stays within a
     step's route difference of its axis (observed: 14 mm at most in the collapse, 3.8 mm
     after it)."""
-    ds = simulate(plectoneme_case(25, 0.1))
+    ds = integrate(plectoneme_case(25, 0.1))
     assert ds.attrs["hockle_status"] == "completed"
     t, off = ds.time.values, _end_offset(ds)
     assert off.max() < 0.025
@@ -491,7 +491,7 @@ def test_held_end_stays_on_its_axis_through_the_collapse(monkeypatch):
     assert "drift" not in ds.attrs["hockle_refused_attempts"]
     # the same case at Δt = 0.05 s without the correction: the drift it removes
     monkeypatch.setattr(RodRun, "DRIFT_GAIN", None)
-    ds = simulate(plectoneme_case(25, 0.05))
+    ds = integrate(plectoneme_case(25, 0.05))
     t, off = ds.time.values, _end_offset(ds)
     assert off[t > 7.5].max() > 0.02
 
@@ -675,7 +675,7 @@ def test_end_correction_keeps_second_order():
         spec["boundary"]["end"]["rotation"][2] = {"angular_velocity": 0.0}
         spec["fluid"] = None
         spec["output"] = {"every": int(round(1.0 / dt)), "fields": ["position"]}
-        ds = simulate(Case.model_validate(spec))
+        ds = integrate(Case.model_validate(spec))
         assert ds.attrs["hockle_status"] == "completed"
         finals.append(ds.position.values[-1])
     assert np.abs(finals[-1][:, 0]).max() > 0.05          # a large, smooth bend
@@ -701,14 +701,14 @@ def test_a_fixed_step_run_whose_writhe_crosses_the_closure_carries_a_warning():
     every step passing its checks (docs/numerics.md § 6): the run completes, and its
     result says so (``hockle_warning``). At its own Δt over the same window it does not
     cross, and carries no warning."""
-    coarse = simulate(thin_plectoneme_case(0.2, 10.0))
+    coarse = integrate(thin_plectoneme_case(0.2, 10.0))
     assert coarse.attrs["hockle_status"] == "completed"
     assert coarse["writhe_closure_passages"].values.max() == 1.0
     warning = coarse.attrs["hockle_warning"]
     assert "crossed the closure of the end tangents 1 time," in warning
     first = float(re.search(r"first by t = ([0-9.]+) s", warning).group(1))
     assert 9.0 <= first <= 10.0 and "numerics.tolerance" in warning
-    fine = simulate(thin_plectoneme_case(0.02, 10.0))
+    fine = integrate(thin_plectoneme_case(0.02, 10.0))
     assert fine["writhe_closure_passages"].values.max() == 0.0
     assert "hockle_warning" not in fine.attrs
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from rodcases import free_end, make_case, smooth_pulse_table
-from solver.simulation import simulate
+from solver.simulation import integrate
 
 FLUID = {"density": 1000.0, "added_mass_coefficient": 1.0,
          "drag_coefficient_normal": 1.0, "drag_coefficient_tangential": 0.05}
@@ -28,7 +28,7 @@ def tip_case(n_segments, dt, rho_inf):
 
 
 def final_positions(n_segments, dt, rho_inf):
-    ds = simulate(tip_case(n_segments, dt, rho_inf))
+    ds = integrate(tip_case(n_segments, dt, rho_inf))
     assert ds.attrs["hockle_status"] == "completed"
     return ds.position.isel(time=-1).values
 

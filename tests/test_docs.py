@@ -52,7 +52,7 @@ def test_docs_build_offline_with_warnings_as_errors(tmp_path):
         cwd=ROOT, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stdout[-5000:] + done.stderr[-5000:]
     api = (out / "_generated" / "api.html").read_text()
-    for name in ("solver.simulate", "solver.Case", "HockleClient"):
+    for name in ("hockle.api.simulate", "solver.Case", "HockleClient"):
         assert name in api, name
     gallery = {p.stem for p in (out / "auto_examples").glob("*.html")}
     assert {p.stem for p in (ROOT / "examples").glob("*.py")} <= gallery

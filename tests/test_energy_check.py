@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from solver.case import Case, Numerics
-from solver.simulation import RodRun, simulate
+from solver.simulation import RodRun, integrate
 
 E, G, RHO, D, L = 2.1e11, 8.1e10, 7850.0, 0.01, 1.0
 EI = E * math.pi * D**4 / 64
@@ -73,7 +73,7 @@ def test_injecting_steps_are_refused_and_the_cantilever_settles():
     ``energy``), the run cuts Δt and settles within 0.5 % of the elastica (50 segments;
     measured +0.008 %, 22 refusals); without it the rod still moves at 8 s and the tip
     is > 1 % off (measured +3.8 %)."""
-    ds = simulate(cantilever(0.1, n=50))
+    ds = integrate(cantilever(0.1, n=50))
     assert ds.attrs["hockle_status"] == "completed"
     assert "energy" in ds.attrs["hockle_refused_attempts"]
     refused = dict(item.rsplit(" ", 1) for item in
@@ -82,18 +82,18 @@ def test_injecting_steps_are_refused_and_the_cantilever_settles():
     x = ds.position.values[-1, -1, 2] / L
     assert abs(x / X_TIP - 1) < 0.005
     assert ds.energy_kinetic.values[-1] < 1e-3
-    off = simulate(cantilever(0.1, n=50, energy_tolerance=None))
+    off = integrate(cantilever(0.1, n=50, energy_tolerance=None))
     assert abs(off.position.values[-1, -1, 2] / L / X_TIP - 1) > 0.01
     assert off.energy_kinetic.values[-1] > 1e-3
 
 
 def test_series_written_with_the_check_only():
-    ds = simulate(cantilever(0.1, t_end=0.5))
+    ds = integrate(cantilever(0.1, t_end=0.5))
     err = ds.step_energy_error.values
     assert err.shape == ds.step_time.shape
     assert np.isfinite(err).all()
     assert np.all(err[np.isfinite(err)] <= DEFAULT)
-    assert "step_energy_error" not in simulate(cantilever(0.1, t_end=0.5,
+    assert "step_energy_error" not in integrate(cantilever(0.1, t_end=0.5,
                                                          energy_tolerance=None))
 
 
@@ -139,9 +139,9 @@ def test_held_cable_keeps_its_answer_at_the_default():
 
     spec = LV.catenary_spec(0.1, DEFAULT)
     spec["numerics"]["t_end"] = 4.0
-    checked = simulate(Case.model_validate(spec))
+    checked = integrate(Case.model_validate(spec))
     spec["numerics"]["energy_tolerance"] = None
-    plain = simulate(Case.model_validate(spec))
+    plain = integrate(Case.model_validate(spec))
     assert "energy" not in checked.attrs["hockle_refused_attempts"]
     assert np.isfinite(checked.step_energy_error.values).all()
     np.testing.assert_array_equal(checked.position.values, plain.position.values)
@@ -159,7 +159,7 @@ def test_no_trusted_step_ends_failed_with_the_reason():
     from solver.simulation import SolverDivergence
     case = cantilever(0.1, energy_tolerance=1e-9, max_dt_cuts=1)
     with pytest.raises(SolverDivergence) as info:
-        simulate(case)
+        integrate(case)
     assert "numerics.energy_tolerance" in str(info.value)
     assert "energy" in info.value.partial.attrs["hockle_refused_attempts"]
     assert info.value.partial.attrs["hockle_status"] == "failed"

@@ -12,7 +12,7 @@ from scipy.optimize import brentq
 
 from hockle.api import catenary_parameter
 from solver.case import Case, CaseError
-from solver.simulation import simulate
+from solver.simulation import integrate
 
 FIXED = [{"angular_velocity": 0}] * 3
 FREE_ROT = [{"moment": 0}] * 3
@@ -111,7 +111,7 @@ def test_towed_end_tension_is_the_integrated_morison_drag():
                  initial={"tangent": d.tolist(), "normal": [d[2], 0.0, -d[0]]},
                  output={"fields": ["f", "position", "reactions"]})
     spec["numerics"] = {"n_segments": 20, "dt": 0.05, "t_end": 3.0, "rho_inf": 0.5}
-    ds = simulate(Case.model_validate(spec))
+    ds = integrate(Case.model_validate(spec))
     expected = 0.5 * rho_f * math.pi * D * cdt * U**2 * L
     f0 = ds.f.values[-1, 0]
     assert abs(f0[2] / expected - 1) < 0.01 and np.abs(f0[:2]).max() < 1e-6 * expected
@@ -155,7 +155,7 @@ def test_hanging_cable_settles_on_the_catenary():
                         "diameter": D})
     spec["numerics"] = {"n_segments": 40, "dt": 0.2, "t_end": 16.0, "rho_inf": 0.0,
                         "growth_guard": None}
-    ds = simulate(Case.model_validate(spec))
+    ds = integrate(Case.model_validate(spec))
     a = catenary_parameter(L, X)
     sag = a * (math.cosh(X / (2 * a)) - 1)
     w = (rho - rho_f) * math.pi * D**2 / 4 * 9.81
@@ -185,7 +185,7 @@ def test_dead_end_force_on_an_end_free_to_turn_is_the_tip_load():
     spec = _spec(CLAMPED, end, output={"fields": ["position"]})
     spec["numerics"] = {"n_segments": 50, "dt": dt, "t_end": 60 * dt, "rho_inf": 0.0,
                         "growth_guard": None, "newton": {"tolerance": 1e-12}}
-    tip = simulate(Case.model_validate(spec)).position.values[-1, -1]
+    tip = integrate(Case.model_validate(spec)).position.values[-1, -1]
     x_ref, z_ref = tip_elastica(2.0)
     assert abs(tip[0] / x_ref - 1) < 5e-4 and abs(tip[2] / z_ref - 1) < 5e-4, tip
 
@@ -200,7 +200,7 @@ def test_position_table_moves_the_end_along_it():
                                                 {"position": 0.0}], "rotation": FIXED}
     spec = _spec(start, FREE, output={"fields": ["position"]})
     spec["numerics"] = {"n_segments": 10, "dt": 0.1, "t_end": 2.0, "rho_inf": 0.5}
-    ds = simulate(Case.model_validate(spec))
+    ds = integrate(Case.model_validate(spec))
     x0 = ds.position.values[:, 0, 0]
     t = ds.time.values
     want = np.interp(t, table["t"], table["value"])
@@ -219,7 +219,7 @@ def test_a_global_end_switches_in_time_like_a_body_frame_one():
         spec = _spec(sliding, end, gravity=[9.81, 0.0, 0.0],
                      output={"fields": ["v", "f", "kappa", "position"]})
         spec["numerics"] = {"n_segments": 10, "dt": 0.05, "t_end": 0.5}
-        return simulate(Case.model_validate(spec))
+        return integrate(Case.model_validate(spec))
 
     switch = [{"velocity": 0, "until": 0.2}, {"force": 0}]
     body = run({"translation": [switch] * 3, "rotation": FREE_ROT})
@@ -254,7 +254,7 @@ def _pendulum(V, dt, n=10, t_end=1.0):
     q, r, _ = initial_pose(case, np.linspace(0.0, 1.0, n + 1))
     v = np.einsum("nji,j->ni", quat_to_matrix(q), np.asarray(V, float))
     zero = np.zeros((n + 1, 3))
-    return simulate(case, start=StartState(t=0.0, v=v, omega=zero, f=zero.copy(),
+    return integrate(case, start=StartState(t=0.0, v=v, omega=zero, f=zero.copy(),
                                            kappa=zero.copy(), q=q, r=r))
 
 
@@ -291,7 +291,7 @@ def test_a_position_table_tows_an_end_free_to_turn_along_it():
     spec = _spec(start, FREE, gravity=[0.0, 0.0, 9.81],
                  output={"fields": ["position", "kappa"]})
     spec["numerics"] = {"n_segments": 10, "dt": 0.05, "t_end": 2.0}
-    ds = simulate(Case.model_validate(spec))
+    ds = integrate(Case.model_validate(spec))
     r = ds.position.values
     want = np.interp(ds.time.values, table["t"], table["value"])
     assert np.abs(r[:, 0, 0] - want).max() < 1e-5, np.abs(r[:, 0, 0] - want).max()
@@ -347,7 +347,7 @@ def test_error_controlled_run_with_a_position_table_ends_with_its_refusals_named
                FREE, gravity=[0, 3.0, 0])
     sp["numerics"] = {"n_segments": 10, "dt": 0.1, "t_end": 2.0, "rho_inf": 0.5,
                       "tolerance": {"relative": 1e-3}}
-    ds = simulate(Case.model_validate(sp))
+    ds = integrate(Case.model_validate(sp))
     assert ds.attrs["hockle_status"] == "completed"
     refused = dict(item.rsplit(" ", 1) for item in ds.attrs["hockle_refused_attempts"].split(", "))
     assert "None" not in refused and int(refused["error"]) > 0

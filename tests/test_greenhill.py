@@ -27,7 +27,7 @@ import pytest
 from scipy.optimize import brentq
 
 from solver.case import Case
-from solver.simulation import simulate
+from solver.simulation import integrate
 
 E, G, RHO, RHO_F = 1.25e7, 5.0e6, 1500.0, 1000.0
 L, D = 1.0, 0.01
@@ -92,7 +92,7 @@ def twisted_rod(tension_ratio, factor, n_segments=50, dt=0.01, t_end=10.0, push=
                      "newton": {"tolerance": 1e-11, "max_iterations": 30}},
         "output": {"every": 1, "fields": ["position", "moment"]},
     }
-    ds = simulate(Case.model_validate(spec))
+    ds = integrate(Case.model_validate(spec))
     assert ds.attrs["hockle_status"] == "completed"
     t = ds.time.values
     lateral = np.linalg.norm(ds.position.values[:, :, :2], axis=2).max(axis=1)

@@ -14,7 +14,7 @@ from hockle.api import (catenary, catenary_parameter, circular_arc, clamped, end
 from rodcases import hairpin
 from solver.case import Case, CaseError
 from solver.initial import initial_pose, start_offset
-from solver.simulation import simulate
+from solver.simulation import integrate
 
 ROOT = Path(__file__).resolve().parents[1]
 E, D = 1.25e7, 0.02
@@ -160,7 +160,7 @@ def test_arc_under_its_end_moment_is_an_equilibrium_and_without_it_moves():
                          n_segments=40, dt=0.01, t_end=0.3,
                          initial={"centreline": circular_arc(1.0, R)},
                          output={"fields": ["v"]})
-        speeds.append(np.abs(simulate(case).v.values).max())
+        speeds.append(np.abs(integrate(case).v.values).max())
     assert speeds[0] < 1e-4 and speeds[1] > 1.0, speeds
 
 
@@ -168,12 +168,12 @@ def test_a_twisted_start_has_its_twist_as_linking_number():
     """Lk counts from the untwisted straight rod: a start with 2 rad/m of twist over 1 m
     has Lk = Tw = 2/(2π) turns and Wr = 0 at t = 0 (it started at 0, and with self-contact
     the closure-passage rule then shifted the writhe), and a helix start Lk = Tw + Wr."""
-    ds = simulate(_case({"twist_rate": 2.0}, 10, output={"fields": ["topology"]}))
+    ds = integrate(_case({"twist_rate": 2.0}, 10, output={"fields": ["topology"]}))
     assert float(ds.linking_number[0]) == pytest.approx(2.0 / (2 * np.pi), rel=1e-9)
     assert float(ds.topology_error.max()) < 1e-6
     R, p = 0.2, 0.3
     tau = (p / (2 * np.pi)) / (R**2 + (p / (2 * np.pi))**2)
-    ds = simulate(_case({"centreline": helix(1.0, R, p), "twist_rate": tau}, 40,
+    ds = integrate(_case({"centreline": helix(1.0, R, p), "twist_rate": tau}, 40,
                         output={"fields": ["topology"]}))
     assert float(ds.topology_error[0]) < 1e-9
     assert abs(float(ds.writhe[0])) > 0.1
@@ -214,9 +214,9 @@ def test_start_offset_is_none_for_a_straight_start_and_in_the_result_of_a_curved
     advice (``hockle_advice``), which a run within it does not carry."""
     assert start_offset(_case({"twist_rate": 2.0}, 10)) is None
     assert start_offset(_case({}, 10)) is None
-    ds = simulate(_case({"centreline": circular_arc(1.0, 0.5)}, 40))
+    ds = integrate(_case({"centreline": circular_arc(1.0, 0.5)}, 40))
     assert 0.0 < ds.attrs["hockle_start_offset"] < 1e-3
     assert ds.attrs["hockle_start_offset_s"] == 1.0 and "hockle_advice" not in ds.attrs
-    ds = simulate(_case({"centreline": circular_arc(1.0, 0.5), "twist_rate": 20.0}, 40))
+    ds = integrate(_case({"centreline": circular_arc(1.0, 0.5), "twist_rate": 20.0}, 40))
     assert ds.attrs["hockle_start_offset"] == pytest.approx(0.037, rel=0.01)
     assert "numerics.n_segments of about 180" in ds.attrs["hockle_advice"]

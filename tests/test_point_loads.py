@@ -18,7 +18,7 @@ import pytest
 from scipy.integrate import solve_bvp
 
 from solver.case import Case, CaseError
-from solver.simulation import RodRun, simulate
+from solver.simulation import RodRun, integrate
 from solver.stepping import breakpoints
 
 from rodcases import jacobian_fd_error
@@ -87,7 +87,7 @@ def cantilever(load, n, *, s=L, body=False, dt=None, ramp=20, hold=40, fields=("
 
 
 def settled_tip(case):
-    ds = simulate(case)
+    ds = integrate(case)
     tips = ds.position.values[:, -1]
     assert np.abs(tips[-1] - tips[-6]).max() < 1e-6 * L, "not settled"
     return tips[-1, 0] / L, tips[-1, 2] / L, ds
@@ -253,7 +253,7 @@ def test_point_load_work_balances_the_energy(body):
                      "newton": {"tolerance": 1e-12}},
         "output": {"fields": ["energies", "position"]},
     }
-    ds = simulate(Case.model_validate(spec))
+    ds = integrate(Case.model_validate(spec))
     assert np.abs(ds.position.values[:, -1, 0]).max() > 0.3 * L
     e, w = ds.energy_total.values, ds.work_in.values
     assert w.max() > 0

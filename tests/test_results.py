@@ -368,12 +368,12 @@ def test_failed_write_keeps_old_file_and_leaves_no_temp(full, tmp_path):
 
 
 def test_round_trip_of_a_real_run(case, tmp_path):
-    """The dataset simulate() builds through build_dataset writes and reads back."""
-    from solver.simulation import simulate
+    """The dataset integrate() builds through build_dataset writes and reads back."""
+    from solver.simulation import integrate
 
     spec = json.loads(case.canonical_json())
     spec["output"]["fields"] = ["v", "position", "orientation", "energies", "topology"]
-    ds = simulate(Case.model_validate(spec))
+    ds = integrate(Case.model_validate(spec))
     path = write_netcdf(ds, tmp_path / "run.nc")
     back = open_result(path)
     assert back.attrs["hockle_status"] == "completed"

@@ -13,7 +13,7 @@ import pytest
 from rodcases import jacobian_fd_error
 from solver.case import Case, CaseError
 from solver.run import RodRun
-from solver.simulation import simulate
+from solver.simulation import integrate
 
 D, RHO, RHO_F, G = 0.02, 1500.0, 1000.0, 9.81
 AREA = math.pi * D**2 / 4
@@ -304,7 +304,7 @@ def test_outputs_with_a_seabed_and_none_without():
     from solver.seabed import contact_length, touchdown
 
     spec = _spec(t_end=0.3)
-    ds = simulate(Case.model_validate(spec))
+    ds = integrate(Case.model_validate(spec))
     assert ds["seabed_force"].dims == ("time", "s", "xyz")
     assert ds["seabed_force"].attrs["units"] == "N m-1"
     last = ds.isel(time=-1)
@@ -315,7 +315,7 @@ def test_outputs_with_a_seabed_and_none_without():
     assert math.isnan(float(last["seabed_touchdown"]))          # the whole rod touches
     assert "seabed_work" in ds
     spec.pop("seabed")
-    assert not any(name.startswith("seabed") for name in simulate(Case.model_validate(spec)))
+    assert not any(name.startswith("seabed") for name in integrate(Case.model_validate(spec)))
     s = np.linspace(0.0, 1.0, 5)
     pen = np.array([1.0, 1.0, -1.0, -1.0, -1.0])
     assert contact_length(pen, s) == pytest.approx(0.25 + 0.125)
@@ -446,7 +446,7 @@ def test_error_controlled_run_with_dense_outputs_rolls_the_cable():
                  fluid=NO_DRAG, t_end=0.6)
     spec["numerics"]["tolerance"] = {"relative": 1e-3}
     spec["output"] = {"interval": 0.1, "fields": ["position"]}
-    ds = simulate(Case.model_validate(spec))
+    ds = integrate(Case.model_validate(spec))
     assert ds.attrs["hockle_status"] == "completed"
     assert "None" not in ds.attrs["hockle_refused_attempts"]
     # rolled by ρ × the spin's integral (0.25 s ramp: 0.25 rad, then 2 rad/s)
@@ -492,12 +492,12 @@ def test_energy_check_with_a_seabed_completes_a_landing():
     damper stopping it) completes with no step refused for energy, and the check
     changes nothing: the same seabed work as without it."""
     dt, t_end = 1e-4, 0.05
-    ds = simulate(_falling_case(dt, t_end, 0.05))
+    ds = integrate(_falling_case(dt, t_end, 0.05))
     assert ds.attrs["hockle_status"] == "completed"
     assert "energy" not in ds.attrs["hockle_refused_attempts"]
     err = ds.step_energy_error.values
     assert np.nanmax(err) <= 0.05
     spec = json.loads(_falling_case(dt, t_end, 0.05).canonical_json())
     spec["numerics"].pop("energy_tolerance")
-    plain = simulate(Case.model_validate(spec))
+    plain = integrate(Case.model_validate(spec))
     assert float(ds.seabed_work[-1]) == float(plain.seabed_work[-1])

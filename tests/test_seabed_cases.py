@@ -12,7 +12,7 @@ import pytest
 
 from solver.case import Case
 from solver.results import build_dataset, run_events
-from solver.simulation import SolverDivergence, simulate
+from solver.simulation import SolverDivergence, integrate
 
 ROOT = Path(__file__).resolve().parents[1]
 CASES = ("seabed-hockle.yaml", "catenary-touchdown.yaml")
@@ -29,7 +29,7 @@ def _case(name, t_end=None):
 
 @pytest.mark.parametrize("name", CASES)
 def test_case_validates_and_a_prefix_runs(name, tmp_path):
-    ds = simulate(_case(name, t_end=0.5))
+    ds = integrate(_case(name, t_end=0.5))
     assert ds.attrs["hockle_status"] == "completed"
     assert float(ds.time[-1]) == pytest.approx(0.5)
     # the cable rests on the bottom: contact length, no penetration below a millimetre
@@ -51,7 +51,7 @@ def test_seabed_hockle_loops_on_the_bottom_and_is_pulled_tight():
     18 contact pairs at 4.8 s; pulled back, the loop tightens to a bend radius of 0.038 m
     at 8.5 s and stays (Wr 1.03, 4 pairs at 10 s); Lk kept within 7e-7,
     |Tw + Wr − Lk| ≤ 0.023 (docs/hockle.md, "The cases")."""
-    ds = simulate(_case("seabed-hockle.yaml"))
+    ds = integrate(_case("seabed-hockle.yaml"))
     assert ds.attrs["hockle_status"] == "completed"
     ev = run_events(ds)
     t = ds.time.values
@@ -74,7 +74,7 @@ def test_catenary_touchdown_follows_the_catenary_as_it_is_pulled():
     most 3.0 % off during the ramp (the touchdown moves node by node, 5 cm, and lags),
     2.224 against 2.212 m at the end (0.5 %); the touchdown walks 0.68 m along the cable
     (the catenary's 0.70 m)."""
-    ds = simulate(_case("catenary-touchdown.yaml"))
+    ds = integrate(_case("catenary-touchdown.yaml"))
     assert ds.attrs["hockle_status"] == "completed"
     w = 500.0 * np.pi * 0.01**2 * 9.81
     t = ds.time.values
@@ -143,10 +143,10 @@ def test_seabed_hockle_holds_its_end_on_the_bottom():
     up to 10.9 mm; without friction the run stops at t = 4 s. Strict: a fix makes it pass, and
     the docs must then say so."""
     weight = (1500.0 - 1000.0) * np.pi * 0.01**2 * 9.81
-    ds = simulate(_case("seabed-hockle.yaml", t_end=4.5))
+    ds = integrate(_case("seabed-hockle.yaml", t_end=4.5))
     assert np.nanmax(ds["end_drift"].values) < 1e-3
     assert np.linalg.norm(ds["seabed_force"].values, axis=2).max() < 10.0 * weight
     doc = _case("seabed-hockle.yaml", t_end=4.5).model_dump(mode="json")
     doc["seabed"]["friction"] = None
-    ds = simulate(Case.model_validate(doc))
+    ds = integrate(Case.model_validate(doc))
     assert ds.attrs["hockle_status"] == "completed"

@@ -19,7 +19,7 @@ import solver.contact.model as model_mod
 import solver.recording as recording_mod
 import solver.simulation as sim_mod
 import solver.topology as topology_mod
-from solver import Case, simulate
+from solver import Case, integrate
 
 SEED = Path(__file__).resolve().parents[1] / "cases" / "goyal-writhing.yaml"
 
@@ -62,7 +62,7 @@ def test_no_search_structure_without_contact(monkeypatch):
     monkeypatch.setattr(contact_mod.SelfContact, "may_touch", Trap(fail=True).method())
     monkeypatch.setattr(contact_mod.SelfContact, "may_touch_unchecked",
                         Trap(fail=True).method())
-    ds = simulate(Case.model_validate(seed_spec(contact=False, fields=("energies", "position"))))
+    ds = integrate(Case.model_validate(seed_spec(contact=False, fields=("energies", "position"))))
     assert ds.attrs["hockle_status"] == "completed" and trap.calls == 0
 
 
@@ -76,7 +76,7 @@ def test_no_tree_while_no_contact_is_possible(monkeypatch):
     monkeypatch.setattr(geometry_mod, "cKDTree", tree)
     pretest = Trap(original=model_mod._search_all_pairs)
     monkeypatch.setattr(model_mod, "_search_all_pairs", pretest)
-    ds = simulate(Case.model_validate(seed_spec(contact=True)))
+    ds = integrate(Case.model_validate(seed_spec(contact=True)))
     assert ds.attrs["hockle_status"] == "completed"
     assert pretest.calls > 0 and tree.calls == 0
 
@@ -84,7 +84,7 @@ def test_no_tree_while_no_contact_is_possible(monkeypatch):
 def test_topology_only_at_output_steps(monkeypatch):
     writhe = Trap(original=topology_mod.writhe)
     monkeypatch.setattr(topology_mod, "writhe", writhe)
-    ds = simulate(Case.model_validate(seed_spec(t_end=1.0, every=5, fields=("topology",))))
+    ds = integrate(Case.model_validate(seed_spec(t_end=1.0, every=5, fields=("topology",))))
     n_steps = ds.sizes["step"]
     assert n_steps == 10 and ds.sizes["time"] == 3          # t = 0, 0.5, 1.0
     assert writhe.calls == ds.sizes["time"]
@@ -94,7 +94,7 @@ def test_fields_nobody_asked_for_are_neither_computed_nor_stored(monkeypatch):
     monkeypatch.setattr(recording_mod, "energies", Trap(fail=True))
     monkeypatch.setattr(topology_mod, "writhe", Trap(fail=True))
     monkeypatch.setattr(topology_mod, "twist", Trap(fail=True))
-    ds = simulate(Case.model_validate(seed_spec(fields=("kappa",))))
+    ds = integrate(Case.model_validate(seed_spec(fields=("kappa",))))
     assert "kappa" in ds
     for name in ("v", "omega", "f", "moment", "position", "orientation", "writhe",
                  "twist", "linking_number", "contact_count"):
@@ -129,7 +129,7 @@ def test_no_fluid_terms_without_a_fluid():
     run = sim_mod.RodRun(Case.model_validate(seed_spec(contact=False, fluid=False)))
     assert not run.loads.has_drag and run.system.rod_data[6][1] == 0.0
     assert np.all(_drag_share(run) == 0.0)
-    ds = simulate(Case.model_validate(seed_spec(contact=False, fluid=False)))
+    ds = integrate(Case.model_validate(seed_spec(contact=False, fluid=False)))
     assert ds.attrs["hockle_status"] == "completed"
 
 

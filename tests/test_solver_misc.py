@@ -7,7 +7,7 @@ import pydantic
 import pytest
 
 from rodcases import make_case
-from solver import Case, simulate
+from solver import Case, integrate
 
 TWIST_START = {"translation": [{"velocity": 0.0}] * 3,
                "rotation": [{"angular_velocity": 0.0}, {"angular_velocity": 0.0},
@@ -22,7 +22,7 @@ def test_linking_number_equals_discrete_twist_of_a_straight_rod(rho_inf):
     # step by step, also after a sudden start of the end rotation
     case = make_case(n_segments=8, dt=0.01, t_end=0.05, rho_inf=rho_inf, start=TWIST_START,
                      end=SLIDING_END, fields=("kappa", "position", "topology"))
-    ds = simulate(case)
+    ds = integrate(case)
     assert np.all(np.abs(ds.writhe.values) < 1e-12)
     np.testing.assert_allclose(ds.linking_number, ds.twist, atol=1e-12)
     assert float(ds.linking_number[-1]) < 0.0          # +ω3 at s = 0 gives Lk < 0
@@ -60,7 +60,7 @@ def test_work_in_is_the_schemes_discrete_work_at_large_dt(rho_inf):
     # ρ∞ = 0 with the restarts at the corners.
     case = make_case(n_segments=20, dt=1.0, t_end=3.0, rho_inf=rho_inf, start=RAMPED_TWIST,
                      end=TENSIONED_END, fields=("kappa", "energies"))
-    ds = simulate(case)
+    ds = integrate(case)
     e, w = ds.energy_total.values, ds.work_in.values
     assert w[-1] > 0.1
     if rho_inf == 1.0:                               # no numerical dissipation
@@ -81,7 +81,7 @@ def test_work_of_gravity_balances_energy_to_second_order_in_ds():
     for n in (20, 40, 80):
         case = make_case(n_segments=n, dt=0.01, t_end=1.0, rho_inf=1.0, end=free,
                          gravity=[9.81, 0.0, 0.0], fields=("position", "energies"), every=5)
-        ds = simulate(case)
+        ds = integrate(case)
         e, w = ds.energy_total.values, ds.work_in.values
         assert float(np.abs(ds.position.values[-1, -1, 0])) > 0.1      # large deflection
         gaps.append(float(np.max(np.abs(e - w))) / float(w[-1]))
@@ -160,11 +160,11 @@ def test_the_newton_start_follows_the_predictor_that_placed_kappa_better():
     end = {"translation": [{"force": smooth_pulse_table(0.02, 1.0)}, {"force": 0.0},
                            {"force": 0.0}], "rotation": [{"moment": 0.0}] * 3}
     case = make_case(n_segments=20, dt=0.02, t_end=1.0, end=end, fields=("position",))
-    chosen = simulate(case)
+    chosen = integrate(case)
     original = sim.RodRun._better_predictor
     sim.RodRun._better_predictor = lambda self, Y, predictions: "linear"
     try:
-        line = simulate(case)
+        line = integrate(case)
     finally:
         sim.RodRun._better_predictor = original
     its_chosen = int(chosen.step_newton_iterations.sum())

@@ -42,7 +42,7 @@ import pytest
 from scipy.optimize import brentq
 
 from rodcases import E, G, RHO, RHO_F, make_case, smooth_pulse_table
-from solver import Case, SolverDivergence, simulate
+from solver import Case, SolverDivergence, integrate
 from test_greenhill import critical_torque
 
 SEED = Path(__file__).resolve().parents[1] / "cases" / "goyal-writhing.yaml"
@@ -156,7 +156,7 @@ def run_checked(case, *, must_complete=False, **sane):
     diverged cleanly (after check_divergence). must_complete: a divergence fails the
     test (for runs whose analytic answer exists)."""
     try:
-        ds = simulate(case)
+        ds = integrate(case)
     except SolverDivergence as exc:
         if must_complete:
             pytest.fail(f"diverged where the run must complete: {exc}")
@@ -562,7 +562,7 @@ def test_large_time_step_column_without_growth_guard_stays_straight():
     spec = case.model_dump()
     spec["numerics"]["growth_guard"] = None
     spec["numerics"]["energy_tolerance"] = None
-    ds = simulate(Case.model_validate(spec))
+    ds = integrate(Case.model_validate(spec))
     assert ds.attrs["hockle_status"] == "completed"
     assert np.abs(ds.position.values[:, :, 0]).max() < 1e-3 * COL_L
     assert np.all(np.isnan(ds.step_growth_rate.values))
@@ -616,7 +616,7 @@ def test_divergence_is_clean():
     spec["numerics"]["newton"].update(max_iterations=3, tolerance=1e-10)
     case = Case.model_validate(spec)
     with pytest.raises(SolverDivergence) as info:
-        simulate(case)
+        integrate(case)
     exc = info.value
     check_divergence(exc, case)
     assert exc.reason == "solver_diverged"

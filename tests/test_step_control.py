@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from rodcases import RHO, clamped_end, free_end, kin, make_case, smooth_pulse_table
-from solver import Case, simulate
+from solver import Case, integrate
 from solver.stepping import breakpoints
 
 FLUID = {"density": 1000.0, "added_mass_coefficient": 1.0,
@@ -41,7 +41,7 @@ def test_steps_land_on_a_breakpoint_inside_a_step():
     # 0.1 grid, and the last substeps record the landing (0.07 and 0.09 after the restarts)
     case = make_case(n_segments=10, dt=0.1, t_end=1.0, end=free_end(), fluid=FLUID,
                      forces=[{"value": [0.05, 0.0, 0.0], "start": 0.33, "end": 0.71}])
-    ds = simulate(case)
+    ds = integrate(case)
     np.testing.assert_allclose(ds.time.values, np.round(np.arange(11) * 0.1, 12), atol=1e-12)
     dt = ds.step_dt.values
     assert dt[3] == pytest.approx(0.07, rel=2e-3)          # 0.33 -> 0.4 after the restart
@@ -61,7 +61,7 @@ def test_a_held_sliding_end_does_not_ring_after_the_switch():
     for rho_inf in (1.0, 0.5):
         case = make_case(n_segments=10, dt=0.05, t_end=0.5, rho_inf=rho_inf, start=start,
                          end=end, forces=[{"value": [0.0, 0.0, 0.5]}], fields=("v", "f"))
-        ds = simulate(case)
+        ds = integrate(case)
         t = ds.time.values
         v_end, f_end = ds.v.values[:, 0, 2], ds.f.values[:, 0, 2]
         sliding = t < 0.2 + 1e-9
@@ -79,7 +79,7 @@ def switched_load_positions(dt, rho_inf, start):
     case = make_case(n_segments=2, dt=dt, t_end=1.0, rho_inf=rho_inf, end=free_end(),
                      fluid=FLUID, forces=[{"value": [0.05, 0.0, 0.0], "start": start}],
                      fields=("position",), every=int(round(0.1 / dt)), tolerance=1e-12)
-    ds = simulate(case)
+    ds = integrate(case)
     assert ds.attrs["hockle_status"] == "completed"
     return ds.position.values
 
@@ -113,7 +113,7 @@ def test_a_load_ramped_by_a_time_table_converges_at_second_order():
         case = make_case(n_segments=10, dt=dt, t_end=1.0, rho_inf=1.0, end=free_end(),
                          fluid=FLUID, forces=forces, fields=("position",),
                          every=int(round(0.1 / dt)), tolerance=1e-12)
-        ds = simulate(case)
+        ds = integrate(case)
         assert ds.attrs["hockle_status"] == "completed"
         return ds.position.values
 
@@ -203,11 +203,11 @@ def test_achieved_error_follows_the_tolerance():
     3.2e-4 m, 1e-4 -> 1.8e-5 m (20, 40, 117 steps; before the displacement weight 1.2e-3,
     3.0e-4, 2.7e-5 m in 20, 42, 117 steps); the error relative to the 0.4 m
     travel stays within 10x of the tolerance and falls with it."""
-    ref = simulate(pulse_case(dt=1.0 / 2560)).position.isel(time=-1).values
+    ref = integrate(pulse_case(dt=1.0 / 2560)).position.isel(time=-1).values
     travel = 0.4
     errors, steps = [], []
     for tol in (1e-2, 1e-3, 1e-4):
-        ds = simulate(pulse_case(tol))
+        ds = integrate(pulse_case(tol))
         assert ds.attrs["hockle_status"] == "completed"
         errors.append(np.abs(ds.position.isel(time=-1).values - ref).max() / travel)
         steps.append(ds.sizes["step"])
@@ -225,7 +225,7 @@ def test_adaptive_steps_land_on_outputs_breakpoints_and_respect_dt_max(interpola
     spec = case.model_dump()
     spec["numerics"].update(tolerance={"relative": 1e-3, "absolute": 1e-3}, dt_max=0.07)
     spec["output"].update(interval=0.25, interpolate=interpolate)
-    ds = simulate(Case.model_validate(spec))
+    ds = integrate(Case.model_validate(spec))
     assert ds.attrs["hockle_status"] == "completed"
     np.testing.assert_allclose(ds.time.values, [0.0, 0.25, 0.5, 0.75, 1.0], atol=1e-12)
     st = ds.step_time.values
@@ -266,7 +266,7 @@ def test_eta_follows_the_recent_pace():
         slow = rate.update(float(w), 10.0 + 0.01 * (w - 10), 45.0)
     assert slow == pytest.approx((45.0 - 10.09) / 0.01, rel=1e-6)
     ds_progress = []
-    simulate(make_case(n_segments=4, dt=0.01, t_end=0.05, end=free_end()),
+    integrate(make_case(n_segments=4, dt=0.01, t_end=0.05, end=free_end()),
              progress=ds_progress.append)
     assert ds_progress[-1].eta_seconds == pytest.approx(0.0, abs=1e-9)
     assert ds_progress[0].eta_seconds is None
@@ -336,8 +336,8 @@ def test_the_first_step_after_a_restart_is_measured():
     0.049 s for dt = 0.1, 0.2 and 0.5 s, error 7.6e-4, 7.3e-4, 7.4e-4 of the travel;
     without the doubling the first step was dt and the error 2.4e-3, 1.7e-2 and
     8.0e-2)."""
-    ref = simulate(pulse_case(dt=1.0 / 2560)).position.isel(time=-1).values
-    ds = simulate(pulse_case(1e-3, dt=0.2))
+    ref = integrate(pulse_case(dt=1.0 / 2560)).position.isel(time=-1).values
+    ds = integrate(pulse_case(1e-3, dt=0.2))
     assert ds.attrs["hockle_status"] == "completed"
     assert ds.step_dt.values[0] < 0.1          # refused at 0.2 s and cut
     # the refusals are in the result: per accepted step, and by reason in the attributes
@@ -442,7 +442,7 @@ def test_tight_tolerances_do_not_chase_the_grid_modes_of_a_sudden_load():
                      fields=("position",), tolerance=1e-12,
                      forces=[{"value": [3e-4, 0.0, 0.0], "start": 0.0, "end": 0.6}]
                      ).model_dump()
-    ref = simulate(Case.model_validate({**spec, "numerics": {**spec["numerics"],
+    ref = integrate(Case.model_validate({**spec, "numerics": {**spec["numerics"],
                                                              "dt": 1.0 / 1600}}))
     final = ref.position.isel(time=-1).values
     peak = np.abs(ref.position.values[:, :, 0]).max()
@@ -450,7 +450,7 @@ def test_tight_tolerances_do_not_chase_the_grid_modes_of_a_sudden_load():
     for tol in (1e-3, 1e-4):
         spec["numerics"].update(tolerance={"relative": tol, "absolute": 1e-2 * tol},
                                 wall_clock_budget=60.0)
-        ds = simulate(Case.model_validate(spec))
+        ds = integrate(Case.model_validate(spec))
         assert ds.attrs["hockle_status"] == "completed"
         assert ds.sizes["step"] < 600, ds.sizes["step"]
         errors.append(np.abs(ds.position.isel(time=-1).values - final).max() / peak)
@@ -501,13 +501,13 @@ def test_dense_output_does_not_bound_the_steps():
     output takes the steps of the run without outputs (measured 40), landing on the
     outputs 101; the interpolated positions stay within 10x the tolerance of the travel
     at every output (measured 2.4e-3 against a Δt = 1/2560 s run; landing 2.8e-4)."""
-    ref = simulate(pulse_case(dt=1.0 / 2560))
-    free = simulate(pulse_case(1e-3)).sizes["step"]
+    ref = integrate(pulse_case(dt=1.0 / 2560))
+    free = integrate(pulse_case(1e-3)).sizes["step"]
     steps = {}
     for interpolate in (True, False):
         spec = pulse_case(1e-3).model_dump()
         spec["output"].update(interval=1.0 / 64, interpolate=interpolate)
-        ds = simulate(Case.model_validate(spec))
+        ds = integrate(Case.model_validate(spec))
         assert ds.attrs["hockle_status"] == "completed"
         steps[interpolate] = ds.sizes["step"]
         np.testing.assert_allclose(ds.time.values, np.arange(65) / 64, atol=1e-12)
@@ -545,7 +545,7 @@ def test_the_guard_looks_further_when_a_known_growth_leaves_its_disc():
         "numerics": {"n_segments": 40, "dt": 0.3, "t_end": 1.8, "rho_inf": 0.5},
         "output": {"every": 1, "fields": ["position", "topology"]},
     }
-    ds = simulate(Case.model_validate(spec))
+    ds = integrate(Case.model_validate(spec))
     assert ds.attrs["hockle_status"] == "completed"
     assert abs(float(ds.writhe.values[-1])) > 0.1 * 0.166
     assert float(np.nanmax(ds.step_growth_rate.values)) > 10.0
@@ -602,9 +602,9 @@ def test_steps_grow_out_of_a_start_from_rest_in_fewer_steps(monkeypatch):
     from solver.stepping import ErrorControl
 
     case = seed_from_rest(t_end=2.0, relative=3e-3, absolute=3e-9)
-    fast = simulate(case)
+    fast = integrate(case)
     monkeypatch.setattr(ErrorControl, "FAST_BELOW", 0.0)
-    slow = simulate(case)
+    slow = integrate(case)
     assert fast.attrs["hockle_status"] == slow.attrs["hockle_status"] == "completed"
     assert fast.sizes["step"] < slow.sizes["step"] - 2, (fast.sizes["step"], slow.sizes["step"])
     assert fast.step_rejected_attempts.sum() <= slow.step_rejected_attempts.sum()
@@ -654,14 +654,14 @@ def test_the_first_step_from_rest_is_found_in_few_attempts(monkeypatch):
     from solver.stepping import ErrorControl
 
     case = seed_from_rest(t_end=0.5, relative=3e-3, absolute=3e-9)
-    ds = simulate(case)
+    ds = integrate(case)
     assert ds.attrs["hockle_status"] == "completed"
     first = int(ds.step_rejected_attempts.values[0])
     assert first <= 8, first
     plain = ErrorControl.rejected
     monkeypatch.setattr(ErrorControl, "rejected",
                         lambda self, h, err, previous=None: plain(self, h, err))
-    old = int(simulate(case).step_rejected_attempts.values[0])
+    old = int(integrate(case).step_rejected_attempts.values[0])
     assert old > 3 * first, (old, first)
 
 
@@ -687,7 +687,7 @@ def test_dense_output_integrates_the_centreline_only_when_asked(monkeypatch):
         spec["output"].update(interval=1.0 / 32, fields=fields)
         spec["output"].pop("every", None)
         calls["n"] = 0
-        ds = simulate(Case.model_validate(spec))
+        ds = integrate(Case.model_validate(spec))
         assert ds.attrs["hockle_status"] == "completed"
         assert np.all(np.isfinite(ds.position_route_difference.values))
         runs[len(fields)] = (ds, calls["n"])
@@ -712,7 +712,7 @@ def test_the_estimate_sees_below_newtons_tolerance():
     spec["numerics"].update(t_end=2e-4, wall_clock_budget=20.0,
                             tolerance={"relative": 1e-6, "absolute": 1e-12})
     spec["output"] = {"every": 1, "fields": ["energies"]}
-    ds = simulate(Case.model_validate(spec))
+    ds = integrate(Case.model_validate(spec))
     assert ds.attrs["hockle_status"] == "completed"
     assert int(np.sum(ds.step_newton_iterations.values == 0)) == 0
     assert ds.sizes["step"] < 1000, ds.sizes["step"]
@@ -751,7 +751,7 @@ def test_a_failed_restart_reports_its_last_refused_attempt(monkeypatch):
 
     monkeypatch.setattr(RodRun, "try_step", try_step)
     with pytest.raises(SolverDivergence) as info:
-        simulate(case)
+        integrate(case)
     msg = str(info.value)
     eps = RESTART_FRACTION * 0.01
     assert len(tried) == 5

@@ -30,7 +30,7 @@ import pytest
 from scipy.optimize import least_squares
 
 from solver.case import Case
-from solver.simulation import RodRun, simulate
+from solver.simulation import RodRun, integrate
 
 from rodcases import jacobian_fd_error
 
@@ -77,7 +77,7 @@ def make_spec(*, start, end, n_segments, dt, t_end, rho_inf, diameter=0.01, flui
 
 
 def run_spec(spec):
-    ds = simulate(Case.model_validate(spec))
+    ds = integrate(Case.model_validate(spec))
     assert ds.attrs["hockle_status"] == "completed"
     return ds
 

@@ -627,7 +627,7 @@ def _with_budget(case, budget: float):
 
 def _solve(run: JobRun, case, start=None) -> str:
     # the submodule, not the package: `solver.simulation` is also the name of the module
-    from solver.simulation import SolverDivergence, simulate
+    from solver.simulation import SolverDivergence, integrate
 
     interval = run.settings.checkpoint_interval
     try:
@@ -635,7 +635,7 @@ def _solve(run: JobRun, case, start=None) -> str:
         run.checkpoints = CheckpointPolicy(interval, run.settings.checkpoint_progress,
                                            float(case.numerics.t_end),
                                            last_t=resume.t if resume is not None else 0.0)
-        ds = simulate(case, progress=run.progress, should_stop=run.should_stop,
+        ds = integrate(case, progress=run.progress, should_stop=run.should_stop,
                       checkpoint=run.write_checkpoint if interval else None,
                       checkpoint_interval=(min(interval, CHECKPOINT_OFFER_INTERVAL) if interval
                                            else math.inf), resume=resume,

@@ -273,9 +273,9 @@ def _uninterrupted(case: dict) -> dict:
     key = json.dumps(case["numerics"], sort_keys=True)
     if key not in _REFERENCE:
         from solver.case import Case
-        from solver.simulation import simulate
+        from solver.simulation import integrate
 
-        ds = simulate(Case.model_validate(case))
+        ds = integrate(Case.model_validate(case))
         _REFERENCE[key] = {name: ds[name].values.copy() for name in ds.data_vars}
     return _REFERENCE[key]
 
