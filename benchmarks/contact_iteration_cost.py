@@ -32,7 +32,7 @@ iteration).
 
 Then ``--steps`` more nominal steps from the contact state with each contact Newton solve
 done twice from the same start, with and without the position test of
-``Newton.CONTACT_POSITION_FRACTION`` (docs/contact.md § 2): the iterations of each and how
+``NewtonSolver.CONTACT_POSITION_FRACTION`` (docs/contact.md § 2): the iterations of each and how
 far the test's positions are from the fully converged ones.
 
 Run: ``PYTHONPATH=$PWD python benchmarks/contact_iteration_cost.py [--at 30] [--dt 0.015]
@@ -174,7 +174,7 @@ def _count(run: RodRun, steps: int, h_nominal: float, k: int) -> tuple[dict, int
 
 def _position_test(run: RodRun, steps: int, h_nominal: float, k: int) -> tuple[dict, int]:
     """Advance ``steps`` nominal steps with each contact Newton solve done twice from the
-    same start, with the position test (``Newton.CONTACT_POSITION_FRACTION`` of the
+    same start, with the position test (``NewtonSolver.CONTACT_POSITION_FRACTION`` of the
     step's position bound) and without it (to the residual tolerance): the iterations of
     each and the largest distance (m) between their positions. Returns (figures, k)."""
     newton, system = run.newton, run.system

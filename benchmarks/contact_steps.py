@@ -10,18 +10,18 @@ between the times of ``--edges``): attempts, accepted, refused by reason, Newton
 iterations, wall time, median and smallest accepted Δt, median route ratio and Newton
 iterations of the accepted steps, median contacts; then the totals over the window. With
 ``--newton-failures K`` also the first K attempts of the window refused by Newton, each
-with its iterations (Newton.last_trace: scaled residual, the feasibility filter's
+with its iterations (NewtonSolver.last_trace: scaled residual, the feasibility filter's
 fraction, the line search's fraction, GMRES iterations) and why it failed.
 
 With ``--starts`` also, per window, how good each contact solve's Newton start was: the
 distance of the line and the parabola extrapolated from the last levels (the predictors
 of ``RodRun._predictions``) and of the start Newton was given (the feasible start, blended
-toward the old positions where a predicted gap closed below ``Newton.START_GAP_KEEP`` of
+toward the old positions where a predicted gap closed below ``NewtonSolver.START_GAP_KEEP`` of
 itself) from the step's solution, per unknown (v, ω, f, κ), relative to the step's own
 change ‖Y − Yⁿ‖ (medians over the window's solves; 1 is no better than the old level),
 the share of solves whose start was blended, the histogram of the accepted steps'
 Newton iterations, and how the corrections of every attempt's contact solves were taken:
-whole, cut by the feasibility filter, or by the line search alone (Newton.last_trace).
+whole, cut by the feasibility filter, or by the line search alone (NewtonSolver.last_trace).
 
 With ``--watch NODE`` also, per window, how much that node's v and ω flip from one
 accepted step to the next (:func:`alternation` of each component: 0 for a motion smooth
@@ -79,7 +79,7 @@ step at the case's ρ∞ = 0.5, not at 0; docs/seabed.md).
 benchmarks/compare_results.py a.nc b.nc --largest 25:45``).
 ``... tension --from 19 --t-end 19.3 --starts`` (how far the starts of the collapse
 are from their solutions). ``--newton ATTR=VALUE[,...]`` sets class attributes of
-:class:`solver.newton.Newton` for the run (as contact_suite.py's option), e.g.
+:class:`solver.newton.NewtonSolver` for the run (as contact_suite.py's option), e.g.
 ``... pyelastica-0.8 --from 7.5 --t-end 7.6 --every 0.01 --newton
 CONTACT_RESIDUAL_FACTOR=2 --newton-failures 12``.
 """
@@ -121,7 +121,7 @@ def start_distances(Y_old, Y, starts: dict) -> dict:
 
 
 def correction_cuts(trace) -> np.ndarray:
-    """How a Newton solve's corrections were taken, from its ``Newton.last_trace``
+    """How a Newton solve's corrections were taken, from its ``NewtonSolver.last_trace``
     (K+1, 4: per iterate the scaled residual, the feasibility filter's fraction, the line
     search's fraction, GMRES iterations; the last row is the final iterate, which made no
     correction): the counts (3,) int of corrections taken whole, cut by the filter, and
@@ -136,7 +136,7 @@ def correction_cuts(trace) -> np.ndarray:
 def start_summary(solves: list, accepted_its: list, cuts=None) -> list:
     """Lines of the --starts report over one window: ``solves`` the dicts of
     :func:`start_distances` of its contact solves (each with "blend": the feasible start's
-    blend factor, Newton.last_start_blend, 1 where the start is the predictor),
+    blend factor, NewtonSolver.last_start_blend, 1 where the start is the predictor),
     ``accepted_its`` the Newton iterations of its accepted steps, ``cuts`` the
     :func:`correction_cuts` (3,) of each attempt's contact solves, summed (None: no line)."""
     lines = []
@@ -219,9 +219,9 @@ def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None,
     spec["numerics"]["energy_tolerance"] = cs.ENERGY_TOLERANCE
     spec["numerics"]["t_end"] = t_end
     case = Case.model_validate(spec)
-    from solver.newton import Newton
+    from solver.newton import NewtonSolver
 
-    attempts, plain, plain_solve = [], RodRun.try_step, Newton.solve
+    attempts, plain, plain_solve = [], RodRun.try_step, NewtonSolver.solve
     current = {}
 
     def recording(self, h, *args, **kwargs):
@@ -260,7 +260,7 @@ def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None,
             current["starts"] = d
         return out
 
-    plain_feasible = Newton.feasible_start
+    plain_feasible = NewtonSolver.feasible_start
 
     def feasible(self, guess):
         out = plain_feasible(self, guess)
@@ -276,8 +276,8 @@ def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None,
 
     RodRun.try_step = recording
     if starts:
-        Newton.solve = solving
-        Newton.feasible_start = feasible
+        NewtonSolver.solve = solving
+        NewtonSolver.feasible_start = feasible
         RodRun.step_problem = problem
     try:
         ds = integrate(case)
@@ -287,8 +287,8 @@ def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None,
         print(f"stopped: {exc.reason} at t = {exc.t:.4f} s")
     finally:
         RodRun.try_step = plain
-        Newton.solve = plain_solve
-        Newton.feasible_start = plain_feasible
+        NewtonSolver.solve = plain_solve
+        NewtonSolver.feasible_start = plain_feasible
         RodRun.step_problem = plain_problem
     return attempts
 
@@ -426,7 +426,7 @@ def jacobian_modes(snapshot: bytes, h: float, k: int = 4) -> dict:
 
     The step of h (s) from the pickled run ``snapshot`` is set up as the run's first
     attempt (:meth:`solver.step_problem.ProblemAssembly.begin_solve`); the operator Newton
-    solves with there (row- and column-scaled, :meth:`solver.newton.Newton.operator`: the
+    solves with there (row- and column-scaled, :meth:`solver.newton.NewtonSolver.operator`: the
     exact Jacobian, the exact product included where the pose is the space route) is
     formed densely, column by column, and decomposed, J = U diag(σ) Vᵀ (numpy's SVD). The
     exact first correction δ = J⁻¹ b (b = the scaled residual's negative) is

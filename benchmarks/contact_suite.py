@@ -43,7 +43,7 @@ perturbation of the tolerance cannot rank two codes by one run. PyElastica's ple
 ρ∞ = 0.8, N = 25, Δt = 0.1 s is such a case (docs/contact.md § 4). ``--factors
 F1,F2,...`` replaces SPREAD; ``--set FIELD=VALUE`` (repeatable) sets a case field in
 every run. ``--newton ATTR=VALUE[,...]`` sets class attributes of
-:class:`solver.newton.Newton` for every run (as benchmarks/seed_accuracy.py's option).
+:class:`solver.newton.NewtonSolver` for every run (as benchmarks/seed_accuracy.py's option).
 """
 from __future__ import annotations
 

@@ -81,7 +81,7 @@ from contact_iteration_cost import _advance_to, _median_ms  # beside this script
 
 ROOT = Path(__file__).resolve().parents[1]
 TENSION = ROOT / "cases" / "goyal-writhing-tension.yaml"
-RTOL = 1e-3            # the solver's GMRES relative residual (Newton.GMRES_RTOL)
+RTOL = 1e-3            # the solver's GMRES relative residual (NewtonSolver.GMRES_RTOL)
 COMPONENTS = ("v", "ω", "f", "κ")
 
 

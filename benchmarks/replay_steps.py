@@ -13,7 +13,7 @@ and band factorisations per step are deterministic; the sums per window are prin
 the wall time (the variants run alternately, step by step, so their wall times share the
 machine's moods; the counts are what to compare first).
 
-A variant is a set of class attributes of :class:`solver.newton.Newton` (the solver's
+A variant is a set of class attributes of :class:`solver.newton.NewtonSolver` (the solver's
 tuning constants), e.g. ``CONTACT_BAND_WEIGHT=1.0`` (all node-local contact blocks in the
 preconditioner, the earlier setting) or ``GAP_KEEP=0.1``, or of the contact candidate
 search :class:`solver.contact.search.CandidateSearch` (``VERLET_SKIN``; :data:`OWNERS`).
@@ -41,7 +41,7 @@ from threadpoolctl import threadpool_limits
 
 from solver import Case
 from solver.contact.search import CandidateSearch
-from solver.newton import Newton
+from solver.newton import NewtonSolver
 from solver.simulation import RodRun
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -49,13 +49,13 @@ RESULTS = ROOT / "benchmarks" / "results" / "replay_steps.json"
 SEED = ROOT / "cases" / "goyal-writhing.yaml"
 
 
-#: the classes other than Newton whose class attributes a variant may set, by attribute
+#: the classes other than NewtonSolver whose class attributes a variant may set, by attribute
 OWNERS = {"VERLET_SKIN": CandidateSearch}
 
 
 def owner(attr: str):
-    """The class whose attribute ``attr`` a variant sets (:data:`OWNERS`, else Newton)."""
-    return OWNERS.get(attr, Newton)
+    """The class whose attribute ``attr`` a variant sets (:data:`OWNERS`, else NewtonSolver)."""
+    return OWNERS.get(attr, NewtonSolver)
 
 
 def parse_variant(text: str) -> tuple[str, dict]:
@@ -74,7 +74,7 @@ def parse_variant(text: str) -> tuple[str, dict]:
 
 
 def set_newton(text: str) -> dict:
-    """Set the class attributes ``ATTR=VALUE[,ATTR=VALUE...]`` of Newton or the candidate
+    """Set the class attributes ``ATTR=VALUE[,ATTR=VALUE...]`` of NewtonSolver or the candidate
     search (:func:`owner`; the ``--newton`` option of benchmarks/seed_accuracy.py and
     contact_suite.py) for the rest of the process; returns them. Raises ValueError as
     :func:`parse_variant`."""
@@ -153,7 +153,7 @@ def main() -> None:
     ap.add_argument("--windows", nargs="+", default=["18:21", "26:29", "34:36", "41:44"],
                     help="windows START:END in s of simulated time")
     ap.add_argument("--variant", action="append", default=[],
-                    help="NAME:ATTR=VALUE[,ATTR=VALUE...] (class attributes of Newton "
+                    help="NAME:ATTR=VALUE[,ATTR=VALUE...] (class attributes of NewtonSolver "
                     "or, VERLET_SKIN, of CandidateSearch)")
     args = ap.parse_args()
     windows = []

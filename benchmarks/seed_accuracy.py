@@ -37,7 +37,7 @@ stored there (e.g. ``benchmarks/results/seed_accuracy_18-45.json``; ``--windows`
 below): a change to the contact steps measured without recomputing the 6.25-ms reference,
 valid while the state at t0 is the same (the two states' writhe must agree within 0.1 %;
 the difference is printed). ``--newton ATTR=VALUE[,ATTR=VALUE...]`` sets class
-attributes of :class:`solver.newton.Newton` (its tuning constants, as
+attributes of :class:`solver.newton.NewtonSolver` (its tuning constants, as
 ``benchmarks/replay_steps.py --variant`` does) for every run the script makes, e.g.
 ``--newton CONTACT_RESIDUAL_FACTOR=1``.
 

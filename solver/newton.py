@@ -66,7 +66,7 @@ from .banded import (NV, block_factor, block_solve, block_storage, copy_into, fi
 from .contact.model import candidate_gaps_into
 from .scheme import E3, E4, W, exact_loads_product, pose_into, residual_into
 
-__all__ = ["Newton", "equilibrate", "scale_blocks", "FAILURES"]
+__all__ = ["NewtonSolver", "equilibrate", "scale_blocks", "FAILURES"]
 
 #: why a solve failed, by the kernel's code: None (converged, or iterations exhausted),
 #: a singular Jacobian, a stall, GMRES failing with a fresh factorisation, a non-finite
@@ -167,7 +167,7 @@ def _matvec_kernel(blocks, x, load_weight, dB, out):
 
 # ----------------------------------------------------------------------------- kernels
 # The persistent state of a Newton object, as the kernels take it (allocated by
-# Newton._allocate):
+# NewtonSolver._allocate):
 #   lin = (the LU's storage (solver.banded.block_storage), row scale (n,), s12 (12,),
 #          column scale (n,))
 #   op  = (scaled band blocks (N, 12, 24), scaled boundary values (12,), load row weight
@@ -584,7 +584,7 @@ def _feasible_start(Y_old, guess, step, rod, cand, cdata, ws, out, keep):
     zero-displacement state (v, ω) = −(v^n, ω^n) keeps every node where it is (the
     trapezoidal position update), and the start is blended from it toward ``guess`` by
     the largest 2^−k (k ≤ 7) that keeps every candidate gap at least ``keep``
-    (Newton.START_GAP_KEEP) of its old value (else the zero-displacement state). Why:
+    (NewtonSolver.START_GAP_KEEP) of its old value (else the zero-displacement state). Why:
     the replay of the seed example's first contact, where an extrapolated start
     penetrated and Newton died at the barrier (docs/contact.md § 2). Returns the blend
     factor."""
@@ -626,7 +626,7 @@ def _position_converged(r, r_prev, moved, it, res, res_limit, bound, trace):
     Equations II, § IV.8, eq. (8.10), in the maximum norm of the positions). Converged
     when that is at most ``bound`` (m), ρ < ½, the last correction was taken whole (cut
     by the feasibility filter or the line search, d does not measure convergence), and
-    the scaled residual ``res`` is at most ``res_limit`` (Newton.CONTACT_RESIDUAL_FACTOR
+    the scaled residual ``res`` is at most ``res_limit`` (NewtonSolver.CONTACT_RESIDUAL_FACTOR
     × √tol: one or two more quadratic iterations would reach tol). trace: the kernel's
     per-iteration record (feasible and line-search fractions in columns 1, 2). Returns
     the verdict."""
@@ -702,7 +702,7 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
     frozen_on = False
     fresh_sel = True
     # contact steps: the positions of the last iterate and how far the last correction
-    # moved them (m), for the position test of Newton.CONTACT_POSITION_FRACTION
+    # moved them (m), for the position test of NewtonSolver.CONTACT_POSITION_FRACTION
     r_prev, moved = ws[15], ws[16]
     moved[0] = -1.0
     position_test = contact and pos_bound > 0.0
@@ -903,7 +903,7 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
     return max_it, res, False, 0
 
 
-class Newton:
+class NewtonSolver:
     """Newton iterations for the steps of one :class:`solver.scheme.RodSystem`.
 
     Parameters

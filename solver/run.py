@@ -10,7 +10,7 @@
   ``run.refusals``, the growth guard's ``run.guard_sigma``, ...) are exposed too;
 * the step's problem (:class:`solver.step_problem.ProblemAssembly`: boundary rows, loads,
   contact candidates from :class:`solver.contact.search.CandidateSearch`), handed to
-  Newton (:class:`solver.newton.Newton`).
+  Newton (:class:`solver.newton.NewtonSolver`).
 
 :func:`solver.simulation.integrate` drives it; tests and benchmarks use it to reach the
 state between steps.
@@ -31,7 +31,7 @@ from .energies import (distributed_power, distributed_work_into, end_loads, end_
                        end_work_into)
 from .kinematics import normalize_quaternions, quat_to_matrix, rotate_rows
 from .loads import LoadModel
-from .newton import Newton
+from .newton import NewtonSolver
 from .properties import RodProperties
 from .recording import dense_state, interpolated_snapshot, snapshot
 from .scheme import RodSystem, alpha_parameters
@@ -98,7 +98,7 @@ class RodRun(ProblemAssembly):
             self.route_tolerance = self._route_tolerance()
         seabed = Seabed(case.seabed, props.diameter) if case.seabed is not None else None
         self.system = RodSystem(props, self.loads, contact=self.contact, seabed=seabed)
-        self.newton = Newton(self.system, num.newton.tolerance, num.newton.max_iterations)
+        self.newton = NewtonSolver(self.system, num.newton.tolerance, num.newton.max_iterations)
         if self.contact is not None:
             self.newton.position_tolerance = self.route_tolerance
         self.params = alpha_parameters(num.rho_inf)

@@ -821,7 +821,7 @@ class StepTerms:
     cand_arrays their kernel arrays, frozen_selection the frozen closest-point selection
     (None: selected afresh at every iterate), data the step's tuple for
     :func:`residual_into`, key what the Jacobian's band part depends on besides the
-    iterate (:class:`solver.newton.Newton` keeps a factorisation while it is unchanged).
+    iterate (:class:`solver.newton.NewtonSolver` keeps a factorisation while it is unchanged).
     The fields left None are those of a system before its first step.
     """
     cand_arrays: tuple
@@ -858,7 +858,7 @@ class RodSystem:
     """Residual and Jacobian of one time step of the box/generalized-α scheme.
 
     The residual is one compiled kernel (:func:`residual_into`); Newton's method for the
-    step (iteration, line search, linear solver) is :class:`solver.newton.Newton`, which
+    step (iteration, line search, linear solver) is :class:`solver.newton.NewtonSolver`, which
     calls that kernel from its own compiled iterations with :meth:`kernel_args`.
 
     Parameters

@@ -218,7 +218,7 @@ class ProblemAssembly:
         return guess
 
     def solve_problem(self, prob: StepProblem) -> Solution:
-        """Hand the step's problem to Newton (:meth:`solver.newton.Newton.solve`), set up
+        """Hand the step's problem to Newton (:meth:`solver.newton.NewtonSolver.solve`), set up
         by :meth:`begin_solve`. With self-contact every pair within reach of the new
         positions must have been among the candidates (the kept search holds them while
         the nodes stay within half its skin); pairs found beyond them are added and the
@@ -411,7 +411,7 @@ class ProblemAssembly:
         return self.search.candidates(self.r, lambda: quat_to_matrix(self.q), r_new, R_new)
 
     def _feasible_guess(self, guess):
-        """A Newton start whose contact gaps are open (:meth:`Newton.feasible_start`: the
+        """A Newton start whose contact gaps are open (:meth:`NewtonSolver.feasible_start`: the
         replay of the seed example's first contact, where an extrapolated start penetrated
         and Newton died at the barrier), unless ``guess`` is the old level itself. The
         step (with its candidates) must have been set up by ``system.begin_step``."""

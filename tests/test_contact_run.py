@@ -85,14 +85,14 @@ class _Captured(Exception):
 
 def _linearized_contact_iterate(monkeypatch, min_pairs=5, accept=None):
     """Run the fast writhing case (N = 100) to the first Newton start with at least
-    ``min_pairs`` active contacts, linearise Newton there (:meth:`Newton.linearize`)
+    ``min_pairs`` active contacts, linearise Newton there (:meth:`NewtonSolver.linearize`)
     and return (run, the iterate Y (N+1, 12)); given ``accept(run, Y)``, the iterate it
     returns instead, the first that is not None."""
-    from solver.newton import Newton
+    from solver.newton import NewtonSolver
 
     run = RodRun(fast_writhing_case(6.8))
     captured = {}
-    solve = Newton.solve
+    solve = NewtonSolver.solve
 
     def spy(self, Y_guess):
         system = self.system
@@ -106,13 +106,13 @@ def _linearized_contact_iterate(monkeypatch, min_pairs=5, accept=None):
                 raise _Captured
         return solve(self, Y_guess)
 
-    monkeypatch.setattr(Newton, "solve", spy)
+    monkeypatch.setattr(NewtonSolver, "solve", spy)
     k = 0
     with pytest.raises(_Captured):
         while run.t < 6.8 - 1e-9:
             k += 1
             run.advance(0.1 * k)
-    monkeypatch.setattr(Newton, "solve", solve)
+    monkeypatch.setattr(NewtonSolver, "solve", solve)
     return run, captured["Y"]
 
 
@@ -159,9 +159,9 @@ def test_contact_operator_is_the_jacobian_of_the_residual(monkeypatch, weight):
     product) is the Jacobian of the step's residual, whatever that share: against
     central differences along random directions at a Newton start with five pairs
     (N = 100)."""
-    from solver.newton import Newton
+    from solver.newton import NewtonSolver
 
-    monkeypatch.setattr(Newton, "CONTACT_BAND_WEIGHT", weight)
+    monkeypatch.setattr(NewtonSolver, "CONTACT_BAND_WEIGHT", weight)
     run, Y = _linearized_contact_iterate(monkeypatch)
     newton, system = run.newton, run.system
     rng = np.random.default_rng(1)
@@ -180,11 +180,11 @@ def _pressed_contact_solves(monkeypatch, run, compare, count=10):
     """Run ``run`` (the fast writhing case to 7 s) until ``count`` of its Newton solves
     from 6.6 s on are contact steps with at least 5 contacts at the start (the loop
     pressed together); each of those is handed to ``compare(newton, Y_guess, solve)``
-    (``solve`` the unpatched Newton.solve), which returns (row, the solve's result the run
+    (``solve`` the unpatched NewtonSolver.solve), which returns (row, the solve's result the run
     goes on with). Returns the rows as an array (count, ...)."""
-    from solver.newton import Newton
+    from solver.newton import NewtonSolver
 
-    solve = Newton.solve
+    solve = NewtonSolver.solve
     rows = []
 
     def patched(self, Y_guess):
@@ -196,7 +196,7 @@ def _pressed_contact_solves(monkeypatch, run, compare, count=10):
             return out
         return solve(self, Y_guess)
 
-    monkeypatch.setattr(Newton, "solve", patched)
+    monkeypatch.setattr(NewtonSolver, "solve", patched)
     k = 0
     while len(rows) < count and run.t < 7.0 - 1e-9:
         k += 1
@@ -207,13 +207,13 @@ def _pressed_contact_solves(monkeypatch, run, compare, count=10):
 
 def test_contact_newton_stops_at_its_position_error(monkeypatch):
     """A contact step's Newton stops once its iterate's estimated position error is
-    below Newton.CONTACT_POSITION_FRACTION of the step's position bound (the position
+    below NewtonSolver.CONTACT_POSITION_FRACTION of the step's position bound (the position
     test), not only at the residual tolerance: over ten contact steps of the fast writhing
     case (N = 100) from 6.6 s on (the loop pressed together), each solved from the same start with
     and without the test, it takes fewer iterations in all, and each step's positions
     are within 10 × fraction × bound of the fully converged ones (the estimate may be
     low by a few times)."""
-    from solver.newton import Newton
+    from solver.newton import NewtonSolver
 
     run = RodRun(fast_writhing_case(7.0))
     bound = run.newton.position_tolerance
@@ -231,23 +231,23 @@ def test_contact_newton_stops_at_its_position_error(monkeypatch):
 
     its, its_full, moved = _pressed_contact_solves(monkeypatch, run, twice).T
     assert its.sum() < its_full.sum()
-    assert moved.max() <= 10.0 * Newton.CONTACT_POSITION_FRACTION * bound
+    assert moved.max() <= 10.0 * NewtonSolver.CONTACT_POSITION_FRACTION * bound
 
 
 def test_position_test_stops_only_below_its_residual_limit(monkeypatch):
     """The position test stops a contact step's Newton only at an iterate whose scaled
-    residual is at most Newton.CONTACT_RESIDUAL_FACTOR·√tolerance. Over ten contact
+    residual is at most NewtonSolver.CONTACT_RESIDUAL_FACTOR·√tolerance. Over ten contact
     steps of the fast writhing case from 6.6 s, each solved from the same start with
     factors putting that limit at the tolerance itself, at √tolerance, at the default
     (√10·√tolerance) and at 1e-3: at the tolerance the test never stops earlier than the
     residual test (the iterations of a solve without it); each looser limit stops no
     later than the one before, √tolerance earlier in all than the residual test, and
     each solve ends at a residual within its limit."""
-    from solver.newton import Newton
+    from solver.newton import NewtonSolver
 
     run = RodRun(fast_writhing_case(7.0))
     root = math.sqrt(run.newton.tol)
-    factors = (root, 1.0, 1e-3 / root, Newton.CONTACT_RESIDUAL_FACTOR)
+    factors = (root, 1.0, 1e-3 / root, NewtonSolver.CONTACT_RESIDUAL_FACTOR)
 
     def compare(newton, Y_guess, solve):
         its = {}
@@ -266,7 +266,7 @@ def test_position_test_stops_only_below_its_residual_limit(monkeypatch):
 
     none, at_tol, at_root, default, loose = _pressed_contact_solves(monkeypatch, run,
                                                                     compare).T
-    assert 1.0 < Newton.CONTACT_RESIDUAL_FACTOR < 1e-3 / root
+    assert 1.0 < NewtonSolver.CONTACT_RESIDUAL_FACTOR < 1e-3 / root
     assert np.array_equal(at_tol, none)
     assert np.all(at_root <= none) and at_root.sum() < none.sum()
     assert np.all(default <= at_root) and np.all(loose <= default)

@@ -1,5 +1,5 @@
 """The Newton-start report of benchmarks/contact_steps.py (``--starts``) and the feasible
-start's blend factor it reads (:meth:`solver.newton.Newton.feasible_start`): distances
+start's blend factor it reads (:meth:`solver.newton.NewtonSolver.feasible_start`): distances
 with a known answer, and the blend on a contact step of a hairpin whose strands face
 each other."""
 from __future__ import annotations
@@ -42,7 +42,7 @@ def test_the_start_report_counts_the_blended_starts_and_the_iterations():
 
 
 def test_the_corrections_are_counted_by_what_cut_them():
-    """Newton.last_trace rows (residual, filter's fraction, line search's fraction,
+    """NewtonSolver.last_trace rows (residual, filter's fraction, line search's fraction,
     GMRES): a whole correction, one the filter halved (the line search too: the filter's
     count), one only the line search halved, a whole one, and the final iterate's row,
     which made no correction and is not counted."""

@@ -65,17 +65,17 @@ def test_newton_option_sets_the_named_class_attributes_and_refuses_unknown_ones(
     """``--newton ATTR=VALUE`` (seed_accuracy.py, contact_suite.py) sets Newton's class
     attributes with their own types, and names an attribute Newton does not have."""
     from replay_steps import set_newton
-    from solver.newton import Newton
-    saved = Newton.CONTACT_RESIDUAL_FACTOR, Newton.GMRES_MAX
+    from solver.newton import NewtonSolver
+    saved = NewtonSolver.CONTACT_RESIDUAL_FACTOR, NewtonSolver.GMRES_MAX
     try:
         got = set_newton("CONTACT_RESIDUAL_FACTOR=2,GMRES_MAX=7")
         assert got == {"CONTACT_RESIDUAL_FACTOR": 2.0, "GMRES_MAX": 7}
-        assert Newton.CONTACT_RESIDUAL_FACTOR == 2.0
-        assert Newton.GMRES_MAX == 7 and isinstance(Newton.GMRES_MAX, int)
+        assert NewtonSolver.CONTACT_RESIDUAL_FACTOR == 2.0
+        assert NewtonSolver.GMRES_MAX == 7 and isinstance(NewtonSolver.GMRES_MAX, int)
         with pytest.raises(ValueError, match="NO_SUCH"):
             set_newton("NO_SUCH=1")
     finally:
-        Newton.CONTACT_RESIDUAL_FACTOR, Newton.GMRES_MAX = saved
+        NewtonSolver.CONTACT_RESIDUAL_FACTOR, NewtonSolver.GMRES_MAX = saved
 
 
 def test_variants_set_the_candidate_search_skin_on_its_own_class():
@@ -83,11 +83,11 @@ def test_variants_set_the_candidate_search_skin_on_its_own_class():
     (replay_steps.OWNERS), set there and not on Newton."""
     from replay_steps import set_newton
     from solver.contact.search import CandidateSearch
-    from solver.newton import Newton
+    from solver.newton import NewtonSolver
     saved = CandidateSearch.VERLET_SKIN
     try:
         assert set_newton("VERLET_SKIN=0.5") == {"VERLET_SKIN": 0.5}
-        assert CandidateSearch.VERLET_SKIN == 0.5 and not hasattr(Newton, "VERLET_SKIN")
+        assert CandidateSearch.VERLET_SKIN == 0.5 and not hasattr(NewtonSolver, "VERLET_SKIN")
     finally:
         CandidateSearch.VERLET_SKIN = saved
 

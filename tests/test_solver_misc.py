@@ -201,7 +201,7 @@ def test_warm_up_loads_every_compiled_kernel():
     kernels = json.loads(out.stdout.strip().splitlines()[-1])
     # kernels called only from other kernels (compiled into their callers; loaded from
     # the cache they have no signatures of their own); Newton's linear-algebra kernels
-    # are called from Python only by its test hooks (Newton.linearize, operator, gmres)
+    # are called from Python only by its test hooks (NewtonSolver.linearize, operator, gmres)
     helpers = {"solver.topology._pair_setup", "solver.topology._distance_row",
                "solver.topology._row_far", "solver.topology._pair_direct",
                "solver.topology._rows", "solver.topology._chunk_bounds",

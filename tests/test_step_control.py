@@ -705,7 +705,7 @@ def test_the_estimate_sees_below_newtons_tolerance():
     a predictor that already passed Newton's test was accepted unchanged, so its error
     was measured as exactly 0 and the next step grew ×5 into a refusal. The seed case
     from rest (20 segments) then needed 97,119 steps and 94,308 refusals to reach 2e-4 s
-    (measured); with one Newton iteration always taken (``Newton.min_iterations``) it
+    (measured); with one Newton iteration always taken (``NewtonSolver.min_iterations``) it
     takes 199. The wall-clock budget stops the old behaviour within the test."""
     spec = seed_spec(20)
     spec.pop("contact")

@@ -28,7 +28,7 @@ keeps what the growth guard has learnt; a step itself is tried by
   Y'''·Π/6 (Π the product of the distances to its nodes); the generalized-α corrector
   has error C(ρ∞)·h³·Y''' (C = 1/12 at ρ∞ = 1, :func:`error_constant`). Their difference
   therefore gives the corrector's local error as (Y_c − Y_p)·C h³/(C h³ + Π/6), after
-  the stiff filter J⁻¹(c M_b ·) (:meth:`solver.newton.Newton.filtered`) has removed the
+  the stiff filter J⁻¹(c M_b ·) (:meth:`solver.newton.NewtonSolver.filtered`) has removed the
   components that the scheme damps and need not be resolved
   (Hairer, Nørsett & Wanner, *Solving ODEs I*, § III.7; the Newmark analogue is
   Zienkiewicz & Xie, Earthquake Eng. Struct. Dyn. 20 (1991) 871-887). The first step
@@ -634,7 +634,7 @@ class ErrorControl(PIController):
         NaN when there is no estimate (the first step after a restart).
 
         filter: callable (N+1, 12) -> (N+1, 12) applied to the predictor-corrector
-        difference before it is measured (:meth:`solver.newton.Newton.filtered`), or None.
+        difference before it is measured (:meth:`solver.newton.NewtonSolver.filtered`), or None.
         """
         h = t_new - self.times[-1]
         prediction = self.predict(t_new)
