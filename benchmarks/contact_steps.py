@@ -378,7 +378,7 @@ def _iterates_residuals(snapshot: bytes, h: float, its: int, cells=None) -> list
     (:meth:`solver.step_problem.ProblemAssembly.begin_solve`). With ``cells`` (a range of
     cells, a case with a seabed) each row also holds, under "seabed", per cell its
     midpoint's penetration (m), the seabed's force per unit length normal to the bottom
-    (N/m; :meth:`solver.seabed.Seabed.cell_loads` at the iterate's new-level pose) and the
+    (N/m; :meth:`solver.seabed.SeabedContact.cell_loads` at the iterate's new-level pose) and the
     largest |unscaled residual| of its E3 rows (N/m)."""
     import pickle
 

@@ -401,7 +401,7 @@ class SeabedWork(WorkAccount):
     @staticmethod
     def spring_energy(run, r) -> float:
         """The spring's stored energy U (J) at the node positions r (N+1, 3) m
-        (:meth:`solver.seabed.Seabed.stored_energy`: per cell, at its midpoint)."""
+        (:meth:`solver.seabed.SeabedContact.stored_energy`: per cell, at its midpoint)."""
         return run.seabed.stored_energy(r, float(run.props.ds))
 
     def stored(self, carried) -> float:

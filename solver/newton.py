@@ -47,7 +47,7 @@ docs/contact.md § 4). The strategy, in one place:
   and GMRES solves with it as in a contact step. The
   damper's clamp is held on one branch per cell through the iterations and re-decided
   near their solution, until the law's own residual passes (an active-set strategy,
-  :class:`solver.seabed.Seabed`): its bounds swapping between iterates made Newton cycle
+  :class:`solver.seabed.SeabedContact`): its bounds swapping between iterates made Newton cycle
   while the cable settles onto the bottom.
 * **Fail fast.** A contact step that halves its residual less than once in four
   iterations, whose corrections are cut to 1/64 three times, or whose GMRES does not
@@ -680,7 +680,7 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
     nr = cand[2].shape[0]
     contact = nr > 0
     seabed = rod[7][0][0] != 0.0
-    # the seabed damper's branches held within the solve (solver.seabed.Seabed.freeze_control)
+    # the seabed damper's branches held within the solve (solver.seabed.SeabedContact.freeze_control)
     hold = rod[7][7]
     held = seabed and not contact and hold[1] != 0.0
     hold_at = int(hold[2])

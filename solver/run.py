@@ -35,7 +35,7 @@ from .newton import NewtonSolver
 from .properties import RodProperties
 from .recording import dense_state, interpolated_snapshot, snapshot
 from .scheme import RodSystem, alpha_parameters
-from .seabed import Seabed
+from .seabed import SeabedContact
 from .state import RunState
 from .step_problem import ProblemAssembly
 from .stepping import ErrorControl, PIController
@@ -96,7 +96,7 @@ class RodRun(ProblemAssembly):
             self.contact = SelfContact(case.contact, props.s, props.diameter, props.rho_a)
             self.search = CandidateSearch(self.contact, props.diameter)
             self.route_tolerance = self._route_tolerance()
-        seabed = Seabed(case.seabed, props.diameter) if case.seabed is not None else None
+        seabed = SeabedContact(case.seabed, props.diameter) if case.seabed is not None else None
         self.system = RodSystem(props, self.loads, contact=self.contact, seabed=seabed)
         self.newton = NewtonSolver(self.system, num.newton.tolerance, num.newton.max_iterations)
         if self.contact is not None:
@@ -341,7 +341,7 @@ class RodRun(ProblemAssembly):
         """The seabed's (normal reaction, friction, moment) per unit length (N+1, 3),
         global frame, and the surface penetration (N+1,) m, at the current level's
         pose (:meth:`_seabed_pose`; or pose = (q, r, ṙ) given), by
-        :meth:`solver.seabed.Seabed.loads`."""
+        :meth:`solver.seabed.SeabedContact.loads`."""
         q, r, v = self._seabed_pose() if pose is None else pose
         return self.seabed.loads(r, v, quat_to_matrix(q), self.Y[:, 3:6])
 
@@ -477,5 +477,5 @@ for _name, _attr in (("growth_guard", "limit"), ("guard_sigma", "sigma"), ("guar
                                      "GrowthGuard`)."))
 del _name, _attr
 # the sea floor has one home, the system's equations
-RodRun.seabed = _delegate("system", "seabed", "The sea floor (:class:`solver.seabed.Seabed`, "
+RodRun.seabed = _delegate("system", "seabed", "The sea floor (:class:`solver.seabed.SeabedContact`, "
                           "None without one) of the system's equations.")

@@ -867,7 +867,7 @@ class RodSystem:
     loads : LoadModel
     contact : SelfContact or None
         The self-contact model (:mod:`solver.contact`); None without self-contact.
-    seabed : solver.seabed.Seabed or None
+    seabed : solver.seabed.SeabedContact or None
         The sea floor (:mod:`solver.seabed`); None without one.
     """
 

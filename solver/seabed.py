@@ -92,7 +92,7 @@ import numpy as np
 from .banded import true_at_run_time
 from .kinematics import _right_jacobian_into
 
-__all__ = ["Seabed", "seabed_into", "seabed_old_into", "seabed_cells", "node_penetration", "to_nodes",
+__all__ = ["SeabedContact", "seabed_into", "seabed_old_into", "seabed_cells", "node_penetration", "to_nodes",
            "far_from_bottom", "contact_length", "contact_gap", "CONTACT_GAP", "touchdown",
            "NO_SEABED"]
 
@@ -104,7 +104,7 @@ NO_SEABED = (np.zeros(10), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros((1, 1
 _V, _E3, _E4 = 0, 6, 9
 
 
-class Seabed:
+class SeabedContact:
     """The case's ``seabed`` on the grid, as the compiled kernels take it.
 
     Parameters
@@ -478,7 +478,7 @@ def _law(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk, m
 
 @numba.njit(cache=True, inline="always")
 def _next_mode(frozen, law):
-    """The damper's branch after a re-decision (:meth:`Seabed.freeze`): the law's, except
+    """The damper's branch after a re-decision (:meth:`SeabedContact.freeze`): the law's, except
     that a cell held at one bound whose law gives the other goes to the free branch
     between them (N is monotone in the penetration rate, so the root lies between the
     two bounds' roots: held at one bound alone, the iterates would swap bounds)."""
@@ -602,7 +602,7 @@ def seabed_into(Y, Rm, r, vg, theta, dt, af, data, want, cells, blocks, record, 
     Y (N+1, 12) the iterate with the new-level frames Rm (N+1, 3, 3), positions r and
     velocities ṙ = R v (N+1, 3), rotation increments θ (N+1, 3); dt (s); af = αf (the
     old level's share is data[5], frozen at the step's start by
-    :meth:`Seabed.begin_step`). The derivative is with respect to the cell's two nodes' v and ω
+    :meth:`SeabedContact.begin_step`). The derivative is with respect to the cell's two nodes' v and ω
     at the new level. A cell whose midpoint is above the bottom's top plus its radius
     is skipped.
 

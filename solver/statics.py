@@ -176,7 +176,7 @@ class StaticProblem:
     reference : (4,) frame of the straight reference rod (tangent a3 along the rod)
     contact : :class:`solver.contact.SelfContact` or None: self-contact by its law's
               repulsion, without damping (:func:`contact_loads`)
-    seabed : :class:`solver.seabed.Seabed` or None: the bottom's normal spring, without
+    seabed : :class:`solver.seabed.SeabedContact` or None: the bottom's normal spring, without
              damping and friction (:func:`seabed_loads`)
     """
 
@@ -1067,8 +1067,8 @@ def static_problem(case, time: Optional[float] = None) -> StaticProblem:
         from .contact import SelfContact
         contact = SelfContact(case.contact, props.s, props.diameter, props.rho_a)
     if case.seabed is not None:
-        from .seabed import Seabed
-        seabed = Seabed(case.seabed, props.diameter)
+        from .seabed import SeabedContact
+        seabed = SeabedContact(case.seabed, props.diameter)
     return StaticProblem(length=float(case.rod.length), n_segments=N,
                          stiffness=np.asarray(props.stiffness, float), load=load,
                          start=ends["start"], end=ends["end"], mass=props.rho_a,

@@ -402,18 +402,18 @@ def test_node_law_derivative_matches_finite_differences(seed):
     central differences, through random linear maps from six unknowns to the position,
     velocity, angular velocity and tangent, on a twisted grid, with every friction regime
     (speeds below, across and above the slip velocity) and the damper's cap."""
-    from solver.case import Seabed as SeabedSpec
-    from solver.seabed import Seabed, _node
+    from solver.case import Seabed
+    from solver.seabed import SeabedContact, _node
 
     rng = np.random.default_rng(seed)
-    spec = SeabedSpec.model_validate({
+    spec = Seabed.model_validate({
         "bathymetry": {"x": [-2.0, 0.1, 2.0], "y": [-2.0, -0.2, 2.0],
                        "z": [[0.1, -0.3, 0.2], [-0.2, 0.4, 0.1], [0.3, -0.1, -0.2]]},
         "normal_stiffness": 80.0, "normal_damping": 10.0 * rng.uniform(0.1, 3.0),
         "friction": {"axial": 0.4, "lateral": 0.7, "static_to_kinetic": 1.6,
                      "slip_velocity": 0.5}})
     rho = 0.3
-    data = Seabed(spec, np.full(2, 2 * rho)).data
+    data = SeabedContact(spec, np.full(2, 2 * rho)).data
     Dr, Du, DOm, Dt = (rng.standard_normal((3, 6)) for _ in range(4))
     r0 = np.array([rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-0.1, 0.3)])
     u0, Om0 = 0.6 * rng.standard_normal(3), rng.standard_normal(3)

@@ -106,7 +106,7 @@ def test_catenary_touchdown_lying_part_is_supported_smoothly():
     0.48-1.51 w, the second difference of the node heights 14 µm; with the law at the
     nodes every other node carried 2w and the rest nothing (20 of 43 nodes), the node
     heights zig-zagging by 84 µm. The lying part: the nodes 0.3 m or more short of the
-    last touching cell (solver.seabed.Seabed.cell_loads)."""
+    last touching cell (solver.seabed.SeabedContact.cell_loads)."""
     from solver.kinematics import quat_to_matrix
     from solver.run import RodRun
 

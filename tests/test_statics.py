@@ -513,10 +513,10 @@ def _hairpin(N=100, L=1.0, D=0.02, g_hat=0.004, B=1e-5, q=1.0, rho_a=0.5, kappa=
 
 
 def _seabed(k=2e3, elevation=0.0, diameter=None):
-    from solver.case import Seabed as SeabedSpec
-    from solver.seabed import Seabed
-    return Seabed(SeabedSpec(elevation=elevation, normal_stiffness=k, normal_damping=50.0,
-                             friction={"axial": 0.5, "lateral": 0.8}), diameter)
+    from solver.case import Seabed
+    from solver.seabed import SeabedContact
+    return SeabedContact(Seabed(elevation=elevation, normal_stiffness=k, normal_damping=50.0,
+                                friction={"axial": 0.5, "lateral": 0.8}), diameter)
 
 
 def test_contact_and_seabed_jacobian_match_central_differences():
