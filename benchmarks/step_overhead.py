@@ -195,7 +195,7 @@ PARTS = [("solver.run", "RodRun", "try_step"),
          ("solver.step_problem", "ProblemAssembly", "_better_predictor"),
          ("solver.step_problem", "ProblemAssembly", "_local_error"),
          ("solver.contact.model", "SelfContact", "passes_through"),
-         ("solver.recording", "Recorder", "accepted"), ("solver.recording", "Recorder", "record")]
+         ("solver.recording", "OutputRecorder", "accepted"), ("solver.recording", "OutputRecorder", "record")]
 
 
 def time_parts(case, repeats: int) -> list:

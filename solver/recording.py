@@ -1,6 +1,6 @@
 """What a run keeps: the output records, the per-step diagnostics, progress and checkpoints.
 
-:class:`Recorder` is the output side of :func:`solver.simulation.integrate`: it takes the
+:class:`OutputRecorder` is the output side of :func:`solver.simulation.integrate`: it takes the
 run's state at the output times (:func:`snapshot`, or inside an error-controlled step its
 dense output, :func:`interpolated_snapshot`), the diagnostics of every accepted step, calls
 the caller's progress, checkpoint and observer hooks, and builds the result dataset
@@ -24,7 +24,7 @@ from .results import build_dataset
 from .stepping import hermite
 from .kinematics import min_bend_radius, quat_slerp
 
-__all__ = ["Progress", "RateEstimate", "EtaModel", "Recorder", "snapshot",
+__all__ = ["Progress", "RateEstimate", "EtaModel", "OutputRecorder", "snapshot",
            "interpolated_snapshot",
            "dense_state", "end_drift"]
 
@@ -293,7 +293,7 @@ def interpolated_snapshot(run, fields: set, t: float, start) -> dict:
 
 
 # ------------------------------------------------------------------------------ recorder
-class Recorder:
+class OutputRecorder:
     """The records, diagnostics and hooks of one :func:`solver.simulation.integrate` call.
 
     Parameters

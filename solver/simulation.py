@@ -27,7 +27,7 @@ import pickle
 import time as _time
 
 from .checkpoint import CheckpointError, resume_key
-from .recording import EtaModel, Progress, RateEstimate, Recorder
+from .recording import EtaModel, Progress, RateEstimate, OutputRecorder
 from .initial import start_step
 from .run import RodRun
 from .stepping.control import SolverDivergence
@@ -117,7 +117,7 @@ def _simulate(case, progress, should_stop, checkpoint=None, checkpoint_interval=
                  checkpoint_interval=checkpoint_interval, observer=observer)
     if resume is None:
         run = RodRun(case, extra_force, start)
-        rec = Recorder(case, run, hooks, wall0=wall0)
+        rec = OutputRecorder(case, run, hooks, wall0=wall0)
         rec.done = start_step(case, start) - 1      # 0, or the steps before the start
         rec.record()
         out = rec.observed(0)
@@ -132,7 +132,7 @@ def _simulate(case, progress, should_stop, checkpoint=None, checkpoint_interval=
         run = state.run
         if extra_force is not None:
             run.loads.extra = extra_force
-        rec = Recorder(case, run, hooks, resume=resume, state=state, wall0=wall0)
+        rec = OutputRecorder(case, run, hooks, resume=resume, state=state, wall0=wall0)
     if case.numerics.tolerance is not None:
         return _simulate_adaptive(case, run, rec, rec.done)
     return _simulate_fixed(case, run, rec, rec.done + 1)
@@ -169,7 +169,7 @@ def _simulate_adaptive(case, run, rec, step=0):
     interval the outputs inside a step are its dense output
     (:meth:`RodRun.interpolated_snapshot`; ``output.interpolate``, the default) or the
     steps land on them (``interpolate: false``). ``rec``: the run's
-    :class:`solver.recording.Recorder`; ``step``: the accepted steps so far (a resumed
+    :class:`solver.recording.OutputRecorder`; ``step``: the accepted steps so far (a resumed
     run)."""
     t_end = case.numerics.t_end
     interval = case.output.interval
