@@ -179,12 +179,12 @@ def _seabed(run, pose) -> dict:
     """The seabed's outputs (with a seabed only): its normal reaction and friction per
     unit length (N+1, 3) N/m, global; the length on the bottom (m), the touchdown
     arclength (m, NaN where none: :func:`solver.seabed.touchdown`) and its work (J)."""
-    from .seabed import contact_gap, contact_length, touchdown
+    from .seabed import contact_length, hover_gap, touchdown
 
     Fn, Ff, _, pen = run.seabed_loads(pose)
     s = run.props.s
     return {"seabed_force": Fn, "seabed_friction": Ff,
-            "seabed_contact_length": contact_length(pen, s, contact_gap(2.0 * run.seabed.radius)),
+            "seabed_contact_length": contact_length(pen, s, hover_gap(2.0 * run.seabed.radius)),
             "seabed_touchdown": touchdown(pen, s), "seabed_work": run.seabed_work}
 
 

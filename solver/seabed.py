@@ -93,7 +93,7 @@ from .banded import true_at_run_time
 from .kinematics import _right_jacobian_into
 
 __all__ = ["SeabedContact", "seabed_into", "seabed_old_into", "seabed_cells", "node_penetration", "to_nodes",
-           "far_from_bottom", "contact_length", "contact_gap", "CONTACT_GAP", "touchdown",
+           "far_from_bottom", "contact_length", "hover_gap", "CONTACT_GAP", "touchdown",
            "NO_SEABED"]
 
 #: the kernels' data of a run without a seabed (the scalars' kind 0)
@@ -820,8 +820,9 @@ def to_nodes(cell_values):
 CONTACT_GAP = 0.025
 
 
-def contact_gap(diameter):
-    """The gap (N+1,) m a hovering node may bridge: CONTACT_GAP times the diameter
+def hover_gap(diameter):
+    """The gap (N+1,) m a hovering node may bridge and still count as lying on the bottom
+    (:func:`contact_length`): CONTACT_GAP times the diameter
     profile (N+1,) m."""
     return CONTACT_GAP * np.asarray(diameter, float)
 
@@ -829,7 +830,7 @@ def contact_gap(diameter):
 def contact_length(pen, s, gap=0.0) -> float:
     """Length of rod on the bottom, m, from the surface penetration pen (N+1,) m, linear
     in each cell of the grid s (N+1,) m: the arclength where pen > 0, where each run of
-    nodes hovering less than gap ((N+1,) or scalar m, :func:`contact_gap`) above the
+    nodes hovering less than gap ((N+1,) or scalar m, :func:`hover_gap`) above the
     bottom between two touching nodes counts as touching. A contact's ends are the zeros
     of pen, so the touchdown (:func:`touchdown`) is where this length ends."""
     pen, s = np.asarray(pen, float), np.asarray(s, float)

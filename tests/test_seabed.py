@@ -330,11 +330,11 @@ def test_contact_length_bridges_nodes_hovering_between_touching_ones():
     cases/catenary-touchdown.yaml: up to 0.15 mm) reports its lying length, not the
     slivers around the touching nodes; a cable lifted clear, or more than the gap, reports
     0 and a contact's ends (the touchdown) stay the zeros of p."""
-    from solver.seabed import CONTACT_GAP, contact_gap, contact_length, touchdown
+    from solver.seabed import CONTACT_GAP, contact_length, hover_gap, touchdown
 
     s = np.linspace(0.0, 4.0, 81)
     D = 0.02
-    gap = contact_gap(np.full(s.size, D))
+    gap = hover_gap(np.full(s.size, D))
     assert np.allclose(gap, CONTACT_GAP * D)
     rng = np.random.default_rng(3)
     lying = s <= 2.0                                        # 2 m on the bottom, then the span
