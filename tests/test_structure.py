@@ -1,6 +1,7 @@
-"""The solver's shape (issue 36): no import circles in solver/, the time loop a screen
-long, no long functions outside the compiled kernels, and the interface between step
-control and the step (``RodRun.try_step`` -> ``Attempt``). docs/developer.md draws it."""
+"""The solver's shape (issue 36): the time loop a screen long, no long functions outside
+the compiled kernels, and the interface between step control and the step
+(``RodRun.try_step`` -> ``Attempt``). docs/developer.md draws it. No import circles, in
+solver/ or anywhere: tests/test_layers.py."""
 from __future__ import annotations
 
 import ast
@@ -28,41 +29,6 @@ def _modules() -> dict:
             parts = parts[:-1]
         mods[".".join(parts)] = f
     return mods
-
-
-def _imports(name: str, path: Path, mods: dict) -> set:
-    """solver modules that ``name`` imports anywhere (module level or inside functions)."""
-    package = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
-    found = set()
-    for node in ast.walk(ast.parse(path.read_text())):
-        if isinstance(node, ast.ImportFrom):
-            base = package[:len(package) - node.level + 1] if node.level else []
-            module = ".".join(base + (node.module.split(".") if node.module else []))
-            for alias in node.names:
-                sub = f"{module}.{alias.name}"
-                found.add(sub if sub in mods else module)
-        elif isinstance(node, ast.Import):
-            found.update(alias.name for alias in node.names)
-    return {m for m in found if m in mods and m != name}
-
-
-def test_no_import_circles_in_the_solver():
-    mods = _modules()
-    graph = {m: _imports(m, p, mods) for m, p in mods.items()}
-    circles = []
-
-    def visit(start, node, path):
-        for dep in graph[node]:
-            if dep == start:
-                circles.append(" -> ".join(path + [start]))
-            elif dep not in path and dep > start:
-                visit(start, dep, path + [dep])
-
-    for m in sorted(graph):
-        visit(m, m, [m])
-    assert not circles, circles
-    # the checkpoint pickles the run without knowing the step logic
-    assert not {"solver.simulation", "solver.run"} & graph["solver.checkpoint"]
 
 
 def test_the_loop_is_short_and_no_function_is_long():
