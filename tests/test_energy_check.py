@@ -126,18 +126,15 @@ def test_turned_shape_points_its_chord_at_the_held_end():
 
 
 def test_held_cable_keeps_its_answer_at_the_default():
-    """The soft hanging cable of benchmarks/loads_verification.py (both ends held in
+    """The soft hanging cable (test_global_ends.catenary_spec; both ends held in
     position in the global frame) at Δt = 0.1 s: with the loads' work measured on the
     κ-shape turned onto the held end (GlobalLoadWork.turned) the default check refuses
     no step and the run is the unchecked one. Measured on the κ-shape anchored at node 0
     alone, the first measured step read ε = 8.4 T and the sag ended 1.3 % off the
     catenary (−0.14 % without the check; docs/numerics.md § 8)."""
-    import sys
-    from pathlib import Path
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-    import loads_verification as LV
+    from test_global_ends import catenary_spec
 
-    spec = LV.catenary_spec(0.1, DEFAULT)
+    spec = catenary_spec(0.1, DEFAULT)
     spec["numerics"]["t_end"] = 4.0
     checked = integrate(Case.model_validate(spec))
     spec["numerics"]["energy_tolerance"] = None

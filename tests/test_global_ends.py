@@ -351,3 +351,25 @@ def test_error_controlled_run_with_a_position_table_ends_with_its_refusals_named
     assert ds.attrs["hockle_status"] == "completed"
     refused = dict(item.rsplit(" ", 1) for item in ds.attrs["hockle_refused_attempts"].split(", "))
     assert "None" not in refused and int(refused["error"]) > 0
+
+
+def catenary_spec(dt=0.2, energy_tolerance=None):
+    """The soft hanging cable's case (dict): E = 1e5 Pa, 40 segments, both ends held in
+    position in the global frame 0.8 m apart, started from an arc of L = 1 m, ρ∞ = 0,
+    to 16 s (research/energy_check.py runs it with and without the energy check;
+    tests/test_energy_check.py at Δt = 0.1 s)."""
+    L, X, D, rho, rho_f = 1.0, 0.8, 0.01, 7800.0, 1000.0
+    start = {"frame": "global", "translation": [{"position": 0.0}] * 3,
+             "rotation": FREE_ROT}
+    end = {"frame": "global", "translation": [{"position": X}, {"position": 0.0},
+                                              {"position": 0.0}], "rotation": FREE_ROT}
+    spec = _spec(start, end, gravity=[0.0, 0.0, -9.81],
+                 fluid={"density": rho_f, "added_mass_coefficient": 1.0,
+                        "drag_coefficient_normal": 1.2},
+                 initial={"centreline": {"points": _arc_points(L, X)}},
+                 output={"fields": ["f", "position", "reactions"]})
+    spec["rod"].update({"youngs_modulus": 1e5, "shear_modulus": 1e5 / 2.6, "density": rho,
+                        "diameter": D})
+    spec["numerics"] = {"n_segments": 40, "dt": dt, "t_end": 16.0, "rho_inf": 0.0,
+                        "growth_guard": None, "energy_tolerance": energy_tolerance}
+    return spec
