@@ -20,22 +20,19 @@ setting checked by one run at Δt/2 (the smallest convergence check, what a user
 the work-precision table spends to know that Δt is enough). The fixed settings are
 re-timed in this run, so the ratios compare timings taken together.
 
-Run: ``python benchmarks/adaptive_precision.py [--quick]`` (after work_precision.py).
+Run: ``python -m benchmarks.adaptive_precision [--quick]`` (after work_precision.py).
 """
 from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-
-import work_precision as wp  # noqa: E402
+from benchmarks import work_precision as wp
 
 RESULTS = HERE / "results" / "adaptive_precision.json"
 #: half decades where the 1 % crossing lies (a fixed Δt halves: the error moves by 4x)

@@ -3,7 +3,7 @@ self-contact, to 45 s. Prints the wall time, the time per nominal step with and 
 active contact (medians), and the shares of the wall time spent in the contact search and
 in the writhe. Bar: 120 s on this 2-core machine; goal: 20 s.
 
-Run: ``python benchmarks/bench_seed.py [--t-end 45] [--out goyal.nc] [--repeats K]
+Run: ``python -m benchmarks.bench_seed [--t-end 45] [--out goyal.nc] [--repeats K]
 [--position-tolerance 5e-3 --dt-cut-factor 2]`` (K runs with the Newton tolerance
 perturbed by 0.1 % steps: median and range, for comparing versions; see
 :func:`repeated`; the last two: the case with another bound on its contact steps'
@@ -19,17 +19,15 @@ import argparse
 import json
 import math
 import statistics
-import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from seed_events import events  # noqa: E402
+from benchmarks.seed_events import events
 
-import solver.contact as contact_mod  # noqa: E402
-import solver.simulation as sim_mod  # noqa: E402
-import solver.topology as topology_mod  # noqa: E402
-from solver import Case, SolverDivergence, integrate  # noqa: E402
+import solver.contact as contact_mod
+import solver.simulation as sim_mod
+import solver.topology as topology_mod
+from solver import Case, SolverDivergence, integrate
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"

@@ -1,7 +1,7 @@
 """Compare result files bit for bit: every variable, coordinate and attribute of two hockle
 NetCDF results (or of every ``*.nc`` in one folder against the same name in another).
 
-Run: ``python benchmarks/compare_results.py A.nc B.nc`` or ``python
+Run: ``python -m benchmarks.compare_results A.nc B.nc`` or ``python
 benchmarks/compare_results.py DIR_A DIR_B``. Prints IDENTICAL or DIFFERENT per file with
 the differing names; exit status 1 on any difference or missing file. Values are compared
 with ``np.array_equal`` (NaN equal to NaN), shapes and dtypes too; only the attributes

@@ -11,7 +11,7 @@ makes a signature of its own (:func:`solver.banded.true_at_run_time`), so every
 duplicate is worth a look. Last, the functions compiled for more than one signature,
 with the arguments whose types differ.
 
-Run: ``PYTHONPATH=$PWD python benchmarks/compile_time.py [--top 20] [--json PATH]`` (as
+Run: ``PYTHONPATH=$PWD python -m benchmarks.compile_time [--top 20] [--json PATH]`` (as
 long as the compilation: 86-91 s on an idle 2-core AMD EPYC, docs/benchmarks-history.md
 for other machines). The process compiles
 into its own temporary folder and leaves the installation's cache alone. For

@@ -9,12 +9,13 @@ wall-clock budget per case, past which the run ends ``stopped``):
 * ``tension``: its tension variant, cases/goyal-writhing-tension.yaml;
 * ``seed-twist-x2``, ``seed-twist-x0.5``: the seed with its slow twist rate (0.3 rad/s
   after 5 s) doubled and halved;
-* ``thin-plectoneme``: benchmarks/thin_plectoneme.py's rod (L/D = 100), N = 200,
-  Δt = 0.02 s, 16 s;
+* ``thin-plectoneme``: the thin rod of research/thin_plectoneme.py (L/D = 100: the
+  plectoneme with D = 1 cm, :func:`thin_case`), N = 200, Δt = 0.02 s, 16 s;
 * ``pyelastica-0.8``: PyElastica's plectoneme as benchmarks/peer_compare.py runs it,
   ρ∞ = 0.8, N = 25, Δt = 0.1 s, to 12 s;
 * ``cantilever``: the steel cantilever under a dead tip load P L²/EI = 10 ramped over
-  2 s (tests/test_energy_check.py), N = 100, Δt = 0.1 s, 8 s, ρ∞ = 0 (no contact: the
+  2 s (:func:`cantilever_spec`, the rod of tests/test_energy_check.py), N = 100,
+  Δt = 0.1 s, 8 s, ρ∞ = 0 (no contact: the
   tip's x/L against Mattiasson's 0.44501 is its answer);
 * ``seed-in-air``: a case no setting was tuned on: the seed example without its fluid
   (no drag, no added mass), to 45 s.
@@ -27,12 +28,12 @@ three factors (:func:`phase_factors`): how many more steps per simulated second 
 takes, how many more Newton iterations per step, and how much more each iteration costs.
 The processor's name and clock head the table: wall times compare on one host only.
 
-Run: ``PYTHONPATH=$PWD python benchmarks/contact_suite.py [--only a,b] [--write-docs]``
+Run: ``python -m benchmarks.contact_suite [--only a,b] [--write-docs]``
 (10-19 min alone on 2 cores, by the machine; ``--merge earlier.json`` keeps an earlier
 run's rows for the cases not run now, ``--table-only --merge x.json`` only prints the
 table);
 ``--write-docs`` puts the table into docs/benchmarks.md (its ``contact_suite`` section,
-also written by benchmarks/report.py); the figures go to
+also written by ``python -m benchmarks.report``); the figures go to
 benchmarks/results/contact_suite.json.
 
 ``--spread`` runs each case of ``--only`` again with ``numerics.newton.tolerance`` scaled
@@ -43,7 +44,8 @@ perturbation of the tolerance cannot rank two codes by one run. PyElastica's ple
 ρ∞ = 0.8, N = 25, Δt = 0.1 s is such a case (docs/contact.md § 4). ``--factors
 F1,F2,...`` replaces SPREAD; ``--set FIELD=VALUE`` (repeatable) sets a case field in
 every run. ``--newton ATTR=VALUE[,...]`` sets class attributes of
-:class:`solver.newton.NewtonSolver` for every run (as benchmarks/seed_accuracy.py's option).
+:class:`solver.newton.NewtonSolver` for every run (:mod:`benchmarks.tuning`, as
+``benchmarks.seed_accuracy``'s option).
 """
 from __future__ import annotations
 
@@ -52,18 +54,15 @@ import json
 import math
 import os
 import re
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
+from solver.case import Numerics
+
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
-sys.path.insert(0, str(HERE))
-sys.path.insert(0, str(ROOT / "tests"))
-
-from solver.case import Numerics  # noqa: E402
 
 RESULTS = HERE / "results" / "contact_suite.json"
 DOC = ROOT / "docs" / "benchmarks.md"
@@ -96,21 +95,62 @@ def _seed(path="cases/goyal-writhing.yaml", twist=1.0, fluid=True):
     return spec
 
 
+#: the thin rod's diameter, m (L/D = 100)
+THIN_DIAMETER = 0.01
+
+
+def thin_case(n: int, dt: float, t_end: float = 16.0):
+    """PyElastica's plectoneme case (``pyelastica_compare.hockle_plectoneme_case``) with
+    D = 1 cm and the contact tolerance 2D: n segments, time step dt (s), to t_end (s),
+    outputs every 0.02 s. Returns a validated ``solver.Case``."""
+    from solver.case import Case
+
+    from benchmarks import pyelastica_compare as pc
+
+    spec = pc.hockle_plectoneme_case(n, dt, t_end).model_dump(mode="json")
+    spec["rod"]["diameter"] = THIN_DIAMETER
+    spec["contact"]["tolerance"] = 2.0 * THIN_DIAMETER
+    return Case.model_validate(spec)
+
+
 def _thin():
-    import thin_plectoneme as tp
-    return tp.thin_case(200, 0.02).model_dump(mode="json")
+    return thin_case(200, 0.02).model_dump(mode="json")
 
 
 def _pyelastica():
-    import peer_compare as pcmp
+    from benchmarks import peer_compare as pcmp
     spec = pcmp.hockle_case(25, 0.1, 12.0).model_dump(mode="json")
     spec["numerics"]["rho_inf"] = 0.8
     return spec
 
 
+def cantilever_spec(dt=0.1, n=100, t_end=8.0):
+    """The steel cantilever (L = 1 m, D = 1 cm, E = 210 GPa, G = 81 GPa, 7850 kg/m³, no
+    gravity) clamped along z at s = 0 under a dead tip load P = 10 EI/L² along +x, ramped on
+    over 2 s; ρ∞ = 0, the energy check at its default (the rod of
+    tests/test_energy_check.py)."""
+    E, D, L = 2.1e11, 0.01, 1.0
+    EI = E * math.pi * D**4 / 64
+    return {
+        "schema_version": 1, "name": "dead-load cantilever",
+        "rod": {"length": L, "youngs_modulus": E, "shear_modulus": 8.1e10, "density": 7850.0,
+                "diameter": D},
+        "point_loads": [{"s": L, "value": [10.0 * EI / L**2, 0.0, 0.0],
+                         "factor": {"t": [0.0, 2.0], "value": [0.0, 1.0]}}],
+        "boundary": {"start": {"translation": [{"velocity": 0.0}] * 3,
+                               "rotation": [{"angular_velocity": 0.0}] * 3},
+                     "end": {"translation": [{"force": 0.0}] * 3,
+                             "rotation": [{"moment": 0.0}] * 3}},
+        "numerics": {"n_segments": n, "dt": dt, "t_end": t_end, "rho_inf": 0.0,
+                     "energy_tolerance": ENERGY_TOLERANCE},
+        "output": {"fields": ["position", "energies"]},
+    }
+
+
 def _cantilever():
-    import test_energy_check as te
-    return te.cantilever(0.1, n=100).model_dump(mode="json")
+    from solver.case import Case
+
+    return Case.model_validate(cantilever_spec()).model_dump(mode="json")
 
 
 #: name -> (description, spec builder)
@@ -514,7 +554,7 @@ def main() -> None:
         if x not in CASES:
             ap.error(f"unknown case {x!r}; known: {', '.join(CASES)}")
     if args.newton:
-        from replay_steps import set_newton
+        from benchmarks.tuning import set_newton
         set_newton(args.newton)
     if args.spread:
         factors = tuple(float(x) for x in args.factors.split(",") if x) or SPREAD

@@ -16,7 +16,7 @@ then drives headless Chromium (Selenium) through the pages and prints, as median
 * the 3-D view's slice: position at one time at the 200 points the page asks for against all
   1001 points (the whole file is the alternative a page without the slice API would have).
 
-    python3 benchmarks/dashboard_load.py [--jobs 1000] [--rounds 5] [--screenshots docs/figures]
+    python3 -m benchmarks.dashboard_load [--jobs 1000] [--rounds 5] [--screenshots docs/figures]
 
 Needs selenium, chromium and chromedriver (apt-get install chromium chromium-driver).
 """
@@ -37,7 +37,6 @@ from pathlib import Path
 import httpx
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
 KEY = "bench-key-0123456789abcdef"
 DEFAULT_RESULT = REPO / "benchmarks" / "results" / "dashboard_seed.nc"
 SEED_CASE = REPO / "cases" / "goyal-writhing.yaml"
@@ -70,12 +69,11 @@ def populate(registry, n_jobs: int, result: Path, owner: str) -> str:
 
     import xarray as xr
 
-    sys.path.insert(0, str(REPO / "tests" / "service"))
-    from svc_support import tiny_case
+    from benchmarks.load_service import TINY
 
     limits = (3600.0, 3500.0, 3400.0)
     for i in range(n_jobs):
-        spec = json.dumps(tiny_case(f"job {i:04d}"))
+        spec = json.dumps({**TINY, "name": f"job {i:04d}"})
         job, _ = registry.create_job(
             spec_json=spec, spec_hash=hashlib.sha256(spec.encode()).hexdigest(),
             solver_version="bench", name=f"job {i:04d}", grid_points=9, n_steps=5, t_end=0.05,

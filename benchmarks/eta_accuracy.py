@@ -10,7 +10,7 @@ update is the total wall time minus the wall time then. Prints the ratio shown/t
 the longest gap between two progress updates
 (wall s; the bar must not freeze for more than a few seconds).
 
-Run: ``python benchmarks/eta_accuracy.py [--t-end 45] [--trace eta_trace.json]``
+Run: ``python -m benchmarks.eta_accuracy [--t-end 45] [--trace eta_trace.json]``
 (``--trace`` keeps the updates as JSON). ``--replay eta_trace.json`` recomputes the
 figures from a kept trace with the ETA model of this tree
 (:class:`solver.recording.EtaModel`) fed the recorded updates, without running the

@@ -8,7 +8,7 @@ and with all fields at output cadences 1, 10 and 100. Medians of repeated runs, 
 ratios to the bare rod measured in the same run. What a case does not have must cost
 nothing: the ratios of the "off" rows to the bare rod should be 1 within the noise.
 
-Run: ``python benchmarks/feature_cost.py [--quick] [--repeats 5]``.
+Run: ``python -m benchmarks.feature_cost [--quick] [--repeats 5]``.
 """
 from __future__ import annotations
 
@@ -153,7 +153,7 @@ def section(figdir: Path, quick: bool = False) -> str:
                      f"the aperture test) costs x{forced['ratio']:.2f}. Topology at every "
                      "step costs the writhe of 1000 segments, an O(N²) sum (Klenin & "
                      "Langowski), ~1 ms per output on one core (`python "
-                     "benchmarks/writhe_speed.py`).")
+                     "research/writhe_speed.py`).")
     lines.append("")
     return "\n".join(lines)
 

@@ -13,7 +13,7 @@ status (0: no failure), then the answers per operation from its HAR report, the 
 in the API's log and whether the API is healthy afterwards. schemathesis is a benchmark-only
 dependency: ``python -m pip install -r benchmarks/requirements-fuzz.txt``.
 
-    python benchmarks/fuzz_api.py [--max-examples 50] [--seed 1] [--all-checks] [--unpinned]
+    python -m benchmarks.fuzz_api [--max-examples 50] [--seed 1] [--all-checks] [--unpinned]
 """
 from __future__ import annotations
 
@@ -32,23 +32,11 @@ from pathlib import Path
 import httpx
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "benchmarks"))
+from benchmarks.load_service import TINY as _LOAD_TINY
+from benchmarks.load_service import free_port, wait_for
 
-from load_service import free_port, wait_for  # noqa: E402
-
-TINY = {
-    "schema_version": 1, "name": "fuzz",
-    "rod": {"length": 1.0, "youngs_modulus": 1.25e7, "shear_modulus": 5.0e6,
-            "density": 1500.0, "diameter": 0.02},
-    "boundary": {
-        "start": {"translation": [{"velocity": 0}, {"velocity": 0}, {"velocity": 0}],
-                  "rotation": [{"angular_velocity": 0}, {"angular_velocity": 0},
-                               {"angular_velocity": 1.0}]},
-        "end": {"translation": [{"velocity": 0}, {"velocity": 0}, {"force": 0}],
-                "rotation": [{"angular_velocity": 0}, {"angular_velocity": 0},
-                             {"angular_velocity": 0}]}},
-    "numerics": {"n_segments": 8, "dt": 0.01, "t_end": 0.05},
-}
+#: the tiny case of benchmarks.load_service, named for this run
+TINY = {**_LOAD_TINY, "name": "fuzz"}
 
 
 def _seed(base: str) -> tuple[str, str]:

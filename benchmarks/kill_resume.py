@@ -10,7 +10,7 @@ SIGKILL once its progress passes ``--kill-at`` percent, and prints: the age of t
 checkpoint at the kill (wall seconds and simulated seconds behind the run), the time from the
 kill to the job's re-queue and to its completion, and the attempts.
 
-    python benchmarks/kill_resume.py [--job-seconds 180] [--kill-at 50] [--registry sqlite]
+    python -m benchmarks.kill_resume [--job-seconds 180] [--kill-at 50] [--registry sqlite]
 """
 from __future__ import annotations
 
@@ -18,7 +18,6 @@ import argparse
 import copy
 import os
 import signal
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -26,10 +25,8 @@ from pathlib import Path
 import httpx
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "benchmarks"))
-
-from fuzz_api import TINY  # noqa: E402
-from load_service import service_stack, wait_for  # noqa: E402
+from benchmarks.fuzz_api import TINY
+from benchmarks.load_service import service_stack, wait_for
 
 
 def _case(t_end: float) -> dict:

@@ -8,7 +8,7 @@ concurrently while a "dashboard" polls GET /v1/jobs/{id} at RATE requests/s; and
 * p50 / p99 latency of GET /v1/jobs/{id} while the workers are busy, and of POST /v1/jobs,
 * jobs lost (not successful) and jobs run twice to completion (from the registry's events).
 
-    python benchmarks/load_service.py [--jobs 200] [--rate 50] [--workers 2] [--registry postgresql]
+    python -m benchmarks.load_service [--jobs 200] [--rate 50] [--workers 2] [--registry postgresql]
 """
 from __future__ import annotations
 
@@ -33,8 +33,6 @@ from pathlib import Path
 import httpx
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-
 TINY = {
     "schema_version": 1,
     "name": "bench",

@@ -1,7 +1,7 @@
 """hockle and MoorDyn interleaved on a no-torsion cable case (issue 43's second peer): a
 1-m cable pinned at one end, released horizontal, swinging down through still water.
 
-Run: ``nice -n 10 python benchmarks/moordyn_compare.py [--quick]`` (MoorDyn-C's Python
+Run: ``nice -n 10 python -m benchmarks.moordyn_compare [--quick]`` (MoorDyn-C's Python
 package, ``pip install moordyn==2.7.2``; benchmark-only). It prints a Markdown section and
 writes ``benchmarks/results/moordyn_compare.json``.
 
@@ -44,8 +44,6 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
-sys.path.insert(0, str(ROOT))
-
 NAME = "moordyn_compare"
 LENGTH, DIAMETER, DENSITY = 1.0, 0.02, 4000.0
 AREA = math.pi * DIAMETER**2 / 4
@@ -279,7 +277,7 @@ def render(res: dict) -> str:
     """The Markdown text of the results."""
     cfg, runs, refs = res["config"], res["runs"], res["refs"]
     L = ["### MoorDyn: a no-torsion cable swinging down in water", ""]
-    L.append(f"`nice -n 10 python benchmarks/moordyn_compare.py` (MoorDyn "
+    L.append(f"`nice -n 10 python -m benchmarks.moordyn_compare` (MoorDyn "
              f"{res.get('moordyn_version', '?')}, Python package `moordyn`). MoorDyn has no "
              "torsion and no self-contact, so it cannot run the plectoneme; the case both can "
              "express is a cable pinned at one end, released horizontal and swinging down "

@@ -1,7 +1,7 @@
 """hockle and MoorDyn on a seabed (issue 43): a cable hanging from a fairlead onto a flat
 bottom, the catenary with touchdown, at rest and while the fairlead moves away.
 
-Run: ``nice -n 10 python benchmarks/moordyn_seabed_compare.py [--quick]`` (MoorDyn-C's
+Run: ``nice -n 10 python -m benchmarks.moordyn_seabed_compare [--quick]`` (MoorDyn-C's
 Python package, ``pip install moordyn==2.7.2``; benchmark-only). It prints a Markdown
 section and writes ``benchmarks/results/moordyn_seabed_compare.json``.
 
@@ -68,10 +68,7 @@ from scipy.optimize import brentq
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(HERE))
-
-from moordyn_compare import loadavg, to_json  # noqa: E402
+from benchmarks.moordyn_compare import loadavg, to_json
 
 NAME = "moordyn_seabed_compare"
 LENGTH, DIAMETER, DENSITY = 4.0, 0.02, 1500.0
@@ -446,7 +443,7 @@ def render(res: dict) -> str:
     cfg, runs = res["config"], res["runs"]
     L = ["### MoorDyn: a cable hanging onto the seabed (catenary with touchdown)", ""]
     L.append(
-        f"`nice -n 10 python benchmarks/moordyn_seabed_compare.py` (MoorDyn "
+        f"`nice -n 10 python -m benchmarks.moordyn_seabed_compare` (MoorDyn "
         f"{res.get('moordyn_version', '?')}). A 4-m cable (D = 0.02 m, 1500 kg/m³ in water, "
         "w = 1.541 N/m, EI = 9.8e-4 N·m², no friction) pinned on a flat bottom at one end "
         f"and {HEIGHT:g} m above it at the other, X₀ = {X0:.4f} m away (the catenary of "

@@ -1,9 +1,9 @@
 """hockle and PyElastica interleaved on the same physics: a clamped rod twisted into a
 plectoneme with self-contact (issue 43; PyElastica's ``PlectonemesCase`` example).
 
-Run: ``nice -n 10 python benchmarks/peer_compare.py`` (prints the Markdown section, writes
+Run: ``nice -n 10 python -m benchmarks.peer_compare`` (prints the Markdown section, writes
 ``benchmarks/results/peer_compare.json`` and the figure), or as the ``pyelastica`` section
-of ``python benchmarks/report.py``. ``--quick``: a smoke run of the pipeline (short
+of ``python -m benchmarks.report``. ``--quick``: a smoke run of the pipeline (short
 horizon, coarse grids, one repeat; not figures to quote). ``--render``: rebuild the
 section from the saved JSON without running anything. ``--check-harness``: the lean
 PyElastica harness against the one of ``benchmarks/pyelastica_compare.py`` (identical
@@ -52,24 +52,21 @@ if __name__ == "__main__":       # one thread each, set before numba loads (coll
                  "MKL_NUM_THREADS"):       # limits them at run time, for report.py)
         os.environ[_var] = "1"
 
-import argparse  # noqa: E402
-import json  # noqa: E402
-import math  # noqa: E402
-import statistics  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
+import argparse
+import json
+import math
+import statistics
+import sys
+import time
+from pathlib import Path
 
-import numba  # noqa: E402
-import numpy as np  # noqa: E402
+import numba
+import numpy as np
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(HERE))
-
-import pyelastica_compare as pc  # noqa: E402
-from solver.topology import writhe  # noqa: E402
+from benchmarks import pyelastica_compare as pc
+from solver.topology import writhe
 
 NAME = "peer_compare"
 OUT_DT = 0.02                    # s, output interval of both codes
@@ -568,7 +565,7 @@ def render(res: dict, fig_name: str | None) -> str:
     quick = res.get("quick", False)
     loads = [x for e in res.get("log", []) for x in (e["load_before"][0], e["load_after"][0])]
     L = ["## hockle and PyElastica side by side: twisted rod to plectoneme", ""]
-    L.append(f"`nice -n 10 python benchmarks/peer_compare.py{' --quick' if quick else ''}` "
+    L.append(f"`nice -n 10 python -m benchmarks.peer_compare{' --quick' if quick else ''}` "
              f"(PyElastica {res['pyelastica_version']}, `pip install -r "
              "benchmarks/requirements-pyelastica.txt`). Measured "
              f"{res.get('utc_start', '?')}-{res.get('utc_end', '?')} UTC in one process, "
@@ -740,8 +737,7 @@ def render(res: dict, fig_name: str | None) -> str:
         L.append("")
     long_path = HERE / "results" / "peer_long.json"
     if long_path.exists():                 # benchmarks/peer_long.py writes it; not re-run
-        import peer_long
-        L.append(peer_long.render(json.loads(long_path.read_text())))
+        L.append(render_long(json.loads(long_path.read_text())))
     hc = res.get("harness_check")
     if hc:
         L.append(f"**The lean harness** (`--check-harness`, n = {hc['n']}, "
@@ -756,6 +752,116 @@ def render(res: dict, fig_name: str | None) -> str:
              "its wall-time ratios, measured one code after the other with different damping "
              "laws, are superseded by this section.")
     return "\n".join(L) + "\n"
+
+
+# --------------------------------------------------------------------------- the whole horizon
+#: s: the example's time_twist (10 turns; benchmarks.peer_long runs to 100 s)
+LONG_T_TWIST = 50.0
+
+#: turns: a writhe jump between two outputs (0.02 s apart) larger than this, in a run that
+#: stopped, marks its blow-up; the outputs from there on are left out
+BLOWUP_JUMP = 0.5
+
+
+def trimmed(d: dict) -> dict:
+    """The run with t and Wr as arrays, cut before its blow-up (a run that did not
+    complete: the first jump of Wr above BLOWUP_JUMP between outputs)."""
+    t, wr = np.asarray(d["t"], float), np.asarray(d["Wr"], float)
+    if d["status"] != "completed":
+        jump = np.flatnonzero(~(np.abs(np.diff(wr)) <= BLOWUP_JUMP))
+        if len(jump):
+            t, wr = t[:jump[0] + 1], wr[:jump[0] + 1]
+    return dict(d, t=t, Wr=wr)
+
+
+def _compare_wr(a: dict, b: dict, t0: float = 0.0) -> float:
+    """max |Wr_a − Wr_b| (turns) over the common outputs with t ≥ t0 (b interpolated)."""
+    t_hi = min(a["t"][-1], b["t"][-1])
+    m = (a["t"] >= t0) & (a["t"] <= t_hi + 1e-9)
+    if not m.any():
+        return float("nan")
+    return float(np.max(np.abs(a["Wr"][m] - np.interp(a["t"][m], b["t"], b["Wr"]))))
+
+
+def long_pairs(res: dict) -> dict:
+    """Each pair of the long runs' writhe differences (:data:`render_long`'s table)."""
+    keys = list(res["runs"])
+    pairs = {}
+    for i, ka in enumerate(keys):
+        for kb in keys[i + 1:]:
+            ra, rb = trimmed(res["runs"][ka]), trimmed(res["runs"][kb])
+            early = ra["t"] <= 12.0 + 1e-9
+            t_hi = min(ra["t"][-1], rb["t"][-1])
+            mb = rb["t"] <= t_hi + 1e-9
+            pairs[f"{ka} vs {kb}"] = {"t_common": float(t_hi), "all": _compare_wr(ra, rb),
+                                      "e_l1": wr_error(ra["t"], ra["Wr"], rb["t"][mb],
+                                                            rb["Wr"][mb]),
+                                      "held": _compare_wr(ra, rb, LONG_T_TWIST + pc.T_RAMP),
+                                      "to_12s": _compare_wr(dict(ra, t=ra["t"][early],
+                                                             Wr=ra["Wr"][early]), rb)}
+    return pairs
+
+
+def render_long(res: dict, fig_name: str | None = "peer_long_writhe.png") -> str:
+    """The section's part on the whole horizon, from ``benchmarks.peer_long``'s results."""
+    runs = {k: trimmed(d) for k, d in res["runs"].items()}
+    pairs = long_pairs({"runs": runs})
+    L = ["### The whole horizon: writhe toward 100 s (untimed)", ""]
+    L.append(
+        f"`nice -n 10 python -m benchmarks.peer_long` (PyElastica "
+        f"{res.get('pyelastica_version', '?')}). The physics of the section above (same "
+        "Morison drag, each code's contact law) with the example's whole schedule: 10 "
+        f"turns in {LONG_T_TWIST:g} s (the rate ramped down over 0.5 s), then held to "
+        f"{res['t_end']:g} s. One run per setting, one after the other, one thread each; "
+        f"{res['total_s']:.0f} s in all, load {res['load_start']} at the start, "
+        f"{res['load_end']} at the end (2 shared cores; walls for orientation only).")
+    L.append("")
+    L.append("| run | status | wall (s) | buckling (s) | first contact (s) | Wr at 12 s | "
+             f"Wr at {LONG_T_TWIST:g} s | Wr at the end |")
+    L.append("|---|---|---|---|---|---|---|---|")
+
+    def wr_at(d, t):
+        return float(np.interp(t, d["t"], d["Wr"])) if d["t"][-1] >= t - 1e-9 else float("nan")
+    for k, d in runs.items():
+        raw_end = float(np.asarray(res["runs"][k]["t"], float)[-1])
+        cut = "" if d["t"][-1] >= raw_end - 1e-9 else ", its blow-up after it left out"
+        L.append(f"| {k} | {d['status']} | {d['wall']:.1f} | {_f(d['t_buckle'])} | "
+                 f"{_f(d['t_contact'])} | {_f(wr_at(d, 12.0))} | "
+                 f"{_f(wr_at(d, LONG_T_TWIST))} | {_f(float(d['Wr'][-1]))} "
+                 f"(t = {d['t'][-1]:.2f} s{cut}) |")
+    L.append("")
+    L.append("| pair | common horizon (s) | max \\|ΔWr\\| to 12 s (turns) | "
+             "max \\|ΔWr\\| over the common horizon | "
+             f"max \\|ΔWr\\| held ({LONG_T_TWIST + pc.T_RAMP:g} s on) | "
+             "e = ∫\\|ΔWr\\| dt / ∫\\|Wr\\| dt over it (%) |")
+    L.append("|---|---|---|---|---|---|")
+    for k, p in pairs.items():
+        L.append(f"| {k} | {_f(p.get('t_common'), '{:.1f}')} | {_f(p['to_12s'])} | "
+                 f"{_f(p['all'])} | {_f(p['held'])} | {_pct(p.get('e_l1'))} |")
+    ends = {k: float(np.asarray(d["t"], float)[-1]) for k, d in runs.items()}
+    done = [k for k in runs if runs[k]["status"] == "completed"]
+    if len(done) < len(runs):
+        L.append("")
+        L.append(
+            "Reading. " + ("No run" if not done else f"Only {', '.join(done)}") +
+            f" reached {res['t_end']:g} s on this physics (the Morison drag in place of the "
+            "example's linear damper; the linear damper was not run this long): hockle's Newton "
+            "stopped (diverged; `solver_diverged` where the reason is recorded) and PyElastica's "
+            "state went non-finite, each "
+            "between " + f"{min(ends.values()):.1f} and {max(ends.values()):.1f} s, as the "
+            "plectoneme kept winding (Wr "
+            f"{min(float(d['Wr'][-1]) for d in runs.values()):.1f}-"
+            f"{max(float(d['Wr'][-1]) for d in runs.values()):.1f} turns at the stops); "
+            "halving a setting's step (the runs that share N or n) moved its stop little. "
+            "The comparison therefore runs to where both "
+            "runs of a pair had got: the codes agree on the buckling and first-contact "
+            "times within the figures of the table, and their writhe drifts apart in "
+            "the interwinding, by the max |ΔWr| of the pair table.")
+    if fig_name:
+        L.append("")
+        L.append(f"![Writhe to 100 s](figures/benchmarks/{fig_name})")
+    return "\n".join(L) + "\n"
+
 
 
 def second_peer_text() -> str:
@@ -775,13 +881,13 @@ def second_peer_text() -> str:
          "(`pip install -r benchmarks/requirements-moordyn.txt`):", ""]
     path = HERE / "results" / "moordyn_compare.json"
     if path.exists():
-        import moordyn_compare
+        from benchmarks import moordyn_compare
         L.append(moordyn_compare.render(json.loads(path.read_text())))
     else:
         L.append("(not run yet)\n")
     path = HERE / "results" / "moordyn_seabed_compare.json"
     if path.exists():                      # benchmarks/moordyn_seabed_compare.py writes it
-        import moordyn_seabed_compare
+        from benchmarks import moordyn_seabed_compare
         L.append(moordyn_seabed_compare.render(json.loads(path.read_text())))
     return "\n".join(L)
 

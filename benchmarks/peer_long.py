@@ -1,7 +1,7 @@
 """hockle and PyElastica on the shared physics of ``benchmarks/peer_compare.py`` over the
 example's whole horizon (issue 43): untimed, the writhe histories to 100 s.
 
-Run: ``nice -n 10 python benchmarks/peer_long.py`` (PyElastica from
+Run: ``nice -n 10 python -m benchmarks.peer_long`` (PyElastica from
 ``benchmarks/requirements-pyelastica.txt``). It prints a Markdown section, writes
 ``benchmarks/results/peer_long.json`` and ``docs/figures/benchmarks/peer_long_writhe.png``.
 ``--t-end``: another horizon; ``--render``: rebuild from the saved JSON.
@@ -25,25 +25,25 @@ if __name__ == "__main__":
                  "MKL_NUM_THREADS"):
         os.environ[_var] = "1"
 
-import argparse  # noqa: E402
-import json  # noqa: E402
-import math  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
 
-import numpy as np  # noqa: E402
+import numpy as np
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(HERE))
-
-import peer_compare as peer  # noqa: E402
-import pyelastica_compare as pc  # noqa: E402
+from benchmarks import peer_compare as peer
+from benchmarks import pyelastica_compare as pc
+from benchmarks.peer_compare import LONG_T_TWIST as T_TWIST
+from benchmarks.peer_compare import long_pairs as _pairs
+from benchmarks.peer_compare import render_long as render
+from benchmarks.peer_compare import trimmed
 
 NAME = "peer_long"
-T_TWIST = 50.0                   # s: the example's time_twist (10 turns)
 T_END = 100.0                    # s: the example's final time
 #: (code, N or n, Δt s or Δt/Δs s/m): each code at the coarser and the finer of two
 #: settings of peer_compare's grid (PyElastica n = 40 and 80 at 0.011 s/m; hockle (50,
@@ -123,49 +123,6 @@ def analyse(run: dict) -> dict:
             "t_contact": out["t_contact"], "wall": run["wall"], "status": run["status"]}
 
 
-#: turns: a writhe jump between two outputs (0.02 s apart) larger than this, in a run that
-#: stopped, marks its blow-up; the outputs from there on are left out
-BLOWUP_JUMP = 0.5
-
-
-def trimmed(d: dict) -> dict:
-    """The run with t and Wr as arrays, cut before its blow-up (a run that did not
-    complete: the first jump of Wr above BLOWUP_JUMP between outputs)."""
-    t, wr = np.asarray(d["t"], float), np.asarray(d["Wr"], float)
-    if d["status"] != "completed":
-        jump = np.flatnonzero(~(np.abs(np.diff(wr)) <= BLOWUP_JUMP))
-        if len(jump):
-            t, wr = t[:jump[0] + 1], wr[:jump[0] + 1]
-    return dict(d, t=t, Wr=wr)
-
-
-def compare(a: dict, b: dict, t0: float = 0.0) -> float:
-    """max |Wr_a − Wr_b| (turns) over the common outputs with t ≥ t0 (b interpolated)."""
-    t_hi = min(a["t"][-1], b["t"][-1])
-    m = (a["t"] >= t0) & (a["t"] <= t_hi + 1e-9)
-    if not m.any():
-        return float("nan")
-    return float(np.max(np.abs(a["Wr"][m] - np.interp(a["t"][m], b["t"], b["Wr"]))))
-
-
-def _pairs(res: dict) -> dict:
-    keys = list(res["runs"])
-    pairs = {}
-    for i, ka in enumerate(keys):
-        for kb in keys[i + 1:]:
-            ra, rb = trimmed(res["runs"][ka]), trimmed(res["runs"][kb])
-            early = ra["t"] <= 12.0 + 1e-9
-            t_hi = min(ra["t"][-1], rb["t"][-1])
-            mb = rb["t"] <= t_hi + 1e-9
-            pairs[f"{ka} vs {kb}"] = {"t_common": float(t_hi), "all": compare(ra, rb),
-                                      "e_l1": peer.wr_error(ra["t"], ra["Wr"], rb["t"][mb],
-                                                            rb["Wr"][mb]),
-                                      "held": compare(ra, rb, T_TWIST + pc.T_RAMP),
-                                      "to_12s": compare(dict(ra, t=ra["t"][early],
-                                                             Wr=ra["Wr"][early]), rb)}
-    return pairs
-
-
 def collect(t_end: float, log=print, save=None, runs=None, previous=None) -> dict:
     """Run ``runs`` (default RUNS) one after the other; after each, ``save(res)`` (if
     given) with the pairs so far, so that a run stopped part-way leaves the finished runs'
@@ -230,66 +187,6 @@ def figure(res: dict, figdir: Path) -> str:
     fig.savefig(Path(figdir) / name, dpi=110)
     plt.close(fig)
     return name
-
-
-def render(res: dict, fig_name: str | None = "peer_long_writhe.png") -> str:
-    runs = {k: trimmed(d) for k, d in res["runs"].items()}
-    pairs = _pairs({"runs": runs})
-    L = ["### The whole horizon: writhe toward 100 s (untimed)", ""]
-    L.append(
-        f"`nice -n 10 python benchmarks/peer_long.py` (PyElastica "
-        f"{res.get('pyelastica_version', '?')}). The physics of the section above (same "
-        "Morison drag, each code's contact law) with the example's whole schedule: 10 "
-        f"turns in {T_TWIST:g} s (the rate ramped down over 0.5 s), then held to "
-        f"{res['t_end']:g} s. One run per setting, one after the other, one thread each; "
-        f"{res['total_s']:.0f} s in all, load {res['load_start']} at the start, "
-        f"{res['load_end']} at the end (2 shared cores; walls for orientation only).")
-    L.append("")
-    L.append("| run | status | wall (s) | buckling (s) | first contact (s) | Wr at 12 s | "
-             f"Wr at {T_TWIST:g} s | Wr at the end |")
-    L.append("|---|---|---|---|---|---|---|---|")
-
-    def wr_at(d, t):
-        return float(np.interp(t, d["t"], d["Wr"])) if d["t"][-1] >= t - 1e-9 else float("nan")
-    for k, d in runs.items():
-        raw_end = float(np.asarray(res["runs"][k]["t"], float)[-1])
-        cut = "" if d["t"][-1] >= raw_end - 1e-9 else ", its blow-up after it left out"
-        L.append(f"| {k} | {d['status']} | {d['wall']:.1f} | {peer._f(d['t_buckle'])} | "
-                 f"{peer._f(d['t_contact'])} | {peer._f(wr_at(d, 12.0))} | "
-                 f"{peer._f(wr_at(d, T_TWIST))} | {peer._f(float(d['Wr'][-1]))} "
-                 f"(t = {d['t'][-1]:.2f} s{cut}) |")
-    L.append("")
-    L.append("| pair | common horizon (s) | max \\|ΔWr\\| to 12 s (turns) | "
-             "max \\|ΔWr\\| over the common horizon | "
-             f"max \\|ΔWr\\| held ({T_TWIST + pc.T_RAMP:g} s on) | "
-             "e = ∫\\|ΔWr\\| dt / ∫\\|Wr\\| dt over it (%) |")
-    L.append("|---|---|---|---|---|---|")
-    for k, p in pairs.items():
-        L.append(f"| {k} | {peer._f(p.get('t_common'), '{:.1f}')} | {peer._f(p['to_12s'])} | "
-                 f"{peer._f(p['all'])} | {peer._f(p['held'])} | {peer._pct(p.get('e_l1'))} |")
-    ends = {k: float(np.asarray(d["t"], float)[-1]) for k, d in runs.items()}
-    done = [k for k in runs if runs[k]["status"] == "completed"]
-    if len(done) < len(runs):
-        L.append("")
-        L.append(
-            "Reading. " + ("No run" if not done else f"Only {', '.join(done)}") +
-            f" reached {res['t_end']:g} s on this physics (the Morison drag in place of the "
-            "example's linear damper; the linear damper was not run this long): hockle's Newton "
-            "stopped (diverged; `solver_diverged` where the reason is recorded) and PyElastica's "
-            "state went non-finite, each "
-            "between " + f"{min(ends.values()):.1f} and {max(ends.values()):.1f} s, as the "
-            "plectoneme kept winding (Wr "
-            f"{min(float(d['Wr'][-1]) for d in runs.values()):.1f}-"
-            f"{max(float(d['Wr'][-1]) for d in runs.values()):.1f} turns at the stops); "
-            "halving a setting's step (the runs that share N or n) moved its stop little. "
-            "The comparison therefore runs to where both "
-            "runs of a pair had got: the codes agree on the buckling and first-contact "
-            "times within the figures of the table, and their writhe drifts apart in "
-            "the interwinding, by the max |ΔWr| of the pair table.")
-    if fig_name:
-        L.append("")
-        L.append(f"![Writhe to 100 s](figures/benchmarks/{fig_name})")
-    return "\n".join(L) + "\n"
 
 
 def main() -> None:

@@ -2,7 +2,7 @@
 (1000 segments, Δt = 0.1 s) from t = 0 through buckling into the first self-contact, the
 top of the profile by own time and by cumulative time.
 
-Run: ``python benchmarks/profile_seed.py [--t-end 20.5] [--quick]``; the full stats are
+Run: ``python -m benchmarks.profile_seed [--t-end 20.5] [--quick]``; the full stats are
 written to ``benchmarks/results/profile_seed.pstats`` (open with ``python -m pstats`` or
 snakeviz).
 """

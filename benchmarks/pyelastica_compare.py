@@ -2,7 +2,7 @@
 buckles and forms a plectoneme with self-contact, as in PyElastica's example
 ``examples/RodContactCase/RodSelfContact/PlectonemesCase/plectoneme_case.py``.
 
-Run: ``python benchmarks/pyelastica_compare.py [--quick]`` (PyElastica from
+Run: ``python -m benchmarks.pyelastica_compare [--quick]`` (PyElastica from
 ``benchmarks/requirements-pyelastica.txt``). The PyElastica side runs in a subprocess of
 this script (``--pyelastica-worker``) with its own, empty numba cache, so that the numba
 compilation time is measured cold and reported apart from the run times; the hockle side
@@ -34,9 +34,7 @@ from scipy.optimize import brentq
 from scipy.spatial import cKDTree
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from solver.topology import linking_number, twist, writhe  # noqa: E402
+from solver.topology import linking_number, twist, writhe
 
 NAME = "pyelastica_compare"
 
@@ -980,7 +978,7 @@ def render_section(res, names):
     L = []
     L.append("## hockle and PyElastica side by side: twisted rod to plectoneme")
     L.append("")
-    L.append("`python benchmarks/pyelastica_compare.py" + (" --quick" if res["quick"] else "")
+    L.append("`python -m benchmarks.pyelastica_compare" + (" --quick" if res["quick"] else "")
              + f"` (PyElastica {pe['pyelastica_version'] if pe else 'not installed'}, "
              "`pip install -r benchmarks/requirements-pyelastica.txt`; it runs in a subprocess "
              "of the script with an empty numba cache). "

@@ -37,9 +37,9 @@ stored there (e.g. ``benchmarks/results/seed_accuracy_18-45.json``; ``--windows`
 below): a change to the contact steps measured without recomputing the 6.25-ms reference,
 valid while the state at t0 is the same (the two states' writhe must agree within 0.1 %;
 the difference is printed). ``--newton ATTR=VALUE[,ATTR=VALUE...]`` sets class
-attributes of :class:`solver.newton.NewtonSolver` (its tuning constants, as
-``benchmarks/replay_steps.py --variant`` does) for every run the script makes, e.g.
-``--newton CONTACT_RESIDUAL_FACTOR=1``.
+attributes of :class:`solver.newton.NewtonSolver` (its tuning constants,
+:mod:`benchmarks.tuning`, as ``research/replay_steps.py --variant`` does) for every run
+the script makes, e.g. ``--newton CONTACT_RESIDUAL_FACTOR=1``.
 
 With ``--spread`` (Newton tolerances, default none) the measurement is repeated from
 the case's own state for each: the case (with ``--spread-position`` as its
@@ -59,7 +59,7 @@ second collapse, the plies wrapped). The whole contact phase, as in docs/contact
 ``--t0 18 --t1 45 --tolerances '' --fixed-steps 0.025
 --windows 18-21,21-25,25-26,26-30,30-35,35-45``.
 
-Run: ``python benchmarks/seed_accuracy.py [--t0 18.0] [--t1 21.0] [--quick]
+Run: ``python -m benchmarks.seed_accuracy [--t0 18.0] [--t1 21.0] [--quick]
 [--tolerances 1e-3,1e-4] [--position-tolerances 3e-4 [--dt-cut-factor 2]]
 [--fixed-steps 0.025,0.0125] [--windows 18-21,26-30] [--spread 1e-10,1e-9,1e-8
 [--spread-position 5e-4]] [--against STORED.json] [--newton ATTR=VALUE]`` (quick:
@@ -89,7 +89,7 @@ def state_at(t0: float, newton_tolerance=None, position_tolerance=None) -> RodRu
     ``position_tolerance`` (m) set in the case, None keeping the case's."""
     case = Case.from_file(ROOT / "cases" / "goyal-writhing.yaml")
     if newton_tolerance is not None or position_tolerance is not None:
-        from bench_seed import set_variant
+        from benchmarks.bench_seed import set_variant
 
         spec = set_variant(case.model_dump(mode="json"), position_tolerance)
         if newton_tolerance is not None:
@@ -152,7 +152,7 @@ def with_position_tolerance(base: RodRun, position: float, cut_factor=None) -> R
     error within ``position`` (m): ``contact.position_tolerance``; with ``cut_factor``
     its fixed steps are cut by that factor instead (``numerics.dt_cut_factor``, as many
     cuts as keep the smallest step)."""
-    from bench_seed import set_variant
+    from benchmarks.bench_seed import set_variant
 
     spec = set_variant(base.case.model_dump(), position, cut_factor)
     run = copy.deepcopy(base)
@@ -316,7 +316,7 @@ def main() -> None:
                     "every run made")
     args = ap.parse_args()
     if args.newton:
-        from replay_steps import set_newton
+        from benchmarks.tuning import set_newton
         set_newton(args.newton)
     if args.against:
         against(Path(args.against), args.t0, args.t1,

@@ -42,7 +42,7 @@ Also recorded per run: Newton iterations per nominal step (mean, max), rejected 
 attempts (each followed by a Δt cut; counted by wrapping ``RodRun.try_step``), nominal steps
 that needed cuts, the smallest substep, wall time.
 
-Run: ``python benchmarks/stability_map.py [--quick]`` (quick: Δt ∈ {1e-3, 1e-2, 0.1, 1},
+Run: ``python -m benchmarks.stability_map [--quick]`` (quick: Δt ∈ {1e-3, 1e-2, 0.1, 1},
 ρ∞ ∈ {0, 0.5, 1}, reference from 2e-3/1e-3 s). Writes ``benchmarks/results/
 stability_map.json`` and ``stability_map.png`` and ``stability_map_error.png`` into the
 figure directory (docs/figures/benchmarks/ by default).

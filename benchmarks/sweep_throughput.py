@@ -16,8 +16,8 @@ to back) and the workers' busy share (the members' solver wall
 times over workers x span),
 then fetches the combined dataset once (GET /v1/sweeps/{id}/results) and times that.
 
-    python benchmarks/sweep_throughput.py [--members 16] [--workers 2] [--registry postgresql]
-    python benchmarks/sweep_throughput.py --quick      # 4 members of a 10-segment case
+    python -m benchmarks.sweep_throughput [--members 16] [--workers 2] [--registry postgresql]
+    python -m benchmarks.sweep_throughput --quick      # 4 members of a 10-segment case
 """
 from __future__ import annotations
 
@@ -32,10 +32,7 @@ from pathlib import Path
 import httpx
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-sys.path.insert(0, str(REPO / "benchmarks"))
-
-from load_service import service_stack  # noqa: E402
+from benchmarks.load_service import service_stack
 
 TWIST = "boundary.start.rotation.2.angular_velocity"
 TERMINAL = ("successful", "failed", "dismissed")

@@ -36,7 +36,7 @@ for a threshold is the run with the lowest wall time whose error *and the error 
 refinement of it that was run* (same ρ∞, Δt' ≤ Δt, n' ≥ n) are below the threshold, so a
 lucky cancellation of a spatial and a temporal error of opposite signs does not count.
 
-Run: ``python benchmarks/work_precision.py [--quick] [--recompute-reference]``; writes
+Run: ``python -m benchmarks.work_precision [--quick] [--recompute-reference]``; writes
 ``benchmarks/results/work_precision.json`` and the figures under
 ``docs/figures/benchmarks/``.
 """

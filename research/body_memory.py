@@ -8,7 +8,7 @@ before and its peak after (VmRSS and VmHWM from /proc, Linux only), and the grow
 against the bodies' total size. Before the bounded reader the audit saw 183 -> 767 MB for
 eight concurrent 50 MB bodies.
 
-    python benchmarks/body_memory.py [--concurrent 8] [--size 50]
+    python -m research.body_memory [--concurrent 8] [--size 50]
 """
 from __future__ import annotations
 
@@ -24,9 +24,7 @@ from pathlib import Path
 import httpx
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "benchmarks"))
-
-from load_service import free_port, wait_for  # noqa: E402
+from benchmarks.load_service import free_port, wait_for
 
 
 def memory_mb(pid: int) -> dict[str, float]:

@@ -35,7 +35,7 @@ done twice from the same start, with and without the position test of
 ``NewtonSolver.CONTACT_POSITION_FRACTION`` (docs/contact.md § 2): the iterations of each and how
 far the test's positions are from the fully converged ones.
 
-Run: ``PYTHONPATH=$PWD python benchmarks/contact_iteration_cost.py [--at 30] [--dt 0.015]
+Run: ``PYTHONPATH=$PWD python -m research.contact_iteration_cost [--at 30] [--dt 0.015]
 [--steps 3] [--free-at 10] [--free-steps 20] [--repeats 200]`` (about 35 s of running,
 plus the kernels' compilation the first time).
 """

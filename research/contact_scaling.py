@@ -2,7 +2,7 @@
 
 The seed example (`cases/goyal-writhing.yaml`) at N = 100-2000 segments: each run goes at
 the case's Δt to its first contact, then on for ``--window`` seconds of contact. Printed
-(and written to benchmarks/results/contact_scaling.json):
+(and written to research/results/contact_scaling.json):
 
 * per N: the time of first contact, the wall time per simulated second of the contact
   window, per nominal step and per Newton iteration, the mean number of active contacts,
@@ -12,7 +12,7 @@ the case's Δt to its first contact, then on for ``--window`` seconds of contact
   N, which should not grow with the number of contacts faster than the O(N + P) work of
   the matrix-free product.
 
-Run: ``python benchmarks/contact_scaling.py [--sizes 100 250 500 1000 2000] [--window 2]``.
+Run: ``python -m research.contact_scaling [--sizes 100 250 500 1000 2000] [--window 2]``.
 """
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ from solver import Case
 from solver.simulation import RodRun
 
 ROOT = Path(__file__).resolve().parents[1]
-RESULTS = ROOT / "benchmarks" / "results"
+RESULTS = ROOT / "research" / "results"
 
 
 def measure(n: int, window: float) -> dict:

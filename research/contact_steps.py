@@ -56,7 +56,7 @@ components of its vector, and the correction's own largest components
 The case is a suite case's name or the path of a case file; ``--set FIELD=VALUE``
 (repeatable, VALUE read as YAML) changes one of its fields first.
 
-Run: ``PYTHONPATH=$PWD python benchmarks/contact_steps.py seed-in-air --from 17.5
+Run: ``PYTHONPATH=$PWD python -m research.contact_steps seed-in-air --from 17.5
 --t-end 18.4`` (the seed example without its fluid, from just before its first contact),
 ``... cases/seabed-hockle.yaml --t-end 10 --edges 0,0.5,1,1.5,2,3,3.5,4,5,6,8,10`` (where
 the sea floor's steps go, docs/seabed.md "Cost"; ``--set seabed.friction=null --set
@@ -96,8 +96,47 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-sys.path.insert(0, str(HERE.parent / "tests"))
+
+
+def trace_newton() -> None:
+    """Give :class:`solver.newton.NewtonSolver` the two diagnostics this laboratory reads and
+    the solver does not keep: ``last_trace`` after every solve (per iteration the scaled
+    residual, the feasibility filter's fraction, the line search's fraction and GMRES's
+    iterations: the rows the Newton kernel writes into its workspace) and
+    ``last_start_blend`` after every :meth:`~solver.newton.NewtonSolver.feasible_start`
+    (its blend factor: 1 the guess to rounding, 2^−k, 0 the zero-displacement state).
+    Wraps the two methods for the rest of the process; the results are the unwrapped
+    ones. Idempotent; called when this module is imported."""
+    from solver import newton as nm
+
+    cls = nm.NewtonSolver
+    if getattr(cls, "_laboratory_trace", False):
+        return
+    solve = cls.solve
+
+    def traced_solve(self, Y_guess):
+        out = solve(self, Y_guess)
+        self.last_trace = self._state["ws"][13][:out[2] + 1].copy()
+        return out
+
+    def traced_feasible_start(self, guess):        # NewtonSolver.feasible_start, keeping
+        system = self.system                         # the blend factor it discards
+        self._allocate(system.step.candidates.runs)
+        rod, step, cand, cdata = system.kernel_args()
+        out = np.empty((system.n_nodes, nm.NV))
+        self.last_start_blend = float(nm._feasible_start(
+            step[0], np.ascontiguousarray(guess, dtype=float), step, rod, cand, cdata,
+            self._state["ws"], out, self.START_GAP_KEEP))
+        return out
+
+    traced_solve.__doc__, traced_feasible_start.__doc__ = (
+        solve.__doc__, cls.feasible_start.__doc__)
+    cls.solve, cls.feasible_start = traced_solve, traced_feasible_start
+    cls.last_trace, cls.last_start_blend = None, 1.0
+    cls._laboratory_trace = True
+
+
+trace_newton()
 
 
 #: the unknowns of a node's row of Y (N+1, 12), as --starts reports them
@@ -173,7 +212,7 @@ def case_spec(name: str, sets=()) -> dict:
     ``name``, with each "dotted.field=VALUE" of ``sets`` applied (VALUE read as YAML:
     ``seabed.friction=null``, ``contact=null``, ``seabed.normal_damping=0``). Raises
     SystemExit naming a field of ``sets`` that the spec does not hold."""
-    import contact_suite as cs
+    from benchmarks import contact_suite as cs
     from solver.case import Case
 
     if name in cs.CASES:
@@ -210,7 +249,7 @@ def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None,
     accepted attempt with "node": that node's (v, ω) (6,) in the body frame after it).
     ``result``: a dict that receives the run's dataset under "ds" (absent where the run
     stopped)."""
-    import contact_suite as cs
+    from benchmarks import contact_suite as cs
     from solver.case import Case
     from solver.run import RodRun
     from solver.simulation import SolverDivergence, integrate
@@ -596,14 +635,14 @@ def probe(name: str, at: float, sizes: list, residuals: bool = False, sets=(),
     along them (:func:`jacobian_modes`)."""
     import pickle
 
-    import contact_suite as cs
+    from benchmarks import contact_suite as cs
     from solver.case import Case
     from solver.run import RodRun
 
     spec = case_spec(name, sets)
     spec["numerics"]["energy_tolerance"] = cs.ENERGY_TOLERANCE
     case = Case.model_validate(spec)
-    from contact_iteration_cost import _advance_to
+    from research.contact_iteration_cost import _advance_to
 
     run = RodRun(case)
     _advance_to(run, at, case.numerics.dt, 0)
@@ -662,7 +701,7 @@ def probe(name: str, at: float, sizes: list, residuals: bool = False, sets=(),
 
 
 def main() -> None:
-    import contact_suite as cs
+    from benchmarks import contact_suite as cs
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("case", help="a suite case (" + ", ".join(cs.CASES)
                     + ") or the path of a case file")
@@ -711,7 +750,7 @@ def main() -> None:
     if args.watch is not None and args.probe is not None:
         ap.error("--watch reports a run's windows, not a probe: leave out --probe")
     if args.newton:
-        from replay_steps import set_newton
+        from benchmarks.tuning import set_newton
         set_newton(args.newton)
     if args.probe is not None:
         cells = None

@@ -3,7 +3,7 @@ printed (issue 42's targets: one continuation point at 1000 segments costs at mo
 dynamic steps, <= 10 Newton iterations with the factorisation reused; a branch of 200
 points at 200 segments in <= 30 s).
 
-    PYTHONPATH=$PWD python3 benchmarks/continuation_speed.py [--repeats 3]
+    PYTHONPATH=$PWD python3 -m research.continuation_speed [--repeats 3]
 
 1. The cost of one pseudo-arclength point at 1000 segments on the twisted clamped-clamped
    rod (Greenhill's problem, past the start): the difference of continuations of 12 and

@@ -23,14 +23,13 @@ floor, the energy check at its default unless said:
 * (``soft``, at the code's rate only) the case and its frictionless variant on a bottom
   50 times softer (6e4 Pa: MoorDyn's default kBot times the cable's diameter).
 
-Run: ``PYTHONPATH=$PWD python benchmarks/drift_rate.py [--only held,pyelastica,seed,hockle,profile,soft]``
+Run: ``PYTHONPATH=$PWD python -m research.drift_rate [--only held,pyelastica,seed,hockle,profile,soft]``
 ``[--set FIELD=VALUE]`` (a field of PyElastica's plectoneme, repeatable)
 (about 8 minutes alone on 2 cores; counts and answers, the wall times only indicative).
 """
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
@@ -38,15 +37,12 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
-sys.path.insert(0, str(HERE))
-sys.path.insert(0, str(ROOT / "tests"))
-
-import peer_compare as pc  # noqa: E402
-from contact_suite import with_sets  # noqa: E402
-from hockle.plots import run_events  # noqa: E402
-from solver.case import Case  # noqa: E402
-from solver.simulation import SolverDivergence, integrate  # noqa: E402
-from solver.step_problem import ProblemAssembly  # noqa: E402
+from benchmarks import peer_compare as pc
+from benchmarks.contact_suite import with_sets
+from hockle.plots import run_events
+from solver.case import Case
+from solver.simulation import SolverDivergence, integrate
+from solver.step_problem import ProblemAssembly
 
 #: DRIFT_STEP_FLOOR values compared: the floor at Δt/100, Δt/4 (the code's) and Δt
 FLOORS = (0.01, 0.25, 1.0)

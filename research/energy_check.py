@@ -1,7 +1,7 @@
 """The energy check's evidence on the cases that argue for and against its default
 (docs/numerics.md § 8, ``numerics.energy_tolerance``, on by default at 0.5), printed:
 
-* the soft hanging cable of benchmarks/loads_verification.py with the check at the
+* the soft hanging cable of research/loads_verification.py with the check at the
   default tolerance and without, at several Δt: status, refusals, settled sag against
   the catenary, the κ-integrated centreline's held end against its hold;
 * the cable resting on a flat bottom (tests/test_seabed.py's 2-cm cable, touching at the
@@ -38,7 +38,7 @@
   the accounts, ε, the end forces' work on the end velocities, ε over the end moments'
   work and the median step.
 
-Run: ``PYTHONPATH=$PWD python benchmarks/energy_check.py [--only cable|rest|cases|windows|
+Run: ``PYTHONPATH=$PWD python -m research.energy_check [--only cable|rest|cases|windows|
 newton|contact|control|tolerances|full|full-seed|diagnose|plectoneme]`` (about a minute
 each after the kernels are compiled; ``tolerances`` and ``full`` several).
 """
@@ -47,22 +47,21 @@ from __future__ import annotations
 import argparse
 import contextlib
 import math
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+from research import loads_verification as LV
+from research.contact_steps import trace_newton
+import test_energy_check as EC
+import test_seabed as SB
+from hockle.api import catenary_parameter
+from solver import balance as B
+from solver.case import Case, Numerics
+from solver.simulation import RodRun, SolverDivergence, integrate
 
-import loads_verification as LV  # noqa: E402
-import test_energy_check as EC  # noqa: E402
-import test_seabed as SB  # noqa: E402
-from hockle.api import catenary_parameter  # noqa: E402
-from solver import balance as B  # noqa: E402
-from solver.case import Case, Numerics  # noqa: E402
-from solver.simulation import RodRun, SolverDivergence, integrate  # noqa: E402
+trace_newton()                  # NewtonSolver.last_trace, which :func:`newton` reads
 
 #: the default tolerance (``numerics.energy_tolerance``)
 TOLERANCE = Numerics.model_fields["energy_tolerance"].default
@@ -434,7 +433,7 @@ def plectoneme_accounts(n, dt, rho_inf, correction=True, contact_rho_inf=None,
     held end does against its reaction). Read off each accepted step's balance
     (:attr:`solver.run.RodRun.last_balance` when the step is accepted). Raises nothing
     of its own; a run that fails returns its accepted steps."""
-    import peer_compare as pcmp
+    from benchmarks import peer_compare as pcmp
     from solver.energies import end_loads
     from solver.step_problem import ProblemAssembly
 

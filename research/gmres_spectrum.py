@@ -54,7 +54,7 @@ solver keeps it, :func:`solver.newton._set_operator`). Printed:
 GMRES here is a plain Arnoldi in numpy (two Gram-Schmidt passes), started from zero: its
 counts are comparable with each other, not to the microsecond with the solver's kernel.
 
-Run: ``PYTHONPATH=$PWD python benchmarks/gmres_spectrum.py [--case CASE.yaml] [--at 21]
+Run: ``PYTHONPATH=$PWD python -m research.gmres_spectrum [--case CASE.yaml] [--at 21]
 [--dt 0.003] [--k 12] [--steps 3] [--gap 0.3] [--coarse | --augmented]`` (about 2 min to
 reach 21 s of the tension variant, then ~20 s; ``--coarse`` ~2 min more, ``--augmented``
 ~10 s per iterate).
@@ -77,7 +77,7 @@ from solver.kinematics import skew
 from solver.run import RodRun
 from solver.scheme import E3, K, V, W, residual_into
 
-from contact_iteration_cost import _advance_to, _median_ms  # beside this script
+from research.contact_iteration_cost import _advance_to, _median_ms  # beside this script
 
 ROOT = Path(__file__).resolve().parents[1]
 TENSION = ROOT / "cases" / "goyal-writhing-tension.yaml"

@@ -38,7 +38,7 @@ and 640 segments at Δt = 1 and 0.5 ms to 3 s, and how far its two routes part: 
 route carried and the centreline integrated from κ (``position_route_difference``, and
 at the s = L end ``end_drift``).
 
-Run: ``PYTHONPATH=$PWD python benchmarks/hockle_resolution.py [--quick | --untwisted
+Run: ``PYTHONPATH=$PWD python -m research.hockle_resolution [--quick | --untwisted
 [--rho-inf R] [--without-self-contact] [--correction-time T] [--segments N] |
 --route-difference]`` (about 7 minutes alone on 2 cores, 1 of them
 the frictionless 640-segment run; ``--quick`` leaves out the 640-segment runs;
@@ -49,19 +49,16 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from hockle.plots import run_events  # noqa: E402
-from solver.case import Case  # noqa: E402
-from solver.simulation import SolverDivergence, integrate  # noqa: E402
-from solver.step_problem import ProblemAssembly  # noqa: E402
+from hockle.plots import run_events
+from solver.case import Case
+from solver.simulation import SolverDivergence, integrate
+from solver.step_problem import ProblemAssembly
 
 CASE = ROOT / "cases" / "seabed-hockle.yaml"
 #: (segments, Δt s) with friction; the case's own grid first

@@ -21,7 +21,7 @@ sliding end), a lateral push of 1e-3 N/m for the first 2 s as the imperfection; 
 segments, Δt = 0.05 s, 20 s, no self-contact. The line is Greenhill's threshold of a long
 rod, M = 2√(B T), i.e. τ = 2√(B T)/C (B = EI, C = GJ).
 
-Run: ``PYTHONPATH=$PWD nice -n 10 python3 benchmarks/hockle_threshold.py`` (prints the
+Run: ``PYTHONPATH=$PWD nice -n 10 python3 -m research.hockle_threshold`` (prints the
 table and writes docs/figures/hockle-slack-threshold.png; 3 sweeps of 3 × 4 members in one
 process, about 12 minutes at a load of 6 to 8 on 2 cores; ``--save DIR`` keeps the sweeps'
 NetCDF files, ``--load DIR`` redraws from them, ``--only SETTING --save DIR`` re-runs one);
@@ -42,9 +42,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from hockle.api import sweep  # noqa: E402
+from hockle.api import sweep
 
 L, D, E, G, RHO = 4.0, 0.02, 1.25e7, 5.0e6, 1500.0
 B = E * math.pi * D**4 / 64          # N m², bending stiffness
@@ -153,7 +151,7 @@ def figure(results: dict, path: Path) -> Path:
             ax.plot([], [], "o", mfc="white", mec="0.4", label="no loop in 20 s")
             ax.legend(fontsize=7, loc="upper left")
     fig.suptitle("Where a twisted 4 m cable loops (label: largest |Wr| in turns); "
-                 "benchmarks/hockle_threshold.py", fontsize=10)
+                 "research/hockle_threshold.py", fontsize=10)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     return path
@@ -302,7 +300,7 @@ def slack_figure(results: dict, path: Path) -> Path:
             ax.plot([], [], "x", color="k", label="run failed (values up to then)")
             ax.legend(fontsize=7, loc="lower right")
     fig.suptitle("Where a twisted 4 m cable loops under end slack (R: smallest bend radius); "
-                 "benchmarks/hockle_threshold.py", fontsize=10)
+                 "research/hockle_threshold.py", fontsize=10)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     return path

@@ -3,7 +3,7 @@
 its order in Δs, the follower tip load against its own elastica, the hanging cable
 against the catenary and the towed rod against the integrated Morison drag.
 
-Run: ``PYTHONPATH=$PWD python benchmarks/loads_verification.py`` (about 10 s after the
+Run: ``PYTHONPATH=$PWD python -m research.loads_verification`` (about 10 s after the
 kernels are compiled). The cases are those of tests/test_point_loads.py and
 tests/test_global_ends.py, which assert the bounds (docs/case-spec.md quotes the
 figures); this prints what they measure.
@@ -11,18 +11,15 @@ figures); this prints what they measure.
 from __future__ import annotations
 
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-
-import test_global_ends as G  # noqa: E402
-import test_point_loads as P  # noqa: E402
-from hockle.api import catenary_parameter  # noqa: E402
-from solver.case import Case  # noqa: E402
-from solver.simulation import integrate  # noqa: E402
+import test_global_ends as G
+from test_global_ends import catenary_spec  # noqa: F401 (energy_check reads it here)
+import test_point_loads as P
+from hockle.api import catenary_parameter
+from solver.case import Case
+from solver.simulation import integrate
 
 
 def mattiasson():
@@ -45,27 +42,6 @@ def follower():
         w, x, _ = P.settled_tip(P.cantilever(2, n, body=True))
         print(f"follower tip load P L²/EI = 2, {n:3d} segments: w/L = {w:.6f} "
               f"({(w / wr - 1) * 100:+.4f} %), x/L = {x:.6f} ({(x / xr - 1) * 100:+.4f} %)")
-
-
-def catenary_spec(dt=0.2, energy_tolerance=None):
-    """The soft hanging cable's case (dict): E = 1e5 Pa, 40 segments, both ends held in
-    position in the global frame 0.8 m apart, started from an arc of L = 1 m, ρ∞ = 0,
-    to 16 s (benchmarks/energy_check.py runs it with the energy check)."""
-    L, X, D, rho, rho_f = 1.0, 0.8, 0.01, 7800.0, 1000.0
-    start = {"frame": "global", "translation": [{"position": 0.0}] * 3,
-             "rotation": G.FREE_ROT}
-    end = {"frame": "global", "translation": [{"position": X}, {"position": 0.0},
-                                              {"position": 0.0}], "rotation": G.FREE_ROT}
-    spec = G._spec(start, end, gravity=[0.0, 0.0, -9.81],
-                   fluid={"density": rho_f, "added_mass_coefficient": 1.0,
-                          "drag_coefficient_normal": 1.2},
-                   initial={"centreline": {"points": G._arc_points(L, X)}},
-                   output={"fields": ["f", "position", "reactions"]})
-    spec["rod"].update({"youngs_modulus": 1e5, "shear_modulus": 1e5 / 2.6, "density": rho,
-                        "diameter": D})
-    spec["numerics"] = {"n_segments": 40, "dt": dt, "t_end": 16.0, "rho_inf": 0.0,
-                        "growth_guard": None, "energy_tolerance": energy_tolerance}
-    return spec
 
 
 def catenary():

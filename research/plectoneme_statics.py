@@ -1,7 +1,7 @@
 """A clamped rod under tension T twisted through plectoneme formation, with self-contact:
 the static branch in the end rotation against the elastic-rod plectoneme theory.
 
-    PYTHONPATH=$PWD python3 benchmarks/plectoneme_statics.py [--segments 120] [--length 24] [--points 3000]
+    PYTHONPATH=$PWD python3 -m research.plectoneme_statics [--segments 120] [--length 24] [--points 3000]
 
 The rod (B = EJ1 = EJ2 = 1 N m², C = GJ3 = 1 N m², diameter D = 0.4 m, T = 1 N: lengths
 in units of √(B/T) = 1 m) is clamped at s = 0; at s = L its frame is turned about the axis

@@ -21,11 +21,11 @@ Where a variant may change the solution (a looser stopping test), the largest di
 its centreline at the end of each replayed step from the baseline's (m) is printed with
 its window.
 
-Run: ``python benchmarks/replay_steps.py [--case CASE.yaml] [--windows 18:21 26:29 34:36
+Run: ``python -m research.replay_steps [--case CASE.yaml] [--windows 18:21 26:29 34:36
 41:44] [--variant NAME:ATTR=VALUE[,ATTR=VALUE...]] ...``; without ``--variant`` the
 baseline and ``CONTACT_BAND_WEIGHT=1.0`` are compared; ``--case`` another case file than
 the seed example's (e.g. cases/goyal-writhing-tension.yaml). Results:
-benchmarks/results/replay_steps.json (another case: replay_steps_<case name>.json).
+research/results/replay_steps.json (another case: replay_steps_<case name>.json).
 About 3 min per variant for the default windows, plus 1 min to reach 18 s.
 """
 from __future__ import annotations
@@ -40,48 +40,12 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from solver import Case
-from solver.contact.search import CandidateSearch
-from solver.newton import NewtonSolver
+from benchmarks.tuning import owner, parse_variant
 from solver.simulation import RodRun
 
 ROOT = Path(__file__).resolve().parents[1]
-RESULTS = ROOT / "benchmarks" / "results" / "replay_steps.json"
+RESULTS = ROOT / "research" / "results" / "replay_steps.json"
 SEED = ROOT / "cases" / "goyal-writhing.yaml"
-
-
-#: the classes other than NewtonSolver whose class attributes a variant may set, by attribute
-OWNERS = {"VERLET_SKIN": CandidateSearch}
-
-
-def owner(attr: str):
-    """The class whose attribute ``attr`` a variant sets (:data:`OWNERS`, else NewtonSolver)."""
-    return OWNERS.get(attr, NewtonSolver)
-
-
-def parse_variant(text: str) -> tuple[str, dict]:
-    """``NAME:ATTR=VALUE,...`` -> (NAME, {ATTR: float or int}); raises ValueError naming
-    an attribute that its class (:func:`owner`) does not have."""
-    name, _, body = text.partition(":")
-    settings = {}
-    for item in filter(None, body.split(",")):
-        attr, _, value = item.partition("=")
-        cls = owner(attr)
-        if not hasattr(cls, attr):
-            raise ValueError(f"--variant {text!r}: {cls.__name__} has no attribute {attr!r}")
-        current = getattr(cls, attr)
-        settings[attr] = int(value) if isinstance(current, int) else float(value)
-    return name, settings
-
-
-def set_newton(text: str) -> dict:
-    """Set the class attributes ``ATTR=VALUE[,ATTR=VALUE...]`` of NewtonSolver or the candidate
-    search (:func:`owner`; the ``--newton`` option of benchmarks/seed_accuracy.py and
-    contact_suite.py) for the rest of the process; returns them. Raises ValueError as
-    :func:`parse_variant`."""
-    settings = parse_variant(f"newton:{text}")[1]
-    for attr, value in settings.items():
-        setattr(owner(attr), attr, value)
-    return settings
 
 
 def replay_step(snapshot: bytes, t_target: float, settings: dict) -> dict:

@@ -11,7 +11,7 @@ grid, none, ...), after a warm-up; the medians of the wall time per step and the
 ratios to the run without a seabed are printed with ``uptime``. Targets (steady):
 flat ≤ 1.5×, grid ≤ 2×.
 
-Run: ``PYTHONPATH=$PWD python benchmarks/seabed_cost.py [--repeats 5]``.
+Run: ``PYTHONPATH=$PWD python -m research.seabed_cost [--repeats 5]``.
 
 ``--cases`` times instead the two documented runs side by side, alternately (seed,
 hockle, seed, ...; ``--repeats`` of each, after a warm-up): ``cases/seabed-hockle.yaml``

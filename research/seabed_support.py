@@ -7,7 +7,7 @@ the cells carrying less than w/4, the largest second difference of the node heig
 (integrated from κ) and the time route (`position_route_difference`), and the Newton
 iterations so far. docs/seabed.md, "Per cell", quotes its figures.
 
-Run: ``PYTHONPATH=$PWD python benchmarks/seabed_support.py`` (a few seconds).
+Run: ``PYTHONPATH=$PWD python -m research.seabed_support`` (a few seconds).
 """
 from __future__ import annotations
 

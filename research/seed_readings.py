@@ -3,7 +3,7 @@ docs/seed-example.md ("The tension reading"), read off result files of
 cases/goyal-writhing.yaml (zero force at the sliding end) and
 cases/goyal-writhing-tension.yaml (dead tension).
 
-    python benchmarks/seed_readings.py goyal.nc tension.nc
+    python -m research.seed_readings goyal.nc tension.nc
 
 Event definitions: benchmarks/seed_events.py, plus
 * Lk at onset: the linking number at the buckling onset;
@@ -16,14 +16,11 @@ Event definitions: benchmarks/seed_events.py, plus
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from benchmarks.seed_events import events  # noqa: E402
+from benchmarks.seed_events import events
 
 
 def _first(t, mask):

@@ -1,22 +1,20 @@
 """Sensitivity of the seed example's event times (issue 3): Δt, Δs, ρ∞ and the
 perturbation each halved (the perturbation also divided by 10), against the base case.
 
-Run: ``python benchmarks/seed_sensitivity.py [--t-end 26] [--variants base,dt/2,...]``.
+Run: ``python -m research.seed_sensitivity [--t-end 26] [--variants base,dt/2,...]``.
 Prints one row per variant (event definitions: benchmarks/seed_events.py) and writes
-them as JSON to benchmarks/results/seed_sensitivity.json.
+them as JSON to research/results/seed_sensitivity.json.
 """
 from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from seed_events import events  # noqa: E402
+from benchmarks.seed_events import events
 
-from solver import Case, SolverDivergence, integrate  # noqa: E402
+from solver import Case, SolverDivergence, integrate
 
 ROOT = Path(__file__).resolve().parents[1]
 BASE = ROOT / "cases" / "goyal-writhing.yaml"
@@ -48,7 +46,7 @@ def main() -> None:
     ap.add_argument("--t-end", type=float, default=26.0)
     ap.add_argument("--variants", default="base,dt/2,ds/2,rho_inf/2,perturbation/2,perturbation/10")
     args = ap.parse_args()
-    out_dir = ROOT / "benchmarks" / "results"
+    out_dir = ROOT / "research" / "results"
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / "seed_sensitivity.json"
     rows = json.loads(path.read_text()) if path.exists() else {}

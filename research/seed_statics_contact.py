@@ -1,6 +1,6 @@
 """The seed rod's static branch through buckling to its first self-contact.
 
-    PYTHONPATH=$PWD python3 benchmarks/seed_statics_contact.py [--segments 200]
+    PYTHONPATH=$PWD python3 -m research.seed_statics_contact [--segments 200]
 
 cases/goyal-writhing.yaml at the phase of the seed's first contact (t < 30 s: the end
 slides freely along the axis under zero force, both ends held in rotation), its minute
@@ -14,7 +14,7 @@ contact load (a pair inside the law's cut-off, the dynamic run's "contact count 
 and its Lk beside the dynamic run's Lk at its first contact (18.1 s of the seed's twist
 schedule, docs/seed-example.md), and the branch in contact at that Lk (Wr, end slide).
 
-    PYTHONPATH=$PWD python3 benchmarks/seed_statics_contact.py --to -30 --points 2000 --ds-max 0.01
+    PYTHONPATH=$PWD python3 -m research.seed_statics_contact --to -30 --points 2000 --ds-max 0.01
 """
 from __future__ import annotations
 

@@ -5,7 +5,7 @@
 0.025 s and with ``numerics.tolerance`` = {relative: tol, absolute: 1e-6·tol} for tol =
 1e-2 and 3e-3 (dt = dt_max = 0.1 s, the state every 0.1 s by dense output). Reference:
 the same case at a fixed Δt = 12.5 ms, the state every 0.1 s (cached in
-``benchmarks/results/seed_tolerance.json``; ``--recompute-reference`` reruns it).
+``research/results/seed_tolerance.json``; ``--recompute-reference`` reruns it).
 
 Events, on each run's outputs: t_b, the buckling time of the work-precision problem
 (bending energy 1 % of the torsional energy, interpolated in log between outputs:
@@ -15,13 +15,13 @@ the writhe events the reference reaches lie within 0.1 s of the reference's outp
 times. The cheapest fixed Δt that keeps them is taken by the work-precision rule: it and
 every smaller Δt run must keep them (so that a Δt that lands by luck does not count).
 
-Printed and written to ``benchmarks/results/seed_tolerance.json``: per run wall time,
+Printed and written to ``research/results/seed_tolerance.json``: per run wall time,
 steps, Newton iterations, the events and whether they are kept; the wall-time ratio of the
 cheapest tolerance that keeps the events to the cheapest fixed Δt that does (by the rule),
 and to the fixed 0.1 s. All in one run of the script: wall times move by ~15 % between runs on a
 shared machine, steps and events do not (``--repeats``).
 
-Run: ``python benchmarks/seed_tolerance.py [--t-end 26] [--recompute-reference]
+Run: ``python -m research.seed_tolerance [--t-end 26] [--recompute-reference]
 [--repeats K]`` (K rounds over all settings, interleaved, wall times their medians; one
 round to 26 s took about 2 min on 2 cores (2026-11-24), plus 20 s for the reference).
 Past ~30 s (the end held) the event |Wr| ≥ 2 is compared too where the reference
@@ -32,18 +32,15 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
+from benchmarks.work_precision import seed_observables
 
-from work_precision import seed_observables  # noqa: E402
-
-from solver import Case, integrate  # noqa: E402
+from solver import Case, integrate
 
 ROOT = HERE.parent
 RESULTS = HERE / "results" / "seed_tolerance.json"

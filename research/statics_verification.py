@@ -1,7 +1,7 @@
 """The static solver and continuation against analytic results, printed, with the
 bifurcation diagrams of docs/statics.md written to docs/figures/:
 
-    PYTHONPATH=$PWD python3 benchmarks/statics_verification.py [--figures]
+    PYTHONPATH=$PWD python3 -m research.statics_verification [--figures]
 
 * Mattiasson's cantilever under a dead tip load (P L²/EI = 1, 2, 10) at 50 and 100
   segments: tip errors;

@@ -13,24 +13,24 @@ the plectoneme at N = 100 to 12 s and ``cases/seabed-hockle.yaml`` to 10 s
 
 Run:
 
-* ``python benchmarks/step_overhead.py profile [--case plectoneme-20] [--root TREE]``:
+* ``python -m research.step_overhead profile [--case plectoneme-20] [--root TREE]``:
   after a warm-up run, the fastest of 5 runs, the time inside numba-compiled calls made
   from Python (each compiled function the ``solver`` modules hold, timed by a wrapper;
   the fastest of 5 such runs) and what is left per step attempt, the inclusive time of
   the parts of an attempt (:data:`PARTS`, each wrapped in a timer), and a cProfile of one
   more run: Python-level calls per step attempt, the functions of largest own time.
-* ``python benchmarks/step_overhead.py compare OLD_ROOT [--rounds 3]``: this tree
+* ``python -m research.step_overhead compare OLD_ROOT [--rounds 3]``: this tree
   against another checkout of hockle (``OLD_ROOT``, e.g. the main branch's), each in a
   worker process of its own, one thread each, kernels warmed first, run interleaved
   (old, new, old, new, ... per case, ``--rounds`` rounds): the wall per run, per accepted
   step and per Newton iteration (medians; also the smallest wall and the median CPU time
   of the worker process, which a shared machine's load inflates less), the ratios
   old/new, and the load average before and after each case. Results in
-  ``benchmarks/results/step_overhead.json`` (other ``--cases``:
+  ``research/results/step_overhead.json`` (other ``--cases``:
   ``step_overhead_<case>_<case>.json``).
-* ``python benchmarks/step_overhead.py save DIR [--root OTHER_ROOT]``: each case's result
+* ``python -m research.step_overhead save DIR [--root OTHER_ROOT]``: each case's result
   with every output field, from this tree or another, as DIR/NAME.nc; two such folders
-  are compared by ``python benchmarks/compare_results.py DIR_A DIR_B``.
+  are compared by ``python -m benchmarks.compare_results DIR_A DIR_B``.
 """
 from __future__ import annotations
 
@@ -40,13 +40,13 @@ for _var in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS",
              "MKL_NUM_THREADS"):
     os.environ[_var] = "1"
 
-import argparse  # noqa: E402
-import json  # noqa: E402
-import statistics  # noqa: E402
-import subprocess  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
+import argparse
+import json
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -86,8 +86,8 @@ def build_case(name: str, full: bool = False):
         spec["numerics"].pop("ds", None)
         spec["numerics"]["n_segments"] = n
         return Case.model_validate(spec)
-    sys.path.insert(1, str(HERE))          # after the worker's own root
-    import pyelastica_compare as pc
+    sys.path.insert(1, str(ROOT))          # benchmarks/, after the worker's own root
+    from benchmarks import pyelastica_compare as pc
     every = max(1, int(round(0.02 / dt)))
     spec = pc._hockle_spec(n, dt, t_end, every,
                            end_rate_table={"t": [0.0, pc.T_RAMP], "value": [0.0, pc.OMEGA]},

@@ -8,44 +8,31 @@ contact tolerance kept at 2D; run to 16 s (buckling at ~6.7 s, first contact at 
 Wr ≈ 2.8 at the end). Each setting is compared with the finest one (N = 400, Δt = 5 ms):
 the largest writhe difference after 9 s relative to the reference's largest |Wr| there.
 
-Printed and written to ``benchmarks/results/thin_plectoneme.json``: per setting the wall
+Printed and written to ``research/results/thin_plectoneme.json``: per setting the wall
 time before and after first contact, Newton iterations, the smallest accepted Δt, max
 |Tw + Wr − Lk|, the smallest surface gap and the writhe error. One run each.
 
-Run: ``python benchmarks/thin_plectoneme.py [--quick]`` (about 1.5 min; --quick: N = 200,
+Run: ``python -m research.thin_plectoneme [--quick]`` (about 1.5 min; --quick: N = 200,
 Δt = 0.02 s against N = 200, Δt = 0.01 s).
 """
 from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
 
+from benchmarks import pyelastica_compare as pc
+from benchmarks.contact_suite import THIN_DIAMETER as DIAMETER
+from benchmarks.contact_suite import thin_case
+
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-
-import pyelastica_compare as pc  # noqa: E402
-
-from solver import Case  # noqa: E402
-
 RESULTS = HERE / "results" / "thin_plectoneme.json"
-DIAMETER = 0.01                      # m: L/D = 100
 T_END = 16.0                         # s
 SETTINGS = ((200, 0.02), (200, 0.01), (400, 0.01))
 REFERENCE = (400, 0.005)
-
-
-def thin_case(n: int, dt: float, t_end: float = T_END):
-    """The plectoneme case of ``pyelastica_compare`` with D = 1 cm and the contact
-    tolerance 2D: n segments, time step dt (s), to t_end (s), outputs every 0.02 s.
-    Returns a validated ``solver.Case``."""
-    spec = pc.hockle_plectoneme_case(n, dt, t_end).model_dump(mode="json")
-    spec["rod"]["diameter"] = DIAMETER
-    spec["contact"]["tolerance"] = 2.0 * DIAMETER
-    return Case.model_validate(spec)
+__all__ = ["DIAMETER", "thin_case", "run", "writhe_error"]
 
 
 def run(n: int, dt: float, t_end: float = T_END) -> dict:

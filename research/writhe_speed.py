@@ -17,14 +17,13 @@ count), interleaved old, new, old, new … over ``--rounds`` rounds; medians pri
 the 1-min load average before and after. Difference: |Wr_new − Wr_old| in turns (both are
 the exact polyline writhe; the difference is rounding).
 
-Run: ``python benchmarks/writhe_speed.py [--rounds 40] [--result /tmp/wr_seed.nc]``.
+Run: ``python -m research.writhe_speed [--rounds 40] [--result /tmp/wr_seed.nc]``.
 """
 from __future__ import annotations
 
 import argparse
 import math
 import os
-import sys
 import time
 from pathlib import Path
 
@@ -32,11 +31,8 @@ import numba
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "tests"))
-
-from solver import topology  # noqa: E402
-from test_topology import plectoneme  # noqa: E402
+from solver import topology
+from test_topology import plectoneme
 
 # ------------------------------------------------------------------ the previous kernel
 

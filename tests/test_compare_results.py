@@ -2,15 +2,11 @@
 one result lies from another over a window of output times."""
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 import xarray as xr
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from compare_results import differences, largest_differences, main  # noqa: E402
+from benchmarks.compare_results import differences, largest_differences, main
 
 
 def _result(path, shift=0.0, df=0.0):

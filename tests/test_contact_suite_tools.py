@@ -5,14 +5,11 @@ not repeated here."""
 from __future__ import annotations
 
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-import contact_suite as cs  # noqa: E402
+from benchmarks import contact_suite as cs
 
 
 def test_phase_factors_split_the_attempts_at_first_contact_and_multiply_to_the_wall():

@@ -5,15 +5,11 @@ and its refinement. The runs themselves are the benchmark's (its ``--quick`` mod
 smoke test)."""
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-import peer_compare as peer  # noqa: E402
-from solver.loads import _drag_kernel  # noqa: E402
+from benchmarks import peer_compare as peer
+from solver.loads import _drag_kernel
 
 
 def test_pyelastica_morison_matches_hockle_drag_kernel_on_a_bent_rod():
@@ -99,7 +95,7 @@ def test_a_setting_counts_only_if_its_refinement_is_within_the_level_too():
 
 
 def test_moordyn_case_matches_the_hockle_case_and_its_step_divides_the_outputs():
-    import moordyn_compare as md
+    from benchmarks import moordyn_compare as md
     text = md.moordyn_input(40, 0.002)
     line = next(x for x in text.splitlines() if x.startswith("cable "))
     d, m, ea, ba, ei, cd, ca, cdax, caax = map(float, line.split()[1:])
@@ -116,7 +112,7 @@ def test_moordyn_case_matches_the_hockle_case_and_its_step_divides_the_outputs()
 
 
 def test_moordyn_tip_error_is_the_mean_distance_over_the_length():
-    import moordyn_compare as md
+    from benchmarks import moordyn_compare as md
     t = np.arange(0.0, 1.0 + 1e-9, 0.02)
     ref = {"t": t, "tip": np.stack([np.cos(t), 0 * t, -np.sin(t)], 1)}
     run = {"t": t, "tip": ref["tip"] + [0.0, 0.003, 0.004]}

@@ -4,13 +4,9 @@ with known answers, and the ``--newton`` option it shares with contact_suite.py.
 solver runs of the benchmark are not repeated here."""
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-import seed_accuracy as sa  # noqa: E402
+from benchmarks import seed_accuracy as sa
 
 
 def _records(ts, wrs, first_contact):
@@ -64,7 +60,7 @@ def test_compare_by_window_takes_each_windows_own_scale():
 def test_newton_option_sets_the_named_class_attributes_and_refuses_unknown_ones():
     """``--newton ATTR=VALUE`` (seed_accuracy.py, contact_suite.py) sets Newton's class
     attributes with their own types, and names an attribute Newton does not have."""
-    from replay_steps import set_newton
+    from benchmarks.tuning import set_newton
     from solver.newton import NewtonSolver
     saved = NewtonSolver.CONTACT_RESIDUAL_FACTOR, NewtonSolver.GMRES_MAX
     try:
@@ -80,8 +76,8 @@ def test_newton_option_sets_the_named_class_attributes_and_refuses_unknown_ones(
 
 def test_variants_set_the_candidate_search_skin_on_its_own_class():
     """``VERLET_SKIN`` in a variant or ``--newton`` is the candidate search's attribute
-    (replay_steps.OWNERS), set there and not on Newton."""
-    from replay_steps import set_newton
+    (benchmarks.tuning.OWNERS), set there and not on Newton."""
+    from benchmarks.tuning import set_newton
     from solver.contact.search import CandidateSearch
     from solver.newton import NewtonSolver
     saved = CandidateSearch.VERLET_SKIN

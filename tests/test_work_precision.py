@@ -4,15 +4,11 @@ the order estimate and the "cheapest setting" rule, on inputs with known answers
 solver runs of the benchmark are not repeated here (the quick mode is the smoke test)."""
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 import xarray as xr
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-import work_precision as wp  # noqa: E402
+from benchmarks import work_precision as wp
 
 BETA_L1 = 4.730040744862704          # cos x cosh x = 1, first root
 

@@ -1,15 +1,11 @@
-"""The contact-iteration cost benchmark's accounting (benchmarks/contact_iteration_cost.py):
+"""The contact-iteration cost benchmark's accounting (research/contact_iteration_cost.py):
 a Newton iteration's cost put together from its timed parts, on counts with a known
 answer. The benchmark's own solver runs are not repeated here."""
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from contact_iteration_cost import _per_iteration  # noqa: E402
+from research.contact_iteration_cost import _per_iteration
 
 PARTS = {"residual and Jacobian": 0.9, "factorisation": 1.6, "operator set-up": 0.2,
          "exact product": 0.1, "band solve": 0.3}

@@ -1,20 +1,18 @@
-"""The Newton-start report of benchmarks/contact_steps.py (``--starts``) and the feasible
+"""The Newton-start report of research/contact_steps.py (``--starts``) and the feasible
 start's blend factor it reads (:meth:`solver.newton.NewtonSolver.feasible_start`): distances
 with a known answer, and the blend on a contact step of a hairpin whose strands face
 each other."""
 from __future__ import annotations
 
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from contact_steps import (correction_cuts, residual_groups, start_distances,  # noqa: E402
+from research.contact_steps import (correction_cuts, residual_groups, start_distances,
                            start_summary)
-from rodcases import hairpin  # noqa: E402
+from rodcases import hairpin
 
 
 def test_a_start_is_measured_against_the_step_it_had_to_cover():
@@ -147,7 +145,7 @@ def test_the_probe_reports_a_resting_cables_seabed_cells():
     default stiffness k = 3·10⁶ Pa, and its E3 rows balance to 10⁻⁶ w."""
     import pickle
 
-    from contact_steps import _iterates_residuals
+    from research.contact_steps import _iterates_residuals
     from solver.case import Case
     from solver.run import RodRun
 
@@ -180,9 +178,9 @@ def test_a_cell_held_free_across_the_bottom_does_not_stall_the_step(capsys):
     jumped at p = 0 by c·|n·ṙ| (27 N/m), and Newton cycled across the jump until this
     step was refused after 25 iterations (docs/seabed.md, "What a refused step looks
     like"). Now it is accepted (measured: 9 iterations)."""
-    from contact_steps import probe
+    from research.contact_steps import probe
 
-    probe(str(Path(__file__).resolve().parents[1] / "cases" / "seabed-hockle.yaml"), 2.2,
+    probe(str(Path(__file__).resolve().parents[2] / "cases" / "seabed-hockle.yaml"), 2.2,
           [0.0125], sets=["contact=null", "seabed.friction=null"])
     line = capsys.readouterr().out.splitlines()[-1]
     assert "accepted" in line, line
@@ -217,7 +215,7 @@ def test_the_modes_show_that_an_inextensible_rod_shortens_through_its_curvature(
     first correction of seabed-hockle's untwisted lay (docs/seabed.md)."""
     import pickle
 
-    from contact_steps import jacobian_modes
+    from research.contact_steps import jacobian_modes
     from solver.case import Case
     from solver.run import RodRun
 
@@ -239,7 +237,7 @@ def test_the_alternation_reads_a_stiff_modes_flip_and_not_a_smooth_motion():
     generalized-α's ρ∞ per step, c + a(−ρ∞)^n, exactly 1 + ρ∞ (1.5 at seabed-hockle's
     ρ∞ = 0.5, whose untwisted lay's spin flips so, docs/seabed.md); a constant series or
     fewer than three values NaN."""
-    from contact_steps import alternation
+    from research.contact_steps import alternation
 
     n = np.arange(40)
     assert alternation(3.0 + 0.2 * n) == pytest.approx(0.0, abs=1e-12)
@@ -290,7 +288,7 @@ def test_the_writhe_readings_name_the_first_loop_the_largest_writhe_and_the_tigh
     nearest 0.42 s is the 0.4-s value, the tightest radius 0.01 m at 0.2 s; without the
     topology output it says so."""
     import xarray as xr
-    from contact_steps import writhe_readings
+    from research.contact_steps import writhe_readings
 
     t = np.array([0.0, 0.1, 0.2, 0.3, 0.4, 0.5])
     ds = xr.Dataset({"writhe": ("time", [0.0, 0.5, -0.9, -1.2, 1.5, -2.0]),
@@ -328,7 +326,7 @@ def test_the_box_rules_route_rate_vanishes_for_a_translation_and_is_second_order
     model. Translated, the discrete arc does too (to rounding). Turning, the box rule's
     κ̄ rate from E1 is the exact one to O(Δs²) only: the rate falls four-fold per
     halving of Δs."""
-    from contact_steps import semi_discrete_route_rate
+    from research.contact_steps import semi_discrete_route_rate
 
     moved = semi_discrete_route_rate(_arc_in_rigid_motion(20, (0.3, -0.1, 0.2), (0, 0, 0)))
     assert np.abs(moved).max() < 1e-8
@@ -352,7 +350,7 @@ def test_a_short_step_after_long_ones_reads_the_carried_generalized_alpha_rates(
     n + 1 − αm, a hair from n."""
     import pickle
 
-    from contact_steps import carried_rate_weight, semi_discrete_route_rate, step_route_rate
+    from research.contact_steps import carried_rate_weight, semi_discrete_route_rate, step_route_rate
     from solver.case import Case
     from solver.compiled import _warm_up_spec
     from solver.run import RodRun

@@ -1,15 +1,11 @@
-"""The energy check's study tools (benchmarks/energy_check.py): the per-step accounts of
+"""The energy check's study tools (research/energy_check.py): the per-step accounts of
 PyElastica's plectoneme read the accepted steps' balances (a few seconds of runs)."""
 from __future__ import annotations
-
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-import energy_check as ec  # noqa: E402
+from research import energy_check as ec
 
 
 def test_plectoneme_accounts_are_the_accepted_steps_and_close_before_contact():

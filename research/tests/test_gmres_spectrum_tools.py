@@ -1,15 +1,11 @@
-"""The coarse space of benchmarks/gmres_spectrum.py --coarse: its aggregates and the
+"""The coarse space of research/gmres_spectrum.py --coarse: its aggregates and the
 Woodbury correction, on small operators with known answers. The solver's contact steps
 are not run here."""
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-import gmres_spectrum as gs  # noqa: E402
+from research import gmres_spectrum as gs
 
 
 def test_coarse_basis_aggregates_consecutive_cells_on_the_chosen_rows():
@@ -66,8 +62,8 @@ def test_augmented_matrix_is_the_exact_contact_operator_on_a_real_contact_step()
     takes GMRES to one iteration where the band LU needs more."""
     from scipy.sparse.linalg import splu
 
-    import peer_compare as pcmp
-    from contact_iteration_cost import _advance_to
+    from benchmarks import peer_compare as pcmp
+    from research.contact_iteration_cost import _advance_to
     from solver.run import RodRun
 
     case = pcmp.hockle_case(25, 0.05, 12.0)

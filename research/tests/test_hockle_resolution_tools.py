@@ -1,18 +1,14 @@
-"""The resolution study of cases/seabed-hockle.yaml (benchmarks/hockle_resolution.py):
+"""The resolution study of cases/seabed-hockle.yaml (research/hockle_resolution.py):
 its members are the case on other grids, the start pose's distance from the given
 centreline that docs/case-spec.md quotes (no run), and the untwisted lay's study cut
 short (a few seconds of runs)."""
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-import hockle_resolution as hr  # noqa: E402
+from research import hockle_resolution as hr
 
-from solver.case import Case  # noqa: E402
+from solver.case import Case
 
 
 @pytest.mark.parametrize("segments, dt, every", [(160, 0.05, 1), (320, 0.0125, 4)])

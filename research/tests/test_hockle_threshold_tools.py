@@ -1,16 +1,13 @@
-"""The hockle threshold maps' set-up (benchmarks/hockle_threshold.py): the end's slack, the
+"""The hockle threshold maps' set-up (research/hockle_threshold.py): the end's slack, the
 three settings' bottoms and that every member is a valid case; no run."""
 from __future__ import annotations
 
 import json
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-import hockle_threshold as ht  # noqa: E402
+from research import hockle_threshold as ht
 
 
 @pytest.mark.parametrize("slack", [0.2, 0.5, 0.8])

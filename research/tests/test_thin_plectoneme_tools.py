@@ -1,19 +1,15 @@
-"""The thin-rod plectoneme benchmark's set-up and comparison (benchmarks/thin_plectoneme.py):
+"""The thin-rod plectoneme benchmark's set-up and comparison (research/thin_plectoneme.py):
 the case is PyElastica's plectoneme with D = 1 cm and a 2D contact tolerance, built without
 changing the comparison module's own constants; the writhe error is the largest difference
 after a time, relative to the reference's largest |Wr| there. The benchmark's solver runs
 are not repeated here."""
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-import pyelastica_compare as pc  # noqa: E402
-import thin_plectoneme as tp  # noqa: E402
+from benchmarks import pyelastica_compare as pc
+from research import thin_plectoneme as tp
 
 
 def test_thin_case_is_the_plectoneme_with_a_one_centimetre_rod():
