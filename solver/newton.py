@@ -920,7 +920,6 @@ class NewtonSolver:
         sets 1 under error control, docs/numerics.md § 7 "Newton's noise").
     factorizations, gmres_iterations, gmres_failures : counters over the run.
     last_failure : None, "singular", "stalled" or "gmres" (why the last solve failed).
-    last_start_blend : the blend factor of the last :meth:`feasible_start` (diagnostics).
     """
 
     #: contact steps: refactor the band LU when the last GMRES solve needed more
@@ -947,13 +946,10 @@ class NewtonSolver:
     #: fraction of its old value (:func:`_feasible_start`). Newton iterations over the
     #: tension variant's 19-19.3 s (where 154 of 177 starts are blended) with 0, 0.2,
     #: 0.5, 0.8, 0.95: 1212, 1055, 910, 961, 1134; over the seed's 25-30 s (10 of 351
-    #: blended) 924 at 0.2, 919 at 0.5, 959 at 0.8 (``python benchmarks/contact_steps.py
+    #: blended) 924 at 0.2, 919 at 0.5, 959 at 0.8 (``python -m research.contact_steps
     #: tension --from 19 --t-end 19.3 --starts --newton START_GAP_KEEP=0.2``;
     #: docs/contact.md § 2)
     START_GAP_KEEP = 0.5
-
-    #: the blend factor of the last :meth:`feasible_start` (1 until one has run)
-    last_start_blend = 1.0
 
     #: GMRES: relative residual at which a solve stops, and its iteration limit
     GMRES_RTOL = 1e-3
@@ -984,7 +980,7 @@ class NewtonSolver:
     #: this factor times √tolerance (1e-4 at the default tolerance 1e-9; one more
     #: quadratic iteration would take it to ~10 tolerance). The seed example to 45 s: 3894
     #: Newton iterations against 4052 at a factor of 1, 3.5 % less wall (medians of 3 run
-    #: alternately, python benchmarks/step_overhead.py compare OLD_TREE --cases seed-1000
+    #: alternately, python -m research.step_overhead compare OLD_TREE --cases seed-1000
     #: --rounds 3), its writhe 0.852 % off the converged reference over 18-45 s against
     #: 0.854 %, the centreline of each replayed step within 0.9 µm of the factor-1 one
     #: (docs/contact.md § 2). A factor of 10 saved 7.7 % of the iterations of the
@@ -999,7 +995,6 @@ class NewtonSolver:
         self.last_failure = None
         self._factored_with_contact = False
         self._state = None
-        self.last_trace = None
         self.last_frozen = False
 
     # ------------------------------------------------------------------ state
@@ -1136,9 +1131,6 @@ class NewtonSolver:
         #: (FREEZE_AFTER iterations or more); if not, its contact evaluation
         #: (RodSystem.contact_summary) is that of a fresh selection at the solution
         self.last_frozen = contact and its >= self.FREEZE_AFTER
-        #: per iteration of the last solve: the scaled residual, the feasibility filter's
-        #: fraction, the line search's fraction and GMRES's iterations (diagnostics)
-        self.last_trace = st["ws"][13][:its + 1].copy()
         buf = system.buf
         flags = buf[-1]
         pose = None
@@ -1152,15 +1144,13 @@ class NewtonSolver:
         """A Newton start for the step set up by :meth:`RodSystem.begin_step` (with
         contact candidates) whose candidate gaps are open: blended from the
         zero-displacement state toward ``guess`` (N+1, 12) (:func:`_feasible_start`).
-        Returns (N+1, 12); sets ``last_start_blend``, the blend factor (1: the guess to
-        rounding; 2^−k, k ≤ 7; 0: the zero-displacement state)."""
+        Returns (N+1, 12)."""
         system = self.system
         self._allocate(system.step.candidates.runs)
         rod, step, cand, cdata = system.kernel_args()
         out = np.empty((system.n_nodes, NV))
-        self.last_start_blend = float(_feasible_start(
-            step[0], np.ascontiguousarray(guess, dtype=float), step, rod, cand, cdata,
-            self._state["ws"], out, self.START_GAP_KEEP))
+        _feasible_start(step[0], np.ascontiguousarray(guess, dtype=float), step, rod, cand,
+                        cdata, self._state["ws"], out, self.START_GAP_KEEP)
         return out
 
     # ------------------------------------------------------------------ linear algebra
