@@ -30,7 +30,7 @@ The accounts (each one more term; a new force joins the balance by one more
   centreline integrated from κ, and the end forces turned to the global frame on the
   same centreline's end displacements. One pose for all forces: where an end is held in
   position, its reaction does work on the κ-integrated end, which drifts from the hold
-  (the soft hanging cable of benchmarks/loads_verification.py: gravity's work alone on
+  (the soft hanging cable of research/loads_verification.py: gravity's work alone on
   the κ-shape read ε = 200 T in a step and refused every Δt down to 5e-5 s at t = 3 ms).
   Where the s = L end is held in position the shape is turned rigidly about node 0 so
   that its chord points at the end's prescribed position (:meth:`GlobalLoadWork.turned`):
@@ -64,7 +64,7 @@ that leaves the right cantilever at Δt = 0.02 s unrefused while every Δt up to
 settles within 0.1 % of the elastica; measured on the right runs it leaves their answers
 as they are, at a cost where a settling motion is resolved by a few steps per period
 (the hanging cable at Δt = 0.2 s: 6.3× the Newton iterations; docs/numerics.md § 8,
-``benchmarks/energy_check.py``).
+``research/energy_check.py``).
 
 Everything a step carries to the next (the energy of the level, each account's old
 forces and displacement rates) is kept in the run's state

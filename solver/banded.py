@@ -19,7 +19,7 @@ of its flops: per node ~5,300 against ~14,000. A window's rows are updated whole
 all 24 columns with the eliminated entries held at an exact 0 (:func:`_window`), which the
 compiler vectorises: at N = 1000 on the seed example's contact Jacobian 1.1 ms per
 factor against 1.9 ms for ``dgbtrf`` on the same matrix (``python
-benchmarks/contact_iteration_cost.py``, "band LU alone"). The elimination order
+research/contact_iteration_cost.py``, "band LU alone"). The elimination order
 and pivots being the band LU's, so is its stability (Golub & Van Loan, *Matrix
 Computations*, § 4.3 on band LU with partial pivoting).
 
@@ -80,7 +80,7 @@ def int_at_run_time(a, value):
     closest-point search ``_run_point`` was compiled three times (its frozen segment −1
     and its iteration count 3 as literals from two callers, as run-time values from a
     third), 2.5 s and 3.8 s of a fresh installation's compilation on two machines
-    (``python benchmarks/compile_time.py``). a: an array of at least one dimension (its length is
+    (``python -m benchmarks.compile_time``). a: an array of at least one dimension (its length is
     read); value: an integer; returns value; raises nothing."""
     return value + 0 * a.shape[0]
 

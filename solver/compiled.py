@@ -11,7 +11,7 @@ search and the closest points (:mod:`solver.contact.geometry`) and the contact f
 derivatives (:mod:`solver.contact.model`); the static Jacobian's band, the static cell
 rows and the band product (:mod:`solver.static_band`). They are compiled once per
 installation and cached on disk (``cache=True``; 91 s on an idle 2-core AMD EPYC,
-measured by ``python benchmarks/compile_time.py``, which also says where the time goes;
+measured by ``python -m benchmarks.compile_time``, which also says where the time goes;
 1.9 s once cached); ``hockle run`` and ``hockle worker`` say when they compile and how
 long it took. A process still loads each kernel from the cache at its first call, about
 1 s in all. :func:`warm_up` does that at once, for benchmarks that time single runs and for

@@ -374,7 +374,7 @@ def continuation(problem_at: Callable[[float], StaticProblem], lam0: float, lam1
     S = _Scaled(problem_at, lam0, lam1, p0)
     # band LUs, small dense blocks and ARPACK: BLAS threads only oversubscribe shared cores,
     # as for solver.simulation.integrate (the 200-point branch of
-    # benchmarks/continuation_speed.py before this limit, one run each at load 2.6 on 2
+    # research/continuation_speed.py before this limit, one run each at load 2.6 on 2
     # cores: 4.1 s under OPENBLAS_NUM_THREADS=1, 18.5 s under 2)
     with _blas_controller().limit(limits=1, user_api="blas"):
         if resume is not None:

@@ -263,7 +263,7 @@ class StartOffset:
 #: centreline before :meth:`StartOffset.advice` speaks. Evidence (docs/case-spec.md,
 #: "Initial"): ``cases/seabed-hockle.yaml`` (τ0 = 9.42 rad/m) starts 1.12 / 0.29 / 0.073
 #: diameters off at 40 / 80 / 160 segments, and stops within 0.07 s / at 3.67 s /
-#: completes (``python benchmarks/hockle_resolution.py``)
+#: completes (``python -m research.hockle_resolution``)
 START_OFFSET_ADVICE = 0.1
 
 

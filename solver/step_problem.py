@@ -110,7 +110,7 @@ class ProblemAssembly:
     #: floor it ended at 7.5 s, with the floor at Δt/100 at 11.4 s). Why not the floor
     #: at Δt: the correction is then slow on the many cut steps of a collapse, and the
     #: plectoneme's held end (Δt = 0.1 s, ρ∞ = 0.5) strays 31 mm from its axis against
-    #: 14 mm at Δt/4 and Δt/100. Measured (``benchmarks/drift_rate.py``, docs/contact.md
+    #: 14 mm at Δt/4 and Δt/100. Measured (``research/drift_rate.py``, docs/contact.md
     #: § 1): at Δt/4 all three complete and the seed example's events and |Wr| are those
     #: of Δt/100. Nor is the time constant ever shorter than one period of the fastest
     #: wave the grid carries (:attr:`solver.properties.RodProperties.fastest_wave_period`),

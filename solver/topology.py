@@ -47,7 +47,7 @@ a segment is at most 60°, D1 ≥ |a||b||c| and D2 ≥ |a||c||d|, and the roundi
 products (a few ε times the squared distances, at most 4.5 times |a||b| there) moves the
 denominators by a few ε relative: the value agrees with the direct evaluation to rounding
 (measured: 6.2e-15 turns over the 451 outputs of the seed example, 2e-14 on random walks;
-``python benchmarks/writhe_speed.py --result FILE.nc``).
+``python -m research.writhe_speed --result FILE.nc``).
 Pairs that fail the test (neighbours along the curve, pairs with the long end
 extensions, strands crossing closer than a segment length, degenerate pairs) take the
 direct evaluation from the vectors r13 … r23.  Source of the closed form: Klenin &
@@ -410,7 +410,7 @@ def _pair_sum(q: np.ndarray, closed: bool, center: np.ndarray | None = None) -> 
     pairs (module docstring) and the direct formula for the others; from
     :data:`PARALLEL_SEGMENTS` segments on all cores, 16 runs of rows summed in a fixed
     order (the same number on any number of threads).  Cost per writhe at 1000 segments:
-    ``python benchmarks/writhe_speed.py`` (docs/topology.md).
+    ``python -m research.writhe_speed`` (docs/topology.md).
     """
     if center is None:
         center = q.mean(axis=0)
@@ -500,7 +500,7 @@ def writhe(points, extension=None) -> float:
 
     Cost: O(N²) pairs, one row of the upper triangle at a time (O(N) memory); about
     1 ms for 1000 segments on one core of the 2-core development machine (compiled;
-    ``python benchmarks/writhe_speed.py``).
+    ``python -m research.writhe_speed``).
     """
     p = _as_points(points, "writhe", 2)
     if extension is None:

@@ -191,7 +191,7 @@ def _seabed_hockle(n, twist=None):
 def test_a_twisted_lays_start_offset_falls_as_ds2_and_is_advised_past_a_tenth_of_d():
     """cases/seabed-hockle.yaml's half-sine lay with τ0 = 9.42 rad/m (D = 2 cm) starts
     22.4 / 5.79 / 1.46 mm off at its s = L end on 40 / 80 / 160 segments (the figures of
-    benchmarks/hockle_resolution.py, where the 40- and 80-segment runs fail), ratio 4 per
+    research/hockle_resolution.py, where the 40- and 80-segment runs fail), ratio 4 per
     halving; the advice names the field and a grid at 40 and 80 and is silent at 160;
     without the twist the same lay starts within 0.1 mm."""
     offs = {n: start_offset(_seabed_hockle(n)) for n in (40, 80, 160)}

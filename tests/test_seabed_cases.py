@@ -139,7 +139,7 @@ def test_seabed_hockle_holds_its_end_on_the_bottom():
     """The criterion the defect's fix must meet: the held end within 1 mm of where it is
     held (``end_drift``), the bottom's reaction within 10 times the cable's weight
     (1.54 N/m), and the frictionless variant through t = 4 s. Measured on the 10-s run
-    (benchmarks/drift_rate.py --only hockle): the reaction 6.9 kN/m at 4.0 s, the drift
+    (research/drift_rate.py --only hockle): the reaction 6.9 kN/m at 4.0 s, the drift
     up to 10.9 mm; without friction the run stops at t = 4 s. Strict: a fix makes it pass, and
     the docs must then say so."""
     weight = (1500.0 - 1000.0) * np.pi * 0.01**2 * 9.81

@@ -152,7 +152,7 @@ def _literal_argument_calls(trees: dict) -> list[str]:
 
 def test_compiled_functions_pass_no_literal_booleans_or_varying_integers():
     # the residual was compiled three times (want_jac True, False and run-time), a
-    # third of a fresh installation's compile time (python benchmarks/compile_time.py)
+    # third of a fresh installation's compile time (python -m benchmarks.compile_time)
     trees = {f.relative_to(SOLVER.parent).as_posix(): ast.parse(f.read_text())
              for f in SOLVER.rglob("*.py")}
     assert not _literal_argument_calls(trees), _literal_argument_calls(trees)

@@ -259,7 +259,7 @@ class StepControl:
                     # without its fluid, 17.5-18.4 s: 855 of 4307 attempts refused, most
                     # steps at 0.1/4^5 s with route ratios of 0.02-0.07; kept on the
                     # controller, 53 of 3436, the ratios at its target;
-                    # benchmarks/contact_steps.py, docs/contact.md § 3)
+                    # research/contact_steps.py, docs/contact.md § 3)
                     self.h_route = h_new
                 else:
                     # strands apart and the route rule allows the nominal step: the

@@ -331,7 +331,7 @@ def test_cost_model_lets_the_seed_case_through(tmp_path):
 
 
 @pytest.mark.parametrize("grid_points,wall_per_simulated_second", [
-    # benchmarks/contact_scaling.py, the seed example at N segments in contact (docs/contact.md)
+    # research/contact_scaling.py, the seed example at N segments in contact (docs/contact.md)
     (101, 2.8), (251, 3.9), (501, 5.0), (1001, 11.8), (2001, 28.2),
     # the seed's intertwined phase, 1.58 s per 0.1-s step
     (1001, 15.8),
