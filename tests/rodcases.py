@@ -1,5 +1,8 @@
-"""Small case builders shared by the solver tests (real `Case` objects, no fakes)."""
+"""The tests' case factory: small case builders shared by the tests (real `Case` objects
+and case documents, no fakes)."""
 from __future__ import annotations
+
+import copy
 
 import numpy as np
 
@@ -51,6 +54,34 @@ def make_case(*, n_segments=20, dt=0.01, t_end=0.1, rho_inf=0.5, diameter=0.02,
         spec["contact"] = contact
     return Case.model_validate(spec)
 
+
+
+def tiny_spec(name: str = "tiny", *, n_segments: int = 8, dt: float = 0.01,
+              t_end: float = 0.05, diameter=0.02, **sections) -> dict:
+    """The tiny case as a case document (a dict, as a service request, a case file or a
+    sweep's base carries it): the seed's cable (1 m, E = 12.5 MPa, G = 5 MPa,
+    1500 kg/m³, D = 2 cm or the ``diameter`` given, a profile too) clamped at s = 0 and
+    turned there at 1 rad/s, held sideways and in rotation at s = L and free along the
+    axis (zero force); ``n_segments``, ``dt`` (s), ``t_end`` (s) its numerics. Further
+    top-level sections (``output``, ``fluid``, ``contact``, ...) are set as given. A new
+    dict on every call."""
+    spec = {
+        "schema_version": 1,
+        "name": name,
+        "rod": {"length": 1.0, "youngs_modulus": 1.25e7, "shear_modulus": 5.0e6,
+                "density": 1500.0, "diameter": diameter},
+        "boundary": {
+            "start": {"translation": [{"velocity": 0}, {"velocity": 0}, {"velocity": 0}],
+                      "rotation": [{"angular_velocity": 0}, {"angular_velocity": 0},
+                                   {"angular_velocity": 1.0}]},
+            "end": {"translation": [{"velocity": 0}, {"velocity": 0}, {"force": 0}],
+                    "rotation": [{"angular_velocity": 0}, {"angular_velocity": 0},
+                                 {"angular_velocity": 0}]},
+        },
+        "numerics": {"n_segments": n_segments, "dt": dt, "t_end": t_end},
+    }
+    spec.update(copy.deepcopy(sections))
+    return spec
 
 def jacobian_fd_error(run, seed: int, t_new: float = 0.43, dt: float = 0.01) -> np.ndarray:
     """Per row, the largest difference between the step's assembled Jacobian (cell blocks

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 import yaml
 
+from rodcases import tiny_spec
 from hockle.cli import main
 from hockle.io import open_result, write_netcdf
 from solver.case import Case
@@ -21,35 +22,8 @@ from solver.results import build_dataset
 REPO = Path(__file__).resolve().parents[1]
 
 # The tiny case of the brief: a straight rod twisted at its start end.
-TINY = {
-    "schema_version": 1,
-    "name": "tiny",
-    "rod": {
-        "length": 1.0,
-        "youngs_modulus": 1.25e7,
-        "shear_modulus": 5.0e6,
-        "density": 1500.0,
-        "diameter": 0.02,
-    },
-    "boundary": {
-        "start": {
-            "translation": [{"velocity": 0}, {"velocity": 0}, {"velocity": 0}],
-            "rotation": [
-                {"angular_velocity": 0},
-                {"angular_velocity": 0},
-                {"angular_velocity": 1.0},
-            ],
-        },
-        "end": {
-            "translation": [{"velocity": 0}, {"velocity": 0}, {"force": 0}],
-            "rotation": [{"angular_velocity": 0}] * 3,
-        },
-    },
-    "numerics": {"n_segments": 8, "dt": 0.01, "t_end": 0.05},
-    "output": {
-        "fields": ["v", "omega", "f", "kappa", "position", "orientation", "energies", "topology"]
-    },
-}
+TINY = tiny_spec(output={"fields": ["v", "omega", "f", "kappa", "position", "orientation",
+                                     "energies", "topology"]})
 
 
 def write_case(path: Path, spec: dict) -> Path:

@@ -19,6 +19,7 @@ import re
 import pytest
 from compliance_checker.runner import CheckSuite
 
+from rodcases import tiny_spec
 from hockle.io import write_netcdf
 from service.settings import DatasetMetadata
 from solver.case import Case
@@ -29,25 +30,11 @@ from solver.simulation import integrate
 ALL_FIELDS = ["v", "omega", "f", "kappa", "moment", "position", "orientation", "energies",
               "topology", "contact", "reactions", "bend_radius"]
 
-CASE = {
-    "schema_version": 1,
-    "name": "compliance tiny",
-    "rod": {"length": 1.0, "youngs_modulus": 1.25e7, "shear_modulus": 5.0e6,
-            "density": 1500.0, "diameter": 0.02},
-    "fluid": {"density": 1000.0},
-    "boundary": {
-        "start": {"translation": [{"velocity": 0}] * 3,
-                  "rotation": [{"angular_velocity": 0}, {"angular_velocity": 0},
-                               {"angular_velocity": 1.0}]},
-        "end": {"translation": [{"velocity": 0}, {"velocity": 0}, {"force": 0}],
-                "rotation": [{"angular_velocity": 0}] * 3},
-    },
-    "contact": {"aperture": 90.0, "tolerance": 0.03, "k1": 1e-7, "k2": 3.0, "k3": 1e-6,
-                "k4": 1.0},
-    "seabed": {"elevation": -1.0},   # below the rod: its outputs are written (zeros)
-    "numerics": {"n_segments": 8, "dt": 0.01, "t_end": 0.05},
-    "output": {"fields": ALL_FIELDS},
-}
+CASE = tiny_spec(
+    "compliance tiny", fluid={"density": 1000.0},
+    contact={"aperture": 90.0, "tolerance": 0.03, "k1": 1e-7, "k2": 3.0, "k3": 1e-6, "k4": 1.0},
+    seabed={"elevation": -1.0},   # below the rod: its outputs are written (zeros)
+    output={"fields": ALL_FIELDS})
 
 # What an operator sets (HOCKLE_CREATOR_NAME, HOCKLE_LICENSE, ...; docs/service.md)
 OPERATOR = {

@@ -7,6 +7,7 @@ import copy
 import numpy as np
 import pytest
 
+from rodcases import tiny_spec
 from hockle.plots import (
     MAX_EVENTS,
     TOUCH_GAP,
@@ -19,21 +20,8 @@ from hockle.plots import (
 from solver.case import Case
 from solver.results import build_dataset
 
-CASE = {
-    "schema_version": 1,
-    "name": "synthetic events",
-    "rod": {"length": 1.0, "youngs_modulus": 1.25e7, "shear_modulus": 5.0e6,
-            "density": 1500.0,
-            "diameter": {"s": [0.0, 0.4, 0.6, 1.0], "value": [0.02, 0.018, 0.018, 0.02]}},
-    "boundary": {
-        "start": {"translation": [{"velocity": 0}] * 3,
-                  "rotation": [{"angular_velocity": 0}, {"angular_velocity": 0},
-                               {"angular_velocity": 1.0}]},
-        "end": {"translation": [{"velocity": 0}, {"velocity": 0}, {"force": 0}],
-                "rotation": [{"angular_velocity": 0}] * 3},
-    },
-    "numerics": {"n_segments": 100, "dt": 0.1, "t_end": 3.0},
-}
+CASE = tiny_spec("synthetic events", n_segments=100, dt=0.1, t_end=3.0,
+                 diameter={"s": [0.0, 0.4, 0.6, 1.0], "value": [0.02, 0.018, 0.018, 0.02]})
 
 N = 101
 TIMES = np.round(np.arange(0.0, 3.01, 0.1), 10)     # 31 outputs, 0 ... 3 s

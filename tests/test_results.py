@@ -10,6 +10,7 @@ import stat
 import numpy as np
 import pytest
 
+from rodcases import tiny_spec
 import solver
 from hockle.io import open_result, write_netcdf
 from solver.case import Case
@@ -17,32 +18,7 @@ from solver.results import build_dataset
 
 T, N, K = 6, 9, 11
 
-TINY = {
-    "schema_version": 1,
-    "name": "results-test",
-    "rod": {
-        "length": 1.0,
-        "youngs_modulus": 1.25e7,
-        "shear_modulus": 5.0e6,
-        "density": 1500.0,
-        "diameter": 0.02,
-    },
-    "boundary": {
-        "start": {
-            "translation": [{"velocity": 0}, {"velocity": 0}, {"velocity": 0}],
-            "rotation": [
-                {"angular_velocity": 0},
-                {"angular_velocity": 0},
-                {"angular_velocity": 1.0},
-            ],
-        },
-        "end": {
-            "translation": [{"velocity": 0}, {"velocity": 0}, {"force": 0}],
-            "rotation": [{"angular_velocity": 0}] * 3,
-        },
-    },
-    "numerics": {"n_segments": N - 1, "dt": 0.01, "t_end": 0.05},
-}
+TINY = tiny_spec("results-test", n_segments=N - 1)
 
 # The contract, written out independently of the module's own table:
 # name -> (dims, units)

@@ -6,20 +6,10 @@ import json
 
 import pytest
 
+from rodcases import tiny_spec
 from hockle.sweep_command import split_fixed
 
-BASE = {
-    "schema_version": 1, "name": "sweep-base",
-    "rod": {"length": 1.0, "youngs_modulus": 1.25e7, "shear_modulus": 5.0e6,
-            "density": 1500.0, "diameter": 0.02},
-    "boundary": {
-        "start": {"translation": [{"velocity": 0}] * 3,
-                  "rotation": [{"angular_velocity": 0}, {"angular_velocity": 0},
-                               {"angular_velocity": 1.0}]},
-        "end": {"translation": [{"velocity": 0}, {"velocity": 0}, {"force": 0}],
-                "rotation": [{"angular_velocity": 0}] * 3}},
-    "numerics": {"n_segments": 6, "dt": 0.1, "t_end": 0.2},
-}
+BASE = tiny_spec("sweep-base", n_segments=6, dt=0.1, t_end=0.2)
 FORCE = "boundary.end.translation.2.force"
 
 

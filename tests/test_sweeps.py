@@ -8,6 +8,7 @@ import json
 import numpy as np
 import pytest
 
+from rodcases import tiny_spec
 from service.sweeps import (
     MemberResult,
     SweepError,
@@ -23,20 +24,8 @@ from service.sweeps import (
 from solver.case import Case
 from solver.results import build_dataset
 
-BASE = {
-    "schema_version": 1,
-    "name": "sweep unit",
-    "rod": {"length": 1.0, "youngs_modulus": 1.25e7, "shear_modulus": 5.0e6,
-            "density": 1500.0, "diameter": 0.02},
-    "boundary": {
-        "start": {"translation": [{"velocity": 0}] * 3,
-                  "rotation": [{"angular_velocity": 0}, {"angular_velocity": 0},
-                               {"angular_velocity": 1.0}]},
-        "end": {"translation": [{"velocity": 0}, {"velocity": 0}, [{"force": 0}]],
-                "rotation": [{"angular_velocity": 0}] * 3},
-    },
-    "numerics": {"n_segments": 10, "dt": 0.1, "t_end": 3.0},
-}
+BASE = tiny_spec("sweep unit", n_segments=10, dt=0.1, t_end=3.0)
+BASE["boundary"]["end"]["translation"][2] = [{"force": 0}]     # a one-item switch list
 FORCE = "boundary.end.translation.2.force"
 SPIN = "boundary.start.rotation.2.angular_velocity"
 PARAMS = {FORCE: [0.0, 2.0], SPIN: [1.0, 2.0, 3.0]}

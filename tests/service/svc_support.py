@@ -7,7 +7,6 @@ against it in order (they are written so that each one also passes alone).
 from __future__ import annotations
 
 import contextlib
-import copy
 import os
 import shutil
 import signal
@@ -21,28 +20,13 @@ from pathlib import Path
 import httpx
 import pytest
 
+from rodcases import tiny_spec
+
 REPO = Path(__file__).resolve().parents[2]
 
-TINY_CASE = {
-    "schema_version": 1,
-    "name": "tiny",
-    "rod": {"length": 1.0, "youngs_modulus": 1.25e7, "shear_modulus": 5.0e6, "density": 1500.0,
-            "diameter": 0.02},
-    "boundary": {
-        "start": {"translation": [{"velocity": 0}, {"velocity": 0}, {"velocity": 0}],
-                  "rotation": [{"angular_velocity": 0}, {"angular_velocity": 0},
-                               {"angular_velocity": 1.0}]},
-        "end": {"translation": [{"velocity": 0}, {"velocity": 0}, {"force": 0}],
-                "rotation": [{"angular_velocity": 0}, {"angular_velocity": 0},
-                             {"angular_velocity": 0}]},
-    },
-    "numerics": {"n_segments": 8, "dt": 0.01, "t_end": 0.05},
-}
-
-
 def tiny_case(name: str = "tiny", **numerics) -> dict:
-    case = copy.deepcopy(TINY_CASE)
-    case["name"] = name
+    """The tests' tiny case (rodcases.tiny_spec) named ``name``, ``numerics`` over its own."""
+    case = tiny_spec(name)
     case["numerics"].update(numerics)
     return case
 
