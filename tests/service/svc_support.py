@@ -31,6 +31,35 @@ def tiny_case(name: str = "tiny", **numerics) -> dict:
     return case
 
 
+
+@pytest.fixture(scope="module")
+def settings(request, tmp_path_factory):
+    """The in-process service's settings of a test module: a fresh data directory (SQLite
+    registry and result store), the in-memory broker, progress at every step, and the
+    module's ``SERVICE_SETTINGS`` (a dict of :class:`service.settings.Settings` fields,
+    e.g. API keys) over these."""
+    from service.settings import Settings
+
+    fields = {"broker_url": "memory://", "progress_interval": 0.0,
+              **getattr(request.module, "SERVICE_SETTINGS", {})}
+    name = request.module.__name__.rpartition(".")[2]
+    return Settings(data_dir=tmp_path_factory.mktemp(name), **fields)
+
+
+@pytest.fixture(scope="module")
+def client(request, settings):
+    """The service's API in-process on ``settings`` (FastAPI's TestClient, the app's
+    lifespan run): the one client of the in-process service tests. A module's
+    ``RAISE_SERVER_EXCEPTIONS = False`` has a server error answered as a 500 instead of
+    raised."""
+    from fastapi.testclient import TestClient
+
+    from service.app import create_app
+
+    raising = getattr(request.module, "RAISE_SERVER_EXCEPTIONS", True)
+    with TestClient(create_app(settings), raise_server_exceptions=raising) as c:
+        yield c
+
 def long_case(name: str = "long", t_end: float = 20.0) -> dict:
     """A case that runs for several seconds (n_segments 400, 2000 steps: ~5 s alone here)."""
     case = tiny_case(name, n_segments=400, t_end=t_end)

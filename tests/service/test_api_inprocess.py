@@ -6,28 +6,16 @@ from __future__ import annotations
 import json
 
 import pytest
-from fastapi.testclient import TestClient
 
-from service.app import create_app
 from service.registry import Registry
-from service.settings import Settings
 from svc_support import long_case, tiny_case
 
 PROBLEM = "application/problem+json"
 
 
-@pytest.fixture(scope="module")
-def settings(tmp_path_factory):
-    root = tmp_path_factory.mktemp("inproc")
-    return Settings(data_dir=root, broker_url="memory://", max_slice_values=40,
-                    max_case_size=2_000_000, progress_interval=0.0,
-                    creator_name="Rod Dynamics Lab", license="CC-BY-4.0")
-
-
-@pytest.fixture(scope="module")
-def client(settings):
-    with TestClient(create_app(settings)) as c:
-        yield c
+#: the in-process service's settings (svc_support's ``settings`` and ``client`` fixtures)
+SERVICE_SETTINGS = dict(max_slice_values=40, max_case_size=2_000_000,
+                        creator_name="Rod Dynamics Lab", license="CC-BY-4.0")
 
 
 def _run(settings, job_id):

@@ -25,17 +25,9 @@ A = {"Authorization": f"Bearer {KEY_A}"}
 B = {"Authorization": f"Bearer {KEY_B}"}
 
 
-@pytest.fixture(scope="module")
-def settings(tmp_path_factory):
-    root = tmp_path_factory.mktemp("auth")
-    return Settings(data_dir=root, broker_url="memory://", progress_interval=0.0,
-                    api_keys=f"{KEY_A}, {KEY_B}", rate_limit=1000.0, rate_limit_burst=1000)
-
-
-@pytest.fixture(scope="module")
-def client(settings):
-    with TestClient(create_app(settings)) as c:
-        yield c
+#: the in-process service's settings (svc_support's ``settings`` and ``client`` fixtures)
+SERVICE_SETTINGS = dict(api_keys=f"{KEY_A}, {KEY_B}", rate_limit=1000.0,
+                        rate_limit_burst=1000)
 
 
 def _run(settings, job_id):

@@ -8,32 +8,26 @@ import threading
 from concurrent.futures import ThreadPoolExecutor
 
 import pytest
-from fastapi.testclient import TestClient
 
 from service import store
-from service.app import create_app
-from service.settings import Settings
 from svc_support import tiny_case
 
 KEY = "concurrent-reads-key-0123456789"
 AUTH = {"Authorization": f"Bearer {KEY}"}
 
 
-@pytest.fixture(scope="module")
-def settings(tmp_path_factory):
-    return Settings(data_dir=tmp_path_factory.mktemp("reads"), broker_url="memory://",
-                    api_keys=KEY, progress_interval=0.0)
+#: the in-process service's settings (svc_support's ``settings`` and ``client`` fixtures)
+SERVICE_SETTINGS = dict(api_keys=KEY)
 
 
 @pytest.fixture(scope="module")
-def finished_job(settings):
+def finished_job(client, settings):
     from worker.tasks import run_job
 
-    with TestClient(create_app(settings)) as client:
-        job = client.post("/v1/jobs", json=tiny_case("reads"), headers=AUTH).json()
-        run_job(job["id"], "reads@test", settings)
-        assert client.get(f"/v1/jobs/{job['id']}", headers=AUTH).json()["state"] == "successful"
-        yield client, job["id"]
+    job = client.post("/v1/jobs", json=tiny_case("reads"), headers=AUTH).json()
+    run_job(job["id"], "reads@test", settings)
+    assert client.get(f"/v1/jobs/{job['id']}", headers=AUTH).json()["state"] == "successful"
+    return client, job["id"]
 
 
 def _paths(job_id: str) -> list[str]:

@@ -10,10 +10,7 @@ from pathlib import Path
 
 import pytest
 import xarray as xr
-from fastapi.testclient import TestClient
 
-from service.app import create_app
-from service.settings import Settings
 from svc_support import REPO, tiny_case
 
 FORCE = "boundary.end.translation.2.force"
@@ -33,18 +30,6 @@ def _euler_load(case: dict) -> float:
     rod = case["rod"]
     bending = float(rod["youngs_modulus"]) * math.pi * float(rod["diameter"]) ** 4 / 64
     return 4 * math.pi ** 2 * bending / float(rod["length"]) ** 2
-
-
-@pytest.fixture(scope="module")
-def settings(tmp_path_factory):
-    root = tmp_path_factory.mktemp("continuations")
-    return Settings(data_dir=root, broker_url="memory://", progress_interval=0.0)
-
-
-@pytest.fixture(scope="module")
-def client(settings):
-    with TestClient(create_app(settings)) as c:
-        yield c
 
 
 def _run(settings, job_id):

@@ -20,16 +20,8 @@ AUTH = {"Authorization": f"Bearer {KEY}"}
 OWN_FILES = ("index.html", "app.js", "view3d.js", "app.css")
 
 
-@pytest.fixture(scope="module")
-def settings(tmp_path_factory):
-    return Settings(data_dir=tmp_path_factory.mktemp("ui"), broker_url="memory://",
-                    api_keys=KEY, progress_interval=0.0)
-
-
-@pytest.fixture(scope="module")
-def client(settings):
-    with TestClient(create_app(settings)) as c:
-        yield c
+#: the in-process service's settings (svc_support's ``settings`` and ``client`` fixtures)
+SERVICE_SETTINGS = dict(api_keys=KEY)
 
 
 def _run(settings, job_id):

@@ -6,10 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from fastapi.testclient import TestClient
 
-from service.app import create_app
-from service.settings import Settings
 from svc_support import tiny_case
 
 KEY_A = "alice-key-0123456789abcdef"
@@ -19,17 +16,9 @@ B = {"Authorization": f"Bearer {KEY_B}"}
 STATE = ("v", "omega", "f", "kappa", "position", "orientation")
 
 
-@pytest.fixture(scope="module")
-def settings(tmp_path_factory):
-    root = tmp_path_factory.mktemp("from_job")
-    return Settings(data_dir=root, broker_url="memory://", progress_interval=0.0,
-                    api_keys=f"{KEY_A}, {KEY_B}", rate_limit=1000.0, rate_limit_burst=1000)
-
-
-@pytest.fixture(scope="module")
-def client(settings):
-    with TestClient(create_app(settings)) as c:
-        yield c
+#: the in-process service's settings (svc_support's ``settings`` and ``client`` fixtures)
+SERVICE_SETTINGS = dict(api_keys=f"{KEY_A}, {KEY_B}", rate_limit=1000.0,
+                        rate_limit_burst=1000)
 
 
 def _run(settings, job_id):

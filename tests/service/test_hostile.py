@@ -13,26 +13,17 @@ import time
 
 import pytest
 from fastapi import Request
-from fastapi.testclient import TestClient
 
 from service.app import create_app
-from service.settings import Settings
 from svc_support import tiny_case
 
 PROBLEM = "application/problem+json"
 
 
-@pytest.fixture(scope="module")
-def settings(tmp_path_factory):
-    root = tmp_path_factory.mktemp("hostile")
-    return Settings(data_dir=root, broker_url="memory://", progress_interval=0.0,
-                    max_case_size=2_000_000, registry_busy_timeout=1.0)
-
-
-@pytest.fixture(scope="module")
-def client(settings):
-    with TestClient(create_app(settings), raise_server_exceptions=False) as c:
-        yield c
+#: the in-process service's settings (svc_support's ``settings`` and ``client`` fixtures);
+#: server errors are answered, as a client sees them
+SERVICE_SETTINGS = dict(max_case_size=2_000_000, registry_busy_timeout=1.0)
+RAISE_SERVER_EXCEPTIONS = False
 
 
 @pytest.fixture(scope="module")

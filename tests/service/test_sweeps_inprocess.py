@@ -5,10 +5,7 @@ from __future__ import annotations
 
 import pytest
 import xarray as xr
-from fastapi.testclient import TestClient
 
-from service.app import create_app
-from service.settings import Settings
 from svc_support import tiny_case
 
 TENSION = "boundary.end.translation.2.force"
@@ -24,17 +21,8 @@ def _run(settings, job_id):
     return run_job(job_id, "sweep@test", settings)
 
 
-@pytest.fixture(scope="module")
-def settings(tmp_path_factory):
-    return Settings(data_dir=tmp_path_factory.mktemp("sweeps"), broker_url="memory://",
-                    progress_interval=0.0, api_keys=f"{KEY_A},{KEY_B}", rate_limit=1000.0,
-                    rate_limit_burst=1000)
-
-
-@pytest.fixture(scope="module")
-def client(settings):
-    with TestClient(create_app(settings)) as c:
-        yield c
+#: the in-process service's settings (svc_support's ``settings`` and ``client`` fixtures)
+SERVICE_SETTINGS = dict(api_keys=f"{KEY_A},{KEY_B}", rate_limit=1000.0, rate_limit_burst=1000)
 
 
 def test_results_wait_for_every_member_and_a_failed_one_is_marked(client, settings, tmp_path):
