@@ -14,7 +14,7 @@ wall-clock budget per case, past which the run ends ``stopped``):
 * ``pyelastica-0.8``: PyElastica's plectoneme as benchmarks/peer_compare.py runs it,
   ρ∞ = 0.8, N = 25, Δt = 0.1 s, to 12 s;
 * ``cantilever``: the steel cantilever under a dead tip load P L²/EI = 10 ramped over
-  2 s (:func:`cantilever_spec`, the rod of tests/test_energy_check.py), N = 100,
+  2 s (:func:`cantilever_spec`, the rod of tests/solver/test_energy_check.py), N = 100,
   Δt = 0.1 s, 8 s, ρ∞ = 0 (no contact: the
   tip's x/L against Mattiasson's 0.44501 is its answer);
 * ``seed-in-air``: a case no setting was tuned on: the seed example without its fluid
@@ -128,7 +128,7 @@ def cantilever_spec(dt=0.1, n=100, t_end=8.0):
     """The steel cantilever (L = 1 m, D = 1 cm, E = 210 GPa, G = 81 GPa, 7850 kg/m³, no
     gravity) clamped along z at s = 0 under a dead tip load P = 10 EI/L² along +x, ramped on
     over 2 s; ρ∞ = 0, the energy check at its default (the rod of
-    tests/test_energy_check.py)."""
+    tests/solver/test_energy_check.py)."""
     E, D, L = 2.1e11, 0.01, 1.0
     EI = E * math.pi * D**4 / 64
     return {

@@ -139,7 +139,7 @@ def section(figdir: Path, quick: bool = False) -> str:
     forced = rows.get("+ contact, search forced every step (tolerance 0.2 m)")
     lines += ["",
               "How to read it: features a case does not have are not assembled at all "
-              "(`tests/test_skip.py` checks it by trapping the routines: no k-d tree "
+              "(`tests/solver/test_skip.py` checks it by trapping the routines: no k-d tree "
               "without `contact` or while the O(N) pre-test rules every pair out, writhe "
               "only at output steps, no drag without a fluid, fields nobody asked for "
               "neither computed nor stored)."]

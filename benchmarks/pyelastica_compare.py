@@ -79,7 +79,7 @@ CONTACT = {"aperture": 90.0, "tolerance": 2.0 * DIAMETER, "k1": 1.0e-7, "k2": 3.
 
 PHI_CR = 2.0 * brentq(lambda x: np.tan(x) - x, 4.0, 4.6, xtol=1e-14) * BEND / TORS
 """Greenhill: the clamped rod with zero end force buckles at M L/B = 8.9868 (tan(x) = x,
-x = ML/2B; tests/test_greenhill.py), M = GJ φ/L, so at the end rotation φ_cr (rad)."""
+x = ML/2B; tests/solver/test_greenhill.py), M = GJ φ/L, so at the end rotation φ_cr (rad)."""
 
 
 def end_rate(t):
@@ -259,7 +259,7 @@ def _sin2_rate(phi, ramp):
     return rate, angle
 
 
-# Greenhill growth-rate runs (tests/test_greenhill.py's method, vacuum, no damping): turn the
+# Greenhill growth-rate runs (tests/solver/test_greenhill.py's method, vacuum, no damping): turn the
 # end by factor·φ_cr with a sin² rate over G_RAMP, hold, push sideways with a tiny sin² pulse
 # of G_PUSH N/m on s in [0.2, 0.45] L from G_PUSH_AT for G_PUSH_LEN, then fit the exponential
 # growth of the lateral deflection. σ² is linear in the twist near the threshold, so the

@@ -87,7 +87,7 @@ def greenhill_critical_torque(t: float) -> float:
     """m_cr = M_cr L/B of the clamped-clamped twisted rod under tension T (t = TL²/B ≥ 0),
     the smallest root of 2b[cos(bL) − cos(aL)] = (TL/B) sin(bL), a = M/2B,
     b = √(M² − 4BT)/2B (lengths in units of L; numerics-notes §5 V1, as in
-    tests/test_greenhill.py). Returns a number (dimensionless)."""
+    tests/solver/test_greenhill.py). Returns a number (dimensionless)."""
     if t == 0.0:
         return 2.0 * brentq(lambda x: np.tan(x) - x, 4.0, 4.6, xtol=1e-14)
 

@@ -117,7 +117,7 @@ def lateral_eigenvalue(torque: float, lo: float, hi: float, n: int = 1500,
     Scans the singularity measure on n points and refines its minimum (bounded Brent);
     [lo, hi] must hold exactly one eigenvalue and exclude s² = 0 (a double root there
     makes the matrix singular for any M). rho_j: rotary inertia per length (kg·m); 0
-    gives the Euler-Bernoulli beam. Checked in tests/test_work_precision.py: M = 0 and
+    gives the Euler-Bernoulli beam. Checked in tests/benchmarks/test_work_precision.py: M = 0 and
     rho_j = 0 give βL = 4.7300; σ² → 0 at M L/B = 8.9868 (tan x = x, x = ML/2B).
     """
     xs = np.linspace(lo, hi, n)

@@ -682,7 +682,7 @@ def build_parser() -> tuple[argparse.ArgumentParser, str | None]:
     )
     p.set_defaults(func=cmd_plot)
 
-    # hockle.animate.DEFAULT_* (tests/test_animate.py checks they agree); not imported
+    # hockle.animate.DEFAULT_* (tests/hockle/test_animate.py checks they agree); not imported
     # from there, which would load matplotlib and xarray for every command
     DEFAULT_FRAMES, DEFAULT_FPS, DEFAULT_DPI = 150, 15, 80
     p = sub.add_parser(

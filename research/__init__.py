@@ -5,12 +5,13 @@ research/README.md lists what is here and how to run it (``python -m research.NA
 from the repository's root).
 
 The instruments reuse the tests' case builders (``import test_energy_check``, ``from
-rodcases import ...``): importing this package puts tests/ on ``sys.path`` once, here,
-for them.
+rodcases import ...``): importing this package puts tests/ and tests/solver/ on
+``sys.path`` once, here, for them.
 """
 import sys as _sys
 from pathlib import Path as _Path
 
-_TESTS = str(_Path(__file__).resolve().parents[1] / "tests")
-if _TESTS not in _sys.path:
-    _sys.path.append(_TESTS)
+for _folder in ("tests", "tests/solver"):
+    _path = str(_Path(__file__).resolve().parents[1] / _folder)
+    if _path not in _sys.path:
+        _sys.path.append(_path)

@@ -4,7 +4,7 @@
 it the rate g/h prescribes a new one, up to 1/f times the uncut step's. Printed per
 floor, the energy check at its default unless said:
 
-* the plectoneme of tests/test_contact_run.py (N = 25, Δt = 0.1 s, ρ∞ = 0.5): status,
+* the plectoneme of tests/solver/test_contact_run.py (N = 25, Δt = 0.1 s, ρ∞ = 0.5): status,
   the held end's largest distance from its axis, and after the collapse (t > 7.5 s);
 * PyElastica's plectoneme (benchmarks/peer_compare.py's case, N = 25, Δt = 0.1 s, to
   12 s) at the default ρ∞ and at ρ∞ = 0.8: status, Newton iterations, and the relative

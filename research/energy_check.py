@@ -4,18 +4,18 @@
 * the soft hanging cable of research/loads_verification.py with the check at the
   default tolerance and without, at several Δt: status, refusals, settled sag against
   the catenary, the κ-integrated centreline's held end against its hold;
-* the cable resting on a flat bottom (tests/test_seabed.py's 2-cm cable, touching at the
+* the cable resting on a flat bottom (tests/solver/test_seabed.py's 2-cm cable, touching at the
   start) at Δt = 1e-4 s over 0.05 s: refusals and the largest ε/scale;
 * the seabed cases cases/catenary-touchdown.yaml (to 20 s) and cases/seabed-hockle.yaml
   (to 1 s) without and with the check, interleaved: refusals, when, and wall time;
 * ε summed over 4 steps, the check measuring only, on the cantilever and the cable
   (against STUDY_TOLERANCE);
 * Newton's history against the balance on the steel cantilever of
-  tests/test_energy_check.py (the check measuring only): whether the steps that inject
+  tests/solver/test_energy_check.py (the check measuring only): whether the steps that inject
   energy (ε > STUDY_TOLERANCE · T) show a Newton that contracts worse than the others;
 * self-contact (``contact``): the contact account's −ΔU_c against the contact forces'
   work (trapezoid on the two levels, and along each step's chord) in the crossing loop
-  of tests/test_energy_check.py by Δt, both laws; the seed example
+  of tests/solver/test_energy_check.py by Δt, both laws; the seed example
   cases/goyal-writhing.yaml to 30 s without and with the check (contact steps measured),
   interleaved: refusals (with and without candidates), the largest ε/scale, events
   (first contact, |Wr| through 1 and 1.5), Wr at 20, 25, 30 s, wall time;

@@ -4,8 +4,8 @@ its order in Δs, the follower tip load against its own elastica, the hanging ca
 against the catenary and the towed rod against the integrated Morison drag.
 
 Run: ``PYTHONPATH=$PWD python -m research.loads_verification`` (about 10 s after the
-kernels are compiled). The cases are those of tests/test_point_loads.py and
-tests/test_global_ends.py, which assert the bounds (docs/case-spec.md quotes the
+kernels are compiled). The cases are those of tests/solver/test_point_loads.py and
+tests/solver/test_global_ends.py, which assert the bounds (docs/case-spec.md quotes the
 figures); this prints what they measure.
 """
 from __future__ import annotations

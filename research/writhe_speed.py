@@ -2,7 +2,7 @@
 replaced, and the largest difference between the two.
 
 Shapes: a plectoneme (two strands interwound about an axis, an end loop, straight tails;
-the helper of ``tests/test_topology.py``) at N = 250, 1000 and 2000 segments, closed at
+the helper of ``tests/solver/test_topology.py``) at N = 250, 1000 and 2000 segments, closed at
 infinity as :func:`solver.topology.writhe` closes it; with ``--result FILE.nc`` also the
 last output of a result file (its ``position``) and the largest difference over all its
 outputs (the seed example: ``cases/goyal-writhing.yaml``, 451 outputs of 1001 nodes).

@@ -154,7 +154,7 @@ def _dual_cell_curvatures(frames, n, ds):
     rate of turn: :func:`_frames` therefore passes the rotation-minimising frames, in
     which a plane curve's bending does not turn (a twisted frame's would: 2 % shorter for
     `cases/seabed-hockle.yaml`'s 9.4 rad/m over 5-cm cells), and a helix's turns with its
-    torsion (3e-5 shorter for the one of ``tests/test_initial_shapes.py``).
+    torsion (3e-5 shorter for the one of ``tests/solver/test_initial_shapes.py``).
 
     Why not the curvature at the node: the space route turns each cell by the mean of
     its two nodes' κ (:func:`solver.kinematics.space_route`), so with dual-cell means the
@@ -163,7 +163,7 @@ def _dual_cell_curvatures(frames, n, ds):
     meeting an arc). With the curvature at the nodes, a jump inside a cell turned
     everything after it by up to Δs·Δκ/2: a 1-m hairpin with a 5-cm half circle ended
     61, 18 and 3.5 mm off its last point at 100, 200 and 400 segments, against 1.1, 0.25
-    and 0.05 mm with the dual cells (``tests/test_initial_shapes.py``)."""
+    and 0.05 mm with the dual cells (``tests/solver/test_initial_shapes.py``)."""
     from scipy.spatial.transform import Rotation
 
     half = _SUB // 2

@@ -44,7 +44,7 @@ _EPS = 1e-30     # complex step
 REFINED_RESIDUAL = 1e-11
 #: block elimination goes unrefined (``solve(refine=False)``) only while |J⁻¹W| |J| / |W|
 #: stays below this: near a fold J is singular to rounding and the unrefined solution
-#: is wrong in every digit (tests/test_statics.py: a residual of 26 against 1e-14 refined)
+#: is wrong in every digit (tests/solver/test_statics.py: a residual of 26 against 1e-14 refined)
 UNREFINED_GROWTH = 1e8
 
 

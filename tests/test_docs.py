@@ -136,7 +136,7 @@ def test_readme_test_command_is_what_ci_runs():
 
 def test_readme_hockle_commands_parse(tmp_path, monkeypatch):
     """Every `hockle ...` command of the README's shell blocks is accepted by the parser
-    (the seed run itself takes a minute: tests/test_cli.py runs `hockle run` on small
+    (the seed run itself takes a minute: tests/hockle/test_cli.py runs `hockle run` on small
     cases), every case file it names exists and validates."""
     from hockle.cli import build_parser, main
 

@@ -45,7 +45,7 @@ def test_default_output_is_a_gif_next_to_the_result_every_output_a_frame(tmp_pat
 
 
 def test_time_window_and_contact_sites_of_a_run_with_events(tmp_path):
-    # tests/test_plots.py's run: buckles at 1.4 s, touches from 1.8 s; 31 outputs 0 ... 3 s
+    # tests/hockle/test_plots.py's run: buckles at 1.4 s, touches from 1.8 s; 31 outputs 0 ... 3 s
     nc = write_netcdf(events_dataset(), tmp_path / "events.nc")
     out = tmp_path / "window.gif"
     assert main(["animate", str(nc), "-o", str(out), "--times", "1.0", "2.0",

@@ -19,7 +19,7 @@ from hockle.io import open_result, write_netcdf
 from solver.case import Case
 from solver.results import build_dataset
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 # The tiny case of the brief: a straight rod twisted at its start end.
 TINY = tiny_spec(output={"fields": ["v", "omega", "f", "kappa", "position", "orientation",
@@ -158,7 +158,7 @@ def test_snapshot_times_choice(tmp_path):
     ds = open_result(synthetic_result(tmp_path))
     stored = ds["time"].values
     # by default the events: the helix leaves its axis by a diameter (0.02 m) at 0.1 s,
-    # its writhe reaches 1 at 1.0 s, the run ends at 1.1 s (tests/test_plots.py has more)
+    # its writhe reaches 1 at 1.0 s, the run ends at 1.1 s (tests/hockle/test_plots.py has more)
     default = snapshot_times(ds)
     assert default == [pytest.approx(0.1), pytest.approx(1.0), pytest.approx(1.1)]
     assert default[-1] == stored[-1]

@@ -11,7 +11,7 @@ import yaml
 
 from hockle.cli import build_parser, main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _subparsers():

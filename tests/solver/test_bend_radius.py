@@ -58,7 +58,7 @@ def test_minimum_bend_radius_is_validated_and_optional_in_the_canonical_json():
 def test_an_arc_held_by_its_end_moment_has_its_radius():
     """A cantilever started on a circular arc of R = 0.5 m, held there by the end moment
     EI/R: bend_radius_min = R within 1e-4 relative at every stored time (the resampled κ
-    is 2e-5 off, tests/test_initial_shapes.py)."""
+    is 2e-5 off, tests/solver/test_initial_shapes.py)."""
     R = 0.5
     case = make_case("arc", start=clamped(),
                      end=end([{"force": 0}] * 3, [{"moment": 0}, {"moment": EI / R},

@@ -80,7 +80,7 @@ def test_the_docs_example_is_this_one():
     """docs/case-spec.md shows the same example, so what it shows validates."""
     from pathlib import Path
 
-    doc = (Path(__file__).resolve().parents[1] / "docs" / "case-spec.md").read_text()
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "case-spec.md").read_text()
     block = doc.split("## A complete example", 1)[1].split("```yaml\n", 1)[1].split("```", 1)[0]
     assert block == EXAMPLE_YAML
 

@@ -17,7 +17,7 @@ import pytest
 from solver import Case, integrate
 from solver.simulation import RodRun
 
-SEED = Path(__file__).resolve().parents[1] / "cases" / "goyal-writhing.yaml"
+SEED = Path(__file__).resolve().parents[2] / "cases" / "goyal-writhing.yaml"
 
 
 def fast_writhing_case(t_end):

@@ -5,7 +5,7 @@ the reason ``energy`` and Δt cut, and the ``step_energy_error`` series is writt
 The injecting case is issue 41's: a steel cantilever (L = 1 m, D = 1 cm, ρ∞ = 0, no
 gravity) under a dead tip load P L²/EI = 10 ramped on over 2 s; at Δt = 0.1 s its large
 steps pump energy into an oscillation that never settles (docs/numerics.md § 8). The
-reference is Mattiasson's elastica (tests/test_point_loads.py).
+reference is Mattiasson's elastica (tests/solver/test_point_loads.py).
 """
 from __future__ import annotations
 

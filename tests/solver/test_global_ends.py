@@ -357,7 +357,7 @@ def catenary_spec(dt=0.2, energy_tolerance=None):
     """The soft hanging cable's case (dict): E = 1e5 Pa, 40 segments, both ends held in
     position in the global frame 0.8 m apart, started from an arc of L = 1 m, ρ∞ = 0,
     to 16 s (research/energy_check.py runs it with and without the energy check;
-    tests/test_energy_check.py at Δt = 0.1 s)."""
+    tests/solver/test_energy_check.py at Δt = 0.1 s)."""
     L, X, D, rho, rho_f = 1.0, 0.8, 0.01, 7800.0, 1000.0
     start = {"frame": "global", "translation": [{"position": 0.0}] * 3,
              "rotation": FREE_ROT}

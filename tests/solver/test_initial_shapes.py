@@ -16,7 +16,7 @@ from solver.case import Case, CaseError
 from solver.initial import initial_pose, start_offset
 from solver.simulation import integrate
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 E, D = 1.25e7, 0.02
 EI = E * np.pi * D**4 / 64
 

@@ -14,7 +14,7 @@ from solver.case import Case
 from solver.results import build_dataset, run_events
 from solver.simulation import SolverDivergence, integrate
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 CASES = ("seabed-hockle.yaml", "catenary-touchdown.yaml")
 
 

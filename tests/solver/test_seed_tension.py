@@ -5,7 +5,7 @@
   instead of zero force, same switch to held at 30 s), the fast twist rate that the
   derivation fixes, and the name;
 * (a) the Greenhill-with-tension routine below reproduces the uniform clamped rod's
-  determinant (Greenhill; tests/test_greenhill.py) and gives the case's tension for
+  determinant (Greenhill; tests/solver/test_greenhill.py) and gives the case's tension for
   Lk = 4 turns, 9.104 N, and the page's table (slow);
 * (b) hockle itself puts the threshold there: the case's rod held at Lk = 4 turns under
   dead tension, its deflection's growth rate σ fitted as σ² against T and extrapolated
@@ -13,7 +13,7 @@
 
 Model (linear stability of the straight twisted rod; Greenhill 1883, and e.g. Love,
 *Treatise on the Mathematical Theory of Elasticity*, 4th ed., §272; the clamped
-determinant below is the one of tests/test_greenhill.py). The straight rod along a3
+determinant below is the one of tests/solver/test_greenhill.py). The straight rod along a3
 carries the twisting moment M (constant along s: no distributed torque, so C(s) κ3(s) = M)
 and the axial force T (> 0 tension). A small lateral deflection w = x + i y, with
 bending moment m⊥ = i B w'' + M w' and lateral shear F, satisfies in the static limit
@@ -56,7 +56,7 @@ from scipy.optimize import brentq
 
 from solver.case import parse_text
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SEED = ROOT / "cases" / "goyal-writhing.yaml"
 TENSION = ROOT / "cases" / "goyal-writhing-tension.yaml"
 
@@ -253,7 +253,7 @@ def test_greenhill_fd_reproduces_uniform_clamped_determinant(t):
 
 
 def test_uniform_determinant_limits():
-    # tan x = x at T = 0 (M_cr L/B = 8.9868); table of tests/test_greenhill.py
+    # tan x = x at T = 0 (M_cr L/B = 8.9868); table of tests/solver/test_greenhill.py
     assert uniform_mcr(0.0) == pytest.approx(8.9868, abs=1e-4)
     assert uniform_mcr(10.0) == pytest.approx(10.429, abs=1e-3)
 

@@ -21,7 +21,7 @@ import solver.simulation as sim_mod
 import solver.topology as topology_mod
 from solver import Case, integrate
 
-SEED = Path(__file__).resolve().parents[1] / "cases" / "goyal-writhing.yaml"
+SEED = Path(__file__).resolve().parents[2] / "cases" / "goyal-writhing.yaml"
 
 
 def seed_spec(n_segments=40, t_end=0.5, fields=("energies",), every=1, contact=True,

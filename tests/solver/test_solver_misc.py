@@ -197,7 +197,7 @@ def test_warm_up_loads_every_compiled_kernel():
         print(json.dumps(kernels))
     """)
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                         check=True, cwd=str(Path(__file__).resolve().parents[1]))
+                         check=True, cwd=str(Path(__file__).resolve().parents[2]))
     kernels = json.loads(out.stdout.strip().splitlines()[-1])
     # kernels called only from other kernels (compiled into their callers; loaded from
     # the cache they have no signatures of their own); Newton's linear-algebra kernels

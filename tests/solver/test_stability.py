@@ -45,7 +45,7 @@ from rodcases import E, G, RHO, RHO_F, make_case, smooth_pulse_table
 from solver import Case, SolverDivergence, integrate
 from test_greenhill import critical_torque
 
-SEED = Path(__file__).resolve().parents[1] / "cases" / "goyal-writhing.yaml"
+SEED = Path(__file__).resolve().parents[2] / "cases" / "goyal-writhing.yaml"
 KIN = {"velocity": 0.0}
 ROT0 = {"angular_velocity": 0.0}
 CLAMPED = {"translation": [KIN, KIN, KIN], "rotation": [ROT0, ROT0, ROT0]}
@@ -237,7 +237,7 @@ def test_twist_ten_times_the_seed_rate(k2, t_end):
 
 
 def test_stiff_contact_seed_writhing():
-    """tests/test_contact_run.py's case (seed rod, ω3 → −2.5 rad/s, N = 100, Δt = 0.1 s) to
+    """tests/solver/test_contact_run.py's case (seed rod, ω3 → −2.5 rad/s, N = 100, Δt = 0.1 s) to
     6.8 s with k2 = 6, k1 = 1e-16 (same force as the seed's law at a 1 mm gap, twice its
     stiffness k2 F/gap there, 64 times the force at 0.5 mm). Measured: completes in about
     5 s, first contact near 6.3 s, |Tw + Wr − Lk| ≤ 0.014, smallest gap 0.6 mm."""

@@ -11,7 +11,7 @@ from solver.continuation import ContinuationError, branch_dataset, continuation
 from solver.static_band import KL, KU, BorderedBandLU, band_storage, band_to_sparse
 
 #: Mattiasson's table: P L²/EI -> (w/L, x/L) of the tip under a dead load
-#: (also in tests/test_point_loads.py, for the dynamic scheme)
+#: (also in tests/solver/test_point_loads.py, for the dynamic scheme)
 MATTIASSON = {1: (0.30172, 0.94357), 2: (0.49346, 0.83936), 10: (0.81061, 0.44501)}
 #: Greenhill: a clamped-clamped rod under a twisting moment M and no axial force buckles at
 #: M L / B = 2.8606 π (Greenhill 1883; Love, Treatise §272; van der Heijden & Thompson 2000)

@@ -20,7 +20,7 @@ import pytest
 from solver import statics as st
 from solver.continuation import continuation
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.mark.slow

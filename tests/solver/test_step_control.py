@@ -556,7 +556,7 @@ def seed_spec(n_segments: int) -> dict:
     """The seed case (cases/goyal-writhing.yaml) at n_segments, as a spec dict."""
     from pathlib import Path
 
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     spec = Case.from_file(root / "cases" / "goyal-writhing.yaml").model_dump()
     spec["numerics"].pop("ds", None)
     spec["numerics"]["n_segments"] = n_segments

@@ -15,7 +15,7 @@ import pytest
 
 from rodcases import free_end, make_case
 
-SOLVER = Path(__file__).resolve().parents[1] / "solver"
+SOLVER = Path(__file__).resolve().parents[2] / "solver"
 
 #: functions longer than 80 lines that are not compiled kernels, and why they stay
 LONG_ALLOWED: set[str] = set()
