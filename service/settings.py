@@ -146,6 +146,12 @@ class Settings(DatasetMetadata):
     max_slice_values: int = Field(
         1_000_000, gt=0, description="Largest variable slice served as JSON (number of values)."
     )
+    body_parse_timeout: float = Field(
+        2.0, gt=0,
+        description="Seconds one request body (a case, a sweep, a continuation; JSON or YAML) "
+        "may take to parse, on a thread of its own, before it is refused with 413; a case spec "
+        "parses in milliseconds.",
+    )
 
     # --- worker --------------------------------------------------------------------------------
     embedded_worker: bool = Field(

@@ -48,7 +48,7 @@ from ..auth import caller
 from ..problems import ProblemError
 from ..store import open_result
 from ..routers.results import _not_modified
-from ..validation import parse_body, read_body, validate_case
+from ..validation import parse_request, validate_case
 
 __all__ = ["UI_URL", "UI_API_PREFIX", "CSP", "STATIC_DIR", "install_dashboard"]
 
@@ -341,11 +341,10 @@ async def ui_validate(request: Request, svc: Annotated[Services, Depends(service
     problem the submission would get."""
     from fastapi.concurrency import run_in_threadpool
 
-    body = await read_body(request)
+    data = await parse_request(request, svc.settings.body_parse_timeout)
 
     def check():
-        case = validate_case(parse_body(body, request.headers.get("content-type")),
-                             svc.settings.max_case_size)
+        case = validate_case(data, svc.settings.max_case_size)
         return {"valid": True, "name": case.name, "grid_points": case.grid_points,
                 "n_steps": case.n_steps, "t_end": float(case.numerics.t_end)}
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 import asyncio
 import datetime as dt
 import hashlib
+from functools import partial
 from typing import Annotated
 
 from fastapi import APIRouter, Depends, Header, Query, Request, Response
@@ -21,7 +22,7 @@ from ..registry import (
     utcnow,
 )
 from ..schemas import JobError, JobLinks, JobList, JobStatus
-from ..validation import parse_body, read_body, start_from_job, validate_case
+from ..validation import parse_body, parse_request, start_from_job, validate_case
 
 router = APIRouter(tags=["jobs"])
 
@@ -107,15 +108,19 @@ def _check_time_limit(time_limit: float | None, maximum: float) -> None:
 REUSED_HEADER = "Hockle-Reused"
 
 
-def _submit(svc: Services, body: bytes, content_type: str | None, idempotency_key: str | None,
-            fresh: bool, time_limit: float | None = None,
-            owner: str | None = None) -> tuple[Job, int, str | None, list[str]]:
+def _submit(svc: Services, body: bytes | None, content_type: str | None,
+            idempotency_key: str | None, fresh: bool, time_limit: float | None = None,
+            owner: str | None = None, *,
+            data=None) -> tuple[Job, int, str | None, list[str]]:
     """Validate, record and queue a case: ``(job, status, reused, advice)``; ``reused`` is
     None for a new job (201), else why an earlier job answers (200): ``identical_case`` or
     ``idempotency_key``; ``advice`` what the case as given is advised
-    (:func:`case_advice`)."""
+    (:func:`case_advice`). The case is ``body`` (parsed here), or ``data`` already parsed
+    (:func:`service.validation.parse_request`) when ``body`` is None."""
     _check_time_limit(time_limit, svc.settings.time_limit_max)
-    case = validate_case(parse_body(body, content_type), svc.settings.max_case_size)
+    if body is not None:
+        data = parse_body(body, content_type, svc.settings.body_parse_timeout)
+    case = validate_case(data, svc.settings.max_case_size)
     start_from_job(case, svc.registry, owner)       # checked now; the worker reads it again
     hard, soft, budget = svc.settings.time_limits(case.grid_points, case.n_steps,
                                                   contact=case.contact is not None,
@@ -248,11 +253,12 @@ async def submit_job(
     """Validate the case and queue it; answers at once (201), never runs a solve itself. An
     identical case that already succeeded (or a retried Idempotency-Key) is answered 200 with
     the earlier job, marked ``reused``."""
-    body = await read_body(request)
+    # parsed on a thread of its own within its budget, never on the event loop
+    data = await parse_request(request, svc.settings.body_parse_timeout)
     # a burst of submissions waits here, not in the thread pool that status polls need
     async with submit_slots(request):
         job, status, reused, advice = await run_in_threadpool(
-            _submit, svc, body, request.headers.get("content-type"), idempotency_key, fresh,
+            partial(_submit, data=data), svc, None, None, idempotency_key, fresh,
             time_limit, owner
         )
     response.status_code = status

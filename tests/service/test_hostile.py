@@ -354,3 +354,143 @@ def test_a_seabed_case_is_accepted(client):
     case["seabed"] = {"bathymetry": _GRID, "friction": {"axial": 0.2, "lateral": 0.4}}
     response = client.post("/v1/jobs", json=case)
     assert response.status_code == 201, response.text
+
+
+# --- bodies that cost more to parse than they weigh (issue 80's audit) -------------------------
+# Every POST route that takes a case parses its body on a thread of its own within a budget
+# (service.validation.parse_body): YAML aliases counted as the nodes they stand for, nesting
+# checked through aliases, integer literals of at most 309 digits, a time limit.
+def _yaml_body(doc: dict, extra: str) -> str:
+    """``doc`` as block YAML with the lines ``extra`` appended at its top level."""
+    import yaml
+
+    return yaml.safe_dump(doc, sort_keys=False) + extra
+
+
+def alias_bomb(levels: int = 9, width: int = 9) -> str:
+    """Top-level YAML lines whose last key expands to width**levels scalars (the audit's
+    383-byte body: 9 levels of 9)."""
+    lines = ["l0: &l0 [" + ",".join(["x"] * width) + "]"]
+    for k in range(1, levels):
+        lines.append(f"l{k}: &l{k} [" + ",".join([f"*l{k - 1}"] * width) + "]")
+    return "\n".join(lines) + "\n"
+
+
+def _continuation_body(case: dict) -> dict:
+    return {"case": case, "continuation": {"parameter": "boundary.end.translation.2.force",
+                                           "to": -0.4}}
+
+
+#: route -> (the valid body around a case, where the case's own fields are in it)
+POST_CASE_ROUTES = {
+    "jobs": ("/v1/jobs", lambda case: case, ""),
+    "sweeps": ("/v1/sweeps", lambda case: {"base": case, "parameters": {"rod.length": [1.0]}},
+               "base."),
+    "continuations": ("/v1/continuations", _continuation_body, "case."),
+    "ui-validate": ("/v1/ui/validate", lambda case: case, ""),
+}
+YAML = {"content-type": "application/yaml"}
+
+
+@pytest.mark.parametrize("route,wrap,prefix", POST_CASE_ROUTES.values(),
+                         ids=list(POST_CASE_ROUTES))
+def test_an_alias_bomb_is_refused_before_it_expands(client, route, wrap, prefix):
+    """9 levels of 9 aliases (387 million scalars once expanded, 400 bytes): 413 naming where
+    the expansion passed the budget, in milliseconds (the nesting check walked every path:
+    23-29 s with the event loop held on /v1/sweeps, 24.6 s of a thread on the others)."""
+    text = _yaml_body(wrap(tiny_case("bomb")), alias_bomb())
+    assert len(alias_bomb()) < 400
+    start = time.monotonic()
+    response = client.post(route, content=text, headers=YAML)
+    took = time.monotonic() - start
+    assert response.status_code == 413, response.text[:500]
+    assert response.headers["content-type"].startswith(PROBLEM)
+    errors = response.json()["errors"]
+    assert errors[0]["type"] == "too_many_nodes" and errors[0]["loc"].startswith("l")
+    assert took < 5.0, took       # milliseconds alone; generous for a loaded machine
+
+
+@pytest.mark.parametrize("extra,etype,loc", [
+    ("a: &a [1, *a]\n", "recursive_alias", "a[1]"),
+    ("a: &a {b: *a}\n", "recursive_alias", "a.b"),
+    # 10 lists behind an alias put 25 deep: 34 levels through the alias, 26 as written
+    ("a: &a [[[[[[[[[[1]]]]]]]]]]\nb: [[[[[[[[[[[[[[[[[[[[[[[[*a]]]]]]]]]]]]]]]]]]]]]]]\n",
+     "nesting_too_deep", "b" + "[0]" * 24),
+    # many aliases of a wide list: 3,000 x 1,000 values in 6 kB
+    ("w: &w [" + ", ".join(["1"] * 1000) + "]\nv: [" + ", ".join(["*w"] * 3000) + "]\n",
+     "too_many_nodes", None),
+], ids=["recursive-list", "recursive-mapping", "deep-through-alias", "wide"])
+@pytest.mark.parametrize("route,wrap,prefix", POST_CASE_ROUTES.values(),
+                         ids=list(POST_CASE_ROUTES))
+def test_aliases_that_recurse_nest_or_multiply_are_refused(client, route, wrap, prefix, extra,
+                                                           etype, loc):
+    response = client.post(route, content=_yaml_body(wrap(tiny_case("alias")), extra),
+                           headers=YAML)
+    assert response.status_code in (413, 422), response.text[:500]
+    errors = response.json()["errors"]
+    assert errors[0]["type"] == etype, errors
+    if loc is not None:
+        assert errors[0]["loc"] == loc
+
+
+def test_aliases_and_merge_keys_of_a_real_case_still_work(client):
+    """A case that shares its boundary conditions through anchors and a merge key: valid."""
+    case = tiny_case("anchors")
+    doc = _yaml_body({k: v for k, v in case.items() if k != "boundary"}, (
+        "boundary:\n"
+        "  start:\n"
+        "    translation: [&fixed {velocity: 0}, *fixed, *fixed]\n"
+        "    rotation: [&spin {angular_velocity: 0}, {<<: *spin}, {angular_velocity: 1.0}]\n"
+        "  end:\n"
+        "    translation: [*fixed, *fixed, {force: 0}]\n"
+        "    rotation: [*spin, *spin, *spin]\n"))
+    response = client.post("/v1/ui/validate", content=doc, headers=YAML)
+    assert response.status_code == 200, response.text
+    assert response.json()["name"] == "anchors"
+
+
+@pytest.mark.parametrize("digits", [310, 4301, 20000])
+@pytest.mark.parametrize("media", ["application/json", "application/yaml"])
+@pytest.mark.parametrize("route,wrap,prefix", POST_CASE_ROUTES.values(),
+                         ids=list(POST_CASE_ROUTES))
+def test_an_integer_literal_beyond_any_double_is_a_422_naming_it(client, route, wrap, prefix,
+                                                                 media, digits):
+    """More than 4,300 digits raised ValueError in Python's int() (JSON and YAML: a 500 on
+    every POST route); 310 digits to 4,300 reached the case as an int beyond any float."""
+    case = tiny_case("digits")
+    case["rod"]["youngs_modulus"] = 12345
+    text = json.dumps(wrap(case)).replace("12345", "9" * digits)      # JSON is YAML too
+    response = client.post(route, content=text, headers={"content-type": media})
+    assert response.status_code == 422, response.text[:500]
+    errors = response.json()["errors"]
+    assert errors[0]["type"] == "integer_too_long"
+    assert errors[0]["loc"] == f"{prefix}rod.youngs_modulus"
+    assert f"{digits} digits" in errors[0]["msg"]
+
+
+def test_a_yaml_hex_literal_of_thousands_of_digits_is_a_422(client):
+    """int('0x...', 16) has no digit limit, but the number's decimal text (its repr in any
+    message or JSON) would: refused by its length as written."""
+    text = json.dumps(tiny_case("hex")).replace('"numerics": {', '"numerics": {"n_segments": 0x'
+                                                 + "f" * 5000 + ", ", 1)
+    text = text.replace('"n_segments": 8, ', "")
+    response = client.post("/v1/jobs", content=text, headers=YAML)
+    assert response.status_code == 422, response.text[:500]
+    assert response.json()["errors"][0]["loc"] == "numerics.n_segments"
+
+
+def test_a_large_yaml_body_is_parsed_within_its_time_budget(client, settings):
+    """3.4 MB of YAML (500,000 numbers, under the 4-MiB limit; the audit's 3.8-MB body held
+    the event loop for 48 s): parsed on a parse thread and refused once it has taken
+    HOCKLE_BODY_PARSE_TIMEOUT (2 s by default), or refused by the case; never a 500 and never
+    much longer than the budget."""
+    case = tiny_case("large")
+    text = _yaml_body(case, "extra: [" + ", ".join(str(k) for k in range(500_000)) + "]\n")
+    assert 3_000_000 < len(text) < 4 * 1024 * 1024
+    start = time.monotonic()
+    response = client.post("/v1/jobs", content=text, headers=YAML)
+    took = time.monotonic() - start
+    assert response.status_code in (413, 422), response.text[:300]
+    if response.status_code == 413:
+        assert response.json()["errors"][0]["type"] == "parse_time_exceeded"
+    assert took < settings.body_parse_timeout + 10.0, took
