@@ -18,6 +18,7 @@ import datetime as dt
 import hashlib
 import json
 import math
+import re
 import uuid
 from dataclasses import dataclass
 from typing import Any, Iterable
@@ -57,6 +58,7 @@ __all__ = [
     "scoped_idempotency_key",
     "REGISTRY_UNAVAILABLE",
     "utcnow",
+    "well_formed_id",
 ]
 
 ACCEPTED, RUNNING, SUCCESSFUL, FAILED, DISMISSED = (
@@ -75,6 +77,17 @@ REASONS = ("solver_diverged", "nonfinite_state", "timeout", "cancelled_by_user",
 # errors of a registry that is locked (SQLite "database is locked"), restarting or unreachable:
 # a worker retries them (worker.tasks.with_registry_retry)
 REGISTRY_UNAVAILABLE = (OperationalError, InterfaceError, DisconnectionError, PoolTimeoutError)
+
+
+#: what a job or sweep id can be: the registry makes them with uuid4 (36 characters). Any
+#: other string names nothing and is answered without asking the database (PostgreSQL
+#: refuses a NUL character in a text parameter: an error, not "no such job").
+_ID = re.compile(r"[0-9A-Za-z_-]{1,36}")
+
+
+def well_formed_id(value: object) -> bool:
+    """True when ``value`` could be a job or sweep id of this registry."""
+    return isinstance(value, str) and _ID.fullmatch(value) is not None
 
 
 def utcnow() -> dt.datetime:
@@ -115,6 +128,8 @@ def decode_page_token(token: str) -> tuple[dt.datetime, str]:
     try:
         raw = base64.urlsafe_b64decode(token + "=" * (-len(token) % 4)).decode()
         when, job_id = raw.split("|", 1)
+        if not well_formed_id(job_id):      # a NUL in it was a 500 on PostgreSQL
+            raise ValueError(job_id)
         return dt.datetime.fromisoformat(when), job_id
     except Exception as exc:  # noqa: BLE001 - any malformed token is the same client error
         raise ValueError("page_token is not one this server issued") from exc
@@ -290,6 +305,9 @@ class Registry:
 
     # --- reading -------------------------------------------------------------------------------
     def get(self, job_id: str) -> Job | None:
+        """The job, or None (also for a string that cannot be an id: :func:`well_formed_id`)."""
+        if not well_formed_id(job_id):
+            return None
         with self.sessions() as session:
             return session.get(Job, job_id)
 
@@ -796,6 +814,9 @@ class Registry:
         return sweep
 
     def get_sweep(self, sweep_id: str) -> SweepRecord | None:
+        """The sweep, or None (also for a string that cannot be an id)."""
+        if not well_formed_id(sweep_id):
+            return None
         with self.sessions() as session:
             return session.get(SweepRecord, sweep_id)
 
@@ -808,7 +829,7 @@ class Registry:
 
     def get_many(self, job_ids: Iterable[str]) -> dict[str, Job]:
         """The jobs with these ids (unknown ids are left out), by id."""
-        ids = list(dict.fromkeys(job_ids))
+        ids = [i for i in dict.fromkeys(job_ids) if well_formed_id(i)]
         found: dict[str, Job] = {}
         with self.sessions() as session:
             for start in range(0, len(ids), 500):

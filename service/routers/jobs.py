@@ -159,10 +159,11 @@ def record_and_enqueue(svc: Services, *, kind: str, canonical: str, spec_hash: s
     asked = "" if time_limit is None else f"|time_limit={float(time_limit)!r}"
     fingerprint = hashlib.sha256(f"{canonical}|fresh={fresh}{asked}".encode()).hexdigest()
     if idempotency_key is not None:
-        if not 1 <= len(idempotency_key) <= 200:
+        if not 1 <= len(idempotency_key) <= 200 or not idempotency_key.isprintable():
             raise ProblemError(422, "invalid-request", "Invalid request",
                                errors=[{"loc": "header.Idempotency-Key",
-                                        "msg": "must be 1 to 200 characters", "type": "string"}])
+                                        "msg": "must be 1 to 200 printable characters",
+                                        "type": "string"}])
         earlier = svc.registry.by_idempotency_key(idempotency_key, owner=owner)
         if earlier is not None:
             if earlier.request_fingerprint != fingerprint:
@@ -303,9 +304,16 @@ def list_jobs(
 
 
 def _naive(value: dt.datetime | None) -> dt.datetime | None:
+    """``value`` as naive UTC (the registry's columns); an aware time whose UTC lies outside
+    the years 1-9999 (``9999-12-31T23:59:59-05:00``, ``0001-01-01T00:00:00+05:00``: a 500
+    before) is clamped to the nearest representable instant, which every job time lies
+    within, so the filter means what it said."""
     if value is None or value.tzinfo is None:
         return value
-    return value.astimezone(dt.timezone.utc).replace(tzinfo=None)
+    try:
+        return value.astimezone(dt.timezone.utc).replace(tzinfo=None)
+    except OverflowError:
+        return dt.datetime.max if value.year == dt.MAXYEAR else dt.datetime.min
 
 
 @router.get("/jobs/{job_id}", operation_id="get_job", summary="Job status",

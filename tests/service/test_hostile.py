@@ -494,3 +494,83 @@ def test_a_large_yaml_body_is_parsed_within_its_time_budget(client, settings):
     if response.status_code == 413:
         assert response.json()["errors"][0]["type"] == "parse_time_exceeded"
     assert took < settings.body_parse_timeout + 10.0, took
+
+
+# --- ids, tokens and dates that cannot name anything (PostgreSQL refuses a NUL) ------------------
+@pytest.fixture(scope="module")
+def pg_client(tmp_path_factory, pg_url):
+    """The API in-process on a PostgreSQL registry of its own (skipped without a server)."""
+    root = tmp_path_factory.mktemp("hostile-pg")
+    settings = Settings(data_dir=root, broker_url="memory://", database_url=pg_url,
+                        progress_interval=0.0)
+    with TestClient(create_app(settings), raise_server_exceptions=False) as c:
+        yield c
+
+
+def _token(created: str, job_id: str) -> str:
+    import base64
+
+    return base64.urlsafe_b64encode(f"{created}|{job_id}".encode()).decode().rstrip("=")
+
+
+NUL_ID = "3a3f3b17-f338-4b0c-\x00d9e-283bb17603ab"
+
+
+@pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
+def test_a_nul_character_in_an_id_is_unknown_not_an_error(request, backend):
+    """Job and sweep ids in paths, page_token and initial.from_result.job holding a NUL
+    character (PostgreSQL: 500 "PostgreSQL text fields cannot contain NUL" on each): ids
+    are checked before they reach the registry, so each is what any unknown id is."""
+    client = request.getfixturevalue("client" if backend == "sqlite" else "pg_client")
+    quoted = NUL_ID.replace("\x00", "%00")
+    for route in ("", "/spec", "/results", "/results/variables", "/results/variables/kappa",
+                  "/summary"):
+        response = client.get(f"/v1/jobs/{quoted}{route}")
+        assert response.status_code == 404, (route, response.text)
+        assert response.json()["type"] == "urn:hockle:problem:job-not-found"
+    assert client.delete(f"/v1/jobs/{quoted}").status_code == 404
+    for route in ("events", "seabed", "paraview"):
+        assert client.get(f"/v1/ui/jobs/{quoted}/{route}").status_code == 404, route
+    for route in ("", "/results"):
+        response = client.get(f"/v1/sweeps/{quoted}{route}")
+        assert response.status_code == 404, (route, response.text)
+    assert client.delete(f"/v1/sweeps/{quoted}").status_code == 404
+    assert client.get(f"/v1/ui/sweeps/{quoted}/map").status_code == 404
+    # a page token of this server's form whose id holds a NUL
+    token = _token("2026-11-27T10:00:00", NUL_ID)
+    for route in ("/v1/jobs", "/v1/ui/jobs"):
+        response = client.get(route, params={"page_token": token})
+        assert response.status_code == 422, response.text
+        assert "query.page_token" in _locs(response)
+    case = tiny_case("nul-start")
+    case["initial"] = {"from_result": {"job": NUL_ID, "time": 0.0}}
+    response = client.post("/v1/jobs", json=case)
+    assert response.status_code == 422, response.text
+    assert "initial.from_result.job" in _locs(response)
+    sweep = {"base": tiny_case("nul-sweep"), "parameters": {"rod.length": [1.0]},
+             "name": "a\x00b"}
+    response = client.post("/v1/sweeps", json=sweep)
+    assert response.status_code == 422, response.text
+    assert "name" in _locs(response)
+    response = client.post("/v1/jobs", json=tiny_case("nul-key"),
+                           headers={"Idempotency-Key": "key\x01one"})
+    assert response.status_code == 422 and "header.Idempotency-Key" in _locs(response)
+
+
+@pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
+@pytest.mark.parametrize("param,value", [
+    ("created_before", "9999-12-31T23:59:59-05:00"),   # past the year 9999 in UTC
+    ("created_after", "0001-01-01T00:00:00+05:00"),    # before the year 1 in UTC
+    ("created_before", "0001-01-01T00:00:00+05:00"),
+    ("created_after", "9999-12-31T23:59:59-05:00"),
+])
+def test_dates_beyond_the_representable_range_are_clamped(request, backend, param, value):
+    """Aware times whose UTC lies outside the years 1-9999 (a 500, OverflowError in
+    astimezone): clamped to the nearest representable instant, so the filter still means
+    what it says: created before the year 10000 is every job, after it none."""
+    client = request.getfixturevalue("client" if backend == "sqlite" else "pg_client")
+    assert client.post("/v1/jobs", json=tiny_case(f"dated-{backend}")).status_code in (200, 201)
+    response = client.get("/v1/jobs", params={param: value})
+    assert response.status_code == 200, response.text
+    everything = (param == "created_before") == value.startswith("9999")
+    assert bool(response.json()["jobs"]) == everything, response.text[:300]
