@@ -574,3 +574,134 @@ def test_dates_beyond_the_representable_range_are_clamped(request, backend, para
     assert response.status_code == 200, response.text
     everything = (param == "created_before") == value.startswith("9999")
     assert bool(response.json()["jobs"]) == everything, response.text[:300]
+
+
+# --- finite but absurd physics: refused at validation with the reason -------------------------
+ABSURD_PHYSICS = {
+    "Young's modulus 5e-324": ("rod.youngs_modulus", 5e-324, "rod.youngs_modulus"),
+    "shear modulus 5e-324": ("rod.shear_modulus", 5e-324, "rod.shear_modulus"),
+    "density 5e-324": ("rod.density", 5e-324, "rod.density"),
+    "diameter 5e-324": ("rod.diameter", 5e-324, "rod.diameter"),
+    "diameter profile to 1e-100": ("rod.diameter", {"s": [0.0, 1.0], "value": [0.02, 1e-100]},
+                                   "rod.diameter"),
+    "twist rate 1e308": ("initial.twist_rate", 1e308, "initial.twist_rate"),
+    "twist rate past pi per cell": ("initial.twist_rate", 26.0, "initial.twist_rate"),
+}
+
+
+@pytest.mark.parametrize("path,value,loc", ABSURD_PHYSICS.values(), ids=list(ABSURD_PHYSICS))
+def test_absurd_physics_is_refused_at_validation_naming_the_field(client, path, value, loc):
+    """Each ran to internal_error before (a zero stiffness or mass underflowed from 5e-324, a
+    twist of 1e308 rad/m made the quaternions non-finite): now a 422 naming the field and the
+    quantity the solver could not hold (solver.case.representability_errors) or the grid's
+    limit of π rad of twist per cell (Case._check_twist_resolved)."""
+    response = client.post("/v1/jobs", json=_case_with(path, value))
+    assert response.status_code == 422, response.text
+    errors = [e for e in response.json()["errors"] if e["loc"] == loc]
+    assert errors, response.text
+    assert errors[0]["type"] in ("not_representable", "not_resolved")
+    assert any(word in errors[0]["msg"] for word in ("double precision", "π rad"))
+
+
+def test_the_bounds_are_double_precision_not_a_taste(client):
+    """The bending stiffness E·πD⁴/64 at the smallest normal double is accepted, a quarter of
+    it refused: the bound is the solver's arithmetic, not a plausible range (plausibility
+    is a warning's business)."""
+    import math
+    import sys
+
+    j1 = math.pi * 0.02 ** 4 / 64
+    low = sys.float_info.min / j1
+    assert client.post("/v1/ui/validate", json=_case_with("rod.youngs_modulus", low * 1.01)
+                       ).status_code == 200
+    response = client.post("/v1/ui/validate", json=_case_with("rod.youngs_modulus", low / 4))
+    assert response.status_code == 422 and "rod.youngs_modulus" in _locs(response)
+    # a twist of just under half a turn per cell is held; the tiny case's cell is 0.125 m
+    assert client.post("/v1/ui/validate", json=_case_with("initial.twist_rate", 25.0)
+                       ).status_code == 200
+
+
+def test_a_start_time_of_1e308_is_a_422_in_the_api_and_one_message_in_the_cli(
+        client, finished_job, tmp_path, capsys):
+    """initial.from_result.time = 1e308: an OverflowError in the case's own check (500 in
+    the API, a traceback in the CLI); now refused naming the field."""
+    from hockle.cli import main
+
+    case = tiny_case("late-start")
+    case["initial"] = {"from_result": {"job": finished_job, "time": 1e308}}
+    response = client.post("/v1/jobs", json=case)
+    assert response.status_code == 422, response.text
+    assert "initial.from_result.time" in _locs(response)
+    case["initial"] = {"from_result": {"file": str(tmp_path / "earlier.nc"), "time": 1e308}}
+    path = tmp_path / "late.json"
+    path.write_text(json.dumps(case))
+    for command in (["validate", str(path)], ["run", str(path), "-o", str(tmp_path / "x.nc")]):
+        assert main(command) == 2
+        err = capsys.readouterr().err
+        assert "Traceback" not in err and "initial.from_result.time" in err, err
+
+
+@pytest.mark.parametrize("to", [1e308, -1e308, 1e15])
+def test_a_continuation_range_beyond_double_precision_is_a_422(client, to):
+    """A `to` of ±1e308 N (LinAlgError, internal_error at run time): the change of the end
+    force over the range, in the rod's force unit EJ/L², is more than the 1e14 the bordered
+    system's pivots can hold (solver.continuation.range_unrepresentable)."""
+    response = client.post("/v1/continuations", json=_continuation_body(tiny_case("far"))
+                           | {"continuation": {"parameter": "boundary.end.translation.2.force",
+                                               "to": to}})
+    assert response.status_code == 422, response.text
+    errors = response.json()["errors"]
+    assert errors[0]["loc"] == "continuation.to", errors
+    assert "double precision" in errors[0]["msg"]
+
+
+def test_a_continuation_in_the_modulus_to_1e300_is_a_422(client):
+    body = {"case": tiny_case("stiffer"),
+            "continuation": {"parameter": "rod.youngs_modulus", "to": 1e300}}
+    response = client.post("/v1/continuations", json=body)
+    assert response.status_code == 422, response.text
+    assert response.json()["errors"][0]["loc"] == "continuation.to"
+    body["continuation"]["to"] = 5e-324            # the case at `to` is refused itself
+    response = client.post("/v1/continuations", json=body)
+    assert response.status_code == 422, response.text
+    assert response.json()["errors"][0]["loc"] == "continuation.to"
+
+
+def test_a_sweep_member_with_absurd_physics_is_a_422_naming_it(client):
+    body = {"base": tiny_case("sweep-absurd"), "parameters": {"rod.density": [1500.0, 5e-324]}}
+    response = client.post("/v1/sweeps", json=body)
+    assert response.status_code == 422, response.text
+    assert "members[1].rod.density" in _locs(response)
+
+
+def _numeric_paths(doc, prefix=""):
+    if isinstance(doc, dict):
+        for key, value in doc.items():
+            yield from _numeric_paths(value, f"{prefix}{key}.")
+    elif isinstance(doc, list):
+        for k, value in enumerate(doc):
+            yield from _numeric_paths(value, f"{prefix}{k}.")
+    elif isinstance(doc, (int, float)) and not isinstance(doc, bool):
+        yield prefix[:-1]
+
+
+@pytest.mark.parametrize("value", [5e-324, -5e-324, 1e308, -1e308, 10 ** 309])
+def test_no_numeric_field_takes_the_api_to_a_500(client, value):
+    """Every number of a case (with a fluid, gravity and contact) set to the extremes of a
+    double: each answer is 200 or a 422, never a 500."""
+    case = tiny_case("extremes")
+    case["fluid"] = {"density": 1000.0}
+    case["gravity"] = [0.0, 0.0, -9.81]
+    case["contact"] = {}
+    case["initial"] = {"twist_rate": 1.0}
+    answers = {}
+    for path in _numeric_paths(case):
+        doc = json.loads(json.dumps(case))
+        node = doc
+        for key in path.split(".")[:-1]:
+            node = node[int(key)] if isinstance(node, list) else node[key]
+        last = path.split(".")[-1]
+        node[int(last) if isinstance(node, list) else last] = value
+        response = client.post("/v1/ui/validate", json=doc)
+        answers[path] = response.status_code
+    assert set(answers.values()) <= {200, 422}, answers
