@@ -297,7 +297,8 @@ def ui_job_paraview(job_id: str, svc: Annotated[Services, Depends(services)],
     frames (:func:`hockle.export.export_vtk`, the function behind ``hockle export``), at
     most :data:`PARAVIEW_MAX_FRAMES` frames (every k-th output time, the last one kept).
     404 ``result-not-ready`` before there is a result; 422 ``not-exportable`` for a result
-    without positions."""
+    without positions; 409 ``result-is-a-branch`` for a continuation job's branch, which the
+    export does not write (it was a 500, ``KeyError: 'time'``)."""
     import io
     import tempfile
     import zipfile
@@ -310,7 +311,15 @@ def ui_job_paraview(job_id: str, svc: Annotated[Services, Depends(services)],
     if not job.result_path or not os.path.exists(job.result_path):
         raise ProblemError(404, "result-not-ready", "Result not ready",
                            f"job {job.id} is {job.state} and has no result file")
+    branch = ProblemError(409, "result-is-a-branch", "The result is a branch",
+                          f"job {job.id}'s result is a branch of equilibria (dimension point), "
+                          "not a time series: the ParaView export writes time series only; "
+                          f"download the NetCDF file at /v1/jobs/{job.id}/results")
+    if (job.kind or "dynamic") != "dynamic":
+        raise branch
     with open_result(job.result_path) as ds:
+        if "time" not in ds.dims:
+            raise branch
         n_times = ds.sizes.get("time", 0)
         keep = [v for v in ("position", "kappa", "f", "v", "omega", "moment", "orientation")
                 if v in ds]

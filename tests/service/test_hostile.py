@@ -705,3 +705,34 @@ def test_no_numeric_field_takes_the_api_to_a_500(client, value):
         response = client.post("/v1/ui/validate", json=doc)
         answers[path] = response.status_code
     assert set(answers.values()) <= {200, 422}, answers
+
+
+# --- a continuation job's branch on the routes made for time series ----------------------------
+@pytest.fixture(scope="module")
+def branch_job(client, settings):
+    """A successful continuation job: the Euler column on 10 segments, 8 points."""
+    from solver.case import Case
+    from worker.tasks import run_job
+
+    from svc_support import REPO
+
+    case = Case.from_file(REPO / "cases" / "euler-column.yaml").model_dump(mode="json")
+    case["numerics"].pop("ds", None)
+    case["numerics"]["n_segments"] = 10
+    response = client.post("/v1/continuations", json={"case": case, "continuation": {
+        "parameter": "boundary.end.translation.2.force", "to": -0.4, "max_points": 8}})
+    assert response.status_code == 201, response.text
+    job_id = response.json()["id"]
+    assert run_job(job_id, "hostile-branch@test", settings) == "successful"
+    return job_id
+
+
+def test_the_paraview_download_of_a_branch_is_a_409_with_one_line(client, branch_job):
+    """It was a 500 (KeyError: 'time' in hockle/export.py)."""
+    response = client.get(f"/v1/ui/jobs/{branch_job}/paraview")
+    assert response.status_code == 409, response.text[:300]
+    body = response.json()
+    assert body["type"] == "urn:hockle:problem:result-is-a-branch"
+    assert "\n" not in body["detail"] and "/results" in body["detail"]
+    for route in ("events", "seabed"):               # not 500s either
+        assert client.get(f"/v1/ui/jobs/{branch_job}/{route}").status_code == 200
