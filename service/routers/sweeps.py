@@ -34,6 +34,11 @@ from .results import NETCDF_MEDIA_TYPE, _etag, _not_modified
 router = APIRouter(tags=["sweeps"])
 log = logging.getLogger(__name__)
 
+#: combined datasets kept per sweep (one per field set asked for); beyond it the oldest
+#: built go, and are built again if asked for (each spelling of ?fields= built and kept
+#: another file before)
+MAX_COMBINED_PER_SWEEP = 8
+
 
 def _invalid(exc: sw.SweepError) -> ProblemError:
     return ProblemError(422, "invalid-sweep", "Invalid sweep", exc.detail, errors=exc.errors)
@@ -215,9 +220,32 @@ def dismiss_sweep(sweep_id: str, response: Response,
     return sweep_status(sweep, jobs)
 
 
+def canonical_fields(fields: str | None) -> list[str]:
+    """The field set of ``?fields=``: its names, stripped, once each, sorted; ``kappa``,
+    ``kappa,kappa`` and ``kappa, kappa`` are one set, one combined file."""
+    return sorted({f.strip() for f in (fields or "").split(",") if f.strip()})
+
+
 def _combined_path(svc: Services, sweep: SweepRecord, fields: list[str]) -> Path:
     key = hashlib.sha256(",".join(fields).encode()).hexdigest()[:12]
     return Path(svc.settings.results_dir) / "sweeps" / f"{sweep.id}.{key}.nc"
+
+
+def _evict_combined(path: Path, keep: int | None = None) -> None:
+    """Remove the sweep's combined files beyond the ``keep`` most recently built (by
+    mtime; not touched when served, which would change their ETag); never ``path``, the
+    one being answered. ``keep``: default :data:`MAX_COMBINED_PER_SWEEP`."""
+    keep = MAX_COMBINED_PER_SWEEP if keep is None else keep
+    mine = []
+    for other in path.parent.glob(f"{path.name.split('.', 1)[0]}.*.nc"):
+        try:
+            mine.append((other.stat().st_mtime, other))
+        except FileNotFoundError:        # removed by another request meanwhile
+            continue
+    mine.sort(reverse=True)
+    for _, other in mine[keep:]:
+        if other != path:
+            other.unlink(missing_ok=True)
 
 
 def _load_member(job: Job | None):
@@ -256,10 +284,11 @@ def download_sweep_results(
         raise ProblemError(404, "result-not-ready", "Result not ready",
                            f"sweep {sweep_id} has {len(set(active))} member job(s) still queued "
                            "or running; the combined dataset is built when all have finished")
-    wanted = [f.strip() for f in (fields or "").split(",") if f.strip()]
+    wanted = canonical_fields(fields)
     path = _combined_path(svc, sweep, wanted)
     if not path.exists():
         _build(svc, sweep, jobs, wanted, path)
+        _evict_combined(path)
     etag = _etag(str(path))
     if _not_modified(request, etag):
         return Response(status_code=304, headers={"ETag": etag})

@@ -736,3 +736,50 @@ def test_the_paraview_download_of_a_branch_is_a_409_with_one_line(client, branch
     assert "\n" not in body["detail"] and "/results" in body["detail"]
     for route in ("events", "seabed"):               # not 500s either
         assert client.get(f"/v1/ui/jobs/{branch_job}/{route}").status_code == 200
+
+
+# --- combined sweep results: one file per field set, a cap per sweep ---------------------------
+@pytest.fixture(scope="module")
+def finished_sweep(client, settings):
+    from worker.tasks import run_job
+
+    body = {"base": tiny_case("hostile-sweep"), "combine": "zip",
+            "parameters": {"boundary.start.rotation.2.angular_velocity": [1.0, 2.0]}}
+    response = client.post("/v1/sweeps", json=body)
+    assert response.status_code == 201, response.text
+    sweep = response.json()
+    for member in sweep["members"]:
+        run_job(member["job_id"], "hostile-sweep@test", settings)
+    return sweep["id"]
+
+
+def _combined_files(settings, sweep_id):
+    return sorted((settings.results_dir / "sweeps").glob(f"{sweep_id}.*.nc"))
+
+
+def test_every_spelling_of_one_field_set_is_one_combined_file(client, settings, finished_sweep):
+    """``kappa``, ``kappa,kappa``, ``kappa, kappa``, ... built and kept a file each."""
+    url = f"/v1/sweeps/{finished_sweep}/results"
+    etags = set()
+    for fields in ("kappa", "kappa,kappa", "kappa, kappa", " kappa ,kappa,", ",kappa"):
+        response = client.get(url, params={"fields": fields})
+        assert response.status_code == 200, response.text[:300]
+        etags.add(response.headers["etag"])
+    assert len(etags) == 1
+    two = {client.get(url, params={"fields": f}).headers["etag"]
+           for f in ("kappa,position", "position,kappa", "position, kappa,kappa")}
+    assert len(two) == 1 and not two & etags
+    assert len(_combined_files(settings, finished_sweep)) == 2
+
+
+def test_combined_files_are_capped_per_sweep(client, settings, finished_sweep, monkeypatch):
+    from service.routers import sweeps as router
+
+    monkeypatch.setattr(router, "MAX_COMBINED_PER_SWEEP", 2)
+    url = f"/v1/sweeps/{finished_sweep}/results"
+    for fields in ("", "kappa", "position", "kappa,position"):
+        assert client.get(url, params={"fields": fields}).status_code == 200
+        time.sleep(0.02)                 # distinct build times on coarse file clocks
+    assert len(_combined_files(settings, finished_sweep)) == 2
+    # an evicted set is built again when asked for
+    assert client.get(url).status_code == 200
