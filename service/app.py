@@ -12,7 +12,7 @@ from contextlib import asynccontextmanager
 from fastapi import Depends, FastAPI
 from fastapi.openapi.utils import get_openapi
 
-from .auth import AuthMiddleware
+from .auth import AuthMiddleware, HostAllowList
 from .dashboard import UI_URL, install_dashboard
 from .deps import Services, known_query_only, services
 from .docs import ASSETS_URL, DOCS_URL, OAUTH2_REDIRECT_URL, REDOC_URL, install_docs
@@ -85,6 +85,9 @@ def create_app(settings: Settings | None = None, *, enqueuer: Enqueuer | None = 
         public_paths=("/v1/health", metrics.PATH, app.openapi_url, DOCS_URL, REDOC_URL,
                       OAUTH2_REDIRECT_URL, UI_URL),
         public_prefixes=(ASSETS_URL + "/", UI_URL + "/"))
+    allowed = settings.allowed_host_names()
+    if not api_keys and allowed is not None:   # keys are the protection when set
+        app.add_middleware(HostAllowList, allowed=allowed, exempt_paths=("/v1/health",))
     app.add_middleware(CatchAllMiddleware)  # outermost: the last word on an unexpected error
 
     checked = [Depends(known_query_only)]  # a misspelt query parameter is a 422, not ignored

@@ -1,2 +1,10 @@
 """Fixtures of the service tests (defined in svc_support.py, which the tests import too)."""
+import os
+
 from svc_support import pg_url, redis_server  # noqa: F401
+
+# In-process tests talk to the app through Starlette's TestClient, whose requests name the
+# host "testserver": without API keys the app answers only the hosts it is allowed
+# (HOCKLE_ALLOWED_HOSTS; tests of the default list pass allowed_hosts themselves). The API
+# and worker processes of svc_support.Stack get none of the HOCKLE_ variables of this one.
+os.environ.setdefault("HOCKLE_ALLOWED_HOSTS", "localhost,127.0.0.1,::1,testserver")

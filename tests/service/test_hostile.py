@@ -783,3 +783,119 @@ def test_combined_files_are_capped_per_sweep(client, settings, finished_sweep, m
     assert len(_combined_files(settings, finished_sweep)) == 2
     # an evicted set is built again when asked for
     assert client.get(url).status_code == 200
+
+
+# --- without API keys: the Host allow-list; worker names; the docs' CSP ------------------------
+@pytest.fixture(scope="module")
+def default_hosts_client(tmp_path_factory):
+    """The app with the default allow-list (this module's conftest widens it for the
+    TestClient's host name "testserver")."""
+    settings = Settings(data_dir=tmp_path_factory.mktemp("hosts"), broker_url="memory://",
+                        allowed_hosts=None)
+    with TestClient(create_app(settings), base_url="http://127.0.0.1:8000",
+                    raise_server_exceptions=False) as c:
+        yield c
+
+
+@pytest.mark.parametrize("host", ["attacker.example", "attacker.example:8000",
+                                  "127.0.0.1.attacker.example", "testserver", "0.0.0.0:8000"])
+def test_without_keys_a_foreign_host_header_is_refused(default_hosts_client, host):
+    """A page of attacker.example whose DNS answers 127.0.0.1 (DNS rebinding) sends its own
+    name as Host: 400 host-not-allowed on every route but the health checks."""
+    for route in ("/v1/jobs", "/ui/", "/docs", "/openapi.json"):
+        response = default_hosts_client.get(route, headers={"host": host})
+        assert response.status_code == 400, (route, response.text[:200])
+        assert response.json()["type"] == "urn:hockle:problem:host-not-allowed"
+        assert "HOCKLE_ALLOWED_HOSTS" in response.json()["detail"]
+    assert default_hosts_client.get("/v1/health", params={"live": "true"},
+                                    headers={"host": host}).status_code == 200
+
+
+@pytest.mark.parametrize("host", ["127.0.0.1:8000", "localhost:8000", "LOCALHOST", "[::1]:8000",
+                                  "localhost.", "127.0.0.1"])
+def test_without_keys_the_loopback_names_are_answered(default_hosts_client, host):
+    assert default_hosts_client.get("/v1/jobs", headers={"host": host}).status_code == 200
+
+
+def test_the_allow_list_follows_the_settings(tmp_path):
+    base = dict(data_dir=tmp_path, broker_url="memory://")
+    assert Settings(**base, allowed_hosts=None).allowed_host_names() == {
+        "localhost", "127.0.0.1", "::1"}
+    wide = Settings(**base, allowed_hosts=None, host="0.0.0.0",
+                    public_url="http://rods.lab.example:8000/")
+    assert wide.allowed_host_names() == {"localhost", "127.0.0.1", "::1", "rods.lab.example"}
+    assert "10.0.0.5" in Settings(**base, allowed_hosts=None, host="10.0.0.5").allowed_host_names()
+    assert Settings(**base, allowed_hosts="a.example, [fe80::1]").allowed_host_names() == {
+        "a.example", "fe80::1"}
+    assert Settings(**base, allowed_hosts="*").allowed_host_names() is None
+    # with API keys the keys protect the API: no Host check
+    keyed = Settings(**base, allowed_hosts=None, api_keys="k" * 20)
+    with TestClient(create_app(keyed)) as c:
+        assert c.get("/v1/jobs", headers={"Authorization": "Bearer " + "k" * 20,
+                                          "host": "anything.example"}).status_code == 200
+
+
+def test_a_wide_bind_without_keys_warns_and_names_the_allow_list(caplog):
+    import logging
+
+    from service import serve
+
+    with caplog.at_level(logging.WARNING, logger="hockle.serve"):
+        assert serve.warn_if_open("0.0.0.0")
+    assert "NO AUTHENTICATION" in caplog.text and "HOCKLE_ALLOWED_HOSTS" in caplog.text
+
+
+def test_worker_names_need_a_key_when_there_are_keys(tmp_path):
+    key = "health-key-0123456789abcdef"
+    settings = Settings(data_dir=tmp_path, broker_url="memory://", api_keys=key)
+    with TestClient(create_app(settings)) as c:
+        from service.registry import Registry
+
+        registry = Registry(settings.registry_url)
+        registry.heartbeat("secret-host-17@rack-4")
+        registry.dispose()
+        public = c.get("/v1/health").json()
+        assert public["workers"] == [] and public["workers_seen"] == 1
+        assert "secret-host" not in json.dumps(public)
+        wrong = c.get("/v1/health", headers={"Authorization": "Bearer " + "x" * 20})
+        assert wrong.status_code == 200 and wrong.json()["workers"] == []
+        mine = c.get("/v1/health", headers={"Authorization": f"Bearer {key}"}).json()
+        assert [w["name"] for w in mine["workers"]] == ["secret-host-17@rack-4"]
+        assert mine["workers_seen"] == 1
+
+
+@pytest.mark.parametrize("page,evaluates", [("/docs", False), ("/redoc", True),
+                                            ("/docs/oauth2-redirect", False)])
+def test_the_docs_pages_have_a_csp_that_lets_their_own_scripts_run(client, page, evaluates):
+    """default-src 'none'; scripts from this origin and the page's own inline script (by its
+    SHA-256) only. Every <script src> of the page is same-origin (allowed by 'self'), every
+    inline script's hash is in the policy, stylesheets are same-origin: what the page needs
+    to render is allowed, nothing of another origin is. (Chromium is not installed here to
+    render them; the browser tests of the dashboard do where it is.)"""
+    import base64
+    import hashlib
+    import re
+
+    response = client.get(page)
+    assert response.status_code == 200
+    csp = response.headers["content-security-policy"]
+    directives = {d.split()[0]: d.split()[1:] for d in csp.split(";") if d.strip()}
+    assert directives["default-src"] == ["'none'"]
+    assert directives["frame-ancestors"] == ["'none'"]
+    assert directives["connect-src"] == ["'self'"]     # openapi.json and "Try it out"
+    html = response.text
+    for src in re.findall(r"<script[^>]*\ssrc=\"([^\"]+)\"", html):
+        assert src.startswith("/") and not src.startswith("//"), src      # same origin
+        assert client.get(src).status_code == 200
+    for href in re.findall(r"<link[^>]*\shref=\"([^\"]+)\"", html):
+        assert href.startswith("/") and not href.startswith("//"), href
+    inline = re.findall(r"<script>(.*?)</script>", html, re.S)
+    for body in inline:
+        digest = base64.b64encode(hashlib.sha256(body.encode()).digest()).decode()
+        assert f"'sha256-{digest}'" in directives["script-src"]
+    assert ("'unsafe-eval'" in directives["script-src"]) == evaluates
+    assert "'unsafe-inline'" not in directives["script-src"]
+    assert all(s == "'self'" or s.startswith("'sha256-") or s == "'unsafe-eval'"
+               for s in directives["script-src"]), directives["script-src"]
+    if page == "/docs":
+        assert inline and "SwaggerUIBundle" in inline[0]
