@@ -118,11 +118,12 @@ def _reaper(svc: Services, stop: threading.Event) -> None:
     """Every heartbeat_interval: fail jobs killed at their hard time limit, queue again the jobs
     of lost workers and the accepted jobs whose message is lost (:func:`service.queue.sweep`;
     every worker's heartbeat thread runs the same sweep)."""
-    from .queue import sweep
+    from .queue import RegistryWatch, sweep
 
+    watch = RegistryWatch()       # a job's silence counts only while the registry took writes
     while not stop.wait(svc.settings.heartbeat_interval):
         try:
-            sweep(svc.registry, svc.enqueuer, svc.settings, log)
+            sweep(svc.registry, svc.enqueuer, svc.settings, log, watch)
         except REGISTRY_UNAVAILABLE as exc:  # registry briefly down: next sweep
             log.warning("sweep failed, registry unavailable: %s", str(exc).splitlines()[0][:200])
         except Exception:  # noqa: BLE001

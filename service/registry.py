@@ -201,6 +201,14 @@ class Registry:
     def dispose(self) -> None:
         self.engine.dispose()
 
+    def probe_write(self) -> None:
+        """A write that changes nothing but needs what a job's heartbeat needs (the write
+        lock of ``hockle_jobs``: SQLite's database lock, PostgreSQL's row-exclusive lock on
+        the table): it waits or fails exactly when a heartbeat would. Raises one of
+        :data:`REGISTRY_UNAVAILABLE`. :class:`service.queue.RegistryWatch` times it."""
+        with self.sessions.begin() as session:
+            session.execute(update(Job).where(Job.id == "").values(heartbeat_at=Job.heartbeat_at))
+
     # --- creation ------------------------------------------------------------------------------
     def create_job(
         self,
@@ -622,7 +630,8 @@ class Registry:
         return reaped
 
     def requeue_lost(self, *, heartbeat_timeout: float, max_attempts: int,
-                     now: dt.datetime | None = None) -> list[tuple[Job, str]]:
+                     now: dt.datetime | None = None,
+                     writable_since: dt.datetime | None = None) -> list[tuple[Job, str]]:
         """Running jobs whose heartbeat is older than ``heartbeat_timeout`` lost their worker.
 
         Each goes back to ``accepted`` (the caller sends its message again; the next claim is
@@ -631,8 +640,17 @@ class Registry:
         heartbeat came within ``heartbeat_timeout`` of its deadline is left to :meth:`reap`.
         Conditional on (state, attempt, stale heartbeat): of several sweepers one acts.
         Returns ``(job, action)`` pairs, ``action`` in ``requeued``, ``failed``, ``dismissed``.
+
+        ``writable_since`` (the caller's :class:`service.queue.RegistryWatch`): since when
+        the registry has taken writes without a break, as far as the caller saw. A job's
+        silence counts only while its heartbeat could have been written, so nothing is
+        lost before the registry has been writable for ``heartbeat_timeout``: an outage of
+        any length changes nothing for a job whose worker lives.
         """
         now = now or utcnow()
+        if writable_since is not None and writable_since > now - dt.timedelta(
+                seconds=heartbeat_timeout):
+            return []
         stale = now - dt.timedelta(seconds=heartbeat_timeout)
         beat = func.coalesce(Job.heartbeat_at, Job.started_at)
         done: list[tuple[str, str]] = []
