@@ -6,6 +6,8 @@ its path (``rod.youngs_modulus``) and say what is allowed; unknown fields list t
 from __future__ import annotations
 
 import json
+import os
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
@@ -35,8 +37,16 @@ MAX_NODES = MAX_BODY_BYTES // 2
 MAX_INT_DIGITS = 309
 #: seconds one body may take to parse (HOCKLE_BODY_PARSE_TIMEOUT's default)
 PARSE_TIMEOUT = 2.0
-#: bodies parsed at once (each on a thread of its own, off the event loop)
+#: bodies parsed at once on threads of the API process (JSON, and YAML up to
+#: YAML_IN_PROCESS bytes)
 PARSE_THREADS = 4
+#: YAML bodies larger than this are parsed in a parse process (PARSE_PROCESSES of them,
+#: niced): PyYAML's node graph of a large body costs the API process's interpreter seconds of
+#: CPU, its garbage collector's passes and a long deallocation, all holding the lock that the
+#: event loop needs too (liveness took up to 340 ms under four 3.4-MB bodies parsed on
+#: threads); a case spec written by hand is a few kB
+YAML_IN_PROCESS = 64 * 1024
+PARSE_PROCESSES = 2
 #: the budget's clock is read every this many nodes
 _TICK = 256
 YAML_TYPES = ("application/yaml", "application/x-yaml", "text/yaml", "text/x-yaml")
@@ -112,16 +122,87 @@ def parse_body(body: bytes, content_type: str | None,
 
 
 async def parse_request(request, timeout: float = PARSE_TIMEOUT) -> Any:
-    """The request's body (:func:`read_body`), parsed by :func:`parse_body` on a thread of
-    :data:`_PARSERS`: never on the event loop, so that liveness and every other request
-    go on while a body is parsed, and at most :data:`PARSE_THREADS` bodies are parsed at
-    once (each within its own ``timeout``)."""
+    """The request's body (:func:`read_body`), parsed by :func:`parse_body` never on the
+    event loop, so that liveness and every other request go on while a body is parsed: on a
+    thread of :data:`_PARSERS` (at most :data:`PARSE_THREADS` at once), or, for a YAML body
+    over :data:`YAML_IN_PROCESS` bytes, in a parse process (:func:`_parse_elsewhere`), each
+    within its own ``timeout``."""
     import asyncio
 
     body = await read_body(request)
     content_type = request.headers.get("content-type")
+    media = (content_type or "").split(";")[0].strip().lower()
+    if media in YAML_TYPES and len(body) > YAML_IN_PROCESS:
+        return await _parse_elsewhere(body, content_type, timeout)
     loop = asyncio.get_running_loop()
     return await loop.run_in_executor(_PARSERS, parse_body, body, content_type, timeout)
+
+
+_PROCESSES: list = []
+_PROCESSES_LOCK = threading.Lock()
+#: seconds a parse process may take beyond the body's budget (its start: importing this
+#: module, about a second) before it is killed and the body refused
+_PROCESS_GRACE = 15.0
+
+
+def _process_pool():
+    with _PROCESSES_LOCK:
+        if not _PROCESSES:
+            import multiprocessing
+            from concurrent.futures import ProcessPoolExecutor
+
+            # spawned, not forked: the API process has threads and open connections
+            _PROCESSES.append(ProcessPoolExecutor(
+                PARSE_PROCESSES, mp_context=multiprocessing.get_context("spawn"),
+                initializer=_parse_process_started))
+        return _PROCESSES[0]
+
+
+def _drop_process_pool(pool) -> None:
+    """Kill the parse processes of ``pool`` (one overran its budget); the next large body
+    starts new ones."""
+    with _PROCESSES_LOCK:
+        if _PROCESSES and _PROCESSES[0] is pool:
+            _PROCESSES.clear()
+    for process in list(getattr(pool, "_processes", {}).values()):
+        process.kill()
+    pool.shutdown(wait=False, cancel_futures=True)
+
+
+def _parse_process_started() -> None:
+    """In each parse process: a lower CPU priority than the API's (as the embedded worker)."""
+    try:
+        os.nice(10)
+    except OSError:
+        pass
+
+
+def _parse_in_process(body: bytes, content_type: str | None, timeout: float):
+    """:func:`parse_body` in a parse process: ``("ok", data)`` or ``("problem", ...)`` (a
+    ProblemError does not pickle back by itself)."""
+    try:
+        return ("ok", parse_body(body, content_type, timeout))
+    except ProblemError as exc:
+        return ("problem", exc.status, exc.slug, exc.title, exc.detail, exc.errors, exc.headers)
+
+
+async def _parse_elsewhere(body: bytes, content_type: str | None, timeout: float) -> Any:
+    import asyncio
+    from concurrent.futures.process import BrokenProcessPool
+
+    pool = _process_pool()
+    loop = asyncio.get_running_loop()
+    try:
+        answer = await asyncio.wait_for(
+            loop.run_in_executor(pool, _parse_in_process, body, content_type, timeout),
+            timeout + _PROCESS_GRACE)
+    except (asyncio.TimeoutError, BrokenProcessPool):
+        _drop_process_pool(pool)
+        raise _Budget(timeout).overrun() from None
+    if answer[0] == "ok":
+        return answer[1]
+    _, status, slug, title, detail, errors, headers = answer
+    raise ProblemError(status, slug, title, detail, errors=errors, headers=headers)
 
 
 class _TooLongInteger:
@@ -158,12 +239,15 @@ class _Budget:
     def tick(self) -> None:
         self.steps += 1
         if self.steps % _TICK == 0 and time.monotonic() > self.deadline:
-            raise ProblemError(413, "body-too-large", "Request body too complex",
-                               f"the body took more than {self.timeout:g} s to parse "
-                               "(HOCKLE_BODY_PARSE_TIMEOUT); a case spec parses in "
-                               "milliseconds: send a smaller body, or JSON instead of YAML",
-                               errors=[{"loc": "", "type": "parse_time_exceeded",
-                                        "msg": f"not parsed within {self.timeout:g} s"}])
+            raise self.overrun()
+
+    def overrun(self) -> ProblemError:
+        return ProblemError(413, "body-too-large", "Request body too complex",
+                            f"the body took more than {self.timeout:g} s to parse "
+                            "(HOCKLE_BODY_PARSE_TIMEOUT); a case spec parses in "
+                            "milliseconds: send a smaller body, or JSON instead of YAML",
+                            errors=[{"loc": "", "type": "parse_time_exceeded",
+                                     "msg": f"not parsed within {self.timeout:g} s"}])
 
 
 def _too_many_nodes(loc: str) -> ProblemError:

@@ -899,3 +899,181 @@ def test_the_docs_pages_have_a_csp_that_lets_their_own_scripts_run(client, page,
                for s in directives["script-src"]), directives["script-src"]
     if page == "/docs":
         assert inline and "SwaggerUIBundle" in inline[0]
+
+
+# --- liveness while each hostile request is being processed (a real API process) ---------------
+LIVENESS_PROBER = """
+import os, sys, time
+import httpx
+url, stop, record = sys.argv[1], sys.argv[2], sys.argv[3]
+with httpx.Client(base_url=url, timeout=30) as http, open(record, "a") as out:
+    while not os.path.exists(stop):
+        sent = time.time()
+        start = time.monotonic()
+        code = http.get("/v1/health", params={"live": "true"}).status_code
+        out.write(f"{sent} {time.monotonic() - start} {code}\\n")
+        out.flush()
+        time.sleep(0.02)
+"""
+#: the liveness answer's bound while hostile requests are processed: the issue's 100 ms for
+#: 95 % of the probes of each window, and a generous 500 ms for every probe: this 2-core
+#: machine is shared with other engineers' runs (load 3-4 when measured), and the test's own
+#: four sending threads and the prober run on it too; the benign window below shows that
+#: noise without any hostile body
+LIVENESS_LIMIT = 0.100
+LIVENESS_LIMIT_ANY = 0.500
+
+
+def _postgres_answers() -> bool:
+    try:
+        import psycopg
+
+        psycopg.connect("postgresql://postgres@127.0.0.1:5432/postgres", connect_timeout=3).close()
+        return True
+    except Exception:  # noqa: BLE001
+        return False
+
+
+@pytest.fixture(scope="module")
+def live_api(tmp_path_factory):
+    """`python -m service` (PostgreSQL registry where a server answers, else SQLite; an
+    in-memory broker, no worker) and a liveness prober in a process of its own, polling
+    every 20 ms, as a kubelet would."""
+    import subprocess
+    import sys
+
+    from svc_support import empty_database_url, make_stack
+
+    backend = "postgresql" if _postgres_answers() else "sqlite"
+    root = tmp_path_factory.mktemp("live-db")
+    with empty_database_url(backend, root, "hockle_hostile_live") as url:
+        stack = make_stack(tmp_path_factory, "hostile-live", {
+            "HOCKLE_DATABASE_URL": url, "HOCKLE_BROKER_URL": "memory://"})
+        stack.backend = backend
+        stack.start_api()
+        stop = stack.root / "stop-probing"
+        stack.record = stack.root / "liveness.txt"
+        prober = subprocess.Popen([sys.executable, "-c", LIVENESS_PROBER, stack.url, str(stop),
+                                   str(stack.record)])
+        stack.windows = []
+        try:
+            yield stack
+        finally:
+            stop.touch()
+            prober.wait(timeout=60)
+            stack.close()
+
+
+def _case_text(case: dict) -> str:
+    return json.dumps(case)
+
+
+def _hostile_requests() -> dict:
+    """label -> (method, route, kwargs, the answers allowed): the audit's requests."""
+    big = "9" * 4301
+    digits = _case_text(tiny_case("d")).replace('"youngs_modulus": 12500000.0',
+                                                f'"youngs_modulus": {big}')
+    sweep = json.dumps({"base": tiny_case("s"), "parameters": {"rod.length": [12345]}}
+                       ).replace("12345", big)
+    absurd = tiny_case("absurd")
+    absurd["rod"]["youngs_modulus"] = 5e-324
+    late = tiny_case("late")
+    late["initial"] = {"from_result": {"job": "3a3f3b17-f338-4b0c-ad9e-283bb17603ab",
+                                       "time": 1e308}}
+    far = {"case": tiny_case("far"), "continuation": {
+        "parameter": "boundary.end.translation.2.force", "to": 1e308}}
+    large = _yaml_body(tiny_case("large"),
+                       "extra: [" + ", ".join(str(k) for k in range(500_000)) + "]\n")
+    y = {"content-type": "application/yaml"}
+    out = {}
+    for route, wrap, _ in POST_CASE_ROUTES.values():
+        out[f"alias bomb {route}"] = ("POST", route, {
+            "content": _yaml_body(wrap(tiny_case("bomb")), alias_bomb()), "headers": y},
+            {413})
+    out.update({
+        "4,301 digits JSON /v1/jobs": ("POST", "/v1/jobs", {
+            "content": digits, "headers": {"content-type": "application/json"}}, {422}),
+        "4,301 digits YAML /v1/ui/validate": ("POST", "/v1/ui/validate", {
+            "content": digits, "headers": y}, {422}),
+        "4,301 digits YAML /v1/sweeps": ("POST", "/v1/sweeps", {
+            "content": sweep, "headers": y}, {422}),
+        "3.4-MB YAML body /v1/jobs": ("POST", "/v1/jobs", {"content": large, "headers": y},
+                                      {413, 422}),
+        "NUL in a job id": ("GET", "/v1/jobs/" + NUL_ID.replace("\x00", "%00"), {}, {404}),
+        "NUL in a sweep id": ("GET", "/v1/sweeps/" + NUL_ID.replace("\x00", "%00") +
+                              "/results", {}, {404}),
+        "NUL in page_token": ("GET", "/v1/jobs", {"params": {
+            "page_token": _token("2026-11-27T10:00:00", NUL_ID)}}, {422}),
+        "NUL in from_result.job": ("POST", "/v1/jobs", {"json": {**tiny_case("nul"), "initial": {
+            "from_result": {"job": NUL_ID, "time": 0.0}}}}, {422}),
+        "created_before=9999-12-31T23:59:59-05:00": ("GET", "/v1/jobs", {"params": {
+            "created_before": "9999-12-31T23:59:59-05:00"}}, {200}),
+        "created_after=0001-01-01T00:00:00+05:00": ("GET", "/v1/jobs", {"params": {
+            "created_after": "0001-01-01T00:00:00+05:00"}}, {200}),
+        "youngs_modulus = 5e-324": ("POST", "/v1/jobs", {"json": absurd}, {422}),
+        "from_result.time = 1e308": ("POST", "/v1/jobs", {"json": late}, {422}),
+        "continuation to = 1e308": ("POST", "/v1/continuations", {"json": far}, {422}),
+    })
+    return out
+
+
+HOSTILE_REQUESTS = _hostile_requests()
+#: the same load of benign requests, for the machine's own noise
+BENIGN = ("GET", "/v1/jobs/3a3f3b17-f338-4b0c-ad9e-283bb17603ab", {}, {404})
+
+
+@pytest.mark.service
+@pytest.mark.parametrize("label", ["(benign: unknown job ids)"] + list(HOSTILE_REQUESTS))
+def test_liveness_answers_while_each_hostile_request_is_processed(live_api, label):
+    """Each of the audit's requests sent by 4 clients at once, again and again for 2 s (at
+    least once each): no answer is a 500 (each is the 4xx the in-process tests name), and the
+    liveness probes sent meanwhile (every 20 ms from another process) each answer within
+    LIVENESS_LIMIT (checked with the others at the module's end, where the figures are
+    printed)."""
+    import httpx
+    from concurrent.futures import ThreadPoolExecutor
+
+    method, route, kwargs, allowed = HOSTILE_REQUESTS.get(label, BENIGN)
+    codes: list[int] = []
+
+    def send(_):
+        with httpx.Client(base_url=live_api.url, timeout=120) as http:
+            end = time.monotonic() + 2.0
+            while True:
+                codes.append(http.request(method, route, **kwargs).status_code)
+                if time.monotonic() > end:
+                    return
+
+    start = time.time()
+    with ThreadPoolExecutor(4) as pool:
+        list(pool.map(send, range(4)))
+    live_api.windows.append((label, start, time.time()))
+    assert 500 not in codes
+    assert set(codes) <= allowed, (label, sorted(set(codes)))
+    assert "Traceback" not in live_api.log("api.log")
+
+
+@pytest.mark.service
+def test_liveness_figures_during_the_hostile_requests(live_api):
+    """The liveness probes of each window above (runs after them): every probe 200, 95 % of
+    each window's within LIVENESS_LIMIT (100 ms), all within LIVENESS_LIMIT_ANY (500 ms).
+    The figures are printed (pytest -s)."""
+    import statistics
+
+    time.sleep(0.2)
+    probes = [tuple(float(x) for x in line.split())
+              for line in live_api.record.read_text().splitlines() if line.strip()]
+    assert probes and {int(code) for _, _, code in probes} == {200}
+    rows, over = [], []
+    for label, start, end in live_api.windows:
+        inside = sorted(took for sent, took, _ in probes if start <= sent <= end)
+        assert inside, f"no liveness probe during {label}"
+        p95 = inside[min(len(inside) - 1, int(0.95 * len(inside)))]
+        rows.append(f"  {label:45s} {len(inside):4d} probes, median "
+                    f"{1000 * statistics.median(inside):6.1f} ms, 95 % {1000 * p95:6.1f} ms, "
+                    f"max {1000 * inside[-1]:6.1f} ms")
+        if p95 > LIVENESS_LIMIT or inside[-1] > LIVENESS_LIMIT_ANY:
+            over.append((label, round(1000 * p95, 1), round(1000 * inside[-1], 1)))
+    print(f"\nliveness during hostile requests ({live_api.backend} registry):\n"
+          + "\n".join(rows))
+    assert not over, f"liveness slower than allowed (label, 95 % ms, max ms): {over}"
