@@ -24,6 +24,7 @@ from starlette.requests import Request
 from starlette.types import ASGIApp, Receive, Scope, Send
 
 from .problems import problem_response
+from .settings import host_name
 
 __all__ = ["owner_id", "RateLimiter", "AuthMiddleware", "HostAllowList", "caller",
            "is_loopback", "host_name", "authenticated"]
@@ -171,18 +172,6 @@ class HostAllowList:
             errors=[{"loc": "header.Host", "type": "host_not_allowed",
                      "msg": f"{shown!r} is not one of: {allowed}"}])
         await response(scope, receive, send)
-
-
-def host_name(value: str) -> str:
-    """The host of a Host header or a setting: lower case, without the port, the brackets
-    of an IPv6 address or a trailing dot (``[::1]:8000`` -> ``::1``)."""
-    value = value.strip().lower()
-    if value.startswith("["):
-        end = value.find("]")
-        return value[1:end] if end > 0 else value
-    if value.count(":") == 1:
-        value = value.split(":", 1)[0]
-    return value.rstrip(".")
 
 
 def authenticated(request: Request) -> bool:

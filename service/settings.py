@@ -379,8 +379,6 @@ class Settings(DatasetMetadata):
         case, IPv6 without brackets; None when any host is allowed (``*``)."""
         from urllib.parse import urlsplit
 
-        from .auth import host_name
-
         if self.allowed_hosts is not None:
             names = {host_name(h) for h in self.allowed_hosts.split(",") if h.strip()}
             return None if "*" in names else frozenset(names)
@@ -442,6 +440,18 @@ class Settings(DatasetMetadata):
                 continue
             env[f"HOCKLE_{name.upper()}"] = str(value)
         return env
+
+
+def host_name(value: str) -> str:
+    """The host of a Host header or a setting: lower case, without the port, the brackets
+    of an IPv6 address or a trailing dot (``[::1]:8000`` -> ``::1``)."""
+    value = value.strip().lower()
+    if value.startswith("["):
+        end = value.find("]")
+        return value[1:end] if end > 0 else value
+    if value.count(":") == 1:
+        value = value.split(":", 1)[0]
+    return value.rstrip(".")
 
 
 @lru_cache(maxsize=1)
