@@ -87,7 +87,9 @@ def create_app(settings: Settings | None = None, *, enqueuer: Enqueuer | None = 
         public_prefixes=(ASSETS_URL + "/", UI_URL + "/"))
     allowed = settings.allowed_host_names()
     if not api_keys and allowed is not None:   # keys are the protection when set
-        app.add_middleware(HostAllowList, allowed=allowed, exempt_paths=("/v1/health",))
+        # probes and scrapers name the pod's address; these answer counts, no job's data
+        app.add_middleware(HostAllowList, allowed=allowed,
+                           exempt_paths=("/v1/health", metrics.PATH))
     app.add_middleware(CatchAllMiddleware)  # outermost: the last word on an unexpected error
 
     checked = [Depends(known_query_only)]  # a misspelt query parameter is a 422, not ignored

@@ -141,7 +141,8 @@ class HostAllowList:
     400 ``host-not-allowed``. A web page the user opens can otherwise reach an API on
     127.0.0.1 through a name of its own that its DNS answers with 127.0.0.1 (DNS rebinding)
     and read, submit and dismiss jobs: the browser then sends that name as Host.
-    ``exempt_paths`` (the health checks: a probe names the pod's address) are not checked;
+    ``exempt_paths`` (the health checks and the metrics: a probe or a scraper names the
+    pod's address) are not checked;
     a request without Host (HTTP/1.0) is not either (no browser sends one)."""
 
     def __init__(self, app: ASGIApp, *, allowed: Iterable[str],

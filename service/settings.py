@@ -132,7 +132,8 @@ class Settings(DatasetMetadata):
         "answers in the Host header, so that a web page cannot reach it through a name of "
         "its own resolved to this machine (DNS rebinding); * answers any. Unset: localhost, "
         "127.0.0.1, ::1, the bind address HOCKLE_HOST (unless 0.0.0.0 or ::) and the host of "
-        "HOCKLE_PUBLIC_URL. Not checked with API keys, which are the protection then.",
+        "HOCKLE_PUBLIC_URL. /v1/health and /metrics are not checked; nothing is with API "
+        "keys, which are the protection then.",
     )
     rate_limit: float = Field(
         20.0, ge=0,

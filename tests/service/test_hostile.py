@@ -801,7 +801,7 @@ def default_hosts_client(tmp_path_factory):
                                   "127.0.0.1.attacker.example", "testserver", "0.0.0.0:8000"])
 def test_without_keys_a_foreign_host_header_is_refused(default_hosts_client, host):
     """A page of attacker.example whose DNS answers 127.0.0.1 (DNS rebinding) sends its own
-    name as Host: 400 host-not-allowed on every route but the health checks."""
+    name as Host: 400 host-not-allowed on every route but the health checks and metrics."""
     for route in ("/v1/jobs", "/ui/", "/docs", "/openapi.json"):
         response = default_hosts_client.get(route, headers={"host": host})
         assert response.status_code == 400, (route, response.text[:200])
@@ -809,6 +809,7 @@ def test_without_keys_a_foreign_host_header_is_refused(default_hosts_client, hos
         assert "HOCKLE_ALLOWED_HOSTS" in response.json()["detail"]
     assert default_hosts_client.get("/v1/health", params={"live": "true"},
                                     headers={"host": host}).status_code == 200
+    assert default_hosts_client.get("/metrics", headers={"host": host}).status_code == 200
 
 
 @pytest.mark.parametrize("host", ["127.0.0.1:8000", "localhost:8000", "LOCALHOST", "[::1]:8000",
