@@ -12,7 +12,7 @@ from contextlib import asynccontextmanager
 from fastapi import Depends, FastAPI
 from fastapi.openapi.utils import get_openapi
 
-from .auth import AuthMiddleware
+from .auth import AuthMiddleware, HostAllowList
 from .dashboard import UI_URL, install_dashboard
 from .deps import Services, known_query_only, services
 from .docs import ASSETS_URL, DOCS_URL, OAUTH2_REDIRECT_URL, REDOC_URL, install_docs
@@ -85,6 +85,11 @@ def create_app(settings: Settings | None = None, *, enqueuer: Enqueuer | None = 
         public_paths=("/v1/health", metrics.PATH, app.openapi_url, DOCS_URL, REDOC_URL,
                       OAUTH2_REDIRECT_URL, UI_URL),
         public_prefixes=(ASSETS_URL + "/", UI_URL + "/"))
+    allowed = settings.allowed_host_names()
+    if not api_keys and allowed is not None:   # keys are the protection when set
+        # probes and scrapers name the pod's address; these answer counts, no job's data
+        app.add_middleware(HostAllowList, allowed=allowed,
+                           exempt_paths=("/v1/health", metrics.PATH))
     app.add_middleware(CatchAllMiddleware)  # outermost: the last word on an unexpected error
 
     checked = [Depends(known_query_only)]  # a misspelt query parameter is a 422, not ignored
@@ -115,11 +120,12 @@ def _reaper(svc: Services, stop: threading.Event) -> None:
     """Every heartbeat_interval: fail jobs killed at their hard time limit, queue again the jobs
     of lost workers and the accepted jobs whose message is lost (:func:`service.queue.sweep`;
     every worker's heartbeat thread runs the same sweep)."""
-    from .queue import sweep
+    from .queue import RegistryWatch, sweep
 
+    watch = RegistryWatch()       # a job's silence counts only while the registry took writes
     while not stop.wait(svc.settings.heartbeat_interval):
         try:
-            sweep(svc.registry, svc.enqueuer, svc.settings, log)
+            sweep(svc.registry, svc.enqueuer, svc.settings, log, watch)
         except REGISTRY_UNAVAILABLE as exc:  # registry briefly down: next sweep
             log.warning("sweep failed, registry unavailable: %s", str(exc).splitlines()[0][:200])
         except Exception:  # noqa: BLE001

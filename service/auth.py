@@ -24,8 +24,10 @@ from starlette.requests import Request
 from starlette.types import ASGIApp, Receive, Scope, Send
 
 from .problems import problem_response
+from .settings import host_name
 
-__all__ = ["owner_id", "RateLimiter", "AuthMiddleware", "caller", "is_loopback"]
+__all__ = ["owner_id", "RateLimiter", "AuthMiddleware", "HostAllowList", "caller",
+           "is_loopback", "host_name", "authenticated"]
 
 REALM = "hockle"
 
@@ -88,7 +90,15 @@ class AuthMiddleware:
             return
         scope.setdefault("state", {})["owner"] = None
         path = scope.get("path", "")
-        if not self.owners or path in self.public_paths or path.startswith(self.public_prefixes):
+        if not self.owners:
+            await self.app(scope, receive, send)
+            return
+        if path in self.public_paths or path.startswith(self.public_prefixes):
+            # no key needed; a valid one still identifies the caller (the health check
+            # names the workers only to a caller with a key)
+            key = _bearer(Request(scope).headers.get("authorization"))
+            if key is not None and owner_id(key) in self.owners:
+                scope["state"]["owner"] = owner_id(key)
             await self.app(scope, receive, send)
             return
         request = Request(scope)
@@ -123,6 +133,51 @@ class AuthMiddleware:
             return
         scope["state"]["owner"] = owner
         await self.app(scope, receive, send)
+
+
+class HostAllowList:
+    """ASGI middleware for a service without API keys: a request whose ``Host`` header names
+    no host of ``allowed`` (:meth:`service.settings.Settings.allowed_host_names`) is answered
+    400 ``host-not-allowed``. A web page the user opens can otherwise reach an API on
+    127.0.0.1 through a name of its own that its DNS answers with 127.0.0.1 (DNS rebinding)
+    and read, submit and dismiss jobs: the browser then sends that name as Host.
+    ``exempt_paths`` (the health checks and the metrics: a probe or a scraper names the
+    pod's address) are not checked;
+    a request without Host (HTTP/1.0) is not either (no browser sends one)."""
+
+    def __init__(self, app: ASGIApp, *, allowed: Iterable[str],
+                 exempt_paths: Iterable[str] = ()):
+        self.app = app
+        self.allowed = frozenset(allowed)
+        self.exempt = frozenset(exempt_paths)
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] not in ("http", "websocket") or scope.get("path") in self.exempt:
+            await self.app(scope, receive, send)
+            return
+        header = next((v for k, v in scope.get("headers", ()) if k == b"host"), None)
+        if header is None:
+            await self.app(scope, receive, send)
+            return
+        name = host_name(header.decode("latin-1"))
+        if name in self.allowed:
+            await self.app(scope, receive, send)
+            return
+        shown = "".join(c if c.isprintable() else "?" for c in name)[:100]
+        allowed = ", ".join(sorted(self.allowed))
+        response = problem_response(
+            Request(scope), 400, "urn:hockle:problem:host-not-allowed", "Host not allowed",
+            f"this service has no API keys and answers only the hosts {allowed} "
+            f"(HOCKLE_ALLOWED_HOSTS), not {shown!r}: add the name clients use to "
+            "HOCKLE_ALLOWED_HOSTS, or set API keys",
+            errors=[{"loc": "header.Host", "type": "host_not_allowed",
+                     "msg": f"{shown!r} is not one of: {allowed}"}])
+        await response(scope, receive, send)
+
+
+def authenticated(request: Request) -> bool:
+    """True when the request carries a valid API key (on any route, public ones too)."""
+    return getattr(request.state, "owner", None) is not None
 
 
 def _bearer(header: str | None) -> str | None:

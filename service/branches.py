@@ -201,6 +201,11 @@ def continuation_family(case: Any, parameter: str, to: float, *, time: float | N
     if p1.n_segments != p0.n_segments or p1.length != p0.length:
         raise ValueError(f"--parameter {parameter}: changes the grid (rod.length or "
                          "numerics); continue in a parameter that keeps it")
+    from solver.continuation import range_unrepresentable
+
+    why = range_unrepresentable(p0, p1)
+    if why:
+        raise ValueError(f"--to {to!r}: {why}")
     return problem_at, lam0, to
 
 

@@ -6,15 +6,17 @@ no result backend is configured and Celery task states never reach a client.
 """
 from __future__ import annotations
 
+import datetime as dt
 import logging
 import threading
+import time
 
 from celery import Celery
 
-from .registry import Registry
+from .registry import REGISTRY_UNAVAILABLE, Registry, utcnow
 from .settings import Settings
 
-__all__ = ["TASK_NAME", "make_celery", "Enqueuer", "sweep", "send_job"]
+__all__ = ["TASK_NAME", "make_celery", "Enqueuer", "sweep", "send_job", "RegistryWatch"]
 
 TASK_NAME = "hockle.run_job"
 
@@ -104,8 +106,40 @@ class Enqueuer:
         self.app.close()
 
 
+class RegistryWatch:
+    """Since when the registry has taken writes without a break, as one sweeper sees it.
+
+    Each sweep first makes :meth:`Registry.probe_write` (what a job's heartbeat needs). A
+    probe that fails, or that had to wait more than ``slow`` seconds (a lock held, a server
+    coming back), marks an outage; ``writable_since`` is then the start of the first quick
+    probe after it (or the end of a slow one that succeeded): no earlier than the registry
+    could take the heartbeats of running jobs again. It starts at the watch's creation:
+    a sweeper judges only what it watched. Sweepers probe every ``heartbeat_interval``, so
+    any outage longer than that is seen (a job's heartbeat interval is the same)."""
+
+    def __init__(self, slow: float = 1.0):
+        self.slow = float(slow)
+        self.writable_since: dt.datetime = utcnow()
+        self.down = False
+
+    def probe(self, registry: Registry) -> None:
+        """Probe the registry; raises its error (one of REGISTRY_UNAVAILABLE) when it did not
+        take the write, after noting the outage."""
+        started, t0 = utcnow(), time.monotonic()
+        try:
+            registry.probe_write()
+        except REGISTRY_UNAVAILABLE:
+            self.down = True
+            raise
+        if time.monotonic() - t0 > self.slow:
+            self.writable_since = utcnow()      # it waited: writable from now on
+        elif self.down:
+            self.writable_since = started
+        self.down = False
+
+
 def sweep(registry: Registry, enqueuer: Enqueuer, settings: Settings,
-          log: logging.Logger) -> dict[str, list[str]]:
+          log: logging.Logger, watch: RegistryWatch | None = None) -> dict[str, list[str]]:
     """One pass of the sweeper that the API and every worker run each heartbeat_interval.
 
     * the reaper: running jobs killed at their hard time limit -> failed/timeout;
@@ -117,15 +151,26 @@ def sweep(registry: Registry, enqueuer: Enqueuer, settings: Settings,
     Every change is a conditional UPDATE in the registry, so sweepers running at once act on a
     job once, and a duplicate message is harmless (only an accepted job can be claimed).
     Returns the ids acted on, by kind (for logs and tests).
+
+    With ``watch`` (the API's and every worker's sweeper), a job's silence counts only while
+    the registry took writes (:class:`RegistryWatch`): after an outage, no job is lost until
+    the registry has been writable again for job_heartbeat_timeout, time for a live job's
+    heartbeat to be written (an outage longer than the time-out had running jobs redone as
+    attempt 2). A sweep whose probe fails does nothing and raises the registry's error.
     """
     done: dict[str, list[str]] = {"reaped": [], "requeued": [], "failed": [], "dismissed": [],
                                   "resent": []}
+    writable_since = None
+    if watch is not None:
+        watch.probe(registry)               # raises while the registry takes no writes
+        writable_since = watch.writable_since
     for job_id in registry.reap(grace=settings.reaper_grace,
                                 heartbeat_timeout=settings.job_heartbeat_timeout):
         done["reaped"].append(job_id)
         log.warning("reaper: job %s passed its hard time limit: failed/timeout", job_id)
     for job, action in registry.requeue_lost(heartbeat_timeout=settings.job_heartbeat_timeout,
-                                             max_attempts=settings.max_attempts):
+                                             max_attempts=settings.max_attempts,
+                                             writable_since=writable_since):
         done[action].append(job.id)
         log.warning("sweeper: job %s: %s (%s)", job.id, action, job.message)
         if action == "requeued":

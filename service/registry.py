@@ -18,6 +18,7 @@ import datetime as dt
 import hashlib
 import json
 import math
+import re
 import uuid
 from dataclasses import dataclass
 from typing import Any, Iterable
@@ -57,6 +58,7 @@ __all__ = [
     "scoped_idempotency_key",
     "REGISTRY_UNAVAILABLE",
     "utcnow",
+    "well_formed_id",
 ]
 
 ACCEPTED, RUNNING, SUCCESSFUL, FAILED, DISMISSED = (
@@ -75,6 +77,17 @@ REASONS = ("solver_diverged", "nonfinite_state", "timeout", "cancelled_by_user",
 # errors of a registry that is locked (SQLite "database is locked"), restarting or unreachable:
 # a worker retries them (worker.tasks.with_registry_retry)
 REGISTRY_UNAVAILABLE = (OperationalError, InterfaceError, DisconnectionError, PoolTimeoutError)
+
+
+#: what a job or sweep id can be: the registry makes them with uuid4 (36 characters). Any
+#: other string names nothing and is answered without asking the database (PostgreSQL
+#: refuses a NUL character in a text parameter: an error, not "no such job").
+_ID = re.compile(r"[0-9A-Za-z_-]{1,36}")
+
+
+def well_formed_id(value: object) -> bool:
+    """True when ``value`` could be a job or sweep id of this registry."""
+    return isinstance(value, str) and _ID.fullmatch(value) is not None
 
 
 def utcnow() -> dt.datetime:
@@ -115,6 +128,8 @@ def decode_page_token(token: str) -> tuple[dt.datetime, str]:
     try:
         raw = base64.urlsafe_b64decode(token + "=" * (-len(token) % 4)).decode()
         when, job_id = raw.split("|", 1)
+        if not well_formed_id(job_id):      # a NUL in it was a 500 on PostgreSQL
+            raise ValueError(job_id)
         return dt.datetime.fromisoformat(when), job_id
     except Exception as exc:  # noqa: BLE001 - any malformed token is the same client error
         raise ValueError("page_token is not one this server issued") from exc
@@ -185,6 +200,14 @@ class Registry:
 
     def dispose(self) -> None:
         self.engine.dispose()
+
+    def probe_write(self) -> None:
+        """A write that changes nothing but needs what a job's heartbeat needs (the write
+        lock of ``hockle_jobs``: SQLite's database lock, PostgreSQL's row-exclusive lock on
+        the table): it waits or fails exactly when a heartbeat would. Raises one of
+        :data:`REGISTRY_UNAVAILABLE`. :class:`service.queue.RegistryWatch` times it."""
+        with self.sessions.begin() as session:
+            session.execute(update(Job).where(Job.id == "").values(heartbeat_at=Job.heartbeat_at))
 
     # --- creation ------------------------------------------------------------------------------
     def create_job(
@@ -290,6 +313,9 @@ class Registry:
 
     # --- reading -------------------------------------------------------------------------------
     def get(self, job_id: str) -> Job | None:
+        """The job, or None (also for a string that cannot be an id: :func:`well_formed_id`)."""
+        if not well_formed_id(job_id):
+            return None
         with self.sessions() as session:
             return session.get(Job, job_id)
 
@@ -604,7 +630,8 @@ class Registry:
         return reaped
 
     def requeue_lost(self, *, heartbeat_timeout: float, max_attempts: int,
-                     now: dt.datetime | None = None) -> list[tuple[Job, str]]:
+                     now: dt.datetime | None = None,
+                     writable_since: dt.datetime | None = None) -> list[tuple[Job, str]]:
         """Running jobs whose heartbeat is older than ``heartbeat_timeout`` lost their worker.
 
         Each goes back to ``accepted`` (the caller sends its message again; the next claim is
@@ -613,8 +640,17 @@ class Registry:
         heartbeat came within ``heartbeat_timeout`` of its deadline is left to :meth:`reap`.
         Conditional on (state, attempt, stale heartbeat): of several sweepers one acts.
         Returns ``(job, action)`` pairs, ``action`` in ``requeued``, ``failed``, ``dismissed``.
+
+        ``writable_since`` (the caller's :class:`service.queue.RegistryWatch`): since when
+        the registry has taken writes without a break, as far as the caller saw. A job's
+        silence counts only while its heartbeat could have been written, so nothing is
+        lost before the registry has been writable for ``heartbeat_timeout``: an outage of
+        any length changes nothing for a job whose worker lives.
         """
         now = now or utcnow()
+        if writable_since is not None and writable_since > now - dt.timedelta(
+                seconds=heartbeat_timeout):
+            return []
         stale = now - dt.timedelta(seconds=heartbeat_timeout)
         beat = func.coalesce(Job.heartbeat_at, Job.started_at)
         done: list[tuple[str, str]] = []
@@ -796,6 +832,9 @@ class Registry:
         return sweep
 
     def get_sweep(self, sweep_id: str) -> SweepRecord | None:
+        """The sweep, or None (also for a string that cannot be an id)."""
+        if not well_formed_id(sweep_id):
+            return None
         with self.sessions() as session:
             return session.get(SweepRecord, sweep_id)
 
@@ -808,7 +847,7 @@ class Registry:
 
     def get_many(self, job_ids: Iterable[str]) -> dict[str, Job]:
         """The jobs with these ids (unknown ids are left out), by id."""
-        ids = list(dict.fromkeys(job_ids))
+        ids = [i for i in dict.fromkeys(job_ids) if well_formed_id(i)]
         found: dict[str, Job] = {}
         with self.sessions() as session:
             for start in range(0, len(ids), 500):

@@ -141,5 +141,9 @@ class Health(BaseModel):
     registry: Check
     broker: Check
     result_store: Check
-    workers: list[dict[str, Any]] = Field(default_factory=list, description="Workers seen lately.")
+    workers: list[dict[str, Any]] = Field(
+        default_factory=list, description="Workers seen lately: name, last seen, current job. "
+        "With API keys configured, only for a request with a valid key (the check itself "
+        "needs none); workers_seen counts them for everyone.")
+    workers_seen: int = Field(0, description="How many workers were seen lately.")
     jobs: dict[str, int] = Field(default_factory=dict, description="Jobs per state.")

@@ -105,9 +105,18 @@ def warn_if_open(host: str) -> bool:
     log.warning(
         "\n%s\n!! NO AUTHENTICATION: the API binds %s without API keys.\n"
         "!! Anyone who can reach this address can submit, read and dismiss every job.\n"
-        "!! Set HOCKLE_API_KEYS (or HOCKLE_API_KEYS_FILE), or bind 127.0.0.1.\n%s",
-        rule, host, rule)
+        "!! Set HOCKLE_API_KEYS (or HOCKLE_API_KEYS_FILE), or bind 127.0.0.1.\n"
+        "!! Without keys it answers only requests naming an allowed host (Host header):\n"
+        "!! %s (HOCKLE_ALLOWED_HOSTS; add the names clients use).\n%s",
+        rule, host, _allowed(), rule)
     return True
+
+
+def _allowed() -> str:
+    from .settings import get_settings
+
+    names = get_settings().allowed_host_names()
+    return "any host (*)" if names is None else ", ".join(sorted(names))
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -126,6 +126,15 @@ class Settings(DatasetMetadata):
         description="The key the client (HockleClient) and `hockle submit` send; not read by "
         "the API.",
     )
+    allowed_hosts: str | None = Field(
+        None,
+        description="Without API keys: the host names (comma-separated, no port) the API "
+        "answers in the Host header, so that a web page cannot reach it through a name of "
+        "its own resolved to this machine (DNS rebinding); * answers any. Unset: localhost, "
+        "127.0.0.1, ::1, the bind address HOCKLE_HOST (unless 0.0.0.0 or ::) and the host of "
+        "HOCKLE_PUBLIC_URL. /v1/health and /metrics are not checked; nothing is with API "
+        "keys, which are the protection then.",
+    )
     rate_limit: float = Field(
         20.0, ge=0,
         description="Requests per second each API key may make, on average (a token bucket "
@@ -145,6 +154,12 @@ class Settings(DatasetMetadata):
     )
     max_slice_values: int = Field(
         1_000_000, gt=0, description="Largest variable slice served as JSON (number of values)."
+    )
+    body_parse_timeout: float = Field(
+        2.0, gt=0,
+        description="Seconds one request body (a case, a sweep, a continuation; JSON or YAML) "
+        "may take to parse, on a thread of its own, before it is refused with 413; a case spec "
+        "parses in milliseconds.",
     )
 
     # --- worker --------------------------------------------------------------------------------
@@ -359,6 +374,24 @@ class Settings(DatasetMetadata):
             steps = max(steps, t_end / CONTACT_CALIBRATION_DT)
         return self.time_limit_per_unit_contact * grid_points * steps
 
+    def allowed_host_names(self) -> frozenset[str] | None:
+        """The Host names the API answers without API keys (:attr:`allowed_hosts`, or its
+        default: the loopback names, the bind address and the public URL's host), lower
+        case, IPv6 without brackets; None when any host is allowed (``*``)."""
+        from urllib.parse import urlsplit
+
+        if self.allowed_hosts is not None:
+            names = {host_name(h) for h in self.allowed_hosts.split(",") if h.strip()}
+            return None if "*" in names else frozenset(names)
+        names = {"localhost", "127.0.0.1", "::1"}
+        if self.host.strip() not in ("0.0.0.0", "::", "[::]", ""):
+            names.add(host_name(self.host))
+        if self.public_url:
+            public = urlsplit(self.public_url).hostname
+            if public:
+                names.add(host_name(public))
+        return frozenset(names)
+
     def load_api_keys(self) -> list[str]:
         """The API keys from ``api_keys`` and ``api_keys_file`` (empty: no authentication).
 
@@ -408,6 +441,18 @@ class Settings(DatasetMetadata):
                 continue
             env[f"HOCKLE_{name.upper()}"] = str(value)
         return env
+
+
+def host_name(value: str) -> str:
+    """The host of a Host header or a setting: lower case, without the port, the brackets
+    of an IPv6 address or a trailing dot (``[::1]:8000`` -> ``::1``)."""
+    value = value.strip().lower()
+    if value.startswith("["):
+        end = value.find("]")
+        return value[1:end] if end > 0 else value
+    if value.count(":") == 1:
+        value = value.split(":", 1)[0]
+    return value.rstrip(".")
 
 
 @lru_cache(maxsize=1)

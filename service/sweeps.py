@@ -248,8 +248,10 @@ def parse_request(data: Any) -> tuple[dict, dict[str, list], str, str | None]:
         errors.append(_e("combine", f"must be one of {', '.join(COMBINES)}, got {combine!r}",
                          "enum"))
     name = data.get("name")
-    if name is not None and (not isinstance(name, str) or not 1 <= len(name) <= 200):
-        errors.append(_e("name", "a name of 1 to 200 characters", "string_type"))
+    if name is not None and (not isinstance(name, str) or not 1 <= len(name) <= 200
+                             or not name.isprintable()):
+        errors.append(_e("name", "a name of 1 to 200 printable characters (no control "
+                         "characters)", "string_type"))
     if errors:
         raise SweepError(errors, "the sweep request is not valid")
     return base, dict(params), combine, name  # type: ignore[return-value]

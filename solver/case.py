@@ -34,6 +34,7 @@ import json
 import math
 import numbers
 import re
+import sys
 from pathlib import Path
 from typing import Annotated, Any, Literal, Optional, Union
 
@@ -417,6 +418,115 @@ def _number_or_table(value: Any, handler: Any) -> Union[float, Table]:
 
 
 Material = Annotated[Union[Annotated[float, Field(gt=0)], Profile], WrapValidator(_material)]
+
+
+# --------------------------------------------------------------------------- representable
+
+#: the normal range of a double: below DOUBLE_MIN a number loses significant bits (subnormal)
+#: and underflows to 0 soon after; above DOUBLE_MAX it is inf
+DOUBLE_MIN = sys.float_info.min
+DOUBLE_MAX = sys.float_info.max
+_LN_MIN, _LN_MAX = math.log(DOUBLE_MIN), math.log(DOUBLE_MAX)
+
+
+def _bounds(prop: Any) -> tuple[float, float]:
+    """(natural log of the smallest, of the largest) value of a rod property: a number, or
+    the values of a :class:`Profile` (the grid interpolates between them)."""
+    values = prop.value if isinstance(prop, Profile) else [prop]
+    return math.log(min(values)), math.log(max(values))
+
+
+def _unrepresentable(name: str, formula: str, ln_lo: float, ln_hi: float) -> Optional[str]:
+    """Why the quantity ``name`` (= ``formula``), whose natural log lies in [ln_lo, ln_hi]
+    over the rod, is not a normal double; None when it is."""
+    if ln_lo < _LN_MIN:
+        return (f"{name} {formula} = {_e10(ln_lo)} underflows double precision (below "
+                f"{DOUBLE_MIN:.3g}, where a double loses its digits and then becomes 0)")
+    if ln_hi > _LN_MAX:
+        return f"{name} {formula} = {_e10(ln_hi)} overflows double precision (above {DOUBLE_MAX:.3g})"
+    return None
+
+
+def _e10(ln_value: float) -> str:
+    """exp(ln_value) as text, also where it is beyond a double: '4.9e-1295'."""
+    exponent = math.floor(ln_value / math.log(10.0))
+    mantissa = math.exp(ln_value - exponent * math.log(10.0))
+    if mantissa >= 9.995:
+        mantissa, exponent = mantissa / 10.0, exponent + 1
+    return f"{mantissa:.3g}e{exponent:+d}"
+
+
+def representability_errors(rod: "Rod") -> list[dict]:
+    """The rod's coefficients that the solver cannot hold as normal doubles, as errors
+    naming the field to blame (``rod.diameter``, ``rod.youngs_modulus``, ...).
+
+    The solver forms, at every grid node (:class:`solver.properties.RodProperties`), the
+    section's area A = πD²/4 and moments J1 = πD⁴/64, J3 = πD⁴/32, the stiffnesses E·J1 and
+    G·J3, the mass ρA and the inertias ρJ1, ρJ3; and, to scale its Newton iterations
+    (:class:`solver.scheme.RodSystem`, docs/numerics.md § 3), the bending time scale
+    T = L²√(ρA/EJ1) and the floors L/T, 1/T, EJ1/L² and 1/L. Each must lie in the normal
+    range of a double, [2.2e-308, 1.8e308]: below it a number loses its significant
+    digits and becomes 0 (a zero stiffness or mass is a singular system), above it inf.
+    Bounds over a profile take the extremes of its values, which the grid interpolates
+    between. A diameter of 5e-324 m, a Young's modulus or density of 5e-324 are refused
+    here; any physical material is many orders of magnitude inside."""
+    length = float(rod.length)
+    d_lo, d_hi = _bounds(rod.diameter)
+    e_lo, e_hi = _bounds(rod.youngs_modulus)
+    g_lo, g_hi = _bounds(rod.shear_modulus)
+    r_lo, r_hi = _bounds(rod.density)
+    ln_l = math.log(length)
+    area = (math.log(math.pi / 4) + 2 * d_lo, math.log(math.pi / 4) + 2 * d_hi)
+    j1 = (math.log(math.pi / 64) + 4 * d_lo, math.log(math.pi / 64) + 4 * d_hi)
+    j3 = (math.log(math.pi / 32) + 4 * d_lo, math.log(math.pi / 32) + 4 * d_hi)
+    checks = [
+        ("diameter", "the section's area", "πD²/4", area),
+        ("diameter", "the section's moment", "πD⁴/64", j1),
+        ("diameter", "the section's polar moment", "πD⁴/32", j3),
+    ]
+    errors = []
+    for field, name, formula, (lo, hi) in checks:
+        why = _unrepresentable(name, formula, lo, hi)
+        if why:
+            errors.append(_err((field,), "not_representable", why + _fix(field), None))
+            return errors                   # the rest follows from the section
+    b = (e_lo + j1[0], e_hi + j1[1])
+    m = (r_lo + area[0], r_hi + area[1])
+    checks = [
+        ("youngs_modulus", "the bending stiffness", "E·πD⁴/64", b),
+        ("shear_modulus", "the torsional stiffness", "G·πD⁴/32", (g_lo + j3[0], g_hi + j3[1])),
+        ("density", "the mass per length", "ρ·πD²/4", m),
+        ("density", "the rotary inertia per length", "ρ·πD⁴/64", (r_lo + j1[0], r_hi + j1[1])),
+    ]
+    for field, name, formula, (lo, hi) in checks:
+        why = _unrepresentable(name, formula, lo, hi)
+        if why:
+            errors.append(_err((field,), "not_representable", why + _fix(field), None))
+    if errors:
+        return errors
+    # the scales of the Newton iterations, from the largest stiffness and mass (as the solver)
+    ln_tc = 2 * ln_l + 0.5 * (m[1] - b[1])
+    # blame the length where it, not the material's ratio, takes T out of range
+    by = ("length",) if abs(2 * ln_l) > abs(0.5 * (m[1] - b[1])) else ("density", "youngs_modulus")
+    for fields, name, formula, ln_value in (
+            (by, "the bending time scale", "L²√(ρA/EJ1)", ln_tc),
+            (by, "the velocity scale", "L/T", ln_l - ln_tc),
+            (("youngs_modulus",), "the force scale", "EJ1/L²", b[1] - 2 * ln_l),
+            (("length",), "the curvature scale", "1/L", -ln_l)):
+        why = _unrepresentable(name, formula, ln_value, ln_value)
+        if why:
+            for field in fields:
+                errors.append(_err((field,), "not_representable", why + _fix(field), None))
+    return errors
+
+
+def _fix(field: str) -> str:
+    return (f"; rod.{field} is in SI units ({_UNITS[field]}): check its value and unit, "
+            "and the other properties it is multiplied with")
+
+
+_UNITS = {"diameter": "m", "youngs_modulus": "Pa", "shear_modulus": "Pa", "density": "kg/m^3",
+          "length": "m"}
 NumberOrTable = Annotated[Union[float, Table], WrapValidator(_number_or_table)]
 
 
@@ -448,7 +558,7 @@ class Rod(BaseModel):
 
     @model_validator(mode="after")
     def _check_stations(self) -> "Rod":
-        errors = []
+        errors = representability_errors(self)
         for name in MATERIAL_PROPERTIES:
             prop = getattr(self, name)
             if isinstance(prop, Profile):
@@ -1604,6 +1714,8 @@ class Case(BaseModel):
         errors = (self._check_initial() + self._check_loads_on_rod() + self._check_contact()
                   + self._check_ill_posed_ends() + self._check_seabed())
         n_segments = self._check_numerics(errors)
+        if n_segments:
+            errors.extend(self._check_twist_resolved(n_segments))
         _raise("Case", errors)
         numerics, length = self.numerics, self.rod.length
         self.numerics = numerics.model_copy(update={"n_segments": n_segments, "ds": length / n_segments})
@@ -1632,11 +1744,29 @@ class Case(BaseModel):
                 errors.append(_err(("initial", "from_result"), "unsupported",
                                    "a start from an earlier result runs fixed steps only: "
                                    "leave out numerics.tolerance", None))
-            elif abs(k - round(k)) > 1e-9 * max(1.0, k) or not start.time < num.t_end:
+            # t_end first: a time of 1e308 made k infinite and round(k) an OverflowError
+            elif not start.time < num.t_end or abs(k - round(k)) > 1e-9 * max(1.0, k):
                 errors.append(_err(("initial", "from_result", "time"), "out_of_range",
                                    f"must be a multiple of numerics.dt = {num.dt!r} s before "
                                    f"numerics.t_end = {num.t_end!r} s", start.time))
         return errors
+
+    def _check_twist_resolved(self, n_segments: int) -> list[dict]:
+        """The initial twist rate against the grid: the solver represents the rotation of
+        the section from one node to the next as a rotation of at most π (half a turn;
+        :func:`solver.kinematics.relative_rotation` takes it the short way), so
+        |twist_rate|·Δs must not exceed π, or the twist aliases to another one (1e308 rad/m
+        gave non-finite quaternions and an internal_error at run time)."""
+        ds = self.rod.length / n_segments
+        rate = abs(float(self.initial.twist_rate))
+        if not rate * ds > math.pi:
+            return []
+        return [_err(("initial", "twist_rate"), "not_resolved",
+                     f"a twist rate of {self.initial.twist_rate!r} rad/m turns the section by "
+                     f"{rate * ds:.3g} rad over one grid cell (Δs = {ds:.6g} m); the grid holds "
+                     f"at most π rad (half a turn) per cell, {math.pi / ds:.6g} rad/m on this "
+                     "grid: raise numerics.n_segments or lower the twist rate (rad/m, SI)",
+                     self.initial.twist_rate)]
 
     def _check_loads_on_rod(self) -> list[dict]:
         """Point loads and distributed forces placed within [0, rod.length]."""

@@ -55,11 +55,54 @@ import scipy.sparse as sp
 
 from .simulation import _blas_controller
 from .static_band import BandSingular, BorderedBandLU
-from .statics import (NV, StaticProblem, StaticsError, _count, _qmul, band_jacobian, band_ready,
-                      factor, factor_jacobian, jacobian, lu_det_sign, mass_matrix,
+from .statics import (NV, PIVOT_RTOL, StaticProblem, StaticsError, _count, _qmul, band_jacobian,
+                      band_ready, factor, factor_jacobian, jacobian, lu_det_sign, mass_matrix,
                       nearest_eigenvalues, residual, solve, unstable_modes)
 
-__all__ = ["Branch", "Bifurcation", "continuation", "ContinuationError"]
+__all__ = ["Branch", "Bifurcation", "continuation", "ContinuationError", "range_unrepresentable"]
+
+
+def range_unrepresentable(p0: StaticProblem, p1: StaticProblem) -> Optional[str]:
+    """Why the range from the problem ``p0`` (the parameter's start value) to ``p1`` (its
+    target) cannot be followed in double precision, or None.
+
+    The bordered system of every corrector step carries the parameter's column
+    G_λ̂ = (∂G/∂λ)·(λ1 − λ0) (:meth:`_Scaled.g_lam`): the change of the problem's loads over
+    the whole range, beside the rod's own entries, whose sizes are the rod's units (forces
+    EJ/L², distributed loads EJ/L³, positions L, rotations 1, stiffness EJ). Where that change
+    is more than 1/PIVOT_RTOL = 1e14 of those units, every pivot of the rod's rows is below
+    PIVOT_RTOL of the column's and the LU is singular to rounding
+    (:func:`solver.statics._check_pivots`), from the first step; a `to` of ±1e308 N made the
+    change infinite as well. Only the data the parameter moves are compared (end forces and
+    positions, distributed loads, end twist, stiffness)."""
+    b = float(np.max(p0.stiffness[:, :2]))
+    length = float(p0.length)
+    units = {"force": b / length**2, "load": b / length**3, "position": length,
+             "twist": 1.0, "stiffness": b}
+    changes = {
+        "the end forces": (np.concatenate([p1.start.force - p0.start.force,
+                                           p1.end.force - p0.end.force]), "force", "N"),
+        "the end positions": (np.concatenate([p1.start.position - p0.start.position,
+                                              p1.end.position - p0.end.position]),
+                              "position", "m"),
+        "the distributed load": (p1.load - p0.load, "load", "N/m"),
+        "the end twist": (np.array([p1.start.twist - p0.start.twist,
+                                    p1.end.twist - p0.end.twist]), "twist", "rad"),
+        "the stiffness": (p1.stiffness - p0.stiffness, "stiffness", "N m²"),
+    }
+    limit = 1.0 / PIVOT_RTOL
+    for name, (delta, unit, si) in changes.items():
+        with np.errstate(over="ignore", invalid="ignore"):
+            size = float(np.max(np.abs(delta))) if np.size(delta) else 0.0
+            scaled = size / units[unit]
+        if not scaled <= limit:           # also inf and NaN
+            times = f"{scaled:.3g}" if np.isfinite(scaled) else "more than 1.8e308"
+            return (f"the range changes {name} by {size:.3g} {si}, {times} times the "
+                    f"rod's own scale ({units[unit]:.3g} {si}: EJ = {b:.3g} N m², L = "
+                    f"{length:.6g} m); a continuation holds at most {limit:.0e} of it in double "
+                    "precision (beyond, the rod's pivots fall below the rounding of the "
+                    "parameter's column)")
+    return None
 
 
 #: step control: Δs grows by 1.5 after a step of at most GROW_ITERATIONS corrector

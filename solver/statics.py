@@ -610,11 +610,15 @@ def factor(A):
     return lu
 
 
+#: a pivot below this fraction of the largest in size is zero to rounding (:func:`_check_pivots`)
+PIVOT_RTOL = 1e-14
+
+
 def _check_pivots(d):
     """Raise :class:`StaticsError` where a pivot of U's diagonal ``d`` is not finite or is
-    below 1e-14 of the largest in size (a matrix singular to rounding)."""
+    below PIVOT_RTOL (1e-14) of the largest in size (a matrix singular to rounding)."""
     d = np.abs(d)
-    if not np.all(np.isfinite(d)) or d.min() <= 1e-14 * d.max():
+    if not np.all(np.isfinite(d)) or d.min() <= PIVOT_RTOL * d.max():
         raise StaticsError("singular Jacobian (a pivot is zero to rounding)")
 
 

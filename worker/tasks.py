@@ -44,7 +44,7 @@ from celery.exceptions import Reject, SoftTimeLimitExceeded
 from celery.signals import worker_process_init, worker_ready, worker_shutdown, \
     worker_shutting_down
 
-from service.queue import TASK_NAME, Enqueuer, send_job, sweep
+from service.queue import TASK_NAME, Enqueuer, RegistryWatch, send_job, sweep
 from service.registry import DISMISSED, FAILED, REGISTRY_UNAVAILABLE, SUCCESSFUL, Registry
 from service.settings import Settings, get_settings
 from service.problems import ProblemError
@@ -205,12 +205,17 @@ class JobRun:
             self._beat_thread.join(timeout=5)
 
     def _beat(self) -> None:
-        while not self._beat_stop.wait(self.settings.heartbeat_interval):
+        interval = self.settings.heartbeat_interval
+        wait = interval
+        while not self._beat_stop.wait(wait):
             try:
                 alive = self.registry.job_heartbeat(self.job_id, self.attempt)
             except Exception as exc:  # noqa: BLE001 - registry briefly down: next beat
                 _log_registry_error(f"job {self.job_id}: heartbeat", exc)
+                # soon again: the beat should land as soon as the registry takes writes
+                wait = min(interval, max(1.0, interval / 5))
                 continue
+            wait = interval
             if not alive and not self._beat_stop.is_set():
                 # finished by this attempt is excluded (stop_heartbeat comes first); so the
                 # job was reaped, or given up as lost and queued again: stop solving
@@ -911,6 +916,7 @@ def _start_heartbeat(sender=None, **_kwargs) -> None:
     _main_registry.append(registry)
     name = getattr(sender, "hostname", None) or f"pid-{os.getpid()}"
     enqueuer = Enqueuer(settings, current_app._get_current_object())
+    watch = RegistryWatch()       # a job's silence counts only while the registry took writes
 
     def beat() -> None:
         while not _heartbeat_stop.is_set():
@@ -919,7 +925,7 @@ def _start_heartbeat(sender=None, **_kwargs) -> None:
             except Exception as exc:  # noqa: BLE001 - registry down: try again next beat
                 _log_registry_error("worker heartbeat", exc)
             try:
-                sweep(registry, enqueuer, settings, log)
+                sweep(registry, enqueuer, settings, log, watch)
             except Exception as exc:  # noqa: BLE001 - registry down: try again next beat
                 _log_registry_error("sweep", exc)
             _heartbeat_stop.wait(settings.heartbeat_interval)

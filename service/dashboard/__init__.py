@@ -48,7 +48,7 @@ from ..auth import caller
 from ..problems import ProblemError
 from ..store import open_result
 from ..routers.results import _not_modified
-from ..validation import parse_body, read_body, validate_case
+from ..validation import parse_request, validate_case
 
 __all__ = ["UI_URL", "UI_API_PREFIX", "CSP", "STATIC_DIR", "install_dashboard"]
 
@@ -297,7 +297,8 @@ def ui_job_paraview(job_id: str, svc: Annotated[Services, Depends(services)],
     frames (:func:`service.export.export_vtk`, the function behind ``hockle export``), at
     most :data:`PARAVIEW_MAX_FRAMES` frames (every k-th output time, the last one kept).
     404 ``result-not-ready`` before there is a result; 422 ``not-exportable`` for a result
-    without positions."""
+    without positions; 409 ``result-is-a-branch`` for a continuation job's branch, which the
+    export does not write (it was a 500, ``KeyError: 'time'``)."""
     import io
     import tempfile
     import zipfile
@@ -309,7 +310,15 @@ def ui_job_paraview(job_id: str, svc: Annotated[Services, Depends(services)],
     if not job.result_path or not os.path.exists(job.result_path):
         raise ProblemError(404, "result-not-ready", "Result not ready",
                            f"job {job.id} is {job.state} and has no result file")
+    branch = ProblemError(409, "result-is-a-branch", "The result is a branch",
+                          f"job {job.id}'s result is a branch of equilibria (dimension point), "
+                          "not a time series: the ParaView export writes time series only; "
+                          f"download the NetCDF file at /v1/jobs/{job.id}/results")
+    if (job.kind or "dynamic") != "dynamic":
+        raise branch
     with open_result(job.result_path) as ds:
+        if "time" not in ds.dims:
+            raise branch
         n_times = ds.sizes.get("time", 0)
         keep = [v for v in ("position", "kappa", "f", "v", "omega", "moment", "orientation")
                 if v in ds]
@@ -340,11 +349,10 @@ async def ui_validate(request: Request, svc: Annotated[Services, Depends(service
     problem the submission would get."""
     from fastapi.concurrency import run_in_threadpool
 
-    body = await read_body(request)
+    data = await parse_request(request, svc.settings.body_parse_timeout)
 
     def check():
-        case = validate_case(parse_body(body, request.headers.get("content-type")),
-                             svc.settings.max_case_size)
+        case = validate_case(data, svc.settings.max_case_size)
         return {"valid": True, "name": case.name, "grid_points": case.grid_points,
                 "n_steps": case.n_steps, "t_end": float(case.numerics.t_end)}
 

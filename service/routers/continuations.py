@@ -15,18 +15,18 @@ from ..deps import Services, services
 from ..problems import problem_responses
 from ..registry import Job
 from ..schemas import JobStatus
-from ..validation import parse_body, read_body
+from ..validation import parse_request
 from .jobs import (REUSED_HEADER, _check_time_limit, _exists, job_status, record_and_enqueue,
                    submit_slots)
 
 router = APIRouter(tags=["continuations"])
 
 
-def _submit(svc: Services, body: bytes, content_type: str | None, idempotency_key: str | None,
-            fresh: bool, time_limit: float | None,
-            owner: str | None) -> tuple[Job, int, str | None]:
+def _submit(svc: Services, data, idempotency_key: str | None, fresh: bool,
+            time_limit: float | None, owner: str | None) -> tuple[Job, int, str | None]:
+    """Validate (``data``: the parsed body), record and queue a continuation."""
     _check_time_limit(time_limit, svc.settings.time_limit_max)
-    case, options = validate_request(parse_body(body, content_type), svc.settings.max_case_size)
+    case, options = validate_request(data, svc.settings.max_case_size)
     canonical = canonical_request(case, options)
     limits = svc.settings.time_limits(case.grid_points, POINT_COST_STEPS * options.max_points,
                                       requested=time_limit)
@@ -70,11 +70,10 @@ async def submit_continuation(
     field) and queue a job of kind ``continuation``; answers at once (201). Its result, at
     /v1/jobs/{id}/results, is the branch dataset (dimension ``point``; docs/statics.md);
     ``step`` in its status counts the points done."""
-    body = await read_body(request)
+    data = await parse_request(request, svc.settings.body_parse_timeout)
     async with submit_slots(request):
         job, status, reused = await run_in_threadpool(
-            _submit, svc, body, request.headers.get("content-type"), idempotency_key, fresh,
-            time_limit, owner)
+            _submit, svc, data, idempotency_key, fresh, time_limit, owner)
     response.status_code = status
     response.headers["Location"] = f"/v1/jobs/{job.id}"
     if reused is not None:

@@ -14,9 +14,10 @@ import asyncio
 from concurrent.futures import ThreadPoolExecutor
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Query
+from fastapi import APIRouter, Depends, Query, Request
 from fastapi.responses import JSONResponse
 
+from ..auth import authenticated
 from ..deps import Services, services
 from ..schemas import Check, Health
 
@@ -47,13 +48,16 @@ async def _bounded(fn, timeout: float) -> Check:
             response_model=Health, responses={503: {"model": Health,
                                                     "description": "A dependency is down"}})
 async def get_health(
+    request: Request,
     svc: Annotated[Services, Depends(services)],
     live: Annotated[bool, Query(description="Liveness only: answer 200 while the process "
                                             "serves requests, without checking dependencies.")]
     = False,
 ):
     """Readiness: 200 when the registry, the broker and the result store answer, 503
-    otherwise. ``?live=true``: liveness, 200 without checking anything."""
+    otherwise. ``?live=true``: liveness, 200 without checking anything. With API keys the
+    workers' names (``workers``) go to a request with a valid key only; ``workers_seen``
+    counts them for everyone."""
     import solver
 
     mode = "embedded" if svc.settings.embedded else "distributed"
@@ -68,6 +72,8 @@ async def get_health(
         _bounded(svc.registry.ping, timeout), _bounded(svc.enqueuer.ping, timeout),
         _bounded(svc.store.check_writable, timeout))
     workers, counts = [], {}
+    # the names of the machines a service runs on are for its users: with keys, a key's
+    names = authenticated(request) or not getattr(request.app.state, "auth_enabled", False)
     if registry.ok:
         def details():
             seen = [{"name": w.name, "last_seen": w.last_seen.isoformat() + "Z",
@@ -83,7 +89,8 @@ async def get_health(
     healthy = registry.ok and broker.ok and store.ok
     body = Health(status="ok" if healthy else "unavailable", mode=mode,
                   solver_version=solver.__version__, registry=registry, broker=broker,
-                  result_store=store, workers=workers, jobs=counts)
+                  result_store=store, workers=workers if names else [],
+                  workers_seen=len(workers), jobs=counts)
     if healthy:
         return body
     return JSONResponse(body.model_dump(mode="json"), status_code=503)

@@ -4,6 +4,7 @@ from __future__ import annotations
 import asyncio
 import datetime as dt
 import hashlib
+from functools import partial
 from typing import Annotated
 
 from fastapi import APIRouter, Depends, Header, Query, Request, Response
@@ -21,7 +22,7 @@ from ..registry import (
     utcnow,
 )
 from ..schemas import JobError, JobLinks, JobList, JobStatus
-from ..validation import parse_body, read_body, start_from_job, validate_case
+from ..validation import parse_body, parse_request, start_from_job, validate_case
 
 router = APIRouter(tags=["jobs"])
 
@@ -107,15 +108,19 @@ def _check_time_limit(time_limit: float | None, maximum: float) -> None:
 REUSED_HEADER = "Hockle-Reused"
 
 
-def _submit(svc: Services, body: bytes, content_type: str | None, idempotency_key: str | None,
-            fresh: bool, time_limit: float | None = None,
-            owner: str | None = None) -> tuple[Job, int, str | None, list[str]]:
+def _submit(svc: Services, body: bytes | None, content_type: str | None,
+            idempotency_key: str | None, fresh: bool, time_limit: float | None = None,
+            owner: str | None = None, *,
+            data=None) -> tuple[Job, int, str | None, list[str]]:
     """Validate, record and queue a case: ``(job, status, reused, advice)``; ``reused`` is
     None for a new job (201), else why an earlier job answers (200): ``identical_case`` or
     ``idempotency_key``; ``advice`` what the case as given is advised
-    (:func:`case_advice`)."""
+    (:func:`case_advice`). The case is ``body`` (parsed here), or ``data`` already parsed
+    (:func:`service.validation.parse_request`) when ``body`` is None."""
     _check_time_limit(time_limit, svc.settings.time_limit_max)
-    case = validate_case(parse_body(body, content_type), svc.settings.max_case_size)
+    if body is not None:
+        data = parse_body(body, content_type, svc.settings.body_parse_timeout)
+    case = validate_case(data, svc.settings.max_case_size)
     start_from_job(case, svc.registry, owner)       # checked now; the worker reads it again
     hard, soft, budget = svc.settings.time_limits(case.grid_points, case.n_steps,
                                                   contact=case.contact is not None,
@@ -154,10 +159,11 @@ def record_and_enqueue(svc: Services, *, kind: str, canonical: str, spec_hash: s
     asked = "" if time_limit is None else f"|time_limit={float(time_limit)!r}"
     fingerprint = hashlib.sha256(f"{canonical}|fresh={fresh}{asked}".encode()).hexdigest()
     if idempotency_key is not None:
-        if not 1 <= len(idempotency_key) <= 200:
+        if not 1 <= len(idempotency_key) <= 200 or not idempotency_key.isprintable():
             raise ProblemError(422, "invalid-request", "Invalid request",
                                errors=[{"loc": "header.Idempotency-Key",
-                                        "msg": "must be 1 to 200 characters", "type": "string"}])
+                                        "msg": "must be 1 to 200 printable characters",
+                                        "type": "string"}])
         earlier = svc.registry.by_idempotency_key(idempotency_key, owner=owner)
         if earlier is not None:
             if earlier.request_fingerprint != fingerprint:
@@ -248,11 +254,12 @@ async def submit_job(
     """Validate the case and queue it; answers at once (201), never runs a solve itself. An
     identical case that already succeeded (or a retried Idempotency-Key) is answered 200 with
     the earlier job, marked ``reused``."""
-    body = await read_body(request)
+    # parsed on a thread of its own within its budget, never on the event loop
+    data = await parse_request(request, svc.settings.body_parse_timeout)
     # a burst of submissions waits here, not in the thread pool that status polls need
     async with submit_slots(request):
         job, status, reused, advice = await run_in_threadpool(
-            _submit, svc, body, request.headers.get("content-type"), idempotency_key, fresh,
+            partial(_submit, data=data), svc, None, None, idempotency_key, fresh,
             time_limit, owner
         )
     response.status_code = status
@@ -297,9 +304,16 @@ def list_jobs(
 
 
 def _naive(value: dt.datetime | None) -> dt.datetime | None:
+    """``value`` as naive UTC (the registry's columns); an aware time whose UTC lies outside
+    the years 1-9999 (``9999-12-31T23:59:59-05:00``, ``0001-01-01T00:00:00+05:00``: a 500
+    before) is clamped to the nearest representable instant, which every job time lies
+    within, so the filter means what it said."""
     if value is None or value.tzinfo is None:
         return value
-    return value.astimezone(dt.timezone.utc).replace(tzinfo=None)
+    try:
+        return value.astimezone(dt.timezone.utc).replace(tzinfo=None)
+    except OverflowError:
+        return dt.datetime.max if value.year == dt.MAXYEAR else dt.datetime.min
 
 
 @router.get("/jobs/{job_id}", operation_id="get_job", summary="Job status",

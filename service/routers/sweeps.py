@@ -27,12 +27,17 @@ from ..deps import Services, services
 from ..problems import ProblemError, problem_responses
 from ..registry import ACTIVE_STATES, RUNNING, Job, SweepRecord
 from ..store import NETCDF_LOCK, open_result
-from ..validation import parse_body, read_body, start_from_job, validate_case
+from ..validation import parse_request, start_from_job, validate_case
 from . import jobs as jobs_router
 from .results import NETCDF_MEDIA_TYPE, _etag, _not_modified
 
 router = APIRouter(tags=["sweeps"])
 log = logging.getLogger(__name__)
+
+#: combined datasets kept per sweep (one per field set asked for); beyond it the oldest
+#: built go, and are built again if asked for (each spelling of ?fields= built and kept
+#: another file before)
+MAX_COMBINED_PER_SWEEP = 8
 
 
 def _invalid(exc: sw.SweepError) -> ProblemError:
@@ -164,8 +169,9 @@ async def submit_sweep(
     """``{"base": CASE, "parameters": {PATH: [values...]}, "combine": "grid" | "zip"}``.
     Every member is validated first (a 422 names the member, its values and the field, and
     nothing is queued); then one job per member is queued as ``POST /v1/jobs`` does."""
-    body = await read_body(request)
-    data = parse_body(body, request.headers.get("content-type"))
+    # parsed on a thread of its own within its budget (it was parsed on the event loop: a
+    # 383-byte alias bomb held every request, liveness too, for 23-29 s)
+    data = await parse_request(request, svc.settings.body_parse_timeout)
     async with jobs_router.submit_slots(request):
         sweep, jobs = await run_in_threadpool(_create, svc, data, fresh, time_limit, owner)
     response.headers["Location"] = f"/v1/sweeps/{sweep.id}"
@@ -214,9 +220,32 @@ def dismiss_sweep(sweep_id: str, response: Response,
     return sweep_status(sweep, jobs)
 
 
+def canonical_fields(fields: str | None) -> list[str]:
+    """The field set of ``?fields=``: its names, stripped, once each, sorted; ``kappa``,
+    ``kappa,kappa`` and ``kappa, kappa`` are one set, one combined file."""
+    return sorted({f.strip() for f in (fields or "").split(",") if f.strip()})
+
+
 def _combined_path(svc: Services, sweep: SweepRecord, fields: list[str]) -> Path:
     key = hashlib.sha256(",".join(fields).encode()).hexdigest()[:12]
     return Path(svc.settings.results_dir) / "sweeps" / f"{sweep.id}.{key}.nc"
+
+
+def _evict_combined(path: Path, keep: int | None = None) -> None:
+    """Remove the sweep's combined files beyond the ``keep`` most recently built (by
+    mtime; not touched when served, which would change their ETag); never ``path``, the
+    one being answered. ``keep``: default :data:`MAX_COMBINED_PER_SWEEP`."""
+    keep = MAX_COMBINED_PER_SWEEP if keep is None else keep
+    mine = []
+    for other in path.parent.glob(f"{path.name.split('.', 1)[0]}.*.nc"):
+        try:
+            mine.append((other.stat().st_mtime, other))
+        except FileNotFoundError:        # removed by another request meanwhile
+            continue
+    mine.sort(reverse=True)
+    for _, other in mine[keep:]:
+        if other != path:
+            other.unlink(missing_ok=True)
 
 
 def _load_member(job: Job | None):
@@ -255,10 +284,11 @@ def download_sweep_results(
         raise ProblemError(404, "result-not-ready", "Result not ready",
                            f"sweep {sweep_id} has {len(set(active))} member job(s) still queued "
                            "or running; the combined dataset is built when all have finished")
-    wanted = [f.strip() for f in (fields or "").split(",") if f.strip()]
+    wanted = canonical_fields(fields)
     path = _combined_path(svc, sweep, wanted)
     if not path.exists():
         _build(svc, sweep, jobs, wanted, path)
+        _evict_combined(path)
     etag = _etag(str(path))
     if _not_modified(request, etag):
         return Response(status_code=304, headers={"ETag": etag})

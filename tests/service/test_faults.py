@@ -496,3 +496,124 @@ def test_registry_locked_45_s_at_pickup_with_default_settings(tmp_path_factory, 
         _check_locked_pickup(done)
     finally:
         stack.close()
+
+
+# --- a registry outage longer than the heartbeat time-out while a job runs (issue 80) ----------
+def test_no_job_is_lost_before_the_registry_was_writable_for_the_timeout(registry: Registry):
+    """requeue_lost counts a job's silence only while the registry took writes: with the
+    caller's writable_since within the heartbeat time-out, no job is lost, however old its
+    heartbeat; once the registry has been writable for the time-out, it is."""
+    job = _new(registry, "silent")
+    assert registry.claim(job.id, "w@test") == 1
+    later = _utc(120)                                  # the heartbeat is 120 s old then
+    assert [j for j, _ in registry.requeue_lost(
+        heartbeat_timeout=60, max_attempts=3, now=later, writable_since=later -
+        dt.timedelta(seconds=30)) if j.id == job.id] == []
+    found = [(j.id, a) for j, a in registry.requeue_lost(
+        heartbeat_timeout=60, max_attempts=3, now=later,
+        writable_since=later - dt.timedelta(seconds=61)) if j.id == job.id]
+    assert found == [(job.id, "requeued")]
+
+
+def test_the_watch_dates_writability_from_the_first_write_after_an_outage():
+    from sqlalchemy.exc import OperationalError as Locked
+
+    from service.queue import RegistryWatch
+
+    class Flaky:
+        def __init__(self):
+            self.fail, self.wait = False, 0.0
+
+        def probe_write(self):
+            time.sleep(self.wait)
+            if self.fail:
+                raise Locked("UPDATE", {}, Exception("database is locked"))
+
+    watch, reg = RegistryWatch(slow=0.2), Flaky()
+    born = watch.writable_since
+    watch.probe(reg)
+    assert watch.writable_since == born               # writable all along: unchanged
+    reg.fail = True
+    with pytest.raises(Locked):
+        watch.probe(reg)
+    reg.fail = False
+    before = _utc()
+    watch.probe(reg)
+    assert watch.writable_since >= before             # from the first write after it
+    reg.wait = 0.3                                    # a write that waited on a lock
+    before = _utc(0.3)
+    watch.probe(reg)
+    assert watch.writable_since >= before
+
+
+def _lock_registry(backend: str, url: str):
+    """Take the registry's write lock as an administrator or a migration would: SQLite
+    BEGIN EXCLUSIVE, PostgreSQL LOCK TABLE hockle_jobs IN EXCLUSIVE MODE (reads go on, so
+    the test can watch the job). Returns the release function."""
+    if backend == "sqlite":
+        holder = sqlite3.connect(url.split("///", 1)[1], isolation_level=None, timeout=30)
+        holder.execute("BEGIN EXCLUSIVE")
+
+        def release():
+            holder.execute("ROLLBACK")
+            holder.close()
+        return release
+    import psycopg
+
+    holder = psycopg.connect(url.replace("postgresql+psycopg://", "postgresql://"))
+    holder.execute("LOCK TABLE hockle_jobs IN EXCLUSIVE MODE")
+
+    def release():
+        holder.rollback()
+        holder.close()
+    return release
+
+
+@pytest.mark.service
+@pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
+def test_a_registry_outage_of_three_heartbeat_timeouts_changes_nothing_for_a_running_job(
+        tmp_path_factory, redis_server, backend):
+    """The audit's fault (a 25-s lock with a 10-s job heartbeat time-out: the running job was
+    declared lost and redone as attempt 2), scaled: job heartbeat time-out 3 s, heartbeat and
+    sweeps every 1 s, the registry locked for 10 s (more than 3 x 3 s) while a real worker
+    solves the job, the API's and the worker's sweepers running throughout. The job
+    finishes once, as attempt 1, with no worker_lost event (docs/service.md, Failure model)."""
+    from svc_support import empty_database_url, long_case
+
+    root = tmp_path_factory.mktemp(f"outage-{backend}")
+    with empty_database_url(backend, root, "hockle_outage_job") as url:
+        stack = make_stack(tmp_path_factory, f"outage-job-{backend}", {
+            "HOCKLE_DATABASE_URL": url, "HOCKLE_BROKER_URL": redis_server.url,
+            "HOCKLE_QUEUE": f"outage-{backend}", "HOCKLE_JOB_HEARTBEAT_TIMEOUT": "3",
+            "HOCKLE_REGISTRY_BUSY_TIMEOUT": "1", "HOCKLE_REGISTRY_REQUEST_TIMEOUT": "1"})
+        try:
+            stack.start_api()
+            stack.start_worker("o1")
+            response = stack.submit(long_case(f"outage-{backend}", t_end=40.0))
+            assert response.status_code == 201, response.text
+            job_id = response.json()["id"]
+            wait_until(lambda: (lambda j: j["state"] == "running" and j["progress"] > 2)(
+                stack.job(job_id)), 180, 0.2, "the job to run")
+            release = _lock_registry(backend, url)
+            locked_at = time.monotonic()
+            try:
+                time.sleep(10.0)           # the fault: 3 x the heartbeat time-out and more
+                assert stack.job(job_id)["state"] == "running"    # reads go on
+            finally:
+                release()
+            held = time.monotonic() - locked_at
+            done = stack.wait_state(job_id, TERMINAL, 300)
+            reg = registry_for(stack)
+            try:
+                kinds = [e.kind for e in reg.events(job_id)]
+            finally:
+                reg.dispose()
+            logs = stack.log("api.log") + stack.log("worker-o1.log")
+        finally:
+            stack.close()
+    assert held >= 9.0
+    assert done["state"] == "successful", done
+    assert done["attempts"] == 1, (done, kinds)
+    assert "worker_lost" not in kinds and kinds.count("started") == 1, kinds
+    assert kinds.count("finished") == 1, kinds
+    assert "registry unavailable" in logs       # the outage was seen, and outlasted
