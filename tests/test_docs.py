@@ -111,7 +111,7 @@ def test_readme_is_short():
 
 def test_no_diary_outside_the_changelog():
     """The repository describes the software as it is: what changed and when goes to
-    CHANGELOG.md (and dated rows of docs/benchmarks-history.md), not into prose."""
+    CHANGELOG.md (and the dated notes of research/notes/), not into prose."""
     found = []
     for path in sorted([*ROOT.rglob("*.md"), *ROOT.rglob("*.py")]):
         rel = path.relative_to(ROOT).as_posix()
