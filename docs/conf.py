@@ -61,7 +61,8 @@ html_static_path: list[str] = []
 
 # --------------------------------------------------------------------------- API reference
 autosummary_generate = True
-autodoc_default_options = {"members": True, "show-inheritance": False}
+# no default "members": a default of True would override each page's explicit member list
+autodoc_default_options = {"show-inheritance": False}
 autodoc_member_order = "bysource"
 autodoc_typehints = "description"
 autodoc_typehints_description_target = "documented_params"   # no bare type lists
@@ -199,7 +200,8 @@ def _write_api_reference() -> None:
             body += ["   :no-members:", ""]
             for attr in names:
                 kind = "autoclass" if isinstance(getattr(module, attr), type) else "autofunction"
-                body += [f".. {kind}:: solver.{attr}", ""]
+                body += [f".. {kind}:: solver.{attr}"]
+                body += ["   :members:", ""] if kind == "autoclass" else [""]
         elif names:
             body += [f"   :members: {', '.join(names)}", ""]
         else:

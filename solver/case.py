@@ -229,10 +229,14 @@ def _models_in(annotation: Any) -> list[type]:
 class CaseError(ValueError):
     """An invalid case spec, or one that could not be read or parsed.
 
-    ``errors`` is a list of ``{"loc": str, "msg": str, "type": str}`` dicts; ``loc`` is a
-    field path such as ``rod.diameter.value[2]`` (``""`` for the document as a whole).
-    ``str(error)`` is a readable multi-line message, one ``path: reason`` line per error.
-    Raised by :meth:`Case.from_file` and :meth:`Case.from_text`.
+    Raised by :meth:`Case.from_file` and :meth:`Case.from_text`; ``str(error)`` is a
+    readable multi-line message, one ``path: reason`` line per error.
+
+    Attributes
+    ----------
+    errors : list of dict
+        ``{"loc": str, "msg": str, "type": str}`` each; ``loc`` is a field path such as
+        ``rod.diameter.value[2]`` (``""`` for the document as a whole).
     """
 
     def __init__(self, errors: list[dict], source: Optional[str] = None):
@@ -1584,11 +1588,44 @@ class Case(BaseModel):
     with :func:`format_validation_errors`). Beyond the per-model rules this checks that
     ``numerics.ds`` divides ``rod.length`` (1e-9 relative) or agrees with
     ``numerics.n_segments``, fills in both, and that every ``distributed_forces[i].s_range``
-    lies within ``[0, rod.length]``.
+    lies within ``[0, rod.length]``. Every field, its unit and its rule: docs/case-spec.md.
 
     Identity: :meth:`canonical_json` (sorted keys, no whitespace, defaults filled) and
     :meth:`spec_hash` (its sha256); re-validating the canonical JSON gives an equal case
     with the same hash.
+
+    Attributes
+    ----------
+    schema_version : int
+        1.
+    name : str
+        The case's name.
+    rod : Rod
+        Length and material, each a number or a profile along s.
+    fluid : Fluid or None
+        Still fluid: density, added mass and drag coefficients.
+    gravity : list of float or None
+        m/s², global frame.
+    distributed_forces, point_loads : list
+        Loads in the global (or, for point loads, the body) frame, in windows of time.
+    initial : Initial
+        The start: straight, a centreline, a twist rate, or an earlier result's state.
+    boundary : Boundary
+        The two ends' conditions, body or global frame, switching in time.
+    contact : Contact or None
+        Self-contact.
+    seabed : Seabed or None
+        The sea floor.
+    numerics : Numerics
+        Grid, steps, ρ∞, Newton, error control, the energy check.
+    output : Output
+        Output cadence and fields.
+
+    Examples
+    --------
+    >>> case = Case.from_file("cases/goyal-writhing.yaml")    # doctest: +SKIP
+    >>> case.numerics.n_segments                               # doctest: +SKIP
+    1000
     """
 
     model_config = _MODEL_CONFIG
