@@ -1593,39 +1593,6 @@ class Case(BaseModel):
     Identity: :meth:`canonical_json` (sorted keys, no whitespace, defaults filled) and
     :meth:`spec_hash` (its sha256); re-validating the canonical JSON gives an equal case
     with the same hash.
-
-    Attributes
-    ----------
-    schema_version : int
-        1.
-    name : str
-        The case's name.
-    rod : Rod
-        Length and material, each a number or a profile along s.
-    fluid : Fluid or None
-        Still fluid: density, added mass and drag coefficients.
-    gravity : list of float or None
-        m/s², global frame.
-    distributed_forces, point_loads : list
-        Loads in the global (or, for point loads, the body) frame, in windows of time.
-    initial : Initial
-        The start: straight, a centreline, a twist rate, or an earlier result's state.
-    boundary : Boundary
-        The two ends' conditions, body or global frame, switching in time.
-    contact : Contact or None
-        Self-contact.
-    seabed : Seabed or None
-        The sea floor.
-    numerics : Numerics
-        Grid, steps, ρ∞, Newton, error control, the energy check.
-    output : Output
-        Output cadence and fields.
-
-    Examples
-    --------
-    >>> case = Case.from_file("cases/goyal-writhing.yaml")    # doctest: +SKIP
-    >>> case.numerics.n_segments                               # doctest: +SKIP
-    1000
     """
 
     model_config = _MODEL_CONFIG
