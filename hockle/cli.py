@@ -563,6 +563,14 @@ def cmd_export(args: argparse.Namespace) -> int:
         _err(f"hockle: cannot read {path}: {exc}")
         return EXIT_INVALID
     progress = _frame_progress("export")
+    from service.export import BODY_VECTORS
+    from service.branch_view import is_branch
+
+    if (not args.quiet and not is_branch(ds) and "orientation" not in ds
+            and any(name in ds for name in BODY_VECTORS)):
+        _err(f"hockle: {path} stores no orientation (output.fields): its vectors are written "
+             "along the directors only (v_body, ...); with orientation stored they are also "
+             "turned into the global frame (v_global, ...)")
     try:
         files = export_vtk(ds, out, stride=args.stride, window=args.times,
                            progress=None if args.quiet else progress)
@@ -718,21 +726,28 @@ def build_parser() -> tuple[argparse.ArgumentParser, str | None]:
 
     p = sub.add_parser(
         "export",
-        help="a VTK time series (.pvd + .vtu frames) of the rod for ParaView",
+        help="a VTK series (.pvd + .vtu frames) of the rod for ParaView: a run over time, "
+        "a branch's shapes over its points",
         description="Write a result file as a ParaView data collection: one VTK file per "
-        "output time with the centreline as line cells and every per-node field (v, "
-        "omega, f, kappa, moment, orientation, s) as point data. Open the .pvd in "
-        "ParaView (a Tube filter draws the cable).",
+        "output time with the centreline as line cells and the per-node fields as point "
+        "data, each named with its frame: v, omega, f, kappa, moment along the directors "
+        "(v_body, ...) and, when the result stores orientation, turned into the global "
+        "frame (v_global, ...); orientation, s and the radius. A continuation's branch "
+        "(hockle continue) exports its stored shapes, one file per point, with the "
+        "parameter and the unstable modes. Open the .pvd in ParaView (a Tube filter with "
+        "its radius varied by the radius array draws the cable).",
     )
-    p.add_argument("result", metavar="OUT.nc", help="result file written by hockle run")
+    p.add_argument("result", metavar="OUT.nc",
+                   help="result file written by hockle run (or a branch, by hockle continue)")
     p.add_argument("-o", "--output", metavar="FILE.pvd",
                    help="collection to write; the frames go to <stem>/ beside it (default: "
                    "<result stem>.pvd next to the result; FILE.vtu writes the first frame "
                    "only)")
     p.add_argument("--stride", type=int, default=1, metavar="K",
-                   help="every K-th output time, the last one included (default 1: all)")
+                   help="every K-th output time (of a branch: stored shape), the last one "
+                   "included (default 1: all)")
     p.add_argument("--times", nargs=2, type=float, metavar=("T0", "T1"),
-                   help="only the outputs with T0 <= t <= T1 (s)")
+                   help="only the outputs with T0 <= t <= T1 (s); a run only")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=cmd_export)
 

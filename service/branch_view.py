@@ -175,8 +175,9 @@ def measures(ds) -> dict[str, dict[str, Any]]:
 
     Scales of the round-off (:data:`ROUND_OFF` times): lengths, the rod's length; forces, the
     largest end force; moments, the largest end moment or end force times the length;
-    energies, the largest elastic energy or load potential; turns (Wr sums N² pairs of
-    segments, each rounded), N² x 1e-2."""
+    energies, the largest elastic energy or load potential; turns, 1e6 turns (Wr closes the
+    open rod by extensions 1e6 times its length, :data:`solver.topology.DEFAULT_EXTENSION_FACTOR`,
+    and rounds as they do: 1e-11 turns on a planar elastica, exactly zero in exact arithmetic)."""
     length = _length(ds)
     t0 = _start_tangent(ds)
     fe = np.asarray(ds["end_force"].values, float)
@@ -186,8 +187,11 @@ def measures(ds) -> dict[str, dict[str, Any]]:
                        force_scale * length)
     energy_scale = max(float(np.nanmax(np.abs(ds[k].values), initial=0.0))
                        for k in ("elastic_energy", "load_potential"))
-    nodes = int(ds.sizes.get("node", 1))
-    turn_scale = 1e-2 * nodes ** 2
+    from solver.topology import DEFAULT_EXTENSION_FACTOR
+
+    # Wr closes the open rod with straight extensions DEFAULT_EXTENSION_FACTOR (1e6) times
+    # its length: its terms, and their rounding, are that much larger than the rod's own
+    turn_scale = float(DEFAULT_EXTENSION_FACTOR)
     raw = {
         "excursion": (excursion(ds), length),
         "end_to_end": (ds["end_to_end"].values, length),
