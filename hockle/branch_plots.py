@@ -31,21 +31,30 @@ MAX_PANELS = 4
 
 
 def _bifurcation_y(lam, y, after, p):
-    """The measure at a located bifurcation: interpolated in the step it lies in."""
-    j = int(min(max(after, 0), lam.size - 1))
-    if j + 1 < lam.size and lam[j] != lam[j + 1]:
-        return float(np.interp(p, sorted(lam[j:j + 2]), y[j:j + 2][np.argsort(lam[j:j + 2])]))
-    return float(y[j])
+    """The measure at a located bifurcation: interpolated between the nearest points on
+    either side where it is defined."""
+    ok = np.flatnonzero(np.isfinite(y))
+    if not ok.size:
+        return float("nan")
+    before, later = ok[ok <= after], ok[ok > after]
+    i = int(before[-1]) if before.size else int(later[0])
+    j = int(later[0]) if later.size else i
+    if i != j and lam[i] != lam[j]:
+        return float(y[i] + (y[j] - y[i]) * (p - lam[i]) / (lam[j] - lam[i]))
+    return float(y[i])
 
 
 def _segments(ax, x, y, stable, part, start=None):
     """Draw y(x) solid where stable, dashed red where not (the joins drawn in both), each
-    part of the branch (before and after a switch) on its own; ``start``: the (x, y) the
-    part after a switch leaves from (its branch point)."""
+    part of the branch (before and after a switch) on its own, over the points where y is
+    defined (a measure of the shape: where it is stored); ``start``: the (x, y) the part
+    after a switch leaves from (its branch point)."""
     x, y = np.asarray(x, float), np.asarray(y, float)
     for k, p in enumerate(np.unique(part)):
-        sel = part == p
+        sel = (part == p) & np.isfinite(y)
         xs, ys, st = x[sel], y[sel], stable[sel]
+        if not xs.size:
+            continue
         if p > 0 and start is not None:
             xs, ys, st = np.r_[start[0], xs], np.r_[start[1], ys], np.r_[st[:1], st]
         ok = np.isfinite(ys)

@@ -108,3 +108,15 @@ def test_a_label_that_carries_its_unit_is_kept():
     ds = _branch()
     ds.attrs["parameter_path"] = "P (N)"
     assert parameter_label(ds) == "P (N)"
+
+
+def test_points_without_a_shape():
+    """--shapes-every K: the shape-based measure is null there, the others are defined
+    (the start tangent carried from the last stored shape), and ``stored`` lists the rest."""
+    ds = _branch()
+    ds["position"].values[[1, 4]] = np.nan
+    view = overview(ds)
+    assert view["stored"] == [0, 2, 3, 5]
+    by_name = {m["name"]: m for m in view["measures"]}
+    assert by_name["excursion"]["values"][1] is None and by_name["excursion"]["values"][4] is None
+    assert None not in by_name["end_force_axial"]["values"]

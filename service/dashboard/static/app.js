@@ -636,10 +636,12 @@
       return data.measures.filter(function (m) { return m.name === name; })[0];
     }
     function valueAt(values, ev) {          // the measure at an event, interpolated in its step
-      var i = ev.after, x = data.parameter.values;
-      if (i < 0 || i + 1 >= x.length || values[i] === null || values[i + 1] === null) return values[Math.max(0, i)];
-      if (data.branch[i] !== data.branch[i + 1] || x[i] === x[i + 1]) return values[i];
-      return values[i] + (values[i + 1] - values[i]) * (ev.parameter - x[i]) / (x[i + 1] - x[i]);
+      var x = data.parameter.values, i = ev.after, j = ev.after + 1;
+      while (i >= 0 && values[i] === null) i--;            // the nearest defined values
+      while (j < x.length && values[j] === null) j++;
+      if (i < 0) return j < x.length ? values[j] : null;
+      if (j >= x.length || data.branch[i] !== data.branch[j] || x[i] === x[j]) return values[i];
+      return values[i] + (values[j] - values[i]) * (ev.parameter - x[i]) / (x[j] - x[i]);
     }
 
     function draw() {
@@ -676,25 +678,33 @@
       ctx.fillText(m.label + " (" + m.units + ")", 0, 0); ctx.restore();
       // the branch: stable solid, unstable dashed red; each part on its own
       var segments = 0;
-      function stroke(x0, y0, x1, y1, unstable) {
-        ctx.strokeStyle = unstable ? UNSTABLE_COLOR : STABLE_COLOR; ctx.lineWidth = 2;
-        ctx.setLineDash(unstable ? [6, 4] : []);
+      // stability of a point: 0 stable, 1 unstable, -1 not computed (stability off: grey)
+      function kindOf(i) { return modes[i] < 0 ? -1 : modes[i] === 0 ? 0 : 1; }
+      function stroke(x0, y0, x1, y1, kind) {
+        ctx.strokeStyle = kind === 1 ? UNSTABLE_COLOR : kind === 0 ? STABLE_COLOR : "#8a8f96"; ctx.lineWidth = 2;
+        ctx.setLineDash(kind === 1 ? [6, 4] : []);
         ctx.beginPath(); ctx.moveTo(px(x0), py(y0)); ctx.lineTo(px(x1), py(y1)); ctx.stroke();
         segments++;
       }
-      for (var i = 0; i + 1 < x.length; i++) {
-        if (data.branch[i] !== data.branch[i + 1] || y[i] === null || y[i + 1] === null) continue;
-        var a = modes[i] !== 0, b = modes[i + 1] !== 0;
-        if (a === b) stroke(x[i], y[i], x[i + 1], y[i + 1], a);
-        else {
-          var xm = (x[i] + x[i + 1]) / 2, ym = (y[i] + y[i + 1]) / 2;
-          stroke(x[i], y[i], xm, ym, a); stroke(xm, ym, x[i + 1], y[i + 1], b);
+      // consecutive points where the measure is defined (a measure of the shape is defined
+      // only where the shape is stored), within one part of the branch
+      var prev = null;
+      for (var i = 0; i < x.length; i++) {
+        if (x[i] === null || y[i] === null) continue;
+        if (prev !== null && data.branch[prev] === data.branch[i]) {
+          var a = kindOf(prev), b = kindOf(i);
+          if (a === b) stroke(x[prev], y[prev], x[i], y[i], a);
+          else {
+            var xm = (x[prev] + x[i]) / 2, ym = (y[prev] + y[i]) / 2;
+            stroke(x[prev], y[prev], xm, ym, a); stroke(xm, ym, x[i], y[i], b);
+          }
         }
+        prev = i;
       }
       data.events.forEach(function (ev) {   // the switched branch leaves from its branch point
         if (!ev.switched_here) return;
         var first = data.branch.indexOf(1), v = valueAt(y, ev);
-        if (first >= 0 && y[first] !== null && v !== null) stroke(ev.parameter, v, x[first], y[first], modes[first] !== 0);
+        if (first >= 0 && y[first] !== null && v !== null && v !== undefined) stroke(ev.parameter, v, x[first], y[first], kindOf(first));
       });
       ctx.setLineDash([]);
       // stored points (clickable), events, the point shown
