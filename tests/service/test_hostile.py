@@ -521,7 +521,7 @@ def test_a_nul_character_in_an_id_is_unknown_not_an_error(request, backend):
         assert response.status_code == 404, (route, response.text)
         assert response.json()["type"] == "urn:hockle:problem:job-not-found"
     assert client.delete(f"/v1/jobs/{quoted}").status_code == 404
-    for route in ("events", "seabed", "paraview"):
+    for route in ("events", "seabed", "paraview", "branch"):
         assert client.get(f"/v1/ui/jobs/{quoted}/{route}").status_code == 404, route
     for route in ("", "/results"):
         response = client.get(f"/v1/sweeps/{quoted}{route}")
