@@ -3,8 +3,9 @@
 
 ``hockle export`` (and ``hockle.export.export_vtk`` behind it) writes a result as a ParaView
 data collection: one VTK file per output time, the centreline as line cells with every
-per-node field (v, omega, f, kappa, moment, orientation, s) as point data. ParaView opens
-the ``.pvd`` as a time series; a Tube filter with the rod's radius draws the cable.
+per-node field as point data, its frame in its name (``kappa_body``, ``v_global``, ...;
+``radius``, ``s``). ParaView opens the ``.pvd`` as a time series; a Tube filter with its
+radius varied by the ``radius`` array draws the cable.
 
 ::
 
@@ -13,7 +14,7 @@ the ``.pvd`` as a time series; a Tube filter with the rod's radius draws the cab
 
 The frame drawn here is read back from the exported file with meshio and rendered with
 matplotlib (no ParaView or VTK needed): the centreline coloured by its bending curvature
-the norm of (kappa_1, kappa_2), in rad/m.
+the norm of (kappa_body 1, kappa_body 2), in rad/m.
 """
 from __future__ import annotations
 
@@ -78,7 +79,7 @@ def main() -> None:
     from mpl_toolkits.mplot3d.art3d import Line3DCollection
 
     p = mesh.points
-    bend = np.hypot(mesh.point_data["kappa"][:, 0], mesh.point_data["kappa"][:, 1])
+    bend = np.hypot(mesh.point_data["kappa_body"][:, 0], mesh.point_data["kappa_body"][:, 1])
     segments = np.stack([p[:-1], p[1:]], axis=1)
     fig = plt.figure(figsize=(6.5, 6))
     ax = fig.add_subplot(projection="3d")

@@ -45,6 +45,10 @@ def _err(msg: str) -> None:
 def _print_case_errors(exc: Any, source: str) -> None:
     errors = list(getattr(exc, "errors", None) or [])
     n = len(errors)
+    if n == 1 and not errors[0].get("loc"):     # the file as a whole: one line
+        msg = " ".join(str(errors[0].get("msg", "")).split())
+        _err(f"hockle: invalid case {source}: {msg}")
+        return
     _err(f"hockle: invalid case {source} ({n} error{'s' if n != 1 else ''}):")
     for error in errors:
         loc = error.get("loc") or "(case)"
@@ -54,10 +58,22 @@ def _print_case_errors(exc: Any, source: str) -> None:
         _err(str(exc))
 
 
-def _load_case(path: str) -> Any:
+def _not_a_case(path: str, command: str) -> bool:
+    """Whether ``path`` is a result file given where a case is expected (said in one line)."""
+    from hockle.io import result_file_given
+
+    problem = result_file_given(path)
+    if problem:
+        _err(f"hockle {command}: {problem}")
+    return problem is not None
+
+
+def _load_case(path: str, command: str = "validate") -> Any:
     """The validated Case, or None after printing its errors."""
     from solver.case import Case, CaseError
 
+    if _not_a_case(path, command):
+        return None
     try:
         return Case.from_file(path)
     except CaseError as exc:
@@ -327,7 +343,7 @@ def _compile_kernels_first(quiet: bool) -> None:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    case = _load_case(args.case)
+    case = _load_case(args.case, "run")
     if case is None:
         return EXIT_INVALID
     out = Path(args.output) if args.output else Path(Path(args.case).stem + ".nc")
@@ -353,7 +369,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         try:
             start = read_start_state(case)
         except CaseError as exc:
-            _err(f"hockle: {args.case}: {exc}")
+            for error in exc.errors:
+                _err(f"hockle run: {args.case}: {error['loc']}: {error['msg']}")
             return EXIT_INVALID
     if resume is None:
         from solver.initial import start_offset
@@ -428,14 +445,46 @@ def cmd_run(args: argparse.Namespace) -> int:
 # --------------------------------------------------------------------------- plot
 
 
-def cmd_plot(args: argparse.Namespace) -> int:
-    from hockle.io import open_result
+_CASE_SUFFIXES = (".yaml", ".yml", ".json")
 
-    path = Path(args.result)
+
+def _read_result(path: Path, command: str, accept: tuple[str, ...], lazy: bool = False):
+    """The result file at ``path`` (read into memory, or opened lazily) if it holds one of
+    the kinds ``accept`` (:func:`hockle.io.result_kind`); else None after saying, in one
+    line, what it is and what to do with it."""
+    import xarray as xr
+
+    from hockle.io import describe_result, one_line, open_result, result_kind
+
+    if path.suffix.lower() in _CASE_SUFFIXES and path.is_file():
+        _err(f"hockle {command}: {path} is a case file, not a result: run it first "
+             f"(hockle run {path}, or hockle continue for a branch)")
+        return None
     try:
-        ds = open_result(path)
-    except (OSError, ValueError) as exc:
-        _err(f"hockle: cannot read {path}: {exc}")
+        ds = xr.open_dataset(path, engine="netcdf4") if lazy else open_result(path)
+    except Exception as exc:  # noqa: BLE001 - any reader's failure: one line, not a traceback
+        _err(f"hockle {command}: cannot read {path}: {one_line(exc)}")
+        return None
+    kind = result_kind(ds)
+    if kind in accept:
+        return ds
+    what = describe_result(ds, path)
+    if kind == "branch":
+        _err(f"hockle {command}: {what}: hockle plot draws its bifurcation diagram and "
+             "shapes, hockle export writes its shapes for ParaView")
+    elif kind == "sweep":
+        _err(f"hockle {command}: {what}: hockle plot draws its threshold map; {command} a "
+             "member's own result")
+    else:
+        _err(f"hockle {command}: {what}")
+    ds.close()
+    return None
+
+
+def cmd_plot(args: argparse.Namespace) -> int:
+    path = Path(args.result)
+    ds = _read_result(path, "plot", ("run", "branch", "sweep"))
+    if ds is None:
         return EXIT_INVALID
     out_dir = Path(args.output_dir) if args.output_dir else path.with_name(f"{path.stem}_plots")
 
@@ -469,6 +518,8 @@ def cmd_continue(args: argparse.Namespace) -> int:
 
     if args.max_points < 2 or args.shapes_every < 1 or not 0 < args.step <= 1:
         _err("hockle continue: --max-points >= 2, --shapes-every >= 1, 0 < --step <= 1")
+        return EXIT_INVALID
+    if _not_a_case(args.case, "continue"):
         return EXIT_INVALID
 
     def progress(i: int, lam: float) -> None:
@@ -517,16 +568,12 @@ def _frame_progress(verb: str):
 
 
 def cmd_animate(args: argparse.Namespace) -> int:
-    import xarray as xr
-
     from hockle.animate import AnimationError, NothingToAnimate, animate
 
     path = Path(args.result)
     out = Path(args.output) if args.output else path.with_suffix(".gif")
-    try:
-        ds = xr.open_dataset(path, engine="netcdf4")     # lazily: read frame by frame
-    except (OSError, ValueError) as exc:
-        _err(f"hockle: cannot read {path}: {exc}")
+    ds = _read_result(path, "animate", ("run",), lazy=True)   # lazily: read frame by frame
+    if ds is None:
         return EXIT_INVALID
     progress = _frame_progress("animate")
     try:
@@ -553,16 +600,21 @@ def cmd_animate(args: argparse.Namespace) -> int:
 
 def cmd_export(args: argparse.Namespace) -> int:
     from service.export import ExportError, export_vtk
-    from hockle.io import open_result
 
     path = Path(args.result)
     out = Path(args.output) if args.output else path.with_suffix(".pvd")
-    try:
-        ds = open_result(path)
-    except (OSError, ValueError) as exc:
-        _err(f"hockle: cannot read {path}: {exc}")
+    ds = _read_result(path, "export", ("run", "branch"))
+    if ds is None:
         return EXIT_INVALID
     progress = _frame_progress("export")
+    from service.export import BODY_VECTORS
+    from service.branch_view import is_branch
+
+    if (not args.quiet and not is_branch(ds) and "orientation" not in ds
+            and any(name in ds for name in BODY_VECTORS)):
+        _err(f"hockle: {path} stores no orientation (output.fields): its vectors are written "
+             "along the directors only (v_body, ...); with orientation stored they are also "
+             "turned into the global frame (v_global, ...)")
     try:
         files = export_vtk(ds, out, stride=args.stride, window=args.times,
                            progress=None if args.quiet else progress)
@@ -718,21 +770,28 @@ def build_parser() -> tuple[argparse.ArgumentParser, str | None]:
 
     p = sub.add_parser(
         "export",
-        help="a VTK time series (.pvd + .vtu frames) of the rod for ParaView",
+        help="a VTK series (.pvd + .vtu frames) of the rod for ParaView: a run over time, "
+        "a branch's shapes over its points",
         description="Write a result file as a ParaView data collection: one VTK file per "
-        "output time with the centreline as line cells and every per-node field (v, "
-        "omega, f, kappa, moment, orientation, s) as point data. Open the .pvd in "
-        "ParaView (a Tube filter draws the cable).",
+        "output time with the centreline as line cells and the per-node fields as point "
+        "data, each named with its frame: v, omega, f, kappa, moment along the directors "
+        "(v_body, ...) and, when the result stores orientation, turned into the global "
+        "frame (v_global, ...); orientation, s and the radius. A continuation's branch "
+        "(hockle continue) exports its stored shapes, one file per point, with the "
+        "parameter and the unstable modes. Open the .pvd in ParaView (a Tube filter with "
+        "its radius varied by the radius array draws the cable).",
     )
-    p.add_argument("result", metavar="OUT.nc", help="result file written by hockle run")
+    p.add_argument("result", metavar="OUT.nc",
+                   help="result file written by hockle run (or a branch, by hockle continue)")
     p.add_argument("-o", "--output", metavar="FILE.pvd",
                    help="collection to write; the frames go to <stem>/ beside it (default: "
                    "<result stem>.pvd next to the result; FILE.vtu writes the first frame "
                    "only)")
     p.add_argument("--stride", type=int, default=1, metavar="K",
-                   help="every K-th output time, the last one included (default 1: all)")
+                   help="every K-th output time (of a branch: stored shape), the last one "
+                   "included (default 1: all)")
     p.add_argument("--times", nargs=2, type=float, metavar=("T0", "T1"),
-                   help="only the outputs with T0 <= t <= T1 (s)")
+                   help="only the outputs with T0 <= t <= T1 (s); a run only")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=cmd_export)
 

@@ -10,7 +10,8 @@ import xarray as xr
 from solver.results import START_VARIABLES, start_state_from
 
 __all__ = ["write_netcdf", "open_result", "read_start_state", "start_state_from",
-           "START_VARIABLES"]
+           "START_VARIABLES", "result_kind", "describe_result", "result_file_given",
+           "one_line"]
 
 
 def _fsync_path(path: Path, directory: bool = False) -> None:
@@ -102,6 +103,60 @@ def open_result(path: str | os.PathLike[str]) -> xr.Dataset:
         return ds.load()
 
 
+#: the first bytes of a NetCDF file: classic / 64-bit offset (CDF\x01, CDF\x02), NetCDF-4 (HDF5)
+_NETCDF_MAGIC = (b"CDF\x01", b"CDF\x02", b"CDF\x05", b"\x89HDF\r\n\x1a\n")
+
+
+def one_line(exc: BaseException | str, limit: int = 300) -> str:
+    """The first line of an exception's message (netCDF4's and xarray's run to many lines),
+    cut at ``limit`` characters."""
+    text = str(exc).strip().splitlines()
+    line = text[0] if text else type(exc).__name__
+    return line if len(line) <= limit else line[:limit - 1] + "…"
+
+
+def result_kind(ds: xr.Dataset) -> str:
+    """What a hockle NetCDF file holds: ``"run"`` (a time history: ``hockle run``, a job),
+    ``"branch"`` (equilibria along a parameter: ``hockle continue``, a continuation job),
+    ``"sweep"`` (a sweep's combined dataset: ``hockle sweep``) or ``"other"`` (not hockle's)."""
+    if str(ds.attrs.get("hockle_kind", "")) == "branch" or (
+            "point" in ds.dims and "parameter" in ds and "time" not in ds.dims):
+        return "branch"
+    if "hockle_sweep_combine" in ds.attrs or "member" in ds.dims:
+        return "sweep"
+    if "time" in ds.dims and ("case" in ds.attrs or "position" in ds or "writhe" in ds):
+        return "run"
+    return "other"
+
+
+def describe_result(ds: xr.Dataset, path) -> str:
+    """``path`` and what it holds, for a message: "branch.nc is a continuation's branch
+    (equilibria over boundary.end.translation.2.force)", ..."""
+    kind = result_kind(ds)
+    if kind == "branch":
+        return (f"{path} is a continuation's branch (equilibria over "
+                f"{ds.attrs.get('parameter_path') or 'a parameter'}), not a run over time")
+    if kind == "sweep":
+        return f"{path} is a sweep's combined file (one run per member), not a single run"
+    if kind == "run":
+        return f"{path} is a run over time"
+    return f"{path} is not a hockle result (neither a run over time, a branch nor a sweep)"
+
+
+def result_file_given(path) -> str | None:
+    """Why ``path``, given where a case file is expected, is a result instead (a NetCDF
+    file by its first bytes), or None."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(8)
+    except OSError:
+        return None
+    if head.startswith(_NETCDF_MAGIC):
+        return (f"{path} is a result file (NetCDF), not a case: give a case spec "
+                "(.yaml, .yml or .json)")
+    return None
+
+
 def read_start_state(case):
     """The start state a case's ``initial.from_result`` names.
 
@@ -139,5 +194,10 @@ def read_start_state(case):
         ds = open_result(spec.file)
     except (OSError, ValueError) as exc:
         raise CaseError([{"loc": "initial.from_result.file", "type": "file_unreadable",
-                          "msg": f"cannot read {spec.file}: {exc}"}]) from None
+                          "msg": f"cannot read {spec.file}: {one_line(exc)}"}]) from None
+    if result_kind(ds) in ("branch", "sweep"):
+        raise CaseError([{"loc": "initial.from_result.file", "type": "not_a_run",
+                          "msg": f"{describe_result(ds, spec.file)}: a start is a run's state "
+                                 "at one of its output times (from a branch point: "
+                                 "hockle.api.equilibrium_start)"}])
     return start_state_from(ds, case, spec.file, "file")

@@ -143,6 +143,12 @@ def submit(args: argparse.Namespace) -> int:
         print("hockle submit: --continue needs --parameter PATH and --to VALUE",
               file=sys.stderr)
         return 2
+    from hockle.io import result_file_given
+
+    problem = result_file_given(args.case)
+    if problem:
+        print(f"hockle submit: {problem}", file=sys.stderr)
+        return 2
     given = [f"--{k.replace('_', '-')}" for k, v in options.items() if v is not None]
     if not branch and (given or getattr(args, "switch", False)):
         print(f"hockle submit: {', '.join(given) or '--switch'} only with --continue",

@@ -164,6 +164,12 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         _err(f"hockle sweep: {exc}")
         return 2
     parameters, fixed = split_fixed(parameters)
+    from hockle.io import result_file_given
+
+    problem = result_file_given(args.base)
+    if problem:
+        _err(f"hockle sweep: {problem}")
+        return 2
     try:
         from service.sweeps import SweepError
 

@@ -845,6 +845,30 @@ class Registry:
                             .where(SweepRecord.id == sweep_id, SweepRecord.dismissed_at.is_(None))
                             .values(dismissed_at=utcnow()))
 
+    def sweeps_of(self, jobs: Iterable[Job], owner: str | None = None) -> dict[str, str]:
+        """For each of ``jobs`` that is a member of a sweep (of ``owner``'s; None: anyone's),
+        the id of the newest such sweep, by job id. A sweep is recorded after its members
+        (and may reuse an earlier job), so only sweeps created at or after the oldest of the
+        jobs are read, and only those whose member list names one of them (the jobs list's
+        "kind" column; a page of 50 jobs is one query)."""
+        jobs = [j for j in jobs if well_formed_id(j.id)]
+        if not jobs:
+            return {}
+        since = min(j.created_at for j in jobs)
+        ids = {j.id for j in jobs}
+        query = select(SweepRecord.id, SweepRecord.member_job_ids).where(
+            SweepRecord.created_at >= since,
+            or_(*[SweepRecord.member_job_ids.contains(f'"{i}"') for i in ids]))
+        if owner is not None:
+            query = query.where(SweepRecord.owner == owner)
+        found: dict[str, str] = {}
+        with self.sessions() as session:
+            for sweep_id, members in session.execute(query.order_by(SweepRecord.created_at)):
+                for job_id in json.loads(members):
+                    if job_id in ids:
+                        found[job_id] = sweep_id        # the newest sweep last, kept
+        return found
+
     def get_many(self, job_ids: Iterable[str]) -> dict[str, Job]:
         """The jobs with these ids (unknown ids are left out), by id."""
         ids = [i for i in dict.fromkeys(job_ids) if well_formed_id(i)]

@@ -20,6 +20,11 @@ and owner-filtered like every ``/v1`` route, left out of the OpenAPI document):
   with their times and Tw, Wr, Lk there;
 * ``GET /v1/ui/jobs/{id}/seabed``: the sea floor under the rod, sampled on a grid for the
   3-D view (``null`` when the case has none);
+* ``GET /v1/ui/jobs/{id}/branch``: a continuation job's branch (service/branch_view.py):
+  the parameter and its unit, the measures for the bifurcation diagram, the mode counts,
+  the folds and branch points;
+* ``GET /v1/ui/jobs/{id}/paraview``: the result as a zipped ParaView series (a run's
+  output times, a branch's shapes);
 * ``POST /v1/ui/validate``: the case validated as ``POST /v1/jobs`` validates it (the same
   422 problem), nothing recorded or queued;
 * ``GET /v1/ui/sweeps/{id}/map``: each member's parameter values, state and event times, the
@@ -132,7 +137,8 @@ def ui_list_jobs(
     page_token: Annotated[str | None, Query()] = None,
 ) -> Response:
     """``GET /v1/jobs`` (newest first, keyset pages) with an ETag of the page's body: an
-    unchanged page answers 304 with no body. ``status``: states, comma-separated; 422 naming
+    unchanged page answers 304 with no body. Each job also has ``sweep_id``: the newest sweep
+    it is a member of, or null (:meth:`service.registry.Registry.sweeps_of`). ``status``: states, comma-separated; 422 naming
     ``query.status`` or ``query.page_token`` as ``GET /v1/jobs`` does."""
     from ..registry import STATES
     from ..routers.jobs import _exists, job_status
@@ -150,9 +156,11 @@ def ui_list_jobs(
         raise ProblemError(422, "invalid-request", "Invalid request", errors=[
             {"loc": "query.page_token", "msg": str(exc), "type": "value_error"}]) from None
     jobs = [job_status(j, _exists).model_dump(mode="json") for j in page.jobs]
+    member_of = svc.registry.sweeps_of(page.jobs, owner)
     for item in jobs:  # the ETA counts down between polls; whole seconds keep 304s possible
         if item.get("eta_seconds") is not None:
             item["eta_seconds"] = round(item["eta_seconds"])
+        item["sweep_id"] = member_of.get(item["id"])     # the kind column: a sweep's member
     body = orjson.dumps({"jobs": jobs, "next_page_token": page.next_token})
     etag = _etag_of(body)
     headers = {"ETag": etag, "Cache-Control": "private, no-cache"}
@@ -210,17 +218,85 @@ def _num(value) -> float | None:
     return value if math.isfinite(value) else None
 
 
-@router.get(f"{UI_API_PREFIX}/jobs/{{job_id}}/events")
-def ui_job_events(job_id: str, svc: Annotated[Services, Depends(services)],
-                  owner: Annotated[str | None, Depends(caller)]) -> JSONResponse:
-    """The events of the job's result (404 ``result-not-ready`` before there is one)."""
+def _result_file(svc: Services, job_id: str, owner: str | None):
+    """The job (the caller's) and its result file; 404 ``result-not-ready`` before there is
+    one."""
     from ..routers.jobs import get_job_or_404
 
     job = get_job_or_404(svc, job_id, owner)
     if not job.result_path or not os.path.exists(job.result_path):
         raise ProblemError(404, "result-not-ready", "Result not ready",
                            f"job {job.id} is {job.state} and has no result file")
+    return job
+
+
+def _branch_problem(job) -> ProblemError:
+    return ProblemError(409, "result-is-a-branch", "The result is a branch",
+                        f"job {job.id} is a {job.kind} job: its result is a branch of "
+                        "equilibria over a parameter, not a time history; its events and "
+                        f"mode counts are at /v1/ui/jobs/{job.id}/branch")
+
+
+@router.get(f"{UI_API_PREFIX}/jobs/{{job_id}}/events")
+def ui_job_events(job_id: str, svc: Annotated[Services, Depends(services)],
+                  owner: Annotated[str | None, Depends(caller)]) -> JSONResponse:
+    """The events of the job's result (404 ``result-not-ready`` before there is one; 409
+    ``result-is-a-branch`` for a continuation job, whose events are those of
+    ``/v1/ui/jobs/{id}/branch``)."""
+    job = _result_file(svc, job_id, owner)
+    if (job.kind or "dynamic") != "dynamic":
+        raise _branch_problem(job)
     return JSONResponse({"job_id": job.id, **result_events(job.result_path)})
+
+
+_BRANCH_CACHE: OrderedDict[tuple[str, int, int], dict] = OrderedDict()
+_BRANCH_CACHE_SIZE = 256
+
+
+def result_branch(path: str) -> dict[str, Any]:
+    """The branch of the result file at ``path`` as the dashboard draws it
+    (:func:`service.branch_view.overview`: the parameter with its unit, per point the
+    unstable modes, the part of the branch and whether its shape is stored, the measures
+    with round-off as zero, the folds and branch points with the mode counts on either
+    side). Cached per file (path, size, mtime). Raises ValueError for a result that is not
+    a branch."""
+    st = os.stat(path)
+    key = (path, st.st_size, st.st_mtime_ns)
+    with _EVENT_LOCK:
+        if key in _BRANCH_CACHE:
+            _BRANCH_CACHE.move_to_end(key)
+            return _BRANCH_CACHE[key]
+    from ..branch_view import is_branch, overview
+
+    with open_result(path, cache=False) as ds:
+        if not is_branch(ds):
+            raise ValueError("the result is a run over time, not a branch")
+        out = overview(ds.load())
+    with _EVENT_LOCK:
+        _BRANCH_CACHE[key] = out
+        while len(_BRANCH_CACHE) > _BRANCH_CACHE_SIZE:
+            _BRANCH_CACHE.popitem(last=False)
+    return out
+
+
+@router.get(f"{UI_API_PREFIX}/jobs/{{job_id}}/branch")
+def ui_job_branch(job_id: str, svc: Annotated[Services, Depends(services)],
+                  owner: Annotated[str | None, Depends(caller)]) -> Response:
+    """A continuation job's branch for its page (:func:`result_branch`): ``{"job_id",
+    "parameter": {"path", "unit", "label", "values", "start", "target"}, "n_points",
+    "n_segments", "stopped", "switched_at", "unstable_modes", "branch", "stored",
+    "measures": [{"name", "label", "units", "constant", "values"}], "events": [{"kind",
+    "label", "parameter", "after", "simple", "modes_before", "modes_after",
+    "switched_here"}]}``. 404 ``result-not-ready`` before there is a result (a running
+    job's points so far are in its checkpoint, not yet in a file); 409 ``result-is-a-run``
+    for a job whose result is a time history."""
+    job = _result_file(svc, job_id, owner)
+    try:
+        body = result_branch(job.result_path)
+    except ValueError as exc:
+        raise ProblemError(409, "result-is-a-run", "The result is a run",
+                           f"job {job.id}'s result is a run over time: {exc}") from None
+    return Response(orjson.dumps({"job_id": job.id, **body}), media_type="application/json")
 
 
 #: the bottom is sampled on this many points a side for the 3-D view (at most)
@@ -293,16 +369,17 @@ PARAVIEW_MAX_FRAMES = 100
 @router.get(f"{UI_API_PREFIX}/jobs/{{job_id}}/paraview")
 def ui_job_paraview(job_id: str, svc: Annotated[Services, Depends(services)],
                     owner: Annotated[str | None, Depends(caller)]) -> Response:
-    """The job's result as a ParaView time series, zipped: ``<id>.pvd`` and its ``.vtu``
-    frames (:func:`service.export.export_vtk`, the function behind ``hockle export``), at
-    most :data:`PARAVIEW_MAX_FRAMES` frames (every k-th output time, the last one kept).
-    404 ``result-not-ready`` before there is a result; 422 ``not-exportable`` for a result
-    without positions; 409 ``result-is-a-branch`` for a continuation job's branch, which the
-    export does not write (it was a 500, ``KeyError: 'time'``)."""
+    """The job's result as a ParaView series, zipped: ``<id>.pvd`` and its ``.vtu`` frames
+    (:func:`service.export.export_vtk`, the function behind ``hockle export``), at most
+    :data:`PARAVIEW_MAX_FRAMES` frames (every k-th output time, the last one kept; of a
+    continuation job's branch, every k-th stored shape over its points). 404
+    ``result-not-ready`` before there is a result; 422 ``not-exportable`` with the reason
+    for a result without positions (a branch without stored shapes)."""
     import io
     import tempfile
     import zipfile
 
+    from ..branch_view import is_branch
     from ..export import ExportError, export_vtk
     from ..routers.jobs import get_job_or_404
 
@@ -310,22 +387,24 @@ def ui_job_paraview(job_id: str, svc: Annotated[Services, Depends(services)],
     if not job.result_path or not os.path.exists(job.result_path):
         raise ProblemError(404, "result-not-ready", "Result not ready",
                            f"job {job.id} is {job.state} and has no result file")
-    branch = ProblemError(409, "result-is-a-branch", "The result is a branch",
-                          f"job {job.id}'s result is a branch of equilibria (dimension point), "
-                          "not a time series: the ParaView export writes time series only; "
-                          f"download the NetCDF file at /v1/jobs/{job.id}/results")
-    if (job.kind or "dynamic") != "dynamic":
-        raise branch
     with open_result(job.result_path) as ds:
-        if "time" not in ds.dims:
-            raise branch
-        n_times = ds.sizes.get("time", 0)
-        keep = [v for v in ("position", "kappa", "f", "v", "omega", "moment", "orientation")
-                if v in ds]
+        branch = is_branch(ds)
+        dim = "point" if branch else "time"
+        names = (("position", "kappa", "parameter", "unstable_modes") if branch else
+                 ("position", "kappa", "f", "v", "omega", "moment", "orientation"))
+        keep = [v for v in names if v in ds]
         loaded = ds[keep].load()
-    # every k-th output and the last: floor((n-1)/k) + 1, plus one where k does not
-    # divide n-1, is at most PARAVIEW_MAX_FRAMES for k = ceil((n-1)/(max-1))
-    stride = max(1, -(-(n_times - 1) // max(PARAVIEW_MAX_FRAMES - 1, 1)))
+        loaded.attrs.update(ds.attrs)
+        if branch and "position" in loaded:
+            import numpy as np
+
+            r = np.asarray(loaded["position"].values, float)
+            n_frames = int(np.isfinite(r.reshape(r.shape[0], -1)).all(axis=1).sum())
+        else:
+            n_frames = ds.sizes.get(dim, 0)
+    # every k-th frame and the last: floor((n-1)/k) + 1, plus one where k does not divide
+    # n-1, is at most PARAVIEW_MAX_FRAMES for k = ceil((n-1)/(max-1))
+    stride = max(1, -(-(n_frames - 1) // max(PARAVIEW_MAX_FRAMES - 1, 1)))
     buffer = io.BytesIO()
     with tempfile.TemporaryDirectory() as tmp:
         try:

@@ -167,3 +167,23 @@ def test_snapshot_figure_at_the_events(tmp_path):
     ds = dataset()
     ds.attrs["case"] = "{}"
     assert plot_snapshots(ds, tmp_path, stem="bare", on_skip=None)
+
+
+def test_a_branch_with_sparse_shapes_is_drawn_through_its_stored_points():
+    """A measure of the shape (the lateral excursion) is defined only where the shape is
+    stored (--shapes-every K): the curve joins those points instead of vanishing."""
+    import numpy as np
+    from matplotlib.figure import Figure
+
+    from hockle.branch_plots import _bifurcation_y, _segments
+
+    lam = np.linspace(0.0, 1.0, 7)
+    y = np.array([0.0, np.nan, np.nan, 0.3, np.nan, np.nan, 0.6])
+    stable = np.array([True] * 4 + [False] * 3)
+    ax = Figure().subplots()
+    _segments(ax, lam, y, stable, np.zeros(7, int))
+    drawn = [line.get_xydata() for line in ax.get_lines()]
+    finite = [xy[np.isfinite(xy[:, 1])] for xy in drawn]
+    assert sum(len(xy) for xy in finite) >= 4             # both parts, the join in both
+    assert any(len(xy) >= 2 for xy in finite)
+    assert _bifurcation_y(lam, y, 4, 0.75) == pytest.approx(0.45)

@@ -257,3 +257,132 @@ def test_package_data_ships_every_static_file():
     shipped = {p for pattern in patterns for p in package.glob(pattern) if p.is_file()}
     files = {p for p in STATIC_DIR.rglob("*") if p.is_file()}
     assert files and files <= shipped, sorted(str(p) for p in files - shipped)
+
+
+# --------------------------------------------------------------------------- continuation jobs
+
+FORCE = "boundary.end.translation.2.force"
+
+
+@pytest.fixture(scope="module")
+def branch_job(client, settings):
+    """A finished continuation job: the 20-segment Euler column (cases/euler-column.yaml)
+    followed past its first branch point onto the buckled column (--switch)."""
+    from solver.case import parse_text
+    from svc_support import REPO
+
+    path = REPO / "cases" / "euler-column.yaml"
+    case = parse_text(path.read_bytes(), path.suffix, str(path))
+    case["numerics"]["n_segments"] = 20
+    body = {"case": case, "continuation": {"parameter": FORCE, "to": -0.4, "switch": True,
+                                           "max_points": 60}}
+    job = client.post("/v1/continuations", json=body, headers=AUTH).json()
+    assert _run(settings, job["id"]) == "successful"
+    return job["id"]
+
+
+def test_a_continuation_jobs_branch_for_its_page(client, branch_job):
+    """GET /v1/ui/jobs/{id}/branch: the parameter with its unit, the measures with round-off
+    as zero (the planar elastica's end moment and writhe: constant zero), the branch point
+    with the mode counts on either side, the switch, the stored shapes; the run's events
+    route answers 409 for a branch, and the branch route 409 for a run."""
+    answer = client.get(f"/v1/ui/jobs/{branch_job}/branch", headers=AUTH)
+    assert answer.status_code == 200, answer.text
+    view = answer.json()
+    assert view["parameter"]["path"] == FORCE and view["parameter"]["unit"] == "N"
+    assert view["parameter"]["label"] == f"{FORCE} (N)"
+    n = view["n_points"]
+    assert len(view["unstable_modes"]) == len(view["branch"]) == n and view["stored"] == list(range(n))
+    assert view["switched_at"] is not None and max(view["branch"]) == 1
+    first = view["events"][0]
+    assert first["kind"] == "branch_point" and not first["simple"]        # a round column: a pair
+    assert (first["modes_before"], first["modes_after"]) == (0, 2) and first["switched_here"]
+    by_name = {m["name"]: m for m in view["measures"]}
+    assert by_name["writhe"]["constant"] and set(by_name["writhe"]["values"]) == {0.0}
+    assert by_name["end_moment_axial"]["constant"]
+    assert not by_name["excursion"]["constant"] and max(by_name["excursion"]["values"]) > 0.1
+    assert all(m["units"] for m in view["measures"])
+    events = client.get(f"/v1/ui/jobs/{branch_job}/events", headers=AUTH)
+    assert events.status_code == 409 and events.json()["type"].endswith("result-is-a-branch")
+    assert f"/v1/ui/jobs/{branch_job}/branch" in events.json()["detail"]
+    assert client.get(f"/v1/ui/jobs/{branch_job}/branch").status_code == 401
+    assert client.get("/v1/ui/jobs/nope/branch", headers=AUTH).status_code == 404
+    # one point's shape, as the page fetches it
+    shape = client.get(f"/v1/jobs/{branch_job}/results/variables/position",
+                       params={"point": str(n - 1)}, headers=AUTH).json()
+    assert shape["dims"] == ["node", "xyz"] and len(shape["data"]) == 21
+
+
+def test_a_runs_result_is_not_a_branch(client, settings):
+    job = client.post("/v1/jobs", json=tiny_case("not a branch"), headers=AUTH).json()
+    assert client.get(f"/v1/ui/jobs/{job['id']}/branch", headers=AUTH).status_code == 404
+    _run(settings, job["id"])
+    answer = client.get(f"/v1/ui/jobs/{job['id']}/branch", headers=AUTH)
+    assert answer.status_code == 409 and answer.json()["type"].endswith("result-is-a-run")
+
+
+def test_paraview_download_of_a_branch_is_its_shapes(client, branch_job, tmp_path, monkeypatch):
+    """A continuation job's ParaView download (a 409, before that a 500): its stored shapes
+    as a series over its points, at most PARAVIEW_MAX_FRAMES of them, the last one kept."""
+    import io
+    import zipfile
+
+    import meshio
+    import numpy as np
+    import xarray as xr
+
+    import service.dashboard as dashboard
+    from service.export import read_pvd
+
+    monkeypatch.setattr(dashboard, "PARAVIEW_MAX_FRAMES", 5)
+    answer = client.get(f"/v1/ui/jobs/{branch_job}/paraview", headers=AUTH)
+    assert answer.status_code == 200, answer.text
+    zipfile.ZipFile(io.BytesIO(answer.content)).extractall(tmp_path)
+    frames = read_pvd(tmp_path / f"{branch_job}.pvd")
+    (tmp_path / "b.nc").write_bytes(client.get(f"/v1/jobs/{branch_job}/results",
+                                               headers=AUTH).content)
+    with xr.open_dataset(tmp_path / "b.nc") as ds:
+        n = ds.sizes["point"]
+        assert 1 < len(frames) <= 5 and frames[-1][0] == n - 1
+        mesh = meshio.read(frames[-1][1])
+        np.testing.assert_allclose(mesh.points, ds["position"].values[-1], rtol=1e-6)
+        assert mesh.point_data["parameter"][0] == pytest.approx(float(ds["parameter"][-1]))
+        np.testing.assert_allclose(mesh.point_data["radius"], 0.0025)
+
+
+def test_the_job_list_says_each_jobs_kind(client, settings, branch_job):
+    """The jobs list's kind column: a run, a sweep's member (with the sweep's id), a
+    continuation."""
+    plain = client.post("/v1/jobs", json=tiny_case("a plain run", t_end=0.02),
+                        headers=AUTH).json()
+    sweep = client.post("/v1/sweeps", headers=AUTH, json={
+        "base": tiny_case("kinds"),
+        "parameters": {"boundary.start.rotation.2.angular_velocity": [0.3, 0.6]}}).json()
+    listed = {j["id"]: j for j in client.get("/v1/ui/jobs", params={"page_size": 200},
+                                             headers=AUTH).json()["jobs"]}
+    assert listed[branch_job]["kind"] == "continuation" and listed[branch_job]["sweep_id"] is None
+    assert listed[plain["id"]]["kind"] == "dynamic" and listed[plain["id"]]["sweep_id"] is None
+    for member in sweep["members"]:
+        assert listed[member["job_id"]]["sweep_id"] == sweep["id"]
+
+
+def test_a_resubmitted_identical_case_is_the_old_job_marked_reused(client, settings, branch_job,
+                                                                     monkeypatch):
+    """The answer to a submission that created no job says so (``reused``, also in the
+    Hockle-Reused header), through the Python client too, for a run and a continuation; a
+    status read later is not an answer to a submission (``reused`` null there)."""
+    from service.client import HockleClient
+
+    monkeypatch.delenv("HOCKLE_API_KEY", raising=False)
+    case = tiny_case("resubmitted", t_end=0.02)
+    with HockleClient("http://testserver", api_key=KEY, transport=client._transport) as hc:
+        first = hc.submit(case)
+        assert first.reused is None
+        _run(settings, first.id)
+        again = hc.submit(case)
+        assert again.id == first.id and again.reused == "identical_case"
+        assert hc.get(first.id).reused is None
+        spec = hc.spec(branch_job)
+        branch = hc.submit_continuation(spec["case"], **{
+            k: spec["continuation"][k] for k in ("parameter", "to", "switch", "max_points")})
+        assert branch.id == branch_job and branch.reused == "identical_case"

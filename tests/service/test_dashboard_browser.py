@@ -215,6 +215,7 @@ def test_submitted_job_goes_from_accepted_to_successful_in_the_list(browser, sta
     _wait(browser, lambda d: _row_state(d, job_id) == "successful", 300, "the job successful")
     row = browser.find_element(By.CSS_SELECTOR, f'tr[data-job-id="{job_id}"]')
     assert "from the browser" in row.text and "100.0 %" in row.text
+    assert row.find_element(By.CSS_SELECTOR, "td.kind").get_attribute("data-kind") == "run"
     _shot(browser, "jobs")
 
 
@@ -233,6 +234,7 @@ def test_job_page_draws_plots_and_the_rod(browser, stack):
     canvas = browser.find_element(By.ID, "rod3d")
     _wait(browser, lambda d: canvas.get_attribute("data-points"), 60, "the 3-D view")
     assert int(canvas.get_attribute("data-points")) == 25
+    assert canvas.get_attribute("data-scale-bar").endswith(("m", "mm"))     # a length scale
     assert "youngs_modulus" in browser.find_element(By.ID, "case-yaml").text
     assert browser.find_elements(By.CSS_SELECTOR, "#events-table tr[data-event='buckling_onset']")
     # a non-blank drawing: many pixels off the background, in several shades
@@ -386,6 +388,116 @@ def test_sweep_page_shows_members_and_the_threshold_map(browser, stack):
     # the members that buckled are coloured cells (6 and 10 N are past the Euler load, 3.9 N)
     assert int(browser.find_element(By.ID, "sweep-map").get_attribute("data-members")) >= 4
     _shot(browser, "sweep")
+    # in the job list, each member's kind links to its sweep
+    member = stack.http.get(f"/v1/sweeps/{sweep_id}").json()["members"][0]["job_id"]
+    _open(browser, stack, "/jobs")
+    _wait(browser, lambda d: _row_state(d, member) is not None, 60, "a member's row")
+    kind = browser.find_element(By.CSS_SELECTOR, f'tr[data-job-id="{member}"] td.kind a')
+    assert kind.text == "sweep member" and kind.get_attribute("href").endswith(f"#/sweep/{sweep_id}")
+
+
+FORCE = "boundary.end.translation.2.force"
+
+
+def _column(n_segments: int = 20) -> dict:
+    """cases/euler-column.yaml at ``n_segments``: a round column, first branch point (a pair
+    of modes) at 4π² EJ / L² = 0.24 N."""
+    from solver.case import parse_text
+    from svc_support import REPO
+
+    path = REPO / "cases" / "euler-column.yaml"
+    case = parse_text(path.read_bytes(), path.suffix, str(path))
+    case["numerics"]["n_segments"] = n_segments
+    return case
+
+
+def _pixels(element):
+    from PIL import Image
+
+    return np.asarray(Image.open(io.BytesIO(element.screenshot_as_png)).convert("RGB"),
+                      dtype=int).reshape(-1, 3)
+
+
+def test_a_continuation_jobs_page_draws_its_branch(browser, stack):
+    """A finished continuation job (the Euler column switched onto its buckled branch at
+    the branch point): its page draws the bifurcation diagram (stable parts blue, unstable
+    dashed red, the branch point marked), the 3-D shape of the chosen equilibrium with a
+    length scale, the branch's events with the mode counts; a click on the diagram or the
+    slider shows another point's shape; none of a run's widgets (time slider, scalar series,
+    "simulated ... s") and no error box; the list calls it a continuation."""
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+
+    _ensure_worker(stack)
+    response = stack.http.post("/v1/continuations", params={"fresh": "true"}, json={
+        "case": _column(), "continuation": {"parameter": FORCE, "to": -0.4, "switch": True,
+                                             "max_points": 60}})
+    assert response.status_code == 201, response.text
+    job_id = response.json()["id"]
+    stack.wait_state(job_id, "successful", timeout=300)
+    n_points = stack.job(job_id)["step"]
+
+    _open(browser, stack, f"/job/{job_id}")
+    diagram = _wait(browser, lambda d: d.find_elements(By.ID, "branch-diagram"), 60,
+                    "the diagram")[0]
+    _wait(browser, lambda d: int(diagram.get_attribute("data-segments") or 0) > 0, 60,
+          "the diagram drawn")
+    canvas = browser.find_element(By.ID, "rod3d")
+    _wait(browser, lambda d: canvas.get_attribute("data-points"), 60, "the shape drawn")
+    # the diagram: a segment between each pair of points of one part, the branch point
+    # marked, every point with a stored shape drawn (and clickable); lateral excursion
+    assert int(diagram.get_attribute("data-segments")) >= n_points - 2
+    assert int(diagram.get_attribute("data-events")) >= 1
+    assert int(diagram.get_attribute("data-points")) == n_points
+    assert diagram.get_attribute("data-measure") == "excursion"
+    pixels = _pixels(diagram)
+    r, g, b = pixels.T
+    blue = (b > 150) & (r < 80) & (g < 140)                        # stable: #1f5fa8
+    red = (r > 150) & (g < 90) & (b < 90)                          # unstable: #c0392b
+    assert blue.sum() > 200 and red.sum() > 30, (blue.sum(), red.sum())
+    # the shape: the last point (the buckled column), tube pixels in many shades
+    assert canvas.get_attribute("data-frame") == str(n_points - 1)
+    assert int(canvas.get_attribute("data-points")) == 21
+    assert canvas.get_attribute("data-scale-bar").endswith(("m", "mm"))
+    shades = _pixels(canvas)
+    colours, counts = np.unique(shades, axis=0, return_counts=True)
+    drawn = int((np.abs(shades - colours[np.argmax(counts)]).sum(axis=1) > 30).sum())
+    assert drawn > 0.005 * len(shades) and len(colours) > 20, (drawn, len(colours))
+    # events of the branch with the mode counts, and the labels with the unit
+    rows = browser.find_elements(By.CSS_SELECTOR, "#branch-events-table tbody tr")
+    kinds = [row.get_attribute("data-event") for row in rows]
+    assert kinds[0] == "start" and kinds[-1] == "end" and "branch_point" in kinds
+    bp = rows[kinds.index("branch_point")].text
+    assert "pair" in bp and "0 → 2" in bp and "switched here" in bp
+    assert f"{FORCE} (N)" in browser.find_element(By.ID, "branch-events-table").get_attribute(
+        "textContent")
+    assert "unstable modes along the branch" in browser.find_element(By.ID, "branch-modes").text
+    assert "N" in browser.find_element(By.ID, "point-label").text
+    # another point: the slider's first stored point, then a click on the diagram's left part
+    slider = browser.find_element(By.ID, "point-slider")
+    browser.execute_script("arguments[0].value = 0; arguments[0].dispatchEvent(new Event('input'))",
+                           slider)
+    _wait(browser, lambda d: canvas.get_attribute("data-frame") == "0", 30, "point 0")
+    ActionChains(browser).move_to_element_with_offset(
+        diagram, -diagram.size["width"] // 2 + 100, 0).click().perform()
+    _wait(browser, lambda d: canvas.get_attribute("data-frame") != "0", 30, "a clicked point")
+    # no widget of a run, no error
+    page = browser.find_element(By.ID, "main").text
+    assert "simulated" not in page and "did not happen" not in page
+    assert browser.find_elements(By.ID, "time-slider") == []
+    assert browser.find_elements(By.ID, "plots") == []
+    assert browser.find_elements(By.CSS_SELECTOR, "#main .error") == []
+    assert browser.find_element(By.ID, "download-paraview").is_displayed()
+    assert stack.http.get(f"/v1/ui/jobs/{job_id}/paraview").status_code == 200
+    browser.execute_script("arguments[0].value = arguments[0].max; "
+                           "arguments[0].dispatchEvent(new Event('input'))", slider)
+    _wait(browser, lambda d: canvas.get_attribute("data-frame") == str(n_points - 1), 30,
+          "the last point")
+    _shot(browser, "branch")
+    _open(browser, stack, "/jobs")
+    _wait(browser, lambda d: _row_state(d, job_id) == "successful", 60, "the row")
+    kind = browser.find_element(By.CSS_SELECTOR, f'tr[data-job-id="{job_id}"] td.kind')
+    assert kind.get_attribute("data-kind") == "continuation" and kind.text == "continuation"
 
 
 def test_no_resource_from_another_origin(browser, stack):
@@ -427,6 +539,8 @@ def test_without_keys_the_page_says_so(browser, tmp_path_factory, redis_server):
         browser.refresh()
         banner = browser.find_element(By.ID, "banner")
         _wait(browser, lambda d: "no API keys configured" in banner.text, what="the banner")
+        # what the log prints, and when: only on a bind beyond loopback (service/serve.py)
+        assert "NO AUTHENTICATION" in banner.text and "loopback" in banner.text
         _wait(browser, lambda d: d.find_elements(By.ID, "jobs"), what="the job list")
         assert not browser.find_element(By.ID, "login").is_displayed()
         assert browser.find_element(By.ID, "who").text == "no API keys configured"

@@ -521,7 +521,7 @@ def test_a_nul_character_in_an_id_is_unknown_not_an_error(request, backend):
         assert response.status_code == 404, (route, response.text)
         assert response.json()["type"] == "urn:hockle:problem:job-not-found"
     assert client.delete(f"/v1/jobs/{quoted}").status_code == 404
-    for route in ("events", "seabed", "paraview"):
+    for route in ("events", "seabed", "paraview", "branch"):
         assert client.get(f"/v1/ui/jobs/{quoted}/{route}").status_code == 404, route
     for route in ("", "/results"):
         response = client.get(f"/v1/sweeps/{quoted}{route}")
@@ -719,14 +719,19 @@ def branch_job(client, settings):
     return job_id
 
 
-def test_the_paraview_download_of_a_branch_is_a_409_with_one_line(client, branch_job):
-    """It was a 500 (KeyError: 'time' in hockle/export.py)."""
+def test_the_paraview_download_of_a_branch_is_its_shapes(client, branch_job):
+    """It was a 500 (KeyError: 'time' in hockle/export.py), then a 409; now the branch's
+    stored shapes, zipped (tests/service/test_dashboard.py reads them back). The run's
+    events route answers a branch with a one-line 409 naming the branch route."""
     response = client.get(f"/v1/ui/jobs/{branch_job}/paraview")
-    assert response.status_code == 409, response.text[:300]
-    body = response.json()
+    assert response.status_code == 200, response.text[:300]
+    assert response.headers["content-type"] == "application/zip"
+    events = client.get(f"/v1/ui/jobs/{branch_job}/events")
+    assert events.status_code == 409
+    body = events.json()
     assert body["type"] == "urn:hockle:problem:result-is-a-branch"
-    assert "\n" not in body["detail"] and "/results" in body["detail"]
-    for route in ("events", "seabed"):               # not 500s either
+    assert "\n" not in body["detail"] and "/branch" in body["detail"]
+    for route in ("seabed", "branch"):               # not 500s either
         assert client.get(f"/v1/ui/jobs/{branch_job}/{route}").status_code == 200
 
 

@@ -96,6 +96,15 @@
   function warningMark(message) {
     return el("span.warning", { title: message, dataset: { warning: "1" }, text: " ⚠ warning" });
   }
+  /** The jobs list's kind column: a run, a sweep's member (linked to its sweep) or a continuation. */
+  function kindCell(job) {
+    if (job.kind === "continuation") return el("td.kind", { dataset: { kind: "continuation" }, text: "continuation" });
+    if (job.sweep_id) {
+      return el("td.kind", { dataset: { kind: "sweep-member" } },
+        el("a", { href: "#/sweep/" + encodeURIComponent(job.sweep_id), title: "sweep " + job.sweep_id, text: "sweep member" }));
+    }
+    return el("td.kind", { dataset: { kind: "run" }, text: "run" });
+  }
   function stateBadge(s) { return el("span.state." + (STATES.indexOf(s) >= 0 ? s : "unknown"), { text: s }); }
   function progressBar(p) {
     var bar = el("span.bar", el("span")), pct = Math.max(0, Math.min(100, Number(p) || 0));
@@ -233,8 +242,8 @@
       el("h1", { text: "Jobs" }),
       el("div.toolbar", stateSel, sizeSel, el("span.pager", prev, pageLabel, next), info),
       el("table", { id: "jobs" },
-        el("thead", el("tr", ["Name", "State", "Progress", "ETA", "Attempts", "Submitted", "Started", "Finished", "Wall", ""].map(function (h, i) {
-          return el(i === 4 || i === 8 ? "th.num" : "th", { text: h });
+        el("thead", el("tr", ["Name", "Kind", "State", "Progress", "ETA", "Attempts", "Submitted", "Started", "Finished", "Wall", ""].map(function (h, i) {
+          return el(i === 5 || i === 9 ? "th.num" : "th", { text: h });
         }))), tbody)));
 
     function row(job) {
@@ -248,6 +257,7 @@
       var warned = job.state === "successful" && job.kind !== "continuation" && job.message;
       return el("tr", { dataset: { jobId: job.id, state: job.state } },
         el("td.name", el("a", { href: "#/job/" + encodeURIComponent(job.id), text: job.name || job.id })),
+        kindCell(job),
         el("td", stateBadge(job.state), warned ? warningMark(job.message) : null),
         el("td", progressBar(job.progress)),
         el("td", { title: job.state === "running" ? ETA_NOTE : null, text: etaText(job) }),
@@ -271,7 +281,7 @@
         next.disabled = !nextToken;
         fill(tbody, data.jobs.map(row));
         performance.mark("hockle:jobs-rendered");
-        if (!data.jobs.length) tbody.appendChild(el("tr", el("td", { colspan: 10, text: "No jobs." })));
+        if (!data.jobs.length) tbody.appendChild(el("tr", el("td", { colspan: 11, text: "No jobs." })));
       }, function (err) { info.textContent = "could not refresh: " + err.message; });
     }
     prev.addEventListener("click", function () { if (page > 0) { page--; restart(); } });
@@ -383,10 +393,20 @@
     var slider = el("input", { id: "time-slider", type: "range", min: 0, max: 0, step: 1, value: 0, "aria-label": "output time" });
     var timeLabel = el("span.mono", { id: "time-label" }), view3dInfo = el("p.muted", { id: "view3d-info" });
     var view3dBox = el("div.view3d", { id: "view3d" }, canvas, el("div.toolbar", el("label", { text: "output time " }), timeLabel), slider, view3dInfo);
-    main.append(head,
-      el("div.two", el("div.card", el("h2", { text: "Case" }), caseBox), el("div.card", el("h2", { text: "Events" }), eventsBox)),
-      el("div.card", el("h2", { text: "Rod in 3-D" }), view3dBox),
-      el("div.card", el("h2", { text: "Scalar series" }), plotsBox));
+    var branch = null;            // a continuation job's page (branchView), once its kind is known
+    main.append(head);
+    /** The page below the head, by the job's kind: a run's time history, or a branch. */
+    function layout(job) {
+      if (job.kind === "continuation") {
+        branch = branchView(enc, caseBox);
+        main.append(branch.node);
+        return;
+      }
+      main.append(
+        el("div.two", el("div.card", el("h2", { text: "Case" }), caseBox), el("div.card", el("h2", { text: "Events" }), eventsBox)),
+        el("div.card", el("h2", { text: "Rod in 3-D" }), view3dBox),
+        el("div.card", el("h2", { text: "Scalar series" }), plotsBox));
+    }
 
     api("jobs/" + enc + "/spec").then(function (r) {
       caseBox.textContent = toYaml(r.data);
@@ -415,7 +435,10 @@
         el("dt", { text: "state" }), el("dd", stateBadge(job.state)),
         el("dt", { text: "progress" }), el("dd", progressBar(job.progress)),
         el("dt", { text: "ETA" }), el("dd", { title: ETA_NOTE, text: etaText(job) }),
-        el("dt", { text: "simulated" }), el("dd", { text: fmtNum(job.sim_time) + " of " + fmtNum(job.t_end) + " s, step " + job.step + " of ~" + job.n_steps }),
+        job.kind === "continuation"
+          ? [el("dt", { text: "points" }), el("dd", { text: job.step + " of at most " + job.n_steps }),
+             el("dt", { text: "ends read at" }), el("dd", { title: "the time at which the case's end conditions are read (continuation.time, default numerics.t_end)", text: "t = " + fmtNum(job.t_end) + " s" })]
+          : [el("dt", { text: "simulated" }), el("dd", { text: fmtNum(job.sim_time) + " of " + fmtNum(job.t_end) + " s, step " + job.step + " of ~" + job.n_steps })],
         el("dt", { text: "grid points" }), el("dd", { text: job.grid_points }),
         el("dt", { text: "attempts" }), el("dd", { text: job.attempts }),
         el("dt", { text: "submitted" }), el("dd", { text: fmtTime(job.created) }),
@@ -432,6 +455,7 @@
 
     var stopStatus = poller("jobs/" + enc, function (job, same) {
       if (same || !job) return;
+      if (!head.dataset.kind) { head.dataset.kind = job.kind || "dynamic"; layout(job); }
       renderHead(job);
       if (ACTIVE[job.state]) return;
       stopStatus();                // finished: its status no longer changes
@@ -440,6 +464,7 @@
     stops.push(stopStatus);
 
     function loadResults(job) {
+      if (branch) { branch.load(job); return; }
       apiResult("ui/jobs/" + enc + "/events").then(function (r) { renderEvents(r.data.events); })
         .catch(function (err) { fill(eventsBox, problemNode(err)); });
       Promise.all([apiResult("jobs/" + enc + "/summary"), apiResult("jobs/" + enc + "/results/variables")]).then(function (rs) {
@@ -562,6 +587,270 @@
       stops.forEach(function (s) { s(); });
       plots.forEach(function (u) { u.destroy(); });
     };
+  }
+
+  // ------------------------------------------------------------------ a continuation's branch
+  var BRANCH_MAX_3D_POINTS = 200;
+  var STABLE_COLOR = "#1f5fa8", UNSTABLE_COLOR = "#c0392b", SELECTED_COLOR = "#d68910";
+
+  /** Ticks at 1, 2 or 5 x 10^k covering [lo, hi], about n of them. */
+  function niceTicks(lo, hi, n) {
+    var span = hi - lo, raw = span / Math.max(1, n), mag = Math.pow(10, Math.floor(Math.log10(raw)));
+    var step = [1, 2, 5, 10].map(function (k) { return k * mag; }).filter(function (v) { return v >= raw; })[0] || 10 * mag;
+    var out = [];
+    for (var v = Math.ceil(lo / step) * step; v <= hi + 1e-9 * step; v += step) out.push(Math.abs(v) < 1e-12 * step ? 0 : v);
+    return { values: out, step: step };
+  }
+
+  /**
+   * A continuation job's page below its head: the bifurcation diagram (the parameter against
+   * a chosen measure, stable solid, unstable dashed red, branch points and folds marked; a
+   * click picks the nearest point with a stored shape), the shape of the chosen equilibrium in
+   * 3-D (a slider over the stored shapes), the branch's events and its mode counts. Everything
+   * comes from GET /v1/ui/jobs/{id}/branch (service/branch_view.py) and the position slice
+   * of one point at a time.
+   */
+  function branchView(enc, caseBox) {
+    var eventsBox = el("div", { id: "branch-events" }, el("p.muted", { text: "after the continuation" }));
+    var measureSel = el("select", { id: "branch-measure", "aria-label": "measure" });
+    var diagram = el("canvas", { id: "branch-diagram", "aria-label": "bifurcation diagram" });
+    var modesBox = el("p.muted", { id: "branch-modes" });
+    var legend = el("div.legend",
+      el("span.key.stable", { text: "stable (no unstable mode)" }), el("span.key.unstable", { text: "unstable" }),
+      el("span", { text: "● branch point  ○ branch point (a pair of modes)  ▲ fold  ◎ the point shown" }));
+    var canvas = el("canvas", { id: "rod3d", "aria-label": "the equilibrium in 3-D" });
+    var slider = el("input", { id: "point-slider", type: "range", min: 0, max: 0, step: 1, value: 0, "aria-label": "point of the branch" });
+    var pointLabel = el("span.mono", { id: "point-label" }), info = el("p.muted", { id: "view3d-info" });
+    var node = el("div",
+      el("div.card", { id: "branch" }, el("h2", { text: "Bifurcation diagram" }),
+        el("div.toolbar", el("label", { text: "measure " }), measureSel), diagram, legend, modesBox),
+      el("div.two",
+        el("div.card", el("h2", { text: "Shape at a point" }),
+          el("div.view3d", { id: "view3d" }, canvas, el("div.toolbar", el("label", { text: "point " }), pointLabel), slider, info)),
+        el("div", el("div.card", el("h2", { text: "Events of the branch" }), eventsBox),
+          el("div.card", el("h2", { text: "Case and continuation" }), caseBox))));
+    var data = null, selected = null, screen = [], view = null, sNodes = null, cache = new Map(), pending = null;
+
+    function measure(name) {
+      if (name === "unstable_modes") return { name: name, label: "unstable modes", units: "count", values: data.unstable_modes };
+      return data.measures.filter(function (m) { return m.name === name; })[0];
+    }
+    function valueAt(values, ev) {          // the measure at an event, interpolated in its step
+      var x = data.parameter.values, i = ev.after, j = ev.after + 1;
+      while (i >= 0 && values[i] === null) i--;            // the nearest defined values
+      while (j < x.length && values[j] === null) j++;
+      if (i < 0) return j < x.length ? values[j] : null;
+      if (j >= x.length || data.branch[i] !== data.branch[j] || x[i] === x[j]) return values[i];
+      return values[i] + (values[j] - values[i]) * (ev.parameter - x[i]) / (x[j] - x[i]);
+    }
+
+    function draw() {
+      var m = measure(measureSel.value), x = data.parameter.values, y = m.values, modes = data.unstable_modes;
+      var dpr = window.devicePixelRatio || 1, w = Math.max(420, diagram.clientWidth || 800), h = 380;
+      diagram.width = Math.round(w * dpr); diagram.height = Math.round(h * dpr);
+      var ctx = diagram.getContext("2d");
+      ctx.setTransform(dpr, 0, 0, dpr, 0, 0); ctx.clearRect(0, 0, w, h);
+      var left = 84, right = 18, top = 14, bottom = 50;
+      var xs = [], ys = [];
+      x.forEach(function (v, i) { if (v !== null && y[i] !== null) { xs.push(v); ys.push(y[i]); } });
+      data.events.forEach(function (ev) { var v = valueAt(y, ev); if (ev.parameter !== null && v !== null && v !== undefined) { xs.push(ev.parameter); ys.push(v); } });
+      if (!xs.length) { ctx.fillText("no values of this measure", left, top + 20); return; }
+      function range(vals) {
+        var lo = Math.min.apply(null, vals), hi = Math.max.apply(null, vals);
+        if (hi === lo) { var d = Math.abs(lo) * 0.1 || 1; lo -= d; hi += d; }
+        var pad = 0.05 * (hi - lo);
+        return [lo - pad, hi + pad];
+      }
+      var rx = range(xs), ry = range(ys);
+      function px(v) { return left + (v - rx[0]) / (rx[1] - rx[0]) * (w - left - right); }
+      function py(v) { return top + (1 - (v - ry[0]) / (ry[1] - ry[0])) * (h - top - bottom); }
+      // grid, ticks and axis labels (with units)
+      ctx.font = "12px sans-serif"; ctx.strokeStyle = "#e4e6ea"; ctx.fillStyle = "#1d232b"; ctx.lineWidth = 1;
+      var tx = niceTicks(rx[0], rx[1], 7), ty = niceTicks(ry[0], ry[1], 6);
+      ctx.textAlign = "center"; ctx.textBaseline = "top";
+      tx.values.forEach(function (v) { var X = px(v); ctx.beginPath(); ctx.moveTo(X, top); ctx.lineTo(X, h - bottom); ctx.stroke(); ctx.fillText(fmtNum(v), X, h - bottom + 4); });
+      ctx.textAlign = "right"; ctx.textBaseline = "middle";
+      ty.values.forEach(function (v) { var Y = py(v); ctx.beginPath(); ctx.moveTo(left, Y); ctx.lineTo(w - right, Y); ctx.stroke(); ctx.fillText(fmtNum(v), left - 6, Y); });
+      ctx.strokeStyle = "#8a8f96"; ctx.strokeRect(left, top, w - left - right, h - top - bottom);
+      ctx.textAlign = "center"; ctx.textBaseline = "bottom";
+      ctx.fillText(data.parameter.label, left + (w - left - right) / 2, h - 4);
+      ctx.save(); ctx.translate(14, top + (h - top - bottom) / 2); ctx.rotate(-Math.PI / 2); ctx.textBaseline = "middle";
+      ctx.fillText(m.label + " (" + m.units + ")", 0, 0); ctx.restore();
+      // the branch: stable solid, unstable dashed red; each part on its own
+      var segments = 0;
+      // stability of a point: 0 stable, 1 unstable, -1 not computed (stability off: grey)
+      function kindOf(i) { return modes[i] < 0 ? -1 : modes[i] === 0 ? 0 : 1; }
+      function stroke(x0, y0, x1, y1, kind) {
+        ctx.strokeStyle = kind === 1 ? UNSTABLE_COLOR : kind === 0 ? STABLE_COLOR : "#8a8f96"; ctx.lineWidth = 2;
+        ctx.setLineDash(kind === 1 ? [6, 4] : []);
+        ctx.beginPath(); ctx.moveTo(px(x0), py(y0)); ctx.lineTo(px(x1), py(y1)); ctx.stroke();
+        segments++;
+      }
+      // consecutive points where the measure is defined (a measure of the shape is defined
+      // only where the shape is stored), within one part of the branch
+      var prev = null;
+      for (var i = 0; i < x.length; i++) {
+        if (x[i] === null || y[i] === null) continue;
+        if (prev !== null && data.branch[prev] === data.branch[i]) {
+          var a = kindOf(prev), b = kindOf(i);
+          if (a === b) stroke(x[prev], y[prev], x[i], y[i], a);
+          else {
+            var xm = (x[prev] + x[i]) / 2, ym = (y[prev] + y[i]) / 2;
+            stroke(x[prev], y[prev], xm, ym, a); stroke(xm, ym, x[i], y[i], b);
+          }
+        }
+        prev = i;
+      }
+      data.events.forEach(function (ev) {   // the switched branch leaves from its branch point
+        if (!ev.switched_here) return;
+        var first = data.branch.indexOf(1), v = valueAt(y, ev);
+        if (first >= 0 && y[first] !== null && v !== null && v !== undefined) stroke(ev.parameter, v, x[first], y[first], kindOf(first));
+      });
+      ctx.setLineDash([]);
+      // stored points (clickable), events, the point shown
+      screen = [];
+      ctx.fillStyle = "#5d6875";
+      data.stored.forEach(function (i) {
+        if (x[i] === null || y[i] === null) return;
+        var X = px(x[i]), Y = py(y[i]);
+        screen.push({ i: i, x: X, y: Y });
+        ctx.beginPath(); ctx.arc(X, Y, 2.2, 0, 2 * Math.PI); ctx.fill();
+      });
+      var marks = 0;
+      data.events.forEach(function (ev) {
+        var v = valueAt(y, ev);
+        if (ev.parameter === null || v === null || v === undefined) return;
+        var X = px(ev.parameter), Y = py(v);
+        ctx.strokeStyle = "#1d232b"; ctx.fillStyle = "#1d232b"; ctx.lineWidth = 1.5;
+        ctx.beginPath();
+        if (ev.kind === "fold") { ctx.moveTo(X, Y - 7); ctx.lineTo(X + 6, Y + 5); ctx.lineTo(X - 6, Y + 5); ctx.closePath(); ctx.fill(); }
+        else { ctx.arc(X, Y, 5.5, 0, 2 * Math.PI); if (ev.simple) ctx.fill(); else { ctx.fillStyle = "#fff"; ctx.fill(); ctx.stroke(); } }
+        marks++;
+      });
+      if (selected !== null && x[selected] !== null && y[selected] !== null) {
+        ctx.strokeStyle = SELECTED_COLOR; ctx.lineWidth = 2.5;
+        ctx.beginPath(); ctx.arc(px(x[selected]), py(y[selected]), 8, 0, 2 * Math.PI); ctx.stroke();
+      }
+      diagram.dataset.segments = String(segments);
+      diagram.dataset.events = String(marks);
+      diagram.dataset.points = String(screen.length);
+      diagram.dataset.measure = m.name;
+      performance.mark("hockle:diagram-drawn");
+    }
+
+    function radiusAt(s) {
+      var spec = state.caseSpec || {}, rod = (spec.case || spec).rod || {}, d = rod.diameter;
+      if (typeof d === "number") return d / 2;
+      if (d && d.s && d.value) {
+        var xs = d.s, ys = d.value;
+        if (s <= xs[0]) return ys[0] / 2;
+        for (var i = 1; i < xs.length; i++) if (s <= xs[i]) return (ys[i - 1] + (ys[i] - ys[i - 1]) * (s - xs[i - 1]) / (xs[i] - xs[i - 1])) / 2;
+        return ys[ys.length - 1] / 2;
+      }
+      return 0.005;
+    }
+
+    function select(index) {
+      selected = index;
+      var k = data.stored.indexOf(index);
+      if (k >= 0) slider.value = String(k);
+      draw();
+      var lam = data.parameter.values[index], n = data.unstable_modes[index], m = measure(measureSel.value);
+      pointLabel.textContent = "point " + index + " of " + data.n_points + ": " + data.parameter.path + " = " +
+        fmtNum(lam) + " " + data.parameter.unit + ", " + (n === 0 ? "stable (no unstable mode)" : n < 0 ? "stability not computed" : n + " unstable mode" + (n === 1 ? "" : "s"));
+      modesBox.textContent = "At point " + index + ": " + m.label + " " + fmtNum(m.values[index]) + " " + m.units + "; " +
+        "unstable modes along the branch: " + modeRuns() + ".";
+      canvas.dataset.point = String(index);
+      var key = String(index);
+      var get = cache.has(key) ? Promise.resolve(cache.get(key)) :
+        apiResult("jobs/" + enc + "/results/variables/position?point=" + index).then(function (r) {
+          var pts = r.data.data;
+          if (r.data.dims[0] === "xyz") pts = pts[0].map(function (_, j) { return pts.map(function (row) { return row[j]; }); });
+          cache.set(key, pts);
+          return pts;
+        });
+      pending = index;
+      get.then(function (pts) {
+        if (pending !== index) return;
+        var keep = [], n = pts.length, m2 = Math.min(n, BRANCH_MAX_3D_POINTS);
+        for (var j = 0; j < m2; j++) keep.push(Math.round(j * (n - 1) / Math.max(1, m2 - 1)));
+        keep = keep.filter(function (v, j) { return j === 0 || v !== keep[j - 1]; });
+        var shown = keep.map(function (j) { return pts[j]; }), radii = keep.map(function (j) { return radiusAt(sNodes ? sNodes[j] : 0); });
+        view.setShape(shown, radii, [], true);
+        canvas.dataset.points = String(shown.length);
+        canvas.dataset.frame = String(index);
+        performance.mark("hockle:view3d-drawn");
+        info.textContent = shown.length + " of " + n + " grid points shown; the equilibrium at point " + index +
+          " (pick another in the diagram or with the slider); drag to turn, wheel to zoom.";
+      }).catch(function (err) { fill(info, problemNode(err)); });
+    }
+
+    function modeRuns() {
+      var out = [], u = data.unstable_modes, start = 0;
+      for (var i = 1; i <= u.length; i++) {
+        if (i === u.length || u[i] !== u[start]) {
+          out.push((u[start] < 0 ? "not computed" : String(u[start])) + " (point" + (i - 1 > start ? "s " + start + "–" + (i - 1) : " " + start) + ")");
+          start = i;
+        }
+      }
+      return out.join(", ");
+    }
+
+    function renderEvents() {
+      var unit = data.parameter.unit, rows = [];
+      rows.push(el("tr", { dataset: { event: "start" } }, el("td", { text: "start" }), el("td.num", { text: fmtNum(data.parameter.start) }),
+        el("td.num", { text: "0" }), el("td.num", { text: String(data.unstable_modes[0]) }), el("td", { text: "the case's value" })));
+      data.events.forEach(function (ev) {
+        rows.push(el("tr", { dataset: { event: ev.kind } }, el("td", { text: ev.label }), el("td.num", { text: fmtNum(ev.parameter) }),
+          el("td.num", { text: String(ev.after) + "–" + String(ev.after + 1) }),
+          el("td.num", { text: (ev.modes_before === null ? "—" : ev.modes_before) + " → " + (ev.modes_after === null ? "—" : ev.modes_after) }),
+          el("td", { text: ev.switched_here ? "the branch switched here" : "" })));
+      });
+      var last = data.n_points - 1;
+      rows.push(el("tr", { dataset: { event: "end" } }, el("td", { text: "end" }), el("td.num", { text: fmtNum(data.parameter.values[last]) }),
+        el("td.num", { text: String(last) }), el("td.num", { text: String(data.unstable_modes[last]) }), el("td", { text: data.stopped })));
+      fill(eventsBox, el("table", { id: "branch-events-table" },
+        el("thead", el("tr", ["event", data.parameter.path + (unit ? " (" + unit + ")" : ""), "point", "unstable modes", ""].map(function (h) { return el("th", { text: h }); }))),
+        el("tbody", rows)),
+        el("p.muted", { text: data.events.length + " fold(s) and branch point(s) located along " + data.n_points + " points" +
+          (data.switched_at !== null ? "; the branch switched after point " + data.switched_at : "") +
+          ". A simple branch point or a fold changes the number of unstable modes by one, a pair of modes (a round rod's symmetry) by two." }));
+    }
+
+    function load() {
+      apiResult("ui/jobs/" + enc + "/branch").then(function (r) {
+        data = r.data;
+        var varying = data.measures.filter(function (m) { return !m.constant; });
+        var first = (varying[0] || data.measures[0]).name;
+        fill(measureSel, data.measures.map(function (m) {
+          var opts = { value: m.name, text: m.label + " (" + m.units + ")" + (m.constant ? ", the same at every point" : "") };
+          if (m.name === first) opts.selected = true;
+          return el("option", opts);
+        }), el("option", { value: "unstable_modes", text: "unstable modes (count)" }));
+        measureSel.addEventListener("change", function () { if (selected !== null) select(selected); else draw(); });
+        renderEvents();
+        diagram.addEventListener("click", function (ev) {
+          var rect = diagram.getBoundingClientRect(), cx = ev.clientX - rect.left, cy = ev.clientY - rect.top, best = null, dist = Infinity;
+          screen.forEach(function (p) { var d = Math.hypot(p.x - cx, p.y - cy); if (d < dist) { dist = d; best = p.i; } });
+          if (best !== null) select(best);
+        });
+        view = new window.HockleView3D.RodView(canvas);
+        slider.max = String(Math.max(0, data.stored.length - 1));
+        var timer = null;
+        slider.addEventListener("input", function () {
+          clearTimeout(timer);
+          var k = Number(slider.value);
+          timer = setTimeout(function () { select(data.stored[k]); }, 60);
+        });
+        if (!data.stored.length) { draw(); info.textContent = "The branch stores no shape (shapes_every)."; return; }
+        return apiResult("jobs/" + enc + "/results/variables/s").then(function (rs) {
+          sNodes = rs.data.data;
+          select(data.stored[data.stored.length - 1]);
+        });
+      }).catch(function (err) { fill(eventsBox, problemNode(err)); fill(modesBox, problemNode(err)); });
+    }
+
+    return { node: node, load: load };
   }
 
   function download(path, filename, button) {
@@ -790,7 +1079,8 @@
     submit.addEventListener("click", function () {
       submit.disabled = true;
       api("jobs" + (fresh.checked ? "?fresh=true" : ""), { method: "POST", body: area.value, headers: { "Content-Type": mediaType() } }).then(function (r) {
-        banner((r.status === 201 ? "Submitted: job " : "Answered by the earlier identical job ") + r.data.id + ".");
+        banner(r.data.reused === "identical_case" ? "Answered by the earlier job " + r.data.id + ": an identical case already ran successfully (tick “run again” to run it anew)." :
+          r.data.reused ? "Answered by the earlier job " + r.data.id + " (" + r.data.reused + ")." : "Submitted: job " + r.data.id + ".");
         location.hash = "#/job/" + encodeURIComponent(r.data.id);
       }).catch(showErrors).then(function () { submit.disabled = false; });
     });
@@ -806,7 +1096,8 @@
       state.auth = !!cfg.auth;
       document.body.dataset.auth = state.auth ? "keys" : "none";
       if (!state.auth) {
-        banner("This service has no API keys configured: no authentication, every job is everyone's (the server log says so at start-up).");
+        banner("This service has no API keys configured: no authentication, every job is everyone's. " +
+          "The server log warns \u201cNO AUTHENTICATION\u201d at start-up only when the API binds an address other machines can reach, not on a loopback address such as 127.0.0.1.");
       } else {
         state.key = sessionStorage.getItem(KEY_STORE);
       }

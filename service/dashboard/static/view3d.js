@@ -7,6 +7,8 @@
  * shading. Contact sites are red discs sorted with the quads. No WebGL: it draws wherever a
  * canvas does (headless browsers included) and a 200-point tube is ~2,400 quads.
  *
+ * A scale bar at the top right gives the length of 1, 2 or 5 x 10^k m at the current zoom.
+ *
  * The sea floor, when the case has one, is the grid of GET /v1/ui/jobs/{id}/seabed (its
  * elevation z[i][j] at x[i], y[j]): sand-coloured Lambert-shaded quads, sorted among
  * themselves and painted before the rod when the view looks down on the bottom (after it,
@@ -249,8 +251,26 @@
       ctx.beginPath(); ctx.moveTo(40, h - 40); ctx.lineTo(40 + d[0] * 26, h - 40 - d[1] * 26); ctx.stroke();
       ctx.fillStyle = axes[k][4]; ctx.fillText(axes[k][3], 42 + d[0] * 32, h - 38 - d[1] * 32);
     }
+    this.scaleBar = drawScaleBar(ctx, w, h, scale);
+    canvas.dataset.scaleBar = this.scaleBar;
     this.lastDrawMs = performance.now() - t0;
   };
+
+  /** A length scale at the top right: a bar of 1, 2 or 5 x 10^k m, 60 to 150 px long at
+   * this zoom (the view is orthographic, so it holds anywhere in the picture); its label. */
+  function drawScaleBar(ctx, w, h, scale) {
+    var target = 100 / scale, mag = Math.pow(10, Math.floor(Math.log10(target)));
+    var length = [1, 2, 5, 10].map(function (k) { return k * mag; }).filter(function (v) { return v * scale >= 60; })[0] || 10 * mag;
+    var label = length >= 1 ? +length.toPrecision(3) + " m" : length >= 1e-3 ? +(length * 1e3).toPrecision(3) + " mm" : +(length * 1e6).toPrecision(3) + " µm";
+    var px = length * scale, x1 = w - 24, x0 = x1 - px, y = 26;          // top right
+    ctx.save();
+    ctx.strokeStyle = "#1d232b"; ctx.fillStyle = "#1d232b"; ctx.lineWidth = 2; ctx.setLineDash([]);
+    ctx.beginPath(); ctx.moveTo(x0, y - 5); ctx.lineTo(x0, y); ctx.lineTo(x1, y); ctx.lineTo(x1, y - 5); ctx.stroke();
+    ctx.font = "12px sans-serif"; ctx.textAlign = "center"; ctx.textBaseline = "top";
+    ctx.fillText(label, (x0 + x1) / 2, y + 4);
+    ctx.restore();
+    return label;
+  }
 
   window.HockleView3D = { RodView: RodView, contactSites: contactSites, frames: frames };
 })();
