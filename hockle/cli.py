@@ -415,6 +415,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         f"{status}: t = {t_last:g} of {case.numerics.t_end:g} s in {wall:.1f} s wall time: "
         f"wrote {out}"
     )
+    if ds.attrs.get("hockle_events"):
+        print(f"events: {ds.attrs['hockle_events']}")      # in the order they happened
     if ds.attrs.get("hockle_warning"):
         _err(f"hockle: warning: {ds.attrs['hockle_warning']}")
     if status == "completed":

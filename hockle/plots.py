@@ -145,10 +145,12 @@ def _contact_spec(ds: xr.Dataset) -> dict | None:
 def event_times(ds: xr.Dataset, max_events: int = MAX_EVENTS) -> list[tuple[float, str]]:
     """The stored times at which something happened, with what: ``[(t, label), ...]``.
 
-    * **onset of buckling**: the first time the centreline leaves the line through its ends
-      by more than one rod diameter (``position`` and the case's diameter; 1 % of the
-      length when the file has no diameter), provided it started closer than that; without
-      ``position``, the first time the writhe has changed by 0.05 turns;
+    * **onset of buckling**: the first time a point of the centreline has moved more than
+      one rod diameter across the line through its ends from where it was at the first
+      output (``position`` and the case's diameter; 1 % of the length when the file has
+      no diameter): a curved lay's own shape does not count
+      (:func:`solver.results.shape_departure`); without ``position``, the first time the
+      writhe has changed by 0.05 turns;
     * **first contact**: the first time ``contact_count`` > 0;
     * **loop formed**: the first self-contact or |Wr| rising through 1 (with a seabed:
       while the rod lies on it), when it is not already the first contact or Wr reaching 1;

@@ -20,7 +20,7 @@ from .contact.geometry import max_distance
 from .energies import energies
 from .initial import start_offset
 from .loads import end_reactions
-from .results import build_dataset
+from .results import build_dataset, events_summary
 from .stepping import hermite
 from .kinematics import min_bend_radius, quat_slerp
 
@@ -376,6 +376,9 @@ class OutputRecorder:
                                   stacked.get("writhe_closure_passages"))
         if warning is not None:
             ds.attrs["hockle_warning"] = warning
+        events = events_summary(ds)
+        if events:
+            ds.attrs["hockle_events"] = events         # in the order they happened
         ds.attrs["wall_time_s"] = self.wall_before + _time.perf_counter() - self.wall0
         ds.attrs["factorizations"] = run.newton.factorizations
         ds.attrs["gmres_iterations"] = run.newton.gmres_iterations

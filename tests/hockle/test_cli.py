@@ -197,6 +197,8 @@ def test_run_tiny_case_end_to_end(tiny, tmp_path, capsys):
     progress = [line for line in captured.err.splitlines() if line.startswith("t ")]
     assert progress and "t 0.05/0.05 s (100 %), step 5" in progress[-1]
     assert "Newton" in progress[-1] and "ETA" in progress[-1]
+    # the run's events, in the order they happened (this rod stays straight: none did)
+    assert "events: none happened; did not happen: buckling onset" in captured.out
     ds = open_result(out)
     assert ds.attrs["hockle_status"] == "completed"
     assert ds.attrs["case_hash"] == Case.from_file(tiny).spec_hash()
