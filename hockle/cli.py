@@ -133,12 +133,19 @@ class _StopOnInterrupt:
 
 class _ProgressBar:
     """Progress on stderr driven by ``solver.Progress`` reports: a rich bar on a
-    terminal; otherwise (a log file, a pipe) a plain line every 10 % or 30 s."""
+    terminal; otherwise (a log file, a pipe) a plain line every 10 % or 30 s.
+
+    What each number is (:func:`_step_words`): with fixed steps, the nominal steps of
+    ``numerics.dt`` done out of the case's count, the last accepted sub-step's Δt where
+    that step was cut or split (at a breakpoint, a Newton refusal, a contact), and the
+    Newton iterations of all of that nominal step's sub-steps; with ``numerics.tolerance``
+    the error-controlled steps taken and the last one's Δt."""
 
     LINE_EVERY_S = 30.0
 
-    def __init__(self, name: str, t_end: float, enabled: bool) -> None:
+    def __init__(self, name: str, t_end: float, enabled: bool, case: Any = None) -> None:
         self.enabled = enabled
+        self.case = case
         self._bar = None
         self._task = None
         self._plain = False
@@ -161,15 +168,12 @@ class _ProgressBar:
             TextColumn("[bold]{task.description}"),
             BarColumn(),
             TextColumn("t {task.completed:.4g}/{task.total:.4g} s"),
-            TextColumn("step {task.fields[step]}"),
-            TextColumn("Δt {task.fields[dt]:.3g} s"),
-            TextColumn("Newton {task.fields[newton]}"),
+            TextColumn("{task.fields[steps]}"),
             TimeElapsedColumn(),
             TextColumn("ETA {task.fields[eta]}"),
             console=console,
         )
-        self._task = self._bar.add_task(name, total=t_end, step=0, dt=float("nan"), newton="-",
-                                        eta="-")
+        self._task = self._bar.add_task(name, total=t_end, steps="step 0", eta="-")
 
     def __enter__(self) -> "_ProgressBar":
         if self._bar is not None:
@@ -185,9 +189,7 @@ class _ProgressBar:
             self._bar.update(
                 self._task,
                 completed=info.t,
-                step=info.step,
-                dt=info.dt,
-                newton=info.newton_iterations,
+                steps=_step_words(info, self.case),
                 eta=("-" if getattr(info, "eta_seconds", None) is None
                      else f"{info.eta_seconds:.0f} s"),
             )
@@ -196,10 +198,30 @@ class _ProgressBar:
             last_decile, last_wall = self._last_line
             if decile > last_decile or info.wall_time - last_wall >= self.LINE_EVERY_S:
                 self._last_line = (decile, info.wall_time)
-                _err(_progress_line(info))
+                _err(_progress_line(info, self.case))
 
 
-def _progress_line(info: Any) -> str:
+def _step_words(info: Any, case: Any = None) -> str:
+    """The step part of a progress report, each number saying what it counts: with fixed
+    steps ``nominal step 80/200 of Δt 0.05 s (last sub-step 0.00202 s), 136 Newton
+    iterations`` (of all the nominal step's sub-steps; the sub-step only where it differs
+    from the nominal Δt); with ``numerics.tolerance`` ``step 80 (error-controlled, last
+    Δt 0.00202 s), 9 Newton iterations``;
+    without the case ``step 80, Δt 0.00202 s, Newton 136``."""
+    num = getattr(case, "numerics", None)
+    its = info.newton_iterations
+    if num is None:
+        return f"step {info.step}, Δt {info.dt:.3g} s, Newton {its}"
+    if num.tolerance is not None:
+        return (f"step {info.step} (error-controlled, last Δt {info.dt:.3g} s), "
+                f"{its} Newton iterations")
+    words = f"nominal step {info.step}/{_n_steps(case)} of Δt {num.dt:g} s"
+    if abs(info.dt - num.dt) > 1e-9 * num.dt:
+        words += f" (last sub-step {info.dt:.3g} s)"
+    return words + f", {its} Newton iterations"
+
+
+def _progress_line(info: Any, case: Any = None) -> str:
     if info.fraction >= 1:
         eta = "0 s"
     elif getattr(info, "eta_seconds", None) is not None:
@@ -207,9 +229,8 @@ def _progress_line(info: Any) -> str:
     else:
         eta = "-"
     return (
-        f"t {info.t:.4g}/{info.t_end:.4g} s ({100 * info.fraction:.0f} %), step {info.step}, "
-        f"Δt {info.dt:.3g} s, Newton {info.newton_iterations}, "
-        f"wall {info.wall_time:.0f} s, ETA {eta}"
+        f"t {info.t:.4g}/{info.t_end:.4g} s ({100 * info.fraction:.0f} %), "
+        f"{_step_words(info, case)}, wall {info.wall_time:.0f} s, ETA {eta}"
     )
 
 
@@ -385,7 +406,8 @@ def cmd_run(args: argparse.Namespace) -> int:
                 + (f" (resumed at t = {resume.t:g} s)" if resume is not None else "")
             )
         try:
-            with _ProgressBar(case.name, case.numerics.t_end, enabled=not args.quiet) as bar:
+            with _ProgressBar(case.name, case.numerics.t_end, enabled=not args.quiet,
+                              case=case) as bar:
                 ds = integrate(case, progress=bar.update, should_stop=interrupt.should_stop,
                               checkpoint=keep if ck_path else None,
                               checkpoint_interval=args.checkpoint_every, resume=resume,
