@@ -45,6 +45,7 @@ __all__ = [
     "START_VARIABLES",
     "run_events",
     "shape_departure",
+    "node_departure",
     "events_summary",
     "event_label",
     "EVENT_RULES",
@@ -105,26 +106,27 @@ FIELD_VARIABLES: dict[str, tuple[tuple[str, ...], str, str, str | None]] = {
     "energy_kinetic": (
         ("time",),
         "J",
-        "kinetic energy of the rod including the entrained (added) fluid mass",
-        None,
+        "kinetic energy of the rod's own mass (translation and rotation)",
+        "the entrained fluid's share is energy_kinetic_fluid, apart from this",
     ),
     "energy_kinetic_fluid": (
         ("time",),
         "J",
-        "added-mass share of the kinetic energy",
-        "part of energy_kinetic carried by the entrained fluid; zero in vacuum",
+        "kinetic energy of the entrained (added) fluid mass",
+        "not part of energy_kinetic; zero in vacuum",
     ),
     "energy_total": (
         ("time",),
         "J",
         "total mechanical energy of the rod (strain plus kinetic)",
-        None,
+        "energy_bending + energy_torsion + energy_kinetic + energy_kinetic_fluid",
     ),
     "work_in": (
         ("time",),
         "J",
-        "cumulative work put in at the rod ends",
-        "time integral of power_in from the start of the run",
+        "cumulative work put in at the rod ends and by the loads",
+        "time integral of power_in from the start of the run: the ends' loads and motions, "
+        "distributed and point loads, gravity (not the seabed's reaction: seabed_work)",
     ),
     "power_in": (("time",), "W", "power put in at the rod ends", None),
     "twist": (
@@ -763,8 +765,15 @@ def shape_departure(pos: np.ndarray) -> np.ndarray:
     (the 5-cm half-sine of ``cases/seabed-hockle.yaml``) the lay's own curve reads 0, so a
     shape that starts more than a diameter off its chord still has an onset. The motion
     of the ends along the chord (an end pulled in or let out) does not count."""
+    return np.max(node_departure(pos), axis=1)
+
+
+def node_departure(pos: np.ndarray) -> np.ndarray:
+    """(T, N) each grid point's part of :func:`shape_departure` (m): the distance between
+    its offset from the chord and its offset at the first of the shapes ``pos`` (T, N, 3).
+    ``hockle plot`` zooms to where it is largest."""
     offsets = _chord_offsets(pos)
-    return np.max(np.linalg.norm(offsets - offsets[:1], axis=2), axis=1)
+    return np.linalg.norm(offsets - offsets[:1], axis=2)
 
 
 def _first(mask: np.ndarray) -> int | None:
