@@ -42,6 +42,38 @@ def _err(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
 
 
+def _place(source: str, loc: str) -> str | None:
+    """``  at FILE:LINE:COLUMN: <the line>`` for the field path ``loc`` of the case file
+    ``source`` (:func:`solver.case_source.where`, the dashboard's way to find a field in
+    its editor), or None (no such file, the document as a whole, a path it does not
+    write)."""
+    from solver.case_source import where
+
+    try:
+        text = Path(source).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return None
+    place = where(source, text, loc)
+    return f"  at {place}" if place else None
+
+
+def _syntax_place(source: str, msg: str) -> str | None:
+    """``  at FILE:LINE:COLUMN: <the line>`` for a syntax error whose message gives its
+    place (``at line 4, column 1``: YAML; ``line 3 column 2``: JSON), or None."""
+    import re
+
+    m = re.search(r"line (\d+),? column (\d+)", msg)
+    if m is None:
+        return None
+    line, column = int(m.group(1)), int(m.group(2))
+    try:
+        lines = Path(source).read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError):
+        return None
+    shown = lines[line - 1].strip()[:100] if 0 < line <= len(lines) else ""
+    return f"  at {source}:{line}:{column}: {shown}"
+
+
 def _print_case_errors(exc: Any, source: str) -> None:
     errors = list(getattr(exc, "errors", None) or [])
     n = len(errors)
@@ -50,6 +82,10 @@ def _print_case_errors(exc: Any, source: str) -> None:
         loc = error.get("loc") or "(case)"
         msg = str(error.get("msg", "")).replace("\n", " ")
         _err(f"{loc}: {msg}")
+        place = (_place(source, error["loc"]) if error.get("loc")
+                 else _syntax_place(source, msg))
+        if place:
+            _err(place)
     if not errors:
         _err(str(exc))
 
