@@ -90,6 +90,21 @@ def _print_case_errors(exc: Any, source: str) -> None:
         _err(str(exc))
 
 
+def _print_warnings(case: Any, source: str) -> int:
+    """Print the case's plausibility warnings (:func:`solver.plausibility.
+    plausibility_warnings`) on stderr, each ``hockle: warning: PATH: reason`` with the
+    place in the file below it; returns how many. Warnings do not stop anything."""
+    from solver.plausibility import plausibility_warnings
+
+    found = plausibility_warnings(case)
+    for warning in found:
+        _err(f"hockle: warning: {warning['loc']}: {warning['msg']}")
+        place = _place(source, warning["loc"])
+        if place:
+            _err(place)
+    return len(found)
+
+
 def _load_case(path: str) -> Any:
     """The validated Case, or None after printing its errors."""
     from solver.case import Case, CaseError
@@ -126,6 +141,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
         print(f"start pose: within {off.distance * 1e3:.3g} mm ({off.share:.2g} diameters) "
               f"of initial.centreline (farthest at s = {off.s:.4g} m)")
         _print_advice(off.advice())
+    _print_warnings(case, args.case)
     return EXIT_OK
 
 
@@ -417,6 +433,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
         off = start_offset(case)
         _print_advice(off.advice() if off is not None else None)
+        _print_warnings(case, args.case)
     ck_path = Path(args.checkpoint) if args.checkpoint else None
     latest = {}
 
