@@ -257,7 +257,7 @@ def _step_words(info: Any, case: Any = None) -> str:
     """The step part of a progress report, each number saying what it counts: with fixed
     steps ``nominal step 80/200 of Δt 0.05 s (last sub-step 0.00202 s), 136 Newton
     iterations`` (of all the nominal step's sub-steps; the sub-step only where it differs
-    from the nominal Δt); with ``numerics.tolerance`` ``step 80 (error-controlled, last
+    from the nominal Δt in the digits shown); with ``numerics.tolerance`` ``step 80 (error-controlled, last
     Δt 0.00202 s), 9 Newton iterations``;
     without the case ``step 80, Δt 0.00202 s, Newton 136``."""
     num = getattr(case, "numerics", None)
@@ -268,7 +268,7 @@ def _step_words(info: Any, case: Any = None) -> str:
         return (f"step {info.step} (error-controlled, last Δt {info.dt:.3g} s), "
                 f"{its} Newton iterations")
     words = f"nominal step {info.step}/{_n_steps(case)} of Δt {num.dt:g} s"
-    if abs(info.dt - num.dt) > 1e-9 * num.dt:
+    if f"{info.dt:.3g}" != f"{num.dt:.3g}":       # cut or split, as far as it shows
         words += f" (last sub-step {info.dt:.3g} s)"
     return words + f", {its} Newton iterations"
 
