@@ -12,8 +12,8 @@ duplicate is worth a look. Last, the functions compiled for more than one signat
 with the arguments whose types differ.
 
 Run: ``PYTHONPATH=$PWD python -m benchmarks.compile_time [--top 20] [--json PATH]`` (as
-long as the compilation: 86-91 s on an idle 2-core AMD EPYC, docs/benchmarks-history.md
-for other machines). The process compiles
+long as the compilation: 1.5 to 6 minutes on 2 cores, depending on the machine; the last
+measured figure is in docs/benchmarks.md, earlier ones in research/notes/benchmarks-history.md). The process compiles
 into its own temporary folder and leaves the installation's cache alone. For
 ``benchmarks/report.py`` (section "compile_time") the measurement runs in a fresh
 process, since numba reads NUMBA_CACHE_DIR when it is first imported.

@@ -4,8 +4,9 @@ Build (offline, warnings as errors; what ``tests/test_docs.py`` runs)::
 
     python3 -m sphinx -W -b html docs docs/_build/html
 
-Pages are Markdown (myst-parser); the API reference is generated from the docstrings
-(autodoc + autosummary, numpydoc-style sections through napoleon); the gallery runs the
+Pages are Markdown (myst-parser); the API reference, the public modules only
+(``PUBLIC_MODULES``), is generated from the docstrings (autodoc, numpydoc sections through
+napoleon); the gallery runs the
 scripts of ``examples/`` in their ``--quick`` mode (sphinx-gallery); the REST reference
 renders the service's OpenAPI document, written here from ``service.app`` without a
 server (sphinxcontrib-openapi); the CLI reference is the ``--help`` text of every command.
@@ -57,13 +58,14 @@ html_title = f"hockle {release}"
 html_theme_options = {"navigation_with_keys": False, "show_toc_level": 2,
                       "header_links_before_dropdown": 4}
 html_static_path: list[str] = []
-templates_path = ["_templates"]
 
 # --------------------------------------------------------------------------- API reference
 autosummary_generate = True
-autodoc_default_options = {"members": True, "show-inheritance": False}
+# no default "members": a default of True would override each page's explicit member list
+autodoc_default_options = {"show-inheritance": False}
 autodoc_member_order = "bysource"
 autodoc_typehints = "description"
+autodoc_typehints_description_target = "documented_params"   # no bare type lists
 autodoc_mock_imports: list[str] = []
 napoleon_google_docstring = False
 napoleon_numpy_docstring = True
@@ -123,29 +125,88 @@ def _write_cli_help() -> None:
     (GENERATED / "cli-help.md").write_text("\n".join(lines))
 
 
-SKIP_MODULES = ("migrations", "__main__")
+#: The public API, the modules a user imports, with what each is for. Only these are
+#: documented: the rest of the four packages is the implementation (docs/developer.md walks
+#: through it), and its docstrings are read in the sources.
+PUBLIC_MODULES = [
+    ("hockle.api", "The Python API: run a case in-process with callbacks and loads "
+                   "written in Python, build cases and ends, sweep on all cores, find "
+                   "equilibria and follow their branches."),
+    ("hockle.io", "Result files: write and open them, read a start state from one."),
+    ("solver", "The solver's public names: the validated case, the time loop, its "
+               "progress record and failure, the kernels' warm-up."),
+    ("solver.case", "The case spec (the input contract): the sections of a case."),
+    ("solver.results", "The result dataset (the output contract): its builder, "
+                       "metadata and events."),
+    ("solver.topology", "Twist, writhe and linking number of a centreline."),
+    ("solver.checkpoint", "Checkpoints of a run or a branch, and resuming from them."),
+    ("service.client", "The REST service's Python client."),
+]
+
+
+def _public_names() -> dict[str, list[str]]:
+    """The names each public module exports (``__all__``), each object documented once:
+    at the first module of ``PUBLIC_MODULES`` that exports it (``solver.Case`` on the
+    ``solver`` page, not again on ``solver.case``'s)."""
+    import importlib
+
+    seen, out = set(), {}
+    for name, _ in PUBLIC_MODULES:
+        module = importlib.import_module(name)
+        out[name] = []
+        for attr in getattr(module, "__all__", []):
+            if attr.startswith("_"):
+                continue
+            obj = getattr(module, attr)
+            key = id(obj) if callable(obj) or isinstance(obj, type) else (name, attr)
+            if key in seen:
+                continue
+            seen.add(key)
+            out[name].append(attr)
+    return out
 
 
 def _write_api_reference() -> None:
-    """The API reference page: every module of the four packages, walked from the
-    tree (so a module added or moved is documented without editing this file)."""
+    """The API reference: an index page and one page per public module, written from
+    ``PUBLIC_MODULES`` (numpydoc docstrings rendered by napoleon)."""
     import importlib
-    import pkgutil
+    import shutil
 
+    pages = GENERATED / "api"
+    shutil.rmtree(pages, ignore_errors=True)
+    pages.mkdir(parents=True)
     lines = ["# API reference", "",
-             "Generated from the docstrings (array shapes, units, errors raised, sources).",
-             "", "## Entry points", "", "```{eval-rst}", ".. autosummary::", "",
+             "The public API, generated from the docstrings (numpydoc sections: parameters "
+             "with their shapes and units, returns, errors raised). The command line is in "
+             "{doc}`../cli`, the REST API in {doc}`../rest-api`; the contracts behind them "
+             "(the case spec, the result dataset) in {doc}`../case-spec` and "
+             "{doc}`../interfaces`.", "",
+             "## Entry points", "", "```{eval-rst}", ".. autosummary::", "",
              "   hockle.api.simulate", "   solver.Case", "   solver.SolverDivergence",
-             "   service.client.HockleClient", "```", ""]
-    for package in ("solver", "hockle", "service", "worker"):
-        mod = importlib.import_module(package)
-        names = [package] + sorted(
-            m.name for m in pkgutil.walk_packages(mod.__path__, prefix=package + ".")
-            if not any(part in SKIP_MODULES for part in m.name.split(".")))
-        lines += [f"## {package}", "", "```{eval-rst}", ".. autosummary::",
-                  "   :toctree: api", "", *[f"   {n}" for n in names], "```", ""]
-    GENERATED.mkdir(exist_ok=True)
+             "   service.client.HockleClient", "```", "",
+             "## Modules", "", "| module | what it is for |", "| --- | --- |"]
+    for name, what in PUBLIC_MODULES:
+        lines.append(f"| {{doc}}`{name} <api/{name}>` | {what} |")
+    lines += ["", "```{toctree}", ":hidden:", "",
+              *[f"api/{name}" for name, _ in PUBLIC_MODULES], "```", ""]
     (GENERATED / "api.md").write_text("\n".join(lines))
+    public = _public_names()
+    for name, what in PUBLIC_MODULES:
+        module = importlib.import_module(name)
+        names = public[name]
+        body = [name, "=" * len(name), "", what, "", f".. automodule:: {name}"]
+        if name == "solver":
+            # its names are resolved lazily (solver/__init__.py): one directive each
+            body += ["   :no-members:", ""]
+            for attr in names:
+                kind = "autoclass" if isinstance(getattr(module, attr), type) else "autofunction"
+                body += [f".. {kind}:: solver.{attr}"]
+                body += ["   :members:", ""] if kind == "autoclass" else [""]
+        elif names:
+            body += [f"   :members: {', '.join(names)}", ""]
+        else:
+            body += ["   :no-members:", ""]
+        (pages / f"{name}.rst").write_text("\n".join(body))
 
 
 _write_openapi()

@@ -69,15 +69,45 @@ __all__ = [
 class State:
     """The rod at one accepted step, as a callback (or a state-aware load) sees it.
 
-    ``t`` (s), ``step`` (accepted steps so far; 0 at the start), ``dt`` (s, the last step),
-    ``s`` (m, the grid). The fields are computed when first read and are copies (changing
-    them changes nothing in the run): ``position`` (N+1, 3) m, global; ``v``, ``omega``,
-    ``f``, ``kappa``, ``moment`` (N+1, 3) body frame; ``orientation`` (N+1, 4) unit
-    quaternions; ``twist``, ``writhe``, ``linking_number`` (turns; the writhe costs
-    O(N²)); ``energies`` (a dict of J); ``contact_count``, ``min_surface_gap`` (m);
-    ``bend_radius_min``, ``bend_radius_min_s`` (m). ``get(*groups)`` returns the output field groups of the result dataset as a dict.
-    ``run`` is the :class:`solver.simulation.RodRun` itself, for experts: read it, do not
-    change it.
+    The fields below are computed when first read and are copies: changing them changes
+    nothing in the run. ``get(*groups)`` returns whole output field groups of the result
+    dataset as a dict.
+
+    Parameters
+    ----------
+    run : solver.simulation.RodRun
+        The run, for experts: read it, do not change it.
+    step : int
+        Accepted steps so far (0 at the start).
+
+    Attributes
+    ----------
+    t : float
+        Simulated time, s.
+    step : int
+        Accepted steps so far; 0 at the start.
+    dt : float
+        The last step, s.
+    s : numpy.ndarray
+        The grid, (N+1,) m.
+    position : numpy.ndarray
+        (N+1, 3) m, global frame.
+    v, omega, f, kappa, moment : numpy.ndarray
+        (N+1, 3), body frame, SI units.
+    orientation : numpy.ndarray
+        (N+1, 4) unit quaternions, scalar first.
+    twist, writhe, linking_number : float
+        Turns (the writhe costs O(N²)).
+    energies : dict
+        The energies, the work put in and its power, J and W.
+    contact_count : int
+        Self-contact pairs.
+    min_surface_gap : float
+        Smallest surface gap among them, m.
+    bend_radius_min, bend_radius_min_s : float
+        The smallest bend radius and where it is, m.
+    run : solver.simulation.RodRun
+        The run itself.
     """
 
     _GROUPS = {"v": "v", "omega": "omega", "f": "f", "kappa": "kappa", "moment": "moment",
@@ -130,13 +160,32 @@ class State:
 class Callback:
     """An observer called with the :class:`State` at a cadence; it may stop the run.
 
-    Subclass and override :meth:`__call__`, or wrap a function: ``Callback(func,
-    every=10)``. ``every``: every that many accepted steps; ``interval``: at the first
-    accepted step at or after each multiple of that many simulated seconds; neither: every
-    accepted step. Every callback is also called once at t = 0 (step 0). Returning ``True``
-    or a non-empty string stops the run at once (any other value is ignored): ``simulate``
-    returns the dataset up to there with ``hockle_status = "stopped"`` and
-    ``hockle_stop_reason`` the string (or ``"callback"``). As in PyElastica, ``every`` is its ``step_skip``.
+    Subclass and override :meth:`__call__`, or wrap a function. Every callback is also
+    called once at t = 0 (step 0). Returning ``True`` or a non-empty string stops the run at
+    once (any other value is ignored): :func:`simulate` returns the dataset up to there with
+    ``hockle_status = "stopped"`` and ``hockle_stop_reason`` the string (or ``"callback"``).
+
+    Parameters
+    ----------
+    func : callable, optional
+        ``func(state) -> bool | str | None``; without it, override :meth:`__call__`.
+    every : int, optional
+        Called every that many accepted steps (PyElastica's ``step_skip``).
+    interval : float, optional
+        Called at the first accepted step at or after each multiple of that many simulated
+        seconds. Neither ``every`` nor ``interval``: every accepted step.
+    name : str, optional
+        A name for messages; default the function's.
+
+    Raises
+    ------
+    ValueError
+        Both ``every`` and ``interval``, or either not positive.
+
+    Examples
+    --------
+    >>> stop = Callback.when(lambda st: st.writhe > 1.0, reason="writhe above one turn")
+    >>> every_tenth = Callback(lambda st: print(st.t), every=10)
     """
 
     def __init__(self, func: Callable[[State], Any] | None = None, *, every: int | None = None,
@@ -156,7 +205,18 @@ class Callback:
         self._next_t = 0.0
 
     def __call__(self, state: State) -> Any:
-        """Observe ``state``; return ``True`` or a reason string to stop the run."""
+        """Observe ``state``.
+
+        Parameters
+        ----------
+        state : State
+            The rod at this step.
+
+        Returns
+        -------
+        bool or str or None
+            ``True`` or a reason string to stop the run.
+        """
         if self.func is None:
             raise NotImplementedError("override Callback.__call__ or pass a function")
         return self.func(state)
@@ -164,7 +224,21 @@ class Callback:
     @classmethod
     def when(cls, predicate: Callable[[State], Any], *, reason: str = "stop condition met",
              every: int | None = None, interval: float | None = None) -> "Callback":
-        """A callback that stops the run when ``predicate(state)`` is true, with ``reason``."""
+        """A callback that stops the run when ``predicate(state)`` is true.
+
+        Parameters
+        ----------
+        predicate : callable
+            ``predicate(state) -> bool``.
+        reason : str
+            The stop reason the result carries (``hockle_stop_reason``).
+        every, interval : optional
+            The cadence, as for :class:`Callback`.
+
+        Returns
+        -------
+        Callback
+        """
         def check(state: State):
             return reason if predicate(state) else None
         return cls(check, every=every, interval=interval, name=f"when({reason})")
@@ -186,10 +260,25 @@ class Callback:
 
 
 class Recorder(Callback):
-    """A callback that keeps quantities of the state: ``times`` (s), ``steps`` and
-    ``data[name]`` (a list per name, e.g. ``position``, ``writhe``, ``energy_total``);
-    :meth:`arrays` stacks them. ``names``: any attribute of :class:`State` or key of its
-    ``energies``."""
+    """A callback that keeps quantities of the state at its cadence.
+
+    Parameters
+    ----------
+    names : iterable of str
+        Any attribute of :class:`State` (``position``, ``writhe``, ...) or key of its
+        ``energies`` (``energy_total``, ...).
+    every, interval : optional
+        The cadence, as for :class:`Callback`.
+
+    Attributes
+    ----------
+    times : list of float
+        The recorded times, s.
+    steps : list of int
+        The recorded steps.
+    data : dict of list
+        One list per name; :meth:`arrays` stacks them.
+    """
 
     def __init__(self, names: Iterable[str] = ("position",), *, every: int | None = None,
                  interval: float | None = None):
@@ -212,7 +301,13 @@ class Recorder(Callback):
         return None
 
     def arrays(self) -> dict[str, np.ndarray]:
-        """``{"time": (K,), name: (K, ...)}``."""
+        """The records as arrays.
+
+        Returns
+        -------
+        dict of numpy.ndarray
+            ``{"time": (K,), name: (K, ...)}``.
+        """
         out = {"time": np.asarray(self.times)}
         out.update({n: np.asarray(v) for n, v in self.data.items()})
         return out
@@ -231,20 +326,30 @@ def _as_callback(cb: Any) -> Callback:
 
 
 class DistributedLoad:
-    """A distributed force per unit length written as a Python function (in-process runs
-    only; the service takes data, never code).
+    """A distributed force per unit length written as a Python function.
 
-    ``func(t, s)`` returns the force in N/m, **global frame**, at time ``t`` (s) on the grid
-    ``s`` (m, (N+1,)): an (N+1, 3) array or one 3-vector for the whole rod. With
-    ``uses_state=True`` it is ``func(t, s, state)`` with the :class:`State` of the last
-    accepted step: the load is then explicit in the state (lagged by one step; Newton sees
-    it as constant within a step), fine for slowly varying loads, not for stiff ones.
+    In-process runs only: the service takes data, never code. The solver assembles the
+    load as it does the case's ``distributed_forces`` (work and power included) and asks
+    for it at every Newton iteration at the new time level. It does not know where the load
+    changes suddenly: steps do not land on a jump of ``func`` (write the case's own
+    ``distributed_forces`` for windows in time).
 
-    The solver assembles global-frame distributed forces as it does the case's
-    ``distributed_forces`` (work and power included), and asks for them at every Newton
-    iteration at the new time level. It does not know where the load changes suddenly:
-    steps do not land on a jump of ``func`` (write the case's own ``distributed_forces``
-    for windows in time).
+    Parameters
+    ----------
+    func : callable
+        ``func(t, s)`` returns the force in N/m, **global frame**, at time ``t`` (s) on the
+        grid ``s`` ((N+1,) m): an (N+1, 3) array or one 3-vector for the whole rod.
+    uses_state : bool
+        If true, ``func(t, s, state)`` with the :class:`State` of the last accepted step:
+        the load is then explicit in the state (lagged by one step, constant within a
+        step's Newton solve), fine for slowly varying loads, not for stiff ones.
+    name : str, optional
+        The name the result's ``hockle_custom_loads`` lists; default the function's.
+
+    Raises
+    ------
+    TypeError
+        ``func`` is not callable.
     """
 
     def __init__(self, func: Callable[..., Any], *, uses_state: bool = False,
@@ -256,8 +361,27 @@ class DistributedLoad:
         self.name = name or getattr(func, "__name__", "load")
 
     def evaluate(self, t: float, s: np.ndarray, state: State | None) -> np.ndarray:
-        """The load on the grid, (N+1, 3) N/m; raises ValueError naming the load for a
-        wrong shape or a non-finite value."""
+        """The load on the grid.
+
+        Parameters
+        ----------
+        t : float
+            Time, s.
+        s : numpy.ndarray
+            The grid, (N+1,) m.
+        state : State or None
+            The last accepted step's state, for a load with ``uses_state``.
+
+        Returns
+        -------
+        numpy.ndarray
+            (N+1, 3) N/m, global frame.
+
+        Raises
+        ------
+        ValueError
+            A wrong shape or a non-finite value, naming the load.
+        """
         value = self.func(t, s, state) if self.uses_state else self.func(t, s)
         arr = np.asarray(value, dtype=float)
         if arr.shape == (3,):
@@ -325,19 +449,55 @@ def _as_load(load: Any) -> DistributedLoad:
 def simulate(case, callbacks: Iterable[Any] = (), loads: Iterable[Any] = (),
              progress: Callable | None = None, should_stop: Callable | None = None,
              **solver_options: Any):
-    """Run ``case`` (a ``Case``, a mapping or a case file) in this process and return the
-    result dataset (docs/interfaces.md).
+    """Run a case in this process and return its result dataset.
 
-    ``callbacks``: :class:`Callback` objects or functions of the :class:`State` (every
-    step), called at their cadence after accepted steps and once at t = 0; returning ``True``
-    or a reason string stops the run (``hockle_status = "stopped"``, ``hockle_stop_reason``
-    its string). ``loads``: :class:`DistributedLoad` objects or functions ``(t, s) -> N/m``
-    (global frame) added to the case's distributed forces; the dataset then has
-    ``hockle_custom_loads`` naming them (its ``case`` alone no longer reproduces the run).
-    ``progress``, ``should_stop`` and the other options (``checkpoint``,
-    ``checkpoint_interval``, ``resume``) are :func:`solver.integrate`'s; with loads a
-    checkpoint needs picklable (module-level) load functions. Raises ``SolverDivergence``
-    (with ``.partial``) as :func:`solver.integrate` does.
+    hockle's one ``simulate``: :func:`solver.integrate` with the callbacks as its
+    ``observer`` and the loads as its ``extra_force`` (docs/interfaces.md).
+
+    Parameters
+    ----------
+    case : solver.Case or mapping or str or os.PathLike
+        A validated case, a mapping of the case spec or a case file (YAML or JSON); a case
+        with ``initial.from_result`` starts from that result's state.
+    callbacks : iterable
+        :class:`Callback` objects or functions of the :class:`State` (called every step),
+        called at their cadence after accepted steps and once at t = 0; returning ``True``
+        or a reason string stops the run (``hockle_status = "stopped"``,
+        ``hockle_stop_reason`` its string).
+    loads : iterable
+        :class:`DistributedLoad` objects or functions ``(t, s) -> N/m`` (global frame)
+        added to the case's distributed forces; the dataset then has
+        ``hockle_custom_loads`` naming them (its ``case`` alone no longer reproduces the
+        run).
+    progress : callable, optional
+        ``progress(info)`` with a :class:`solver.Progress` after every accepted step.
+    should_stop : callable, optional
+        Asked before every step; a truthy answer stops the run (its string the reason).
+    **solver_options
+        :func:`solver.integrate`'s other options: ``checkpoint``, ``checkpoint_interval``,
+        ``resume``, ``start``. With loads a checkpoint needs picklable (module-level) load
+        functions.
+
+    Returns
+    -------
+    xarray.Dataset
+        The result dataset (docs/interfaces.md, "The result dataset").
+
+    Raises
+    ------
+    solver.SolverDivergence
+        A step that could not be completed after all Δt cuts; ``.partial`` holds the
+        dataset up to there.
+    solver.CaseError
+        An invalid case file.
+    ValueError
+        ``observer`` or ``extra_force`` among the options (give ``callbacks`` and
+        ``loads``).
+
+    Examples
+    --------
+    >>> ds = simulate("cases/goyal-writhing.yaml",
+    ...               progress=lambda p: print(p.t, p.step))     # doctest: +SKIP
     """
     from solver.simulation import integrate
 
@@ -368,26 +528,56 @@ def _dof(key: str, value: Any) -> dict:
 
 
 def clamped() -> dict:
-    """An end held in place and in orientation: every velocity and angular velocity 0."""
+    """An end held in place and in orientation: every velocity and angular velocity 0.
+
+    Returns
+    -------
+    dict
+        An ``EndCondition`` mapping for ``boundary.start`` or ``boundary.end``.
+    """
     return {"translation": [_dof("velocity", 0.0) for _ in range(3)],
             "rotation": [_dof("angular_velocity", 0.0) for _ in range(3)]}
 
 
 def free() -> dict:
-    """A free end: no force, no moment."""
+    """A free end: no force, no moment.
+
+    Returns
+    -------
+    dict
+        An ``EndCondition`` mapping.
+    """
     return {"translation": [_dof("force", 0.0) for _ in range(3)],
             "rotation": [_dof("moment", 0.0) for _ in range(3)]}
 
 
 def pinned() -> dict:
-    """An end held in place but free to turn (a ball joint): velocities 0, moments 0."""
+    """An end held in place but free to turn (a ball joint): velocities 0, moments 0.
+
+    Returns
+    -------
+    dict
+        An ``EndCondition`` mapping.
+    """
     return {"translation": [_dof("velocity", 0.0) for _ in range(3)],
             "rotation": [_dof("moment", 0.0) for _ in range(3)]}
 
 
 def twisted(rate: Any, *, ramp_time: float | None = None) -> dict:
-    """A clamped end turned about the rod's axis at ``rate`` rad/s (a number or a
-    :func:`ramp` table); ``ramp_time`` (s): from 0 to ``rate`` linearly over that time."""
+    """A clamped end turned about the rod's axis.
+
+    Parameters
+    ----------
+    rate : float or dict
+        The angular velocity about the axis, rad/s: a number or a :func:`ramp` table.
+    ramp_time : float, optional
+        From 0 to ``rate`` linearly over that time, s.
+
+    Returns
+    -------
+    dict
+        An ``EndCondition`` mapping.
+    """
     if ramp_time is not None:
         rate = ramp([0.0, float(ramp_time)], [0.0, float(rate)])
     out = clamped()
@@ -396,9 +586,20 @@ def twisted(rate: Any, *, ramp_time: float | None = None) -> dict:
 
 
 def sliding(tension: Any = 0.0, *, held_after: float | None = None) -> dict:
-    """An end held sideways and in orientation that slides along the rod's axis under an
-    axial force ``tension`` (N, > 0 pulls; a number or a :func:`ramp` table);
-    ``held_after`` (s): held in place from then on (the seed example's end at 30 s)."""
+    """An end held sideways and in orientation that slides along the rod's axis.
+
+    Parameters
+    ----------
+    tension : float or dict
+        The axial force, N (> 0 pulls): a number or a :func:`ramp` table.
+    held_after : float, optional
+        Held in place from then on, s (the seed example's end at 30 s).
+
+    Returns
+    -------
+    dict
+        An ``EndCondition`` mapping.
+    """
     out = clamped()
     axial: Any = _dof("force", tension)
     if held_after is not None:
@@ -408,9 +609,25 @@ def sliding(tension: Any = 0.0, *, held_after: float | None = None) -> dict:
 
 
 def end(translation: Sequence[Any], rotation: Sequence[Any]) -> dict:
-    """Any end: three translation items (``{"velocity": v}`` or ``{"force": f}``) and three
-    rotation items (``{"angular_velocity": w}`` or ``{"moment": m}``), body frame; an item
-    may be a :func:`switch`."""
+    """Any end, item by item (body frame).
+
+    Parameters
+    ----------
+    translation : sequence
+        Three items, ``{"velocity": v}`` or ``{"force": f}``, or a :func:`switch`.
+    rotation : sequence
+        Three items, ``{"angular_velocity": w}`` or ``{"moment": m}``, or a :func:`switch`.
+
+    Returns
+    -------
+    dict
+        An ``EndCondition`` mapping.
+
+    Raises
+    ------
+    ValueError
+        Not three items of each.
+    """
     if len(translation) != 3 or len(rotation) != 3:
         raise ValueError("end() needs 3 translation and 3 rotation items (body-frame "
                          "components a1, a2, a3)")
@@ -418,14 +635,42 @@ def end(translation: Sequence[Any], rotation: Sequence[Any]) -> dict:
 
 
 def ramp(t: Sequence[float], value: Sequence[float]) -> dict:
-    """A table in time, piecewise linear, held outside: ``{"t": [...], "value": [...]}``."""
+    """A table in time, piecewise linear, held constant outside.
+
+    Parameters
+    ----------
+    t : sequence of float
+        The times, s, increasing.
+    value : sequence of float
+        The values there.
+
+    Returns
+    -------
+    dict
+        ``{"t": [...], "value": [...]}``.
+    """
     return {"t": [float(x) for x in t], "value": [float(x) for x in value]}
 
 
 def switch(*items: Any) -> list[dict]:
-    """One DOF switching in time: ``switch(({"force": 0}, 30.0), {"velocity": 0})`` is the
-    force until t = 30 s, then the velocity (every item but the last is ``(condition,
-    until)``)."""
+    """One degree of freedom switching in time.
+
+    Parameters
+    ----------
+    *items
+        Every item but the last is ``(condition, until)``: the condition in force until
+        that time (s); the last is the condition from then on.
+
+    Returns
+    -------
+    list of dict
+        The item of an ``EndCondition``.
+
+    Examples
+    --------
+    >>> switch(({"force": 0.0}, 30.0), {"velocity": 0.0})   # the force until 30 s
+    [{'force': 0.0, 'until': 30.0}, {'velocity': 0.0}]
+    """
     out = []
     for k, item in enumerate(items):
         if k < len(items) - 1:
@@ -439,12 +684,37 @@ def switch(*items: Any) -> list[dict]:
 def make_case(name: str, *, start: Any, end: Any, n_segments: int, dt: float, t_end: float,
               length: float = 1.0, youngs_modulus: Any = 1.25e7, shear_modulus: Any = 5.0e6,
               density: Any = 1500.0, diameter: Any = 0.02, **sections: Any):
-    """A validated ``Case`` from the usual few numbers (defaults: the seed paper's cable,
-    1 m, E 12.5 MPa, G 5 MPa, 1500 kg/m³, 2 cm) and two ends (:func:`clamped`,
-    :func:`twisted`, ``EndCondition`` models or mappings). ``sections`` are the case's
-    other top-level fields, mappings or their models: ``fluid``, ``gravity``,
-    ``distributed_forces``, ``contact``, ``initial``, ``output``, and ``numerics`` (merged
-    over n_segments, dt, t_end). Raises ``pydantic.ValidationError`` naming the field."""
+    """A validated case from the usual few numbers.
+
+    Parameters
+    ----------
+    name : str
+        The case's name.
+    start, end : dict or solver.case.EndCondition
+        The two ends: :func:`clamped`, :func:`twisted`, ... or their models.
+    n_segments : int
+        Grid cells.
+    dt : float
+        The nominal step, s.
+    t_end : float
+        The run's end, s.
+    length, youngs_modulus, shear_modulus, density, diameter : float or dict
+        The rod, SI units (a profile mapping allowed where the case spec allows one);
+        default the seed paper's cable: 1 m, 12.5 MPa, 5 MPa, 1500 kg/m³, 2 cm.
+    **sections
+        The case's other top-level fields, mappings or their models: ``fluid``,
+        ``gravity``, ``distributed_forces``, ``point_loads``, ``contact``, ``seabed``,
+        ``initial``, ``output``, and ``numerics`` (merged over n_segments, dt, t_end).
+
+    Returns
+    -------
+    solver.Case
+
+    Raises
+    ------
+    pydantic.ValidationError
+        Naming the field.
+    """
     from solver.case import Case
 
     def plain(x: Any) -> Any:
@@ -470,11 +740,30 @@ def _centreline(points: np.ndarray) -> dict:
 
 
 def circular_arc(length: float, radius: float, *, n_points: int = 401) -> dict:
-    """An ``initial.centreline`` along a circular arc of ``length`` m and ``radius`` m
-    from the origin, starting along +z and bending towards +x (in the x-z plane):
-    r(s) = (R(1 − cos(s/R)), 0, R sin(s/R)), sampled at ``n_points`` equal arclengths.
-    Use it as ``initial={"centreline": circular_arc(1.0, 0.5)}``; κ2 = 1/R with the
-    start's a1 along +x. Raises ValueError for a non-positive length or radius."""
+    """An ``initial.centreline`` along a circular arc.
+
+    From the origin, starting along +z and bending towards +x (in the x-z plane):
+    r(s) = (R(1 − cos(s/R)), 0, R sin(s/R)); κ2 = 1/R with the start's a1 along +x.
+
+    Parameters
+    ----------
+    length : float
+        Arc length, m.
+    radius : float
+        Radius, m.
+    n_points : int
+        Points at equal arclengths.
+
+    Returns
+    -------
+    dict
+        ``{"points": [[x, y, z], ...]}``, for ``initial={"centreline": ...}``.
+
+    Raises
+    ------
+    ValueError
+        A non-positive length or radius.
+    """
     if not (length > 0 and radius > 0):
         raise ValueError("circular_arc: length and radius must be > 0 (m)")
     phi = np.linspace(0.0, length / radius, int(n_points))
@@ -483,13 +772,35 @@ def circular_arc(length: float, radius: float, *, n_points: int = 401) -> dict:
 
 
 def helix(length: float, radius: float, pitch: float, *, n_points: int = 1001) -> dict:
-    """An ``initial.centreline`` along a circular helix about the axis x = −radius, y = 0
-    (parallel to z) from the origin: r(θ) = (R cos θ − R, R sin θ, pθ/(2π)), θ from 0 to
-    length/√(R² + (p/2π)²), sampled at ``n_points`` equal arclengths; right-handed for
-    ``pitch`` > 0 (m per turn), left-handed for < 0. Its curvature is R/(R² + h²) and its
-    torsion h/(R² + h²) with h = p/(2π) (m); with ``twist_rate`` equal to the torsion the
-    rod's κ is constant along it (its frame turns with the Frenet frame). Raises
-    ValueError for a non-positive length or radius."""
+    """An ``initial.centreline`` along a circular helix.
+
+    About the axis x = −radius, y = 0 (parallel to z) from the origin:
+    r(θ) = (R cos θ − R, R sin θ, pθ/(2π)), θ from 0 to length/√(R² + (p/2π)²). Its
+    curvature is R/(R² + h²) and its torsion h/(R² + h²) with h = p/(2π); with
+    ``initial.twist_rate`` equal to the torsion the rod's κ is constant along it (its frame
+    turns with the Frenet frame).
+
+    Parameters
+    ----------
+    length : float
+        Arc length, m.
+    radius : float
+        Radius, m.
+    pitch : float
+        m per turn: right-handed for > 0, left-handed for < 0.
+    n_points : int
+        Points at equal arclengths.
+
+    Returns
+    -------
+    dict
+        ``{"points": [[x, y, z], ...]}``.
+
+    Raises
+    ------
+    ValueError
+        A non-positive length or radius.
+    """
     if not (length > 0 and radius > 0):
         raise ValueError("helix: length and radius must be > 0 (m)")
     h = pitch / (2.0 * math.pi)
@@ -499,9 +810,27 @@ def helix(length: float, radius: float, pitch: float, *, n_points: int = 1001) -
 
 
 def catenary_parameter(length: float, span: float) -> float:
-    """The catenary's a = H/w (m) of a cable of ``length`` hanging between two points at
-    the same height ``span`` apart (span < length): the root of 2a sinh(span/(2a)) =
-    length (scipy's brentq). Raises ValueError unless 0 < span < length."""
+    """The catenary's parameter a = H/w of a hanging cable.
+
+    The root of 2a sinh(span/(2a)) = length (scipy's brentq).
+
+    Parameters
+    ----------
+    length : float
+        The cable's length, m.
+    span : float
+        The distance between its two ends, at the same height, m.
+
+    Returns
+    -------
+    float
+        a, m.
+
+    Raises
+    ------
+    ValueError
+        Unless 0 < span < length.
+    """
     from scipy.optimize import brentq
 
     if not 0 < span < length:
@@ -515,11 +844,31 @@ def catenary_parameter(length: float, span: float) -> float:
 
 
 def catenary(length: float, span: float, *, n_points: int = 401) -> dict:
-    """An ``initial.centreline`` along the catenary of a cable of ``length`` m hanging
-    under gravity (−z) between the origin and (span, 0, 0): z = a(cosh((x − X/2)/a) −
-    cosh(X/(2a))) with a from :func:`catenary_parameter`, sampled at ``n_points`` equal
-    arclengths (x = X/2 + a asinh((s − L/2)/a)). Its sag is a(cosh(X/(2a)) − 1).
-    Raises ValueError unless 0 < span < length."""
+    """An ``initial.centreline`` along a hanging catenary.
+
+    Under gravity (−z) between the origin and (span, 0, 0):
+    z = a(cosh((x − X/2)/a) − cosh(X/(2a))) with a from :func:`catenary_parameter`, at
+    x = X/2 + a asinh((s − L/2)/a). Its sag is a(cosh(X/(2a)) − 1).
+
+    Parameters
+    ----------
+    length : float
+        The cable's length, m.
+    span : float
+        The distance between its ends, m.
+    n_points : int
+        Points at equal arclengths.
+
+    Returns
+    -------
+    dict
+        ``{"points": [[x, y, z], ...]}``.
+
+    Raises
+    ------
+    ValueError
+        Unless 0 < span < length.
+    """
     a = catenary_parameter(length, span)
     s = np.linspace(0.0, length, int(n_points))
     x = 0.5 * span + a * np.arcsinh((s - 0.5 * length) / a)
@@ -556,15 +905,37 @@ def _run_member(case_json: str, out_path: str) -> tuple[str, str]:
 def sweep(base: Any, parameters: Mapping[str, Sequence[Any]], combine: str = "grid", *,
           workers: int | None = None, fields: Sequence[str] = (),
           on_member: Callable[[int, int, int, str], None] | None = None):
-    """Run a parameter sweep on this machine and return the combined dataset (the same
-    :func:`service.sweeps.combine_results` as ``GET /v1/sweeps/{id}/results``).
+    """Run a parameter sweep on this machine and return the combined dataset.
 
-    ``base``: a ``Case``, mapping or case file; ``parameters``: ``{PATH: [values]}``
-    (docs/service.md, sweeps); ``combine``: ``"grid"`` or ``"zip"``. Every member is
-    validated first (``service.sweeps.SweepError`` names each bad one). Members run in
-    ``workers`` processes (default: as many as cores; 1: in this process); identical
-    member cases run once. A member that fails is marked in ``member_status``, not fatal.
-    ``on_member(done, total, index, state)`` is called as members finish.
+    The same combination (:func:`service.sweeps.combine_results`) as the service's
+    ``GET /v1/sweeps/{id}/results``. Every member is validated first; identical member
+    cases run once; a member that fails is marked in ``member_status``, not fatal.
+
+    Parameters
+    ----------
+    base : solver.Case or mapping or str or os.PathLike
+        The case every member starts from, or its case file.
+    parameters : mapping
+        ``{PATH: [values]}``, PATH a dotted path into the case (docs/service.md, sweeps).
+    combine : {"grid", "zip"}
+        Every combination of the values, or the values side by side.
+    workers : int, optional
+        Processes (default: as many as cores; 1: in this process).
+    fields : sequence of str
+        The output fields to combine (default all).
+    on_member : callable, optional
+        ``on_member(done, total, index, state)``, called as members finish.
+
+    Returns
+    -------
+    xarray.Dataset
+        The members' results along a ``member`` dimension, with their parameter values,
+        ``member_status`` and ``member_message``.
+
+    Raises
+    ------
+    service.sweeps.SweepError
+        Naming each member that does not validate.
     """
     from service import sweeps as sw
 

@@ -44,7 +44,7 @@ def _without_coordinate_fill(ds: xr.Dataset) -> xr.Dataset:
 
 
 def write_netcdf(ds: xr.Dataset, path: str | os.PathLike[str]) -> Path:
-    """Write ``ds`` to ``path`` as NetCDF4, atomically.
+    """Write a result dataset as NetCDF4, atomically.
 
     The dataset is written to a temporary file in the destination directory, flushed to
     disk (``fsync``), then moved over ``path`` with :func:`os.replace`, so a reader sees
@@ -53,7 +53,17 @@ def write_netcdf(ds: xr.Dataset, path: str | os.PathLike[str]) -> Path:
     parent directory is created when missing. On failure the temporary file is removed
     and ``path`` is left untouched.
 
-    Returns the destination as a :class:`~pathlib.Path`.
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The dataset.
+    path : str or os.PathLike
+        The destination.
+
+    Returns
+    -------
+    pathlib.Path
+        The destination.
     """
     dest = Path(path)
     ds = _without_coordinate_fill(ds)
@@ -78,22 +88,45 @@ def write_netcdf(ds: xr.Dataset, path: str | os.PathLike[str]) -> Path:
 
 
 def open_result(path: str | os.PathLike[str]) -> xr.Dataset:
-    """Open a result file fully into memory and close it (safe to replace afterwards)."""
+    """Open a result file fully into memory and close it (safe to replace afterwards).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+
+    Returns
+    -------
+    xarray.Dataset
+    """
     with xr.open_dataset(path, engine="netcdf4") as ds:
         return ds.load()
 
 
 def read_start_state(case):
-    """The :class:`solver.initial.StartState` of ``case.initial.from_result``: the
-    earlier result file's v, ω, f, κ, position and orientation at its output time
-    ``time``, with the end rotations (from its linking number) and ``work_in`` where it
-    has them (:func:`solver.results.start_state_from`).
+    """The start state a case's ``initial.from_result`` names.
 
-    Raises :class:`solver.case.CaseError` naming ``initial.from_result.file`` (a file that
-    cannot be read, is not a hockle result, lacks a variable, or is of another rod: its
-    case's ``rod`` or ``numerics.n_segments`` differ), ``initial.from_result.time`` (not
-    one of its output times) or ``initial.from_result.job`` (a job id, which only the
-    service resolves), before any work."""
+    The earlier result file's v, ω, f, κ, position and orientation at its output time
+    ``time``, with the end rotations (from its linking number) and ``work_in`` where it
+    has them (:func:`start_state_from`).
+
+    Parameters
+    ----------
+    case : solver.Case
+        A case with ``initial.from_result``.
+
+    Returns
+    -------
+    solver.initial.StartState
+
+    Raises
+    ------
+    solver.CaseError
+        Before any work, naming ``initial.from_result.file`` (a file that cannot be read,
+        is not a hockle result, lacks a variable, or is of another rod: its case's ``rod``
+        or ``numerics.n_segments`` differ), ``initial.from_result.time`` (not one of its
+        output times) or ``initial.from_result.job`` (a job id, which only the service
+        resolves).
+    """
     from solver.case import CaseError
 
     spec = case.initial.from_result

@@ -59,7 +59,7 @@ The case is a suite case's name or the path of a case file; ``--set FIELD=VALUE`
 Run: ``PYTHONPATH=$PWD python -m research.contact_steps seed-in-air --from 17.5
 --t-end 18.4`` (the seed example without its fluid, from just before its first contact),
 ``... cases/seabed-hockle.yaml --t-end 10 --edges 0,0.5,1,1.5,2,3,3.5,4,5,6,8,10`` (where
-the sea floor's steps go, docs/seabed.md "Cost"; ``--set seabed.friction=null --set
+the sea floor's steps go, research/notes/seabed.md; ``--set seabed.friction=null --set
 contact=null`` without its friction and self-contact),
 ``... tension --from 18.4 --t-end 18.7``, ``... tension --from 18 --t-end 45 --edges
 18,18.5,19,20,22,25,30,35,40,45`` (the tension variant's whole contact phase, ~3 min),

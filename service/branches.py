@@ -88,10 +88,26 @@ def _copy_doc(doc: dict) -> dict:
 
 
 def equilibrium(case: Any, *, time: float | None = None):
-    """The static equilibrium of ``case`` (a ``Case``, mapping or case file) at ``time``
-    (s; default ``numerics.t_end``; docs/statics.md): a one-point branch dataset
-    (:func:`solver.continuation.branch_dataset`) with the shape, end loads, Tw, Wr, Lk,
-    energies and the number of unstable modes. Raises ``solver.statics.StaticsError``."""
+    """The static equilibrium of a case (docs/statics.md).
+
+    Parameters
+    ----------
+    case : solver.Case or mapping or str or os.PathLike
+        The case, a mapping of it or its case file.
+    time : float, optional
+        The time at which the end conditions are read, s; default ``numerics.t_end``.
+
+    Returns
+    -------
+    xarray.Dataset
+        A one-point branch dataset (:func:`solver.continuation.branch_dataset`): the
+        shape, end loads, Tw, Wr, Lk, energies and the number of unstable modes.
+
+    Raises
+    ------
+    solver.statics.StaticsError
+        A case the static problem does not support, or no equilibrium found.
+    """
     from solver.continuation import Branch, branch_dataset
     from solver.statics import solve, static_problem, unstable_modes
 
@@ -112,26 +128,61 @@ def continue_branch(case: Any, parameter: str, to: float, *, time: float | None 
                     should_stop: Callable[[], object] | None = None,
                     checkpoint: Callable[[Any], None] | None = None,
                     resume: Any = None):
-    """Pseudo-arclength continuation of the equilibria of ``case`` in the scalar at the
-    dotted ``parameter`` path (as sweeps spell it, e.g. ``boundary.end.translation.2.force``)
-    from the case's value to ``to`` (docs/statics.md). ``time``: the time at which the
-    end conditions are read (velocities integrated up to it; default ``numerics.t_end``).
-    ``switch``: leave the branch at its first branch point (a simple one along the
-    critical mode, a round rod's symmetric pair along one mode of the pair). ``step``:
-    the largest step as a fraction of the start tangent's arclength over the range.
-    ``should_stop``: asked before every step; a true answer (a reason) ends the branch
-    there, its ``stopped`` attribute "stopped: <reason>". ``checkpoint``: called
-    with a :class:`solver.checkpoint.BranchCheckpoint` after every point (and at a stop);
-    ``resume``: such a checkpoint of the same case and options, continued to the branch an
-    uninterrupted call returns (its dataset's ``resumed_at_point`` attribute says after
-    how many points). Returns the branch dataset (:func:`solver.continuation.branch_dataset`).
+    """Pseudo-arclength continuation of a case's equilibria in one of its scalars.
 
-    Raises ValueError (a path that is not a scalar of the case, a value that makes the case
-    invalid or changes its grid, a ``resume`` of another case or options) and
-    ``solver.continuation.ContinuationError`` (a range that does not move, no equilibrium
-    or a singular Jacobian at the start), both before any continuation step. Any exception
-    raised later carries the branch so far as a dataset, ``exc.partial`` (its ``stopped``
-    attribute "failed: <exception>").
+    From the case's value of the scalar at ``parameter`` to ``to`` (docs/statics.md), with
+    folds and branch points located and the unstable modes counted at every point.
+
+    Parameters
+    ----------
+    case : solver.Case or mapping or str or os.PathLike
+        The case, a mapping of it or its case file.
+    parameter : str
+        The dotted path of the scalar, as sweeps spell it
+        (``boundary.end.translation.2.force``).
+    to : float
+        The value to continue to.
+    time : float, optional
+        The time at which the end conditions are read (velocities integrated up to it), s;
+        default ``numerics.t_end``.
+    switch : bool
+        Leave the branch at its first branch point (a simple one along the critical mode,
+        a round rod's symmetric pair along one mode of the pair).
+    max_points : int
+        The most points.
+    step : float
+        The largest step, as a fraction of the start tangent's arclength over the range.
+    shapes_every : int
+        Keep the shape of every that many points.
+    stability : bool
+        Count the unstable modes at every point.
+    on_point : callable, optional
+        ``on_point(points, value)`` after every point.
+    should_stop : callable, optional
+        Asked before every step; a true answer (a reason) ends the branch there, its
+        ``stopped`` attribute "stopped: <reason>".
+    checkpoint : callable, optional
+        Called with a :class:`solver.checkpoint.BranchCheckpoint` after every point (and
+        at a stop).
+    resume : solver.checkpoint.BranchCheckpoint, optional
+        A checkpoint of the same case and options: continued to the branch an
+        uninterrupted call returns (the dataset's ``resumed_at_point`` says after how many
+        points).
+
+    Returns
+    -------
+    xarray.Dataset
+        The branch dataset (:func:`solver.continuation.branch_dataset`).
+
+    Raises
+    ------
+    ValueError
+        Before any step: a path that is not a scalar of the case, a value that makes the
+        case invalid or changes its grid, a ``resume`` of another case or options.
+    solver.continuation.ContinuationError
+        Before any step: a range that does not move, no equilibrium or a singular
+        Jacobian at the start. Any exception raised later carries the branch so far as a
+        dataset, ``exc.partial`` (its ``stopped`` attribute "failed: <exception>").
     """
     import time as _time
 
@@ -173,10 +224,21 @@ def continue_branch(case: Any, parameter: str, to: float, *, time: float | None 
 
 def branch_key(case: Any, parameter: str, to: float, *, time: float | None = None,
                switch: bool = False, step: float = 0.05, stability: bool = True) -> str:
-    """The key a :class:`solver.checkpoint.BranchCheckpoint` of :func:`continue_branch`
-    is bound to: the case and the options that shape the branch
-    (:func:`solver.checkpoint.branch_resume_key`; ``max_points`` and ``shapes_every`` do
-    not, so a branch may be resumed with more points)."""
+    """The key a branch checkpoint of :func:`continue_branch` is bound to.
+
+    The case and the options that shape the branch
+    (:func:`solver.checkpoint.branch_resume_key`); ``max_points`` and ``shapes_every`` do
+    not, so a branch may be resumed with more points.
+
+    Parameters
+    ----------
+    case, parameter, to, time, switch, step, stability
+        As for :func:`continue_branch`.
+
+    Returns
+    -------
+    str
+    """
     from solver.checkpoint import branch_resume_key
 
     return branch_resume_key(as_case(case), parameter=parameter, to=float(to), time=time,
@@ -184,12 +246,31 @@ def branch_key(case: Any, parameter: str, to: float, *, time: float | None = Non
 
 
 def continuation_family(case: Any, parameter: str, to: float, *, time: float | None = None):
-    """The checks :func:`continue_branch` makes before any solve, and what it continues:
-    ``(λ -> StaticProblem, the case's value λ0 at parameter, to)``. Raises ValueError (a
-    path that is not a scalar of the case, a ``to`` that makes the case invalid or changes
-    its grid), ``solver.continuation.ContinuationError`` (a range that does not move) and
-    ``solver.statics.StaticsError`` (a case the static problem does not support, naming the
-    field). The service runs it at submission (service/continuations.py)."""
+    """The checks :func:`continue_branch` makes before any solve, and what it continues.
+
+    The service runs it at submission (service/continuations.py).
+
+    Parameters
+    ----------
+    case, parameter, to, time
+        As for :func:`continue_branch`.
+
+    Returns
+    -------
+    tuple
+        ``(problem_at, lam0, to)``: λ -> the static problem, the case's value at
+        ``parameter``, and ``to`` as a float.
+
+    Raises
+    ------
+    ValueError
+        A path that is not a scalar of the case, a ``to`` that makes the case invalid or
+        changes its grid.
+    solver.continuation.ContinuationError
+        A range that does not move.
+    solver.statics.StaticsError
+        A case the static problem does not support, naming the field.
+    """
     from solver.continuation import ContinuationError
 
     problem_at, lam0 = _problem_family(case, parameter, time)
@@ -211,13 +292,38 @@ def continuation_family(case: Any, parameter: str, to: float, *, time: float | N
 
 def equilibrium_start(case: Any, *, time: float | None = None, parameter: str | None = None,
                       value: float | None = None, amplitude: float = 0.0):
-    """A start state for :func:`hockle.api.simulate` (``simulate(case, start=...)``): the static
-    equilibrium of ``case`` at ``time`` (default ``numerics.t_end``), with the scalar at
-    ``parameter`` set to ``value`` when given (e.g. a branch point's
-    ``bifurcation_parameter`` from :func:`continue_branch`), at rest, plus ``amplitude`` (m)
-    times its critical mode (the eigenvector of the stability pencil with the eigenvalue
-    nearest zero, largest displacement 1 m) so that post-buckling dynamics start where
-    the statics leave off. Raises ``solver.statics.StaticsError`` and ValueError."""
+    """A start state at an equilibrium, for ``hockle.api.simulate(case, start=...)``.
+
+    The static equilibrium at rest plus ``amplitude`` times its critical mode, so that
+    post-buckling dynamics start where the statics leave off.
+
+    Parameters
+    ----------
+    case : solver.Case or mapping or str or os.PathLike
+        The case, a mapping of it or its case file.
+    time : float, optional
+        The time at which the end conditions are read, s; default ``numerics.t_end``.
+    parameter : str, optional
+        A dotted path whose scalar is set to ``value`` (e.g. a branch point's
+        ``bifurcation_parameter`` from :func:`continue_branch`).
+    value : float, optional
+        Its value; required with ``parameter``.
+    amplitude : float
+        m: the critical mode (the eigenvector of the stability pencil with the eigenvalue
+        nearest zero, largest displacement 1 m) times this is added.
+
+    Returns
+    -------
+    solver.initial.StartState
+        The start state.
+
+    Raises
+    ------
+    solver.statics.StaticsError
+        No equilibrium, or a case the statics do not support.
+    ValueError
+        A parameter without its value.
+    """
     from solver.statics import critical_mode, solve, start_state, static_problem
 
     if parameter is not None:

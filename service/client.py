@@ -1,4 +1,4 @@
-"""Typed Python client of the hockle service (httpx).
+"""Typed Python client of the hockle service (httpx)::
 
     from service.client import HockleClient
     with HockleClient("http://127.0.0.1:8000", api_key="...") as client:   # or HOCKLE_API_KEY
@@ -28,7 +28,23 @@ TERMINAL = ("successful", "failed", "dismissed")
 
 
 class HockleAPIError(RuntimeError):
-    """An error answer of the service; ``problem`` is its RFC 9457 body (a dict)."""
+    """An error answer of the service.
+
+    Parameters
+    ----------
+    status : int
+        The HTTP status.
+    problem : dict
+        The answer's problem details (RFC 9457, ``application/problem+json``).
+
+    Attributes
+    ----------
+    status : int
+        The HTTP status.
+    problem : dict
+        The problem details: ``type``, ``title``, ``detail`` and, for an invalid case,
+        ``errors``.
+    """
 
     def __init__(self, status: int, problem: dict[str, Any]):
         self.status = status
@@ -41,14 +57,30 @@ class HockleAPIError(RuntimeError):
 
     @property
     def errors(self) -> list[dict[str, Any]]:
+        """The problem's field errors: ``{"loc", "msg", "type"}`` each (empty if none)."""
         return list(self.problem.get("errors") or [])
 
 
 def case_payload(case: str | os.PathLike | Mapping[str, Any] | Any) -> tuple[bytes, str]:
-    """(body, content type) for a case: a path (.yaml/.yml/.json), a mapping or a ``Case``.
+    """The request body and content type for a case.
 
     Files are sent as they are (YAML as ``application/yaml``): the server parses them with the
     same reader as ``hockle run``.
+
+    Parameters
+    ----------
+    case : str or os.PathLike or mapping or solver.Case
+        A case file (.yaml, .yml, .json), a mapping or a validated case.
+
+    Returns
+    -------
+    tuple of (bytes, str)
+        The body and its content type.
+
+    Raises
+    ------
+    ValueError
+        A file name that is not a case file's.
     """
     if isinstance(case, Mapping):
         return json.dumps(dict(case)).encode(), "application/json"
@@ -62,8 +94,23 @@ def case_payload(case: str | os.PathLike | Mapping[str, Any] | Any) -> tuple[byt
 
 
 def case_document(case: str | os.PathLike | Mapping[str, Any] | Any) -> dict[str, Any]:
-    """A case as a JSON-able mapping (the base of a sweep): a mapping as it is, a ``Case``
-    dumped, a file (.yaml/.yml/.json) parsed with the case reader (not yet validated)."""
+    """A case as a JSON-able mapping (the base of a sweep or a continuation).
+
+    Parameters
+    ----------
+    case : str or os.PathLike or mapping or solver.Case
+        A mapping (returned as it is), a validated case (dumped) or a case file (.yaml,
+        .yml, .json; parsed with the case reader, not yet validated).
+
+    Returns
+    -------
+    dict
+
+    Raises
+    ------
+    ValueError
+        A file name that is not a case file's, or a file that is not a mapping.
+    """
     if isinstance(case, Mapping):
         return dict(case)
     if hasattr(case, "model_dump"):
@@ -79,15 +126,36 @@ def case_document(case: str | os.PathLike | Mapping[str, Any] | Any) -> dict[str
     return doc
 
 class HockleClient:
-    """A client of one hockle service (see the module's docstring)."""
+    """A client of one hockle service; a context manager that closes its connections.
+
+    Every non-2xx answer raises :class:`HockleAPIError` with the problem details.
+
+    Parameters
+    ----------
+    base_url : str, optional
+        The service's URL; default ``HOCKLE_PUBLIC_URL`` or
+        ``http://HOCKLE_HOST:HOCKLE_PORT``.
+    api_key : str, optional
+        Sent as ``Authorization: Bearer <key>`` on every request; default the environment's
+        ``HOCKLE_API_KEY``; none for a service without keys. An empty string sends no key
+        even when the environment has one.
+    timeout : float
+        Seconds for each request.
+    transport : httpx.BaseTransport, optional
+        Another transport (the tests' in-process app).
+    headers : dict, optional
+        Headers sent with every request.
+
+    Examples
+    --------
+    >>> with HockleClient("http://127.0.0.1:8000") as client:       # doctest: +SKIP
+    ...     job = client.wait(client.submit("cases/goyal-writhing.yaml").id)
+    ...     ds = client.dataset(job.id)
+    """
 
     def __init__(self, base_url: str | None = None, *, api_key: str | None = None,
                  timeout: float = 30.0, transport: httpx.BaseTransport | None = None,
                  headers: dict | None = None):
-        """``base_url``: default ``HOCKLE_PUBLIC_URL`` or ``http://HOCKLE_HOST:HOCKLE_PORT``.
-        ``api_key``: sent as ``Authorization: Bearer <key>`` on every request; default the
-        environment's ``HOCKLE_API_KEY``; none for a service without keys. An empty string
-        sends no key even when the environment has one."""
         if base_url is None:
             from .settings import get_settings
 
@@ -108,6 +176,7 @@ class HockleClient:
         self.close()
 
     def close(self) -> None:
+        """Close the client's connections."""
         self._http.close()
 
     # --- plumbing ------------------------------------------------------------------------------
@@ -124,10 +193,30 @@ class HockleClient:
     # --- jobs ----------------------------------------------------------------------------------
     def submit(self, case, *, idempotency_key: str | None = None, fresh: bool = False,
                time_limit: float | None = None) -> JobStatus:
-        """Submit a case (path, mapping or ``Case``); returns the job's status.
+        """Submit a case as a job (``POST /v1/jobs``).
 
-        ``time_limit``: the job's hard time limit in seconds, up to the service's
-        ``HOCKLE_TIME_LIMIT_MAX`` (default: derived from the case's size and contact).
+        Parameters
+        ----------
+        case : str or os.PathLike or mapping or solver.Case
+            A case file, a mapping or a validated case.
+        idempotency_key : str, optional
+            The same key with the same case answers with the same job.
+        fresh : bool
+            Run it even if an identical case already ran successfully (otherwise that job is
+            answered, marked ``reused``).
+        time_limit : float, optional
+            The job's hard time limit, s, up to the service's ``HOCKLE_TIME_LIMIT_MAX``;
+            default derived from the case's size and contact.
+
+        Returns
+        -------
+        service.schemas.JobStatus
+            The job's status.
+
+        Raises
+        ------
+        HockleAPIError
+            422 naming each bad field of an invalid case.
         """
         body, content_type = case_payload(case)
         headers = {"Content-Type": content_type}
@@ -145,12 +234,31 @@ class HockleClient:
                             shapes_every: int | None = None, stability: bool | None = None,
                             idempotency_key: str | None = None, fresh: bool = False,
                             time_limit: float | None = None) -> JobStatus:
-        """Submit a continuation job (``POST /v1/continuations``; docs/statics.md): the static
-        branch of ``case`` (path, mapping or ``Case``) while the scalar at the dotted
-        ``parameter`` goes to ``to``, with the options of :func:`hockle.api.continue_branch`
-        (left out: the service's defaults). Returns the job's status (``kind``
-        ``continuation``); :meth:`wait` and :meth:`download` as for any job, the result being
-        the branch dataset."""
+        """Submit a continuation job (``POST /v1/continuations``; docs/statics.md).
+
+        The static branch of ``case`` while the scalar at the dotted ``parameter`` goes to
+        ``to``; :meth:`wait` and :meth:`download` as for any job, the result being the
+        branch dataset.
+
+        Parameters
+        ----------
+        case : str or os.PathLike or mapping or solver.Case
+            A case file, a mapping or a validated case.
+        parameter : str
+            The dotted path of the scalar.
+        to : float
+            The value to continue to.
+        time, switch, max_points, step, shapes_every, stability : optional
+            The options of :func:`hockle.api.continue_branch`; left out, the service's
+            defaults.
+        idempotency_key, fresh, time_limit : optional
+            As for :meth:`submit`.
+
+        Returns
+        -------
+        service.schemas.JobStatus
+            The job's status (``kind`` ``continuation``).
+        """
         options: dict[str, Any] = {"parameter": parameter, "to": to, "switch": switch}
         for key, value in (("time", time), ("max_points", max_points), ("step", step),
                            ("shapes_every", shapes_every), ("stability", stability)):
@@ -168,10 +276,35 @@ class HockleClient:
         return JobStatus.model_validate(response.json())
 
     def get(self, job_id: str) -> JobStatus:
+        """A job's status: state, progress, events, result links.
+
+        Parameters
+        ----------
+        job_id : str
+
+        Returns
+        -------
+        service.schemas.JobStatus
+        """
         return JobStatus.model_validate(self._request("GET", f"/v1/jobs/{job_id}").json())
 
     def list(self, *, status: str | list[str] | None = None, page_size: int = 50,
              page_token: str | None = None) -> JobList:
+        """One page of the jobs, newest first.
+
+        Parameters
+        ----------
+        status : str or list of str, optional
+            Only jobs in these states.
+        page_size : int
+            Jobs per page.
+        page_token : str, optional
+            The ``next_page_token`` of the page before.
+
+        Returns
+        -------
+        service.schemas.JobList
+        """
         params: dict[str, Any] = {"page_size": page_size}
         if status:
             params["status"] = status if isinstance(status, str) else ",".join(status)
@@ -180,6 +313,17 @@ class HockleClient:
         return JobList.model_validate(self._request("GET", "/v1/jobs", params=params).json())
 
     def iter_jobs(self, **kwargs) -> Iterator[JobStatus]:
+        """Every job, page after page.
+
+        Parameters
+        ----------
+        **kwargs
+            ``status`` and ``page_size``, as for :meth:`list`.
+
+        Yields
+        ------
+        service.schemas.JobStatus
+        """
         token = None
         while True:
             page = self.list(page_token=token, **kwargs)
@@ -189,14 +333,60 @@ class HockleClient:
                 return
 
     def dismiss(self, job_id: str) -> JobStatus:
+        """Dismiss a queued or running job (a running one stops within one time step).
+
+        Parameters
+        ----------
+        job_id : str
+
+        Returns
+        -------
+        service.schemas.JobStatus
+
+        Raises
+        ------
+        HockleAPIError
+            409 for a job that has finished.
+        """
         return JobStatus.model_validate(self._request("DELETE", f"/v1/jobs/{job_id}").json())
 
     def spec(self, job_id: str) -> dict[str, Any]:
+        """The job's case, canonical (defaults filled in).
+
+        Parameters
+        ----------
+        job_id : str
+
+        Returns
+        -------
+        dict
+        """
         return self._request("GET", f"/v1/jobs/{job_id}/spec").json()
 
     def wait(self, job_id: str, *, timeout: float | None = None, poll_interval: float = 0.5,
              on_progress: Callable[[JobStatus], None] | None = None) -> JobStatus:
-        """Poll until the job is terminal; calls ``on_progress`` with each status."""
+        """Poll until the job is terminal (successful, failed or dismissed).
+
+        Parameters
+        ----------
+        job_id : str
+        timeout : float, optional
+            Give up after that many seconds.
+        poll_interval : float
+            Seconds between polls.
+        on_progress : callable, optional
+            Called with each status.
+
+        Returns
+        -------
+        service.schemas.JobStatus
+            The terminal status.
+
+        Raises
+        ------
+        TimeoutError
+            Still not terminal after ``timeout``.
+        """
         deadline = None if timeout is None else time.monotonic() + timeout
         while True:
             job = self.get(job_id)
@@ -210,7 +400,22 @@ class HockleClient:
 
     # --- results -------------------------------------------------------------------------------
     def download(self, job_id: str, path: str | os.PathLike) -> Path:
-        """Save the NetCDF result to ``path`` (written to a temporary name, then renamed)."""
+        """Save the job's NetCDF result (written to a temporary name, then renamed).
+
+        Parameters
+        ----------
+        job_id : str
+        path : str or os.PathLike
+
+        Returns
+        -------
+        pathlib.Path
+
+        Raises
+        ------
+        HockleAPIError
+            404 ``result-not-ready`` while there is none.
+        """
         path = Path(path)
         tmp = path.with_name(path.name + ".part")
         with self._http.stream("GET", f"/v1/jobs/{job_id}/results") as response:
@@ -224,7 +429,16 @@ class HockleClient:
         return path
 
     def dataset(self, job_id: str):
-        """The result as an in-memory ``xarray.Dataset``."""
+        """The job's result, read into memory.
+
+        Parameters
+        ----------
+        job_id : str
+
+        Returns
+        -------
+        xarray.Dataset
+        """
         import xarray as xr
 
         with tempfile.TemporaryDirectory(prefix="hockle-") as tmp:
@@ -233,20 +447,67 @@ class HockleClient:
                 return ds.load()
 
     def variables(self, job_id: str) -> VariableList:
+        """The result's variables with their dimensions and units.
+
+        Parameters
+        ----------
+        job_id : str
+
+        Returns
+        -------
+        service.schemas.VariableList
+        """
         return VariableList.model_validate(
             self._request("GET", f"/v1/jobs/{job_id}/results/variables").json())
 
     def variable(self, job_id: str, name: str, **selectors: Any) -> VariableSlice:
-        """A server-side slice: ``time="0:1"``, ``s=0.5``, ``component=3`` (see the API)."""
+        """A slice of one result variable, cut by the server.
+
+        Parameters
+        ----------
+        job_id : str
+        name : str
+            The variable (``kappa``, ``position``, ...).
+        **selectors
+            Per dimension a value (nearest for float coordinates), a range ``"a:b"`` or a
+            :class:`slice`, or a list: ``time="0:1"``, ``s=0.5``, ``component=3``,
+            ``xyz="z"`` (docs/service.md).
+
+        Returns
+        -------
+        service.schemas.VariableSlice
+
+        Raises
+        ------
+        HockleAPIError
+            422 naming the dimension of a selector out of range, or ``slice-too-large``.
+        """
         params = {k: _selector(v) for k, v in selectors.items() if v is not None}
         return VariableSlice.model_validate(
             self._request("GET", f"/v1/jobs/{job_id}/results/variables/{name}",
                           params=params).json())
 
     def summary(self, job_id: str) -> Summary:
+        """The result's scalar time series (energies, twist, writhe, contacts, ...).
+
+        Parameters
+        ----------
+        job_id : str
+
+        Returns
+        -------
+        service.schemas.Summary
+        """
         return Summary.model_validate(self._request("GET", f"/v1/jobs/{job_id}/summary").json())
 
     def health(self) -> Health:
+        """The service's readiness: registry, broker, workers, version.
+
+        Returns
+        -------
+        service.schemas.Health
+            Also when the service answers 503 (not ready).
+        """
         response = self._http.get("/v1/health")
         if response.status_code not in (200, 503):
             raise HockleAPIError(response.status_code, _problem(response))
@@ -258,13 +519,36 @@ class HockleClient:
               wait: bool = False, fresh: bool = False, time_limit: float | None = None,
               name: str | None = None, timeout: float | None = None,
               poll_interval: float = 1.0, on_progress: Callable | None = None):
-        """Submit a parameter sweep: ``base`` (path, mapping or ``Case``) with each
-        ``parameters`` path (``"boundary.end.translation.2.force"``) set to each of its
-        values, ``combine`` ``"grid"`` (every combination) or ``"zip"``. Returns the
-        sweep's :class:`~service.sweeps.SweepStatus`; with ``wait``, once every member has
-        finished (then :meth:`sweep_dataset` gives the combined dataset). A bad member
-        value raises :class:`HockleAPIError` (422) naming the member and the field, and
-        nothing is queued."""
+        """Submit a parameter sweep (``POST /v1/sweeps``).
+
+        Parameters
+        ----------
+        base : str or os.PathLike or mapping or solver.Case
+            The case every member starts from.
+        parameters : mapping
+            ``{PATH: [values]}``, PATH a dotted path into the case
+            (``"boundary.end.translation.2.force"``).
+        combine : {"grid", "zip"}
+            Every combination of the values, or the values side by side.
+        wait : bool
+            Return once every member has finished (then :meth:`sweep_dataset` gives the
+            combined dataset).
+        fresh, time_limit : optional
+            As for :meth:`submit`, for every member.
+        name : str, optional
+            The sweep's name.
+        timeout, poll_interval, on_progress : optional
+            With ``wait``, as for :meth:`wait_sweep`.
+
+        Returns
+        -------
+        service.sweeps.SweepStatus
+
+        Raises
+        ------
+        HockleAPIError
+            422 naming the member and the field of a bad member value; nothing is queued.
+        """
         from .sweeps import SweepStatus
 
         body: dict[str, Any] = {"base": case_document(base), "combine": combine,
@@ -282,13 +566,31 @@ class HockleClient:
         return status
 
     def get_sweep(self, sweep_id: str):
-        """The sweep's state, progress and members (:class:`~service.sweeps.SweepStatus`)."""
+        """The sweep's state, progress and members.
+
+        Parameters
+        ----------
+        sweep_id : str
+
+        Returns
+        -------
+        service.sweeps.SweepStatus
+        """
         from .sweeps import SweepStatus
 
         return SweepStatus.model_validate(self._request("GET", f"/v1/sweeps/{sweep_id}").json())
 
     def dismiss_sweep(self, sweep_id: str):
-        """Dismiss the sweep's queued and running members; returns its status."""
+        """Dismiss the sweep's queued and running members.
+
+        Parameters
+        ----------
+        sweep_id : str
+
+        Returns
+        -------
+        service.sweeps.SweepStatus
+        """
         from .sweeps import SweepStatus
 
         return SweepStatus.model_validate(
@@ -296,7 +598,27 @@ class HockleClient:
 
     def wait_sweep(self, sweep_id: str, *, timeout: float | None = None,
                    poll_interval: float = 1.0, on_progress: Callable | None = None):
-        """Poll until every member has finished; calls ``on_progress`` with each status."""
+        """Poll until every member of the sweep has finished.
+
+        Parameters
+        ----------
+        sweep_id : str
+        timeout : float, optional
+            Give up after that many seconds.
+        poll_interval : float
+            Seconds between polls.
+        on_progress : callable, optional
+            Called with each status.
+
+        Returns
+        -------
+        service.sweeps.SweepStatus
+
+        Raises
+        ------
+        TimeoutError
+            Members still running after ``timeout``.
+        """
         deadline = None if timeout is None else time.monotonic() + timeout
         while True:
             status = self.get_sweep(sweep_id)
@@ -310,8 +632,19 @@ class HockleClient:
 
     def download_sweep(self, sweep_id: str, path: str | os.PathLike,
                        fields: str | list[str] | None = None) -> Path:
-        """Save the combined NetCDF dataset of a finished sweep to ``path``; ``fields``
-        (``["position"]``) adds full fields to the scalar series and event times."""
+        """Save the combined NetCDF dataset of a finished sweep.
+
+        Parameters
+        ----------
+        sweep_id : str
+        path : str or os.PathLike
+        fields : str or list of str, optional
+            Full fields (``["position"]``) added to the scalar series and event times.
+
+        Returns
+        -------
+        pathlib.Path
+        """
         params = {}
         if fields:
             params["fields"] = fields if isinstance(fields, str) else ",".join(fields)
@@ -329,7 +662,18 @@ class HockleClient:
         return path
 
     def sweep_dataset(self, sweep_id: str, fields: str | list[str] | None = None):
-        """The combined dataset of a finished sweep as an in-memory ``xarray.Dataset``."""
+        """The combined dataset of a finished sweep, read into memory.
+
+        Parameters
+        ----------
+        sweep_id : str
+        fields : str or list of str, optional
+            As for :meth:`download_sweep`.
+
+        Returns
+        -------
+        xarray.Dataset
+        """
         import xarray as xr
 
         with tempfile.TemporaryDirectory(prefix="hockle-") as tmp:

@@ -229,10 +229,14 @@ def _models_in(annotation: Any) -> list[type]:
 class CaseError(ValueError):
     """An invalid case spec, or one that could not be read or parsed.
 
-    ``errors`` is a list of ``{"loc": str, "msg": str, "type": str}`` dicts; ``loc`` is a
-    field path such as ``rod.diameter.value[2]`` (``""`` for the document as a whole).
-    ``str(error)`` is a readable multi-line message, one ``path: reason`` line per error.
-    Raised by :meth:`Case.from_file` and :meth:`Case.from_text`.
+    Raised by :meth:`Case.from_file` and :meth:`Case.from_text`; ``str(error)`` is a
+    readable multi-line message, one ``path: reason`` line per error.
+
+    Attributes
+    ----------
+    errors : list of dict
+        ``{"loc": str, "msg": str, "type": str}`` each; ``loc`` is a field path such as
+        ``rod.diameter.value[2]`` (``""`` for the document as a whole).
     """
 
     def __init__(self, errors: list[dict], source: Optional[str] = None):
@@ -1638,7 +1642,7 @@ class Case(BaseModel):
     with :func:`format_validation_errors`). Beyond the per-model rules this checks that
     ``numerics.ds`` divides ``rod.length`` (1e-9 relative) or agrees with
     ``numerics.n_segments``, fills in both, and that every ``distributed_forces[i].s_range``
-    lies within ``[0, rod.length]``.
+    lies within ``[0, rod.length]``. Every field, its unit and its rule: docs/case-spec.md.
 
     Identity: :meth:`canonical_json` (sorted keys, no whitespace, defaults filled) and
     :meth:`spec_hash` (its sha256); re-validating the canonical JSON gives an equal case

@@ -34,9 +34,19 @@ VERSION = 1
 
 
 def resume_key(case) -> str:
-    """The identity a checkpoint is bound to: sha256 of the case's canonical JSON without
-    ``numerics.wall_clock_budget`` (a run may be continued under another budget; any other
-    change, physics, numerics or outputs, makes it another run)."""
+    """The identity a checkpoint is bound to.
+
+    Parameters
+    ----------
+    case : solver.Case
+
+    Returns
+    -------
+    str
+        sha256 of the case's canonical JSON without ``numerics.wall_clock_budget``: a run
+        may be continued under another budget; any other change, physics, numerics or
+        outputs, makes it another run.
+    """
     spec = case.model_dump(mode="json")
     spec.get("numerics", {}).pop("wall_clock_budget", None)
     text = json.dumps(spec, sort_keys=True, separators=(",", ":"), ensure_ascii=False)
@@ -44,9 +54,20 @@ def resume_key(case) -> str:
 
 
 def branch_resume_key(case, **options) -> str:
-    """The identity a :class:`BranchCheckpoint` is bound to: sha256 of :func:`resume_key`
-    of the case and the continuation's ``options`` (parameter, target, time, switch, step,
-    stability ...: JSON scalars) that shape the branch."""
+    """The identity a :class:`BranchCheckpoint` is bound to.
+
+    Parameters
+    ----------
+    case : solver.Case
+    **options
+        The continuation's options that shape the branch (JSON scalars).
+
+    Returns
+    -------
+    str
+        sha256 of :func:`resume_key` of the case and the ``options`` (parameter, target,
+        time, switch, step, stability, ...).
+    """
     text = json.dumps({"case": resume_key(case), **options}, sort_keys=True,
                       separators=(",", ":"))
     return hashlib.sha256(text.encode("utf-8")).hexdigest()

@@ -25,12 +25,14 @@ __all__ = ["warm_up"]
 
 
 def warm_up() -> None:
-    """Load every compiled kernel once, through the code paths a run takes: a few steps
-    of a small rod with fluid, a distributed force and self-contact configured, a step
-    of the same rod on the sea floor, and one contact-coupled Newton solve with
-    candidates set by hand. Later calls in this process
-    then run at once. Pure (no I/O of its own besides numba's cache). Raises nothing on
-    a working installation."""
+    """Load every compiled kernel once, so that later runs in this process start at once.
+
+    Runs the code paths a run takes: a few steps of a small rod with fluid, a distributed
+    force and self-contact configured, a step of the same rod on the sea floor, and one
+    contact-coupled Newton solve with candidates set by hand. The first call after an
+    installation compiles the kernels into numba's cache (minutes); later ones load them
+    (about a second). Pure (no I/O of its own besides numba's cache); raises nothing on a
+    working installation."""
     from .case import Case
     from .contact import point_curve, point_segment, smoothstep_off
     from .contact.geometry import run_minima

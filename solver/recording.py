@@ -34,11 +34,25 @@ __all__ = ["Progress", "RateEstimate", "EtaModel", "OutputRecorder", "snapshot",
 class Progress:
     """What the progress callback receives after every accepted nominal step.
 
-    t, t_end, dt: s; step: number of nominal steps done; newton_iterations: of the last
-    step; residual_norm: scaled (dimensionless); wall_time: s since the start;
-    fraction: t / t_end in [0, 1]; contact_count: contact pairs at t; eta_seconds: wall
-    seconds left by :class:`EtaModel` (the pace of contact steps once contact began),
-    None until known.
+    Attributes
+    ----------
+    t, t_end, dt : float
+        The time reached, the run's end and the last step, s.
+    step : int
+        Nominal steps done.
+    newton_iterations : int
+        Of the last step.
+    residual_norm : float
+        Its scaled residual (dimensionless).
+    wall_time : float
+        Seconds since the start.
+    fraction : float
+        t / t_end, in [0, 1].
+    contact_count : int
+        Self-contact pairs at t.
+    eta_seconds : float or None
+        Wall seconds left, estimated at the pace of the contact steps once contact began;
+        None until known.
     """
 
     t: float

@@ -804,15 +804,35 @@ def _case_of(ds) -> dict:
 
 
 def minimum_bend_radius_of(ds) -> float | None:
-    """The cable's minimum bend radius (m, ``rod.minimum_bend_radius``) from the case in
-    the file, or None when the case gives none."""
+    """The cable's minimum bend radius from the case a result file carries.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A result dataset.
+
+    Returns
+    -------
+    float or None
+        ``rod.minimum_bend_radius``, m; None when the case gives none.
+    """
     mbr = (_case_of(ds).get("rod") or {}).get("minimum_bend_radius")
     return float(mbr) if isinstance(mbr, (int, float)) and not isinstance(mbr, bool) else None
 
 
 def bend_radius_series(ds) -> np.ndarray | None:
-    """(T,) smallest bend radius (m) of each stored time: ``bend_radius_min`` when stored,
-    else from ``kappa`` (:func:`solver.kinematics.min_bend_radius`); None without either."""
+    """The smallest bend radius at each stored time.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A result dataset.
+
+    Returns
+    -------
+    numpy.ndarray or None
+        (T,) m: ``bend_radius_min`` when stored, else from ``kappa``; None without either.
+    """
     if "bend_radius_min" in ds:
         return np.asarray(ds["bend_radius_min"].values, dtype=float)
     if "kappa" in ds and "s" in ds.coords:
@@ -824,8 +844,19 @@ def bend_radius_series(ds) -> np.ndarray | None:
 
 
 def on_bottom(ds) -> np.ndarray | None:
-    """(T,) True where the rod touches the seabed (``seabed_contact_length`` > 0), for a
-    result whose case has a seabed; None otherwise (no qualification)."""
+    """Where the rod touches the sea floor.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A result dataset.
+
+    Returns
+    -------
+    numpy.ndarray or None
+        (T,) bool, ``seabed_contact_length`` > 0, for a result whose case has a seabed;
+        None otherwise.
+    """
     if "seabed" not in _case_of(ds) or "seabed_contact_length" not in ds:
         return None
     return np.nan_to_num(np.asarray(ds["seabed_contact_length"].values, dtype=float)) > 0
@@ -847,16 +878,26 @@ def _loop_formed(ds, wr: np.ndarray | None) -> int | None:
 
 
 def run_events(ds) -> dict[str, int | None]:
-    """The output index of each event of a result dataset (None: it did not happen).
+    """The output index of each event of a result dataset.
 
-    Keys: ``buckling_onset``, ``first_contact``, ``loop_formed``,
-    ``bend_radius_below_mbr`` (only when the case gives ``rod.minimum_bend_radius``) and
-    ``writhe_1``, ``writhe_2``, ... up to the largest |Wr| reached; the rules are
+    The one definition behind ``hockle plot``'s snapshot rows, a sweep's event
+    variables, the dashboard's events and a result's ``hockle_events``; the rules are
     :data:`EVENT_RULES` (the buckling threshold is the rod's largest diameter, or 1 % of
-    its length when the file does not say). The one definition behind ``hockle plot``'s
-    snapshot rows, a sweep's event variables, the dashboard's events and a result's
-    ``hockle_events``. The keys come in the order the events happened (the earliest
-    first, those that did not happen last).
+    its length when the file does not say).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A result dataset.
+
+    Returns
+    -------
+    dict
+        ``{event: output index or None}`` (None: it did not happen) for
+        ``buckling_onset``, ``first_contact``, ``loop_formed``, ``bend_radius_below_mbr``
+        (only when the case gives ``rod.minimum_bend_radius``) and ``writhe_1``,
+        ``writhe_2``, ... up to the largest |Wr| reached, in the order the events
+        happened (the earliest first, those that did not happen last).
     """
     out: dict[str, int | None] = {"buckling_onset": None, "first_contact": None,
                                   "loop_formed": None}
@@ -936,16 +977,34 @@ START_VARIABLES = ("v", "omega", "f", "kappa", "position", "orientation")
 
 
 def start_state_from(ds, case, source: str, field: str = "file"):
-    """The :class:`solver.initial.StartState` of ``case.initial.from_result`` read from
-    ``ds``, an earlier result (``xarray.Dataset`` as :func:`build_dataset` writes it,
-    opened by the caller: a file in hockle.io, a job's result in the service): its v, ω,
-    f, κ, position and orientation at the output time ``from_result.time``, the end rotations (from its
-    linking number) and ``work_in`` where it has them. ``source`` names the result in
-    messages (a path, a job id); ``field`` is where it was given (``"file"``, ``"job"``).
+    """The start state ``case.initial.from_result`` names, read from an earlier result.
 
-    Raises :class:`solver.case.CaseError` naming ``initial.from_result.<field>`` (not a
-    hockle result, another rod: its case's ``rod`` or ``numerics.n_segments`` differ, a
-    variable missing) or ``initial.from_result.time`` (not one of its output times)."""
+    Its v, ω, f, κ, position and orientation at the output time ``from_result.time``, the
+    end rotations (from its linking number) and ``work_in`` where it has them.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The earlier result, as :func:`build_dataset` writes it, opened by the caller (a
+        file in :mod:`hockle.io`, a job's result in the service).
+    case : solver.Case
+        The case to start.
+    source : str
+        Names the result in messages (a path, a job id).
+    field : str
+        Where it was given: ``"file"`` or ``"job"``.
+
+    Returns
+    -------
+    solver.initial.StartState
+
+    Raises
+    ------
+    solver.CaseError
+        Naming ``initial.from_result.<field>`` (not a hockle result, another rod: its
+        case's ``rod`` or ``numerics.n_segments`` differ, a variable missing) or
+        ``initial.from_result.time`` (not one of its output times).
+    """
     import math
 
     from .case import Case, CaseError

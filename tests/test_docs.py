@@ -60,6 +60,85 @@ def test_docs_build_offline_with_warnings_as_errors(tmp_path):
     assert "hockle export" in (out / "cli.html").read_text()
 
 
+# --------------------------------------------------------------------------- reference, not a diary
+
+# A page of the site describes the software as it is: dates, the hosts a figure was measured
+# on and the commits it was measured at belong to the changelog, the generated benchmark
+# report (which names its machine and date) and the research notebook (research/notes/).
+DOCS_DATED = {"docs/changelog.md", "docs/benchmarks.md"}
+ISO_DATE = re.compile(r"\b(?:19|20)\d\d-(?:0[1-9]|1[0-2])-(?:0[1-9]|[12]\d|3[01])\b")
+# a commit hash: 7 to 40 hexadecimal digits with at least one letter and one digit
+COMMIT = re.compile(r"\b(?=[0-9a-f]*[a-f])(?=[0-9a-f]*\d)[0-9a-f]{7,40}\b")
+HOST = re.compile(r"\b(?:EPYC|Xeon|Ryzen|Opteron|Threadripper|Graviton)\b"
+                  r"|\b\d+(?:\.\d+)?[ -]?GHz\b", re.I)
+
+
+def _site_sources() -> list[Path]:
+    """What the site is built from: the pages and configuration under docs/ (not its
+    build, its generated pages or the gallery's copies) and the gallery's examples."""
+    skip = ("docs/_build/", "docs/_generated/", "docs/auto_examples/", "docs/figures/")
+    out = []
+    for path in sorted([*(ROOT / "docs").rglob("*"), *(ROOT / "examples").glob("*.py")]):
+        rel = path.relative_to(ROOT).as_posix()
+        if (path.is_file() and path.suffix in {".md", ".rst", ".py", ".txt"}
+                and not rel.startswith(skip) and rel not in DOCS_DATED):
+            out.append(path)
+    return out
+
+
+def test_patterns_catch_what_they_are_for():
+    assert ISO_DATE.search("measured 2026-11-27 on") and not ISO_DATE.search("Δt 1e-4 … 1 s")
+    assert COMMIT.search("at commit `894957f`") and COMMIT.search("a86c358")
+    assert not COMMIT.search("1000 segments, 0.00113 s, deadbeef, 1234567")
+    assert HOST.search("a 2-core AMD EPYC") and HOST.search("a 2.1-GHz Intel Xeon")
+    assert HOST.search("at 2.6 GHz") and not HOST.search("2 shared cores")
+
+
+def test_docs_carry_no_dates_hosts_or_commits():
+    """docs/ (and the gallery's examples) name no date, CPU model or commit hash outside
+    the changelog and the generated benchmark report (issue 78): such figures go to the
+    research notebook, and a page links to the report for the last measured one."""
+    found = []
+    for path in _site_sources():
+        rel = path.relative_to(ROOT).as_posix()
+        for n, line in enumerate(path.read_text(errors="replace").splitlines(), 1):
+            for kind, pattern in (("date", ISO_DATE), ("commit", COMMIT), ("host", HOST)):
+                match = pattern.search(line)
+                if match:
+                    found.append(f"{rel}:{n}: {kind} {match.group(0)!r}: {line.strip()[:80]}")
+    assert not found, "\n".join(found)
+
+
+def _markdown_files() -> list[Path]:
+    return sorted([ROOT / "README.md", ROOT / "CHANGELOG.md", *(ROOT / "docs").glob("*.md"),
+                   *(ROOT / "research").rglob("*.md")])
+
+
+def test_relative_links_and_doc_references_resolve():
+    """Every relative Markdown link of the README, the changelog, docs/ and research/
+    names a file that exists, every {doc} reference a page, and every research/notes/
+    path a page cites exists: moving a page out of the site leaves no dangling link."""
+    pages = {p.stem for p in (ROOT / "docs").glob("*.md")} | {"auto_examples/index",
+                                                             "_generated/api"}
+    bad = []
+    for path in _markdown_files():
+        rel = path.relative_to(ROOT).as_posix()
+        text = re.sub(r"```.*?```", "", path.read_text(), flags=re.S)
+        for target in re.findall(r"\]\(([^)\s]+)\)", text):
+            if re.match(r"[a-z]+:|#", target):
+                continue
+            file = target.split("#")[0]
+            if not (path.parent / file).exists():
+                bad.append(f"{rel}: link to {target}")
+        for target in re.findall(r"\{doc\}`(?:[^`<]*<)?([^`>]+)>?`", text):
+            if target.lstrip("./") not in pages:
+                bad.append(f"{rel}: {{doc}} {target}")
+        for cited in re.findall(r"research/notes/[\w.-]+\.md", text):
+            if not (ROOT / cited).exists():
+                bad.append(f"{rel}: cites {cited}")
+    assert not bad, "\n".join(bad)
+
+
 # --------------------------------------------------------------------------- one version
 
 
@@ -111,7 +190,7 @@ def test_readme_is_short():
 
 def test_no_diary_outside_the_changelog():
     """The repository describes the software as it is: what changed and when goes to
-    CHANGELOG.md (and dated rows of docs/benchmarks-history.md), not into prose."""
+    CHANGELOG.md (and the dated notes of research/notes/), not into prose."""
     found = []
     for path in sorted([*ROOT.rglob("*.md"), *ROOT.rglob("*.py")]):
         rel = path.relative_to(ROOT).as_posix()

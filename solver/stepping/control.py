@@ -46,9 +46,18 @@ class Attempt(NamedTuple):
 class SolverDivergence(RuntimeError):
     """A time step could not be completed even after all Δt cuts.
 
-    Attributes: t (s, the time reached), step (nominal steps completed), residual (the
-    scaled residual of the last attempt), reason ("solver_diverged" or
-    "nonfinite_state"), partial (the xarray.Dataset up to the last accepted step).
+    Attributes
+    ----------
+    t : float
+        The time reached, s.
+    step : int
+        Nominal steps completed.
+    residual : float
+        The scaled residual of the last attempt.
+    reason : str
+        ``"solver_diverged"`` or ``"nonfinite_state"``.
+    partial : xarray.Dataset or None
+        The result dataset up to the last accepted step (``hockle_status = "failed"``).
     """
 
     def __init__(self, message, t, step, residual, reason, partial=None):
