@@ -42,6 +42,38 @@ def _err(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
 
 
+def _place(source: str, loc: str) -> str | None:
+    """``  at FILE:LINE:COLUMN: <the line>`` for the field path ``loc`` of the case file
+    ``source`` (:func:`solver.case_source.where`, the dashboard's way to find a field in
+    its editor), or None (no such file, the document as a whole, a path it does not
+    write)."""
+    from solver.case_source import where
+
+    try:
+        text = Path(source).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return None
+    place = where(source, text, loc)
+    return f"  at {place}" if place else None
+
+
+def _syntax_place(source: str, msg: str) -> str | None:
+    """``  at FILE:LINE:COLUMN: <the line>`` for a syntax error whose message gives its
+    place (``at line 4, column 1``: YAML; ``line 3 column 2``: JSON), or None."""
+    import re
+
+    m = re.search(r"line (\d+),? column (\d+)", msg)
+    if m is None:
+        return None
+    line, column = int(m.group(1)), int(m.group(2))
+    try:
+        lines = Path(source).read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError):
+        return None
+    shown = lines[line - 1].strip()[:100] if 0 < line <= len(lines) else ""
+    return f"  at {source}:{line}:{column}: {shown}"
+
+
 def _print_case_errors(exc: Any, source: str) -> None:
     errors = list(getattr(exc, "errors", None) or [])
     n = len(errors)
@@ -54,6 +86,10 @@ def _print_case_errors(exc: Any, source: str) -> None:
         loc = error.get("loc") or "(case)"
         msg = str(error.get("msg", "")).replace("\n", " ")
         _err(f"{loc}: {msg}")
+        place = (_place(source, error["loc"]) if error.get("loc")
+                 else _syntax_place(source, msg))
+        if place:
+            _err(place)
     if not errors:
         _err(str(exc))
 
@@ -66,6 +102,21 @@ def _not_a_case(path: str, command: str) -> bool:
     if problem:
         _err(f"hockle {command}: {problem}")
     return problem is not None
+
+
+def _print_warnings(case: Any, source: str) -> int:
+    """Print the case's plausibility warnings (:func:`solver.plausibility.
+    plausibility_warnings`) on stderr, each ``hockle: warning: PATH: reason`` with the
+    place in the file below it; returns how many. Warnings do not stop anything."""
+    from solver.plausibility import plausibility_warnings
+
+    found = plausibility_warnings(case)
+    for warning in found:
+        _err(f"hockle: warning: {warning['loc']}: {warning['msg']}")
+        place = _place(source, warning["loc"])
+        if place:
+            _err(place)
+    return len(found)
 
 
 def _load_case(path: str, command: str = "validate") -> Any:
@@ -106,6 +157,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
         print(f"start pose: within {off.distance * 1e3:.3g} mm ({off.share:.2g} diameters) "
               f"of initial.centreline (farthest at s = {off.s:.4g} m)")
         _print_advice(off.advice())
+    _print_warnings(case, args.case)
     return EXIT_OK
 
 
@@ -149,12 +201,19 @@ class _StopOnInterrupt:
 
 class _ProgressBar:
     """Progress on stderr driven by ``solver.Progress`` reports: a rich bar on a
-    terminal; otherwise (a log file, a pipe) a plain line every 10 % or 30 s."""
+    terminal; otherwise (a log file, a pipe) a plain line every 10 % or 30 s.
+
+    What each number is (:func:`_step_words`): with fixed steps, the nominal steps of
+    ``numerics.dt`` done out of the case's count, the last accepted sub-step's Δt where
+    that step was cut or split (at a breakpoint, a Newton refusal, a contact), and the
+    Newton iterations of all of that nominal step's sub-steps; with ``numerics.tolerance``
+    the error-controlled steps taken and the last one's Δt."""
 
     LINE_EVERY_S = 30.0
 
-    def __init__(self, name: str, t_end: float, enabled: bool) -> None:
+    def __init__(self, name: str, t_end: float, enabled: bool, case: Any = None) -> None:
         self.enabled = enabled
+        self.case = case
         self._bar = None
         self._task = None
         self._plain = False
@@ -177,15 +236,12 @@ class _ProgressBar:
             TextColumn("[bold]{task.description}"),
             BarColumn(),
             TextColumn("t {task.completed:.4g}/{task.total:.4g} s"),
-            TextColumn("step {task.fields[step]}"),
-            TextColumn("Δt {task.fields[dt]:.3g} s"),
-            TextColumn("Newton {task.fields[newton]}"),
+            TextColumn("{task.fields[steps]}"),
             TimeElapsedColumn(),
             TextColumn("ETA {task.fields[eta]}"),
             console=console,
         )
-        self._task = self._bar.add_task(name, total=t_end, step=0, dt=float("nan"), newton="-",
-                                        eta="-")
+        self._task = self._bar.add_task(name, total=t_end, steps="step 0", eta="-")
 
     def __enter__(self) -> "_ProgressBar":
         if self._bar is not None:
@@ -201,9 +257,7 @@ class _ProgressBar:
             self._bar.update(
                 self._task,
                 completed=info.t,
-                step=info.step,
-                dt=info.dt,
-                newton=info.newton_iterations,
+                steps=_step_words(info, self.case),
                 eta=("-" if getattr(info, "eta_seconds", None) is None
                      else f"{info.eta_seconds:.0f} s"),
             )
@@ -212,10 +266,30 @@ class _ProgressBar:
             last_decile, last_wall = self._last_line
             if decile > last_decile or info.wall_time - last_wall >= self.LINE_EVERY_S:
                 self._last_line = (decile, info.wall_time)
-                _err(_progress_line(info))
+                _err(_progress_line(info, self.case))
 
 
-def _progress_line(info: Any) -> str:
+def _step_words(info: Any, case: Any = None) -> str:
+    """The step part of a progress report, each number saying what it counts: with fixed
+    steps ``nominal step 80/200 of Δt 0.05 s (last sub-step 0.00202 s), 136 Newton
+    iterations`` (of all the nominal step's sub-steps; the sub-step only where it differs
+    from the nominal Δt in the digits shown); with ``numerics.tolerance`` ``step 80 (error-controlled, last
+    Δt 0.00202 s), 9 Newton iterations``;
+    without the case ``step 80, Δt 0.00202 s, Newton 136``."""
+    num = getattr(case, "numerics", None)
+    its = info.newton_iterations
+    if num is None:
+        return f"step {info.step}, Δt {info.dt:.3g} s, Newton {its}"
+    if num.tolerance is not None:
+        return (f"step {info.step} (error-controlled, last Δt {info.dt:.3g} s), "
+                f"{its} Newton iterations")
+    words = f"nominal step {info.step}/{_n_steps(case)} of Δt {num.dt:g} s"
+    if f"{info.dt:.3g}" != f"{num.dt:.3g}":       # cut or split, as far as it shows
+        words += f" (last sub-step {info.dt:.3g} s)"
+    return words + f", {its} Newton iterations"
+
+
+def _progress_line(info: Any, case: Any = None) -> str:
     if info.fraction >= 1:
         eta = "0 s"
     elif getattr(info, "eta_seconds", None) is not None:
@@ -223,9 +297,8 @@ def _progress_line(info: Any) -> str:
     else:
         eta = "-"
     return (
-        f"t {info.t:.4g}/{info.t_end:.4g} s ({100 * info.fraction:.0f} %), step {info.step}, "
-        f"Δt {info.dt:.3g} s, Newton {info.newton_iterations}, "
-        f"wall {info.wall_time:.0f} s, ETA {eta}"
+        f"t {info.t:.4g}/{info.t_end:.4g} s ({100 * info.fraction:.0f} %), "
+        f"{_step_words(info, case)}, wall {info.wall_time:.0f} s, ETA {eta}"
     )
 
 
@@ -377,6 +450,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
         off = start_offset(case)
         _print_advice(off.advice() if off is not None else None)
+        _print_warnings(case, args.case)
     ck_path = Path(args.checkpoint) if args.checkpoint else None
     latest = {}
 
@@ -402,7 +476,8 @@ def cmd_run(args: argparse.Namespace) -> int:
                 + (f" (resumed at t = {resume.t:g} s)" if resume is not None else "")
             )
         try:
-            with _ProgressBar(case.name, case.numerics.t_end, enabled=not args.quiet) as bar:
+            with _ProgressBar(case.name, case.numerics.t_end, enabled=not args.quiet,
+                              case=case) as bar:
                 ds = integrate(case, progress=bar.update, should_stop=interrupt.should_stop,
                               checkpoint=keep if ck_path else None,
                               checkpoint_interval=args.checkpoint_every, resume=resume,
@@ -432,6 +507,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         f"{status}: t = {t_last:g} of {case.numerics.t_end:g} s in {wall:.1f} s wall time: "
         f"wrote {out}"
     )
+    if ds.attrs.get("hockle_events"):
+        print(f"events: {ds.attrs['hockle_events']}")      # in the order they happened
     if ds.attrs.get("hockle_warning"):
         _err(f"hockle: warning: {ds.attrs['hockle_warning']}")
     if status == "completed":

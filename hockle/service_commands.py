@@ -170,6 +170,9 @@ def submit(args: argparse.Namespace) -> int:
                       file=out)
             for advice in job.advice:
                 print(f"hockle submit: advice: {advice}", file=sys.stderr)
+            for warning in job.warnings:
+                print(f"hockle submit: warning: {warning['loc']}: {warning['msg']}",
+                      file=sys.stderr)
             if not args.wait:
                 return 0
             last = [None]

@@ -72,6 +72,13 @@ class JobStatus(BaseModel):
         "on the case as given, each naming the fields to change (a start pose more than a "
         "tenth of the diameter off its initial.centreline; docs/case-spec.md). The case "
         "runs as given; its result carries the advice as the attribute hockle_advice.")
+    warnings: list[dict[str, str]] = Field(
+        default_factory=list, description="Set only on the answer to a submission: the "
+        "case's inputs that look wrong by a unit or lie outside what the model is for, each "
+        "{loc, msg, type} as a 422's errors (a Young's modulus of 12.5 Pa meant as MPa, "
+        "lengths in mm, a step above the rod's slowest bending period; "
+        "solver.plausibility). The case runs as given; its result carries them as the "
+        "attribute hockle_input_warnings.")
     links: JobLinks
 
     @property

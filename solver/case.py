@@ -286,9 +286,48 @@ def _raise(title: str, errors: list[dict]) -> None:
 # --------------------------------------------------------------------------- scalars
 
 
+#: units a number may be written with in a string, and their factor to SI: what
+#: :func:`_text_not_number` suggests (case-sensitive: mN is milli, MN mega)
+_SI_SPELLINGS = {"m", "s", "kg", "N", "Pa", "rad", "kg/m3", "kg/m^3", "kg/m³", "m/s",
+                 "rad/s", "rad/m", "N/m", "m/s2", "m/s^2", "m/s²", "N m", "N·m", "Nm",
+                 "Pa s", "Pa·s", "W", "J"}
+_TO_SI = {"mm": 1e-3, "cm": 1e-2, "km": 1e3, "kPa": 1e3, "MPa": 1e6, "GPa": 1e9,
+          "g/cm3": 1e3, "g/cm^3": 1e3, "g/cm³": 1e3, "ms": 1e-3, "kN": 1e3, "mN": 1e-3,
+          "MN": 1e6, "deg": math.pi / 180, "°": math.pi / 180, "mm/s2": 1e-3,
+          "mm/s^2": 1e-3, "mm/s²": 1e-3, "min": 60.0, "h": 3600.0}
+_LEADING_NUMBER = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*$")
+
+
+def _text_not_number(value: str, what: str = "a number") -> PydanticCustomError:
+    """The error for a string where ``what`` is expected: it echoes the text and says
+    that values are SI numbers, and how to write this one where it can tell
+    (``"1500 kg/m3"`` -> write 1500; ``"12.5 MPa"`` -> 12.5 MPa is 1.25e+07 in SI)."""
+    shown = value if len(value) <= 60 else value[:57] + "..."
+    hint = ""
+    m = _LEADING_NUMBER.match(value)
+    if m:
+        number, unit = float(m.group(1)), m.group(2)
+        if not unit:
+            hint = f": write {number:g} without quotes"
+        elif unit in _SI_SPELLINGS:
+            hint = f": write {number:g}"
+        elif unit in _TO_SI:
+            si = number * _TO_SI[unit]
+            hint = f": {number:g} {unit} is {si:.6g} in SI, so write {si:.6g}"
+        else:
+            hint = f": write the number in SI units, not in {unit!r}"
+    return PydanticCustomError(
+        "float_type",
+        "Input should be {what}, not the text {text}: case values are plain numbers in SI "
+        "units (m, s, kg, N, Pa, rad), written without a unit{hint}",
+        {"what": what, "text": repr(shown), "hint": hint})
+
+
 def _check_number(value: Any) -> Any:
     """Refuse strings and booleans where a number is expected (pydantic would coerce)."""
-    if isinstance(value, (str, bytes, bool)):
+    if isinstance(value, str):
+        raise _text_not_number(value)
+    if isinstance(value, (bytes, bool)):
         raise PydanticCustomError("float_type", "Input should be a number, not {kind}", {"kind": type(value).__name__})
     return value
 
@@ -307,6 +346,8 @@ Vector3 = Annotated[list[Finite], Field(min_length=3, max_length=3)]
 
 def _as_float(value: Any) -> float:
     """A finite float from a real number; raises the pydantic error types otherwise."""
+    if isinstance(value, str):
+        raise _text_not_number(value, "a number or a table/profile mapping")
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise PydanticCustomError("float_type", "Input should be a number or a table/profile mapping")
     try:
@@ -1542,6 +1583,19 @@ def _json_object(pairs: list[tuple[str, Any]]) -> dict:
     return out
 
 
+def _yaml_where(exc: "yaml.YAMLError") -> str:
+    """`` at line L, column C: <problem> (<context> at line L, column C)`` of a PyYAML
+    error (1-based), or ``: <its text>`` where it has no marks."""
+    mark = getattr(exc, "problem_mark", None)
+    if mark is None:
+        return f": {exc}"
+    out = f" at line {mark.line + 1}, column {mark.column + 1}: {exc.problem}"
+    context, cmark = getattr(exc, "context", None), getattr(exc, "context_mark", None)
+    if context and cmark is not None:
+        out += f" ({context} at line {cmark.line + 1}, column {cmark.column + 1})"
+    return out
+
+
 def parse_text(text: Union[str, bytes], fmt: str = "yaml", source: Optional[str] = None) -> Any:
     """Parse case-spec text (not yet validated) into Python objects.
 
@@ -1564,7 +1618,7 @@ def parse_text(text: Union[str, bytes], fmt: str = "yaml", source: Optional[str]
         try:
             return yaml.load(text, Loader=_YamlLoader)  # noqa: S506 - a SafeLoader subclass
         except yaml.YAMLError as exc:
-            raise _doc_error(f"YAML syntax error: {exc}", "yaml_syntax", source) from exc
+            raise _doc_error(f"YAML syntax error{_yaml_where(exc)}", "yaml_syntax", source) from exc
         except RecursionError:
             raise _doc_error(too_deep, "too_deep", source) from None
     if fmt == "json":

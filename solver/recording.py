@@ -20,7 +20,8 @@ from .contact.geometry import max_distance
 from .energies import energies
 from .initial import start_offset
 from .loads import end_reactions
-from .results import build_dataset
+from .plausibility import plausibility_warnings, suspects
+from .results import build_dataset, events_summary
 from .stepping import hermite
 from .kinematics import min_bend_radius, quat_slerp
 
@@ -390,6 +391,13 @@ class OutputRecorder:
                                   stacked.get("writhe_closure_passages"))
         if warning is not None:
             ds.attrs["hockle_warning"] = warning
+        events = events_summary(ds)
+        if events:
+            ds.attrs["hockle_events"] = events         # in the order they happened
+        implausible = plausibility_warnings(self.case)
+        if implausible:
+            ds.attrs["hockle_input_warnings"] = "; ".join(
+                f"{w['loc']}: {w['msg']}" for w in implausible)
         ds.attrs["wall_time_s"] = self.wall_before + _time.perf_counter() - self.wall0
         ds.attrs["factorizations"] = run.newton.factorizations
         ds.attrs["gmres_iterations"] = run.newton.gmres_iterations
@@ -464,8 +472,15 @@ class OutputRecorder:
         return self.finish("stopped", f"stopped at t = {run.t:.6g} s: {reason}", reason)
 
     def failed(self, exc, step):
-        """Put the steps done and the partial dataset on a SolverDivergence ``exc``."""
+        """Put the steps done and the partial dataset on a SolverDivergence ``exc``; its
+        message then ends with the inputs that look wrong and may be why
+        (:func:`solver.plausibility.suspects`), where there are any: a bare "Newton did not
+        converge" of a rod 1000 m long with its diameter profile over its first metre then
+        names rod.length's unit."""
         exc.step = step
+        hint = suspects(self.case)
+        if hint and hint not in str(exc):
+            exc.args = (f"{exc}; {hint}",) + tuple(exc.args[1:])
         exc.partial = self.finish("failed", str(exc), exc.reason)
         return exc
 

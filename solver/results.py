@@ -44,6 +44,10 @@ __all__ = [
     "start_state_from",
     "START_VARIABLES",
     "run_events",
+    "shape_departure",
+    "node_departure",
+    "events_summary",
+    "event_label",
     "EVENT_RULES",
     "bend_radius_series",
     "minimum_bend_radius_of",
@@ -102,26 +106,27 @@ FIELD_VARIABLES: dict[str, tuple[tuple[str, ...], str, str, str | None]] = {
     "energy_kinetic": (
         ("time",),
         "J",
-        "kinetic energy of the rod including the entrained (added) fluid mass",
-        None,
+        "kinetic energy of the rod's own mass (translation and rotation)",
+        "the entrained fluid's share is energy_kinetic_fluid, apart from this",
     ),
     "energy_kinetic_fluid": (
         ("time",),
         "J",
-        "added-mass share of the kinetic energy",
-        "part of energy_kinetic carried by the entrained fluid; zero in vacuum",
+        "kinetic energy of the entrained (added) fluid mass",
+        "not part of energy_kinetic; zero in vacuum",
     ),
     "energy_total": (
         ("time",),
         "J",
         "total mechanical energy of the rod (strain plus kinetic)",
-        None,
+        "energy_bending + energy_torsion + energy_kinetic + energy_kinetic_fluid",
     ),
     "work_in": (
         ("time",),
         "J",
-        "cumulative work put in at the rod ends",
-        "time integral of power_in from the start of the run",
+        "cumulative work put in at the rod ends and by the loads",
+        "time integral of power_in from the start of the run: the ends' loads and motions, "
+        "distributed and point loads, gravity (not the seabed's reaction: seabed_work)",
     ),
     "power_in": (("time",), "W", "power put in at the rod ends", None),
     "twist": (
@@ -726,25 +731,49 @@ def apply_metadata(
 WRITHE_ONSET = 0.05
 
 EVENT_RULES = (
-    "buckling_onset: first stored time the centreline is farther than the rod's largest "
-    "diameter from the line through its ends (having started closer); without position, "
-    "the first time the writhe has changed by 0.05 turns. first_contact: first time "
-    "contact_count > 0. loop_formed: first time the rod touches itself (contact_count > 0) "
-    "or |Wr| has risen through 1 turn (from below 1), with a seabed only while the rod lies "
-    "on the bottom. bend_radius_below_mbr (when the case gives rod.minimum_bend_radius): "
-    "first time the smallest bend radius is below it. writhe_k: first time |Wr| >= k turns. "
-    "NaN: did not happen in the stored outputs (or the member has no result).")
+    "buckling_onset: first stored time the centreline has moved more than the rod's largest "
+    "diameter away from its first stored shape across its chord (each point's offset from "
+    "the line through the ends, compared with that point's offset at the first output: a "
+    "straight start reads as the distance from the chord, a curved lay's own shape does not "
+    "count, the ends' motion along the chord neither); without position, the first time "
+    "the writhe has changed by 0.05 turns. first_contact: first time contact_count > 0. "
+    "loop_formed: first time the rod touches itself (contact_count > 0) or |Wr| has risen "
+    "through 1 turn (from below 1), with a seabed only while the rod lies on the bottom. "
+    "bend_radius_below_mbr (when the case gives rod.minimum_bend_radius): first time the "
+    "smallest bend radius is below it. writhe_k: first time |Wr| >= k turns. NaN: did not "
+    "happen in the stored outputs (or the member has no result).")
 
 
-def _chord_deviation(pos: np.ndarray) -> np.ndarray:
-    """(T,) largest distance (m) of the centreline (T, N, 3) from the line through its ends."""
+def _chord_offsets(pos: np.ndarray) -> np.ndarray:
+    """(T, N, 3) each point's offset (m) of the centreline (T, N, 3) from the line through
+    its ends: its position from the start end less the part along the chord."""
     a, b = pos[:, :1, :], pos[:, -1:, :]
     axis = b - a
     length = np.linalg.norm(axis, axis=2, keepdims=True)
     unit = np.divide(axis, length, out=np.zeros_like(axis), where=length > 0)
     rel = pos - a
     along = np.sum(rel * unit, axis=2, keepdims=True)
-    return np.max(np.linalg.norm(rel - along * unit, axis=2), axis=1)
+    return rel - along * unit
+
+
+def shape_departure(pos: np.ndarray) -> np.ndarray:
+    """(T,) the buckling measure of :data:`EVENT_RULES` (m): the largest distance, over
+    the grid points, between a point's offset from the chord (the line through the ends)
+    and the same point's offset at the first stored time.
+
+    For a rod that starts straight it is the distance from the chord; for a curved lay
+    (the 5-cm half-sine of ``cases/seabed-hockle.yaml``) the lay's own curve reads 0, so a
+    shape that starts more than a diameter off its chord still has an onset. The motion
+    of the ends along the chord (an end pulled in or let out) does not count."""
+    return np.max(node_departure(pos), axis=1)
+
+
+def node_departure(pos: np.ndarray) -> np.ndarray:
+    """(T, N) each grid point's part of :func:`shape_departure` (m): the distance between
+    its offset from the chord and its offset at the first of the shapes ``pos`` (T, N, 3).
+    ``hockle plot`` zooms to where it is largest."""
+    offsets = _chord_offsets(pos)
+    return np.linalg.norm(offsets - offsets[:1], axis=2)
 
 
 def _first(mask: np.ndarray) -> int | None:
@@ -851,9 +880,10 @@ def _loop_formed(ds, wr: np.ndarray | None) -> int | None:
 def run_events(ds) -> dict[str, int | None]:
     """The output index of each event of a result dataset.
 
-    The one definition behind ``hockle plot``'s snapshot rows and a sweep's event
-    variables; the rules are :data:`EVENT_RULES` (the buckling threshold is the rod's
-    largest diameter, or 1 % of its length when the file does not say).
+    The one definition behind ``hockle plot``'s snapshot rows, a sweep's event
+    variables, the dashboard's events and a result's ``hockle_events``; the rules are
+    :data:`EVENT_RULES` (the buckling threshold is the rod's largest diameter, or 1 % of
+    its length when the file does not say).
 
     Parameters
     ----------
@@ -866,7 +896,8 @@ def run_events(ds) -> dict[str, int | None]:
         ``{event: output index or None}`` (None: it did not happen) for
         ``buckling_onset``, ``first_contact``, ``loop_formed``, ``bend_radius_below_mbr``
         (only when the case gives ``rod.minimum_bend_radius``) and ``writhe_1``,
-        ``writhe_2``, ... up to the largest |Wr| reached.
+        ``writhe_2``, ... up to the largest |Wr| reached, in the order the events
+        happened (the earliest first, those that did not happen last).
     """
     out: dict[str, int | None] = {"buckling_onset": None, "first_contact": None,
                                   "loop_formed": None}
@@ -880,9 +911,8 @@ def run_events(ds) -> dict[str, int | None]:
         s = np.asarray(ds["s"].values, dtype=float)
         d = _largest_diameter(ds)
         threshold = d if d is not None else 0.01 * float(s[-1] - s[0])
-        dev = _chord_deviation(pos)
-        if np.isfinite(dev[0]) and dev[0] < threshold:
-            out["buckling_onset"] = _first(dev >= threshold)
+        dev = shape_departure(pos)
+        out["buckling_onset"] = _first(np.nan_to_num(dev, nan=0.0) >= threshold)
     elif "writhe" in ds:
         wr = np.asarray(ds["writhe"].values, dtype=float)
         out["buckling_onset"] = _first(np.abs(wr - wr[0]) >= WRITHE_ONSET)
@@ -901,7 +931,45 @@ def run_events(ds) -> dict[str, int | None]:
     if wr is not None:
         for k in range(1, int(np.floor(np.max(wr) + 1e-12)) + 1):
             out[f"writhe_{k}"] = _first(wr >= k - 1e-12)
-    return out
+    return _in_time_order(out)
+
+
+def event_label(name: str) -> str:
+    """The words for an event of :func:`run_events` (``writhe_2`` -> ``|Wr| reaches 2``)."""
+    if name.startswith("writhe_"):
+        return f"|Wr| reaches {name[len('writhe_'):]}"
+    return {"buckling_onset": "buckling onset", "first_contact": "first contact",
+            "loop_formed": "loop formed",
+            "bend_radius_below_mbr": "bend radius below the MBR"}.get(name, name.replace("_", " "))
+
+
+def events_summary(ds) -> str:
+    """One line of the run's events in the order they happened, with their output times,
+    then those that did not happen: ``"buckling onset at 1.2 s, ..., |Wr| reaches 2 at
+    4 s; did not happen: ..."`` (``hockle run``'s summary and a result's
+    ``hockle_events``); "" for a dataset without outputs."""
+    if ds is None or "time" not in ds.coords or ds.sizes.get("time", 0) == 0:
+        return ""
+    t = np.asarray(ds["time"].values, dtype=float)
+    found = run_events(ds)
+    mbr = minimum_bend_radius_of(ds)
+
+    def label(name):
+        extra = f" ({mbr:g} m)" if name == "bend_radius_below_mbr" and mbr else ""
+        return event_label(name) + extra
+
+    happened = [f"{label(k)} at {t[i]:.4g} s" for k, i in found.items() if i is not None]
+    missed = [label(k) for k, i in found.items() if i is None]
+    text = ", ".join(happened) if happened else "none happened"
+    return text + (f"; did not happen: {', '.join(missed)}" if missed else "")
+
+
+def _in_time_order(events: dict[str, int | None]) -> dict[str, int | None]:
+    """``events`` ordered by output index (the order they happened in), those that did not
+    happen last, each group otherwise in its given order."""
+    happened = sorted((k for k, i in events.items() if i is not None), key=lambda k: events[k])
+    return {**{k: events[k] for k in happened},
+            **{k: i for k, i in events.items() if i is None}}
 
 
 #: the result variables a start from an earlier result needs

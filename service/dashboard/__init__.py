@@ -424,16 +424,20 @@ def ui_job_paraview(job_id: str, svc: Annotated[Services, Depends(services)],
 @router.post(f"{UI_API_PREFIX}/validate")
 async def ui_validate(request: Request, svc: Annotated[Services, Depends(services)]) -> Response:
     """Validate a case as ``POST /v1/jobs`` does (JSON, or YAML by Content-Type) without
-    recording or queueing anything: 200 with its name and size, or the same 400/413/415/422
-    problem the submission would get."""
+    recording or queueing anything: 200 with its name, size and plausibility warnings
+    (``warnings``: ``{loc, msg, type}`` each, the submission's), or the same
+    400/413/415/422 problem the submission would get."""
     from fastapi.concurrency import run_in_threadpool
 
     data = await parse_request(request, svc.settings.body_parse_timeout)
 
     def check():
+        from solver.plausibility import plausibility_warnings
+
         case = validate_case(data, svc.settings.max_case_size)
         return {"valid": True, "name": case.name, "grid_points": case.grid_points,
-                "n_steps": case.n_steps, "t_end": float(case.numerics.t_end)}
+                "n_steps": case.n_steps, "t_end": float(case.numerics.t_end),
+                "warnings": plausibility_warnings(case)}
 
     return Response(orjson.dumps(await run_in_threadpool(check)), media_type="application/json")
 

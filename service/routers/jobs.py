@@ -111,12 +111,13 @@ REUSED_HEADER = "Hockle-Reused"
 def _submit(svc: Services, body: bytes | None, content_type: str | None,
             idempotency_key: str | None, fresh: bool, time_limit: float | None = None,
             owner: str | None = None, *,
-            data=None) -> tuple[Job, int, str | None, list[str]]:
-    """Validate, record and queue a case: ``(job, status, reused, advice)``; ``reused`` is
+            data=None) -> tuple[Job, int, str | None, dict[str, list]]:
+    """Validate, record and queue a case: ``(job, status, reused, notes)``; ``reused`` is
     None for a new job (201), else why an earlier job answers (200): ``identical_case`` or
-    ``idempotency_key``; ``advice`` what the case as given is advised
-    (:func:`case_advice`). The case is ``body`` (parsed here), or ``data`` already parsed
-    (:func:`service.validation.parse_request`) when ``body`` is None."""
+    ``idempotency_key``; ``notes`` the answer's ``advice`` (:func:`case_advice`) and
+    ``warnings`` (:func:`case_warnings`) on the case as given. The case is ``body``
+    (parsed here), or ``data`` already parsed (:func:`service.validation.parse_request`)
+    when ``body`` is None."""
     _check_time_limit(time_limit, svc.settings.time_limit_max)
     if body is not None:
         data = parse_body(body, content_type, svc.settings.body_parse_timeout)
@@ -131,7 +132,17 @@ def _submit(svc: Services, body: bytes | None, content_type: str | None,
         name=case.name, grid_points=case.grid_points, n_steps=case.n_steps,
         t_end=float(case.numerics.t_end), limits=(hard, soft, budget),
         idempotency_key=idempotency_key, fresh=fresh, time_limit=time_limit, owner=owner)
-    return job, status, reused, case_advice(case)
+    return job, status, reused, {"advice": case_advice(case), "warnings": case_warnings(case)}
+
+
+def case_warnings(case) -> list[dict]:
+    """The plausibility warnings on a validated case (``{loc, msg, type}`` each, as a 422's
+    errors: :func:`solver.plausibility.plausibility_warnings`): inputs that look wrong by a
+    unit (a modulus in MPa, lengths in mm, a step far above the rod's slowest bending
+    period); empty for a plausible case. The case runs as given."""
+    from solver.plausibility import plausibility_warnings
+
+    return plausibility_warnings(case)
 
 
 def case_advice(case) -> list[str]:
@@ -258,7 +269,7 @@ async def submit_job(
     data = await parse_request(request, svc.settings.body_parse_timeout)
     # a burst of submissions waits here, not in the thread pool that status polls need
     async with submit_slots(request):
-        job, status, reused, advice = await run_in_threadpool(
+        job, status, reused, notes = await run_in_threadpool(
             partial(_submit, data=data), svc, None, None, idempotency_key, fresh,
             time_limit, owner
         )
@@ -266,7 +277,7 @@ async def submit_job(
     response.headers["Location"] = f"/v1/jobs/{job.id}"
     if reused is not None:
         response.headers[REUSED_HEADER] = reused
-    return job_status(job, _exists).model_copy(update={"reused": reused, "advice": advice})
+    return job_status(job, _exists).model_copy(update={"reused": reused, **notes})
 
 
 @router.get("/jobs", operation_id="list_jobs", summary="List jobs", response_model=JobList,

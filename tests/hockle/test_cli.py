@@ -195,8 +195,12 @@ def test_run_tiny_case_end_to_end(tiny, tmp_path, capsys):
     assert str(out) in captured.out and "wall time" in captured.out
     # not a terminal: plain progress lines instead of a bar, the last one at 100 %
     progress = [line for line in captured.err.splitlines() if line.startswith("t ")]
-    assert progress and "t 0.05/0.05 s (100 %), step 5" in progress[-1]
-    assert "Newton" in progress[-1] and "ETA" in progress[-1]
+    # each number says what it counts: nominal steps of the case's Δt, Newton iterations
+    assert progress and ("t 0.05/0.05 s (100 %), nominal step 5/5 of Δt 0.01 s, "
+                         in progress[-1]), progress
+    assert "Newton iterations" in progress[-1] and "ETA" in progress[-1]
+    # the run's events, in the order they happened (this rod stays straight: none did)
+    assert "events: none happened; did not happen: buckling onset" in captured.out
     ds = open_result(out)
     assert ds.attrs["hockle_status"] == "completed"
     assert ds.attrs["case_hash"] == Case.from_file(tiny).spec_hash()
@@ -381,3 +385,29 @@ def test_run_checkpoint_and_resume(tiny, tmp_path, capsys):
     assert "another case" in capsys.readouterr().err
     assert main(["run", str(tiny), "--quiet", "--resume", str(full)]) == 2
     assert "not a hockle checkpoint" in capsys.readouterr().err
+
+
+def test_progress_line_says_what_each_number_counts():
+    """A nominal step cut into sub-steps (the seabed case's 4 s: nominal step 80 of 200 at
+    Δt 0.05 s, its last sub-step 0.00202 s, 136 Newton iterations over its sub-steps)
+    says so; an uncut step does not name a sub-step; with numerics.tolerance the steps
+    are error-controlled and have no count."""
+    from types import SimpleNamespace
+
+    from hockle.cli import _progress_line
+
+    case = Case.model_validate(TINY | {"numerics": {"n_segments": 8, "dt": 0.05,
+                                                     "t_end": 10.0}})
+    info = SimpleNamespace(t=4.0, t_end=10.0, step=80, dt=0.00202, newton_iterations=136,
+                           wall_time=105.0, fraction=0.4, eta_seconds=104.0)
+    assert _progress_line(info, case) == (
+        "t 4/10 s (40 %), nominal step 80/200 of Δt 0.05 s (last sub-step 0.00202 s), "
+        "136 Newton iterations, wall 105 s, ETA 104 s")
+    whole = SimpleNamespace(**{**vars(info), "dt": 0.05, "newton_iterations": 2})
+    assert "nominal step 80/200 of Δt 0.05 s, 2 Newton iterations" in _progress_line(whole,
+                                                                                     case)
+    adaptive = Case.model_validate(TINY | {"numerics": {
+        "n_segments": 8, "dt": 0.05, "t_end": 10.0, "tolerance": {"relative": 1e-3},
+        "backward_euler_retry": False}})
+    assert "step 80 (error-controlled, last Δt 0.00202 s), 136 Newton iterations" in \
+        _progress_line(info, adaptive)

@@ -341,6 +341,24 @@ def test_a_submission_answers_the_advice_on_its_case_and_the_case_runs(client, s
         assert ds.attrs["hockle_advice"] == body["advice"][0]
 
 
+def test_a_submission_answers_the_plausibility_warnings_on_its_case(client):
+    """A Young's modulus of 12.5 Pa (meant as MPa) is accepted (201: a warning is not a
+    refusal) with the warning naming rod.youngs_modulus and its number in the answer, as
+    the dashboard's check answers it; a plausible case's answer has none."""
+    plain = client.post("/v1/jobs", json=tiny_case("plausible"))
+    assert plain.status_code == 201 and plain.json()["warnings"] == []
+    case = tiny_case("in MPa")
+    case["rod"]["youngs_modulus"] = 12.5
+    answer = client.post("/v1/jobs", json=case)
+    assert answer.status_code == 201, answer.text
+    warnings = answer.json()["warnings"]
+    assert warnings[0]["loc"] == "rod.youngs_modulus"
+    assert warnings[0]["type"] == "implausible_modulus" and "12.5 Pa" in warnings[0]["msg"]
+    assert client.get(f"/v1/jobs/{answer.json()['id']}").json()["warnings"] == []
+    checked = client.post("/v1/ui/validate", json=case)
+    assert checked.status_code == 200 and checked.json()["warnings"] == warnings
+
+
 def _thin_plectoneme_at_ten_times_its_step():
     """The contact suite's thin-rod plectoneme (tests/solver/test_contact_run.py) at Δt = 0.2 s,
     10x its own, to 10 s: its loop sweeps across the closure of an end's tangent at

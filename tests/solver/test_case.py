@@ -741,7 +741,10 @@ def test_format_validation_errors_and_loc(data):
         Case.model_validate(data)
     errors = format_validation_errors(info.value)
     assert errors == [
-        {"loc": "boundary.end.translation[2][0].until", "msg": "Input should be a number, not str", "type": "float_type"}
+        {"loc": "boundary.end.translation[2][0].until",
+         "msg": "Input should be a number, not the text 'soon': case values are plain numbers "
+                "in SI units (m, s, kg, N, Pa, rad), written without a unit",
+         "type": "float_type"}
     ]
     assert format_loc(("rod", "diameter", "value", 2)) == "rod.diameter.value[2]"
     assert format_loc(()) == ""
