@@ -80,6 +80,9 @@ def _print_case_errors(exc: Any, source: str) -> None:
     if n == 1 and not errors[0].get("loc"):     # the file as a whole: one line
         msg = " ".join(str(errors[0].get("msg", "")).split())
         _err(f"hockle: invalid case {source}: {msg}")
+        place = _syntax_place(source, msg)      # a YAML syntax error: where it is
+        if place:
+            _err(place)
         return
     _err(f"hockle: invalid case {source} ({n} error{'s' if n != 1 else ''}):")
     for error in errors:

@@ -57,5 +57,6 @@ def test_errors_carry_their_line_and_column_and_a_text_value_is_echoed(tmp_path,
     broken = _write(tmp_path, "broken.yaml", "schema_version: 1\nname: x\nrod: {length: 1\n")
     assert main(["validate", str(broken)]) == 2
     err = capsys.readouterr().err.splitlines()
-    assert err[1].startswith("(case): YAML syntax error at line 4, column 1: expected ',' or '}'")
-    assert err[2] == f"  at {broken}:4:1: "
+    assert err[0].startswith(f"hockle: invalid case {broken}: YAML syntax error at line 4, "
+                             "column 1: expected ',' or '}'")
+    assert err[1] == f"  at {broken}:4:1: "
