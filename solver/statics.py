@@ -76,6 +76,7 @@ __all__ = ["EndSpec", "StaticProblem", "StaticSolution", "StaticsError", "residu
            "jacobian", "solve", "straight_guess", "unstable_modes", "lu_det_sign",
            "static_problem", "quat_axis_angle", "contact_loads", "seabed_loads",
            "contact_gap", "NV", "N_START", "band_jacobian", "band_ready", "factor_jacobian",
+           "problem_at",
            "nearest_eigenvalues"]
 
 NV = 13          # unknowns per node
@@ -1057,12 +1058,25 @@ def static_problem(case, time: Optional[float] = None) -> StaticProblem:
     if not np.isfinite(t) or t < 0:
         raise StaticsError(f"time: {t} is not a time >= 0")
     props = RodProperties.from_case(case)
+    q, r, _ = initial_pose(case, props.s)  # the ends' initial frames and positions
+    return problem_at(case, t, props, q, r)
+
+
+def problem_at(case, t: float, props, q, r, skip=()) -> StaticProblem:
+    """The static problem of ``case`` at time t (s) on its evaluated properties ``props``
+    (:class:`solver.properties.RodProperties`), from initial frames q (N+1, 4) and
+    positions r (N+1, 3) m (only the ends' are read): :func:`static_problem` without
+    recomputing them, the rows the centreline scheme (:mod:`solver.centreline`) steps
+    on. The ends named in ``skip`` ("start", "end") are left free under their point
+    loads for the caller to replace. Raises :class:`StaticsError` as
+    :func:`static_problem`."""
     N = case.numerics.n_segments
-    s = props.s
-    q, r, _ = initial_pose(case, s)        # the ends' initial frames and positions
     load, extra_force = _dead_loads(case, props, t)
     ends = {}
     for name, k in (("start", 0), ("end", N)):
+        if name in skip:
+            ends[name] = free_end(extra_force[name])
+            continue
         ends[name] = _end_spec(getattr(case.boundary, name), f"boundary.{name}", q[k], r[k],
                                t, extra_force[name])
     inertia = np.asarray(props.inertia[:, 0], float)

@@ -1,0 +1,525 @@
+"""The dynamic rod on the statics' centreline: positions and frames as the unknowns.
+
+The static rows of :mod:`solver.statics` (box rule in s on r, the unit quaternion p, the
+internal force n and moment m per node, all global; 7 rows at s = 0, 13 per cell, 6 at
+s = L) become the dynamic rows by adding the inertia and fluid loads of the seed's eqs.
+4-5 (Goyal, Perkins & Lee, J. Comput. Phys. 2005) to the force and moment rows, as
+distributed loads per length at the nodes::
+
+    n' + f + f_fluid − M r̈ = 0,                M r̈ = ρA r̈ + C_a ρ_f A (r̈ − (a3·r̈) a3)
+    m' + r' × n − R (I Ẇ + W × I W) = 0,       I = diag(ρJ1, ρJ2, ρJ3)
+
+with ṙ the global velocity and W the body angular velocity (R' of the frame R = R(p):
+Ṙ = R [W]×), f the dead loads of the statics and f_fluid Morison's drag in still water,
+B_d = −½ ρ_f D C_dn |v_n| v_n − ½ ρ_f π D C_dt |v_t| v_t on the body velocity v = Rᵀ ṙ
+(the same law as :mod:`solver.loads`). The cell rows take the trapezoid of the nodal
+loads, so a cell row reads exactly as its static row with f + f_fluid − M r̈ in place of
+f: one discretisation of the rod in s for statics and dynamics, and a static equilibrium
+is a dynamic state at rest (and a dynamic state a static solver's start) with nothing
+converted. Compatibility (r' = a3) and inextensibility are the kinematic rows of that
+centreline, so every position the run reports satisfies them to Newton's tolerance.
+
+Time: generalized-α on the Lie group R³ × SO(3) per node (Brüls & Cardona, J. Comput.
+Nonlinear Dyn. 5, 2010; Arnold, Brüls & Cardona, Multibody Syst. Dyn. 33, 2015), with
+the equilibrium at t_n+1 (the index-3 form of Arnold & Brüls, Multibody Syst. Dyn. 18,
+2007). Per node, with the velocity X = (ṙ, W), the acceleration Ẋ and the algebraic
+acceleration a (each (6,))::
+
+    (1 − α_m) a_n+1 + α_m a_n = (1 − α_f) Ẋ_n+1 + α_f Ẋ_n
+    X_n+1 = X_n + h (1 − γ) a_n + h γ a_n+1
+    Δ_n+1 = h X_n + h² (½ − β) a_n + h² β a_n+1,  r_n+1 = r_n + Δr,  p_n+1 = p_n ⊗ cay(Δθ)
+
+α_m = (2ρ∞ − 1)/(ρ∞ + 1), α_f = ρ∞/(ρ∞ + 1), γ = ½ + α_f − α_m, β = ¼(γ + ½)² (Chung &
+Hulbert, J. Appl. Mech. 60, 1993). The rotation increment Δθ (body frame at t_n) is read
+off the two quaternions by the Cayley map's inverse, Δθ = 2 vec(d)/w(d) with
+d = p̄_n ⊗ p_n+1 (cay agrees with exp to O(|Δθ|³), which keeps the scheme's second order;
+Brüls & Cardona 2010, § 4). Newton's unknowns are the statics' (r, p, n, m) at t_n+1;
+every velocity and acceleration is an affine function of them, so the Jacobian is the
+static band (:func:`solver.statics.band_jacobian`) plus each node's 6 × 7 block of its
+inertia and fluid loads, exact to rounding by the complex step (Squire & Trapp, SIAM Rev.
+40, 1998), and one band LU (LAPACK ``dgbtrf``) per iteration.
+
+Start: a rod at rest whose loads switch on at t = 0 has accelerations Ẋ(0) ≠ 0 that the
+scheme needs as its starting value (Arnold & Brüls 2007: a_0 = Ẋ_0 keeps the order; a
+zero start costs an order). :meth:`CentrelineRod.start` finds them by two Taylor steps
+from rest, r(δ) = r_0 + δ²/2 r̈_0 + O(δ³), on the same rows (δ and δ/2, Richardson), so
+the start is consistent to O(δ²).
+
+Ends: the statics' end rows at t_n+1 (:func:`solver.statics.problem_at`): held
+translations at the positions the end's velocities integrate to, held rotations turning
+about the end's tangent, free ends under dead forces and zero moments. What the static
+end rows cannot say (follower end loads, a held end turned about a normal), self-contact
+and the sea floor are refused by :meth:`CentrelineRod.from_case` with the field named.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from . import statics as st
+from .static_band import KL, KU, BandSingular, BorderedBandLU
+
+__all__ = ["AlphaParameters", "CentrelineState", "CentrelineRod", "CentrelineError",
+           "StepFailure", "cayley_quaternion", "cayley_vector"]
+
+NV = st.NV
+_EPS = 1e-30
+
+
+class CentrelineError(ValueError):
+    """A case the centreline scheme does not take; the message names the field."""
+
+
+class StepFailure(ArithmeticError):
+    """A step that Newton did not converge (or met a singular Jacobian); ``reason``."""
+
+    def __init__(self, reason: str):
+        super().__init__(reason)
+        self.reason = reason
+
+
+@dataclass(frozen=True)
+class AlphaParameters:
+    """Generalized-α's parameters of one ρ∞ in [0, 1] (Chung & Hulbert 1993, eqs. 25-26;
+    the Lie-group form of Arnold, Brüls & Cardona 2015 uses the same)."""
+
+    alpha_m: float
+    alpha_f: float
+    gamma: float
+    beta: float
+
+    @classmethod
+    def from_rho_inf(cls, rho: float) -> "AlphaParameters":
+        rho = float(rho)
+        if not 0.0 <= rho <= 1.0:
+            raise CentrelineError(f"numerics.rho_inf: {rho} is not in [0, 1]")
+        am = (2.0 * rho - 1.0) / (rho + 1.0)
+        af = rho / (rho + 1.0)
+        g = 0.5 + af - am
+        return cls(am, af, g, 0.25 * (g + 0.5) ** 2)
+
+
+@dataclass
+class CentrelineState:
+    """The rod at one time level.
+
+    t : s;  Y : (N+1, 13) r (m), p (unit quaternion w, x, y, z), n (N), m (N m), global
+    X : (N+1, 6) ṙ (m/s, global) and W (rad/s, body);  Xd : (N+1, 6) their time
+    derivatives;  a : (N+1, 6) generalized-α's algebraic acceleration
+    """
+
+    t: float
+    Y: np.ndarray
+    X: np.ndarray
+    Xd: np.ndarray
+    a: np.ndarray
+
+    def copy(self) -> "CentrelineState":
+        return CentrelineState(self.t, self.Y.copy(), self.X.copy(), self.Xd.copy(),
+                               self.a.copy())
+
+
+@dataclass(frozen=True)
+class _Coefficients:
+    """A step's affine maps of the increment Δ (N+1, 6) to Ẋ = cXd Δ + dXd and
+    X = cX Δ + dX."""
+
+    cXd: float
+    dXd: np.ndarray
+    cX: float
+    dX: np.ndarray
+
+
+def cayley_quaternion(c):
+    """The unit quaternion (..., 4) of the Cayley map of the rotation vector c (..., 3)
+    (rad): ∝ (1, c/2), a rotation by 2 atan(|c|/2) about c."""
+    c = np.asarray(c)
+    q = np.concatenate([np.ones(c.shape[:-1] + (1,), dtype=c.dtype), 0.5 * c], axis=-1)
+    return q / np.sqrt(np.sum(q * q, axis=-1, keepdims=True))
+
+
+def cayley_vector(p_old, p_new):
+    """The inverse: Δθ (..., 3) with p_new = p_old ⊗ cay(Δθ), 2 vec(d)/w(d) with
+    d = p̄_old ⊗ p_new (complex-step safe; needs a turn below π, w(d) > 0)."""
+    d = st._qmul(st._qconj(p_old), p_new)
+    return 2.0 * d[..., 1:] / d[..., 0:1]
+
+
+class CentrelineRod:
+    """The rod of a case on the centreline scheme: its rows, its steps, its start.
+
+    Build it with :meth:`from_case`. Attributes: ``props`` (:class:`solver.properties.
+    RodProperties`), ``params`` (:class:`AlphaParameters` of ``numerics.rho_inf``),
+    ``q0``, ``r0`` (N+1, 4), (N+1, 3): the initial frames and the centreline the box
+    rule builds from them (m), ``tolerance`` Newton's on the scaled update.
+    """
+
+    #: Newton's test on the update scaled by :meth:`solver.statics.StaticProblem.scales`
+    TOLERANCE = 1e-10
+    #: the largest scaled update taken as rounding's floor when it stops contracting
+    FLOOR = 1e-6
+    MAX_ITERATIONS = 12
+
+    def __init__(self, case, props, q0, r0):
+        self.case = case
+        self.props = props
+        self.params = AlphaParameters.from_rho_inf(case.numerics.rho_inf)
+        self.q0 = q0
+        self.r0 = r0
+        self.n = props.s.size
+        self.h = float(props.ds)
+        self.mass = np.asarray(props.rho_a, float)
+        self.added = np.asarray(props.added_mass, float)
+        self.inertia = np.asarray(props.inertia, float)
+        fl = case.fluid
+        if fl is not None:
+            self.cdn = 0.5 * fl.density * props.diameter * fl.drag_coefficient_normal
+            self.cdt = 0.5 * fl.density * np.pi * props.diameter * fl.drag_coefficient_tangential
+        else:
+            self.cdn = self.cdt = np.zeros(self.n)
+        self.has_drag = bool(np.any(self.cdn) or np.any(self.cdt))
+        self.paths = {}
+        for name, k in (("start", 0), ("end", self.n - 1)):
+            ec = getattr(case.boundary, name)
+            if EndPath.applies(ec):
+                self.paths[name] = EndPath(ec, q0[k], r0[k], case.numerics.t_end)
+        self._band_index()
+
+    @classmethod
+    def from_case(cls, case) -> "CentrelineRod":
+        """The rod of a validated case. Raises :class:`CentrelineError` naming the field
+        the scheme does not take yet (``contact``, ``seabed``, ``numerics.tolerance``, a
+        non-uniform ``ds``) or the statics' end rows cannot say."""
+        from .initial import initial_pose
+        from .properties import RodProperties
+
+        for name in ("contact", "seabed"):
+            if getattr(case, name) is not None:
+                raise CentrelineError(f"{name}: numerics.formulation 'centreline' does "
+                                      "not take it yet; use 'goyal'")
+        if case.numerics.tolerance is not None:
+            raise CentrelineError("numerics.tolerance: the centreline scheme takes fixed "
+                                  "steps (numerics.dt) only")
+        props = RodProperties.from_case(case)
+        q, r, _ = initial_pose(case, props.s)
+        q = q / np.linalg.norm(q, axis=1)[:, None]
+        rod = cls(case, props, q, box_centreline(q, r[0], props.ds))
+        try:
+            rod.problem(0.0)
+            rod.problem(case.numerics.t_end)
+        except st.StaticsError as exc:
+            raise CentrelineError(str(exc)) from exc
+        return rod
+
+    # ------------------------------------------------------------------ the rows
+    def problem(self, t: float) -> st.StaticProblem:
+        """The static rows' problem at time t (s): ends and dead loads then; an end
+        turned by body-frame angular velocities takes its frame and held position from
+        its :class:`EndPath`."""
+        if not self.paths:
+            return st.problem_at(self.case, t, self.props, self.q0, self.r0)
+        prob = st.problem_at(self.case, t, self.props, self.q0, self.r0,
+                             skip=tuple(self.paths))
+        ends = {name: path.spec(t, getattr(prob, name).force)
+                for name, path in self.paths.items()}
+        return replace(prob, **ends)
+
+    def increments(self, Y, old: CentrelineState):
+        """Δ (..., N+1, 6): Δr (m) and the body rotation increment Δθ (rad) of Y
+        (..., N+1, 13) from the old level (complex-step safe)."""
+        dr = Y[..., 0:3] - old.Y[:, 0:3]
+        dth = cayley_vector(old.Y[:, 3:7], Y[..., 3:7])
+        return np.concatenate([dr, dth], axis=-1)
+
+    def nodal_loads(self, Y, old: CentrelineState, co: _Coefficients):
+        """Inertia and fluid loads per length at the nodes (..., N+1, 6), global: force
+        f_fluid − M r̈ (N/m) and moment −R(I Ẇ + W × I W) (N m/m), of Y (..., N+1, 13)
+        at the new level (complex-step safe)."""
+        D = self.increments(Y, old)
+        Xd = co.cXd * D + co.dXd
+        X = co.cX * D + co.dX
+        R = st._rot(Y[..., 3:7])
+        a3 = R[..., :, 2]
+        acc = Xd[..., 0:3]
+        force = -self.mass[:, None] * acc
+        if np.any(self.added):
+            an = acc - np.sum(a3 * acc, axis=-1, keepdims=True) * a3
+            force = force - self.added[:, None] * an
+        if self.has_drag:
+            v = np.einsum("...ji,...j->...i", R, X[..., 0:3])        # body velocity
+            vt = v[..., 2:3]
+            vn = v.copy()
+            vn[..., 2] = 0.0
+            speed = np.sqrt(np.sum(vn * vn, axis=-1, keepdims=True))
+            # |vt| written sqrt(vt²): complex-step safe; its derivative at 0 is 0 in both
+            b = (-self.cdn[:, None] * speed * vn
+                 - self.cdt[:, None] * np.sqrt(vt * vt) * vt * np.array([0.0, 0.0, 1.0]))
+            force = force + np.einsum("...ij,...j->...i", R, b)
+        W, Wd = X[..., 3:6], Xd[..., 3:6]
+        IW = self.inertia * W
+        body = self.inertia * Wd + np.cross(W, IW)
+        moment = -np.einsum("...ij,...j->...i", R, body)
+        return np.concatenate([force, moment], axis=-1)
+
+    def residual(self, Y, old, co, prob) -> np.ndarray:
+        """The 13(N+1) dynamic rows (the static rows plus the nodal loads' trapezoid on
+        the force and moment rows) of Y (N+1, 13)."""
+        G = st.residual(Y, prob)
+        L = self.nodal_loads(Y, old, co)
+        cells = G[st.N_START:-st.N_END].reshape(self.n - 1, NV)
+        cells[:, 7:13] += 0.5 * self.h * (L[:-1] + L[1:])
+        return G
+
+    def _band_index(self):
+        """Where each node's 6 × 7 load block lands in the band storage (rows, cols)."""
+        N = self.n - 1
+        k = np.arange(N + 1)
+        a = np.arange(6)
+        b = np.arange(7)
+        rows, cols, nodes = [], [], []
+        for cell in (k - 1, k):                      # the cells left and right of node k
+            ok = (cell >= 0) & (cell < N)
+            kk, cc = k[ok], cell[ok]
+            rr = st.N_START + NV * cc[:, None, None] + 7 + a[None, :, None] + 0 * b
+            col = NV * kk[:, None, None] + b[None, None, :] + 0 * a[:, None]
+            rows.append(rr)
+            cols.append(col)
+            nodes.append(kk)
+        self._rows = np.concatenate(rows).ravel()
+        self._cols = np.concatenate(cols).ravel()
+        self._nodes = np.concatenate(nodes)
+        self._bandrow = KL + KU + self._rows - self._cols
+
+    def jacobian(self, Y, old, co, prob) -> np.ndarray:
+        """∂G/∂Y in LAPACK band storage, exact to rounding: the static band
+        (:func:`solver.statics.band_jacobian`) plus h/2 of each node's load block
+        ∂L_k/∂(r_k, p_k), by the complex step (7 evaluations, all nodes at once)."""
+        ab = st.band_jacobian(Y, prob)
+        Yc = np.empty((7,) + Y.shape, dtype=complex)
+        Yc[:] = Y
+        for b in range(7):
+            Yc[b, :, b] += 1j * _EPS
+        dL = self.nodal_loads(Yc, old, co).imag / _EPS          # (7, N+1, 6)
+        block = np.transpose(dL, (1, 2, 0))                    # (N+1, 6, 7)
+        vals = 0.5 * self.h * block[self._nodes].ravel()
+        np.add.at(ab, (self._bandrow, self._cols), vals)
+        return ab
+
+    # ------------------------------------------------------------------ the step
+    def coefficients(self, old: CentrelineState, h: float) -> _Coefficients:
+        """Generalized-α's affine maps Δ -> Ẋ, X for a step h (s) from ``old``."""
+        p = self.params
+        cA = 1.0 / (p.beta * h * h)
+        dA = -(h * old.X + h * h * (0.5 - p.beta) * old.a) * cA
+        cXd = (1.0 - p.alpha_m) / (1.0 - p.alpha_f) * cA
+        dXd = ((1.0 - p.alpha_m) * dA + p.alpha_m * old.a - p.alpha_f * old.Xd) / (1.0 - p.alpha_f)
+        cX = h * p.gamma * cA
+        dX = old.X + h * (1.0 - p.gamma) * old.a + h * p.gamma * dA
+        return _Coefficients(cXd, dXd, cX, dX)
+
+    def predict(self, old: CentrelineState, h: float) -> np.ndarray:
+        """Newton's start: the increment of a_n+1 = a_n, n and m as they were."""
+        D = h * old.X + 0.5 * h * h * old.a
+        Y = old.Y.copy()
+        Y[:, 0:3] += D[:, 0:3]
+        Y[:, 3:7] = st._qmul(old.Y[:, 3:7], cayley_quaternion(D[:, 3:6]))
+        return Y
+
+    def solve(self, old, co, prob, Y) -> tuple[np.ndarray, int, float]:
+        """Newton on the dynamic rows from Y; (Y, iterations, scaled update). Raises
+        :class:`StepFailure` without convergence in MAX_ITERATIONS or on a singular
+        Jacobian or a non-finite update."""
+        scale = prob.scales()
+        err = math.inf
+        for it in range(1, self.MAX_ITERATIONS + 1):
+            G = self.residual(Y, old, co, prob)
+            try:
+                lu = BorderedBandLU(self.jacobian(Y, old, co, prob))
+            except BandSingular as exc:
+                raise StepFailure(f"singular Jacobian ({exc})") from exc
+            dY = lu.solve(G).reshape(Y.shape)
+            if not np.all(np.isfinite(dY)):
+                raise StepFailure("non-finite Newton update")
+            Y = Y - dY
+            prev, err = err, float(np.max(np.abs(dY) / scale))
+            # converged, or at rounding's floor (the step's matrix grows as 1/(β Δt²), and
+            # so does the rounding of its solve): below FLOOR and no longer contracting
+            # (an exact Jacobian's iteration at least halves its update)
+            if err < self.TOLERANCE or (err < self.FLOOR and err > 0.5 * prev):
+                return Y, it, err
+        raise StepFailure(f"Newton did not converge in {self.MAX_ITERATIONS} iterations "
+                          f"(scaled update {err:.3g})")
+
+    def step(self, old: CentrelineState, h: float) -> tuple[CentrelineState, int, float]:
+        """One generalized-α step of h (s) from ``old``: (the new state, Newton
+        iterations, last scaled update). ``old`` is not changed. Raises
+        :class:`StepFailure`."""
+        t = old.t + h
+        prob = self.problem(t)
+        co = self.coefficients(old, h)
+        Y, its, err = self.solve(old, co, prob, self.predict(old, h))
+        D = self.increments(Y, old)
+        p = self.params
+        a = (D - h * old.X - h * h * (0.5 - p.beta) * old.a) / (p.beta * h * h)
+        new = CentrelineState(t, Y, co.cX * D + co.dX, co.cXd * D + co.dXd, a)
+        return new, its, err
+
+    # ------------------------------------------------------------------ the start
+    def rest_state(self, t: float = 0.0, Y=None) -> CentrelineState:
+        """The rod at rest at t (s) in Y (N+1, 13) (default: the initial pose, n = 0,
+        m = R K κ of the pose's frames), accelerations zero."""
+        if Y is None:
+            Y = np.zeros((self.n, NV))
+            Y[:, 0:3] = self.r0
+            Y[:, 3:7] = self.q0
+        z = np.zeros((self.n, 6))
+        return CentrelineState(float(t), np.array(Y, float), z, z.copy(), z.copy())
+
+    def _taylor_step(self, first: CentrelineState, delta: float):
+        """The step of δ from ``first`` along its Taylor polynomial, Δ = δ X_0 + δ²/2 Ẋ
+        (Ẋ = 2(Δ − δX_0)/δ², X = X_0 + δ Ẋ): (Y at δ, Ẋ)."""
+        X0 = first.X
+        co = _Coefficients(2.0 / delta**2, -2.0 * X0 / delta, 2.0 / delta, -X0)
+        prob = self.problem(first.t + delta)
+        Y0 = self.predict(first, delta)
+        Y, _, _ = self.solve(first, co, prob, Y0)
+        return Y, co.cXd * self.increments(Y, first) + co.dXd
+
+    def start(self, Y=None, t: float = 0.0, X=None, delta: float | None = None
+              ) -> CentrelineState:
+        """A consistent start in Y (N+1, 13) (default the initial pose) at t (s) with the
+        velocities X (N+1, 6) (default rest): the accelerations Ẋ(t) and the internal
+        loads (n, m)(t) from two Taylor steps of δ and δ/2 (default δ = Δt/4),
+        extrapolated (Richardson) to δ → 0; a = Ẋ. Raises :class:`StepFailure` when a
+        Taylor step does not converge."""
+        first = self.rest_state(t, Y)
+        if X is not None:
+            first.X = np.array(X, float)
+        delta = 0.25 * self.case.numerics.dt if delta is None else float(delta)
+        Y1, A1 = self._taylor_step(first, delta)
+        Y2, A2 = self._taylor_step(first, 0.5 * delta)
+        Xd = 2.0 * A2 - A1
+        first.Y[:, 7:13] = 2.0 * Y2[:, 7:13] - Y1[:, 7:13]
+        first.Xd = Xd
+        first.a = Xd.copy()
+        return first
+
+    # ------------------------------------------------------------------ outputs
+    def body_fields(self, state: CentrelineState) -> dict:
+        """The seed's body-frame fields of a state: v, ω, f (Rᵀ n), κ (K⁻¹ Rᵀ m), each
+        (N+1, 3), with the positions r (N+1, 3) and quaternions q (N+1, 4)."""
+        Y = state.Y
+        R = st._rot(Y[:, 3:7])
+        body = lambda x: np.einsum("kji,kj->ki", R, x)     # noqa: E731
+        return {"v": body(state.X[:, 0:3]), "omega": state.X[:, 3:6].copy(),
+                "f": body(Y[:, 7:10]),
+                "kappa": body(Y[:, 10:13]) / self.props.stiffness,
+                "r": Y[:, 0:3].copy(), "q": Y[:, 3:7].copy()}
+
+    def energies(self, state: CentrelineState) -> dict:
+        """Kinetic ½∫(ṙ·M ṙ + W·I W) ds, elastic ½∫κ·Kκ ds and the dead loads'
+        potential −∫f·r ds − Σ F·r over the ends' loaded components (J, trapezoid in s;
+        :func:`solver.statics.fields`)."""
+        w = self.props.quad_weights
+        fl = self.body_fields(state)
+        v = fl["v"]
+        m = self.mass[:, None] + np.stack([self.added, self.added, 0 * self.added], 1)
+        kin = 0.5 * float(np.sum(w * (np.sum(m * v * v, 1)
+                                      + np.sum(self.inertia * fl["omega"] ** 2, 1))))
+        static = st.fields(state.Y, self.problem(state.t))
+        return {"kinetic": kin, "elastic": static["elastic_energy"],
+                "potential": static["load_potential"]}
+
+
+def box_centreline(q, r_start, h: float) -> np.ndarray:
+    """The centreline (N+1, 3) m of the box rule's position rows from frames q (N+1, 4):
+    r_i+1 = r_i + h/2 (a3_i + a3_i+1), from r_start (3,) m (the kinematic rows of
+    :mod:`solver.statics` hold exactly for it)."""
+    a3 = st._rot(q)[:, :, 2]
+    r = np.empty_like(a3)
+    r[0] = r_start
+    r[1:] = r_start + np.cumsum(0.5 * h * (a3[:-1] + a3[1:]), axis=0)
+    return r
+
+
+class EndPath:
+    """The prescribed motion of an end held by body-frame angular velocities (every
+    rotation item ``angular_velocity``, one phase) and, per translation item, a velocity
+    or a force: the frame q(t) from q̇ = ½ q ⊗ (0, ω(t)) and the held point from
+    ṙ = Σ_i v_i(t) a_i(t) over the velocity items, integrated once by DOP853 (Hairer,
+    Nørsett & Wanner, *Solving ODEs I*, 1993, § II.5; scipy's ``solve_ivp``, rtol 1e-13)
+    between the tables' knots, where the rates have corners. Built for
+    :class:`CentrelineRod`, whose end rows then hold the end on this path: a rotation about
+    a normal is path-dependent, which the statics' end rows (twist about a3 only) do not
+    carry."""
+
+    def __init__(self, ec, q0, r0, t_end: float):
+        from scipy.integrate import solve_ivp
+
+        from .case import Table
+
+        self.ec = ec
+        rates = [ec.rotation[i][0] for i in range(3)]
+        moves = [ec.translation[i][0] for i in range(3)]
+        self.held = np.array([m.kind == "velocity" for m in moves])
+        self.force_items = [(i, m) for i, m in enumerate(moves) if m.kind == "force"]
+        knots = {0.0, float(t_end)}
+        for c in rates + moves:
+            if isinstance(c.value, Table):
+                knots.update(float(x) for x in c.value.t if 0.0 < x < t_end)
+        self.knots = np.array(sorted(knots))
+
+        def rhs(t, y):
+            q = y[0:4]
+            w = np.array([c.value_at(t) for c in rates], float)
+            dq = 0.5 * st._qmul(q, np.concatenate([[0.0], w]))
+            R = st._rot(q)
+            v = np.array([moves[i].value_at(t) if self.held[i] else 0.0 for i in range(3)])
+            return np.concatenate([dq, R @ v])
+
+        y = np.concatenate([q0, r0])
+        self.pieces = []
+        for a, b in zip(self.knots[:-1], self.knots[1:]):
+            sol = solve_ivp(rhs, (a, b), y, method="DOP853", rtol=1e-13, atol=1e-15,
+                            dense_output=True)
+            if not sol.success:
+                raise CentrelineError(f"boundary: the end's prescribed motion did not "
+                                      f"integrate ({sol.message})")
+            self.pieces.append(sol.sol)
+            y = sol.y[:, -1]
+
+    @staticmethod
+    def applies(ec) -> bool:
+        """Whether an end condition needs a path: body frame, one phase per item, every
+        rotation item an angular velocity and some turn about a normal (items 0, 1)."""
+        if ec.frame != "body":
+            return False
+        if any(len(items) != 1 for items in list(ec.rotation) + list(ec.translation)):
+            return False
+        if not all(ec.rotation[i][0].kind == "angular_velocity" for i in range(3)):
+            return False
+        from .case import Table
+        return any(isinstance(ec.rotation[i][0].value, Table) or ec.rotation[i][0].value != 0
+                   for i in (0, 1))
+
+    def at(self, t: float):
+        """(q (4,), r (3,) m) of the end at time t (s)."""
+        j = int(np.clip(np.searchsorted(self.knots, t, side="right") - 1, 0,
+                        len(self.pieces) - 1))
+        y = self.pieces[j](t)
+        q = y[0:4] / np.linalg.norm(y[0:4])
+        return q, y[4:7]
+
+    def spec(self, t: float, extra_force) -> st.EndSpec:
+        """The statics' :class:`solver.statics.EndSpec` of the end at t: the frame held at
+        q(t); velocity items held at the path's point along a_i(t); force items the
+        force F_i a_i(t) (N), plus ``extra_force`` (3,) N (point loads there)."""
+        q, r = self.at(t)
+        axes = st._rot(q)
+        force = np.asarray(extra_force, float).copy()
+        for i, m in self.force_items:
+            force = force + m.value_at(t) * axes[:, i]
+        return st.EndSpec(axes=axes, held=self.held.copy(), position=r, force=force,
+                          rotation_held=True, quaternion=q, twist=0.0)
