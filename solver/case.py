@@ -1447,6 +1447,14 @@ class Numerics(BaseModel):
         "energy); > 0; null: no check.",
     )
 
+    formulation: Literal["goyal", "centreline"] = Field(
+        "goyal",
+        description="The dynamic scheme: goyal, the seed paper's body-frame unknowns (v, omega, f, "
+        "kappa) with positions integrated; centreline, each node's position, frame, force and "
+        "moment as unknowns, the statics' rows with inertia (experimental: fixed steps, no contact "
+        "or seabed yet; docs/numerics.md).",
+    )
+
     @model_validator(mode="after")
     def _one_of(self) -> "Numerics":
         if self.ds is None and self.n_segments is None:
@@ -1468,6 +1476,8 @@ class Numerics(BaseModel):
         out = handler(self)
         if self.contact_rho_inf is None:
             out.pop("contact_rho_inf", None)
+        if self.formulation == "goyal":
+            out.pop("formulation", None)
         if self.backward_euler_retry or self.tolerance is not None:
             # written only where it differs from the default for fixed steps (false): a
             # case without it keeps its spec_hash, which now means the backward-Euler retry
@@ -1770,7 +1780,8 @@ class Case(BaseModel):
         """Checks across sections (raising :class:`CaseError` with every error found);
         sets ``numerics.n_segments`` and ``numerics.ds`` from whichever was given."""
         errors = (self._check_initial() + self._check_loads_on_rod() + self._check_contact()
-                  + self._check_ill_posed_ends() + self._check_seabed())
+                  + self._check_ill_posed_ends() + self._check_seabed()
+                  + self._check_formulation())
         n_segments = self._check_numerics(errors)
         if n_segments:
             errors.extend(self._check_twist_resolved(n_segments))
@@ -1778,6 +1789,21 @@ class Case(BaseModel):
         numerics, length = self.numerics, self.rod.length
         self.numerics = numerics.model_copy(update={"n_segments": n_segments, "ds": length / n_segments})
         return self
+
+    def _check_formulation(self) -> list[dict]:
+        """What the centreline scheme does not take yet, refused at numerics.formulation
+        (the end conditions the statics' end rows cannot say are refused when the run is
+        built, :class:`solver.centreline.CentrelineError`)."""
+        if self.numerics.formulation != "centreline":
+            return []
+        missing = [name for name, present in (
+            ("contact", self.contact is not None), ("seabed", self.seabed is not None),
+            ("numerics.tolerance", self.numerics.tolerance is not None)) if present]
+        if not missing:
+            return []
+        return [_err(("numerics", "formulation"), "unsupported",
+                     "centreline does not take " + ", ".join(missing) + " yet (fixed steps, no "
+                     "self-contact or seabed); use goyal", "centreline")]
 
     def _check_initial(self) -> list[dict]:
         """The initial state: a centreline as long as the rod, positions where the ends

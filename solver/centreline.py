@@ -41,9 +41,9 @@ inertia and fluid loads, exact to rounding by the complex step (Squire & Trapp, 
 
 Start: a rod at rest whose loads switch on at t = 0 has accelerations Ẋ(0) ≠ 0 that the
 scheme needs as its starting value (Arnold & Brüls 2007: a_0 = Ẋ_0 keeps the order; a
-zero start costs an order). :meth:`CentrelineRod.start` finds them by two Taylor steps
-from rest, r(δ) = r_0 + δ²/2 r̈_0 + O(δ³), on the same rows (δ and δ/2, Richardson), so
-the start is consistent to O(δ²).
+zero start costs an order). :meth:`CentrelineRod.start` finds them by Taylor steps from
+the start, r(δ) = r_0 + δ ṙ_0 + δ²/2 r̈_0 + O(δ³), on the same rows (δ, δ/2 and δ/4,
+Richardson), so the start is consistent to O(δ³).
 
 Ends: the statics' end rows at t_n+1 (:func:`solver.statics.problem_at`): held
 translations at the positions the end's velocities integrate to, held rotations turning
@@ -181,6 +181,7 @@ class CentrelineRod:
             self.cdn = self.cdt = np.zeros(self.n)
         self.has_drag = bool(np.any(self.cdn) or np.any(self.cdt))
         self.paths = {}
+        self._last_problem = None          # (t, the problem at t): a step reads it thrice
         for name, k in (("start", 0), ("end", self.n - 1)):
             ec = getattr(case.boundary, name)
             if EndPath.applies(ec):
@@ -218,13 +219,15 @@ class CentrelineRod:
         """The static rows' problem at time t (s): ends and dead loads then; an end
         turned by body-frame angular velocities takes its frame and held position from
         its :class:`EndPath`."""
-        if not self.paths:
-            return st.problem_at(self.case, t, self.props, self.q0, self.r0)
+        if self._last_problem is not None and self._last_problem[0] == t:
+            return self._last_problem[1]
         prob = st.problem_at(self.case, t, self.props, self.q0, self.r0,
                              skip=tuple(self.paths))
-        ends = {name: path.spec(t, getattr(prob, name).force)
-                for name, path in self.paths.items()}
-        return replace(prob, **ends)
+        if self.paths:
+            prob = replace(prob, **{name: path.spec(t, getattr(prob, name).force)
+                                    for name, path in self.paths.items()})
+        self._last_problem = (t, prob)
+        return prob
 
     def increments(self, Y, old: CentrelineState):
         """Δ (..., N+1, 6): Δr (m) and the body rotation increment Δθ (rad) of Y
@@ -391,17 +394,19 @@ class CentrelineRod:
               ) -> CentrelineState:
         """A consistent start in Y (N+1, 13) (default the initial pose) at t (s) with the
         velocities X (N+1, 6) (default rest): the accelerations Ẋ(t) and the internal
-        loads (n, m)(t) from two Taylor steps of δ and δ/2 (default δ = Δt/4),
-        extrapolated (Richardson) to δ → 0; a = Ẋ. Raises :class:`StepFailure` when a
-        Taylor step does not converge."""
+        loads (n, m)(t) from three Taylor steps of δ, δ/2 and δ/4 (default δ = Δt/4),
+        extrapolated (Richardson, to O(δ³)) to δ → 0; a = Ẋ. Raises
+        :class:`StepFailure` when a Taylor step does not converge."""
         first = self.rest_state(t, Y)
         if X is not None:
             first.X = np.array(X, float)
         delta = 0.25 * self.case.numerics.dt if delta is None else float(delta)
         Y1, A1 = self._taylor_step(first, delta)
         Y2, A2 = self._taylor_step(first, 0.5 * delta)
-        Xd = 2.0 * A2 - A1
-        first.Y[:, 7:13] = 2.0 * Y2[:, 7:13] - Y1[:, 7:13]
+        Y4, A4 = self._taylor_step(first, 0.25 * delta)
+        # Richardson on three halvings: the terms in δ and δ² cancel
+        Xd = (8.0 * A4 - 6.0 * A2 + A1) / 3.0
+        first.Y[:, 7:13] = (8.0 * Y4[:, 7:13] - 6.0 * Y2[:, 7:13] + Y1[:, 7:13]) / 3.0
         first.Xd = Xd
         first.a = Xd.copy()
         return first

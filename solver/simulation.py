@@ -32,8 +32,8 @@ from .initial import start_step
 from .run import RodRun
 from .stepping.control import SolverDivergence
 
-__all__ = ["integrate", "SolverDivergence", "Progress", "RodRun", "RateEstimate",
-           "EtaModel"]
+__all__ = ["integrate", "make_run", "SolverDivergence", "Progress", "RodRun",
+           "RateEstimate", "EtaModel"]
 
 
 def integrate(case, progress=None, should_stop=None, checkpoint=None,
@@ -96,6 +96,18 @@ def integrate(case, progress=None, should_stop=None, checkpoint=None,
                          resume, observer, extra_force, start)
 
 
+def make_run(case, extra_force=None, start=None):
+    """The run of ``case``'s ``numerics.formulation``: :class:`solver.run.RodRun` (goyal)
+    or :class:`solver.centreline_run.CentrelineRun` (centreline). Raises
+    :class:`solver.centreline.CentrelineError` (a ValueError) naming a field the
+    centreline scheme does not take."""
+    if case.numerics.formulation == "centreline":
+        from .centreline_run import CentrelineRun
+
+        return CentrelineRun(case, extra_force, start)
+    return RodRun(case, extra_force, start)
+
+
 @functools.cache
 def _blas_controller():
     """threadpoolctl's view of the BLAS libraries this process has loaded, made once:
@@ -116,7 +128,7 @@ def _simulate(case, progress, should_stop, checkpoint=None, checkpoint_interval=
     hooks = dict(progress=progress, should_stop=should_stop, checkpoint=checkpoint,
                  checkpoint_interval=checkpoint_interval, observer=observer)
     if resume is None:
-        run = RodRun(case, extra_force, start)
+        run = make_run(case, extra_force, start)
         rec = OutputRecorder(case, run, hooks, wall0=wall0)
         rec.done = start_step(case, start) - 1      # 0, or the steps before the start
         rec.record()

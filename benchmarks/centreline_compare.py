@@ -1,0 +1,184 @@
+"""The centreline scheme beside the seed paper's, on the cases both take
+(``numerics.formulation``; docs/numerics.md § 9 quotes what this prints).
+
+Sections (``--only`` picks some):
+
+* ``time``: the order study's tip case (a cantilever in water whose base swings through
+  about a radian about a normal and twists, tests/solver/test_convergence_order.py), the
+  final positions at Δt = 1/40 ... 1/320 s against 1/1280 s on 40 segments, per scheme;
+* ``space``: the same on 10 ... 80 segments against 320 at Δt = 1/200 s;
+* ``galilean``: the pendulum pinned at s = 0 and the same pendulum towed at constant
+  velocity from a start moving with it, the largest distance between the towed one and
+  the pinned one moved along (exactly zero in the continuum);
+* ``seed``: the seed example without self-contact over its first ``--seed-end`` seconds
+  (the twisting before the first contact): wall time and Newton iterations of each
+  scheme, run alternately ``--repeat`` times (medians), and where the two centrelines end.
+
+Each line says the machine's load (1-min load average) at the start. Run from the
+repository's root: ``python -m benchmarks.centreline_compare [--only time space ...]``.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import statistics
+import time
+from pathlib import Path
+
+import numpy as np
+
+from solver.case import Case
+from solver.simulation import integrate
+
+ROOT = Path(__file__).resolve().parents[1]
+SCHEMES = ("goyal", "centreline")
+FLUID = {"density": 1000.0, "added_mass_coefficient": 1.0,
+         "drag_coefficient_normal": 1.0, "drag_coefficient_tangential": 0.05}
+ROD = {"length": 1.0, "youngs_modulus": 1.25e7, "shear_modulus": 5.0e6,
+       "density": 1500.0, "diameter": 0.02}
+FREE = {"translation": [{"force": 0.0}] * 3, "rotation": [{"moment": 0.0}] * 3}
+
+
+def _pulse(amplitude, duration=1.0, n=401):
+    t = np.linspace(0.0, duration, n)
+    return {"t": t.tolist(), "value": (amplitude * np.sin(np.pi * t / duration) ** 2).tolist()}
+
+
+def tip_case(n_segments: int, dt: float, formulation: str, rho_inf: float = 0.5) -> Case:
+    """The order study's case on ``formulation``."""
+    start = {"translation": [{"velocity": 0.0}] * 3,
+             "rotation": [{"angular_velocity": _pulse(2.0)}, {"angular_velocity": 0.0},
+                          {"angular_velocity": _pulse(1.0)}]}
+    spec = {"schema_version": 1, "name": "tip", "rod": ROD, "fluid": FLUID,
+            "boundary": {"start": start, "end": FREE},
+            "numerics": {"n_segments": n_segments, "dt": dt, "t_end": 1.0,
+                         "rho_inf": rho_inf, "formulation": formulation,
+                         "newton": {"tolerance": 1e-12, "max_iterations": 30}},
+            "output": {"every": max(1, round(1.0 / dt)), "fields": ["position"]}}
+    return Case.model_validate(spec)
+
+
+def _final(case) -> np.ndarray:
+    ds = integrate(case)
+    if ds.attrs["hockle_status"] != "completed":
+        raise RuntimeError(ds.attrs.get("hockle_message", "run failed"))
+    return ds.position.isel(time=-1).values
+
+
+def _order(steps, errors) -> float:
+    return float(np.polyfit(np.log(steps), np.log(errors), 1)[0])
+
+
+def _load() -> str:
+    return f"load {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores"
+
+
+def section_time():
+    print(f"time order, tip case, 40 segments, rho_inf 0.5 ({_load()})")
+    dts = [1 / 40, 1 / 80, 1 / 160, 1 / 320]
+    refs = {f: _final(tip_case(40, 1 / 1280, f)) for f in SCHEMES}
+    errors = {f: [] for f in SCHEMES}
+    for dt in dts:                                     # the schemes alternately
+        for f in SCHEMES:
+            errors[f].append(float(np.abs(_final(tip_case(40, dt, f)) - refs[f]).max()))
+    for f in SCHEMES:
+        print(f"  {f:10s} errors (m) " + " ".join(f"{e:.3g}" for e in errors[f])
+              + f"   order {_order(dts, errors[f]):.2f}")
+
+
+def section_space():
+    print(f"space order, tip case, dt 1/200 s, rho_inf 0.5 ({_load()})")
+    ns = [10, 20, 40, 80]
+    refs = {f: _final(tip_case(320, 1 / 200, f)) for f in SCHEMES}
+    errors = {f: [] for f in SCHEMES}
+    for n in ns:
+        for f in SCHEMES:
+            got = _final(tip_case(n, 1 / 200, f))
+            errors[f].append(float(np.abs(got - refs[f][:: 320 // n]).max()))
+    for f in SCHEMES:
+        print(f"  {f:10s} errors (m) " + " ".join(f"{e:.3g}" for e in errors[f])
+              + f"   order {_order([1 / n for n in ns], errors[f]):.2f}")
+
+
+def _pendulum(V, dt, formulation, n=10):
+    """A 1-m rod pinned at s = 0 (frame global, free to turn) under gravity 0.5 rad off
+    its axis, the pin moving at V from a start moving with it."""
+    from solver.initial import StartState, initial_pose
+    from solver.kinematics import quat_to_matrix
+
+    spec = {"schema_version": 1, "name": "pendulum", "rod": ROD,
+            "gravity": [9.81 * math.sin(0.5), 0.0, 9.81 * math.cos(0.5)],
+            "boundary": {"start": {"frame": "global",
+                                   "translation": [{"velocity": float(x)} for x in V],
+                                   "rotation": [{"moment": 0.0}] * 3}, "end": FREE},
+            "numerics": {"n_segments": n, "dt": dt, "t_end": 1.0, "formulation": formulation,
+                         "newton": {"tolerance": 1e-10}},
+            "output": {"fields": ["position"]}}
+    case = Case.model_validate(spec)
+    q, r, _ = initial_pose(case, np.linspace(0.0, 1.0, n + 1))
+    v = np.einsum("nji,j->ni", quat_to_matrix(q), np.asarray(V, float))
+    zero = np.zeros((n + 1, 3))
+    ds = integrate(case, start=StartState(t=0.0, v=v, omega=zero, f=zero.copy(),
+                                          kappa=zero.copy(), q=q, r=r))
+    return ds.time.values, ds.position.values
+
+
+def section_galilean():
+    print(f"galilean: towed minus pinned pendulum moved along, 10 segments ({_load()})")
+    V = np.array([0.7, -0.3, 0.2])
+    for dt in (0.02, 0.01):
+        line = []
+        for f in SCHEMES:
+            t, pinned = _pendulum(np.zeros(3), dt, f)
+            _, towed = _pendulum(V, dt, f)
+            gap = float(np.abs(towed - t[:, None, None] * V - pinned).max())
+            line.append(f"{f} {gap:.3g} m")
+        print(f"  dt {dt:g} s: " + ", ".join(line))
+
+
+def section_seed(seed_end: float, repeat: int):
+    print(f"seed example without contact, 0-{seed_end:g} s, 1000 segments, dt 0.1 s "
+          f"({_load()})")
+    spec = Case.from_file(ROOT / "cases" / "goyal-writhing.yaml").model_dump(mode="json")
+    spec["contact"] = None
+    spec["numerics"]["t_end"] = seed_end
+    spec["output"] = {"every": 1, "fields": ["position", "kappa", "topology"]}
+    walls = {f: [] for f in SCHEMES}
+    results = {}
+    for _ in range(repeat):
+        for f in SCHEMES:
+            spec["numerics"]["formulation"] = f
+            case = Case.model_validate(spec)
+            t0 = time.perf_counter()
+            ds = integrate(case)
+            walls[f].append(time.perf_counter() - t0)
+            results[f] = ds
+    for f in SCHEMES:
+        ds = results[f]
+        its = int(ds["step_newton_iterations"].sum())
+        print(f"  {f:10s} wall {statistics.median(walls[f]):6.2f} s (median of {repeat}), "
+              f"Newton iterations {its}, Tw {float(ds.twist[-1]):.6f}, "
+              f"Wr {float(ds.writhe[-1]):.3g}, Lk - Tw - Wr "
+              f"{float(ds.topology_error[-1]):.2g}")
+    a, b = (results[f].position.values[-1] for f in SCHEMES)
+    print(f"  the two centrelines at {seed_end:g} s apart by {np.abs(a - b).max():.3g} m")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--only", nargs="+", choices=["time", "space", "galilean", "seed"],
+                    default=["time", "space", "galilean", "seed"])
+    ap.add_argument("--seed-end", type=float, default=8.0, help="s (default 8)")
+    ap.add_argument("--repeat", type=int, default=3, help="seed runs per scheme (default 3)")
+    args = ap.parse_args(argv)
+    for name in args.only:
+        if name == "seed":
+            section_seed(args.seed_end, args.repeat)
+        else:
+            globals()[f"section_{name}"]()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,191 @@
+"""One run of a case on the centreline scheme (``numerics.formulation: centreline``).
+
+:class:`CentrelineRun` steps a :class:`solver.centreline.CentrelineRod` with the case's
+fixed Δt and hands the time loop of :func:`solver.simulation.integrate` (its recorder,
+progress, observer and checkpoints) the state in the names the seed scheme's run uses:
+``Y`` (N+1, 12) = (v, ω, f, κ) in the body frame, read off the centreline's own r, q, n,
+m and velocities (:meth:`solver.centreline.CentrelineRod.body_fields`), ``r`` and ``q``
+as they are (one centreline: the space route, the time route and the outputs are the
+same positions, so ``position_route_difference`` and ``end_drift`` are 0 by
+construction).
+
+A step Newton does not converge is retried from the same state with Δt cut by
+``numerics.dt_cut_factor``, up to ``numerics.max_dt_cuts`` times, the cut steps
+completing the nominal step (the seed scheme's rule, :mod:`solver.stepping`); when all
+cuts fail, :class:`solver.stepping.control.SolverDivergence` (reason
+``solver_diverged``) carries the partial result.
+
+The work put in (``work_in``, J) integrates by the trapezoid in time the power of the
+ends, n·ṙ + m·ω at s = L minus the same at s = 0 (ω = R W global), and of the dead loads,
+∫ f·ṙ ds (trapezoid in s); the end rotations of the linking number (``phi``, rad) integrate
+the end nodes' W3 the same way.
+"""
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+
+from . import statics as st
+from .centreline import CentrelineError, CentrelineRod, StepFailure, box_centreline
+from .stepping.control import SolverDivergence
+
+__all__ = ["CentrelineRun"]
+
+
+class CentrelineRun:
+    """The state of one centreline run and its fixed-step control.
+
+    Parameters
+    ----------
+    case : solver.case.Case (validated, ``numerics.formulation`` "centreline")
+    extra_force : must be None (a force written as code is not taken yet)
+    start : solver.initial.StartState or None: start from this state (its r, q, and the
+        body-frame v, ω, f, κ turned into ṙ, W, n, m) instead of the case's initial pose
+
+    Raises :class:`solver.centreline.CentrelineError` naming the field the scheme does
+    not take, or when the consistent start does not converge.
+    """
+
+    #: the recorder's output groups that need the pose (all do here)
+    POSE_FIELDS = frozenset({"position", "orientation", "topology"})
+
+    def __init__(self, case, extra_force=None, start=None):
+        if extra_force is not None:
+            raise CentrelineError("extra_force: numerics.formulation 'centreline' does "
+                                  "not take a force written as code yet; use 'goyal'")
+        self.case = case
+        self.rod = rod = CentrelineRod.from_case(case)
+        self.props = rod.props
+        self.contact = self.seabed = None
+        self.contact_count = 0
+        self.min_gap = math.inf
+        self.system = SimpleNamespace(needs_pose=True)
+        self.newton = SimpleNamespace(factorizations=0, gmres_iterations=0)
+        self.energy_check = None
+        self.energy_error = math.nan
+        self.guard_sigma = math.nan
+        self.refusals = {}
+        self.last_iterations = 0
+        self.last_residual = 0.0
+        self.last_dt = case.numerics.dt
+        Y, X, t = None, None, 0.0
+        self.phi = np.zeros(2)
+        self.work_in = 0.0
+        if start is not None:
+            Y, X = _from_start(start, rod.props.stiffness, rod.h)
+            t = float(start.t)
+            if start.phi is not None:
+                self.phi = np.asarray(start.phi, float).copy()
+            if start.work_in is not None:
+                self.work_in = float(start.work_in)
+        try:
+            self.state = rod.start(Y, t, X)
+        except StepFailure as exc:
+            raise CentrelineError(f"initial: the consistent start did not converge "
+                                  f"({exc.reason})") from exc
+        self._publish()
+
+    # ------------------------------------------------------------------ the state
+    @property
+    def t(self) -> float:
+        return self.state.t
+
+    def _publish(self) -> None:
+        """The seed scheme's names of the current state (Y, r, q, power)."""
+        fl = self.rod.body_fields(self.state)
+        self.Y = np.concatenate([fl["v"], fl["omega"], fl["f"], fl["kappa"]], axis=1)
+        self.r = self.r_time = fl["r"]
+        self.q = self.q_time = fl["q"]
+        self.quat_norm_error = float(np.abs(np.linalg.norm(self.q, axis=1) - 1.0).max())
+        self.power = self._power(self.state)
+
+    def end_drift(self) -> float:
+        """0: the ends are rows of the one centreline (kept for the recorder)."""
+        return 0.0
+
+    def update_space_route(self) -> None:
+        """Nothing to do: the centreline is the state."""
+
+    def _power(self, state) -> float:
+        """The power put in (W) by the ends and the dead loads at ``state``."""
+        Y, X = state.Y, state.X
+        R = st._rot(Y[[0, -1], 3:7])
+        omega = np.einsum("kij,kj->ki", R, X[[0, -1], 3:6])
+        ends = (Y[-1, 7:10] @ X[-1, 0:3] + Y[-1, 10:13] @ omega[1]
+                - Y[0, 7:10] @ X[0, 0:3] - Y[0, 10:13] @ omega[0])
+        load = self.rod.problem(state.t).load
+        dist = float(np.sum(self.props.quad_weights * np.sum(load * X[:, 0:3], axis=1)))
+        return float(ends) + dist
+
+    def _end_angles(self, old, new, h) -> np.ndarray:
+        """The ends' rotations about a3 (rad) at the new level: a held end's prescribed
+        angle (the statics' ``twist``, exact), else the trapezoid of its node's W3."""
+        phi = self.phi + 0.5 * h * (old.X[[0, -1], 5] + new.X[[0, -1], 5])
+        prob = self.rod.problem(new.t)
+        for k, name in ((0, "start"), (1, "end")):
+            spec = getattr(prob, name)
+            if spec.rotation_held and name not in self.rod.paths:
+                phi[k] = spec.twist
+        return phi
+
+    # ------------------------------------------------------------------ the steps
+    def advance(self, t_target: float):
+        """Step to ``t_target`` (s): one step of t_target − t, cut on a Newton failure
+        and completed by the cut steps. Returns (Newton iterations of the last step, its
+        scaled update). Raises :class:`SolverDivergence` when every cut fails."""
+        num = self.case.numerics
+        total_its = 0
+        cuts = 0
+        h = t_target - self.t
+        while self.t < t_target - 1e-12 * max(1.0, t_target):
+            h = min(h, t_target - self.t)
+            try:
+                new, its, err = self.rod.step(self.state, h)
+            except StepFailure as exc:
+                self.refusals["newton"] = self.refusals.get("newton", 0) + 1
+                cuts += 1
+                if cuts > num.max_dt_cuts:
+                    raise SolverDivergence(
+                        f"step to t = {t_target:.6g} s failed after {num.max_dt_cuts} Δt "
+                        f"cuts at t = {self.t:.6g} s: {exc.reason}", self.t, 0, math.inf,
+                        "solver_diverged") from exc
+                h *= num.dt_cut_factor
+                continue
+            if not np.all(np.isfinite(new.Y)):
+                raise SolverDivergence(f"non-finite state at t = {new.t:.6g} s", self.t, 0,
+                                       math.inf, "nonfinite_state")
+            old, p_old = self.state, self.power
+            self.state = new
+            self.phi = self._end_angles(old, new, h)
+            self._publish()
+            self.work_in += 0.5 * h * (p_old + self.power)
+            self.newton.factorizations += its
+            total_its, self.last_residual, self.last_dt = its, err, h
+        self.last_iterations = total_its
+        return total_its, self.last_residual
+
+    def step_adaptive(self, t_limit: float):
+        raise CentrelineError("numerics.tolerance: the centreline scheme takes fixed "
+                              "steps (numerics.dt) only")
+
+    def seabed_loads(self, pose=None):
+        raise CentrelineError("seabed: numerics.formulation 'centreline' does not take "
+                              "it yet")
+
+
+def _from_start(start, stiffness, h):
+    """(Y (N+1, 13), X (N+1, 6)) of a :class:`solver.initial.StartState`: n = R f,
+    m = R K κ, ṙ = R v, W = ω, and the centreline the box rule builds from its frames
+    from its first point (:func:`solver.centreline.box_centreline`: another scheme's
+    positions satisfy the position rows only to its discretisation error)."""
+    q = np.asarray(start.q, float)
+    q = q / np.linalg.norm(q, axis=1)[:, None]
+    R = st._rot(q)
+    glob = lambda x: np.einsum("kij,kj->ki", R, np.asarray(x, float))   # noqa: E731
+    r = box_centreline(q, np.asarray(start.r, float)[0], h)
+    Y = np.concatenate([r, q, glob(start.f),
+                        glob(stiffness * np.asarray(start.kappa, float))], axis=1)
+    X = np.concatenate([glob(start.v), np.asarray(start.omega, float)], axis=1)
+    return Y, X
