@@ -20,7 +20,7 @@ converted. Compatibility (r' = a3) and inextensibility are the kinematic rows of
 centreline, so every position the run reports satisfies them to Newton's tolerance.
 
 Time: generalized-α on the Lie group R³ × SO(3) per node (Brüls & Cardona, J. Comput.
-Nonlinear Dyn. 5, 2010; Arnold, Brüls & Cardona, Multibody Syst. Dyn. 33, 2015), with
+Nonlinear Dyn. 5, 2010; Arnold, Brüls & Cardona, Numer. Math. 129, 2015), with
 the equilibrium at t_n+1 (the index-3 form of Arnold & Brüls, Multibody Syst. Dyn. 18,
 2007). Per node, with the velocity X = (ṙ, W), the acceleration Ẋ and the algebraic
 acceleration a (each (6,))::
@@ -158,9 +158,11 @@ class CentrelineRod:
 
     #: Newton's test on the update scaled by :meth:`solver.statics.StaticProblem.scales`
     TOLERANCE = 1e-10
+    #: a chord iteration whose update is not this much smaller than the last refactors
+    CHORD_CONTRACTION = 0.25
     #: the largest scaled update taken as rounding's floor when it stops contracting
     FLOOR = 1e-6
-    MAX_ITERATIONS = 12
+    MAX_ITERATIONS = 25
 
     def __init__(self, case, props, q0, r0):
         self.case = case
@@ -180,6 +182,7 @@ class CentrelineRod:
         else:
             self.cdn = self.cdt = np.zeros(self.n)
         self.has_drag = bool(np.any(self.cdn) or np.any(self.cdt))
+        self.factorizations = 0            # band LUs so far
         self.paths = {}
         self._last_problem = None          # (t, the problem at t): a step reads it thrice
         for name, k in (("start", 0), ("end", self.n - 1)):
@@ -307,7 +310,7 @@ class CentrelineRod:
         dL = self.nodal_loads(Yc, old, co).imag / _EPS          # (7, N+1, 6)
         block = np.transpose(dL, (1, 2, 0))                    # (N+1, 6, 7)
         vals = 0.5 * self.h * block[self._nodes].ravel()
-        np.add.at(ab, (self._bandrow, self._cols), vals)
+        ab[self._bandrow, self._cols] += vals          # each (row, column) once
         return ab
 
     # ------------------------------------------------------------------ the step
@@ -331,25 +334,38 @@ class CentrelineRod:
         return Y
 
     def solve(self, old, co, prob, Y) -> tuple[np.ndarray, int, float]:
-        """Newton on the dynamic rows from Y; (Y, iterations, scaled update). Raises
-        :class:`StepFailure` without convergence in MAX_ITERATIONS or on a singular
+        """Newton on the dynamic rows from Y; (Y, iterations, scaled update).
+
+        Chord iterations: the band LU of the first iterate is kept while the updates
+        contract by CHORD_CONTRACTION or better, and refactored at the current iterate
+        where they do not (a full Newton step; the Jacobian is exact). Converged when the
+        update scaled by :meth:`solver.statics.StaticProblem.scales` is below TOLERANCE,
+        or below FLOOR and no longer contracting (rounding's floor: the step's matrix
+        grows as 1/(β Δt²), and so does the rounding of its solve). Raises
+        :class:`StepFailure` without convergence in MAX_ITERATIONS, on a singular
         Jacobian or a non-finite update."""
         scale = prob.scales()
         err = math.inf
+        lu = None
         for it in range(1, self.MAX_ITERATIONS + 1):
             G = self.residual(Y, old, co, prob)
-            try:
-                lu = BorderedBandLU(self.jacobian(Y, old, co, prob))
-            except BandSingular as exc:
-                raise StepFailure(f"singular Jacobian ({exc})") from exc
-            dY = lu.solve(G).reshape(Y.shape)
+            if lu is None:
+                try:
+                    lu = BorderedBandLU(self.jacobian(Y, old, co, prob))
+                except BandSingular as exc:
+                    raise StepFailure(f"singular Jacobian ({exc})") from exc
+                self.factorizations += 1
+                fresh = True
+            dY = lu.solve(G, refine=False).reshape(Y.shape)
             if not np.all(np.isfinite(dY)):
                 raise StepFailure("non-finite Newton update")
-            Y = Y - dY
             prev, err = err, float(np.max(np.abs(dY) / scale))
-            # converged, or at rounding's floor (the step's matrix grows as 1/(β Δt²), and
-            # so does the rounding of its solve): below FLOOR and no longer contracting
-            # (an exact Jacobian's iteration at least halves its update)
+            if not fresh and err > self.CHORD_CONTRACTION * prev:
+                lu = None                                  # refactor here, redo
+                err = prev
+                continue
+            fresh = False
+            Y = Y - dY
             if err < self.TOLERANCE or (err < self.FLOOR and err > 0.5 * prev):
                 return Y, it, err
         raise StepFailure(f"Newton did not converge in {self.MAX_ITERATIONS} iterations "
