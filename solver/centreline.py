@@ -107,7 +107,9 @@ class CentrelineState:
 
     t : s;  Y : (N+1, 13) r (m), p (unit quaternion w, x, y, z), n (N), m (N m), global
     X : (N+1, 6) ṙ (m/s, global) and W (rad/s, body);  Xd : (N+1, 6) their time
-    derivatives;  a : (N+1, 6) generalized-α's algebraic acceleration
+    derivatives;  a : (N+1, 6) generalized-α's algebraic acceleration;  load_rate :
+    (N+1, 6) the change of n, m over the last step per second (N/s, N m/s; Newton's
+    predictor, zeros by default)
     """
 
     t: float
@@ -115,10 +117,15 @@ class CentrelineState:
     X: np.ndarray
     Xd: np.ndarray
     a: np.ndarray
+    load_rate: np.ndarray = None
+
+    def __post_init__(self):
+        if self.load_rate is None:
+            self.load_rate = np.zeros((self.Y.shape[0], 6))
 
     def copy(self) -> "CentrelineState":
         return CentrelineState(self.t, self.Y.copy(), self.X.copy(), self.Xd.copy(),
-                               self.a.copy())
+                               self.a.copy(), self.load_rate.copy())
 
 
 @dataclass(frozen=True)
@@ -326,9 +333,11 @@ class CentrelineRod:
         return _Coefficients(cXd, dXd, cX, dX)
 
     def predict(self, old: CentrelineState, h: float) -> np.ndarray:
-        """Newton's start: the increment of a_n+1 = a_n, n and m as they were."""
+        """Newton's start: the increment of a_n+1 = a_n; n and m extrapolated along
+        their rate over the last step (``old.load_rate``; zero after a start)."""
         D = h * old.X + 0.5 * h * h * old.a
         Y = old.Y.copy()
+        Y[:, 7:13] += h * old.load_rate
         Y[:, 0:3] += D[:, 0:3]
         Y[:, 3:7] = st._qmul(old.Y[:, 3:7], cayley_quaternion(D[:, 3:6]))
         return Y
@@ -382,7 +391,8 @@ class CentrelineRod:
         D = self.increments(Y, old)
         p = self.params
         a = (D - h * old.X - h * h * (0.5 - p.beta) * old.a) / (p.beta * h * h)
-        new = CentrelineState(t, Y, co.cX * D + co.dX, co.cXd * D + co.dXd, a)
+        new = CentrelineState(t, Y, co.cX * D + co.dX, co.cXd * D + co.dXd, a,
+                              (Y[:, 7:13] - old.Y[:, 7:13]) / h)
         return new, its, err
 
     # ------------------------------------------------------------------ the start

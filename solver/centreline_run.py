@@ -161,8 +161,8 @@ class CentrelineRun:
             self.phi = self._end_angles(old, new, h)
             self._publish()
             self.work_in += 0.5 * h * (p_old + self.power)
-            self.newton.factorizations += its
             total_its, self.last_residual, self.last_dt = its, err, h
+            self.newton.factorizations = self.rod.factorizations
         self.last_iterations = total_its
         return total_its, self.last_residual
 

@@ -9,3 +9,27 @@ def compiled_kernels():
     from solver import warm_up
 
     warm_up()
+
+
+@pytest.fixture(autouse=True)
+def formulation_under_test(monkeypatch):
+    """With HOCKLE_TEST_FORMULATION=centreline in the environment, every run the time loop
+    builds (:func:`solver.simulation.make_run`) is a centreline run where the case allows
+    one (no contact, seabed, tolerance or end the scheme refuses; else the seed scheme's),
+    so the whole suite measures the centreline scheme against the same expectations
+    (docs/numerics.md § 9). Unset (the default and CI): nothing changes."""
+    import os
+
+    if os.environ.get("HOCKLE_TEST_FORMULATION") != "centreline":
+        return
+    from solver import simulation
+    from solver.centreline import CentrelineError
+    from solver.centreline_run import CentrelineRun
+
+    def make_run(case, extra_force=None, start=None):
+        try:
+            return CentrelineRun(case, extra_force, start)
+        except CentrelineError:
+            return simulation.RodRun(case, extra_force, start)
+
+    monkeypatch.setattr(simulation, "make_run", make_run)
