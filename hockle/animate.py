@@ -4,8 +4,10 @@
 :class:`xarray.Dataset`), one frame each: on the left the rod in a 3-D view as
 ``hockle plot`` draws it (a tube of its real, varying diameter, contact sites as orange
 dots, the start end a red circle and the far end a green square, named in a legend; the
-drawing is :func:`hockle.plots.draw_rod`), in one fixed cube that holds every frame; on
-the right the energies and twist, writhe and linking number (:func:`hockle.plots.energy_lines`,
+drawing is :func:`hockle.plots.draw_rod`), in one fixed cube that holds every frame,
+zoomed as ``hockle plot``'s snapshots are to where the rod moves when that is a small
+part of it (:func:`hockle.plots.action_box`: a loop rising out of a cable on the sea
+floor), the title then naming the stretch of the rod shown; on the right the energies and twist, writhe and linking number (:func:`hockle.plots.energy_lines`,
 :func:`hockle.plots.topology_lines`) drawn up to the frame's time, with a vertical cursor
 at it, on axes that cover the whole time window; the figure's title gives t.
 
@@ -16,7 +18,8 @@ The writer follows the output's suffix: ``.gif`` with Pillow (matplotlib's
 
 Memory stays bounded: the file is opened lazily and the rod's positions are read a few
 outputs at a time (:data:`BATCH`), one frame is drawn at a time into one figure (the
-previous rod's artists are removed), and an ``.mp4`` is streamed to ffmpeg. A GIF is
+previous rod's artists are removed), and an ``.mp4`` is streamed to ffmpeg. The box is
+found from the frames' shapes, kept for that (frames x grid points x 3 numbers). A GIF is
 written by Pillow in one go at the end, so its frames are kept until then, as 8-bit
 palette images (width x height bytes each: about 0.3 MB at the default size and dpi).
 The output is written to a temporary file beside it and moved into place when complete.
@@ -39,7 +42,9 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from hockle.plots import (
+    ZOOM_BELOW,
     _title,
+    action_box,
     contact_sites,
     draw_rod,
     draw_seabed,
@@ -206,6 +211,7 @@ def animate(
     dpi: float = DEFAULT_DPI,
     window: Sequence[float] | None = None,
     progress: Progress | None = None,
+    zoom: bool | None = None,
 ) -> Path:
     """Write an animation of the result ``source`` (a file, opened lazily, or a dataset).
 
@@ -214,7 +220,10 @@ def animate(
     second, rendered at ``dpi`` (the figure is 11 x 5.6 inches). The format follows
     ``out``'s suffix (``.gif``: Pillow; ``.mp4``: ffmpeg). ``progress(done, total)`` is
     called after every frame. Needs ``position``; energies and Tw/Wr/Lk panels are drawn
-    when the dataset has them.
+    when the dataset has them. ``zoom`` as for :func:`hockle.plots.plot_snapshots`: None
+    zooms the rod's box to where it moves when that is a small part of it
+    (:func:`hockle.plots.action_box` over the frames' shapes), False draws the whole rod,
+    True zooms where ``action_box`` finds an action at all.
 
     Returns ``out`` as a :class:`~pathlib.Path`. Raises :class:`AnimationError` when the
     format cannot be written here or the options are bad (before anything is drawn),
@@ -227,12 +236,12 @@ def animate(
     if not (isinstance(dpi, (int, float)) and dpi > 0):
         raise AnimationError(f"--dpi must be positive (got {dpi})")
     if isinstance(source, xr.Dataset):
-        return _animate(source, out, frames, fps, dpi, window, progress)
+        return _animate(source, out, frames, fps, dpi, window, progress, zoom)
     with xr.open_dataset(source, engine="netcdf4") as ds:
-        return _animate(ds, out, frames, fps, dpi, window, progress)
+        return _animate(ds, out, frames, fps, dpi, window, progress, zoom)
 
 
-def _animate(ds, out, frames, fps, dpi, window, progress) -> Path:
+def _animate(ds, out, frames, fps, dpi, window, progress, zoom=None) -> Path:
     title = _title(ds) or out.stem
     writer = _writer(out, fps, title)
     if "position" not in ds:
@@ -251,13 +260,24 @@ def _animate(ds, out, frames, fps, dpi, window, progress) -> Path:
     # one cube for every frame: a first pass over the chosen outputs, BATCH at a time
     lo = np.full(3, np.inf)
     hi = np.full(3, -np.inf)
+    shapes = []
     for _, r in _positions(ds, chosen):
+        shapes.append(r)
         if np.any(np.isfinite(r)):
             lo = np.fmin(lo, np.nanmin(r, axis=0))
             hi = np.fmax(hi, np.nanmax(r, axis=0))
     if not np.all(np.isfinite(lo)):
         raise NothingToAnimate("the rod's positions are not finite at any chosen output")
     lims = rod_box(np.stack([lo, hi]), diameter)
+    focus = None          # zoomed to the action, as hockle plot's snapshots are
+    if zoom is not False:
+        focus = action_box(ds, np.stack(shapes), s, diameter,
+                           below=np.inf if zoom else ZOOM_BELOW)
+    del shapes
+    zoomed = ""
+    if focus is not None:
+        lims, (s0, s1) = focus
+        zoomed = f", zoomed to s = {s0:.3g}-{s1:.3g} m of {s[-1]:g} m, where it moves most"
 
     fig = Figure(figsize=FIGSIZE, layout="constrained")
     FigureCanvasAgg(fig)
@@ -311,13 +331,14 @@ def _animate(ds, out, frames, fps, dpi, window, progress) -> Path:
                 touching = None
                 if counts is None or counts[i] > 0:
                     touching = contact_sites(ds, r, s, diameter)
-                rod = draw_rod(ax3, r, diameter, touching)
+                rod = draw_rod(ax3, r, diameter, touching,
+                               clip=lims if focus is not None else None)
                 k = int(np.searchsorted(t_win, t, side="right"))
                 for line, y in curves:
                     line.set_data(t_win[:k], y[:k])
                 for cursor in cursors:
                     cursor.set_xdata([t, t])
-                fig.suptitle(f"{title}: t = {t:{tfmt}} s")
+                fig.suptitle(f"{title}: t = {t:{tfmt}} s{zoomed}")
                 if done == 1:
                     # lay out once, then keep it: the frames must not shift
                     fig.canvas.draw()

@@ -822,7 +822,8 @@ def build_parser() -> tuple[argparse.ArgumentParser, str | None]:
         help="an animation (.gif, or .mp4 with ffmpeg) of the rod beside its energies and "
         "Tw/Wr/Lk",
         description="Animate a result file: the rod in 3-D as hockle plot draws it (a tube "
-        "of its diameter, contact sites and ends marked) beside the energies and twist, "
+        "of its diameter, contact sites and ends marked; zoomed, as hockle plot's views are, to "
+        "where the rod moves when that is a small part of it) beside the energies and twist, "
         "writhe and linking number drawn up to each frame's time, with t in the title. "
         ".gif is written with Pillow; .mp4 needs ffmpeg (exit 2 without it: write a .gif). "
         "The file is read frame by frame, so memory stays bounded.",

@@ -179,10 +179,12 @@ _AT_EVENT = ("twist", "writhe", "linking_number", "energy_total")
 
 def result_events(path: str) -> dict[str, Any]:
     """The events of the result file at ``path``: ``{"time": [...], "events": [{"name",
-    "index", "time" (s), "twist", "writhe", "linking_number", "energy_total"}, ...]}`` (an
-    event that did not happen has ``index`` and ``time`` None), by
+    "label", "index", "time" (s), "twist", "writhe", "linking_number", "energy_total"},
+    ...]}`` (an event that did not happen has ``index`` and ``time`` None), by
     :func:`solver.results.run_events` (the rules of ``hockle plot`` and of a sweep's
-    ``event_time``). Cached per file (path, size, mtime)."""
+    ``event_time``), in the order they happened, each ``label`` the words ``hockle run``
+    prints for it (:func:`solver.results.event_label`). Cached per file (path, size,
+    mtime)."""
     st = os.stat(path)
     key = (path, st.st_size, st.st_mtime_ns)
     with _EVENT_LOCK:
@@ -190,7 +192,7 @@ def result_events(path: str) -> dict[str, Any]:
             _EVENT_CACHE.move_to_end(key)
             return _EVENT_CACHE[key]
     import numpy as np
-    from solver.results import run_events
+    from solver.results import event_label, run_events
 
     with open_result(path, cache=False) as ds:
         found = run_events(ds)
@@ -198,7 +200,7 @@ def result_events(path: str) -> dict[str, Any]:
         at = {name: np.asarray(ds[name].values, dtype=float) for name in _AT_EVENT if name in ds}
     events = []
     for name, index in found.items():
-        item: dict[str, Any] = {"name": name, "index": index,
+        item: dict[str, Any] = {"name": name, "label": event_label(name), "index": index,
                                 "time": None if index is None else _num(time[index])}
         for var, values in at.items():
             item[var] = None if index is None else _num(values[index])

@@ -13,6 +13,7 @@ import hockle.animate as anim
 from hockle.cli import main
 from hockle.io import write_netcdf
 from test_cli import synthetic_result
+from test_plots import _lay_dataset
 from test_plots import dataset as events_dataset
 
 
@@ -82,6 +83,45 @@ def test_positions_are_read_from_the_file_a_few_outputs_at_a_time(tmp_path, monk
         assert not ds["position"].variable._in_memory     # never loaded whole
     assert len(read) == 2 * 6                              # the box, then the frames
     assert gif_frames(tmp_path / "lazy.gif") == 6
+
+
+def _rod_axes_limits(monkeypatch, ds, out, **kw):
+    """The 3-D axes' limits after animating ``ds`` (the axes caught as they are set up)."""
+    caught = []
+    original = anim.setup_rod_axes
+
+    def spy(ax3, lims, **kwargs):
+        caught.append(ax3)
+        return original(ax3, lims, **kwargs)
+
+    monkeypatch.setattr(anim, "setup_rod_axes", spy)
+    anim.animate(ds, out, frames=3, dpi=20, **kw)
+    [ax3] = caught
+    return [ax3.get_xlim(), ax3.get_ylim(), ax3.get_zlim()]
+
+
+def test_a_loop_on_a_long_cable_is_animated_zoomed_as_hockle_plot_draws_it(tmp_path,
+                                                                           monkeypatch):
+    """tests/hockle/test_plots.py's 4-m cable with a loop rising out of s = 3.2-3.6 m: the
+    animation's box is hockle plot's zoom to the loop (hockle.plots.action_box over the
+    frames drawn), under half a metre; zoom=False and a rod that moves all along keep the
+    whole rod's box."""
+    from hockle.plots import action_box, rod_box
+
+    ds = _lay_dataset()
+    s = ds["s"].values
+    shapes = ds["position"].transpose("time", "s", "xyz").values[[0, 15, 30]]  # the 3 frames
+    diameter = np.full(s.size, 0.02)
+    lims, _ = action_box(ds, shapes, s, diameter)
+    got = _rod_axes_limits(monkeypatch, ds, tmp_path / "lay.gif")
+    assert np.allclose(got, lims)
+    assert max(hi - lo for lo, hi in got) < 0.5 and got[0][0] > 3.0   # around the loop
+    whole = _rod_axes_limits(monkeypatch, ds, tmp_path / "whole.gif", zoom=False)
+    assert np.allclose(whole, rod_box(shapes, diameter))
+    bow = events_dataset()                                  # the whole rod moves: no zoom
+    bow_shapes = bow["position"].transpose("time", "s", "xyz").values[[0, 15, 30]]
+    assert np.allclose(_rod_axes_limits(monkeypatch, bow, tmp_path / "bow.gif"),
+                       rod_box(bow_shapes, np.full(bow_shapes.shape[1], 0.02)))
 
 
 def test_mp4_without_ffmpeg_is_refused_with_a_pointer_to_gif(tmp_path, monkeypatch, capsys):

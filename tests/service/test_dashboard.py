@@ -136,6 +136,8 @@ def test_events_and_sweep_map(client, settings):
     events = client.get(f"/v1/ui/jobs/{job['id']}/events", headers=AUTH).json()
     names = [e["name"] for e in events["events"]]
     assert names[:2] == ["buckling_onset", "first_contact"]
+    # the words hockle run prints for each (solver.results.event_label)
+    assert [e["label"] for e in events["events"]][:2] == ["buckling onset", "first contact"]
     assert all(set(e) >= {"time", "index", "twist", "writhe", "linking_number"}
                for e in events["events"])
     summary = client.get(f"/v1/jobs/{job['id']}/summary", headers=AUTH).json()

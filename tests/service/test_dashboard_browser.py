@@ -237,6 +237,12 @@ def test_job_page_draws_plots_and_the_rod(browser, stack):
     assert canvas.get_attribute("data-scale-bar").endswith(("m", "mm"))     # a length scale
     assert "youngs_modulus" in browser.find_element(By.ID, "case-yaml").text
     assert browser.find_elements(By.CSS_SELECTOR, "#events-table tr[data-event='buckling_onset']")
+    # the onset named and explained as hockle run and hockle plot do (solver.results)
+    assert browser.find_element(
+        By.CSS_SELECTOR, "#events-table tr[data-event='buckling_onset'] td").text == "buckling onset"
+    note = browser.find_element(By.CSS_SELECTOR, "#events p.muted").text
+    assert "in the order they happened" in note
+    assert "more than the rod's largest diameter across the line through its ends" in note
     # a non-blank drawing: many pixels off the background, in several shades
     pixels = np.asarray(Image.open(io.BytesIO(canvas.screenshot_as_png)).convert("RGB"),
                         dtype=int).reshape(-1, 3)

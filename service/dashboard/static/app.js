@@ -485,12 +485,12 @@
       var happened = events.filter(function (e) { return e.time !== null; });
       var table = el("table", { id: "events-table" }, el("thead", el("tr", ["event", "t (s)", "Tw", "Wr", "Lk", "E (J)"].map(function (h) { return el("th", { text: h }); }))),
         el("tbody", events.map(function (e) {
-          return el("tr", { dataset: { event: e.name } }, el("td", { text: e.name.replace(/_/g, " ") }),
+          return el("tr", { dataset: { event: e.name } }, el("td", { text: e.label || e.name.replace(/_/g, " ") }),
             el("td.num", { text: e.time === null ? "did not happen" : fmtNum(e.time) }),
             el("td.num", { text: fmtNum(e.twist) }), el("td.num", { text: fmtNum(e.writhe) }),
             el("td.num", { text: fmtNum(e.linking_number) }), el("td.num", { text: fmtNum(e.energy_total) }));
         })));
-      fill(eventsBox, table, el("p.muted", { text: happened.length + " of " + events.length + " events happened (onset: the centreline a diameter off its chord; Wr k: |Wr| reaches k turns)." }));
+      fill(eventsBox, table, el("p.muted", { text: happened.length + " of " + events.length + " events happened, listed in the order they happened. Buckling onset: the first output at which a point of the centreline has moved more than the rod's largest diameter across the line through its ends from where it was at the first output (a curved lay's own shape does not count; without stored positions: the writhe changed by 0.05 turns)." }));
     }
 
     function drawPlots(time, series) {
