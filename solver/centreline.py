@@ -373,6 +373,9 @@ class CentrelineRod:
                 lu = None                                  # refactor here, redo
                 err = prev
                 continue
+            if fresh and it > 2 and err > 10.0 * prev:
+                raise StepFailure(f"Newton diverging (scaled update {prev:.3g} -> "
+                                  f"{err:.3g} with a fresh Jacobian)")
             fresh = False
             Y = Y - dY
             if err < self.TOLERANCE or (err < self.FLOOR and err > 0.5 * prev):

@@ -51,6 +51,13 @@ class CentrelineRun:
     #: the recorder's output groups that need the pose (all do here)
     POSE_FIELDS = frozenset({"position", "orientation", "topology"})
 
+    #: what the scheme does not have yet, as the recorder reads it: no self-contact or
+    #: sea floor, no energy check, no growth guard (its rate NaN: "not checked")
+    contact = seabed = energy_check = None
+    contact_count = 0
+    min_gap = math.inf
+    energy_error = guard_sigma = math.nan
+
     def __init__(self, case, extra_force=None, start=None):
         if extra_force is not None:
             raise CentrelineError("extra_force: numerics.formulation 'centreline' does "
@@ -58,14 +65,8 @@ class CentrelineRun:
         self.case = case
         self.rod = rod = CentrelineRod.from_case(case)
         self.props = rod.props
-        self.contact = self.seabed = None
-        self.contact_count = 0
-        self.min_gap = math.inf
         self.system = SimpleNamespace(needs_pose=True)
         self.newton = SimpleNamespace(factorizations=0, gmres_iterations=0)
-        self.energy_check = None
-        self.energy_error = math.nan
-        self.guard_sigma = math.nan
         self.refusals = {}
         self.last_iterations = 0
         self.last_residual = 0.0
@@ -151,7 +152,7 @@ class CentrelineRun:
                         f"step to t = {t_target:.6g} s failed after {num.max_dt_cuts} Δt "
                         f"cuts at t = {self.t:.6g} s: {exc.reason}", self.t, 0, math.inf,
                         "solver_diverged") from exc
-                h *= num.dt_cut_factor
+                h /= num.dt_cut_factor
                 continue
             if not np.all(np.isfinite(new.Y)):
                 raise SolverDivergence(f"non-finite state at t = {new.t:.6g} s", self.t, 0,
