@@ -373,7 +373,7 @@ class CentrelineRod:
                 lu = None                                  # refactor here, redo
                 err = prev
                 continue
-            if fresh and it > 2 and err > 10.0 * prev:
+            if fresh and it > 2 and err > 10.0 * prev and err > self.FLOOR:
                 raise StepFailure(f"Newton diverging (scaled update {prev:.3g} -> "
                                   f"{err:.3g} with a fresh Jacobian)")
             fresh = False
