@@ -86,6 +86,15 @@ class CentrelineRun:
         except StepFailure as exc:
             raise CentrelineError(f"initial: the consistent start did not converge "
                                   f"({exc.reason})") from exc
+        self.phi_start = self.phi.copy()
+        if start is None and (case.initial.twist_rate != 0.0
+                              or case.initial.centreline is not None):
+            # a twisted or curved start: Lk counts from the untwisted straight rod
+            from .state import initial_end_rotations
+
+            kappa3 = rod.body_fields(self.state)["kappa"][:, 2]
+            self.phi = self.phi_start = initial_end_rotations(self.state.Y[:, 0:3],
+                                                              kappa3, rod.props.s)
         self._publish()
 
     # ------------------------------------------------------------------ the state
@@ -99,8 +108,12 @@ class CentrelineRun:
         self.Y = np.concatenate([fl["v"], fl["omega"], fl["f"], fl["kappa"]], axis=1)
         self.r = self.r_time = fl["r"]
         self.q = self.q_time = fl["q"]
-        self.quat_norm_error = float(np.abs(np.linalg.norm(self.q, axis=1) - 1.0).max())
         self.power = self._power(self.state)
+
+    @property
+    def quat_norm_error(self) -> float:
+        """The largest ||q| − 1| of the frames."""
+        return float(np.abs(np.linalg.norm(self.q, axis=1) - 1.0).max())
 
     def end_drift(self) -> float:
         """0: the ends are rows of the one centreline (kept for the recorder)."""
@@ -128,7 +141,7 @@ class CentrelineRun:
         for k, name in ((0, "start"), (1, "end")):
             spec = getattr(prob, name)
             if spec.rotation_held and name not in self.rod.paths:
-                phi[k] = spec.twist
+                phi[k] = self.phi_start[k] + spec.twist
         return phi
 
     # ------------------------------------------------------------------ the steps
