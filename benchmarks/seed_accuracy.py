@@ -156,7 +156,7 @@ def with_position_tolerance(base: RodRun, position: float, cut_factor=None) -> R
 
     spec = set_variant(base.case.model_dump(), position, cut_factor)
     run = copy.deepcopy(base)
-    run.case = Case.model_validate(spec)
+    run.case = run.assembly.case = Case.model_validate(spec)
     run.route_tolerance = position
     run.level_hint = 0
     return run

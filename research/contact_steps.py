@@ -253,6 +253,7 @@ def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None,
     from solver.case import Case
     from solver.run import RodRun
     from solver.simulation import SolverDivergence, integrate
+    from solver.step_problem import ProblemAssembly
 
     spec = case_spec(name, sets)
     spec["numerics"]["energy_tolerance"] = cs.ENERGY_TOLERANCE
@@ -288,7 +289,7 @@ def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None,
     def solving(self, guess):
         out = plain_solve(self, guess)
         run = current.get("run")
-        prob = getattr(run, "_last_problem", None)
+        prob = getattr(run.assembly, "_last_problem", None)
         if prob is not None and prob.candidates is not None \
                 and self.last_trace is not None:
             current["cuts"] = current.get("cuts", 0) + correction_cuts(self.last_trace)
@@ -306,7 +307,7 @@ def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None,
         current["blend"] = self.last_start_blend
         return out
 
-    plain_problem = RodRun.step_problem
+    plain_problem = ProblemAssembly.step_problem
 
     def problem(self, h, *args, **kwargs):
         prob = plain_problem(self, h, *args, **kwargs)
@@ -317,7 +318,7 @@ def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None,
     if starts:
         NewtonSolver.solve = solving
         NewtonSolver.feasible_start = feasible
-        RodRun.step_problem = problem
+        ProblemAssembly.step_problem = problem
     try:
         ds = integrate(case)
         if result is not None:
@@ -328,7 +329,7 @@ def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None,
         RodRun.try_step = plain
         NewtonSolver.solve = plain_solve
         NewtonSolver.feasible_start = plain_feasible
-        RodRun.step_problem = plain_problem
+        ProblemAssembly.step_problem = plain_problem
     return attempts
 
 
@@ -424,7 +425,7 @@ def _iterates_residuals(snapshot: bytes, h: float, its: int, cells=None) -> list
     rows = []
     for k in range(its + 1):
         run = pickle.loads(snapshot)
-        guess = run.begin_solve(run.step_problem(h))
+        guess = run.assembly.begin_solve(run.state, run.assembly.step_problem(run.state, h, predictor=run.predictor, after=run.last_reject))
         Y = guess
         if k:
             run.newton.max_iterations = k
@@ -481,7 +482,7 @@ def jacobian_modes(snapshot: bytes, h: float, k: int = 4) -> dict:
     import pickle
 
     run = pickle.loads(snapshot)
-    Y = run.begin_solve(run.step_problem(h))
+    Y = run.assembly.begin_solve(run.state, run.assembly.step_problem(run.state, h, predictor=run.predictor, after=run.last_reject))
     newton, system = run.newton, run.system
     R = system.residual(Y, want_jacobian=True)[0]
     n = R.size
@@ -586,7 +587,7 @@ def step_route_rate(run, params=None) -> tuple[np.ndarray, np.ndarray]:
     reached n, not at n, so the second part is as large as the rates' change over that
     step. ``params``: the step's :class:`solver.scheme.StepParameters` (default the run's
     ρ∞). Raises nothing."""
-    params = run.params if params is None else params
+    params = run.assembly.params if params is None else params
     box = semi_discrete_route_rate(run)
     carried = semi_discrete_route_rate(run, run.state.Ydot[:, 9:12])
     return box + carried_rate_weight(params) * (carried - box), carried
@@ -601,7 +602,7 @@ def _probe_params(run, case):
     rho = case.numerics.contact_rho_inf
     if rho is not None and getattr(run, "last_had_candidates", False):
         return alpha_parameters(rho)
-    return run.params
+    return run.assembly.params
 
 
 def _steady_steps(run, h: float, count: int, params) -> str:

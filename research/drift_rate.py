@@ -133,7 +133,7 @@ def profile(t0: float = 3.8, t1: float = 4.0) -> list[str]:
 
     def recording(run, prob, sol, summary, timed):
         if t0 <= run.t <= t1 and not prob.restart:
-            r_time = run._time_step(prob.h, sol.Y, run.q, run.r, run.v_global)[3]
+            r_time = run.assembly._time_step(run.state, prob.h, sol.Y, run.q, run.r, run.v_global)[3]
             steps.append(r_time - sol.pose[2])
         return accept(run, prob, sol, summary, timed)
 

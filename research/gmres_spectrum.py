@@ -93,8 +93,8 @@ class StepSystems:
 
     def __init__(self, run: RodRun, h: float):
         self.run, self.h = run, h
-        self.prob = run.step_problem(h)
-        self.guess = run.begin_solve(self.prob)
+        self.prob = run.assembly.step_problem(run.state, h, predictor=run.predictor, after=run.last_reject)
+        self.guess = run.assembly.begin_solve(run.state, self.prob)
         newton = run.newton
         Y, _, its, _, ok, _ = newton.solve(self.guess)
         if not ok:
@@ -116,7 +116,7 @@ class StepSystems:
 
     def _begin(self) -> None:
         # the step set up again as the run does, from the start already made
-        self.run.begin_solve(self.prob, self.guess, first=False)
+        self.run.assembly.begin_solve(self.run.state, self.prob, self.guess, first=False)
 
     def at(self, k: int) -> np.ndarray:
         """Set the operator to iterate k's Jacobian (the band LU factored at iterate 0);

@@ -316,7 +316,7 @@ class GlobalLoadWork(WorkAccount):
         if run.contact is not None:
             return sol.pose[0], sol.pose[2]     # the space route already
         elif self.time_route:
-            q, _, _, r = run._time_step(prob.h, sol.Y, run.q_time, run.r_time,
+            q, _, _, r = run.assembly._time_step(run.state, prob.h, sol.Y, run.q_time, run.r_time,
                                         run.v_global_time,
                                         offsets=((run.bc_offset, run.bc.cols),
                                                  (prob.offset, prob.bc.cols)))
@@ -393,7 +393,7 @@ class SeabedWork(WorkAccount):
     within a step (its damper's time m/c, microseconds, far below any Δt): it over-counts
     the energy taken and reads the landing as injected energy (docs/numerics.md § 8).
     The new level's penetration is the one the seabed acted on in the step: on each
-    node's time route (:meth:`solver.run.RodRun._time_step`, as the accepted step
+    node's time route (:meth:`solver.step_problem.ProblemAssembly._time_step`, as the accepted step
     advances it), or with self-contact the space route of the solution. Carries U (J)."""
 
     name = "seabed"
@@ -418,7 +418,7 @@ class SeabedWork(WorkAccount):
             v = np.empty_like(r)
             rotate_rows(q, sol.Y[:, 0:3], v)
         else:
-            q, _, v, r = run._time_step(prob.h, sol.Y, run.q_time, run.r_time,
+            q, _, v, r = run.assembly._time_step(run.state, prob.h, sol.Y, run.q_time, run.r_time,
                                         run.v_global_time,
                                         offsets=((run.bc_offset, run.bc.cols),
                                                  (prob.offset, prob.bc.cols)))

@@ -55,7 +55,7 @@ def warm_up() -> None:
     contact = run.contact
     cand = contact._runs(np.array([0, 0, 8], np.intp), np.array([3, 4, 4], np.intp))
     sysm = run.system
-    sysm.begin_step(0.01, run.params, run.t + 0.01, run.Y, run.Ydot, run.F_old, run.bc,
+    sysm.begin_step(0.01, run.assembly.params, run.t + 0.01, run.Y, run.Ydot, run.F_old, run.bc,
                     q_old=run.q, r_old=run.r, v_old_global=run.v_global, candidates=cand)
     run.newton.feasible_start(run.Y)
     pose = run.newton.solve(run.Y)[5]

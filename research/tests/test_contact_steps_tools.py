@@ -82,7 +82,7 @@ def contact_step():
     spec["initial"] = {"centreline": {"points": hairpin(0.06 / math.pi).tolist()}}
     spec["boundary"]["start"]["rotation"][2] = {"angular_velocity": 0.0}
     run = RodRun(Case.model_validate(spec))
-    prob = run.step_problem(0.01)
+    prob = run.assembly.step_problem(run.state, 0.01)
     assert prob.candidates is not None and prob.candidates.runs > 0
     run.system.begin_step(prob.h, prob.params, prob.t_new, run.Y, run.Ydot, run.F_old,
                           prob.bc, q_old=run.q, r_old=run.r, v_old_global=run.v_global,
@@ -270,12 +270,12 @@ def test_contact_rho_inf_sets_the_scheme_only_in_steps_where_strands_may_meet():
         spec["initial"] = {"centreline": {"points": points.tolist()}}
         spec["boundary"]["start"]["rotation"][2] = {"angular_velocity": 0.0}
         run = RodRun(Case.model_validate(spec))
-        return run, run.step_problem(0.01)
+        return run, run.assembly.step_problem(run.state, 0.01)
 
     bent = hairpin(0.06 / math.pi)
     run, prob = first_step(bent, 0.0)
     assert prob.candidates is not None
-    assert prob.params == alpha_parameters(0.0) != run.params == alpha_parameters(0.5)
+    assert prob.params == alpha_parameters(0.0) != run.assembly.params == alpha_parameters(0.5)
     run, prob = first_step(np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 1.0]]), 0.0)
     assert prob.candidates is None and prob.params == alpha_parameters(0.5)
     run, prob = first_step(bent, None)
@@ -361,7 +361,7 @@ def test_a_short_step_after_long_ones_reads_the_carried_generalized_alpha_rates(
     run = RodRun(Case.model_validate(spec))
     for k in range(1, 11):
         run.advance(0.01 * k)
-    p = run.params
+    p = run.assembly.params
     c = carried_rate_weight(p)
     assert c == pytest.approx({0.5: 0.2, 0.0: 1.0 / 3.0}[rho_inf])
     limit, carried = step_route_rate(run)

@@ -440,7 +440,7 @@ class StepControl:
             drift = run.end_drift()
             raise self._divergence(
                 run, f"the step from t = {run.t:.6g} s would leave the s = L end beyond "
-                f"contact.end_drift_tolerance = {run.end_drift_tolerance() * 1e3:.3g} mm from "
+                f"contact.end_drift_tolerance = {run.assembly.end_drift_tolerance() * 1e3:.3g} mm from "
                 f"its prescribed motion ({drift * 1e3:.3g} mm at the step's start)", h, res,
                 nonfinite, reason)
 

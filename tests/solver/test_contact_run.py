@@ -527,22 +527,22 @@ def test_end_correction_within_a_step_vanishes_with_the_step():
     drift = np.array([0.03, -0.04, 0.0])            # global; the end's frame is the identity
     run.r_time = run.r_time.copy()
     run.r_time[-1] = run.r[-1] + drift
-    bc = BoundaryRows(case, run.props, 0.1, run.system.n, run.bc_schedule.plan)
-    floor = run.DRIFT_STEP_FLOOR * case.numerics.dt
+    bc = BoundaryRows(case, run.props, 0.1, run.system.n, run.assembly.bc_schedule.plan)
+    floor = run.assembly.DRIFT_STEP_FLOOR * case.numerics.dt
     assert 0 < floor < case.numerics.dt
     velocity, moved = {}, {}
     for h in (case.numerics.dt, 2 * floor, floor, floor / 10, floor / 1000):
-        off = run.end_correction(h, bc, restart=False)
+        off = run.assembly.end_correction(run.state, h, bc, restart=False)
         velocity[h] = off[6:8]                        # the held v1, v2 rows
         moved[h] = np.linalg.norm(off[6:8]) * h
-    g_e = run.DRIFT_GAIN * np.linalg.norm(drift)
+    g_e = run.assembly.DRIFT_GAIN * np.linalg.norm(drift)
     for h in (case.numerics.dt, 2 * floor, floor):
         assert moved[h] == pytest.approx(g_e, rel=1e-9)
     for h in (floor / 10, floor / 1000):
         np.testing.assert_allclose(velocity[h], velocity[floor], rtol=1e-12)
     assert moved[floor / 10] == pytest.approx(g_e / 10, rel=1e-9)
     assert moved[floor / 1000] == pytest.approx(g_e / 1000, rel=1e-9)
-    assert run.end_correction(0.01, bc, restart=True) is None
+    assert run.assembly.end_correction(run.state, 0.01, bc, restart=True) is None
 
 
 def test_fastest_wave_period_reads_the_grids_torsion_and_bending_waves():
@@ -582,17 +582,17 @@ def test_end_correction_is_never_faster_than_the_grids_fastest_wave():
     case = plectoneme_case(8, 0.01)
     run = RodRun(case)
     period = run.props.fastest_wave_period
-    assert run.DRIFT_STEP_FLOOR * case.numerics.dt < period < case.numerics.dt
+    assert run.assembly.DRIFT_STEP_FLOOR * case.numerics.dt < period < case.numerics.dt
     drift = np.array([0.03, -0.04, 0.0])
     run.r_time = run.r_time.copy()
     run.r_time[-1] = run.r[-1] + drift
-    bc = BoundaryRows(case, run.props, 0.01, run.system.n, run.bc_schedule.plan)
-    g_e = run.DRIFT_GAIN * np.linalg.norm(drift)
+    bc = BoundaryRows(case, run.props, 0.01, run.system.n, run.assembly.bc_schedule.plan)
+    g_e = run.assembly.DRIFT_GAIN * np.linalg.norm(drift)
     for h in (case.numerics.dt, period):
-        off = run.end_correction(h, bc, restart=False)
+        off = run.assembly.end_correction(run.state, h, bc, restart=False)
         assert np.linalg.norm(off[6:8]) * h == pytest.approx(g_e, rel=1e-9)
-    for h in (run.DRIFT_STEP_FLOOR * case.numerics.dt, period / 10):
-        off = run.end_correction(h, bc, restart=False)
+    for h in (run.assembly.DRIFT_STEP_FLOOR * case.numerics.dt, period / 10):
+        off = run.assembly.end_correction(run.state, h, bc, restart=False)
         assert np.linalg.norm(off[6:8]) == pytest.approx(g_e / period, rel=1e-9)
 
 
@@ -605,7 +605,7 @@ def test_newton_start_takes_the_corrected_boundary_values():
 
     case = plectoneme_case(8, 0.1)
     run = RodRun(case)
-    bc = BoundaryRows(case, run.props, 0.1, run.system.n, run.bc_schedule.plan)
+    bc = BoundaryRows(case, run.props, 0.1, run.system.n, run.assembly.bc_schedule.plan)
     bc.values = bc.values + np.linspace(0.1, 1.2, 12)       # offsets on every row
     Y = np.random.default_rng(3).normal(size=run.Y.shape)
     before = Y.copy()

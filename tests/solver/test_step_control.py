@@ -669,16 +669,16 @@ def test_dense_output_integrates_the_centreline_only_when_asked(monkeypatch):
     """With a load in the global frame (the steps keep the centreline) an interpolated
     output of energies alone does not integrate the space route; the energies are those
     of the run that also keeps the positions, to round-off, in the same steps."""
-    from solver.simulation import RodRun
+    from solver.step_problem import ProblemAssembly
 
     calls = {"n": 0}
-    route = RodRun.update_space_route
+    route = ProblemAssembly.update_space_route
 
-    def counted(self):
+    def counted(self, st):
         calls["n"] += 1
-        return route(self)
+        return route(self, st)
 
-    monkeypatch.setattr(RodRun, "update_space_route", counted)
+    monkeypatch.setattr(ProblemAssembly, "update_space_route", counted)
     runs = {}
     for fields in (["energies"], ["energies", "position"]):
         spec = pulse_case(1e-3).model_dump()

@@ -215,7 +215,8 @@ def test_the_retry_after_a_newton_refusal_is_backward_euler_where_asked(monkeypa
     run = RodRun(case)
     assert run.try_step(1e-6, restart=True).ok and run.try_step(0.01).ok
     assert run.last_reject is None
-    alpha = run.step_problem(0.01).params
+    problem = run.assembly.step_problem
+    alpha = problem(run.state, 0.01, after=run.last_reject).params
     assert alpha is not BACKWARD_EULER
     solve = run.newton.solve
 
@@ -226,14 +227,12 @@ def test_the_retry_after_a_newton_refusal_is_backward_euler_where_asked(monkeypa
     monkeypatch.setattr(run.newton, "solve", failing)
     assert run.try_step(0.01).reason == "newton"
     monkeypatch.setattr(run.newton, "solve", solve)
-    prob = run.step_problem(0.0025)
+    prob = problem(run.state, 0.0025, after=run.last_reject)
     assert (prob.params is BACKWARD_EULER) == retry
     assert run.try_step(0.0025).ok and run.last_reject is None
-    assert run.step_problem(0.01).params == alpha
-    run.last_reject = "energy"
-    assert (run.step_problem(0.0025).params is BACKWARD_EULER) == retry
-    run.last_reject = "contact"
-    assert run.step_problem(0.0025).params == alpha
+    assert problem(run.state, 0.01, after=run.last_reject).params == alpha
+    assert (problem(run.state, 0.0025, after="energy").params is BACKWARD_EULER) == retry
+    assert problem(run.state, 0.0025, after="contact").params == alpha
 
 
 def test_a_rolled_back_state_is_a_copy_that_serves_twice():
