@@ -71,7 +71,7 @@ def _median_ms(fn, repeats: int) -> float:
 
 def _advance_to(run: RodRun, at: float, h_nominal: float, k: int) -> int:
     """Advance ``run`` by nominal steps to ``at`` (s); returns the step count k."""
-    while run.t < at - 1e-9:
+    while run.state.t < at - 1e-9:
         k += 1
         run.advance(round(k * h_nominal, 10))
     return k

@@ -15,7 +15,7 @@ fraction, the line search's fraction, GMRES iterations) and why it failed.
 
 With ``--starts`` also, per window, how good each contact solve's Newton start was: the
 distance of the line and the parabola extrapolated from the last levels (the predictors
-of ``RodRun._predictions``) and of the start Newton was given (the feasible start, blended
+of ``ProblemAssembly._predictions``) and of the start Newton was given (the feasible start, blended
 toward the old positions where a predicted gap closed below ``NewtonSolver.START_GAP_KEEP`` of
 itself) from the step's solution, per unknown (v, ω, f, κ), relative to the step's own
 change ‖Y − Yⁿ‖ (medians over the window's solves; 1 is no better than the old level),
@@ -265,9 +265,9 @@ def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None,
     current = {}
 
     def recording(self, h, *args, **kwargs):
-        if watch is not None and not 0 <= watch < self.Y.shape[0]:
-            raise SystemExit(f"--watch {watch}: the case's nodes are 0 to {self.Y.shape[0] - 1}")
-        t0 = self.t
+        if watch is not None and not 0 <= watch < self.state.Y.shape[0]:
+            raise SystemExit(f"--watch {watch}: the case's nodes are 0 to {self.state.Y.shape[0] - 1}")
+        t0 = self.state.t
         g0 = self.newton.gmres_iterations
         current.clear()
         current["run"] = self
@@ -282,7 +282,7 @@ def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None,
                          "gmres": self.newton.gmres_iterations - g0, "wall": wall,
                          "contacts": self.contact_count, "trace": trace,
                          "starts": current.get("starts"), "cuts": current.get("cuts"),
-                         "node": (self.Y[watch, 0:6].copy()
+                         "node": (self.state.Y[watch, 0:6].copy()
                                   if watch is not None and att.ok else None)})
         return att
 
@@ -295,7 +295,7 @@ def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None,
             current["cuts"] = current.get("cuts", 0) + correction_cuts(self.last_trace)
         if run is not None and prob is not None and prob.candidates is not None \
                 and prob.predictions and out[4]:
-            d = start_distances(run.Y, out[0], dict(prob.predictions, start=guess))
+            d = start_distances(run.state.Y, out[0], dict(prob.predictions, start=guess))
             d["blend"] = current.pop("blend", 1.0)
             current["starts"] = d
         return out
@@ -309,8 +309,8 @@ def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None,
 
     plain_problem = ProblemAssembly.step_problem
 
-    def problem(self, h, *args, **kwargs):
-        prob = plain_problem(self, h, *args, **kwargs)
+    def problem(self, *args, **kwargs):
+        prob = plain_problem(self, *args, **kwargs)
         self._last_problem = prob
         return prob
 
@@ -433,10 +433,10 @@ def _iterates_residuals(snapshot: bytes, h: float, its: int, cells=None) -> list
         R = run.system.residual(Y, want_jacobian=True)[0]
         run.newton.linearize(Y)
         row = residual_groups(R * run.newton.row_scale)
-        if cells is not None and run.seabed is not None:
+        if cells is not None and run.system.seabed is not None:
             _, Rm, r, _ = run.system.pose_new(Y)
             vg = np.einsum("kij,kj->ki", Rm, Y[:, 0:3])
-            F, _, pen = run.seabed.cell_loads(r, vg, Rm, Y[:, 3:6])
+            F, _, pen = run.system.seabed.cell_loads(r, vg, Rm, Y[:, 3:6])
             e3 = np.abs(R[6:-6].reshape(-1, 12)[:, 6:9]).max(axis=1)
             row["seabed"] = [(c, float(pen[c]), float(np.linalg.norm(F[c, 0:3])), float(e3[c]))
                              for c in cells]
@@ -543,7 +543,7 @@ def semi_discrete_route_rate(run, kappa_rate=None) -> np.ndarray:
     is its mean spacing). Raises nothing."""
     from solver.kinematics import quat_exp, quat_multiply, quat_to_matrix, space_route
 
-    Y = run.Y
+    Y = run.state.Y
     v, w, k = Y[:, 0:3], Y[:, 3:6], Y[:, 9:12]
     ds = np.diff(run.props.s)[:, None]
     if kappa_rate is None:
@@ -555,7 +555,7 @@ def semi_discrete_route_rate(run, kappa_rate=None) -> np.ndarray:
             nodal[c + 1] = 2.0 * cell[c] - nodal[c]
     else:
         nodal = np.asarray(kappa_rate, float)
-    q0, r0 = run.q_time[0], run.r_time[0]
+    q0, r0 = run.state.q_time[0], run.state.r_time[0]
     R0 = quat_to_matrix(q0[None])[0]
     eps = 1e-6
     ends = [space_route(quat_multiply(q0, quat_exp(sg * eps * w[0])),
@@ -648,13 +648,13 @@ def probe(name: str, at: float, sizes: list, residuals: bool = False, sets=(),
     run = RodRun(case)
     _advance_to(run, at, case.numerics.dt, 0)
     snapshot = pickle.dumps(run, protocol=pickle.HIGHEST_PROTOCOL)
-    fastest = float(np.linalg.norm(run.v_global, axis=1).max())
+    fastest = float(np.linalg.norm(run.state.v_global, axis=1).max())
     rate = float(np.linalg.norm(semi_discrete_route_rate(run), axis=1).max())
 
     def share(x):
         return f"{x / fastest:.2%} of it" if fastest > 0.0 else "the rod at rest"
 
-    print(f"{name} at t = {run.t:g} s, {run.contact_count} contacts, fastest node "
+    print(f"{name} at t = {run.state.t:g} s, {run.contact_count} contacts, fastest node "
           f"{fastest:.3g} m/s, the box rule's route rate {rate:.3g} m/s "
           f"({share(rate)}):")
     params = _probe_params(run, case)

@@ -2,24 +2,24 @@
 
 :class:`RodRun` owns the parts a step needs and tries one step:
 
-* the state (:class:`solver.state.RunState`: Y, Ẏ, the previous levels, the poses, the
-  end rotations, the energy accounts), exposed as the run's attributes (``run.Y``,
-  ``run.t``, ...);
-* the step control (:class:`solver.stepping.control.StepControl`), which chooses the
-  steps and calls :meth:`RodRun.try_step`; its attributes (``run.h_next``,
-  ``run.refusals``, the growth guard's ``run.guard_sigma``, ...) are exposed too;
-* the step's problem (:class:`solver.step_problem.ProblemAssembly`: boundary rows, loads,
-  contact candidates from :class:`solver.contact.search.CandidateSearch`), handed to
-  Newton (:class:`solver.newton.NewtonSolver`).
+* the state (``run.state``, :class:`solver.state.RunState`: Y, Ẏ, the previous levels,
+  the poses, the end rotations, the energy accounts: ``run.state.Y``, ``run.state.t``);
+* the step control (``run.control``, :class:`solver.stepping.control.StepControl`), which
+  chooses the steps and calls :meth:`RodRun.try_step` (``run.control.h_next``,
+  ``run.control.refusals``, the growth guard's ``run.control.guard.sigma``);
+* the step's problem (``run.assembly``, :class:`solver.step_problem.ProblemAssembly`:
+  boundary rows, loads, contact candidates from
+  :class:`solver.contact.search.CandidateSearch`), handed to Newton
+  (:class:`solver.newton.NewtonSolver`).
 
-:func:`solver.simulation.integrate` drives it; tests and benchmarks use it to reach the
-state between steps.
+The run's attributes are its own (no property forwards to the state or the step control);
+the sea floor is the system's (``run.system.seabed``). :func:`solver.simulation.integrate`
+drives it; tests and benchmarks use it to reach the state between steps.
 """
 from __future__ import annotations
 
 import copy
 import math
-import operator
 
 import numpy as np
 
@@ -283,8 +283,7 @@ class RodRun:
     def _accept(self, prob, sol, summary, timed) -> None:
         """Advance the state to the accepted solution of the step's problem, ``timed`` its
         time route (:meth:`_time_route`) (the state's fields read and written on
-        ``self.state`` itself, not through the run's delegating attributes: this runs at
-        every step)."""
+        ``self.state``)."""
         st = self.state
         Y, pose, h, bc, restart = sol.Y, sol.pose, prob.h, prob.bc, prob.restart
         g = prob.params.gamma
@@ -468,32 +467,3 @@ class RodRun:
         """The outputs at t (s) inside the last step
         (:func:`solver.recording.interpolated_snapshot`)."""
         return interpolated_snapshot(self, fields, t, start)
-
-
-def _delegate(owner: str, name: str, doc: str):
-    """A property of RodRun that reads and writes ``self.<owner>.<name>`` (read by a
-    compiled attribute getter: a step reads these ~80 times)."""
-    holder = operator.attrgetter(owner)
-
-    def put(self, value):
-        setattr(holder(self), name, value)
-
-    return property(operator.attrgetter(f"{owner}.{name}"), put, doc=doc)
-
-
-for _name in RunState.names():
-    setattr(RodRun, _name, _delegate("state", _name, f"The state's ``{_name}`` "
-                                     "(:class:`solver.state.RunState`)."))
-for _name in ("errctl", "route_pi", "h_route", "h_next", "level_hint", "accepted_at_level",
-              "grow_after", "restart_pending", "breakpoints", "refusals", "last_dt"):
-    setattr(RodRun, _name, _delegate("control", _name, f"The step control's ``{_name}`` "
-                                     "(:class:`solver.stepping.control.StepControl`)."))
-for _name, _attr in (("growth_guard", "limit"), ("guard_sigma", "sigma"), ("guard_h", "h"),
-                     ("guard_h_max", "h_max"), ("guard_since", "since"), ("guard_v0", "v0")):
-    setattr(RodRun, _name, _delegate("control.guard", _attr, f"The growth guard's "
-                                     f"``{_attr}`` (:class:`solver.stepping.guard."
-                                     "GrowthGuard`)."))
-del _name, _attr
-# the sea floor has one home, the system's equations
-RodRun.seabed = _delegate("system", "seabed", "The sea floor (:class:`solver.seabed.SeabedContact`, "
-                          "None without one) of the system's equations.")

@@ -128,10 +128,10 @@ class StepControl:
         backward-Euler step of RESTART_FRACTION·Δt) at t = 0 and after each breakpoint.
         Returns (iterations, residual) of the nominal step; raises SolverDivergence
         (without partial) when all cuts fail."""
-        h_full = t_target - run.t
+        h_full = t_target - run.state.t
         snap = 1e-9 * h_full
         total_its = 0
-        while run.t < t_target - snap:
+        while run.state.t < t_target - snap:
             its, stop, at_break = self._next_stop(run, t_target, snap)
             total_its += its + self._advance_to(run, stop, h_full, at_break)
             if at_break:
@@ -154,12 +154,12 @@ class StepControl:
         num = run.case.numerics
         level = self.level_hint
         total_its = 0
-        while run.t < stop - 1e-9 * h_full:
+        while run.state.t < stop - 1e-9 * h_full:
             if self.h_route is not None:
                 total_its += self._route_step(run, stop, h_full, at_break)
                 level = self.level_hint
                 continue
-            remaining = stop - run.t
+            remaining = stop - run.state.t
             level, grew = self._choose_level(run, level, h_full, remaining)
             h = h_full / num.dt_cut_factor**level
             h_try = min(h, remaining)
@@ -186,7 +186,7 @@ class StepControl:
                 # before the next one (below the nominal Δt a growth is cheap to retry)
                 self.grow_after = min(2 * self.grow_after, self.GROW_AFTER_MAX)
             if level >= num.max_dt_cuts:
-                raise self._divergence(run, f"time step from t = {run.t:.6g} s did not "
+                raise self._divergence(run, f"time step from t = {run.state.t:.6g} s did not "
                                        f"converge after {level} Δt cuts", h_try, res,
                                        nonfinite)
             level += 1
@@ -210,12 +210,12 @@ class StepControl:
             # a known growth rate: the levels it forbids are not tried
             if level >= num.max_dt_cuts:
                 raise SolverDivergence(
-                    f"at t = {run.t:.6g} s the dynamics grow at σ = "
+                    f"at t = {run.state.t:.6g} s the dynamics grow at σ = "
                     f"{self.guard.sigma:.3g} 1/s: the growth guard needs Δt ≤ "
                     f"{self.guard.cap():.3g} s, more than numerics.max_dt_cuts = "
                     f"{num.max_dt_cuts} cuts of dt (raise max_dt_cuts, lower dt, or set "
                     f"numerics.growth_guard to null to run without the check)",
-                    t=run.t, step=None, residual=math.nan, reason="solver_diverged")
+                    t=run.state.t, step=None, residual=math.nan, reason="solver_diverged")
             level += 1
             self.accepted_at_level = 0
         needed = self.grow_after if level == 1 else self.GROW_AFTER
@@ -232,7 +232,7 @@ class StepControl:
         """One accepted fixed-mode step where strands may meet, toward ``stop`` (s), of
         at most the nominal h_full (s): Δt from the route rule's error ratio (the step's
         position error over ``contact.position_tolerance``,
-        :meth:`solver.run.RodRun._local_error`) by the PI controller of error-controlled
+        :meth:`solver.step_problem.ProblemAssembly._local_error`) by the PI controller of error-controlled
         steps (:class:`solver.stepping.PIController`: target ratio 0.35, retries after a
         route refusal at its smaller size), cut by ``dt_cut_factor`` when Newton or a
         contact check fails; it lands on ``stop`` as :meth:`step_adaptive` does (a step
@@ -251,7 +251,7 @@ class StepControl:
         refused = None           # (h, ratio) of the last attempt refused by the route rule
         total_its = 0
         while True:
-            h_try, last = self._landing(h, stop - run.t)
+            h_try, last = self._landing(h, stop - run.state.t)
             ok, its, res, nonfinite, _ = run.try_step(
                 h_try, t_new=stop if last else None, left_limit=last and at_break)
             total_its += its
@@ -285,8 +285,8 @@ class StepControl:
             h = self._floored(h, h_try, h_min)
             if h is None:
                 raise self._divergence(
-                    run, f"time step from t = {run.t:.6g} s could not be completed down to "
-                    f"the smallest step dt/dt_cut_factor^max_dt_cuts = {h_min:.3g} s (last "
+                    run, f"time step from t = {run.state.t:.6g} s could not be completed down "
+                    f"to the smallest step dt/dt_cut_factor^max_dt_cuts = {h_min:.3g} s (last "
                     f"refusal: {run.last_reject})", h_try, res, nonfinite)
 
     # ------------------------------------------------------- error-controlled steps
@@ -311,7 +311,7 @@ class StepControl:
         refused = None           # (h, ratio) of the last attempt refused for its error
         while True:
             h = min(h, h_max, self.guard.cap())
-            h_try, last = self._landing(h, stop - run.t)
+            h_try, last = self._landing(h, stop - run.state.t)
             doubled = not ctl.can_estimate and not run.last_had_candidates
             if doubled:
                 ok, its, res, nonfinite, _ = self._doubled_step(
@@ -340,8 +340,8 @@ class StepControl:
             h = self._floored(h, h_try, h_min)
             if h is None:
                 raise self._divergence(
-                    run, f"time step from t = {run.t:.6g} s could not be completed down to "
-                    f"the smallest step 1e-9 t_end = {h_min:.3g} s "
+                    run, f"time step from t = {run.state.t:.6g} s could not be completed down "
+                    f"to the smallest step 1e-9 t_end = {h_min:.3g} s "
                     f"(last refusal: {run.last_reject})", h_try, res, nonfinite)
 
     def _doubled_step(self, run, h: float, t_new, left_limit: bool) -> Attempt:
@@ -359,14 +359,14 @@ class StepControl:
         every tolerance (docs/numerics.md § 7). Returns the :class:`Attempt` (the residual
         of the second half), with ok = None (state unchanged) when strands may meet in
         one of the steps: there the route rule decides (docs/contact.md)."""
-        start, Y_old = run._state(), run.Y
-        t_end = run.t + h if t_new is None else t_new
+        start, Y_old = run._state(), run.state.Y
+        t_end = run.state.t + h if t_new is None else t_new
         its, Y_full = 0, None
         for leg in ("whole", "first half", "second half"):
             if leg == "first half":              # the whole step is kept aside
-                Y_full = run.Y
+                Y_full = run.state.Y
                 run._restore(start)
-            size = {"whole": h, "first half": 0.5 * h, "second half": t_end - run.t}[leg]
+            size = {"whole": h, "first half": 0.5 * h, "second half": t_end - run.state.t}[leg]
             ends = None if leg == "first half" else t_new
             ok, k, res, nonfinite, _ = run.try_step(
                 size, t_new=ends, estimate=False, left_limit=left_limit and ends is not None)
@@ -380,7 +380,7 @@ class StepControl:
                     run.last_reject = reason
                 return Attempt((None if ok else False), its, res, nonfinite)
         ctl = self.errctl
-        ratio = ctl.measure(ctl.doubling_error(Y_full, run.Y), run.Y, Y_old,
+        ratio = ctl.measure(ctl.doubling_error(Y_full, run.state.Y), run.state.Y, Y_old,
                             run.newton.filtered)
         accepted = ratio <= 1.0
         if not accepted:
@@ -439,7 +439,7 @@ class StepControl:
         if reason == "drift":
             drift = run.end_drift()
             raise self._divergence(
-                run, f"the step from t = {run.t:.6g} s would leave the s = L end beyond "
+                run, f"the step from t = {run.state.t:.6g} s would leave the s = L end beyond "
                 f"contact.end_drift_tolerance = {run.assembly.end_drift_tolerance() * 1e3:.3g} mm from "
                 f"its prescribed motion ({drift * 1e3:.3g} mm at the step's start)", h, res,
                 nonfinite, reason)
@@ -452,7 +452,7 @@ class StepControl:
         if self.restart_pending:
             its = self._restart(run)
             self.restart_pending = False
-        later = self.breakpoints[self.breakpoints > run.t + snap]
+        later = self.breakpoints[self.breakpoints > run.state.t + snap]
         if later.size and later[0] <= t_stop + snap:
             return its, float(later[0]), True
         return its, t_stop, False
@@ -480,7 +480,7 @@ class StepControl:
                 eps *= 0.1
         eps, res, nonfinite, reject, failure = failed
         raise self._divergence(run, f"the consistent restart (backward-Euler steps) at "
-                               f"t = {run.t:.6g} s did not converge ({taken} of its "
+                               f"t = {run.state.t:.6g} s did not converge ({taken} of its "
                                f"{RESTART_STEPS} steps taken)", eps, res, nonfinite,
                                reject, failure)
 
@@ -510,4 +510,4 @@ class StepControl:
                "Newton did not converge" if reject in (None, "newton") else
                f"the last attempt converged but was refused ({reject})")
         return SolverDivergence(f"{what} (Δt = {h:.3g} s, scaled residual {res:.3g}, {why})",
-                                t=run.t, step=None, residual=res, reason=reason)
+                                t=run.state.t, step=None, residual=res, reason=reason)
