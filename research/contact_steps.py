@@ -278,7 +278,7 @@ def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None,
         if att.reason == "newton" and self.newton.last_trace is not None:
             trace = (self.newton.last_failure, self.newton.last_trace.copy())
         attempts.append({"t": t0, "h": h, "ok": bool(att.ok), "why": att.reason,
-                         "its": att.iterations, "ratio": self.last_route_ratio,
+                         "its": att.iterations, "ratio": att.route_ratio,
                          "gmres": self.newton.gmres_iterations - g0, "wall": wall,
                          "contacts": self.contact_count, "trace": trace,
                          "starts": current.get("starts"), "cuts": current.get("cuts"),
@@ -600,7 +600,8 @@ def _probe_params(run, case):
     from solver.scheme import alpha_parameters
 
     rho = case.numerics.contact_rho_inf
-    if rho is not None and getattr(run, "last_had_candidates", False):
+    last = run.control.last_attempt
+    if rho is not None and last is not None and last.had_candidates:
         return alpha_parameters(rho)
     return run.assembly.params
 
@@ -679,7 +680,7 @@ def probe(name: str, at: float, sizes: list, residuals: bool = False, sets=(),
             per_s = trial.last_step_error / h
             rate = f"  route difference / Δt {per_s:.3g} m/s ({share(per_s)})"
         print(f"  Δt = {h:<8g} s  {state:18s} Newton {att.iterations:3d}  route ratio "
-              f"{trial.last_route_ratio:.3g}{rate}")
+              f"{att.route_ratio:.3g}{rate}")
         if steps > 1 and att.ok and trial.contact is not None:
             print("    the next steps of Δt: route difference / Δt (the limit at the step's "
                   "start), m/s: " + _steady_steps(trial, h, steps - 1, params))

@@ -199,7 +199,7 @@ def contact(t_end=30.0):
             refused = []
 
             def refusal(self, prob, sol, estimate):
-                reason, summary = original(self, prob, sol, estimate)
+                reason, summary, ratios = original(self, prob, sol, estimate)
                 key = "free" if sol.candidates is None else "contact"
                 bal = self.last_balance
                 if bal is not None:
@@ -210,7 +210,7 @@ def contact(t_end=30.0):
                         refused.append((prob.t_new, bal.error, bal.scale,
                                         abs(sum(bal.work.values())),
                                         abs(bal.work["contact"])))
-                return reason, summary
+                return reason, summary, ratios
 
             runmod.RodRun._refusal = refusal
             try:

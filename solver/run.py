@@ -115,14 +115,11 @@ class RodRun:
                                         alpha_parameters(num.rho_inf), self.contact,
                                         self.search)
         self.control = StepControl(case, *self._controllers())
-        # the last attempt: its error ratio (NaN: not estimated), why it was refused
-        # ("newton", "contact", "error", "growth", "energy", "drift"; None: accepted),
-        # whether it had contact candidates, its route ratio; the last accepted step's
+        # why the last attempt was refused ("newton", "contact", "error", "growth",
+        # "energy", "drift"; None: accepted), which the next step's time scheme reads
+        # (its Attempt carries it and the rest of its figures); the last accepted step's
         # Newton figures and contacts
-        self.last_error_ratio = math.nan
         self.last_reject = None
-        self.last_had_candidates = False
-        self.last_route_ratio = math.nan
         self.last_iterations = 0
         self.last_residual = 0.0
         self.contact_count = 0
@@ -187,21 +184,23 @@ class RodRun:
         when the step lands on a breakpoint, with ``left_limit`` so that the loads are
         their left limit there). ``restart``: a backward-Euler restart step
         (:mod:`solver.stepping`); ``estimate=False``: no error estimate (the steps of a
-        step-doubling estimate). On success the state advances and Attempt(True,
-        iterations, residual) is returned; on failure the state is untouched and the
-        Attempt has ok False and the reason (also in ``last_reject``, which an accepted
-        attempt sets to None): Newton's or :meth:`_refusal`'s, or "drift" where the step
-        passes them but leaves the s = L end beyond ``contact.end_drift_tolerance`` from
-        its prescribed motion (:meth:`drifts_off`; the step control then ends the run)."""
-        self.last_route_ratio = math.nan
+        step-doubling estimate). On success the state advances and an accepted
+        :class:`Attempt` is returned; on failure the state is untouched and the Attempt
+        has ok False and the reason: Newton's or :meth:`_refusal`'s, or "drift" where the
+        step passes them but leaves the s = L end beyond ``contact.end_drift_tolerance``
+        from its prescribed motion (:meth:`drifts_off`; the step control then ends the
+        run). Either way the Attempt carries what the step control decides by: its error
+        and route ratios where they were measured and whether it had contact candidates.
+        The run keeps the reason in ``last_reject`` (None after an accepted attempt) for
+        the next step's time scheme (``ProblemAssembly.BACKWARD_EULER_AFTER``)."""
         asm, st = self.assembly, self.state
         prob = asm.step_problem(st, h, t_new, left_limit, restart, self.predictor,
                                 self.last_reject)
-        self.last_had_candidates = prob.candidates is not None
+        had = prob.candidates is not None
         sol = asm.solve_problem(st, prob)
-        reason = sol.reason
+        reason, summary, ratios = sol.reason, None, {}
         if reason is None:
-            reason, summary = self._refusal(prob, sol, estimate)
+            reason, summary, ratios = self._refusal(prob, sol, estimate)
         timed = None
         if reason is None:
             timed = self._time_route(prob, sol)
@@ -209,26 +208,28 @@ class RodRun:
                 reason = "drift"             # the end strays off its prescribed motion
         if reason is not None:
             self.last_reject = reason
-            return Attempt(False, sol.iterations, sol.residual, sol.nonfinite, reason)
+            return Attempt(False, sol.iterations, sol.residual, sol.nonfinite, reason,
+                           had_candidates=had, **ratios)
         self._accept(prob, sol, summary, timed)
         self.last_reject = None
-        return Attempt(True, sol.iterations, sol.residual)
+        return Attempt(True, sol.iterations, sol.residual, had_candidates=had, **ratios)
 
     def _refusal(self, prob, sol, estimate):
-        """Why a converged step must be refused (None: it passes) and its contact summary
-        (count, smallest gap m). The checks, in order: interpenetration; the local error:
-        the route rule where strands may meet (a node's trapezoidal step in time against
-        the κ-integrated centreline) and, with numerics.tolerance, the estimate of
-        :class:`solver.stepping.ErrorControl`, their ratios to their tolerances (in steps
-        with contact candidates only the route rule: there the estimate follows the stiff
-        law's impact transients; the seed case at tolerance 1e-2 ran its first loop at
-        5e-4 s steps, 20x the route rule's, which keeps its events within 0.001 s of a
-        6.25-ms reference; docs/numerics.md § 7); a strand through another within the
-        step; the energy balance (:mod:`solver.balance`, ``numerics.energy_tolerance``;
-        not in restarts; in steps with contact candidates with the contact law's account);
-        the growth guard."""
+        """Why a converged step must be refused (None: it passes), its contact summary
+        (count, smallest gap m) and the ratios it measured (a dict of the :class:`Attempt`'s
+        ``route_ratio`` and ``error_ratio``, those measured). The checks, in order:
+        interpenetration; the local error: the route rule where strands may meet (a node's
+        trapezoidal step in time against the κ-integrated centreline) and, with
+        numerics.tolerance, the estimate of :class:`solver.stepping.ErrorControl`, their
+        ratios to their tolerances (in steps with contact candidates only the route rule:
+        there the estimate follows the stiff law's impact transients; the seed case at
+        tolerance 1e-2 ran its first loop at 5e-4 s steps, 20x the route rule's, which keeps
+        its events within 0.001 s of a 6.25-ms reference; docs/numerics.md § 7); a strand
+        through another within the step; the energy balance (:mod:`solver.balance`,
+        ``numerics.energy_tolerance``; not in restarts; in steps with contact candidates
+        with the contact law's account); the growth guard."""
         Y, pose, cand, h = sol.Y, sol.pose, sol.candidates, prob.h
-        summary = None
+        summary, ratios = None, {}
         if self.contact is not None:
             contact_count, min_gap = 0, math.inf
             if cand is not None and cand.runs:
@@ -240,22 +241,22 @@ class RodRun:
                                                                      not frozen)
             summary = (contact_count, min_gap)
             if min_gap < 0.0:
-                return "contact", summary    # the surfaces interpenetrate
+                return "contact", summary, ratios    # the surfaces interpenetrate
         ratio = 0.0
         if self.contact is not None:
             self.last_step_error = self.assembly._local_error(self.state, h, Y, pose[2])
-            ratio = self.last_route_ratio = self.last_step_error / self.route_tolerance
+            ratio = ratios["route_ratio"] = self.last_step_error / self.route_tolerance
             if self.control.errctl is None and ratio > 1.0:
-                return "contact", summary
+                return "contact", summary, ratios
         if self.control.errctl is not None and not prob.restart and estimate:
             if cand is None:
                 ratio = max(ratio, self.control.errctl.ratio(prob.t_new, Y, self.state.Y,
                                                      self.newton.filtered))
-            self.last_error_ratio = ratio      # NaN: not estimated (after a restart)
+            ratios["error_ratio"] = ratio      # not estimated in restarts
             if ratio > 1.0:
-                return "error", summary
+                return "error", summary, ratios
         if self.contact is not None and self.contact.passes_through(self.state.r, pose[2]):
-            return "contact", summary        # a strand passed through another
+            return "contact", summary, ratios    # a strand passed through another
         self.last_balance = None
         if (self.energy_check is not None and not prob.restart
                 and (cand is None or self.energy_check.contact_steps)):
@@ -263,11 +264,11 @@ class RodRun:
                 self.state.balance = self.energy_check.start(self)
             self.last_balance = self.energy_check.measure(self, prob, sol)
             if self.energy_check.refuses(self.last_balance):
-                return "energy", summary     # the step put in energy no load gave
+                return "energy", summary, ratios     # the step put in energy no load gave
         if self.control.guard.limit is not None and not prob.restart and cand is None:
             if not self.control.guard.ok(self.system, h, Y):
-                return "growth", summary
-        return None, summary
+                return "growth", summary, ratios
+        return None, summary, ratios
 
     def _time_route(self, prob, sol):
         """Every node advanced in time by the step of ``prob`` to its solution ``sol`` on
@@ -432,10 +433,14 @@ class RodRun:
                 self.search.verlet if self.search is not None else None,
                 self.control.errctl.state() if self.control.errctl is not None else None)
 
-    def _restore(self, saved) -> None:
-        """Return to a :meth:`_state` (which stays valid for another restore)."""
+    def _restore(self, saved, refused=None) -> None:
+        """Return to a :meth:`_state` (which stays valid for another restore). ``refused``:
+        the reason of a refused attempt that the restore takes back, kept for the next
+        step's time scheme (``last_reject``; None: the saved one)."""
         own, control, verlet, errctl = saved
         self.__dict__.update(own)
+        if refused is not None:
+            self.last_reject = refused
         self.state = copy.copy(own["state"])
         self.control.__dict__.update(control)
         if self.search is not None:

@@ -317,8 +317,8 @@ def test_fixed_contact_steps_take_their_size_from_the_route_ratio(monkeypatch):
     def recording(self, h, *args, **kwargs):
         t0 = self.state.t
         out = plain(self, h, *args, **kwargs)
-        attempts.append({"t0": t0, "h": h, "ok": out[0], "why": self.last_reject,
-                         "ratio": self.last_route_ratio, "cand": self.last_had_candidates,
+        attempts.append({"t0": t0, "h": h, "ok": out.ok, "why": out.reason,
+                         "ratio": out.route_ratio, "cand": out.had_candidates,
                          "pi": self.control.h_route is not None})
         return out
 
@@ -359,21 +359,17 @@ class _PartedRun:
         from types import SimpleNamespace
         self.case, self.h1, self.control = case, h1, control
         self.state = SimpleNamespace(t=0.0)
-        self.last_had_candidates = False
-        self.last_route_ratio = float("nan")
-        self.last_reject = None
         self.attempts = []
 
     def try_step(self, h, t_new=None, left_limit=False, restart=False, estimate=True):
         from solver.stepping.control import Attempt
-        self.last_route_ratio = (h / self.h1) ** 3
-        ok = self.last_route_ratio <= 1.0
+        ratio = (h / self.h1) ** 3
+        ok = ratio <= 1.0
         self.attempts.append((h, ok, self.control.h_route is not None))
         if not ok:
-            self.last_reject = "contact"
-            return Attempt(False, 3, 1e-12, False, "contact")
+            return Attempt(False, 3, 1e-12, False, "contact", route_ratio=ratio)
         self.state.t = t_new if t_new is not None else self.state.t + h
-        return Attempt(True, 3, 1e-12)
+        return Attempt(True, 3, 1e-12, route_ratio=ratio)
 
 
 @pytest.mark.parametrize("h1", [1e-3, 1.0])

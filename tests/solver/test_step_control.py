@@ -369,12 +369,12 @@ def test_the_doubled_step_after_a_restart_keeps_both_halves():
     assert times[-1] == pytest.approx(run.state.t, rel=1e-12)
     # the levels before it: the restart's end and the midpoint of the doubled step
     assert times[1] - times[0] == pytest.approx(0.5 * (times[2] - times[0]), rel=1e-9)
-    assert run.last_error_ratio <= 1.0
+    assert run.control.last_attempt.error_ratio <= 1.0
     # the step after it is estimated (Milne's device) and, here, accepted at once
     run.control.refusals.clear()
     run.step_adaptive(run.case.numerics.t_end)
     assert sum(run.control.refusals.values()) == 0, run.control.refusals
-    assert 0.0 < run.last_error_ratio <= 1.0
+    assert 0.0 < run.control.last_attempt.error_ratio <= 1.0
 
 
 def test_a_field_that_falls_quiet_keeps_its_scale():
@@ -769,17 +769,16 @@ def _route_run(case, refuse_above: float, reason: str):
 
     from solver.stepping.control import Attempt
 
-    run = SimpleNamespace(case=case, state=SimpleNamespace(t=0.0), tried=[], last_route_ratio=0.5,
-                          last_had_candidates=True, last_reject=None,
+    run = SimpleNamespace(case=case, state=SimpleNamespace(t=0.0), tried=[],
                           newton=SimpleNamespace(last_failure="stalled"))
 
     def try_step(h, t_new=None, left_limit=False):
         run.tried.append(h)
         if h > refuse_above:
-            run.last_reject = reason
-            return Attempt(False, 3, 1e-12, False, reason)
+            return Attempt(False, 3, 1e-12, False, reason, route_ratio=0.5,
+                           had_candidates=True)
         run.state.t = t_new if t_new is not None else run.state.t + h
-        return Attempt(True, 2, 1e-12)
+        return Attempt(True, 2, 1e-12, route_ratio=0.5, had_candidates=True)
 
     run.try_step = try_step
     return run
