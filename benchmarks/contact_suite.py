@@ -222,7 +222,7 @@ def run_case(name: str, energy_tolerance: float | None, budget: float = BUDGET_S
     original = RodRun.try_step
 
     def try_step(self, h, *args, **kwargs):
-        t_start, w0 = self.t, time.perf_counter()
+        t_start, w0 = self.state.t, time.perf_counter()
         att = original(self, h, *args, **kwargs)
         restart = kwargs.get("restart", False)
         attempts.append((t_start, bool(att.ok) and not restart, att.iterations,
@@ -231,7 +231,7 @@ def run_case(name: str, energy_tolerance: float | None, budget: float = BUDGET_S
             smallest[0] = min(smallest[0], h)
             bal = self.last_balance
             if bal is not None:
-                balances.append((self.t, bal.error, bal.energy))
+                balances.append((self.state.t, bal.error, bal.energy))
         return att
 
     RodRun.try_step = try_step

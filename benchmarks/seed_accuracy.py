@@ -104,13 +104,13 @@ def state_at(t0: float, newton_tolerance=None, position_tolerance=None) -> RodRu
 
 def record(run: RodRun) -> dict:
     props = run.props
-    tw = twist(run.Y[:, 11], props.s)
-    wr = writhe(run.r)
-    lk = linking_number(run.phi[0], run.phi[1])
+    tw = twist(run.state.Y[:, 11], props.s)
+    wr = writhe(run.state.r)
+    lk = linking_number(run.state.phi[0], run.state.phi[1])
     wr += 2.0 * round((lk - tw - wr) / 2.0)
     c = run.contact
-    gap = min_surface_gap(run.r, props.diameter, props.s, c.separation_cut, c.tolerance)
-    return {"t": run.t, "writhe": wr, "topology_error": abs(tw + wr - lk),
+    gap = min_surface_gap(run.state.r, props.diameter, props.s, c.separation_cut, c.tolerance)
+    return {"t": run.state.t, "writhe": wr, "topology_error": abs(tw + wr - lk),
             "contacts": run.contact_count, "min_surface_gap": gap}
 
 
@@ -118,8 +118,8 @@ def advance(run: RodRun, t1: float, h: float, out_every: float = 0.1) -> tuple[l
     """Advance with nominal steps h (s) to t1, recording every out_every (s)."""
     recs = [record(run)]
     t0 = time.perf_counter()
-    n = int(round((t1 - run.t) / h))
-    start = run.t
+    n = int(round((t1 - run.state.t) / h))
+    start = run.state.t
     per_out = int(round(out_every / h))
     for k in range(1, n + 1):
         run.advance(start + k * h)
@@ -139,11 +139,12 @@ def with_tolerance(base: RodRun, relative: float, tied: bool = True) -> RodRun:
     case = Case.model_validate(spec)
     fresh = RodRun(case)
     run = copy.deepcopy(base)
-    run.case, run.errctl = case, fresh.errctl
+    run.case = run.assembly.case = case
+    run.control.errctl = fresh.control.errctl
     if tied:                 # untied: the fixed-step run's own bound, the margin's quarter
         run.route_tolerance = fresh.route_tolerance
-    run.errctl.reset(run.t, run.Y)
-    run.h_next = case.numerics.dt
+    run.control.errctl.reset(run.state.t, run.state.Y)
+    run.control.h_next = case.numerics.dt
     return run
 
 
@@ -156,9 +157,9 @@ def with_position_tolerance(base: RodRun, position: float, cut_factor=None) -> R
 
     spec = set_variant(base.case.model_dump(), position, cut_factor)
     run = copy.deepcopy(base)
-    run.case = Case.model_validate(spec)
+    run.case = run.assembly.case = Case.model_validate(spec)
     run.route_tolerance = position
-    run.level_hint = 0
+    run.control.level_hint = 0
     return run
 
 
@@ -168,11 +169,11 @@ def advance_adaptive(run: RodRun, t1: float, out_every: float = 0.1) -> tuple[li
     recs = [record(run)]
     t0 = time.perf_counter()
     steps = 0
-    n = int(round((t1 - run.t) / out_every))
-    start = run.t
+    n = int(round((t1 - run.state.t) / out_every))
+    start = run.state.t
     for k in range(1, n + 1):
         stop = start + k * out_every
-        while run.t < stop - 1e-9 * out_every:
+        while run.state.t < stop - 1e-9 * out_every:
             run.step_adaptive(stop)
             steps += 1
         recs.append(record(run))

@@ -118,9 +118,9 @@ class State:
 
     def __init__(self, run, step: int):
         self.run = run
-        self.t = float(run.t)
+        self.t = float(run.state.t)
         self.step = int(step)
-        self.dt = float(run.last_dt)
+        self.dt = float(run.control.last_dt)
         self.s = run.props.s
         self._cache: dict[str, Any] = {}
 

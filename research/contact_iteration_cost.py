@@ -71,7 +71,7 @@ def _median_ms(fn, repeats: int) -> float:
 
 def _advance_to(run: RodRun, at: float, h_nominal: float, k: int) -> int:
     """Advance ``run`` by nominal steps to ``at`` (s); returns the step count k."""
-    while run.t < at - 1e-9:
+    while run.state.t < at - 1e-9:
         k += 1
         run.advance(round(k * h_nominal, 10))
     return k
@@ -95,9 +95,9 @@ def _parts(run: RodRun, dt: float, repeats: int) -> tuple[dict, int, int]:
     """Set up a step of ``dt`` (s) from the run's state as the run would, solve it, and
     time the compiled parts of an iteration at the solution (ms, medians). Returns
     (parts, candidate runs, the solve's iterations)."""
-    prob = run.step_problem(dt)
+    prob = run.assembly.step_problem(run.state, dt, predictor=run.predictor, after=run.last_reject)
     system, newton = run.system, run.newton
-    guess = run.begin_solve(prob)
+    guess = run.assembly.begin_solve(run.state, prob)
     Y, _, its, res, ok, _ = newton.solve(guess)
     st = newton._state
     rod, step, cand, cdata = system.kernel_args()

@@ -40,17 +40,17 @@ def measure(n: int, window: float) -> dict:
     run = RodRun(case)
     k = 0
     t_pre = time.perf_counter()
-    while run.contact_count == 0 and run.t < case.numerics.t_end - 1e-9:
+    while run.contact_count == 0 and run.state.t < case.numerics.t_end - 1e-9:
         k += 1
         run.advance(k * dt)
     pre = time.perf_counter() - t_pre
-    t_first = run.t
+    t_first = run.state.t
     steps = []
     f0, it0 = run.newton.factorizations, 0
     g0 = run.newton.gmres_iterations
     t0 = time.perf_counter()
     end = min(case.numerics.t_end, t_first + window)
-    while run.t < end - 1e-9:
+    while run.state.t < end - 1e-9:
         k += 1
         w = time.perf_counter()
         its, _ = run.advance(k * dt)
@@ -58,7 +58,7 @@ def measure(n: int, window: float) -> dict:
         it0 += its
     wall = time.perf_counter() - t0
     n_steps = max(len(steps), 1)
-    sim = max(run.t - t_first, 1e-12)
+    sim = max(run.state.t - t_first, 1e-12)
     return {"n_segments": n, "first_contact_s": t_first, "pre_contact_wall_s": pre,
             "window_s": sim, "wall_per_simulated_s": wall / sim,
             "wall_per_step_s": wall / n_steps, "wall_per_iteration_s": wall / max(it0, 1),

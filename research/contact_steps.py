@@ -15,7 +15,7 @@ fraction, the line search's fraction, GMRES iterations) and why it failed.
 
 With ``--starts`` also, per window, how good each contact solve's Newton start was: the
 distance of the line and the parabola extrapolated from the last levels (the predictors
-of ``RodRun._predictions``) and of the start Newton was given (the feasible start, blended
+of ``ProblemAssembly._predictions``) and of the start Newton was given (the feasible start, blended
 toward the old positions where a predicted gap closed below ``NewtonSolver.START_GAP_KEEP`` of
 itself) from the step's solution, per unknown (v, ω, f, κ), relative to the step's own
 change ‖Y − Yⁿ‖ (medians over the window's solves; 1 is no better than the old level),
@@ -253,6 +253,7 @@ def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None,
     from solver.case import Case
     from solver.run import RodRun
     from solver.simulation import SolverDivergence, integrate
+    from solver.step_problem import ProblemAssembly
 
     spec = case_spec(name, sets)
     spec["numerics"]["energy_tolerance"] = cs.ENERGY_TOLERANCE
@@ -264,9 +265,9 @@ def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None,
     current = {}
 
     def recording(self, h, *args, **kwargs):
-        if watch is not None and not 0 <= watch < self.Y.shape[0]:
-            raise SystemExit(f"--watch {watch}: the case's nodes are 0 to {self.Y.shape[0] - 1}")
-        t0 = self.t
+        if watch is not None and not 0 <= watch < self.state.Y.shape[0]:
+            raise SystemExit(f"--watch {watch}: the case's nodes are 0 to {self.state.Y.shape[0] - 1}")
+        t0 = self.state.t
         g0 = self.newton.gmres_iterations
         current.clear()
         current["run"] = self
@@ -277,24 +278,24 @@ def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None,
         if att.reason == "newton" and self.newton.last_trace is not None:
             trace = (self.newton.last_failure, self.newton.last_trace.copy())
         attempts.append({"t": t0, "h": h, "ok": bool(att.ok), "why": att.reason,
-                         "its": att.iterations, "ratio": self.last_route_ratio,
+                         "its": att.iterations, "ratio": att.route_ratio,
                          "gmres": self.newton.gmres_iterations - g0, "wall": wall,
                          "contacts": self.contact_count, "trace": trace,
                          "starts": current.get("starts"), "cuts": current.get("cuts"),
-                         "node": (self.Y[watch, 0:6].copy()
+                         "node": (self.state.Y[watch, 0:6].copy()
                                   if watch is not None and att.ok else None)})
         return att
 
     def solving(self, guess):
         out = plain_solve(self, guess)
         run = current.get("run")
-        prob = getattr(run, "_last_problem", None)
+        prob = getattr(run.assembly, "_last_problem", None)
         if prob is not None and prob.candidates is not None \
                 and self.last_trace is not None:
             current["cuts"] = current.get("cuts", 0) + correction_cuts(self.last_trace)
         if run is not None and prob is not None and prob.candidates is not None \
                 and prob.predictions and out[4]:
-            d = start_distances(run.Y, out[0], dict(prob.predictions, start=guess))
+            d = start_distances(run.state.Y, out[0], dict(prob.predictions, start=guess))
             d["blend"] = current.pop("blend", 1.0)
             current["starts"] = d
         return out
@@ -306,10 +307,10 @@ def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None,
         current["blend"] = self.last_start_blend
         return out
 
-    plain_problem = RodRun.step_problem
+    plain_problem = ProblemAssembly.step_problem
 
-    def problem(self, h, *args, **kwargs):
-        prob = plain_problem(self, h, *args, **kwargs)
+    def problem(self, *args, **kwargs):
+        prob = plain_problem(self, *args, **kwargs)
         self._last_problem = prob
         return prob
 
@@ -317,7 +318,7 @@ def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None,
     if starts:
         NewtonSolver.solve = solving
         NewtonSolver.feasible_start = feasible
-        RodRun.step_problem = problem
+        ProblemAssembly.step_problem = problem
     try:
         ds = integrate(case)
         if result is not None:
@@ -328,7 +329,7 @@ def record(name: str, t_end: float, starts: bool = False, sets=(), watch=None,
         RodRun.try_step = plain
         NewtonSolver.solve = plain_solve
         NewtonSolver.feasible_start = plain_feasible
-        RodRun.step_problem = plain_problem
+        ProblemAssembly.step_problem = plain_problem
     return attempts
 
 
@@ -424,7 +425,7 @@ def _iterates_residuals(snapshot: bytes, h: float, its: int, cells=None) -> list
     rows = []
     for k in range(its + 1):
         run = pickle.loads(snapshot)
-        guess = run.begin_solve(run.step_problem(h))
+        guess = run.assembly.begin_solve(run.state, run.assembly.step_problem(run.state, h, predictor=run.predictor, after=run.last_reject))
         Y = guess
         if k:
             run.newton.max_iterations = k
@@ -432,10 +433,10 @@ def _iterates_residuals(snapshot: bytes, h: float, its: int, cells=None) -> list
         R = run.system.residual(Y, want_jacobian=True)[0]
         run.newton.linearize(Y)
         row = residual_groups(R * run.newton.row_scale)
-        if cells is not None and run.seabed is not None:
+        if cells is not None and run.system.seabed is not None:
             _, Rm, r, _ = run.system.pose_new(Y)
             vg = np.einsum("kij,kj->ki", Rm, Y[:, 0:3])
-            F, _, pen = run.seabed.cell_loads(r, vg, Rm, Y[:, 3:6])
+            F, _, pen = run.system.seabed.cell_loads(r, vg, Rm, Y[:, 3:6])
             e3 = np.abs(R[6:-6].reshape(-1, 12)[:, 6:9]).max(axis=1)
             row["seabed"] = [(c, float(pen[c]), float(np.linalg.norm(F[c, 0:3])), float(e3[c]))
                              for c in cells]
@@ -481,7 +482,7 @@ def jacobian_modes(snapshot: bytes, h: float, k: int = 4) -> dict:
     import pickle
 
     run = pickle.loads(snapshot)
-    Y = run.begin_solve(run.step_problem(h))
+    Y = run.assembly.begin_solve(run.state, run.assembly.step_problem(run.state, h, predictor=run.predictor, after=run.last_reject))
     newton, system = run.newton, run.system
     R = system.residual(Y, want_jacobian=True)[0]
     n = R.size
@@ -542,7 +543,7 @@ def semi_discrete_route_rate(run, kappa_rate=None) -> np.ndarray:
     is its mean spacing). Raises nothing."""
     from solver.kinematics import quat_exp, quat_multiply, quat_to_matrix, space_route
 
-    Y = run.Y
+    Y = run.state.Y
     v, w, k = Y[:, 0:3], Y[:, 3:6], Y[:, 9:12]
     ds = np.diff(run.props.s)[:, None]
     if kappa_rate is None:
@@ -554,7 +555,7 @@ def semi_discrete_route_rate(run, kappa_rate=None) -> np.ndarray:
             nodal[c + 1] = 2.0 * cell[c] - nodal[c]
     else:
         nodal = np.asarray(kappa_rate, float)
-    q0, r0 = run.q_time[0], run.r_time[0]
+    q0, r0 = run.state.q_time[0], run.state.r_time[0]
     R0 = quat_to_matrix(q0[None])[0]
     eps = 1e-6
     ends = [space_route(quat_multiply(q0, quat_exp(sg * eps * w[0])),
@@ -586,7 +587,7 @@ def step_route_rate(run, params=None) -> tuple[np.ndarray, np.ndarray]:
     reached n, not at n, so the second part is as large as the rates' change over that
     step. ``params``: the step's :class:`solver.scheme.StepParameters` (default the run's
     ρ∞). Raises nothing."""
-    params = run.params if params is None else params
+    params = run.assembly.params if params is None else params
     box = semi_discrete_route_rate(run)
     carried = semi_discrete_route_rate(run, run.state.Ydot[:, 9:12])
     return box + carried_rate_weight(params) * (carried - box), carried
@@ -599,9 +600,10 @@ def _probe_params(run, case):
     from solver.scheme import alpha_parameters
 
     rho = case.numerics.contact_rho_inf
-    if rho is not None and getattr(run, "last_had_candidates", False):
+    last = run.control.last_attempt
+    if rho is not None and last is not None and last.had_candidates:
         return alpha_parameters(rho)
-    return run.params
+    return run.assembly.params
 
 
 def _steady_steps(run, h: float, count: int, params) -> str:
@@ -647,13 +649,13 @@ def probe(name: str, at: float, sizes: list, residuals: bool = False, sets=(),
     run = RodRun(case)
     _advance_to(run, at, case.numerics.dt, 0)
     snapshot = pickle.dumps(run, protocol=pickle.HIGHEST_PROTOCOL)
-    fastest = float(np.linalg.norm(run.v_global, axis=1).max())
+    fastest = float(np.linalg.norm(run.state.v_global, axis=1).max())
     rate = float(np.linalg.norm(semi_discrete_route_rate(run), axis=1).max())
 
     def share(x):
         return f"{x / fastest:.2%} of it" if fastest > 0.0 else "the rod at rest"
 
-    print(f"{name} at t = {run.t:g} s, {run.contact_count} contacts, fastest node "
+    print(f"{name} at t = {run.state.t:g} s, {run.contact_count} contacts, fastest node "
           f"{fastest:.3g} m/s, the box rule's route rate {rate:.3g} m/s "
           f"({share(rate)}):")
     params = _probe_params(run, case)
@@ -678,7 +680,7 @@ def probe(name: str, at: float, sizes: list, residuals: bool = False, sets=(),
             per_s = trial.last_step_error / h
             rate = f"  route difference / Δt {per_s:.3g} m/s ({share(per_s)})"
         print(f"  Δt = {h:<8g} s  {state:18s} Newton {att.iterations:3d}  route ratio "
-              f"{trial.last_route_ratio:.3g}{rate}")
+              f"{att.route_ratio:.3g}{rate}")
         if steps > 1 and att.ok and trial.contact is not None:
             print("    the next steps of Δt: route difference / Δt (the limit at the step's "
                   "start), m/s: " + _steady_steps(trial, h, steps - 1, params))

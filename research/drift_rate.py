@@ -132,15 +132,15 @@ def profile(t0: float = 3.8, t1: float = 4.0) -> list[str]:
     accept = RodRun._accept
 
     def recording(run, prob, sol, summary, timed):
-        if t0 <= run.t <= t1 and not prob.restart:
-            r_time = run._time_step(prob.h, sol.Y, run.q, run.r, run.v_global)[3]
+        if t0 <= run.state.t <= t1 and not prob.restart:
+            r_time = run.assembly._time_step(run.state, prob.h, sol.Y, run.state.q, run.state.r, run.state.v_global)[3]
             steps.append(r_time - sol.pose[2])
         return accept(run, prob, sol, summary, timed)
 
     case = Case.from_file(ROOT / "cases" / "seabed-hockle.yaml")
     RodRun._accept = recording
     try:
-        integrate(case, observer=lambda run, step: run.t > t1)
+        integrate(case, observer=lambda run, step: run.state.t > t1)
     finally:
         RodRun._accept = accept
     total = np.linalg.norm(np.sum(steps, axis=0), axis=1)

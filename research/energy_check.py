@@ -115,18 +115,18 @@ def cases():
             run = RodRun(Case.model_validate(spec))
             dt, k, t0 = spec["numerics"]["dt"], 0, time.perf_counter()
             refused = []
-            while run.t < t_end - 1e-9:
+            while run.state.t < t_end - 1e-9:
                 k += 1
-                before = run.refusals.get("energy", 0)
-                t_from = run.t
+                before = run.control.refusals.get("energy", 0)
+                t_from = run.state.t
                 run.advance(k * dt)
-                if run.refusals.get("energy", 0) > before:
+                if run.control.refusals.get("energy", 0) > before:
                     refused.append(t_from)
             wall = time.perf_counter() - t0
             print(f"{name} to {t_end} s, check {'off' if tol is None else tol}: "
-                  f"{len(refused) and run.refusals['energy']} energy refusals"
+                  f"{len(refused) and run.control.refusals['energy']} energy refusals"
                   f"{' (steps from t = ' + ', '.join(f'{t:.4g}' for t in refused) + ' s)' if refused else ''}, "
-                  f"{run.refusals.get('newton', 0)} Newton refusals, wall {wall:.1f} s")
+                  f"{run.control.refusals.get('newton', 0)} Newton refusals, wall {wall:.1f} s")
 
 
 def windows(m=4):
@@ -136,8 +136,8 @@ def windows(m=4):
         run = RodRun(case)
         run.advance(dt)
         out = []
-        while run.t < t_end - 1e-9:
-            run.advance(run.t + dt)
+        while run.state.t < t_end - 1e-9:
+            run.advance(run.state.t + dt)
             out.append((run.last_balance.error, run.last_balance.scale))
         return np.array(out)
     for name, case, dt, t_end in (
@@ -155,8 +155,8 @@ def newton():
         run = RodRun(EC.cantilever(dt, n=50, energy_tolerance=1e9))   # measures only
         run.advance(dt)
         rows = []
-        while run.t < 8.0 - 1e-9:
-            run.advance(run.t + dt)
+        while run.state.t < 8.0 - 1e-9:
+            run.advance(run.state.t + dt)
             res = run.newton.last_trace[:, 0]
             last = res[-1] / res[-2] if res.size > 1 else 0.0
             prev = res[-2] / res[-3] if res.size > 2 else 0.0
@@ -199,7 +199,7 @@ def contact(t_end=30.0):
             refused = []
 
             def refusal(self, prob, sol, estimate):
-                reason, summary = original(self, prob, sol, estimate)
+                reason, summary, ratios = original(self, prob, sol, estimate)
                 key = "free" if sol.candidates is None else "contact"
                 bal = self.last_balance
                 if bal is not None:
@@ -210,7 +210,7 @@ def contact(t_end=30.0):
                         refused.append((prob.t_new, bal.error, bal.scale,
                                         abs(sum(bal.work.values())),
                                         abs(bal.work["contact"])))
-                return reason, summary
+                return reason, summary, ratios
 
             runmod.RodRun._refusal = refusal
             try:
@@ -373,12 +373,12 @@ def diagnose():
     def measured(dt, t_end, lo=0.0):
         run = RodRun(Case.model_validate(LV.catenary_spec(dt, 1e9)))    # measures only
         run.advance(dt)
-        while run.t < t_end - 1e-9:
-            run.advance(run.t + dt)
+        while run.state.t < t_end - 1e-9:
+            run.advance(run.state.t + dt)
             b = run.last_balance
-            if run.t > lo and b.error > 0.5 * b.scale:
+            if run.state.t > lo and b.error > 0.5 * b.scale:
                 work = sum(b.work.values())
-                print(f"  t = {run.t:5.2f} s: ε {b.error:+.2e} J, Σ W {work:+.2e} J, "
+                print(f"  t = {run.state.t:5.2f} s: ε {b.error:+.2e} J, Σ W {work:+.2e} J, "
                       f"T {b.carry['kinetic']:.1e} J, E {b.energy:.3e} J, "
                       f"ε/scale {b.relative:.2f}")
     print("hanging cable, Δt = 0.2 s, 5-9 s (ε > 0.5 scale):")
@@ -451,9 +451,9 @@ def plectoneme_accounts(n, dt, rho_inf, correction=True, contact_rho_inf=None,
         bal = self.last_balance
         if bal is not None:
             w = bal.work
-            old, new = end_loads(self.Y, self.props), end_loads(sol.Y, self.props)
+            old, new = end_loads(self.state.Y, self.props), end_loads(sol.Y, self.props)
             power = [float(np.sum(L[:, :3] * Y[[0, -1], 0:3]))
-                     for L, Y in ((old, self.Y), (new, sol.Y))]
+                     for L, Y in ((old, self.state.Y), (new, sol.Y))]
             total = sum(w.values())
             rows.append((prob.t_new, w.get("ends", 0.0), w.get("loads", 0.0),
                          w.get("contact", 0.0), w.get("drag", 0.0), bal.error + total,

@@ -93,12 +93,12 @@ class StepSystems:
 
     def __init__(self, run: RodRun, h: float):
         self.run, self.h = run, h
-        self.prob = run.step_problem(h)
-        self.guess = run.begin_solve(self.prob)
+        self.prob = run.assembly.step_problem(run.state, h, predictor=run.predictor, after=run.last_reject)
+        self.guess = run.assembly.begin_solve(run.state, self.prob)
         newton = run.newton
         Y, _, its, _, ok, _ = newton.solve(self.guess)
         if not ok:
-            raise RuntimeError(f"Newton failed at t = {run.t} s with Δt = {h} s")
+            raise RuntimeError(f"Newton failed at t = {run.state.t} s with Δt = {h} s")
         self.iterates = [self.guess.copy()]
         saved = newton.max_iterations
         try:
@@ -116,7 +116,7 @@ class StepSystems:
 
     def _begin(self) -> None:
         # the step set up again as the run does, from the start already made
-        self.run.begin_solve(self.prob, self.guess, first=False)
+        self.run.assembly.begin_solve(self.run.state, self.prob, self.guess, first=False)
 
     def at(self, k: int) -> np.ndarray:
         """Set the operator to iterate k's Jacobian (the band LU factored at iterate 0);
@@ -310,7 +310,7 @@ def coarse_study(run: RodRun, h: float, sizes=(10, 25, 50)) -> None:
     sys_ = StepSystems(run, h)
     rhs = sys_.at(0)
     cells = contact_cells(sys_)
-    print(f"t = {run.t:.4f} s, {len(sys_.iterates)} Newton iterates, {cells.size} contact "
+    print(f"t = {run.state.t:.4f} s, {len(sys_.iterates)} Newton iterates, {cells.size} contact "
           f"cells ({cells.min()}-{cells.max()}); GMRES iterations:", flush=True)
     spaces = {(b, name): coarse_basis(sys_.n, cells, b, rows)
               for name, rows in COARSE_ROWS.items() for b in sizes
@@ -507,7 +507,7 @@ def augmented_study(run: RodRun, h: float, steps: int) -> None:
     last = None
     for _ in range(steps):
         sys_ = StepSystems(run, h)
-        print(f"t = {run.t:.4f} s, {int(sys_.op[4][1])} pairs, {len(sys_.iterates)} Newton "
+        print(f"t = {run.state.t:.4f} s, {int(sys_.op[4][1])} pairs, {len(sys_.iterates)} Newton "
               "iterates; GMRES iterations plain / augmented LU fresh / of the step's start "
               "(at iterate 0: of the last step's start)", flush=True)
         start = None
@@ -560,7 +560,7 @@ def main() -> None:
         run = RodRun(case)
         t0 = time.perf_counter()
         _advance_to(run, args.at, case.numerics.dt, 0)
-        print(f"{case.name} to {run.t:g} s in {time.perf_counter() - t0:.0f} s; contact "
+        print(f"{case.name} to {run.state.t:g} s in {time.perf_counter() - t0:.0f} s; contact "
               f"steps of {args.dt} s from there", flush=True)
         if args.coarse:
             coarse_study(run, args.dt)
@@ -604,7 +604,7 @@ def main() -> None:
                 Ur, Tr = recycled_basis(Ur, Tr, Vr, Hr, args.k, args.gap)
                 before = own
                 cells.append(cell)
-            print(f"step at t = {run.t:.4f} s, {len(sys_.iterates)} Newton iterates; GMRES "
+            print(f"step at t = {run.state.t:.4f} s, {len(sys_.iterates)} Newton iterates; GMRES "
                   "iterations per iterate: plain / deflated by U of (a) the iterate, (b) the "
                   "iterate before, (c) the step's start, (d) the step before's start / (e) "
                   "recycled Ritz vectors")

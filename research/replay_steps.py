@@ -66,7 +66,7 @@ def replay_step(snapshot: bytes, t_target: float, settings: dict) -> dict:
         wall = time.perf_counter() - t0
         return {"newton": its, "gmres": run.newton.gmres_iterations - g0,
                 "factorizations": run.newton.factorizations - f0, "wall": wall,
-                "r": run.r.copy()}
+                "r": run.state.r.copy()}
     finally:
         for k, v in saved.items():
             setattr(owner(k), k, v)
@@ -85,9 +85,9 @@ def replay(windows: list[tuple[float, float]], variants: dict[str, dict],
     end = max(w[1] for w in windows)
     k = 0
     with threadpool_limits(limits=1, user_api="blas"):
-        while run.t < end - 1e-9:
+        while run.state.t < end - 1e-9:
             t_target = round((k + 1) * dt, 10)
-            window = next((w for w in windows if w[0] - 1e-9 <= run.t < w[1] - 1e-9), None)
+            window = next((w for w in windows if w[0] - 1e-9 <= run.state.t < w[1] - 1e-9), None)
             if window is not None:
                 snapshot = pickle.dumps(run, protocol=pickle.HIGHEST_PROTOCOL)
                 r_base = None

@@ -36,16 +36,16 @@ def main():
         if k not in marks:
             continue
         Fn = run.seabed_loads()[0]
-        F, _, pc = run.seabed.cell_loads(run.r_time, run.v_global_time,
-                                         quat_to_matrix(run.q_time), run.Y[:, 3:6])
+        F, _, pc = run.system.seabed.cell_loads(run.state.r_time, run.state.v_global_time,
+                                         quat_to_matrix(run.state.q_time), run.state.Y[:, 3:6])
         end = 0.5 * (s[:-1] + s[1:])[pc > 0].max()
         lying = np.flatnonzero(s < end - 0.3)
         nodes = Fn[lying, 2] / w
         cells = F[lying[:-1], 2] / w
-        z = run.r_time[lying, 2]
+        z = run.state.r_time[lying, 2]
         zig = np.abs(z[1:-1] - 0.5 * (z[:-2] + z[2:])).max()
-        route = np.linalg.norm(run.r - run.r_time, axis=1).max()
-        print(f"t = {run.t:5.2f} s  lying nodes {lying.size:2d}  nodes' reaction/w "
+        route = np.linalg.norm(run.state.r - run.state.r_time, axis=1).max()
+        print(f"t = {run.state.t:5.2f} s  lying nodes {lying.size:2d}  nodes' reaction/w "
               f"{nodes.min():.3f}-{nodes.max():.3f}  cells' {cells.min():.3f}-{cells.max():.3f}"
               f"  cells < w/4: {np.sum(cells < 0.25):2d}  node heights' 2nd difference "
               f"{zig * 1e6:6.1f} um  route difference {route * 1e3:.2f} mm  Newton its {its}")

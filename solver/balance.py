@@ -199,13 +199,14 @@ class EndWork(WorkAccount):
         self.moments_only = bool(moments_only)
 
     def start(self, run):
-        return (np.array(run.end_load, dtype=float), np.array(run.xdot_end, dtype=float))
+        st = run.state
+        return (np.array(st.end_load, dtype=float), np.array(st.xdot_end, dtype=float))
 
     def step(self, run, prob, sol, old):
         load_old, xdot_old = old
         loads, xdot = np.empty((2, 6)), np.empty((2, 6))
         g, am, af = _rates(prob.params)
-        work = _end_work(sol.Y, run.Y, float(prob.h), g, am, af, xdot_old, load_old,
+        work = _end_work(sol.Y, run.state.Y, float(prob.h), g, am, af, xdot_old, load_old,
                          run.props.stiffness, self.moments_only, xdot, loads)
         return work, (loads, xdot)
 
@@ -286,15 +287,16 @@ class GlobalLoadWork(WorkAccount):
         return quat_multiply(dq[None], q), r[0] + (r - r[0]) @ R.T
 
     def start(self, run):
-        glob = run.loads.global_force(run.t) if run.loads.has_global else None
+        glob = run.loads.global_force(run.state.t) if run.loads.has_global else None
         if self.time_route:
-            q, r = np.array(run.q_time), np.array(run.r_time)
+            q, r = np.array(run.state.q_time), np.array(run.state.r_time)
         else:
-            q, r = space_route(run.q_time[0], run.r_time[0], run.Y[:, 9:12],
+            q, r = space_route(run.state.q_time[0], run.state.r_time[0], run.state.Y[:, 9:12],
                                float(run.props.ds))
-            if self.held_end(run, run.bc):
-                q, r = self.turned(q, r, run.r_time[-1])
-        return (self.force(run, run.t, q, False, glob), r, self.end_forces(run.Y, q))
+            if self.held_end(run, run.state.bc):
+                q, r = self.turned(q, r, run.state.r_time[-1])
+        return (self.force(run, run.state.t, q, False, glob), r,
+                self.end_forces(run.state.Y, q))
 
     def step(self, run, prob, sol, old):
         G_old, r_old, F_old = old
@@ -316,21 +318,23 @@ class GlobalLoadWork(WorkAccount):
         if run.contact is not None:
             return sol.pose[0], sol.pose[2]     # the space route already
         elif self.time_route:
-            q, _, _, r = run._time_step(prob.h, sol.Y, run.q_time, run.r_time,
-                                        run.v_global_time,
-                                        offsets=((run.bc_offset, run.bc.cols),
-                                                 (prob.offset, prob.bc.cols)))
+            st = run.state
+            q, _, _, r = run.assembly._time_step(st, prob.h, sol.Y, st.q_time, st.r_time,
+                                                 st.v_global_time,
+                                                 offsets=((st.bc_offset, st.bc.cols),
+                                                          (prob.offset, prob.bc.cols)))
             normalize_quaternions(q)
         else:
             # nodes 0 and N one step along their time routes (without self-contact no end
             # correction offsets the boundary values), the shape integrated from node 0
-            # (as the run's space route, RodRun.update_space_route), turned onto node N
+            # (as the run's space route, ProblemAssembly.update_space_route), turned onto node N
             # where that end is held in position
             ends = [0, -1]
             q0, r0 = np.empty((2, 4)), np.empty((2, 3))
             c = np.ascontiguousarray
-            pose_into(c(sol.Y[ends]), c(run.Y[ends]), float(prob.h), False,
-                      c(run.q_time[ends]), c(run.r_time[ends]), c(run.v_global_time[ends]),
+            pose_into(c(sol.Y[ends]), c(run.state.Y[ends]), float(prob.h), False,
+                      c(run.state.q_time[ends]), c(run.state.r_time[ends]),
+                      c(run.state.v_global_time[ends]),
                       True, 0.0, q0, np.empty((2, 3, 3)), r0, np.empty((2, 3)),
                       np.empty((2, 3)))
             q0[0] /= np.linalg.norm(q0[0])
@@ -348,13 +352,13 @@ class DragWork(WorkAccount):
     name = "drag"
 
     def start(self, run):
-        b = np.empty((run.Y.shape[0], 3))
+        b = np.empty((run.state.Y.shape[0], 3))
         rod = run.system.rod_data
         # a column view of the (N+1, 12) unknowns, as the compiled callers pass it (one
         # signature of the kernel)
-        _drag_kernel(np.ascontiguousarray(run.Y, dtype=float)[:, 0:3], rod[3], rod[4], b,
+        _drag_kernel(np.ascontiguousarray(run.state.Y, dtype=float)[:, 0:3], rod[3], rod[4], b,
                      np.empty((0, 3, 3)), False)
-        return b, np.array(run.Y[:, 0:3], dtype=float)
+        return b, np.array(run.state.Y[:, 0:3], dtype=float)
 
     def step(self, run, prob, sol, old):
         b_old, rate_old = old
@@ -362,7 +366,7 @@ class DragWork(WorkAccount):
         b, rate = np.empty((n1, 3)), np.empty((n1, 3))
         g, am, af = _rates(prob.params)
         rod = run.system.rod_data
-        work = _drag_work(np.ascontiguousarray(sol.Y), run.Y, float(prob.h), g, am, af,
+        work = _drag_work(np.ascontiguousarray(sol.Y), run.state.Y, float(prob.h), g, am, af,
                           rate_old, b_old, rod[3], rod[4], run.props.quad_weights, b, rate)
         return work, (b, rate)
 
@@ -393,7 +397,7 @@ class SeabedWork(WorkAccount):
     within a step (its damper's time m/c, microseconds, far below any Δt): it over-counts
     the energy taken and reads the landing as injected energy (docs/numerics.md § 8).
     The new level's penetration is the one the seabed acted on in the step: on each
-    node's time route (:meth:`solver.run.RodRun._time_step`, as the accepted step
+    node's time route (:meth:`solver.step_problem.ProblemAssembly._time_step`, as the accepted step
     advances it), or with self-contact the space route of the solution. Carries U (J)."""
 
     name = "seabed"
@@ -402,7 +406,7 @@ class SeabedWork(WorkAccount):
     def spring_energy(run, r) -> float:
         """The spring's stored energy U (J) at the node positions r (N+1, 3) m
         (:meth:`solver.seabed.SeabedContact.stored_energy`: per cell, at its midpoint)."""
-        return run.seabed.stored_energy(r, float(run.props.ds))
+        return run.system.seabed.stored_energy(r, float(run.props.ds))
 
     def stored(self, carried) -> float:
         return float(carried)
@@ -418,10 +422,11 @@ class SeabedWork(WorkAccount):
             v = np.empty_like(r)
             rotate_rows(q, sol.Y[:, 0:3], v)
         else:
-            q, _, v, r = run._time_step(prob.h, sol.Y, run.q_time, run.r_time,
-                                        run.v_global_time,
-                                        offsets=((run.bc_offset, run.bc.cols),
-                                                 (prob.offset, prob.bc.cols)))
+            st = run.state
+            q, _, v, r = run.assembly._time_step(st, prob.h, sol.Y, st.q_time, st.r_time,
+                                                 st.v_global_time,
+                                                 offsets=((st.bc_offset, st.bc.cols),
+                                                          (prob.offset, prob.bc.cols)))
             normalize_quaternions(q)
         energy = self.spring_energy(run, r)
         return old - energy, energy
@@ -436,7 +441,7 @@ class ContactWork(WorkAccount):
     −∇U_c (the closest point is stationary along the curve), so −ΔU_c is the repulsion's
     exact work, as ½kp² is the seabed spring's. Both levels are evaluated with the
     step's candidates (``sol.candidates``) on the pose the contact acts on (the space
-    route: the old level's ``run.r``, the solution's ``sol.pose``, read off the fresh
+    route: the old level's ``run.state.r``, the solution's ``sol.pose``, read off the fresh
     evaluation the step's contact summary made there, :meth:`solver.scheme.RodSystem.
     summary_potential`); a step without
     candidates has U_c = 0 at both (no pair within the search distance, beyond every
@@ -463,10 +468,10 @@ class ContactWork(WorkAccount):
         cand = sol.candidates
         if cand is None or not cand.runs:
             return 0.0, 0.0
-        if isinstance(old, tuple) and old[1] is cand and old[2] is run.r:
+        if isinstance(old, tuple) and old[1] is cand and old[2] is run.state.r:
             u_old = old[0]
         else:
-            u_old = run.contact.potential(cand, run.r)
+            u_old = run.contact.potential(cand, run.state.r)
         # the step's contact summary evaluated the contacts afresh at these positions:
         # the same value without finding the closest points again
         r_new = sol.pose[2]
@@ -518,11 +523,11 @@ class EnergyBalance:
         accounts = [EndWork(moments_only=shape)]
         if shape:
             # with a seabed (and no self-contact) on the pose the seabed acts on
-            accounts.append(GlobalLoadWork(time_route=run.seabed is not None
+            accounts.append(GlobalLoadWork(time_route=run.system.seabed is not None
                                            and run.contact is None))
         if run.loads.has_drag:
             accounts.append(DragWork())
-        if run.seabed is not None:
+        if run.system.seabed is not None:
             accounts.append(SeabedWork())
         if run.contact is not None:
             accounts.append(ContactWork())
@@ -535,7 +540,7 @@ class EnergyBalance:
         """What the run's first level carries: its energy and kinetic energy (J) and
         each account's old data."""
         out = {a.name: a.start(run) for a in self.accounts}
-        out["energy"], out["kinetic"] = total_and_kinetic(run.Y, run.props)
+        out["energy"], out["kinetic"] = total_and_kinetic(run.state.Y, run.props)
         return out
 
     def measure(self, run, prob, sol) -> StepBalance:
@@ -550,7 +555,7 @@ class EnergyBalance:
         the tolerance kept the rod oscillating (tip 0.4-6 % off at 8 s); against T at
         the default 0.5 every Δt from 0.02 to 0.2 s settles within 0.1 % of the
         elastica."""
-        old = run.balance
+        old = run.state.balance
         work, carry = {}, {}
         for a in self.accounts:
             work[a.name], carry[a.name] = a.step(run, prob, sol, old[a.name])

@@ -216,7 +216,7 @@ class BoundaryRows:
 
         n_last: index N of the s = L node; position_error (3,) m and rotation_error (3,)
         rad: body-frame components of how far the end's prescribed position and frame lie
-        from the end of the centreline (:meth:`solver.run.RodRun.end_correction`);
+        from the end of the centreline (:meth:`solver.step_problem.ProblemAssembly.end_correction`);
         rate: 1/s. A velocity-level (Baumgarte) stabilisation of the end's position
         constraint: Baumgarte, Comput. Methods Appl. Mech. Eng. 1 (1972) 1-16."""
         off = np.zeros(self.rows.size)

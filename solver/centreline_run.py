@@ -2,8 +2,11 @@
 
 :class:`CentrelineRun` steps a :class:`solver.centreline.CentrelineRod` with the case's
 fixed Δt and hands the time loop of :func:`solver.simulation.integrate` (its recorder,
-progress, observer and checkpoints) the state in the names the seed scheme's run uses:
-``Y`` (N+1, 12) = (v, ω, f, κ) in the body frame, read off the centreline's own r, q, n,
+progress, observer and checkpoints) the state in the names the seed scheme's run uses
+(``run.state``, as :class:`solver.state.RunState`; ``run.control.refusals``,
+``run.control.last_dt``, ``run.control.guard.sigma``, as
+:class:`solver.stepping.control.StepControl`; ``run.system.seabed`` None): ``Y``
+(N+1, 12) = (v, ω, f, κ) in the body frame, read off the centreline's own r, q, n,
 m and velocities (:meth:`solver.centreline.CentrelineRod.body_fields`), ``r`` and ``q``
 as they are (one centreline: the space route, the time route and the outputs are the
 same positions, so ``position_route_difference`` and ``end_drift`` are 0 by
@@ -52,11 +55,12 @@ class CentrelineRun:
     POSE_FIELDS = frozenset({"position", "orientation", "topology"})
 
     #: what the scheme does not have yet, as the recorder reads it: no self-contact or
-    #: sea floor, no energy check, no growth guard (its rate NaN: "not checked")
+    #: sea floor, no energy check (no growth guard either: control.guard.sigma is NaN,
+    #: "not checked")
     contact = seabed = energy_check = None
     contact_count = 0
     min_gap = math.inf
-    energy_error = guard_sigma = math.nan
+    energy_error = math.nan
 
     def __init__(self, case, extra_force=None, start=None):
         if extra_force is not None:
@@ -65,55 +69,52 @@ class CentrelineRun:
         self.case = case
         self.rod = rod = CentrelineRod.from_case(case)
         self.props = rod.props
-        self.system = SimpleNamespace(needs_pose=True)
+        self.system = SimpleNamespace(needs_pose=True, seabed=None)
         self.newton = SimpleNamespace(factorizations=0, gmres_iterations=0)
-        self.refusals = {}
+        # the step control's figures in the seed scheme's names
+        self.control = SimpleNamespace(refusals={}, last_dt=case.numerics.dt,
+                                       guard=SimpleNamespace(sigma=math.nan))
         self.last_iterations = 0
         self.last_residual = 0.0
-        self.last_dt = case.numerics.dt
         Y, X, t = None, None, 0.0
-        self.phi = np.zeros(2)
-        self.work_in = 0.0
+        # the seed scheme's names of the current state (:meth:`_publish`)
+        self.state = SimpleNamespace(t=0.0, phi=np.zeros(2), work_in=0.0, seabed_work=0.0)
         if start is not None:
             Y, X = _from_start(start, rod.props.stiffness, rod.h)
             t = float(start.t)
             if start.phi is not None:
-                self.phi = np.asarray(start.phi, float).copy()
+                self.state.phi = np.asarray(start.phi, float).copy()
             if start.work_in is not None:
-                self.work_in = float(start.work_in)
+                self.state.work_in = float(start.work_in)
         try:
-            self.state = rod.start(Y, t, X)
+            # the centreline's own level (r, q, n, m and their rates)
+            self.level = rod.start(Y, t, X)
         except StepFailure as exc:
             raise CentrelineError(f"initial: the consistent start did not converge "
                                   f"({exc.reason})") from exc
-        self.phi_start = self.phi.copy()
+        self.phi_start = self.state.phi.copy()
         if start is None and (case.initial.twist_rate != 0.0
                               or case.initial.centreline is not None):
             # a twisted or curved start: Lk counts from the untwisted straight rod
             from .state import initial_end_rotations
 
-            kappa3 = rod.body_fields(self.state)["kappa"][:, 2]
-            self.phi = self.phi_start = initial_end_rotations(self.state.Y[:, 0:3],
-                                                              kappa3, rod.props.s)
+            kappa3 = rod.body_fields(self.level)["kappa"][:, 2]
+            self.phi_start = initial_end_rotations(self.level.Y[:, 0:3], kappa3,
+                                                   rod.props.s)
+            self.state.phi = self.phi_start.copy()
         self._publish()
 
     # ------------------------------------------------------------------ the state
-    @property
-    def t(self) -> float:
-        return self.state.t
-
     def _publish(self) -> None:
-        """The seed scheme's names of the current state (Y, r, q, power)."""
-        fl = self.rod.body_fields(self.state)
-        self.Y = np.concatenate([fl["v"], fl["omega"], fl["f"], fl["kappa"]], axis=1)
-        self.r = self.r_time = fl["r"]
-        self.q = self.q_time = fl["q"]
-        self.power = self._power(self.state)
-
-    @property
-    def quat_norm_error(self) -> float:
-        """The largest ||q| − 1| of the frames."""
-        return float(np.abs(np.linalg.norm(self.q, axis=1) - 1.0).max())
+        """The seed scheme's names of the current level in ``state`` (t, Y, r, q, power)."""
+        st = self.state
+        fl = self.rod.body_fields(self.level)
+        st.t = self.level.t
+        st.Y = np.concatenate([fl["v"], fl["omega"], fl["f"], fl["kappa"]], axis=1)
+        st.r = st.r_time = fl["r"]
+        st.q = st.q_time = fl["q"]
+        st.quat_norm_error = float(np.abs(np.linalg.norm(st.q, axis=1) - 1.0).max())
+        st.power = self._power(self.level)
 
     def end_drift(self) -> float:
         """0: the ends are rows of the one centreline (kept for the recorder)."""
@@ -136,7 +137,7 @@ class CentrelineRun:
     def _end_angles(self, old, new, h) -> np.ndarray:
         """The ends' rotations about a3 (rad) at the new level: a held end's prescribed
         angle (the statics' ``twist``, exact), else the trapezoid of its node's W3."""
-        phi = self.phi + 0.5 * h * (old.X[[0, -1], 5] + new.X[[0, -1], 5])
+        phi = self.state.phi + 0.5 * h * (old.X[[0, -1], 5] + new.X[[0, -1], 5])
         prob = self.rod.problem(new.t)
         for k, name in ((0, "start"), (1, "end")):
             spec = getattr(prob, name)
@@ -152,30 +153,31 @@ class CentrelineRun:
         num = self.case.numerics
         total_its = 0
         cuts = 0
-        h = t_target - self.t
-        while self.t < t_target - 1e-12 * max(1.0, t_target):
-            h = min(h, t_target - self.t)
+        st, refusals = self.state, self.control.refusals
+        h = t_target - st.t
+        while st.t < t_target - 1e-12 * max(1.0, t_target):
+            h = min(h, t_target - st.t)
             try:
-                new, its, err = self.rod.step(self.state, h)
+                new, its, err = self.rod.step(self.level, h)
             except StepFailure as exc:
-                self.refusals["newton"] = self.refusals.get("newton", 0) + 1
+                refusals["newton"] = refusals.get("newton", 0) + 1
                 cuts += 1
                 if cuts > num.max_dt_cuts:
                     raise SolverDivergence(
                         f"step to t = {t_target:.6g} s failed after {num.max_dt_cuts} Δt "
-                        f"cuts at t = {self.t:.6g} s: {exc.reason}", self.t, 0, math.inf,
+                        f"cuts at t = {st.t:.6g} s: {exc.reason}", st.t, 0, math.inf,
                         "solver_diverged") from exc
                 h /= num.dt_cut_factor
                 continue
             if not np.all(np.isfinite(new.Y)):
-                raise SolverDivergence(f"non-finite state at t = {new.t:.6g} s", self.t, 0,
+                raise SolverDivergence(f"non-finite state at t = {new.t:.6g} s", st.t, 0,
                                        math.inf, "nonfinite_state")
-            old, p_old = self.state, self.power
-            self.state = new
-            self.phi = self._end_angles(old, new, h)
+            old, p_old = self.level, st.power
+            self.level = new
+            st.phi = self._end_angles(old, new, h)
             self._publish()
-            self.work_in += 0.5 * h * (p_old + self.power)
-            total_its, self.last_residual, self.last_dt = its, err, h
+            st.work_in += 0.5 * h * (p_old + st.power)
+            total_its, self.last_residual, self.control.last_dt = its, err, h
             self.newton.factorizations = self.rod.factorizations
         self.last_iterations = total_its
         return total_its, self.last_residual

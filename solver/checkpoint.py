@@ -125,7 +125,7 @@ class Checkpoint:
     @property
     def t(self) -> float:
         """Simulated time reached, s."""
-        return float(self.run.t)
+        return float(self.run.state.t)
 
     def dumps(self) -> bytes:
         """The checkpoint as bytes: a JSON header line, then the pickle."""

@@ -55,40 +55,41 @@ def warm_up() -> None:
     contact = run.contact
     cand = contact._runs(np.array([0, 0, 8], np.intp), np.array([3, 4, 4], np.intp))
     sysm = run.system
-    sysm.begin_step(0.01, run.params, run.t + 0.01, run.Y, run.Ydot, run.F_old, run.bc,
-                    q_old=run.q, r_old=run.r, v_old_global=run.v_global, candidates=cand)
-    run.newton.feasible_start(run.Y)
-    pose = run.newton.solve(run.Y)[5]
-    sysm.contact_summary(pose[2], run.v_global, False)
+    st = run.state
+    sysm.begin_step(0.01, run.assembly.params, st.t + 0.01, st.Y, st.Ydot, st.F_old, st.bc,
+                    q_old=st.q, r_old=st.r, v_old_global=st.v_global, candidates=cand)
+    run.newton.feasible_start(run.state.Y)
+    pose = run.newton.solve(run.state.Y)[5]
+    sysm.contact_summary(pose[2], run.state.v_global, False)
     sysm.summary_potential(pose[2])                      # the energy check's contact account
-    sysm.residual(run.Y, want_jacobian=True)
-    sysm.candidate_gaps(run.Y)
-    contact.evaluate(cand, run.r, run.v_global)
-    contact.closest(cand, run.r)
-    contact.closest(cand, run.r, np.zeros(cand.runs, np.intp))
-    writhe(run.r)
-    twist(run.Y[:, 11], run.props.s)
-    energies(run.Y, run.props)
+    sysm.residual(run.state.Y, want_jacobian=True)
+    sysm.candidate_gaps(run.state.Y)
+    contact.evaluate(cand, run.state.r, run.state.v_global)
+    contact.closest(cand, run.state.r)
+    contact.closest(cand, run.state.r, np.zeros(cand.runs, np.intp))
+    writhe(run.state.r)
+    twist(run.state.Y[:, 11], run.props.s)
+    energies(run.state.Y, run.props)
     # the writhe of a long rod sums its pairs on all cores (solver.topology)
     writhe(np.column_stack([np.cos(np.arange(PARALLEL_SEGMENTS + 1.0)), np.sin(
         np.arange(PARALLEL_SEGMENTS + 1.0)), np.arange(PARALLEL_SEGMENTS + 1.0)]))
     _warm_up_search(contact, cand)
     # the error filter of error-controlled steps (the inertia's cell rows, the band LU)
-    run.newton.filtered(run.Y)
+    run.newton.filtered(run.state.Y)
     # the Python faces of the kernels that runs without contact or with dense output use
     run.update_space_route()
-    quat_slerp(run.q[0], run.q[-1], 0.5)
+    quat_slerp(run.state.q[0], run.state.q[-1], 0.5)
     right_jacobian(np.ones((2, 3)))
-    point_segment(run.r[:2], run.r[1:3], run.r[2:4])
-    point_curve(run.r[:2], run.r, np.array([2, 3], np.intp))
-    run_minima(run.r, cand.owner, cand.segment, cand.run_start)
+    point_segment(run.state.r[:2], run.state.r[1:3], run.state.r[2:4])
+    point_curve(run.state.r[:2], run.state.r, np.array([2, 3], np.intp))
+    run_minima(run.state.r, cand.owner, cand.segment, cand.run_start)
     law = contact.law
     d = np.array([0.021, 0.03])
     law(d, np.zeros(2), np.full(2, 0.02), np.ones(2))
     law.repulsion(d - 0.02)
     law.cutoff(np.full(2, 0.02))
     law.potential(d, np.full(2, 0.02))                   # the energy check's contact account
-    contact.potential(cand, run.r)
+    contact.potential(cand, run.state.r)
     smoothstep_off(d, np.full(2, 0.02), np.full(2, 0.04))
     # statics: the band Jacobian, the compiled residual and the band LU's product
     from . import statics

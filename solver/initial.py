@@ -351,21 +351,22 @@ def initial_state(case, s, start=None):
             float(start.t))
 
 
-def apply_start(run, start) -> None:
-    """Set the rest of a run's state from a :class:`StartState` (after
-    :func:`initial_state` set the pose, the unknowns and the time): the time route of
-    every node is the start's pose, the global velocities R v, and the end rotations and
-    the work put in where the start has them."""
+def apply_start(state, start) -> None:
+    """Set the rest of a run's state (:class:`solver.state.RunState`) from a
+    :class:`StartState` (after :func:`initial_state` set the pose, the unknowns and the
+    time): the time route of every node is the start's pose, the global velocities R v,
+    and the end rotations and the work put in where the start has them."""
     from .kinematics import rotate_rows
 
-    run.q_time, run.r_time = run.q.copy(), run.r.copy()
-    run.v_global = np.empty_like(run.r)
-    rotate_rows(np.ascontiguousarray(run.q), np.ascontiguousarray(run.Y[:, 0:3]), run.v_global)
-    run.v_global_time = run.v_global.copy()
+    state.q_time, state.r_time = state.q.copy(), state.r.copy()
+    state.v_global = np.empty_like(state.r)
+    rotate_rows(np.ascontiguousarray(state.q), np.ascontiguousarray(state.Y[:, 0:3]),
+                state.v_global)
+    state.v_global_time = state.v_global.copy()
     if start.phi is not None:
-        run.phi = np.array(start.phi, dtype=float)
+        state.phi = np.array(start.phi, dtype=float)
     if start.work_in is not None:
-        run.work_in = float(start.work_in)
+        state.work_in = float(start.work_in)
 
 
 def start_step(case, start) -> int:

@@ -82,7 +82,7 @@ class RodProperties:
         with the rotary inertia of a Rayleigh beam, ω² = EJ1 k⁴/(m + ρJ1 k²) (m the
         translational mass per length with added mass), and the torsional frequency
         ω = k·√(GJ3/ρJ3) of the wave equation GJ3 ∂²φ/∂s² = ρJ3 ∂²φ/∂t² (both: Graff,
-        Wave Motion in Elastic Solids, 1975). What :meth:`solver.run.RodRun.end_correction`
+        Wave Motion in Elastic Solids, 1975). What :meth:`solver.step_problem.ProblemAssembly.end_correction`
         floors its time constant with. Raises nothing (the properties are positive)."""
         k = np.pi / self.ds
         bending = np.sqrt(self.stiffness[:, 0] * k**4

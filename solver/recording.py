@@ -147,7 +147,7 @@ def snapshot(run, fields: set, route_current: bool = False, pose=None) -> dict:
     the run's own, :meth:`solver.run.RodRun.seabed_loads`). Shapes and units:
     :func:`solver.results.build_dataset`."""
     out = {}
-    Y = run.Y
+    Y = run.state.Y
     if not run.system.needs_pose and not route_current:
         run.update_space_route()
     if "v" in fields:
@@ -161,17 +161,17 @@ def snapshot(run, fields: set, route_current: bool = False, pose=None) -> dict:
     if "moment" in fields:
         out["moment"] = run.props.stiffness * Y[:, 9:12]
     if "position" in fields:
-        out["position"] = run.r.copy()
+        out["position"] = run.state.r.copy()
     if "orientation" in fields:
-        out["orientation"] = run.q.copy()
+        out["orientation"] = run.state.q.copy()
     if "energies" in fields:
         out.update(energies(Y, run.props))
-        out["work_in"] = run.work_in
-        out["power_in"] = run.power
+        out["work_in"] = run.state.work_in
+        out["power_in"] = run.state.power
     if "topology" in fields:
         out.update(_topology(run))
     if "reactions" in fields:
-        out.update(end_reactions(Y, run.q, run.props.stiffness))
+        out.update(end_reactions(Y, run.state.q, run.props.stiffness))
     if "contact" in fields:
         out["contact_count"] = run.contact_count
         out["min_surface_gap"] = run.min_gap
@@ -179,14 +179,14 @@ def snapshot(run, fields: set, route_current: bool = False, pose=None) -> dict:
         radius, s_min = min_bend_radius(Y[:, 9:12], run.props.s)
         out["bend_radius_min"] = float(radius)
         out["bend_radius_min_s"] = float(s_min)
-    if run.seabed is not None:
+    if run.system.seabed is not None:
         out.update(_seabed(run, pose))
     out["newton_iterations"] = run.last_iterations
     out["residual_norm"] = run.last_residual
-    out["dt"] = run.last_dt
-    out["position_route_difference"] = max_distance(run.r_time, run.r)
+    out["dt"] = run.control.last_dt
+    out["position_route_difference"] = max_distance(run.state.r_time, run.state.r)
     out["end_drift"] = run.end_drift()
-    out["quaternion_norm_error"] = run.quat_norm_error
+    out["quaternion_norm_error"] = run.state.quat_norm_error
     return out
 
 
@@ -199,17 +199,18 @@ def _seabed(run, pose) -> dict:
     Fn, Ff, _, pen = run.seabed_loads(pose)
     s = run.props.s
     return {"seabed_force": Fn, "seabed_friction": Ff,
-            "seabed_contact_length": contact_length(pen, s, hover_gap(2.0 * run.seabed.radius)),
-            "seabed_touchdown": touchdown(pen, s), "seabed_work": run.seabed_work}
+            "seabed_contact_length": contact_length(pen, s,
+                                                    hover_gap(2.0 * run.system.seabed.radius)),
+            "seabed_touchdown": touchdown(pen, s), "seabed_work": run.state.seabed_work}
 
 
 def _topology(run) -> dict:
     """Twist, writhe and linking number of the run's state (turns; docs/topology.md)."""
     from .topology import linking_number, twist, writhe
 
-    tw = twist(run.Y[:, 11], run.props.s)
-    wr = writhe(run.r)
-    lk = linking_number(run.phi[0], run.phi[1])
+    tw = twist(run.state.Y[:, 11], run.props.s)
+    wr = writhe(run.state.r)
+    lk = linking_number(run.state.phi[0], run.state.phi[1])
     # the open rod's writhe is that of the curve closed by its end tangents'
     # extensions; a passage of the rod through them changes it by ±2 with no
     # self-crossing. With self-contact, true crossings are refused by the step
@@ -253,9 +254,9 @@ def closure_warning(case, times, passages) -> str | None:
 def dense_state(run):
     """What :func:`interpolated_snapshot` needs of the level a step starts from (the
     accepted-step path rebinds every array it changes, so references suffice)."""
-    return (run.t, run.Y, run.Ydot, run.q_time, run.r_time, run.v_global_time,
-            run.phi, run.xdot_end[:, 5], run.work_in, run.power, run.seabed_work,
-            run.seabed_power)
+    st = run.state
+    return (st.t, st.Y, st.Ydot, st.q_time, st.r_time, st.v_global_time, st.phi,
+            st.xdot_end[:, 5], st.work_in, st.power, st.seabed_work, st.seabed_power)
 
 
 def interpolated_snapshot(run, fields: set, t: float, start) -> dict:
@@ -275,34 +276,36 @@ def interpolated_snapshot(run, fields: set, t: float, start) -> dict:
     energies). Returns the snapshot dict.
     """
     t0, Y0, D0, q0, r0, v0, phi0, dphi0, w0, p0 = start[:10]
-    h = run.t - t0
+    h = run.state.t - t0
     s = (t - t0) / h
+    st = run.state
+    # the run with the interpolated state (its methods read the view's state)
     view = copy.copy(run)
-    view.state = copy.copy(run.state)
-    view.t = t
-    view.Y = hermite(s, h, Y0, D0, run.Y, run.Ydot)
-    view.r_time = hermite(s, h, r0, v0, run.r_time, run.v_global_time)
-    view.q_time = run.q_time.copy()
-    view.q_time[0] = quat_slerp(q0[0], run.q_time[0], s)
-    view.phi = hermite(s, h, phi0, dphi0, run.phi, run.xdot_end[:, 5])
-    view.work_in = float(hermite(s, h, w0, p0, run.work_in, run.power))
-    view.power = (1.0 - s) * p0 + s * run.power
+    view.state = vs = copy.copy(st)
+    vs.t = t
+    vs.Y = hermite(s, h, Y0, D0, st.Y, st.Ydot)
+    vs.r_time = hermite(s, h, r0, v0, st.r_time, st.v_global_time)
+    vs.q_time = st.q_time.copy()
+    vs.q_time[0] = quat_slerp(q0[0], st.q_time[0], s)
+    vs.phi = hermite(s, h, phi0, dphi0, st.phi, st.xdot_end[:, 5])
+    vs.work_in = float(hermite(s, h, w0, p0, st.work_in, st.power))
+    vs.power = (1.0 - s) * p0 + s * st.power
     pose = None
-    if run.seabed is not None:
+    if run.system.seabed is not None:
         # the seabed on the interpolated time route (each node's own positions), with
         # its velocities linear across the step and the frames of the step's end
-        view.seabed_work = float(hermite(s, h, start[10], start[11], run.seabed_work,
-                                         run.seabed_power))
-        pose = (run.q_time if run.contact is None else view.q, view.r_time,
-                (1.0 - s) * v0 + s * run.v_global_time)
+        vs.seabed_work = float(hermite(s, h, start[10], start[11], st.seabed_work,
+                                       st.seabed_power))
+        pose = (st.q_time if run.contact is None else vs.q, vs.r_time,
+                (1.0 - s) * v0 + s * st.v_global_time)
     if fields & run.POSE_FIELDS or not run.system.needs_pose:
         view.update_space_route()
         if pose is not None and run.contact is not None:
-            pose = (view.q, view.r, view.v_global)
+            pose = (vs.q, vs.r, vs.v_global)
         return snapshot(view, fields, route_current=True, pose=pose)
     out = snapshot(view, fields, route_current=True, pose=pose)
     out["position_route_difference"] = float(
-        max_distance(run.r_time, run.r))
+        max_distance(run.state.r_time, run.state.r))
     out["end_drift"] = run.end_drift()
     return out
 
@@ -346,13 +349,13 @@ class OutputRecorder:
             # the energy check's series (a checkpoint written without it: NaN before)
             self.diag["step_energy_error"] = [float("nan")] * len(self.diag["step_time"])
         self.last_checkpoint = _time.perf_counter()
-        self.refused_before = sum(run.refusals.values())
+        self.refused_before = sum(run.control.refusals.values())
         self.budget = case.numerics.wall_clock_budget
         self.rate = EtaModel()
         # how far the start pose lies from the case's centreline (None: no centreline); a
         # fresh run is at its start pose
         self.start_offset = start_offset(case, run.props.s, run.props.diameter,
-                                         r=run.r if resume is None else None)
+                                         r=run.state.r if resume is None else None)
 
     def save(self) -> None:
         """Hand a checkpoint of the last accepted state to the checkpoint hook."""
@@ -367,7 +370,7 @@ class OutputRecorder:
         """Keep the state now, or (error-controlled steps) at t inside the last step,
         which began at the dense state ``start``."""
         if t is None:
-            self.times.append(self.run.t)
+            self.times.append(self.run.state.t)
             self.records.append(snapshot(self.run, self.fields))
         else:
             self.times.append(t)
@@ -402,7 +405,7 @@ class OutputRecorder:
         ds.attrs["factorizations"] = run.newton.factorizations
         ds.attrs["gmres_iterations"] = run.newton.gmres_iterations
         ds.attrs["hockle_refused_attempts"] = ", ".join(
-            f"{k} {v}" for k, v in sorted(run.refusals.items()))
+            f"{k} {v}" for k, v in sorted(run.control.refusals.items()))
         if self.resume is not None:
             ds.attrs["hockle_resumed_at"] = self.resume.t
         off = self.start_offset
@@ -421,23 +424,23 @@ class OutputRecorder:
             flag = should_stop()
             if flag:
                 reason = flag if isinstance(flag, str) else "stopped"
-                return self.finish("stopped", f"stopped at t = {run.t:.6g} s: {reason}",
+                return self.finish("stopped", f"stopped at t = {run.state.t:.6g} s: {reason}",
                                    reason)
         if self.budget is not None and _time.perf_counter() - self.wall0 > self.budget:
             return self.finish("stopped", f"wall-clock budget of {self.budget} s exceeded "
-                               f"at t = {run.t:.6g} s", "timeout")
+                               f"at t = {run.state.t:.6g} s", "timeout")
         return None
 
     def accepted(self, step, its, res):
         """Diagnostics, progress, checkpoint and observer after an accepted (nominal or
         error-controlled) step; the partial dataset when the observer stops the run."""
         run, diag = self.run, self.diag
-        diag["step_time"].append(run.t)
-        diag["step_dt"].append(run.last_dt)
+        diag["step_time"].append(run.state.t)
+        diag["step_dt"].append(run.control.last_dt)
         diag["step_newton_iterations"].append(its)
         diag["step_residual_norm"].append(res)
-        diag["step_growth_rate"].append(run.guard_sigma)
-        refused = sum(run.refusals.values())
+        diag["step_growth_rate"].append(run.control.guard.sigma)
+        refused = sum(run.control.refusals.values())
         diag["step_rejected_attempts"].append(refused - self.refused_before)
         if "step_energy_error" in diag:
             diag["step_energy_error"].append(run.energy_error)
@@ -448,11 +451,11 @@ class OutputRecorder:
         if progress is not None:
             wall = _time.perf_counter() - self.wall0
             t_end = self.case.numerics.t_end
-            progress(Progress(t=run.t, t_end=t_end, step=step, dt=run.last_dt,
+            progress(Progress(t=run.state.t, t_end=t_end, step=step, dt=run.control.last_dt,
                               newton_iterations=its, residual_norm=res,
-                              wall_time=wall, fraction=min(1.0, run.t / t_end),
+                              wall_time=wall, fraction=min(1.0, run.state.t / t_end),
                               contact_count=run.contact_count,
-                              eta_seconds=self.rate.update(wall, run.t, t_end,
+                              eta_seconds=self.rate.update(wall, run.state.t, t_end,
                                                             run.contact_count)))
         if _time.perf_counter() - self.last_checkpoint >= self.hooks["checkpoint_interval"]:
             self.save()
@@ -467,9 +470,9 @@ class OutputRecorder:
         if not flag:
             return None
         reason = flag if isinstance(flag, str) else "observer"
-        if not self.times or self.times[-1] != run.t:
+        if not self.times or self.times[-1] != run.state.t:
             self.record()                     # the state the observer stopped at
-        return self.finish("stopped", f"stopped at t = {run.t:.6g} s: {reason}", reason)
+        return self.finish("stopped", f"stopped at t = {run.state.t:.6g} s: {reason}", reason)
 
     def failed(self, exc, step):
         """Put the steps done and the partial dataset on a SolverDivergence ``exc``; its

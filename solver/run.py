@@ -2,24 +2,24 @@
 
 :class:`RodRun` owns the parts a step needs and tries one step:
 
-* the state (:class:`solver.state.RunState`: Y, Ẏ, the previous levels, the poses, the
-  end rotations, the energy accounts), exposed as the run's attributes (``run.Y``,
-  ``run.t``, ...);
-* the step control (:class:`solver.stepping.control.StepControl`), which chooses the
-  steps and calls :meth:`RodRun.try_step`; its attributes (``run.h_next``,
-  ``run.refusals``, the growth guard's ``run.guard_sigma``, ...) are exposed too;
-* the step's problem (:class:`solver.step_problem.ProblemAssembly`: boundary rows, loads,
-  contact candidates from :class:`solver.contact.search.CandidateSearch`), handed to
-  Newton (:class:`solver.newton.NewtonSolver`).
+* the state (``run.state``, :class:`solver.state.RunState`: Y, Ẏ, the previous levels,
+  the poses, the end rotations, the energy accounts: ``run.state.Y``, ``run.state.t``);
+* the step control (``run.control``, :class:`solver.stepping.control.StepControl`), which
+  chooses the steps and calls :meth:`RodRun.try_step` (``run.control.h_next``,
+  ``run.control.refusals``, the growth guard's ``run.control.guard.sigma``);
+* the step's problem (``run.assembly``, :class:`solver.step_problem.ProblemAssembly`:
+  boundary rows, loads, contact candidates from
+  :class:`solver.contact.search.CandidateSearch`), handed to Newton
+  (:class:`solver.newton.NewtonSolver`).
 
-:func:`solver.simulation.integrate` drives it; tests and benchmarks use it to reach the
-state between steps.
+The run's attributes are its own (no property forwards to the state or the step control);
+the sea floor is the system's (``run.system.seabed``). :func:`solver.simulation.integrate`
+drives it; tests and benchmarks use it to reach the state between steps.
 """
 from __future__ import annotations
 
 import copy
 import math
-import operator
 
 import numpy as np
 
@@ -44,7 +44,7 @@ from .stepping.control import Attempt, StepControl
 __all__ = ["RodRun"]
 
 
-class RodRun(ProblemAssembly):
+class RodRun:
     """The state of one run, its step control, and one step; :func:`solver.integrate` drives it.
 
     Exposed for tests and benchmarks that need the state between steps.
@@ -101,24 +101,25 @@ class RodRun(ProblemAssembly):
         self.newton = NewtonSolver(self.system, num.newton.tolerance, num.newton.max_iterations)
         if self.contact is not None:
             self.newton.position_tolerance = self.route_tolerance
-        self.params = alpha_parameters(num.rho_inf)
         self.state = RunState.at_rest(case, props.s, start)
         # the boundary rows at any time, from the case's plan of conditions
-        self.bc_schedule = BoundarySchedule(case, props, self.system.n)
-        if any(len(choice) > 5 and choice[5] for _, choices in self.bc_schedule.plan
+        schedule = BoundarySchedule(case, props, self.system.n)
+        if any(len(choice) > 5 and choice[5] for _, choices in schedule.plan
                for choice in choices):
             # an end towed with its rotation free: its boundary rows need the new frames
             self.system.needs_pose = True
-        self.state.bc = self.bc_schedule.at(self.state.t)
+        self.state.bc = schedule.at(self.state.t)
+        # the step's problem and its Newton solve (the boundary schedule and the time
+        # scheme's parameters live there)
+        self.assembly = ProblemAssembly(case, props, self.system, self.newton, schedule,
+                                        alpha_parameters(num.rho_inf), self.contact,
+                                        self.search)
         self.control = StepControl(case, *self._controllers())
-        # the last attempt: its error ratio (NaN: not estimated), why it was refused
-        # ("newton", "contact", "error", "growth", "energy", "drift"; None: accepted),
-        # whether it had contact candidates, its route ratio; the last accepted step's
+        # why the last attempt was refused ("newton", "contact", "error", "growth",
+        # "energy", "drift"; None: accepted), which the next step's time scheme reads
+        # (its Attempt carries it and the rest of its figures); the last accepted step's
         # Newton figures and contacts
-        self.last_error_ratio = math.nan
         self.last_reject = None
-        self.last_had_candidates = False
-        self.last_route_ratio = math.nan
         self.last_iterations = 0
         self.last_residual = 0.0
         self.contact_count = 0
@@ -166,12 +167,12 @@ class RodRun(ProblemAssembly):
         pose = ((quat_to_matrix(st.q), np.zeros((props.s.size, 3)), 0.0)
                 if self.system.needs_pose else None)
         st.F_old, _ = self.system.node_terms(st.Y, False, pose, glob)
-        if self.seabed is not None:
+        if self.system.seabed is not None:
             # the sea floor's loads are cell terms, not node terms: each step's residual
             # takes their old level from the old pose (solver.seabed.seabed_into)
             Fn, Ff, M, _ = self.seabed_loads()
             st.seabed_power = self._seabed_power(Fn + Ff, M)
-        st.body_force = self.loads.with_points(self._body_force(glob, pose), st.t,
+        st.body_force = self.loads.with_points(ProblemAssembly._body_force(glob, pose), st.t,
                                                None if pose is None else pose[0])
         st.power = end_power(st.Y, props) + distributed_power(st.Y, st.body_force, props)
         st.end_load = end_loads(st.Y, props)
@@ -183,45 +184,52 @@ class RodRun(ProblemAssembly):
         when the step lands on a breakpoint, with ``left_limit`` so that the loads are
         their left limit there). ``restart``: a backward-Euler restart step
         (:mod:`solver.stepping`); ``estimate=False``: no error estimate (the steps of a
-        step-doubling estimate). On success the state advances and Attempt(True,
-        iterations, residual) is returned; on failure the state is untouched and the
-        Attempt has ok False and the reason (also in ``last_reject``, which an accepted
-        attempt sets to None): Newton's or :meth:`_refusal`'s, or "drift" where the step
-        passes them but leaves the s = L end beyond ``contact.end_drift_tolerance`` from
-        its prescribed motion (:meth:`drifts_off`; the step control then ends the run)."""
-        self.last_route_ratio = math.nan
-        prob = self.step_problem(h, t_new, left_limit, restart)
-        sol = self.solve_problem(prob)
-        reason = sol.reason
+        step-doubling estimate). On success the state advances and an accepted
+        :class:`Attempt` is returned; on failure the state is untouched and the Attempt
+        has ok False and the reason: Newton's or :meth:`_refusal`'s, or "drift" where the
+        step passes them but leaves the s = L end beyond ``contact.end_drift_tolerance``
+        from its prescribed motion (:meth:`drifts_off`; the step control then ends the
+        run). Either way the Attempt carries what the step control decides by: its error
+        and route ratios where they were measured and whether it had contact candidates.
+        The run keeps the reason in ``last_reject`` (None after an accepted attempt) for
+        the next step's time scheme (``ProblemAssembly.BACKWARD_EULER_AFTER``)."""
+        asm, st = self.assembly, self.state
+        prob = asm.step_problem(st, h, t_new, left_limit, restart, self.predictor,
+                                self.last_reject)
+        had = prob.candidates is not None
+        sol = asm.solve_problem(st, prob)
+        reason, summary, ratios = sol.reason, None, {}
         if reason is None:
-            reason, summary = self._refusal(prob, sol, estimate)
+            reason, summary, ratios = self._refusal(prob, sol, estimate)
         timed = None
         if reason is None:
             timed = self._time_route(prob, sol)
-            if self.drifts_off(prob, sol, timed[3][-1]):
+            if asm.drifts_off(prob, sol, timed[3][-1]):
                 reason = "drift"             # the end strays off its prescribed motion
         if reason is not None:
             self.last_reject = reason
-            return Attempt(False, sol.iterations, sol.residual, sol.nonfinite, reason)
+            return Attempt(False, sol.iterations, sol.residual, sol.nonfinite, reason,
+                           had_candidates=had, **ratios)
         self._accept(prob, sol, summary, timed)
         self.last_reject = None
-        return Attempt(True, sol.iterations, sol.residual)
+        return Attempt(True, sol.iterations, sol.residual, had_candidates=had, **ratios)
 
     def _refusal(self, prob, sol, estimate):
-        """Why a converged step must be refused (None: it passes) and its contact summary
-        (count, smallest gap m). The checks, in order: interpenetration; the local error:
-        the route rule where strands may meet (a node's trapezoidal step in time against
-        the κ-integrated centreline) and, with numerics.tolerance, the estimate of
-        :class:`solver.stepping.ErrorControl`, their ratios to their tolerances (in steps
-        with contact candidates only the route rule: there the estimate follows the stiff
-        law's impact transients; the seed case at tolerance 1e-2 ran its first loop at
-        5e-4 s steps, 20x the route rule's, which keeps its events within 0.001 s of a
-        6.25-ms reference; docs/numerics.md § 7); a strand through another within the
-        step; the energy balance (:mod:`solver.balance`, ``numerics.energy_tolerance``;
-        not in restarts; in steps with contact candidates with the contact law's account);
-        the growth guard."""
+        """Why a converged step must be refused (None: it passes), its contact summary
+        (count, smallest gap m) and the ratios it measured (a dict of the :class:`Attempt`'s
+        ``route_ratio`` and ``error_ratio``, those measured). The checks, in order:
+        interpenetration; the local error: the route rule where strands may meet (a node's
+        trapezoidal step in time against the κ-integrated centreline) and, with
+        numerics.tolerance, the estimate of :class:`solver.stepping.ErrorControl`, their
+        ratios to their tolerances (in steps with contact candidates only the route rule:
+        there the estimate follows the stiff law's impact transients; the seed case at
+        tolerance 1e-2 ran its first loop at 5e-4 s steps, 20x the route rule's, which keeps
+        its events within 0.001 s of a 6.25-ms reference; docs/numerics.md § 7); a strand
+        through another within the step; the energy balance (:mod:`solver.balance`,
+        ``numerics.energy_tolerance``; not in restarts; in steps with contact candidates
+        with the contact law's account); the growth guard."""
         Y, pose, cand, h = sol.Y, sol.pose, sol.candidates, prob.h
-        summary = None
+        summary, ratios = None, {}
         if self.contact is not None:
             contact_count, min_gap = 0, math.inf
             if cand is not None and cand.runs:
@@ -233,34 +241,34 @@ class RodRun(ProblemAssembly):
                                                                      not frozen)
             summary = (contact_count, min_gap)
             if min_gap < 0.0:
-                return "contact", summary    # the surfaces interpenetrate
+                return "contact", summary, ratios    # the surfaces interpenetrate
         ratio = 0.0
         if self.contact is not None:
-            self.last_step_error = self._local_error(h, Y, pose[2])
-            ratio = self.last_route_ratio = self.last_step_error / self.route_tolerance
-            if self.errctl is None and ratio > 1.0:
-                return "contact", summary
-        if self.errctl is not None and not prob.restart and estimate:
+            self.last_step_error = self.assembly._local_error(self.state, h, Y, pose[2])
+            ratio = ratios["route_ratio"] = self.last_step_error / self.route_tolerance
+            if self.control.errctl is None and ratio > 1.0:
+                return "contact", summary, ratios
+        if self.control.errctl is not None and not prob.restart and estimate:
             if cand is None:
-                ratio = max(ratio, self.errctl.ratio(prob.t_new, Y, self.Y,
+                ratio = max(ratio, self.control.errctl.ratio(prob.t_new, Y, self.state.Y,
                                                      self.newton.filtered))
-            self.last_error_ratio = ratio      # NaN: not estimated (after a restart)
+            ratios["error_ratio"] = ratio      # not estimated in restarts
             if ratio > 1.0:
-                return "error", summary
-        if self.contact is not None and self.contact.passes_through(self.r, pose[2]):
-            return "contact", summary        # a strand passed through another
+                return "error", summary, ratios
+        if self.contact is not None and self.contact.passes_through(self.state.r, pose[2]):
+            return "contact", summary, ratios    # a strand passed through another
         self.last_balance = None
         if (self.energy_check is not None and not prob.restart
                 and (cand is None or self.energy_check.contact_steps)):
-            if self.balance is None:         # after a restart
-                self.balance = self.energy_check.start(self)
+            if self.state.balance is None:         # after a restart
+                self.state.balance = self.energy_check.start(self)
             self.last_balance = self.energy_check.measure(self, prob, sol)
             if self.energy_check.refuses(self.last_balance):
-                return "energy", summary     # the step put in energy no load gave
-        if self.growth_guard is not None and not prob.restart and cand is None:
+                return "energy", summary, ratios     # the step put in energy no load gave
+        if self.control.guard.limit is not None and not prob.restart and cand is None:
             if not self.control.guard.ok(self.system, h, Y):
-                return "growth", summary
-        return None, summary
+                return "growth", summary, ratios
+        return None, summary, ratios
 
     def _time_route(self, prob, sol):
         """Every node advanced in time by the step of ``prob`` to its solution ``sol`` on
@@ -269,15 +277,14 @@ class RodRun(ProblemAssembly):
         discretisation-error indicator), the end rotations of the linking number, and node
         N's prescribed motion (:meth:`drifts_off`)."""
         st = self.state
-        return self._time_step(prob.h, sol.Y, st.q_time, st.r_time, st.v_global_time,
+        return self.assembly._time_step(st, prob.h, sol.Y, st.q_time, st.r_time, st.v_global_time,
                                offsets=((st.bc_offset, st.bc.cols),
                                         (prob.offset, prob.bc.cols)))
 
     def _accept(self, prob, sol, summary, timed) -> None:
         """Advance the state to the accepted solution of the step's problem, ``timed`` its
         time route (:meth:`_time_route`) (the state's fields read and written on
-        ``self.state`` itself, not through the run's delegating attributes: this runs at
-        every step)."""
+        ``self.state``)."""
         st = self.state
         Y, pose, h, bc, restart = sol.Y, sol.pose, prob.h, prob.bc, prob.restart
         g = prob.params.gamma
@@ -305,7 +312,7 @@ class RodRun(ProblemAssembly):
         if not restart:
             self.control.guard.since += 1
         if prob.predictions is not None and "quadratic" in prob.predictions:
-            self.predictor = self._better_predictor(Y, prob.predictions)
+            self.predictor = self.assembly._better_predictor(Y, prob.predictions)
         # after a restart the old level is inconsistent (f jumped): no extrapolation
         if restart:
             st.Y_prev2 = st.h_prev2 = st.Y_prev = st.h_prev = None
@@ -323,10 +330,10 @@ class RodRun(ProblemAssembly):
             st.v_global = np.empty_like(st.r)
             rotate_rows(q, Y[:, 0:3], st.v_global)
             if prob.switched:
-                self._hold_from_here(prev_bc, bc)
+                self.assembly._hold_from_here(st, prev_bc, bc)
         elif self.system.needs_pose:
-            self.update_space_route()
-        if self.seabed is not None:
+            self.assembly.update_space_route(st)
+        if self.system.seabed is not None:
             self._advance_seabed_work(h)
         self.last_iterations, self.last_residual = sol.iterations, sol.residual
 
@@ -334,8 +341,8 @@ class RodRun(ProblemAssembly):
         """(q, r, ṙ) the seabed acts on: the pose the steps carry with self-contact (the
         space route), else each node's time route (:meth:`solve_problem`)."""
         if self.contact is not None:
-            return self.q, self.r, self.v_global
-        return self.q_time, self.r_time, self.v_global_time
+            return self.state.q, self.state.r, self.state.v_global
+        return self.state.q_time, self.state.r_time, self.state.v_global_time
 
     def seabed_loads(self, pose=None):
         """The seabed's (normal reaction, friction, moment) per unit length (N+1, 3),
@@ -343,13 +350,13 @@ class RodRun(ProblemAssembly):
         pose (:meth:`_seabed_pose`; or pose = (q, r, ṙ) given), by
         :meth:`solver.seabed.SeabedContact.loads`."""
         q, r, v = self._seabed_pose() if pose is None else pose
-        return self.seabed.loads(r, v, quat_to_matrix(q), self.Y[:, 3:6])
+        return self.system.seabed.loads(r, v, quat_to_matrix(q), self.state.Y[:, 3:6])
 
     def _seabed_power(self, F, M):
         """Power of the seabed's loads F, M (N+1, 3) on the current level, W: ∫ (F·ṙ +
         M·Ω) ds with the quadrature weights (Ω = R ω the global angular velocity)."""
         q, _, v = self._seabed_pose()
-        omega = np.einsum("nij,nj->ni", quat_to_matrix(q), self.Y[:, 3:6])
+        omega = np.einsum("nij,nj->ni", quat_to_matrix(q), self.state.Y[:, 3:6])
         per = np.einsum("ni,ni->n", F, v) + np.einsum("ni,ni->n", M, omega)
         return float(per @ self.props.quad_weights)
 
@@ -359,8 +366,8 @@ class RodRun(ProblemAssembly):
         friction and damping, and the spring's energy)."""
         Fn, Ff, M, _ = self.seabed_loads()
         power = self._seabed_power(Fn + Ff, M)
-        self.seabed_work = self.seabed_work + 0.5 * h * (self.seabed_power + power)
-        self.seabed_power = power
+        self.state.seabed_work = self.state.seabed_work + 0.5 * h * (self.state.seabed_power + power)
+        self.state.seabed_power = power
 
     def _advance_accounts(self, prob, Y, pose) -> None:
         """The end rotations φ and the work and power of the loads over an accepted step
@@ -373,7 +380,7 @@ class RodRun(ProblemAssembly):
         props, params, h = self.props, prob.params, prob.h
         g, am, af = params.gamma, params.alpha_m, params.alpha_f
         glob = self.system.step.glob_force
-        body = self._body_force(glob, None if pose is None else (pose[1],))
+        body = ProblemAssembly._body_force(glob, None if pose is None else (pose[1],))
         body = self.loads.with_points(body, prob.t_new, None if pose is None else pose[1],
                                       prob.left_limit)
         st = self.state                 # read and written directly (every step)
@@ -424,20 +431,35 @@ class RodRun(ProblemAssembly):
         own["state"] = copy.copy(self.state)
         return (own, dict(self.control.__dict__),
                 self.search.verlet if self.search is not None else None,
-                self.errctl.state() if self.errctl is not None else None)
+                self.control.errctl.state() if self.control.errctl is not None else None)
 
-    def _restore(self, saved) -> None:
-        """Return to a :meth:`_state` (which stays valid for another restore)."""
+    def _restore(self, saved, refused=None) -> None:
+        """Return to a :meth:`_state` (which stays valid for another restore). ``refused``:
+        the reason of a refused attempt that the restore takes back, kept for the next
+        step's time scheme (``last_reject``; None: the saved one)."""
         own, control, verlet, errctl = saved
         self.__dict__.update(own)
+        if refused is not None:
+            self.last_reject = refused
         self.state = copy.copy(own["state"])
         self.control.__dict__.update(control)
         if self.search is not None:
             self.search.verlet = verlet
-        if self.errctl is not None:
-            self.errctl.restore(errctl)
+        if self.control.errctl is not None:
+            self.control.errctl.restore(errctl)
 
     # ------------------------------------------------------------- outputs
+    def end_drift(self) -> float:
+        """How far the carried s = L end is from its prescribed motion now, m
+        (:meth:`solver.step_problem.ProblemAssembly.end_drift`; the output ``end_drift``)."""
+        return self.assembly.end_drift(self.state)
+
+    def update_space_route(self) -> None:
+        """The state's centreline and frames integrated from its κ
+        (:meth:`solver.step_problem.ProblemAssembly.update_space_route`), for the outputs
+        where the steps do not keep them."""
+        self.assembly.update_space_route(self.state)
+
     def snapshot(self, fields: set, route_current: bool = False) -> dict:
         """Output quantities of the current state (:func:`solver.recording.snapshot`)."""
         return snapshot(self, fields, route_current)
@@ -450,32 +472,3 @@ class RodRun(ProblemAssembly):
         """The outputs at t (s) inside the last step
         (:func:`solver.recording.interpolated_snapshot`)."""
         return interpolated_snapshot(self, fields, t, start)
-
-
-def _delegate(owner: str, name: str, doc: str):
-    """A property of RodRun that reads and writes ``self.<owner>.<name>`` (read by a
-    compiled attribute getter: a step reads these ~80 times)."""
-    holder = operator.attrgetter(owner)
-
-    def put(self, value):
-        setattr(holder(self), name, value)
-
-    return property(operator.attrgetter(f"{owner}.{name}"), put, doc=doc)
-
-
-for _name in RunState.names():
-    setattr(RodRun, _name, _delegate("state", _name, f"The state's ``{_name}`` "
-                                     "(:class:`solver.state.RunState`)."))
-for _name in ("errctl", "route_pi", "h_route", "h_next", "level_hint", "accepted_at_level",
-              "grow_after", "restart_pending", "breakpoints", "refusals", "last_dt"):
-    setattr(RodRun, _name, _delegate("control", _name, f"The step control's ``{_name}`` "
-                                     "(:class:`solver.stepping.control.StepControl`)."))
-for _name, _attr in (("growth_guard", "limit"), ("guard_sigma", "sigma"), ("guard_h", "h"),
-                     ("guard_h_max", "h_max"), ("guard_since", "since"), ("guard_v0", "v0")):
-    setattr(RodRun, _name, _delegate("control.guard", _attr, f"The growth guard's "
-                                     f"``{_attr}`` (:class:`solver.stepping.guard."
-                                     "GrowthGuard`)."))
-del _name, _attr
-# the sea floor has one home, the system's equations
-RodRun.seabed = _delegate("system", "seabed", "The sea floor (:class:`solver.seabed.SeabedContact`, "
-                          "None without one) of the system's equations.")

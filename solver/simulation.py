@@ -171,7 +171,7 @@ def _simulate_fixed(case, run, rec, first_step):
         out = rec.accepted(step, its, res)
         if out is not None:
             return out
-    return rec.finish("completed", f"completed {n_steps} steps to t = {run.t:.6g} s")
+    return rec.finish("completed", f"completed {n_steps} steps to t = {run.state.t:.6g} s")
 
 
 def _simulate_adaptive(case, run, rec, step=0):
@@ -189,8 +189,8 @@ def _simulate_adaptive(case, run, rec, step=0):
     every = case.output.every
     next_out = t_end
     if interval is not None:
-        next_out = min((math.floor(run.t / interval + 1e-9) + 1) * interval, t_end)
-    while run.t < t_end * (1.0 - 1e-12):
+        next_out = min((math.floor(run.state.t / interval + 1e-9) + 1) * interval, t_end)
+    while run.state.t < t_end * (1.0 - 1e-12):
         out = rec.stopped()
         if out is not None:
             return out
@@ -200,12 +200,12 @@ def _simulate_adaptive(case, run, rec, step=0):
         except SolverDivergence as exc:
             raise rec.failed(exc, step)
         step += 1
-        done = run.t >= t_end * (1.0 - 1e-12)
+        done = run.state.t >= t_end * (1.0 - 1e-12)
         if interval is not None:
             # every output time the step reached: inside it interpolated, at its end the
             # state itself
-            while next_out <= run.t * (1.0 + 1e-12) or done:
-                if next_out < run.t * (1.0 - 1e-12) and start is not None:
+            while next_out <= run.state.t * (1.0 + 1e-12) or done:
+                if next_out < run.state.t * (1.0 - 1e-12) and start is not None:
                     rec.record(next_out, start)
                 else:
                     rec.record()
@@ -219,4 +219,4 @@ def _simulate_adaptive(case, run, rec, step=0):
         if out is not None:
             return out
     return rec.finish("completed", f"completed {step} error-controlled steps to "
-                      f"t = {run.t:.6g} s")
+                      f"t = {run.state.t:.6g} s")

@@ -40,7 +40,7 @@ class RunState:
         Space-route pose: unit quaternions (w, x, y, z) and centreline, m.
     q_time, r_time : (N+1, 4), (N+1, 3)
         Time-route pose (every node advanced in time on its own; a diagnostic, and the
-        end's reference for :meth:`solver.run.RodRun.end_correction`).
+        end's reference for :meth:`solver.step_problem.ProblemAssembly.end_correction`).
     v_global, v_global_time : (N+1, 3)
         Global-frame node velocities of the two routes, m/s.
     bc : solver.boundary.BoundaryRows or None

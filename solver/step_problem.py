@@ -10,7 +10,8 @@ plus the end correction of :meth:`ProblemAssembly.end_correction`), the loads
 (:mod:`solver.newton`) solves it from the predicted start, and the contact coverage check
 after Newton adds the pairs the search missed and solves again
 (:meth:`ProblemAssembly.solve_problem`). What is done with the solution (the checks that
-refuse it, the accepted state) is :meth:`solver.run.RodRun.try_step`.
+refuse it, the accepted state) is :meth:`solver.run.RodRun.try_step`. The run holds
+the assembly as an object of its own (``run.assembly``) and hands it its state.
 """
 from __future__ import annotations
 
@@ -86,8 +87,36 @@ def end_drift_length(bc: BoundaryRows, n_last: int, q_end, r_end, r_time_end) ->
 
 
 class ProblemAssembly:
-    """The run's methods that assemble one step's problem and solve it (a mixin of
-    :class:`solver.run.RodRun`: they read its state, system, Newton and contact search)."""
+    """The assembly of one step's problem and its solution by Newton: an object the run
+    holds (``run.assembly``, :class:`solver.run.RodRun`). It holds the parts that do not
+    change from step to step (the case, the rod's properties, the system of equations,
+    Newton, the boundary schedule, the time scheme's parameters, the contact law and its
+    candidate search) and is handed the state a step starts from
+    (:class:`solver.state.RunState`, ``st``) by every method that reads it; the few that
+    write it (:meth:`update_space_route`, :meth:`_hold_from_here`) rebind its arrays.
+
+    Parameters
+    ----------
+    case : solver.case.Case
+    props : solver.properties.RodProperties
+    system : solver.scheme.RodSystem
+    newton : solver.newton.NewtonSolver
+    bc_schedule : solver.boundary.BoundarySchedule
+    params : the generalized-α parameters of ``numerics.rho_inf``
+    contact : solver.contact.SelfContact or None
+    search : solver.contact.search.CandidateSearch or None
+    """
+
+    def __init__(self, case, props, system, newton, bc_schedule, params, contact=None,
+                 search=None):
+        self.case = case
+        self.props = props
+        self.system = system
+        self.newton = newton
+        self.bc_schedule = bc_schedule
+        self.params = params
+        self.contact = contact
+        self.search = search
 
     #: the share of the s = L end's drift that each step's boundary values correct
     #: (:meth:`end_correction`; None: no correction). The correction enters the step's
@@ -140,34 +169,36 @@ class ProblemAssembly:
     #: end's motion (docs/hockle.md, "Friction under imposed slack")
     BACKWARD_EULER_AFTER = ("newton", "energy")
 
-    def step_problem(self, h: float, t_new=None, left_limit=False,
-                     restart=False) -> StepProblem:
+    def step_problem(self, st, h: float, t_new=None, left_limit=False, restart=False,
+                     predictor: str = "linear", after=None) -> StepProblem:
         """Assemble the problem of a step of h (s) from the current state, ending at
         t_new (default t + h): boundary rows, end correction, time scheme (backward Euler
         for a restart, after a switch of the conditions and, with
         ``numerics.backward_euler_retry``, after a refusal of
         :data:`BACKWARD_EULER_AFTER`; else generalized-α), predicted start and
-        contact candidates (``last_had_candidates`` is set)."""
+        contact candidates. ``st``: the state the step starts from
+        (:class:`solver.state.RunState`); ``predictor``: the Newton start's extrapolation,
+        "linear" or "quadratic" (:meth:`_better_predictor`); ``after``: why the last
+        attempt from this level was refused (None: it was accepted)."""
         sysm = self.system
-        t_new = self.t + h if t_new is None else t_new
+        t_new = st.t + h if t_new is None else t_new
         bc = self.bc_schedule.at(t_new)
-        switched = bc.key != self.bc.key
-        offset = self.end_correction(h, bc, restart)
+        switched = bc.key != st.bc.key
+        offset = self.end_correction(st, h, bc, restart)
         if offset is not None:
             bc.values = bc.values + offset
-        predictions = None if restart else self._predictions(h)
+        predictions = None if restart else self._predictions(st, h)
         if predictions is None:
-            guess = self.Y
+            guess = st.Y
         else:
-            guess = predictions.get(self.predictor, predictions["linear"])
+            guess = predictions.get(predictor, predictions["linear"])
         cand = None
         if self.contact is not None:
-            cand = self._candidates(h, guess)
-        self.last_had_candidates = cand is not None
+            cand = self._candidates(st, h, guess)
         if restart or switched:
             params = BACKWARD_EULER
         elif (self.case.numerics.backward_euler_retry
-              and self.last_reject in self.BACKWARD_EULER_AFTER):
+              and after in self.BACKWARD_EULER_AFTER):
             # the step after a Newton or energy refusal is cut, and generalized-α's
             # carried rates Ẏⁿ belong to the longer step: backward Euler, which does not
             # read them (docs/contact.md § 3, "The step after a refusal")
@@ -183,7 +214,7 @@ class ProblemAssembly:
         return StepProblem(h, t_new, left_limit, restart, bc, switched, offset, params,
                            predictions, guess, cand)
 
-    def begin_solve(self, prob: StepProblem, guess=None, candidates=None,
+    def begin_solve(self, st, prob: StepProblem, guess=None, candidates=None,
                     first: bool = True) -> np.ndarray:
         """Set the system up for the step of ``prob`` (:meth:`RodSystem.begin_step` on the
         old pose the step takes: the carried centreline, or with a seabed and no
@@ -196,18 +227,18 @@ class ProblemAssembly:
         nothing."""
         cand = prob.candidates if candidates is None else candidates
         guess = prob.guess if guess is None else guess
-        q_old, r_old, v_old = self.q, self.r, self.v_global
-        if self.seabed is not None and self.contact is None:
+        q_old, r_old, v_old = st.q, st.r, st.v_global
+        if self.system.seabed is not None and self.contact is None:
             # the sea floor's spring acts on positions (a micrometre is a newton per metre
             # at its default stiffness): the step takes each node's own time route, which
             # it carries from step to step, not the shape integrated from κ, whose
             # difference from the last step's positions would jump the penetration
-            q_old, r_old, v_old = self.q_time, self.r_time, self.v_global_time
-        self.system.begin_step(prob.h, prob.params, prob.t_new, self.Y, self.Ydot, self.F_old,
+            q_old, r_old, v_old = st.q_time, st.r_time, st.v_global_time
+        self.system.begin_step(prob.h, prob.params, prob.t_new, st.Y, st.Ydot, st.F_old,
                                prob.bc, q_old=q_old, r_old=r_old, v_old_global=v_old,
                                candidates=cand, left_limit=prob.left_limit)
         if first and cand is not None:
-            guess = self._feasible_guess(guess)
+            guess = self._feasible_guess(st, guess)
         if prob.offset is not None:
             # the end correction moves the s = L values in every step, which no
             # extrapolation of earlier levels knows (nor the feasible start's blend):
@@ -217,7 +248,7 @@ class ProblemAssembly:
             guess = prob.bc.project(guess)
         return guess
 
-    def solve_problem(self, prob: StepProblem) -> Solution:
+    def solve_problem(self, st, prob: StepProblem) -> Solution:
         """Hand the step's problem to Newton (:meth:`solver.newton.NewtonSolver.solve`), set up
         by :meth:`begin_solve`. With self-contact every pair within reach of the new
         positions must have been among the candidates (the kept search holds them while
@@ -226,7 +257,7 @@ class ProblemAssembly:
         sysm, cand, guess = self.system, prob.candidates, prob.guess
         its_total = 0
         for attempt in range(3):
-            guess = self.begin_solve(prob, guess, cand, first=attempt == 0)
+            guess = self.begin_solve(st, prob, guess, cand, first=attempt == 0)
             Y, Fn, its, res, ok, pose = self.newton.solve(guess)
             its_total += its
             if not ok:
@@ -254,7 +285,7 @@ class ProblemAssembly:
             return None
         return np.einsum("nji,nj->ni", pose[0], glob)
 
-    def _time_step(self, h, Y, q, r, v_global, offsets=None):
+    def _time_step(self, st, h, Y, q, r, v_global, offsets=None):
         """Nodes advanced one step h (s) in time, each on its own (the time route):
         q' = q ⊗ exp(½h(ω^n + ω)), r' = r + ½h(ṙ^n + R' v), with ω, v from Y (N+1, 12),
         q (N+1, 4), r and ṙ^n = v_global (N+1, 3) m, m/s. Returns (q' unnormalised,
@@ -262,7 +293,7 @@ class ProblemAssembly:
         offsets (12,) or None, their columns (12,)), (the same at the new level)): the
         boundary offsets of :meth:`end_correction`, taken out of both levels' unknowns
         first, so that the end node's time route is its prescribed motion."""
-        Y_old = self.Y
+        Y_old = st.Y
         if offsets is not None and (offsets[0][0] is not None or offsets[1][0] is not None):
             (old, old_cols), (new, new_cols) = offsets
             Y_old, Y = Y_old.copy(), Y.copy()
@@ -279,7 +310,7 @@ class ProblemAssembly:
                   np.empty((n1, 3)), vg)
         return q_new, R_new, vg, r_new
 
-    def end_correction(self, h, bc, restart):
+    def end_correction(self, st, h, bc, restart):
         """Offsets (12,) of the boundary values of a step of h (s) that keep the carried
         centreline's s = L end on its prescribed motion, or None (no self-contact: the
         centreline is not carried; a restart step; DRIFT_GAIN None).
@@ -308,8 +339,8 @@ class ProblemAssembly:
         """
         if self.contact is None or self.DRIFT_GAIN is None or restart:
             return None
-        R, e = self.end_position_error()
-        theta = relative_rotation(self.q[-1], self.q_time[-1])
+        R, e = self.end_position_error(st)
+        theta = relative_rotation(st.q[-1], st.q_time[-1])
         h_rate = max(h, self.DRIFT_STEP_FLOOR * self.case.numerics.dt,
                      self.props.fastest_wave_period)
         off = bc.end_drift_offsets(self.props.s.size - 1, e, theta, self.DRIFT_GAIN / h_rate)
@@ -319,15 +350,15 @@ class ProblemAssembly:
             off[6:9] = R @ off[6:9]
         return off
 
-    def end_position_error(self):
+    def end_position_error(self, st):
         """(R, e): the carried s = L end's frame R (3, 3) and where the end's prescribed
         motion (its time route ``r_time``) puts it relative to the carried end,
         e = Rᵀ(r_time − r) at node N (3,) m, body frame: what :meth:`end_correction`
         steers back and the output ``end_drift`` reports. Raises nothing."""
-        R = quat_to_matrix(self.q[-1:])[0]
-        return R, R.T @ (self.r_time[-1] - self.r[-1])
+        R = quat_to_matrix(st.q[-1:])[0]
+        return R, R.T @ (st.r_time[-1] - st.r[-1])
 
-    def end_drift(self) -> float:
+    def end_drift(self, st) -> float:
         """How far the centreline's s = L end (integrated along s from κ, anchored at node
         0) is from the end's prescribed motion (its time route, the prescribed velocities
         integrated in time) (m): :func:`end_drift_length` of the carried end, the
@@ -338,8 +369,8 @@ class ProblemAssembly:
         shape, which only the outputs show (docs/contact.md, "The far end is steered onto
         its prescribed motion"). 0 while no translation is prescribed at s = L (which
         translations are prescribed may change at a breakpoint). Raises nothing."""
-        return end_drift_length(self.bc, self.props.s.size - 1, self.q[-1], self.r[-1],
-                                self.r_time[-1])
+        return end_drift_length(st.bc, self.props.s.size - 1, st.q[-1], st.r[-1],
+                                st.r_time[-1])
 
     def end_drift_tolerance(self) -> float:
         """The largest end drift a step may leave (m): ``contact.end_drift_tolerance``, by
@@ -372,26 +403,26 @@ class ProblemAssembly:
                                  r_time_end)
         return drift > self.end_drift_tolerance()
 
-    def _hold_from_here(self, prev_bc, bc) -> None:
+    def _hold_from_here(self, st, prev_bc, bc) -> None:
         """A degree of freedom of the s = L end that has just become kinematic (a sliding
         end held, as the seed's at 30 s) is held where the carried end is, not where the
         end's time route had got to while it was free (the two differ by the route
         differences of the free motion, which :meth:`end_correction` does not touch): the
         end's time route is moved onto the carried end along each such translation axis
         a_i, and its frame set to the carried frame when ω1 or ω2 becomes prescribed."""
-        R = quat_to_matrix(self.q[-1:])[0]
+        R = quat_to_matrix(st.q[-1:])[0]
         for j, idx in bc.end_kinematic_dofs(self.props.s.size - 1):
             if prev_bc.kinematic[j] and prev_bc.cols[j] == bc.cols[j]:
                 continue                          # held before: its reference stays
             if idx < 3:
                 a = R[:, idx]
-                self.r_time = self.r_time.copy()
-                self.r_time[-1] += a * float(a @ (self.r[-1] - self.r_time[-1]))
+                st.r_time = st.r_time.copy()
+                st.r_time[-1] += a * float(a @ (st.r[-1] - st.r_time[-1]))
             elif idx < 5:
-                self.q_time = self.q_time.copy()
-                self.q_time[-1] = self.q[-1]
+                st.q_time = st.q_time.copy()
+                st.q_time[-1] = st.q[-1]
 
-    def _local_error(self, h, Y, r_new) -> float:
+    def _local_error(self, st, h, Y, r_new) -> float:
         """Local error indicator of a step (m): the largest distance between the new
         centreline (integrated along s from κ) and the same nodes advanced one
         trapezoidal step in time from the old centreline, r^n + ½h(ṙ^n + R^{n+1} v^{n+1})
@@ -400,48 +431,50 @@ class ProblemAssembly:
         position error (docs/contact.md, "Step control"); after a cut of h it also holds
         h·c(Ẏⁿ − Ẏ_E), the generalized-α rates carried from the longer step (docs/contact.md
         § 1)."""
-        r_t = self._time_step(h, Y, self.q, self.r, self.v_global)[3]
+        r_t = self._time_step(st, h, Y, st.q, st.r, st.v_global)[3]
         return max_distance(r_t, np.ascontiguousarray(r_new, dtype=float))
 
-    def _candidates(self, h, guess):
+    def _candidates(self, st, h, guess):
         """Contact candidates for a step of h (s) from the Newton start ``guess``
         (N+1, 12): :meth:`solver.contact.search.CandidateSearch.candidates` between the
         old positions and those the start predicts (each node advanced in time)."""
-        _, R_new, _, r_new = self._time_step(h, guess, self.q, self.r, self.v_global)
-        return self.search.candidates(self.r, lambda: quat_to_matrix(self.q), r_new, R_new)
+        _, R_new, _, r_new = self._time_step(st, h, guess, st.q, st.r, st.v_global)
+        return self.search.candidates(st.r, lambda: quat_to_matrix(st.q), r_new, R_new)
 
-    def _feasible_guess(self, guess):
+    def _feasible_guess(self, st, guess):
         """A Newton start whose contact gaps are open (:meth:`NewtonSolver.feasible_start`: the
         replay of the seed example's first contact, where an extrapolated start penetrated
         and Newton died at the barrier), unless ``guess`` is the old level itself. The
         step (with its candidates) must have been set up by ``system.begin_step``."""
-        if guess is self.Y:
+        if guess is st.Y:
             return guess
         return self.newton.feasible_start(guess)
 
-    def update_space_route(self):
-        """Recompute pose along the rod from κ, anchored at node 0's time-route pose."""
-        self.q, self.r = space_route(self.q_time[0], self.r_time[0], self.Y[:, 9:12],
+    def update_space_route(self, st) -> None:
+        """Recompute the pose of ``st`` along the rod from κ, anchored at node 0's time-route
+        pose (rebinds st.q, st.r, st.v_global)."""
+        st.q, st.r = space_route(st.q_time[0], st.r_time[0], st.Y[:, 9:12],
                                      self.props.ds)
-        self.v_global = np.einsum("nij,nj->ni", quat_to_matrix(self.q), self.Y[:, 0:3])
+        st.v_global = np.einsum("nij,nj->ni", quat_to_matrix(st.q), st.Y[:, 0:3])
 
-    def _predictions(self, h: float):
+    def _predictions(self, st, h: float):
         """Newton starts for a step of h (s) extrapolated from the accepted levels: the
         line through the last two ("linear") and, with three since the last restart, the
         parabola through the last three ("quadratic", with the actual steps;
         :func:`solver.stepping.extrapolate`).
         None without a level before the current one. Returns a dict of (N+1, 12) arrays."""
-        if self.Y_prev is None or not self.h_prev:
+        if st.Y_prev is None or not st.h_prev:
             return None
         # times relative to the current level (t = 0)
-        h1 = self.h_prev
-        out = {"linear": extrapolate((-h1, 0.0), (self.Y_prev, self.Y), h)}
-        if self.Y_prev2 is not None and self.h_prev2:
-            out["quadratic"] = extrapolate((-h1 - self.h_prev2, -h1, 0.0),
-                                           (self.Y_prev2, self.Y_prev, self.Y), h)
+        h1 = st.h_prev
+        out = {"linear": extrapolate((-h1, 0.0), (st.Y_prev, st.Y), h)}
+        if st.Y_prev2 is not None and st.h_prev2:
+            out["quadratic"] = extrapolate((-h1 - st.h_prev2, -h1, 0.0),
+                                           (st.Y_prev2, st.Y_prev, st.Y), h)
         return out
 
-    def _better_predictor(self, Y: np.ndarray, predictions: dict) -> str:
+    @staticmethod
+    def _better_predictor(Y: np.ndarray, predictions: dict) -> str:
         """The predictor whose curvature κ was nearer the accepted level Y (N+1, 12)'s
         (sum of squares over the nodes; ``predictions`` as :meth:`_predictions` returns).
         κ is what the centreline, and so every contact gap, is

@@ -82,12 +82,12 @@ def contact_step():
     spec["initial"] = {"centreline": {"points": hairpin(0.06 / math.pi).tolist()}}
     spec["boundary"]["start"]["rotation"][2] = {"angular_velocity": 0.0}
     run = RodRun(Case.model_validate(spec))
-    prob = run.step_problem(0.01)
+    prob = run.assembly.step_problem(run.state, 0.01)
     assert prob.candidates is not None and prob.candidates.runs > 0
-    run.system.begin_step(prob.h, prob.params, prob.t_new, run.Y, run.Ydot, run.F_old,
-                          prob.bc, q_old=run.q, r_old=run.r, v_old_global=run.v_global,
+    run.system.begin_step(prob.h, prob.params, prob.t_new, run.state.Y, run.state.Ydot, run.state.F_old,
+                          prob.bc, q_old=run.state.q, r_old=run.state.r, v_old_global=run.state.v_global,
                           candidates=prob.candidates)
-    gaps = run.system.candidate_gaps(run.Y)
+    gaps = run.system.candidate_gaps(run.state.Y)
     assert np.isfinite(gaps).sum() > 50 and np.all(gaps[np.isfinite(gaps)] > 0.01)
     return run
 
@@ -97,7 +97,7 @@ def test_a_start_that_keeps_every_gap_is_the_guess(contact_step, monkeypatch):
     whole (blend 1, the guess to rounding)."""
     newton = contact_step.newton
     monkeypatch.setattr(type(newton), "START_GAP_KEEP", 0.0)
-    guess = contact_step.Y.copy()
+    guess = contact_step.state.Y.copy()
     out = newton.feasible_start(guess)
     assert newton.last_start_blend == 1.0
     np.testing.assert_allclose(out, guess, rtol=0, atol=1e-12 * np.abs(guess).max())
@@ -109,7 +109,7 @@ def test_a_start_no_blend_can_make_feasible_is_the_zero_displacement_state(conta
     zero-displacement state, (v, ω) = −(vⁿ, ωⁿ) with f and κ of the old level (blend 0)."""
     newton = contact_step.newton
     monkeypatch.setattr(type(newton), "START_GAP_KEEP", 2.0)
-    y_old = contact_step.Y
+    y_old = contact_step.state.Y
     out = newton.feasible_start(y_old + 0.01)
     assert newton.last_start_blend == 0.0
     np.testing.assert_array_equal(out[:, :6], -y_old[:, :6])
@@ -121,7 +121,7 @@ def test_a_start_that_closes_a_gap_is_blended_back_until_it_keeps_half(contact_s
     onto the near one: the start is blended toward the zero-displacement state by the
     largest 2^−k that keeps every gap at least START_GAP_KEEP (½) of its old value."""
     newton, system = contact_step.newton, contact_step.system
-    y_old = contact_step.Y
+    y_old = contact_step.state.Y
     guess = y_old.copy()
     guess[:, 9:11] *= 1.2                         # bending curvatures κ1, κ2
     g_old = system.candidate_gaps(y_old)
@@ -270,12 +270,12 @@ def test_contact_rho_inf_sets_the_scheme_only_in_steps_where_strands_may_meet():
         spec["initial"] = {"centreline": {"points": points.tolist()}}
         spec["boundary"]["start"]["rotation"][2] = {"angular_velocity": 0.0}
         run = RodRun(Case.model_validate(spec))
-        return run, run.step_problem(0.01)
+        return run, run.assembly.step_problem(run.state, 0.01)
 
     bent = hairpin(0.06 / math.pi)
     run, prob = first_step(bent, 0.0)
     assert prob.candidates is not None
-    assert prob.params == alpha_parameters(0.0) != run.params == alpha_parameters(0.5)
+    assert prob.params == alpha_parameters(0.0) != run.assembly.params == alpha_parameters(0.5)
     run, prob = first_step(np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 1.0]]), 0.0)
     assert prob.candidates is None and prob.params == alpha_parameters(0.5)
     run, prob = first_step(bent, None)
@@ -318,7 +318,8 @@ def _arc_in_rigid_motion(n, V, Omega, kappa=(0.0, 2.0, 0.0), length=1.0):
     Y[:, 0:3] = np.einsum("nji,nj->ni", R, vel)                  # Rᵀ(V + Ω×(r − r0))
     Y[:, 3:6] = np.einsum("nji,j->ni", R, np.asarray(Omega, float))
     Y[:, 9:12] = k
-    return SimpleNamespace(Y=Y, props=SimpleNamespace(s=s), q_time=q0[None], r_time=r0[None])
+    return SimpleNamespace(state=SimpleNamespace(Y=Y, q_time=q0[None], r_time=r0[None]),
+                           props=SimpleNamespace(s=s))
 
 
 def test_the_box_rules_route_rate_vanishes_for_a_translation_and_is_second_order_in_s():
@@ -361,7 +362,7 @@ def test_a_short_step_after_long_ones_reads_the_carried_generalized_alpha_rates(
     run = RodRun(Case.model_validate(spec))
     for k in range(1, 11):
         run.advance(0.01 * k)
-    p = run.params
+    p = run.assembly.params
     c = carried_rate_weight(p)
     assert c == pytest.approx({0.5: 0.2, 0.0: 1.0 / 3.0}[rho_inf])
     limit, carried = step_route_rate(run)

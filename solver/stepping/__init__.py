@@ -148,7 +148,7 @@ def extrapolate(times, values, t_new: float):
     three (Newton's divided differences, unequal spacing). times: 2 or 3 distinct floats
     (s); values: as many arrays of one shape; returns an array of that shape. The
     predictor of the error estimate (:meth:`ErrorControl.predict`) and the Newton start
-    (``RodRun._predictions``). Raises ValueError for another number of levels."""
+    (``ProblemAssembly._predictions``). Raises ValueError for another number of levels."""
     if len(times) not in (2, 3):
         raise ValueError(f"extrapolate: 2 or 3 levels, got {len(times)}")
     if _flat_floats(values):

@@ -454,14 +454,14 @@ def test_end_drift_tolerance_defaults_to_the_diameter_and_keeps_the_hash(data):
     case = Case.model_validate(data)
     assert case.contact.end_drift_tolerance is None
     assert "end_drift_tolerance" not in case.canonical_json()
-    assert RodRun(case).end_drift_tolerance() == pytest.approx(case.rod.diameter)
+    assert RodRun(case).assembly.end_drift_tolerance() == pytest.approx(case.rod.diameter)
     data["contact"]["end_drift_tolerance"] = 0.005
     given = Case.model_validate(data)
     assert '"end_drift_tolerance":0.005' in given.canonical_json()
     assert given.spec_hash() != case.spec_hash()
     again = Case.model_validate(json.loads(given.canonical_json()))
     assert again.spec_hash() == given.spec_hash()
-    assert RodRun(again).end_drift_tolerance() == 0.005
+    assert RodRun(again).assembly.end_drift_tolerance() == 0.005
     for bad in (0.0, -1.0):
         data["contact"]["end_drift_tolerance"] = bad
         assert_refused(data, "contact.end_drift_tolerance", "greater than 0")

@@ -16,6 +16,7 @@ import pytest
 
 from solver import Case, integrate
 from solver.simulation import RodRun
+from solver.step_problem import ProblemAssembly
 
 SEED = Path(__file__).resolve().parents[2] / "cases" / "goyal-writhing.yaml"
 
@@ -109,7 +110,7 @@ def _linearized_contact_iterate(monkeypatch, min_pairs=5, accept=None):
     monkeypatch.setattr(NewtonSolver, "solve", spy)
     k = 0
     with pytest.raises(_Captured):
-        while run.t < 6.8 - 1e-9:
+        while run.state.t < 6.8 - 1e-9:
             k += 1
             run.advance(0.1 * k)
     monkeypatch.setattr(NewtonSolver, "solve", solve)
@@ -189,7 +190,7 @@ def _pressed_contact_solves(monkeypatch, run, compare, count=10):
 
     def patched(self, Y_guess):
         system = self.system
-        if (len(rows) < count and run.t >= 6.6 and system.step.candidates is not None
+        if (len(rows) < count and run.state.t >= 6.6 and system.step.candidates is not None
                 and system.evaluate(Y_guess, False)[1] >= 5):
             row, out = compare(self, Y_guess, solve)
             rows.append(row)
@@ -198,7 +199,7 @@ def _pressed_contact_solves(monkeypatch, run, compare, count=10):
 
     monkeypatch.setattr(NewtonSolver, "solve", patched)
     k = 0
-    while len(rows) < count and run.t < 7.0 - 1e-9:
+    while len(rows) < count and run.state.t < 7.0 - 1e-9:
         k += 1
         run.advance(0.1 * k)
     assert len(rows) == count
@@ -314,11 +315,11 @@ def test_fixed_contact_steps_take_their_size_from_the_route_ratio(monkeypatch):
     attempts = []
 
     def recording(self, h, *args, **kwargs):
-        t0 = self.t
+        t0 = self.state.t
         out = plain(self, h, *args, **kwargs)
-        attempts.append({"t0": t0, "h": h, "ok": out[0], "why": self.last_reject,
-                         "ratio": self.last_route_ratio, "cand": self.last_had_candidates,
-                         "pi": self.h_route is not None})
+        attempts.append({"t0": t0, "h": h, "ok": out.ok, "why": out.reason,
+                         "ratio": out.route_ratio, "cand": out.had_candidates,
+                         "pi": self.control.h_route is not None})
         return out
 
     monkeypatch.setattr(RodRun, "try_step", recording)
@@ -355,23 +356,20 @@ class _PartedRun:
     error O(h³) reaching the bound at h1)."""
 
     def __init__(self, case, h1, control):
+        from types import SimpleNamespace
         self.case, self.h1, self.control = case, h1, control
-        self.t = 0.0
-        self.last_had_candidates = False
-        self.last_route_ratio = float("nan")
-        self.last_reject = None
+        self.state = SimpleNamespace(t=0.0)
         self.attempts = []
 
     def try_step(self, h, t_new=None, left_limit=False, restart=False, estimate=True):
         from solver.stepping.control import Attempt
-        self.last_route_ratio = (h / self.h1) ** 3
-        ok = self.last_route_ratio <= 1.0
+        ratio = (h / self.h1) ** 3
+        ok = ratio <= 1.0
         self.attempts.append((h, ok, self.control.h_route is not None))
         if not ok:
-            self.last_reject = "contact"
-            return Attempt(False, 3, 1e-12, False, "contact")
-        self.t = t_new if t_new is not None else self.t + h
-        return Attempt(True, 3, 1e-12)
+            return Attempt(False, 3, 1e-12, False, "contact", route_ratio=ratio)
+        self.state.t = t_new if t_new is not None else self.state.t + h
+        return Attempt(True, 3, 1e-12, route_ratio=ratio)
 
 
 @pytest.mark.parametrize("h1", [1e-3, 1.0])
@@ -391,7 +389,7 @@ def test_route_controller_keeps_dt_after_the_strands_part(h1):
     run = _PartedRun(case, h1, control)
     for stop in (0.1, 0.2):
         control._advance_to(run, stop, 0.1, False)
-        assert abs(run.t - stop) < 1e-12
+        assert abs(run.state.t - stop) < 1e-12
     if h1 < 0.1:
         assert all(pi for _, _, pi in run.attempts)
         refused = sum(1 for _, ok, _ in run.attempts if not ok)
@@ -471,7 +469,7 @@ def _end_offset(ds):
 
 def test_held_end_stays_on_its_axis_through_the_collapse(monkeypatch):
     """With self-contact the carried centreline is integrated along s from κ, so its far
-    end goes wherever the integral puts it; RodRun.end_correction steers it back onto
+    end goes wherever the integral puts it; ProblemAssembly.end_correction steers it back onto
     the end's prescribed motion. Without the correction the laterally held end of the
     plectoneme drifts 26 mm off its axis at Δt = 0.05 s, and at Δt = 0.1 s the collapse
     presses it onto the clamped end and the run stops at 7.6 s (measured 2026-11-23:
@@ -490,7 +488,7 @@ def test_held_end_stays_on_its_axis_through_the_collapse(monkeypatch):
     assert np.abs(ds.end_drift.values - off).max() < 1e-3
     assert "drift" not in ds.attrs["hockle_refused_attempts"]
     # the same case at Δt = 0.05 s without the correction: the drift it removes
-    monkeypatch.setattr(RodRun, "DRIFT_GAIN", None)
+    monkeypatch.setattr(ProblemAssembly, "DRIFT_GAIN", None)
     ds = integrate(plectoneme_case(25, 0.05))
     t, off = ds.time.values, _end_offset(ds)
     assert off[t > 7.5].max() > 0.02
@@ -511,7 +509,7 @@ def test_end_correction_targets_the_kinematic_rows_only():
 
 
 def test_end_correction_within_a_step_vanishes_with_the_step():
-    """RodRun.end_correction steers the end back at the rate DRIFT_GAIN / max(h,
+    """ProblemAssembly.end_correction steers the end back at the rate DRIFT_GAIN / max(h,
     DRIFT_STEP_FLOOR · Δt): a step at or above the floor (a quarter of the case's Δt)
     moves it by g·e (velocity offsets × h), and every shorter step prescribes the floor's
     end velocity, so a cut step jumps the end's velocity by at most 1/DRIFT_STEP_FLOOR
@@ -525,24 +523,24 @@ def test_end_correction_within_a_step_vanishes_with_the_step():
     case = plectoneme_case(8, 0.1)
     run = RodRun(case)
     drift = np.array([0.03, -0.04, 0.0])            # global; the end's frame is the identity
-    run.r_time = run.r_time.copy()
-    run.r_time[-1] = run.r[-1] + drift
-    bc = BoundaryRows(case, run.props, 0.1, run.system.n, run.bc_schedule.plan)
-    floor = run.DRIFT_STEP_FLOOR * case.numerics.dt
+    run.state.r_time = run.state.r_time.copy()
+    run.state.r_time[-1] = run.state.r[-1] + drift
+    bc = BoundaryRows(case, run.props, 0.1, run.system.n, run.assembly.bc_schedule.plan)
+    floor = run.assembly.DRIFT_STEP_FLOOR * case.numerics.dt
     assert 0 < floor < case.numerics.dt
     velocity, moved = {}, {}
     for h in (case.numerics.dt, 2 * floor, floor, floor / 10, floor / 1000):
-        off = run.end_correction(h, bc, restart=False)
+        off = run.assembly.end_correction(run.state, h, bc, restart=False)
         velocity[h] = off[6:8]                        # the held v1, v2 rows
         moved[h] = np.linalg.norm(off[6:8]) * h
-    g_e = run.DRIFT_GAIN * np.linalg.norm(drift)
+    g_e = run.assembly.DRIFT_GAIN * np.linalg.norm(drift)
     for h in (case.numerics.dt, 2 * floor, floor):
         assert moved[h] == pytest.approx(g_e, rel=1e-9)
     for h in (floor / 10, floor / 1000):
         np.testing.assert_allclose(velocity[h], velocity[floor], rtol=1e-12)
     assert moved[floor / 10] == pytest.approx(g_e / 10, rel=1e-9)
     assert moved[floor / 1000] == pytest.approx(g_e / 1000, rel=1e-9)
-    assert run.end_correction(0.01, bc, restart=True) is None
+    assert run.assembly.end_correction(run.state, 0.01, bc, restart=True) is None
 
 
 def test_fastest_wave_period_reads_the_grids_torsion_and_bending_waves():
@@ -582,17 +580,17 @@ def test_end_correction_is_never_faster_than_the_grids_fastest_wave():
     case = plectoneme_case(8, 0.01)
     run = RodRun(case)
     period = run.props.fastest_wave_period
-    assert run.DRIFT_STEP_FLOOR * case.numerics.dt < period < case.numerics.dt
+    assert run.assembly.DRIFT_STEP_FLOOR * case.numerics.dt < period < case.numerics.dt
     drift = np.array([0.03, -0.04, 0.0])
-    run.r_time = run.r_time.copy()
-    run.r_time[-1] = run.r[-1] + drift
-    bc = BoundaryRows(case, run.props, 0.01, run.system.n, run.bc_schedule.plan)
-    g_e = run.DRIFT_GAIN * np.linalg.norm(drift)
+    run.state.r_time = run.state.r_time.copy()
+    run.state.r_time[-1] = run.state.r[-1] + drift
+    bc = BoundaryRows(case, run.props, 0.01, run.system.n, run.assembly.bc_schedule.plan)
+    g_e = run.assembly.DRIFT_GAIN * np.linalg.norm(drift)
     for h in (case.numerics.dt, period):
-        off = run.end_correction(h, bc, restart=False)
+        off = run.assembly.end_correction(run.state, h, bc, restart=False)
         assert np.linalg.norm(off[6:8]) * h == pytest.approx(g_e, rel=1e-9)
-    for h in (run.DRIFT_STEP_FLOOR * case.numerics.dt, period / 10):
-        off = run.end_correction(h, bc, restart=False)
+    for h in (run.assembly.DRIFT_STEP_FLOOR * case.numerics.dt, period / 10):
+        off = run.assembly.end_correction(run.state, h, bc, restart=False)
         assert np.linalg.norm(off[6:8]) == pytest.approx(g_e / period, rel=1e-9)
 
 
@@ -605,9 +603,9 @@ def test_newton_start_takes_the_corrected_boundary_values():
 
     case = plectoneme_case(8, 0.1)
     run = RodRun(case)
-    bc = BoundaryRows(case, run.props, 0.1, run.system.n, run.bc_schedule.plan)
+    bc = BoundaryRows(case, run.props, 0.1, run.system.n, run.assembly.bc_schedule.plan)
     bc.values = bc.values + np.linspace(0.1, 1.2, 12)       # offsets on every row
-    Y = np.random.default_rng(3).normal(size=run.Y.shape)
+    Y = np.random.default_rng(3).normal(size=run.state.Y.shape)
     before = Y.copy()
     P = bc.project(Y)
     R = np.zeros(run.system.n)
@@ -646,15 +644,15 @@ def test_an_end_held_midway_is_held_where_it_is():
     for k in range(1, 5):                       # to 0.2 s, sliding
         run.advance(0.05 * k)
     a3 = np.array([0.0, 0.0, 1.0])
-    run.r_time = run.r_time.copy()
-    run.r_time[-1] += 1e-3 * a3                 # the time route's lead along the free axis
+    run.state.r_time = run.state.r_time.copy()
+    run.state.r_time[-1] += 1e-3 * a3                 # the time route's lead along the free axis
     for k in range(5, 8):                       # past the switch at 0.3 s
         run.advance(0.05 * k)
-    z_held = float(run.r[-1] @ a3)
-    np.testing.assert_allclose(float(run.r_time[-1] @ a3), z_held, atol=1e-9)
+    z_held = float(run.state.r[-1] @ a3)
+    np.testing.assert_allclose(float(run.state.r_time[-1] @ a3), z_held, atol=1e-9)
     for k in range(8, 13):                      # held to 0.6 s
         run.advance(0.05 * k)
-    assert abs(float(run.r[-1] @ a3) - z_held) < 1e-5
+    assert abs(float(run.state.r[-1] @ a3) - z_held) < 1e-5
 
 
 def test_end_correction_keeps_second_order():

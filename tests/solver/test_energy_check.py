@@ -56,16 +56,16 @@ def test_balance_closes_on_a_conservative_case():
     case = cantilever(0.005, n=10, t_end=0.4, rho_inf=1.0, energy_tolerance=1.0)
     run = RodRun(case)
     run.advance(0.005)                  # the restart's steps are not measured
-    energy0 = run.balance["energy"]
+    energy0 = run.state.balance["energy"]
     worst, work = 0.0, 0.0
-    while run.t < 0.4 - 1e-12:
-        run.advance(run.t + 0.005)
+    while run.state.t < 0.4 - 1e-12:
+        run.advance(run.state.t + 0.005)
         bal = run.last_balance
         worst = max(worst, abs(bal.error) / bal.energy)
         work += sum(bal.work.values())
     assert worst < 2e-4, worst
     assert abs(bal.energy - energy0 - work) < 1e-3 * bal.energy
-    assert run.refusals.get("energy", 0) == 0
+    assert run.control.refusals.get("energy", 0) == 0
 
 
 def test_injecting_steps_are_refused_and_the_cantilever_settles():
@@ -266,12 +266,12 @@ def contact_work_in_run(dt, law="seed", t_end=0.005):
     booked = trap = chord = 0.0
     steps = 0
     run.advance(dt)                          # the restart's steps are not measured
-    while run.t < t_end - 1e-12:
-        r0 = run.r.copy()
-        run.advance(run.t + dt)
+    while run.state.t < t_end - 1e-12:
+        r0 = run.state.r.copy()
+        run.advance(run.state.t + dt)
         bal = run.last_balance
         assert bal is not None               # contact steps are measured
-        r1 = run.r
+        r1 = run.state.r
         cand = c.candidates(r0, np.gradient(r0, axis=0), 0.05)
 
         def work(frac, r=None):
@@ -320,8 +320,8 @@ def test_contact_account_reads_the_solution_from_the_contact_summary(law, monkey
 
     monkeypatch.setattr(balance.ContactWork, "step", checked)
     run = RodRun(crossing_loop(1e-4, law, 0.002))
-    while run.t < 0.002 - 1e-12:
-        run.advance(run.t + 1e-4)
+    while run.state.t < 0.002 - 1e-12:
+        run.advance(run.state.t + 1e-4)
     assert len(pairs) >= 15 and any(b > 0.0 for _, b, _ in pairs)
     assert all(a == b for a, b, _ in pairs), pairs
     assert all(c is None for _, _, c in pairs)
@@ -341,14 +341,14 @@ def test_contact_account_reuses_the_old_level_energy_it_carries(law, monkeypatch
     def checked(self, run, prob, sol, old):
         cand = sol.candidates
         if cand is not None and cand.runs:
-            kept = isinstance(old, tuple) and old[1] is cand and old[2] is run.r
-            seen.append((kept, old[0] if kept else None, run.contact.potential(cand, run.r)))
+            kept = isinstance(old, tuple) and old[1] is cand and old[2] is run.state.r
+            seen.append((kept, old[0] if kept else None, run.contact.potential(cand, run.state.r)))
         return step(self, run, prob, sol, old)
 
     monkeypatch.setattr(balance.ContactWork, "step", checked)
     run = RodRun(crossing_loop(1e-4, law, 0.002))
-    while run.t < 0.002 - 1e-12:
-        run.advance(run.t + 1e-4)
+    while run.state.t < 0.002 - 1e-12:
+        run.advance(run.state.t + 1e-4)
     kept = [(a, b) for k, a, b in seen if k]
     assert len(kept) >= 5 and len(kept) < len(seen), [k for k, _, _ in seen]
     assert any(b > 0.0 for _, b in kept)

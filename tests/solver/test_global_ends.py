@@ -314,10 +314,10 @@ def test_a_towed_end_free_to_turn_has_the_exact_jacobian(where):
     run = RodRun(Case.model_validate(spec))
     for _ in range(3):
         assert run.try_step(0.02).ok
-    prob = run.step_problem(0.02)
+    prob = run.assembly.step_problem(run.state, 0.02)
     sysm = run.system
-    sysm.begin_step(prob.h, prob.params, prob.t_new, run.Y, run.Ydot, run.F_old, prob.bc,
-                    q_old=run.q, r_old=run.r, v_old_global=run.v_global)
+    sysm.begin_step(prob.h, prob.params, prob.t_new, run.state.Y, run.state.Ydot, run.state.F_old, prob.bc,
+                    q_old=run.state.q, r_old=run.state.r, v_old_global=run.state.v_global)
     Y = prob.guess + 0.3 * np.random.default_rng(1).standard_normal(prob.guess.shape)
     e = 0 if where == "start" else 1
     assert list(prob.bc.turning) == [e == 0, e == 1]

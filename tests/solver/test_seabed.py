@@ -237,15 +237,15 @@ def test_cable_dragged_along_the_bottom_pulls_with_mu_w_l(direction, axis, mu):
     from solver.loads import end_reactions
 
     run = _run_to(_drag_case(direction), 1.5)
-    assert np.allclose(run.v_global_time[:, axis], V_DRAG, rtol=1e-3)
-    re = end_reactions(run.Y, run.q, run.props.stiffness)
+    assert np.allclose(run.state.v_global_time[:, axis], V_DRAG, rtol=1e-3)
+    re = end_reactions(run.state.Y, run.state.q, run.props.stiffness)
     pull = re["reaction_force_start"][axis] + re["reaction_force_end"][axis]
     assert abs(pull / (mu * W * 1.0) - 1.0) < 0.01, (pull, mu * W)
     # the seabed's work account: friction over the distance slid, V (1.5 − 0.25) s (the
     # smoothstep ramp covers half its duration's distance); the few millimetres slid below
     # 2 slip velocities at the start take less than their share
     slid = V_DRAG * (1.5 - 0.25)
-    assert -run.seabed_work / (mu * W * 1.0 * slid) == pytest.approx(1.0, abs=0.01)
+    assert -run.state.seabed_work / (mu * W * 1.0 * slid) == pytest.approx(1.0, abs=0.01)
 
 
 def test_a_spinning_cable_rolls_without_slip_at_spin_times_radius():
@@ -258,10 +258,10 @@ def test_a_spinning_cable_rolls_without_slip_at_spin_times_radius():
     spec["numerics"]["rho_inf"] = 0.0
     run = _run_to(Case.model_validate(spec), 1.0)
     # the contact point (−ρ z) at rest: ṙ = −Ω × (−ρ z) = ρ Ω x × z = −ρ Ω y
-    spin_now = run.Y[:, 5]
+    spin_now = run.state.Y[:, 5]
     assert np.allclose(spin_now, 2.0, rtol=1e-4), spin_now
-    assert np.allclose(run.v_global_time[:, 1], -spin_now * D / 2, rtol=1e-3), run.v_global_time
-    assert np.allclose(run.v_global_time[:, [0, 2]], 0.0, atol=1e-6)
+    assert np.allclose(run.state.v_global_time[:, 1], -spin_now * D / 2, rtol=1e-3), run.state.v_global_time
+    assert np.allclose(run.state.v_global_time[:, [0, 2]], 0.0, atol=1e-6)
 
 
 # --------------------------------------------------------------------------- bathymetry
@@ -390,8 +390,8 @@ def test_catenary_with_touchdown_matches_its_suspended_length_and_span():
     run = _run_to(Case.model_validate(spec), 30.0)
     _, _, _, pen = run.seabed_loads()
     s_td = touchdown(pen, run.props.s)
-    x_at = np.interp(s_td, run.props.s, run.r_time[:, 0])
-    assert np.linalg.norm(run.r_time[-1] - top) < 1e-3       # pinned where the case says
+    x_at = np.interp(s_td, run.props.s, run.state.r_time[:, 0])
+    assert np.linalg.norm(run.state.r_time[-1] - top) < 1e-3       # pinned where the case says
     assert abs((L - s_td) / suspended - 1.0) < 0.015, (L - s_td, suspended)
     assert abs((top[0] - x_at) / span - 1.0) < 0.015, (top[0] - x_at, span)
 
@@ -476,12 +476,12 @@ def test_seabed_account_is_the_springs_work_and_the_runs_seabed_work_without_dam
     spec["numerics"]["energy_tolerance"] = 1e6              # measures, refuses nothing
     run = RodRun(Case.model_validate(spec))
     run.advance(dt)
-    w0, work, account, trapezoid = run.seabed_work, 0.0, [], []
-    while run.t < 0.04 - 1e-12:
-        run.advance(run.t + dt)
+    w0, work, account, trapezoid = run.state.seabed_work, 0.0, [], []
+    while run.state.t < 0.04 - 1e-12:
+        run.advance(run.state.t + dt)
         work += run.last_balance.work["seabed"]
         account.append(work)
-        trapezoid.append(run.seabed_work - w0)
+        trapezoid.append(run.state.seabed_work - w0)
     account, trapezoid = np.array(account), np.array(trapezoid)
     assert np.abs(account).max() > 1e-3                     # it landed: W·1 mm = 4.9e-3 J
     assert np.abs(account - trapezoid).max() < 0.02 * np.abs(account).max()

@@ -116,8 +116,8 @@ def test_catenary_touchdown_lying_part_is_supported_smoothly():
     for k in range(1, 41):
         run.advance(k * dt)
     w = 500.0 * np.pi * 0.01**2 * 9.81
-    F, _, pen_cells = run.seabed.cell_loads(run.r_time, run.v_global_time,
-                                            quat_to_matrix(run.q_time), run.Y[:, 3:6])
+    F, _, pen_cells = run.system.seabed.cell_loads(run.state.r_time, run.state.v_global_time,
+                                            quat_to_matrix(run.state.q_time), run.state.Y[:, 3:6])
     s = run.props.s
     end = 0.5 * (s[:-1] + s[1:])[pen_cells > 0].max()
     lying = np.flatnonzero(s < end - 0.3)
@@ -126,7 +126,7 @@ def test_catenary_touchdown_lying_part_is_supported_smoothly():
     assert np.all(np.abs(Fn[lying, 2] / w - 1.0) < 0.1), Fn[lying, 2] / w
     cells = F[lying[:-1], 2] / w
     assert cells.min() > 0.25 and cells.max() < 1.75, cells
-    z = run.r_time[lying, 2]
+    z = run.state.r_time[lying, 2]
     assert np.abs(z[1:-1] - 0.5 * (z[:-2] + z[2:])).max() < 3e-5
 
 

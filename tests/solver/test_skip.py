@@ -110,9 +110,9 @@ def _drag_share(run):
     from solver.scheme import BACKWARD_EULER
 
     system = run.system
-    system.begin_step(0.01, BACKWARD_EULER, 0.01, run.Y, run.Ydot, run.F_old, run.bc,
-                      q_old=run.q, r_old=run.r, v_old_global=run.v_global)
-    Y = run.Y.copy()
+    system.begin_step(0.01, BACKWARD_EULER, 0.01, run.state.Y, run.state.Ydot, run.state.F_old, run.state.bc,
+                      q_old=run.state.q, r_old=run.state.r, v_old_global=run.state.v_global)
+    Y = run.state.Y.copy()
     Y[:, 0] = 0.1                                       # v1 = 0.1 m/s everywhere
     with_switch = system.residual(Y)[0]
     flags = system.rod_data[6]
@@ -149,4 +149,4 @@ def test_pose_inside_newton_only_for_pose_dependent_loads(gravity):
     run = sim_mod.RodRun(Case.model_validate(spec))
     assert run.system.needs_pose is (gravity is not None)
     run.advance(0.1)
-    assert np.all(np.isfinite(run.Y))
+    assert np.all(np.isfinite(run.state.Y))

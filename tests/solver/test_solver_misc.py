@@ -91,7 +91,7 @@ def test_work_of_gravity_balances_energy_to_second_order_in_ds():
 
 # ------------------------------------------------------------------ the Newton start
 def test_newton_starts_extrapolate_the_accepted_levels_exactly():
-    """RodRun._predictions: the line through the last two levels and the parabola through
+    """ProblemAssembly._predictions: the line through the last two levels and the parabola through
     the last three (unequal steps) reproduce a state that is linear / quadratic in t."""
     from solver.simulation import RodRun
     run = RodRun(make_case(n_segments=4, end=SLIDING_END))
@@ -100,14 +100,15 @@ def test_newton_starts_extrapolate_the_accepted_levels_exactly():
     quad = lambda t: base[0] + base[1] * t + 0.7 * t * t      # noqa: E731
     lin = lambda t: base[0] + base[1] * t                     # noqa: E731
     for state, kinds in ((quad, ("quadratic",)), (lin, ("linear", "quadratic"))):
-        run.Y_prev2, run.Y_prev, run.Y = state(t2), state(t1), state(t0)
-        run.h_prev2, run.h_prev = t1 - t2, t0 - t1
-        pred = run._predictions(h)
+        st = run.state
+        st.Y_prev2, st.Y_prev, st.Y = state(t2), state(t1), state(t0)
+        st.h_prev2, st.h_prev = t1 - t2, t0 - t1
+        pred = run.assembly._predictions(st, h)
         for kind in kinds:
             np.testing.assert_allclose(pred[kind], state(h), atol=1e-12)
     assert np.abs(pred["linear"] - quad(h)).max() > 0.01
-    run.Y_prev2 = None                                        # after a restart: the line only
-    assert set(run._predictions(h)) == {"linear"}
+    st.Y_prev2 = None                                        # after a restart: the line only
+    assert set(run.assembly._predictions(st, h)) == {"linear"}
 
 
 def test_kappa_distance_is_the_sum_of_squares_of_the_curvature_difference():
@@ -154,19 +155,20 @@ def test_the_newton_start_follows_the_predictor_that_placed_kappa_better():
     near_kappa[:, 9:12] = 1e-6
     near_kappa[:, 0:9] = 1.0                                  # far in v, ω, f
     near_rest[:, 9:12] = 1e-3
-    assert run._better_predictor(Y, {"linear": near_rest, "quadratic": near_kappa}) == "quadratic"
-    assert run._better_predictor(Y, {"linear": near_kappa, "quadratic": near_rest}) == "linear"
+    assert run.assembly._better_predictor(Y, {"linear": near_rest, "quadratic": near_kappa}) == "quadratic"
+    assert run.assembly._better_predictor(Y, {"linear": near_kappa, "quadratic": near_rest}) == "linear"
 
     end = {"translation": [{"force": smooth_pulse_table(0.02, 1.0)}, {"force": 0.0},
                            {"force": 0.0}], "rotation": [{"moment": 0.0}] * 3}
     case = make_case(n_segments=20, dt=0.02, t_end=1.0, end=end, fields=("position",))
     chosen = integrate(case)
-    original = sim.RodRun._better_predictor
-    sim.RodRun._better_predictor = lambda self, Y, predictions: "linear"
+    from solver.step_problem import ProblemAssembly
+    original = vars(ProblemAssembly)["_better_predictor"]        # the staticmethod itself
+    ProblemAssembly._better_predictor = staticmethod(lambda Y, predictions: "linear")
     try:
         line = integrate(case)
     finally:
-        sim.RodRun._better_predictor = original
+        ProblemAssembly._better_predictor = original
     its_chosen = int(chosen.step_newton_iterations.sum())
     its_line = int(line.step_newton_iterations.sum())
     assert its_chosen < its_line, (its_chosen, its_line)

@@ -361,20 +361,20 @@ def test_the_doubled_step_after_a_restart_keeps_both_halves():
 
     run = RodRun(pulse_case(1e-3, dt=0.2))
     run.step_adaptive(run.case.numerics.t_end)
-    h = run.last_dt
-    times = run.errctl.times
-    assert len(times) == 3 and run.errctl.can_estimate
+    h = run.control.last_dt
+    times = run.control.errctl.times
+    assert len(times) == 3 and run.control.errctl.can_estimate
     # from the end of the restart's backward-Euler steps to here: one step of h
-    assert run.t == pytest.approx(times[0] + h, rel=1e-12)
-    assert times[-1] == pytest.approx(run.t, rel=1e-12)
+    assert run.state.t == pytest.approx(times[0] + h, rel=1e-12)
+    assert times[-1] == pytest.approx(run.state.t, rel=1e-12)
     # the levels before it: the restart's end and the midpoint of the doubled step
     assert times[1] - times[0] == pytest.approx(0.5 * (times[2] - times[0]), rel=1e-9)
-    assert run.last_error_ratio <= 1.0
+    assert run.control.last_attempt.error_ratio <= 1.0
     # the step after it is estimated (Milne's device) and, here, accepted at once
-    run.refusals.clear()
+    run.control.refusals.clear()
     run.step_adaptive(run.case.numerics.t_end)
-    assert sum(run.refusals.values()) == 0, run.refusals
-    assert 0.0 < run.last_error_ratio <= 1.0
+    assert sum(run.control.refusals.values()) == 0, run.control.refusals
+    assert 0.0 < run.control.last_attempt.error_ratio <= 1.0
 
 
 def test_a_field_that_falls_quiet_keeps_its_scale():
@@ -468,13 +468,13 @@ def test_a_rolled_back_probe_step_keeps_what_the_growth_guard_learnt():
     spec["numerics"]["tolerance"] = {"relative": 1e-3, "absolute": 1e-3}
     run = RodRun(Case.model_validate(spec))
     before = run._state()
-    t0, Y0 = run.t, run.Y
+    t0, Y0 = run.state.t, run.state.Y
     run.try_step(1e-6, restart=True)
-    run.guard_sigma, run.guard_h, run.guard_since = 3.5, 0.02, 0
-    assert run.t > t0
+    run.control.guard.sigma, run.control.guard.h, run.control.guard.since = 3.5, 0.02, 0
+    assert run.state.t > t0
     run._restore(before)
-    assert run.t == t0 and run.Y is Y0
-    assert (run.guard_sigma, run.guard_h, run.guard_since) == (3.5, 0.02, 0)
+    assert run.state.t == t0 and run.state.Y is Y0
+    assert (run.control.guard.sigma, run.control.guard.h, run.control.guard.since) == (3.5, 0.02, 0)
 
 
 def test_hermite_and_slerp_are_exact_where_they_should_be():
@@ -669,16 +669,16 @@ def test_dense_output_integrates_the_centreline_only_when_asked(monkeypatch):
     """With a load in the global frame (the steps keep the centreline) an interpolated
     output of energies alone does not integrate the space route; the energies are those
     of the run that also keeps the positions, to round-off, in the same steps."""
-    from solver.simulation import RodRun
+    from solver.step_problem import ProblemAssembly
 
     calls = {"n": 0}
-    route = RodRun.update_space_route
+    route = ProblemAssembly.update_space_route
 
-    def counted(self):
+    def counted(self, st):
         calls["n"] += 1
-        return route(self)
+        return route(self, st)
 
-    monkeypatch.setattr(RodRun, "update_space_route", counted)
+    monkeypatch.setattr(ProblemAssembly, "update_space_route", counted)
     runs = {}
     for fields in (["energies"], ["energies", "position"]):
         spec = pulse_case(1e-3).model_dump()
@@ -769,17 +769,16 @@ def _route_run(case, refuse_above: float, reason: str):
 
     from solver.stepping.control import Attempt
 
-    run = SimpleNamespace(case=case, t=0.0, tried=[], last_route_ratio=0.5,
-                          last_had_candidates=True, last_reject=None,
+    run = SimpleNamespace(case=case, state=SimpleNamespace(t=0.0), tried=[],
                           newton=SimpleNamespace(last_failure="stalled"))
 
     def try_step(h, t_new=None, left_limit=False):
         run.tried.append(h)
         if h > refuse_above:
-            run.last_reject = reason
-            return Attempt(False, 3, 1e-12, False, reason)
-        run.t = t_new if t_new is not None else run.t + h
-        return Attempt(True, 2, 1e-12)
+            return Attempt(False, 3, 1e-12, False, reason, route_ratio=0.5,
+                           had_candidates=True)
+        run.state.t = t_new if t_new is not None else run.state.t + h
+        return Attempt(True, 2, 1e-12, route_ratio=0.5, had_candidates=True)
 
     run.try_step = try_step
     return run
@@ -805,7 +804,7 @@ def test_a_refused_route_step_tries_the_smallest_step_before_giving_up(reason):
     run = _route_run(case, refuse_above=h_min * 1.0001, reason=reason)
     ctl._route_step(run, stop=1.0, h_full=0.1, at_break=False)
     np.testing.assert_allclose(run.tried, [0.01, h_min])
-    assert run.t == pytest.approx(h_min)
+    assert run.state.t == pytest.approx(h_min)
 
     ctl = StepControl(case, route_pi=PIController())
     ctl.h_route = 0.01
