@@ -92,6 +92,9 @@ class AlphaParameters:
 
     @classmethod
     def from_rho_inf(cls, rho: float) -> "AlphaParameters":
+        """α_m = (2ρ∞ − 1)/(ρ∞ + 1), α_f = ρ∞/(ρ∞ + 1), γ = ½ + α_f − α_m,
+        β = ¼(γ + ½)² (Chung & Hulbert 1993, eqs. 25-26). Raises
+        :class:`CentrelineError` for ρ∞ outside [0, 1]."""
         rho = float(rho)
         if not 0.0 <= rho <= 1.0:
             raise CentrelineError(f"numerics.rho_inf: {rho} is not in [0, 1]")
