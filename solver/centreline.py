@@ -172,6 +172,8 @@ class CentrelineRod:
     CHORD_CONTRACTION = 0.25
     #: the largest scaled update taken as rounding's floor when it stops contracting
     FLOOR = 1e-6
+    #: the residual (max over the rows, each in its scale) that rounding leaves
+    RESIDUAL_FLOOR = 1e-8
     MAX_ITERATIONS = 25
 
     def __init__(self, case, props, q0, r0):
@@ -415,7 +417,6 @@ class CentrelineRod:
         Y[:, 3:7] = st._qmul(old.Y[:, 3:7], cayley_quaternion(D[:, 3:6]))
         return Y
 
-    BACKTRACK = False
     #: re-decisions of the sea floor's held contact set in one step
     REDECISIONS = 6
 
@@ -481,10 +482,14 @@ class CentrelineRod:
         where they do not (a full Newton step; the Jacobian is exact). Converged when the
         update scaled by :meth:`solver.statics.StaticProblem.scales` is below TOLERANCE,
         or below FLOOR and no longer contracting (rounding's floor: the step's matrix
-        grows as 1/(β Δt²), and so does the rounding of its solve). Raises
+        grows as 1/(β Δt²), and so does the rounding of its solve), or when a step with
+        a fresh Jacobian does not contract from a residual below RESIDUAL_FLOOR in the
+        rows' scales (an inextensible rod between held ends: its tension is rounding's
+        noise at 1e-5 of B/L², the residual at 1e-10 of it). Raises
         :class:`StepFailure` without convergence in MAX_ITERATIONS, on a singular
         Jacobian or a non-finite update."""
         scale = prob.scales()
+        weights = 1.0 / st._row_scales(prob)
         err = math.inf
         lu = None
         for it in range(1, self.MAX_ITERATIONS + 1):
@@ -509,39 +514,47 @@ class CentrelineRod:
                 lu = None                                  # refactor here, redo
                 err = prev
                 continue
-            if fresh and it > 2 and err > 10.0 * prev and err > self.FLOOR:
-                raise StepFailure(f"Newton diverging (scaled update {prev:.3g} -> "
-                                  f"{err:.3g} with a fresh Jacobian)")
-            lam = 1.0
-            if fresh and self.BACKTRACK and self.seabed is not None and err > self.FLOOR:
-                lam = self._backtrack(Y, dY, G, old, co, prob)
+            if fresh and it > 2 and err > prev and err > self.FLOOR:
+                # a fresh Newton step larger than the last: take the part of it that
+                # lowers the residual, or give up where none does
+                lam = self._line_search(Y, dY, G, old, co, prob, weights)
+                if lam <= self.SMALLEST_STEP:
+                    raise StepFailure(f"Newton diverging (scaled update {prev:.3g} -> "
+                                      f"{err:.3g} with a fresh Jacobian, no descent along it)")
+                if lam < 1.0:
+                    Y = Y - lam * dY
+                    lu = None
+                    err = prev
+                    continue
+            stalled = err > 0.5 * prev
+            at_rounding = (fresh and stalled
+                           and float(np.max(np.abs(G) * weights)) < self.RESIDUAL_FLOOR)
             fresh = False
-            Y = Y - lam * dY
-            if lam == 1.0 and (err < self.TOLERANCE
-                               or (err < self.FLOOR and err > 0.5 * prev)):
+            Y = Y - dY
+            if err < self.TOLERANCE or (err < self.FLOOR and stalled) or at_rounding:
                 return Y, it, err
         raise StepFailure(f"Newton did not converge in {self.MAX_ITERATIONS} iterations "
                           f"(scaled update {err:.3g})")
 
-    #: the fewest the backtracking halves a Newton step to (2⁻¹⁰)
-    SMALLEST_STEP = 2.0 ** -10
+    #: the smallest fraction of a Newton step the line search takes (2⁻⁸)
+    SMALLEST_STEP = 2.0 ** -8
 
-    def _backtrack(self, Y, dY, G, old, co, prob) -> float:
+    def _line_search(self, Y, dY, G, old, co, prob, weights) -> float:
         """The first λ of 1, ½, ¼ ... (down to SMALLEST_STEP) whose residual at Y − λ dY
-        is smaller in the scaled max norm than G's (the statics' monotonicity test,
-        :func:`solver.statics._damped`; Deuflhard, *Newton Methods for Nonlinear
-        Problems*, 2004, § 3.1). The sea floor's load has a kink where a node touches
-        (the spring's force k max(p, 0)): full Newton steps from iterates on either side
-        of it cycled between nodes touching and lifted."""
-        w = 1.0 / st._row_scales(prob)
-        g0 = float(np.linalg.norm(G * w))
+        is smaller in the rows' scaled 2-norm than G's (Armijo's backtracking on the
+        Newton direction; Deuflhard, *Newton Methods for Nonlinear Problems*, 2004,
+        § 3.1)."""
+        g0 = float(np.linalg.norm(G * weights))
         lam = 1.0
         while lam > self.SMALLEST_STEP:
-            gt = float(np.linalg.norm(self.residual(Y - lam * dY, old, co, prob) * w))
-            if gt < g0:
-                break
+            try:
+                gt = float(np.linalg.norm(self.residual(Y - lam * dY, old, co, prob) * weights))
+            except FloatingPointError:
+                gt = math.inf
+            if gt < (1.0 - 1e-4 * lam) * g0:
+                return lam
             lam *= 0.5
-        return lam
+        return 0.0
 
     def step(self, old: CentrelineState, h: float) -> tuple[CentrelineState, int, float]:
         """One generalized-α step of h (s) from ``old``: (the new state, Newton
