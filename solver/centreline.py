@@ -418,7 +418,7 @@ class CentrelineRod:
         return Y
 
     #: re-decisions of the sea floor's held contact set in one step
-    REDECISIONS = 6
+    REDECISIONS = 30
 
     def solve(self, old, co, prob, Y) -> tuple[np.ndarray, int, float]:
         """Newton on the dynamic rows from Y (:meth:`newton`); (Y, iterations, scaled
