@@ -220,7 +220,7 @@ class CentrelineRod:
         """The rod of a validated case. Raises :class:`CentrelineError` naming the field
         the scheme does not take yet (``contact``, ``seabed``, ``numerics.tolerance``, a
         non-uniform ``ds``) or the statics' end rows cannot say."""
-        from .initial import initial_pose
+        from .initial import initial_pose, node_frames
         from .properties import RodProperties
 
         if case.contact is not None:
@@ -230,7 +230,8 @@ class CentrelineRod:
             raise CentrelineError("numerics.tolerance: the centreline scheme takes fixed "
                                   "steps (numerics.dt) only")
         props = RodProperties.from_case(case)
-        q, r, _ = initial_pose(case, props.s)
+        q = node_frames(case, props.s)
+        r = initial_pose(case, props.s)[1]
         q = q / np.linalg.norm(q, axis=1)[:, None]
         rod = cls(case, props, q, box_centreline(q, r[0], props.ds))
         try:
@@ -434,7 +435,7 @@ class CentrelineRod:
         if self.seabed is None:
             return self.newton(old, co, prob, Y)
         rest = _Coefficients(0.0, old.Xd, 0.0, old.X)
-        hold = (self._penetration(Y, old, co) > 0.0) | (self._penetration(old.Y, old, rest) > 0.0)
+        hold = (self._penetration(Y, old, co) >= 0.0) | (self._penetration(old.Y, old, rest) >= 0.0)
         try:
             return self._held_solve(old, co, prob, Y, hold)
         except StepFailure:
@@ -516,12 +517,13 @@ class CentrelineRod:
                 continue
             if fresh and it > 2 and err > prev and err > self.FLOOR:
                 # a fresh Newton step larger than the last: take the part of it that
-                # lowers the residual, or give up where none does
+                # lowers the residual; where none does, the whole step unless it grew
+                # tenfold
                 lam = self._line_search(Y, dY, G, old, co, prob, weights)
-                if lam <= self.SMALLEST_STEP:
+                if lam <= self.SMALLEST_STEP and err > 10.0 * prev:
                     raise StepFailure(f"Newton diverging (scaled update {prev:.3g} -> "
                                       f"{err:.3g} with a fresh Jacobian, no descent along it)")
-                if lam < 1.0:
+                if self.SMALLEST_STEP < lam < 1.0:
                     Y = Y - lam * dY
                     lu = None
                     err = prev
@@ -547,9 +549,9 @@ class CentrelineRod:
         g0 = float(np.linalg.norm(G * weights))
         lam = 1.0
         while lam > self.SMALLEST_STEP:
-            try:
+            with np.errstate(over="ignore", invalid="ignore"):
                 gt = float(np.linalg.norm(self.residual(Y - lam * dY, old, co, prob) * weights))
-            except FloatingPointError:
+            if not math.isfinite(gt):
                 gt = math.inf
             if gt < (1.0 - 1e-4 * lam) * g0:
                 return lam

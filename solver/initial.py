@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Curve", "StartState", "StartOffset", "initial_pose", "initial_state",
+__all__ = ["Curve", "StartState", "StartOffset", "initial_pose", "node_frames", "initial_state",
            "start_offset", "LENGTH_RTOL", "START_OFFSET_ADVICE"]
 
 #: relative tolerance with which a centreline's length must match rod.length
@@ -222,6 +222,35 @@ def initial_pose(case, s):
     q0 = quat_from_matrix(R[0])
     q, r = space_route(q0, np.asarray(r0, float), kappa, float(s[1] - s[0]))
     return q, r, kappa
+
+
+def node_frames(case, s):
+    """The frames (N+1, 4) (unit quaternions of [a1 a2 a3]) of the case's initial shape at
+    each node's own arclength s (N+1,) m: for an ``initial.centreline``, the curve's unit
+    tangent and its twisted rotation-minimising normal there (:func:`_frames`), each
+    node's own; otherwise :func:`initial_pose`'s (exact: a straight rod's frames turn
+    about one axis). :func:`initial_pose` instead integrates κ along s from the first
+    frame (the seed scheme's space route), which turns a twisted curve's tangents out of
+    its plane at O(Δs²): the centreline scheme builds its centreline from these
+    (:func:`solver.centreline.box_centreline`), so a plane curve stays in its plane."""
+    from .kinematics import quat_from_matrix
+
+    ini = case.initial
+    s = np.asarray(s, dtype=float)
+    if getattr(ini, "centreline", None) is None:
+        return initial_pose(case, s)[0]
+    tangent = np.asarray(ini.tangent, float)
+    tangent = tangent / np.linalg.norm(tangent)
+    normal = np.asarray(ini.normal, float)
+    normal = normal - np.dot(normal, tangent) * tangent
+    normal = normal / np.linalg.norm(normal)
+    R, _, _ = _frames(Curve(ini.centreline.points), s - s[0], normal,
+                      float(getattr(ini, "twist_rate", 0.0) or 0.0))
+    q = np.array([quat_from_matrix(Rk) for Rk in R])
+    # one sign along s (q and −q are one frame; the box rule's rows need neighbours close)
+    flip = np.cumsum(np.r_[0, np.einsum("ki,ki->k", q[1:], q[:-1]) < 0.0]) % 2 == 1
+    q[flip] *= -1.0
+    return q
 
 
 @dataclass(frozen=True)
