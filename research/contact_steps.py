@@ -116,7 +116,7 @@ def trace_newton() -> None:
 
     def traced_solve(self, Y_guess):
         out = solve(self, Y_guess)
-        self.last_trace = self._state["ws"][13][:out[2] + 1].copy()
+        self.last_trace = self._state["ws"].trace[:out[2] + 1].copy()
         return out
 
     def traced_feasible_start(self, guess):        # NewtonSolver.feasible_start, keeping

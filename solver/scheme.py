@@ -393,11 +393,8 @@ def exact_loads_product(dY, op, P, dB, dS):
     exact for the space-route pose, minus the node-local part the band holds, and the
     same for the seabed's cell loads, dS (N, 6) (the E3 and E4 cell rows' change, unscaled;
     only the rows of touching cells are written); ``op``: the pose, contact and seabed
-    data of :func:`residual_into` at the linearisation point (R, C, D, tmid, rdot, A0,
-    G, L and the first P contacts' nodes, weights, force, ∂F/∂r, ∂F/∂v, ∂t/∂r, ∂w/∂t;
-    (Δt, Δs, αf) s, m, 1; scratch dφ, dr, dG (N+1, 3); the seabed's cells, count,
-    partials and loads (:func:`solver.seabed.seabed_into`), R ω (N+1, 3) and
-    ½Δt R J_r(θ) (N+1, 3, 3)).
+    data of :func:`residual_into` at the linearisation point, the first P contacts
+    valid (:class:`solver.kernel_data.ExactProduct`).
 
     The pose's change is integrated along s (δφ_k, δr_k: the spatial rotation and the
     displacement of node k, through κ upstream and node 0's time route): the contact
@@ -411,8 +408,10 @@ def exact_loads_product(dY, op, P, dB, dS):
     (δ(Rᵀ F) = Rᵀ(F × δφ) for δR = [δφ]× R). Prefix sums along the rod, the pairs' load
     changes, the touching cells and the body-frame rotation in one pass each:
     O(N + P)."""
-    (R, C, D, tmid, rdot, A0, G, L, nodes, w, Fp, d_dr, d_dv, dtdr, dwdt, scal, dphi, dr, dG,
-     sbc, sbn, sbj, sbl, Og, Aphi) = op
+    R, C, D, tmid, rdot, A0, G, L = op.R, op.C, op.D, op.tmid, op.rdot, op.A0, op.G, op.L
+    nodes, w, Fp, d_dr, d_dv = op.nodes, op.weights, op.force, op.dF_dr, op.dF_dv
+    dtdr, dwdt, scal, dphi, dr, dG = op.dt_dr, op.dw_dt, op.scalars, op.dphi, op.dr, op.dG
+    sbn = op.seabed_count
     n1 = dY.shape[0]
     dt = scal[0]
     ds = scal[1]
@@ -484,7 +483,8 @@ def exact_loads_product(dY, op, P, dB, dS):
                 acc -= L[k, i, j] * dY[k, j]
             dB[k, i] = acc
     if sbn[0] > 0:
-        _seabed_product(dY, R, rdot, Og, Aphi, dphi, dr, sbc, sbn[0], sbj, sbl,
+        _seabed_product(dY, R, rdot, op.Romega, op.Aphi, dphi, dr, op.seabed_cells, sbn[0],
+                        op.seabed_partials, op.seabed_loads,
                         0.5 * dt, 0.5 * (1.0 - scal[2]), dS)
 
 
