@@ -123,8 +123,8 @@ def _parts(run: RodRun, dt: float, repeats: int) -> tuple[dict, int, int]:
         max(repeats // 4, 5))
     lu, op = st["lin"].lu, st["op"]
     timed["band LU alone"] = _median_ms(
-        lambda: block_factor(op.blocks, step[7], step[8], op.bc_scaled, lu), max(repeats // 4, 5))
-    ab = _lapack_band(op.blocks, step[7], step[8], op.bc_scaled)
+        lambda: block_factor(op.blocks, step.bc_rows, step.bc_cols, op.bc_scaled, lu), max(repeats // 4, 5))
+    ab = _lapack_band(op.blocks, step.bc_rows, step.bc_cols, op.bc_scaled)
     work = np.empty_like(ab, order="F")
     copy_ms = _median_ms(lambda: np.copyto(work, ab), max(repeats // 4, 5))
 
@@ -138,7 +138,7 @@ def _parts(run: RodRun, dt: float, repeats: int) -> tuple[dict, int, int]:
         # the buffers still hold the evaluation at Y made before the factorisation
         timed["operator set-up"] = _median_ms(
             lambda: newton_mod._set_operator(system.buf, system.ev, st["lin"], op, step,
-                                             newton.CONTACT_BAND_WEIGHT, step[11][2]),
+                                             newton.CONTACT_BAND_WEIGHT, step.af),
             repeats)
         timed["exact product"] = _median_ms(
             lambda: newton_mod._matvec(x, out, st["lin"], op, step, st["gm"]), repeats)

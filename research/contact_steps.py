@@ -125,7 +125,7 @@ def trace_newton() -> None:
         rod, step, cand, cdata = system.kernel_args()
         out = np.empty((system.n_nodes, nm.NV))
         self.last_start_blend = float(nm._feasible_start(
-            step[0], np.ascontiguousarray(guess, dtype=float), step, rod, cand, cdata,
+            step.Y_old, np.ascontiguousarray(guess, dtype=float), step, rod, cand, cdata,
             self._state["ws"], out, self.START_GAP_KEEP))
         return out
 

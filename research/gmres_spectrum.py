@@ -131,8 +131,8 @@ class StepSystems:
                                newton.CONTACT_BAND_WEIGHT, st["ctr"])
         else:
             newton_mod._set_operator(system.buf, system.ev, self.lin, self.op, step,
-                                     newton.CONTACT_BAND_WEIGHT, step[11][2])
-        return -system.buf[0] * self.lin.row_scale
+                                     newton.CONTACT_BAND_WEIGHT, step.af)
+        return -system.buf.R * self.lin.row_scale
 
     def matvec(self, x: np.ndarray) -> np.ndarray:
         """J x (n,), the operator as last set by :meth:`at`."""
@@ -355,12 +355,14 @@ def augmented_matrix(sys_: StepSystems) -> tuple[sparse.csc_matrix, int]:
     nodes. Returns (matrix, n). No seabed terms (raises ValueError where cells touch)."""
     lin, op = sys_.lin, sys_.op
     step = sys_.run.system.kernel_args()[1]
-    blocks, bc_scaled, lrw, ex, flags = op
-    R, C, D, tmid, rdot, A0, G, L, nodes, w, Fp, d_dr, d_dv, dtdr, dwdt, scal = ex[:16]
-    if ex[20][0] > 0:
+    blocks, bc_scaled, lrw, ex = op.blocks, op.bc_scaled, op.load_row_weight, op.exact
+    R, C, D, tmid, rdot, A0, G, L = ex.R, ex.C, ex.D, ex.tmid, ex.rdot, ex.A0, ex.G, ex.L
+    nodes, w, Fp, d_dr, d_dv = ex.nodes, ex.weights, ex.force, ex.dF_dr, ex.dF_dv
+    dtdr, dwdt, scal = ex.dt_dr, ex.dw_dt, ex.scalars
+    if ex.seabed_count[0] > 0:
         raise ValueError("augmented_matrix: seabed cells touch; their terms are not assembled")
-    P = int(flags[1]) if flags[0] else 0
-    cs = lin[3]
+    P = int(op.pairs[0]) if op.coupled[0] else 0
+    cs = lin.col_scale
     nc = blocks.shape[0]
     n1 = nc + 1
     n = 12 * n1
@@ -378,10 +380,10 @@ def augmented_matrix(sys_: StepSystems) -> tuple[sparse.csc_matrix, int]:
 
     c_, i_, j_ = np.meshgrid(np.arange(nc), np.arange(12), np.arange(24), indexing="ij")
     put(6 + 12 * c_ + i_, 12 * c_ + j_, blocks)
-    bc_rows, bc_cols = step[7], step[8]
+    bc_rows, bc_cols = step.bc_rows, step.bc_cols
     put(bc_rows, bc_cols, bc_scaled[:bc_rows.shape[0]])
     for e in range(2):
-        if step[11][6 + e] != 0.0:
+        if step.turning_start if e == 0 else step.turning_end:
             k = 0 if e == 0 else n1 - 1
             ii, jj = np.meshgrid(np.arange(3), np.arange(3), indexing="ij")
             put(bc_rows[6 * e + ii], 12 * k + W + jj, bc_scaled[12 + 9 * e + 3 * ii + jj])

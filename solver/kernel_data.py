@@ -21,7 +21,188 @@ from typing import NamedTuple
 import numpy as np
 
 __all__ = ["NewtonParams", "LinearSolve", "ExactProduct", "Operator", "GmresWork",
-           "NewtonWork", "NewtonCounters"]
+           "NewtonWork", "NewtonCounters", "SeabedData", "RodData", "StepData",
+           "ResidualBuffers"]
+
+
+# ------------------------------------------------------------------------- the residual
+class SeabedData(NamedTuple):
+    """``seabed``: the sea floor on the grid as the kernels of :mod:`solver.seabed` take
+    it (:attr:`solver.seabed.SeabedContact.data`; :data:`solver.seabed.NO_SEABED` without
+    a seabed: kind 0)."""
+
+    #: (10,): kind (0 none, 1 flat, 2 grid), elevation m (flat), normal stiffness k Pa,
+    #: normal damping c Pa s, axial and lateral friction coefficients μa, μl, static to
+    #: kinetic ratio, slip velocity m/s, top m (the highest bottom point), slope factor
+    #: max √(1 + hx² + hy²)
+    scalars: np.ndarray
+    #: the rod's radius at the nodes (N+1,), m
+    radius: np.ndarray
+    #: the bathymetry grid's x (nx,), m
+    grid_x: np.ndarray
+    #: the bathymetry grid's y (ny,), m
+    grid_y: np.ndarray
+    #: the bathymetry's elevation z (nx, ny), m
+    grid_z: np.ndarray
+    #: the old level's share of the cell rows (N, 12), frozen at the step's start
+    old_rows: np.ndarray
+    #: the damper's branch held per cell (N,) (−1 the law's, 0, 1, 2)
+    modes: np.ndarray
+    #: the control of the held branches (8,)
+    #: (:meth:`solver.seabed.SeabedContact.freeze_control`)
+    hold: np.ndarray
+
+
+class RodData(NamedTuple):
+    """``rod``: the run's constant data as :func:`solver.scheme.residual_into` takes it
+    (:attr:`solver.scheme.RodSystem.rod_data`)."""
+
+    #: translational mass per unit length (N+1, 3) (ρA with the fluid's added mass
+    #: across the axis, ρA along it), kg/m
+    mass_t: np.ndarray
+    #: the bending and torsion stiffnesses EJ1, EJ2, GJ3 (N+1, 3), N m²
+    stiffness: np.ndarray
+    #: rotary inertia per unit length ρJ1, ρJ2, ρJ3 (N+1, 3), kg m
+    inertia: np.ndarray
+    #: the Morison drag's normal coefficient per node (N+1,) (zeros without drag)
+    cdn: np.ndarray
+    #: the Morison drag's tangential coefficient per node (N+1,) (zeros without drag)
+    cdt: np.ndarray
+    #: the column scale's floors (12,): the characteristic size of each kind of unknown
+    floor: np.ndarray
+    #: the segment length Δs, m
+    ds: float
+    #: whether the Morison drag acts (a fluid)
+    has_drag: bool
+    #: whether the pose is the space route (self-contact configured)
+    space: bool
+    #: the sea floor (:class:`SeabedData`)
+    seabed: SeabedData
+
+
+class StepData(NamedTuple):
+    """``step``: one time step's data as :func:`solver.scheme.residual_into` takes it,
+    made by :meth:`solver.scheme.RodSystem.begin_step` (``RodSystem.step.data``)."""
+
+    #: the old level Y^n (N+1, 12)
+    Y_old: np.ndarray
+    #: the old level's part of the cell rows ½(M·cY + αf F^n) (N+1, 12)
+    zconst: np.ndarray
+    #: αf K Y^n (N+1, 12)
+    flux_const: np.ndarray
+    #: the global-frame load at t_new (N+1, 3), N/m ((0, 3) without one)
+    glob: np.ndarray
+    #: the old orientations q^n (N+1, 4) (zeros without an old pose)
+    q_old: np.ndarray
+    #: the old positions r^n (N+1, 3), m (zeros without an old pose)
+    r_old: np.ndarray
+    #: the old global velocities ṙ^n (N+1, 3), m/s (zeros without an old pose)
+    vg_old: np.ndarray
+    #: the boundary rows (12,) int
+    bc_rows: np.ndarray
+    #: the boundary rows' unknowns (12,) int (node · 12 + column)
+    bc_cols: np.ndarray
+    #: the boundary rows' coefficients (12,)
+    bc_coef: np.ndarray
+    #: the boundary rows' values at t_new (12,)
+    bc_vals: np.ndarray
+    #: the step Δt, s
+    dt: float
+    #: the generalized-α coefficient cm = (1 − αm)/(γΔt), 1/s
+    cm: float
+    #: the generalized-α weight αf of the old level
+    af: float
+    #: whether a global-frame load acts (``glob``)
+    has_glob: bool
+    #: whether the old pose r^n, ṙ^n is given
+    has_r_old: bool
+    #: whether the run needs the new-level pose (RodSystem.needs_pose)
+    needs_pose: bool
+    #: whether the end at s = 0 is towed in the global frame with its rotation free
+    turning_start: bool
+    #: whether the end at s = L is towed in the global frame with its rotation free
+    turning_end: bool
+    #: the point loads' nodes (m,) int (:func:`solver.loads.point_loads_into`)
+    pl_nodes: np.ndarray
+    #: the point loads' cells (m,) int
+    pl_cells: np.ndarray
+    #: the point loads' side of their cell (m,)
+    pl_side: np.ndarray
+    #: the point loads' values at t_new (m, 3), N
+    pl_vals: np.ndarray
+    #: whether each point load is dead (global frame) (m,) bool
+    pl_dead: np.ndarray
+    #: the point loads' old-level share of the cell rows (m, 12)
+    pl_old: np.ndarray
+
+
+class ResidualBuffers(NamedTuple):
+    """``buf``: the output and scratch buffers of :func:`solver.scheme.residual_into`
+    (:meth:`solver.scheme.RodSystem.buffers`), written at every evaluation."""
+
+    #: the residual (n,)
+    R: np.ndarray
+    #: the residual's cell rows, a view of ``R`` (N, 12)
+    cells: np.ndarray
+    #: the node terms F (N+1, 12)
+    Fn: np.ndarray
+    #: their Jacobian ∂F/∂Y (N+1, 12, 12)
+    dF: np.ndarray
+    #: the Jacobian's cell blocks (N, 12, 24) on [node c | node c + 1]
+    blocks: np.ndarray
+    #: the new-level pose: quaternions (N+1, 4)
+    q: np.ndarray
+    #: the new-level frames (N+1, 3, 3)
+    Rm: np.ndarray
+    #: the new-level positions (N+1, 3), m
+    r: np.ndarray
+    #: the rotation increments θ (N+1, 3)
+    theta: np.ndarray
+    #: the global velocities ṙ = R v (N+1, 3), m/s
+    vg: np.ndarray
+    #: the global load G (N+1, 3), N/m (contact forces and global-frame loads)
+    G: np.ndarray
+    #: the node-local contact block (N+1, 3, 6) on (v, ω)
+    diag: np.ndarray
+    #: the rotated load's block on ω, ½Δt [B]× J_r(θ) (N+1, 3, 3)
+    loadrot: np.ndarray
+    #: the body-frame load B = Rᵀ G (N+1, 3), N/m
+    brot: np.ndarray
+    #: the exact product's C (N, 3, 3) (:class:`ExactProduct`)
+    C: np.ndarray
+    #: the exact product's D (N, 3, 3)
+    D: np.ndarray
+    #: the mid-cell tangents (N, 3)
+    tmid: np.ndarray
+    #: ṙ for the exact product (N+1, 3), m/s
+    rdot: np.ndarray
+    #: node 0's rotation per unit δω_0 (3, 3)
+    A0: np.ndarray
+    #: the node-local load block the band holds (N+1, 3, 6)
+    L: np.ndarray
+    #: scratch: the drag (N+1, 3)
+    drag_b: np.ndarray
+    #: scratch: the drag's Jacobian (N+1, 3, 3)
+    drag_j: np.ndarray
+    #: scratch: right Jacobians J_r(θ) (N+1, 3, 3)
+    Jr: np.ndarray
+    #: the seabed's touching cells (N,) int (:func:`solver.seabed.seabed_into`'s ``lin``)
+    seabed_cells: np.ndarray
+    #: how many cells touch the seabed (1,) int
+    seabed_count: np.ndarray
+    #: the seabed law's partials per touching cell (N, 6, 12)
+    seabed_partials: np.ndarray
+    #: the seabed's cell loads (F, M) (N, 6), N/m and N m/m
+    seabed_loads: np.ndarray
+    #: each node's global angular velocity R ω (N+1, 3), rad/s
+    Romega: np.ndarray
+    #: the band's frame change per unit ω^{n+1}, ½Δt R J_r(θ) (N+1, 3, 3), s
+    Aphi: np.ndarray
+    #: the towed ends' blocks ∂(v − RᵀV)/∂ω^{n+1} (2, 3, 3)
+    bc_jac: np.ndarray
+    #: (4,) int: [0 ok, 1 non-finite positions, 2 coincident contact points; the active
+    #: contacts P; the pose computed; the exact product's data computed]
+    flags: np.ndarray
 
 
 # ------------------------------------------------------------------------------ Newton

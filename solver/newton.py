@@ -195,22 +195,23 @@ def _set_operator(buf, ev, lin, op, step, weight, af):
     row scale stays that of the full blocks), and the exact product's data."""
     rs, s12 = lin.row_scale, lin.s12
     blocks, bc_scaled, lrw, ex = op.blocks, op.bc_scaled, op.load_row_weight, op.exact
-    _scale_blocks_kernel(buf[4], rs, s12, blocks)
-    bc_rows, bc_cols, bc_coef = step[7], step[8], step[9]
+    _scale_blocks_kernel(buf.blocks, rs, s12, blocks)
+    bc_rows, bc_cols, bc_coef = step.bc_rows, step.bc_cols, step.bc_coef
     for m in range(bc_rows.shape[0]):
         bc_scaled[m] = bc_coef[m] * rs[bc_rows[m]] * s12[bc_cols[m] % NV]
     for e in range(2):
-        # a towed end free to turn: its translation rows' block on ω (buf[-2]); 0 else
-        turning = step[11][6 + e] != 0.0
+        # a towed end free to turn: its translation rows' block on ω (buf.bc_jac); 0 else
+        turning = step.turning_start if e == 0 else step.turning_end
         for i in range(3):
             for j in range(3):
                 bc_scaled[12 + 9 * e + 3 * i + j] = (
-                    buf[-2][e, i, j] * rs[bc_rows[6 * e + i]] * s12[W + j] if turning else 0.0)
+                    buf.bc_jac[e, i, j] * rs[bc_rows[6 * e + i]] * s12[W + j] if turning
+                    else 0.0)
     nc = blocks.shape[0]
     for c in range(nc):
         for i in range(3):
             lrw[c, i] = 0.5 * (1.0 - af) * rs[6 + NV * c + E3 + i]
-    bflags = buf[-1]
+    bflags = buf.flags
     if bflags[3] == 0:
         op.coupled[0] = 0
         op.pairs[0] = 0
@@ -219,29 +220,29 @@ def _set_operator(buf, ev, lin, op, step, weight, af):
     nodes, w, Fp, d_dr, d_dv = ex.nodes, ex.weights, ex.force, ex.dF_dr, ex.dF_dv
     dtdr, dwdt, L = ex.dt_dr, ex.dw_dt, ex.L
     sbc, sbj, sbl = ex.seabed_cells, ex.seabed_partials, ex.seabed_loads
-    copy_into(ex.R, buf[6])
-    copy_into(ex.C, buf[14])
-    copy_into(ex.D, buf[15])
-    copy_into(ex.tmid, buf[16])
-    copy_into(ex.rdot, buf[17])
-    copy_into(ex.A0, buf[18])
-    copy_into(ex.G, buf[10])
-    copy_into(L, buf[19])
-    ex.scalars[0] = step[11][0]
+    copy_into(ex.R, buf.Rm)
+    copy_into(ex.C, buf.C)
+    copy_into(ex.D, buf.D)
+    copy_into(ex.tmid, buf.tmid)
+    copy_into(ex.rdot, buf.rdot)
+    copy_into(ex.A0, buf.A0)
+    copy_into(ex.G, buf.G)
+    copy_into(L, buf.L)
+    ex.scalars[0] = step.dt
     ex.scalars[2] = af
     # the seabed's linearisation (solver.seabed.seabed_into's ``lin``), its cells only
-    nsb = buf[24][0]
+    nsb = buf.seabed_count[0]
     ex.seabed_count[0] = nsb
     for j in range(nsb):
-        c = buf[23][j]
+        c = buf.seabed_cells[j]
         sbc[j] = c
         for i in range(6):
-            sbl[c, i] = buf[26][c, i]
+            sbl[c, i] = buf.seabed_loads[c, i]
             for m in range(12):
-                sbj[c, i, m] = buf[25][c, i, m]
+                sbj[c, i, m] = buf.seabed_partials[c, i, m]
     if nsb > 0:
-        copy_into(ex.Romega, buf[27])
-        copy_into(ex.Aphi, buf[28])
+        copy_into(ex.Romega, buf.Romega)
+        copy_into(ex.Aphi, buf.Aphi)
     for p in range(P):
         for b in range(5):
             nodes[p, b] = ev[4][p, b]
@@ -255,7 +256,7 @@ def _set_operator(buf, ev, lin, op, step, weight, af):
         for i in range(3):
             Fp[p, i] = ev[7][p, i]
     if P > 0 and weight != 1.0:
-        diag = buf[11]
+        diag = buf.diag
         cut = 1.0 - weight
         for c in range(nc):
             for i in range(3):
@@ -277,17 +278,17 @@ def _factor(Y, buf, ev, lin, op, rod, step, weight, ctr):
     evaluation left in buf at the iterate Y (:func:`equilibrate`), and make it (with the
     exact load data) GMRES's operator. Returns False for a singular Jacobian."""
     lu, rs, s12, cs = lin.lu, lin.row_scale, lin.s12, lin.col_scale
-    _equilibrate(Y, buf[4], step[7], step[8], step[9], rod[5], rs, s12)
+    _equilibrate(Y, buf.blocks, step.bc_rows, step.bc_cols, step.bc_coef, rod.floor, rs, s12)
     n1 = Y.shape[0]
     for k in range(n1):
         for j in range(NV):
             cs[NV * k + j] = s12[j]
-    _set_operator(buf, ev, lin, op, step, weight, step[11][2])
-    if step[11][6] != 0.0 or step[11][7] != 0.0:
+    _set_operator(buf, ev, lin, op, step, weight, step.af)
+    if step.turning_start or step.turning_end:
         rows, cols = _turning_entries(step, n1)
         if block_factor(op.blocks, rows, cols, op.bc_scaled, lu) != 0:
             return False
-    elif block_factor(op.blocks, step[7], step[8], op.bc_scaled, lu) != 0:
+    elif block_factor(op.blocks, step.bc_rows, step.bc_cols, op.bc_scaled, lu) != 0:
         return False
     ctr.factorizations[0] += 1
     ctr.factor_valid[0] = 1
@@ -319,11 +320,11 @@ def _matvec(x, out, lin, op, step, gm):
                 out[base + E4 + i] += rs[base + E4 + i] * dS[c, 3 + i]
     else:
         _matvec_kernel(blocks, x, lrw[:0], gm.dB[:0], out)
-    bc_rows, bc_cols = step[7], step[8]
+    bc_rows, bc_cols = step.bc_rows, step.bc_cols
     for m in range(bc_rows.shape[0]):
         out[bc_rows[m]] = bc_scaled[m] * x[bc_cols[m]]
     for e in range(2):
-        if step[11][6 + e] != 0.0:
+        if step.turning_start if e == 0 else step.turning_end:
             k = 0 if e == 0 else x.shape[0] // NV - 1
             for i in range(3):
                 for j in range(3):
@@ -339,14 +340,14 @@ def _turning_entries(step, n1):
     rows = np.empty(30, np.intp)
     cols = np.empty(30, np.intp)
     for m in range(12):
-        rows[m] = step[7][m]
-        cols[m] = step[8][m]
+        rows[m] = step.bc_rows[m]
+        cols[m] = step.bc_cols[m]
     for e in range(2):
         k = 0 if e == 0 else n1 - 1
         for i in range(3):
             for j in range(3):
                 m = 12 + 9 * e + 3 * i + j
-                rows[m] = step[7][6 * e + i]
+                rows[m] = step.bc_rows[6 * e + i]
                 cols[m] = NV * k + W + j
     return rows, cols
 
@@ -495,7 +496,7 @@ def _trial_gaps(Yt, step, rod, cand, cdata, ws, out):
     its space-route positions, −inf everywhere when they are not finite."""
     q, Rm, r, th = ws.q, ws.Rm, ws.r, ws.theta
     yes = true_at_run_time(Yt)
-    pose_into(Yt, step[0], step[11][0], yes, step[4], step[5], step[6], yes, rod[6][0],
+    pose_into(Yt, step.Y_old, step.dt, yes, step.q_old, step.r_old, step.vg_old, yes, rod.ds,
               q, Rm, r, th, ws.vg)
     for k in range(r.shape[0]):
         for c in range(3):
@@ -508,13 +509,13 @@ def _trial_gaps(Yt, step, rod, cand, cdata, ws, out):
 @numba.njit(cache=True)
 def _current_gaps(buf, ev, fresh, cand, cdata, g0):
     """The candidate gaps (R,) at the current iterate, into g0, for the feasibility
-    filter: the last residual evaluation's positions (buf[7]); ``fresh``: that evaluation
+    filter: the last residual evaluation's positions (buf.r); ``fresh``: that evaluation
     selected afresh, so its per-run gaps (ev[14]) are these gaps and are not computed
     again (0.6 of a contact Newton iteration's ~8 ms at the seed example's 1000
     segments). Returns False where the filter does not apply (positions not finite, a
     gap NaN or −inf): every correction is then feasible."""
     nr = g0.shape[0]
-    r = buf[7]
+    r = buf.r
     for k in range(r.shape[0]):
         for c in range(3):
             if not np.isfinite(r[k, c]):
@@ -661,7 +662,7 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
     weight = prm.contact_band_weight
     pos_bound = prm.position_bound
     res_limit = prm.position_residual
-    R, Fn = buf[0], buf[2]
+    R = buf.R
     Y, Yt, delta_flat, rhs = ws.Y, ws.Y_trial, ws.delta, ws.rhs
     stall_scale, history, frozen = ws.stall_scale, ws.history, ws.frozen
     rs, cs = lin.row_scale, lin.col_scale
@@ -670,9 +671,9 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
     delta = delta_flat.reshape(n1, NV)
     nr = cand[2].shape[0]
     contact = nr > 0
-    seabed = rod[7][0][0] != 0.0
+    seabed = rod.seabed.scalars[0] != 0.0
     # the seabed damper's branches held within the solve (solver.seabed.SeabedContact.freeze_control)
-    hold = rod[7][7]
+    hold = rod.seabed.hold
     held = seabed and not contact and hold[1] != 0.0
     hold_at = int(hold[2])
     hold[0] = 0.0
@@ -697,7 +698,7 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
     r_prev, moved = ws.r_prev, ws.moved
     moved[0] = -1.0
     position_test = contact and pos_bound > 0.0
-    flags = buf[-1]
+    flags = buf.flags
     whole = True            # the last correction passed the feasibility filter whole
     for it in range(max_it + 1):
         if not cached:
@@ -718,7 +719,7 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
         elif contact:
             # the operator becomes the Jacobian at this iterate; the older band LU stays
             # the preconditioner
-            _set_operator(buf, ev, lin, op, step, weight, step[11][2])
+            _set_operator(buf, ev, lin, op, step, weight, step.af)
         res = _max_scaled(R, rs)
         trace = ws.trace
         trace[it, 0] = res
@@ -727,7 +728,7 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
         trace[it, 3] = 0.0
         done = res <= tol and it >= min_it
         if position_test and not done:
-            done = _position_converged(buf[7], r_prev, moved, it, res, res_limit,
+            done = _position_converged(buf.r, r_prev, moved, it, res, res_limit,
                                        pos_bound, trace) and it >= min_it
         if held and hold[0] == 2.0 and hold[7] > 0.0 and (done or res <= hold[6]):
             # converged, or near the held branches' solution, with touching cells off
@@ -1118,7 +1119,7 @@ class NewtonSolver:
         its, res, ok, code = _newton_kernel(
             np.ascontiguousarray(Y_guess, dtype=float), self._params(), rod, step, cand, cdata,
             system.buf, system.ev, st["lin"], st["op"], st["gm"], st["ws"], st["ctr"])
-        rod[7][7][0] = 0.0          # the seabed's law at evaluations outside Newton
+        rod.seabed.hold[0] = 0.0    # the seabed's law at evaluations outside Newton
         if st["ctr"].factorizations[0] != factorizations:
             self._factored_with_contact = contact
         self.last_failure = FAILURES[code]
@@ -1127,13 +1128,12 @@ class NewtonSolver:
         #: (RodSystem.contact_summary) is that of a fresh selection at the solution
         self.last_frozen = contact and its >= self.FREEZE_AFTER
         buf = system.buf
-        flags = buf[-1]
         pose = None
-        if flags[2] and np.isfinite(res):
-            has_r = system.contact is not None or bool(system.step.data[11][4])
-            pose = (buf[5].copy(), buf[6].copy(), buf[7].copy() if has_r else None,
-                    buf[8].copy())
-        return st["ws"].Y.copy(), buf[2].copy(), int(its), float(res), bool(ok), pose
+        if buf.flags[2] and np.isfinite(res):
+            has_r = system.contact is not None or system.step.data.has_r_old
+            pose = (buf.q.copy(), buf.Rm.copy(), buf.r.copy() if has_r else None,
+                    buf.theta.copy())
+        return st["ws"].Y.copy(), buf.Fn.copy(), int(its), float(res), bool(ok), pose
 
     def feasible_start(self, guess):
         """A Newton start for the step set up by :meth:`RodSystem.begin_step` (with
@@ -1144,7 +1144,7 @@ class NewtonSolver:
         self._allocate(system.step.candidates.runs)
         rod, step, cand, cdata = system.kernel_args()
         out = np.empty((system.n_nodes, NV))
-        _feasible_start(step[0], np.ascontiguousarray(guess, dtype=float), step, rod, cand,
+        _feasible_start(step.Y_old, np.ascontiguousarray(guess, dtype=float), step, rod, cand,
                         cdata, self._state["ws"], out, self.START_GAP_KEEP)
         return out
 
@@ -1166,7 +1166,7 @@ class NewtonSolver:
         rod, step, cand, cdata = system.kernel_args()
         if not refactor:
             _set_operator(system.buf, system.ev, st["lin"], st["op"], step,
-                          self.CONTACT_BAND_WEIGHT, float(step[11][2]))
+                          self.CONTACT_BAND_WEIGHT, float(step.af))
             return
         if not _factor(np.ascontiguousarray(Y, dtype=float), system.buf, system.ev, st["lin"],
                        st["op"], rod, step, self.CONTACT_BAND_WEIGHT, st["ctr"]):

@@ -40,6 +40,7 @@ from .contact.model import evaluate_into, evaluation_arrays, evaluation_potentia
 from .kinematics import (_exp_one, _matrix_into, _right_jacobian_into, _space_route_kernel,
                          quat_to_matrix)
 from .loads import _drag_kernel, point_loads_into
+from .kernel_data import ResidualBuffers, RodData, StepData
 from .seabed import NO_SEABED, seabed_into
 
 __all__ = ["alpha_parameters", "StepParameters", "RodSystem", "BACKWARD_EULER"]
@@ -662,32 +663,40 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
     block and the data of the exact load product (:func:`exact_loads_product`), written
     into the buffers of :meth:`RodSystem.buffers` (module docstring for the equations;
     :meth:`RodSystem.residual` for what is computed when). rod, step: the run's and the
-    step's constant data (:meth:`RodSystem.kernel_args`); cand: the step's contact
+    step's constant data (:meth:`RodSystem.kernel_args`; :class:`~solver.kernel_data.RodData`,
+    :class:`~solver.kernel_data.StepData`); cand: the step's contact
     candidates (:attr:`solver.contact.ContactCandidates.arrays`, empty without);
     frozen: each run's frozen combination or empty; cdata: the contact model's
-    :attr:`~solver.contact.SelfContact.kernel_data`; ev: the contact evaluation arrays.
-    Writes flags (4,): [0: 0 ok, 1 non-finite positions, 2 coincident contact points
+    :attr:`~solver.contact.SelfContact.kernel_data`; ev: the contact evaluation arrays;
+    buf: :class:`~solver.kernel_data.ResidualBuffers`. Writes flags (4,): [0: 0 ok, 1 non-finite positions, 2 coincident contact points
     (the residual is NaN then), 1: active contacts P, 2: pose computed, 3: exact load
     data computed (with ``want_jac`` on the space route, where global or contact loads
     act or a seabed cell touches)]. The one implementation of the residual: Newton's compiled
     iterations and the Python method both call it."""
-    mass_t, stiffness, inertia, cdn, cdt, floor, rscal, seabed = rod
-    ds = rscal[0]
-    has_seabed = seabed[0][0] != 0.0
-    has_drag = rscal[1] != 0.0
-    space = rscal[2] != 0.0
-    (Y_old, zconst, flux_const, glob, q_old, r_old, vg_old, bc_rows, bc_cols, bc_coef,
-     bc_vals, sscal, pl_nodes, pl_cells, pl_side, pl_vals, pl_dead, pl_old) = step
-    dt, cm, af = sscal[0], sscal[1], sscal[2]
-    has_glob = sscal[3] != 0.0
-    has_r_old = sscal[4] != 0.0
+    mass_t, stiffness, inertia, cdn, cdt = rod.mass_t, rod.stiffness, rod.inertia, rod.cdn, rod.cdt
+    seabed = rod.seabed
+    ds = rod.ds
+    has_seabed = seabed.scalars[0] != 0.0
+    has_drag = rod.has_drag
+    space = rod.space
+    Y_old, zconst, flux_const, glob = step.Y_old, step.zconst, step.flux_const, step.glob
+    q_old, r_old, vg_old = step.q_old, step.r_old, step.vg_old
+    bc_rows, bc_cols, bc_coef, bc_vals = step.bc_rows, step.bc_cols, step.bc_coef, step.bc_vals
+    dt, cm, af = step.dt, step.cm, step.af
+    has_glob = step.has_glob
+    has_r_old = step.has_r_old
+    pl_nodes = step.pl_nodes
     has_points = pl_nodes.shape[0] > 0
-    (R, cells, Fn, dF, blocks, q, Rm, r, theta, vg, G, diag, loadrot, brot, C, D, tmid,
-     rdot, A0, L, drag_b, drag_j, Jr, sbc, sbn, sbj, sbl, Og, Aphi, bcj, flags) = buf
+    R, cells, Fn, dF, blocks = buf.R, buf.cells, buf.Fn, buf.dF, buf.blocks
+    q, Rm, r, theta, vg, G = buf.q, buf.Rm, buf.r, buf.theta, buf.vg, buf.G
+    diag, loadrot, brot, C, D, tmid = buf.diag, buf.loadrot, buf.brot, buf.C, buf.D, buf.tmid
+    rdot, A0, L, drag_b, drag_j, Jr = buf.rdot, buf.A0, buf.L, buf.drag_b, buf.drag_j, buf.Jr
+    sbc, sbn, sbj, sbl = buf.seabed_cells, buf.seabed_count, buf.seabed_partials, buf.seabed_loads
+    Og, Aphi, bcj, flags = buf.Romega, buf.Aphi, buf.bc_jac, buf.flags
     n1 = Y.shape[0]
     contact = cand[2].shape[0] > 0
-    turning = sscal[6] != 0.0 or sscal[7] != 0.0
-    need_pose = (has_glob or contact or (has_points and sscal[5] != 0.0) or turning
+    turning = step.turning_start or step.turning_end
+    need_pose = (has_glob or contact or (has_points and step.needs_pose) or turning
                  or has_seabed)
     for i in range(4):
         flags[i] = 0
@@ -747,7 +756,7 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
         # m/s), and with ``want_jac`` its block on ω^{n+1}: −½Δt [b]× J_r(θ) into bcj[e]
         # (the rotated load's derivative of node_terms_into)
         for e in range(2):
-            if sscal[6 + e] != 0.0:
+            if step.turning_start if e == 0 else step.turning_end:
                 m0 = 6 * e
                 k = 0 if e == 0 else n1 - 1
                 b = np.empty(3)
@@ -800,8 +809,8 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
                                                     + Rm[k, i, 2] * Jr[k, 2, j])
         flags[3] = 1
     if has_points:
-        point_loads_into(Y, Rm, theta, 0.5 * dt, ds, af, want_jac, pl_nodes, pl_cells, pl_side,
-                         pl_vals, pl_dead, pl_old, cells, blocks, Jr)
+        point_loads_into(Y, Rm, theta, 0.5 * dt, ds, af, want_jac, pl_nodes, step.pl_cells,
+                         step.pl_side, step.pl_vals, step.pl_dead, step.pl_old, cells, blocks, Jr)
     flags[1] = P
 
 
@@ -819,8 +828,8 @@ class StepTerms:
     (N+1, 3) N/m the global-frame load at t_new (or None), candidates the contact
     candidates (:class:`solver.contact.ContactCandidates`, None without any) and
     cand_arrays their kernel arrays, frozen_selection the frozen closest-point selection
-    (None: selected afresh at every iterate), data the step's tuple for
-    :func:`residual_into`, key what the Jacobian's band part depends on besides the
+    (None: selected afresh at every iterate), data the step's
+    :class:`~solver.kernel_data.StepData` for :func:`residual_into`, key what the Jacobian's band part depends on besides the
     iterate (:class:`solver.newton.NewtonSolver` keeps a factorisation while it is unchanged).
     The fields left None are those of a system before its first step.
     """
@@ -840,7 +849,7 @@ class StepTerms:
     glob_force: np.ndarray | None = None
     candidates: object = None
     frozen_selection: np.ndarray | None = None
-    data: tuple | None = None
+    data: StepData | None = None
     key: tuple | None = None
 
 
@@ -891,11 +900,12 @@ class RodSystem:
         cdn = loads.cdn if loads.has_drag else np.zeros(self.n_nodes)
         cdt = loads.cdt if loads.has_drag else np.zeros(self.n_nodes)
         #: the run's constant data as the compiled kernels take it (:func:`residual_into`)
-        self.rod_data = (props.mass_t, props.stiffness, props.inertia,
-                         np.ascontiguousarray(cdn, dtype=float),
-                         np.ascontiguousarray(cdt, dtype=float), self.floor,
-                         np.array([props.ds, float(loads.has_drag), float(contact is not None)]),
-                         NO_SEABED if seabed is None else seabed.data)
+        self.rod_data = RodData(mass_t=props.mass_t, stiffness=props.stiffness,
+                                inertia=props.inertia, cdn=np.ascontiguousarray(cdn, dtype=float),
+                                cdt=np.ascontiguousarray(cdt, dtype=float), floor=self.floor,
+                                ds=float(props.ds), has_drag=bool(loads.has_drag),
+                                space=contact is not None,
+                                seabed=NO_SEABED if seabed is None else seabed.data)
         if contact is not None:
             self.contact_data = contact.kernel_data
         else:
@@ -929,8 +939,15 @@ class RodSystem:
         self.__dict__.update(state)
         # the seabed's kernel data as it is now (a checkpoint from before its last arrays)
         seabed = state.get("seabed")
-        self.rod_data = tuple(self.rod_data[:7]) + (
-            NO_SEABED if seabed is None else seabed.data,)
+        sb = NO_SEABED if seabed is None else seabed.data
+        if isinstance(self.rod_data, RodData):
+            self.rod_data = self.rod_data._replace(seabed=sb)
+        else:
+            # a checkpoint from before the data were named: a plain tuple whose seventh
+            # entry held (Δs, has drag, space route)
+            old = tuple(self.rod_data)
+            self.rod_data = RodData(*old[:6], ds=float(old[6][0]), has_drag=bool(old[6][1]),
+                                    space=bool(old[6][2]), seabed=sb)
         self.buf = self.buffers()
         cand = self.step.candidates
         self.ev = evaluation_arrays(cand.runs if cand is not None else 0)
@@ -948,16 +965,19 @@ class RodSystem:
         towed ends' ∂(v − RᵀV)/∂ω blocks (2, 3, 3) and the flags (4,) int."""
         n1, nc = self.n_nodes, self.n_cells
         R = np.zeros(self.n)
-        return (R, R[6:6 + NV * nc].reshape(nc, NV), np.zeros((n1, NV)), np.zeros((n1, NV, NV)),
-                np.zeros((nc, NV, 2 * NV)), np.zeros((n1, 4)), np.zeros((n1, 3, 3)),
-                np.zeros((n1, 3)), np.zeros((n1, 3)), np.zeros((n1, 3)), np.zeros((n1, 3)),
-                np.zeros((n1, 3, 6)), np.zeros((n1, 3, 3)), np.zeros((n1, 3)),
-                np.zeros((nc, 3, 3)), np.zeros((nc, 3, 3)), np.zeros((nc, 3)),
-                np.zeros((n1, 3)), np.zeros((3, 3)), np.zeros((n1, 3, 6)), np.zeros((n1, 3)),
-                np.zeros((n1, 3, 3)), np.zeros((n1, 3, 3)), np.zeros(nc, np.int64),
-                np.zeros(1, np.int64), np.zeros((nc, 6, 12)), np.zeros((nc, 6)),
-                np.zeros((n1, 3)), np.zeros((n1, 3, 3)), np.zeros((2, 3, 3)),
-                np.zeros(4, np.int64))
+        return ResidualBuffers(
+            R=R, cells=R[6:6 + NV * nc].reshape(nc, NV), Fn=np.zeros((n1, NV)),
+            dF=np.zeros((n1, NV, NV)), blocks=np.zeros((nc, NV, 2 * NV)), q=np.zeros((n1, 4)),
+            Rm=np.zeros((n1, 3, 3)), r=np.zeros((n1, 3)), theta=np.zeros((n1, 3)),
+            vg=np.zeros((n1, 3)), G=np.zeros((n1, 3)), diag=np.zeros((n1, 3, 6)),
+            loadrot=np.zeros((n1, 3, 3)), brot=np.zeros((n1, 3)), C=np.zeros((nc, 3, 3)),
+            D=np.zeros((nc, 3, 3)), tmid=np.zeros((nc, 3)), rdot=np.zeros((n1, 3)),
+            A0=np.zeros((3, 3)), L=np.zeros((n1, 3, 6)), drag_b=np.zeros((n1, 3)),
+            drag_j=np.zeros((n1, 3, 3)), Jr=np.zeros((n1, 3, 3)),
+            seabed_cells=np.zeros(nc, np.int64), seabed_count=np.zeros(1, np.int64),
+            seabed_partials=np.zeros((nc, 6, 12)), seabed_loads=np.zeros((nc, 6)),
+            Romega=np.zeros((n1, 3)), Aphi=np.zeros((n1, 3, 3)), bc_jac=np.zeros((2, 3, 3)),
+            flags=np.zeros(4, np.int64))
 
     # ------------------------------------------------------------------ per step setup
     def begin_step(self, dt, params: StepParameters, t_new, Y_old, Ydot_old, F_old,
@@ -996,17 +1016,22 @@ class RodSystem:
         has_r = r_old is not None and v_old_global is not None
         if self.seabed is not None:
             self.seabed.begin_step(af, Y_old, q_old, r_old, v_old_global)
-        data = (
-            Y_old, zc, flux_const,
-            np.zeros((0, 3)) if glob is None else np.ascontiguousarray(glob, dtype=float),
-            np.zeros((n1, 4)) if q_old is None else np.ascontiguousarray(q_old, dtype=float),
-            np.ascontiguousarray(r_old, dtype=float) if has_r else np.zeros((n1, 3)),
-            np.ascontiguousarray(v_old_global, dtype=float) if has_r else np.zeros((n1, 3)),
+        pl_nodes, pl_cells, pl_side, pl_vals, pl_dead, pl_old = self._point_data(
+            t_new, dt, left_limit, Y_old, q_old, af)
+        data = StepData(
+            Y_old=Y_old, zconst=zc, flux_const=flux_const,
+            glob=np.zeros((0, 3)) if glob is None else np.ascontiguousarray(glob, dtype=float),
+            q_old=np.zeros((n1, 4)) if q_old is None else np.ascontiguousarray(q_old, dtype=float),
+            r_old=np.ascontiguousarray(r_old, dtype=float) if has_r else np.zeros((n1, 3)),
+            vg_old=(np.ascontiguousarray(v_old_global, dtype=float) if has_r
+                    else np.zeros((n1, 3))),
             # BoundaryRows makes these (12,) arrays intp and float
-            bc.rows, bc.cols, bc.coef, bc.values,
-            np.array([dt, cm, af, float(glob is not None), float(has_r),
-                      float(self.needs_pose), float(bc.turning[0]), float(bc.turning[1])])
-        ) + self._point_data(t_new, dt, left_limit, Y_old, q_old, af)
+            bc_rows=bc.rows, bc_cols=bc.cols, bc_coef=bc.coef, bc_vals=bc.values,
+            dt=float(dt), cm=float(cm), af=float(af), has_glob=glob is not None,
+            has_r_old=bool(has_r), needs_pose=bool(self.needs_pose),
+            turning_start=bool(bc.turning[0]), turning_end=bool(bc.turning[1]),
+            pl_nodes=pl_nodes, pl_cells=pl_cells, pl_side=pl_side, pl_vals=pl_vals,
+            pl_dead=pl_dead, pl_old=pl_old)
         # frozen_selection None: set by Newton (see SelfContact.closest); key: what the
         # Jacobian's band part depends on besides the iterate (solver.newton keeps a
         # factorisation across steps while this is unchanged)
@@ -1083,10 +1108,11 @@ class RodSystem:
         n1 = self.n_nodes
         q, R, r, theta = np.empty((n1, 4)), np.empty((n1, 3, 3)), np.empty((n1, 3)), np.empty((n1, 3))
         step = self.step
-        has_r = bool(step.data[11][4])
+        data = step.data
+        has_r = data.has_r_old
         space = self.contact is not None and step.r_old is not None
-        pose_into(np.ascontiguousarray(Y, dtype=float), step.data[0], float(step.dt), space,
-                  step.data[4], step.data[5], step.data[6], has_r,
+        pose_into(np.ascontiguousarray(Y, dtype=float), data.Y_old, float(step.dt), space,
+                  data.q_old, data.r_old, data.vg_old, has_r,
                   float(self.p.ds), q, R, r, theta, np.empty((n1, 3)))
         return q, R, (r if (space or has_r) else None), theta
 
@@ -1116,8 +1142,8 @@ class RodSystem:
         Fn = np.empty((n1, NV))
         dF = np.empty((n1, NV, NV))
         node_terms_into(Y, bool(want_jacobian), p.mass_t, p.stiffness, p.inertia,
-                        bool(self.loads.has_drag), self.rod_data[3], self.rod_data[4], rotate,
-                        Rm, theta, half, G, False, buf[11], Fn, dF, np.empty((n1, 3, 3)),
+                        bool(self.loads.has_drag), self.rod_data.cdn, self.rod_data.cdt, rotate,
+                        Rm, theta, half, G, False, buf.diag, Fn, dF, np.empty((n1, 3, 3)),
                         np.empty((n1, 3)), np.empty((n1, 3)), np.empty((n1, 3, 3)),
                         np.empty((n1, 3, 3)))
         return Fn, (dF if want_jacobian else None)
@@ -1131,7 +1157,7 @@ class RodSystem:
         residual_into(np.ascontiguousarray(Y, dtype=float), bool(want_jacobian), self.rod_data,
                       self.step.data, self.step.cand_arrays, fz, self.contact_data, buf,
                       self.ev)
-        return buf[-1]
+        return buf.flags
 
     def residual(self, Y, want_jacobian=False):
         """Residual (n,) of the step's difference equations at the iterate Y (N+1, 12).
@@ -1147,10 +1173,10 @@ class RodSystem:
         flags = self.evaluate(Y, want_jacobian, self.step.frozen_selection)
         pose = None
         if flags[2]:
-            has_r = self.contact is not None or bool(self.step.data[11][4])
-            pose = (buf[5].copy(), buf[6].copy(), buf[7].copy() if has_r else None,
-                    buf[8].copy())
-        return buf[0].copy(), buf[2].copy(), (buf[4] if want_jacobian else None), pose
+            has_r = self.contact is not None or self.step.data.has_r_old
+            pose = (buf.q.copy(), buf.Rm.copy(), buf.r.copy() if has_r else None,
+                    buf.theta.copy())
+        return buf.R.copy(), buf.Fn.copy(), (buf.blocks if want_jacobian else None), pose
 
     def contact_summary(self, r, v, fresh: bool):
         """(number of active contacts, smallest surface gap (m), inf without any) at the
@@ -1165,7 +1191,7 @@ class RodSystem:
         if self.step.candidates is None:
             return None
         if fresh:
-            p = int(self.buf[-1][1])
+            p = int(self.buf.flags[1])
         else:
             p = evaluate_into(np.ascontiguousarray(r, dtype=float),
                               np.ascontiguousarray(v, dtype=float), self.step.cand_arrays,
