@@ -102,7 +102,7 @@ def _parts(run: RodRun, dt: float, repeats: int) -> tuple[dict, int, int]:
     st = newton._state
     rod, step, cand, cdata = system.kernel_args()
     frozen = st["ws"].frozen[:0]
-    runs = cand[2].shape[0]
+    runs = cand.run_start.shape[0]
     x = np.random.default_rng(0).standard_normal(Y.size)
     out = np.empty_like(x)
     parts = {

@@ -22,7 +22,7 @@ import numpy as np
 
 __all__ = ["NewtonParams", "LinearSolve", "ExactProduct", "Operator", "GmresWork",
            "NewtonWork", "NewtonCounters", "SeabedData", "RodData", "StepData",
-           "ResidualBuffers"]
+           "ResidualBuffers", "CandidateArrays", "ContactData", "EvaluationArrays"]
 
 
 # ------------------------------------------------------------------------- the residual
@@ -416,3 +416,78 @@ class NewtonCounters(NamedTuple):
     @classmethod
     def zeros(cls) -> "NewtonCounters":
         return cls(*(np.zeros(1, np.int64) for _ in cls._fields))
+
+
+# ------------------------------------------------------------------------ self-contact
+class CandidateArrays(NamedTuple):
+    """``cand``: a step's contact candidates as the kernels take them
+    (:attr:`solver.contact.ContactCandidates.arrays`; empty arrays without candidates):
+    M owner-node / partner-segment combinations in R runs."""
+
+    #: the owner node of each combination (M,) int
+    owner: np.ndarray
+    #: the partner segment k (nodes k, k + 1) of each combination (M,) int
+    segment: np.ndarray
+    #: where each run begins in owner / segment (R,) int
+    run_start: np.ndarray
+    #: whether each run's first outer vertex is a rod end (R,) bool
+    first_is_end: np.ndarray
+    #: whether each run's last outer vertex is a rod end (R,) bool
+    last_is_end: np.ndarray
+
+
+class ContactData(NamedTuple):
+    """``cdata``: the self-contact model's constant data
+    (:attr:`solver.contact.SelfContact.kernel_data`; zero-length arrays without
+    self-contact)."""
+
+    #: every segment's four curve nodes (N, 4) int
+    seg_nodes: np.ndarray
+    #: every segment's curve matrix (N, 4, 4)
+    seg_mats: np.ndarray
+    #: the diameter at the nodes (N+1,), m
+    diameter: np.ndarray
+    #: mass per unit length ρA at the nodes (N+1,), kg/m
+    rho_a: np.ndarray
+    #: the nodal weights Δs_i (N+1,), m
+    weights: np.ndarray
+    #: the contact law's parameter vector (9,) (:attr:`solver.contact.laws._Law.params`)
+    law: np.ndarray
+
+
+class EvaluationArrays(NamedTuple):
+    """``ev``: the work arrays of :func:`solver.contact.model.evaluate_into` with room for
+    R_cap runs (:func:`solver.contact.model.evaluation_arrays`): one contact at most per
+    run, the first P entries of the per-contact arrays valid after an evaluation."""
+
+    #: each run's selected combination (R_cap,) int
+    selection: np.ndarray
+    #: per contact: the owner node i (R_cap,) int
+    owner: np.ndarray
+    #: per contact: the partner segment j (R_cap,) int
+    segment: np.ndarray
+    #: per contact: the partner point's parameter t on its segment (R_cap,)
+    t: np.ndarray
+    #: per contact: its five nodes (owner, the partner curve's four) (R_cap, 5) int
+    nodes: np.ndarray
+    #: per contact: the load weights of its nodes (R_cap, 5)
+    weights: np.ndarray
+    #: per contact: the coefficients c_a of x = Σ c_a r_a (R_cap, 5)
+    coef: np.ndarray
+    #: per contact: the force F on the owner (R_cap, 3), N/m
+    force: np.ndarray
+    #: per contact: ∂F/∂r_a (R_cap, 5, 3, 3)
+    dF_dr: np.ndarray
+    #: per contact: ∂F/∂v_a (R_cap, 5, 3, 3)
+    dF_dv: np.ndarray
+    #: per contact: ∂t/∂r_a (R_cap, 5, 3)
+    dt_dr: np.ndarray
+    #: per contact: ∂w_a/∂t (R_cap, 5)
+    dw_dt: np.ndarray
+    #: per contact: the surface gap (R_cap,), m
+    gap: np.ndarray
+    #: per contact: the centreline distance d (R_cap,), m
+    distance: np.ndarray
+    #: per run: the surface gap of its closest point (R_cap,), m (inf at an interior run
+    #: edge)
+    run_gap: np.ndarray

@@ -245,16 +245,16 @@ def _set_operator(buf, ev, lin, op, step, weight, af):
         copy_into(ex.Aphi, buf.Aphi)
     for p in range(P):
         for b in range(5):
-            nodes[p, b] = ev[4][p, b]
-            w[p, b] = ev[5][p, b]
-            dwdt[p, b] = ev[11][p, b]
+            nodes[p, b] = ev.nodes[p, b]
+            w[p, b] = ev.weights[p, b]
+            dwdt[p, b] = ev.dw_dt[p, b]
             for i in range(3):
-                dtdr[p, b, i] = ev[10][p, b, i]
+                dtdr[p, b, i] = ev.dt_dr[p, b, i]
                 for j in range(3):
-                    d_dr[p, b, i, j] = ev[8][p, b, i, j]
-                    d_dv[p, b, i, j] = ev[9][p, b, i, j]
+                    d_dr[p, b, i, j] = ev.dF_dr[p, b, i, j]
+                    d_dv[p, b, i, j] = ev.dF_dv[p, b, i, j]
         for i in range(3):
-            Fp[p, i] = ev[7][p, i]
+            Fp[p, i] = ev.force[p, i]
     if P > 0 and weight != 1.0:
         diag = buf.diag
         cut = 1.0 - weight
@@ -510,7 +510,7 @@ def _trial_gaps(Yt, step, rod, cand, cdata, ws, out):
 def _current_gaps(buf, ev, fresh, cand, cdata, g0):
     """The candidate gaps (R,) at the current iterate, into g0, for the feasibility
     filter: the last residual evaluation's positions (buf.r); ``fresh``: that evaluation
-    selected afresh, so its per-run gaps (ev[14]) are these gaps and are not computed
+    selected afresh, so its per-run gaps (ev.run_gap) are these gaps and are not computed
     again (0.6 of a contact Newton iteration's ~8 ms at the seed example's 1000
     segments). Returns False where the filter does not apply (positions not finite, a
     gap NaN or −inf): every correction is then feasible."""
@@ -521,7 +521,7 @@ def _current_gaps(buf, ev, fresh, cand, cdata, g0):
             if not np.isfinite(r[k, c]):
                 return False
     if fresh:
-        run_gap = ev[14]
+        run_gap = ev.run_gap
         for q in range(nr):
             g0[q] = run_gap[q]
     else:
@@ -581,7 +581,7 @@ def _feasible_start(Y_old, guess, step, rod, cand, cdata, ws, out, keep):
     the replay of the seed example's first contact, where an extrapolated start
     penetrated and Newton died at the barrier (docs/contact.md § 2). Returns the blend
     factor."""
-    nr = cand[2].shape[0]
+    nr = cand.run_start.shape[0]
     g_old, g = ws.gaps0[:nr], ws.gaps1[:nr]
     n1 = Y_old.shape[0]
     still = ws.Y_trial
@@ -669,7 +669,7 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
     lu = lin.lu
     n1 = Y.shape[0]
     delta = delta_flat.reshape(n1, NV)
-    nr = cand[2].shape[0]
+    nr = cand.run_start.shape[0]
     contact = nr > 0
     seabed = rod.seabed.scalars[0] != 0.0
     # the seabed damper's branches held within the solve (solver.seabed.SeabedContact.freeze_control)
@@ -803,7 +803,7 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
                 # from here on each contact keeps its partner segment (see
                 # SelfContact.closest): no switching between iterates
                 for q in range(nr):
-                    frozen[q] = ev[0][q]
+                    frozen[q] = ev.selection[q]
                 frozen_on = True
             # the feasibility filter, then the line search. Where the last correction
             # was taken whole and the selection is not frozen, the whole correction's
@@ -821,7 +821,7 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
                             Yt[k, j] = Y[k, j] + delta[k, j]
                     residual_into(Yt, yes, rod, step, cand, frozen[:0], cdata, buf, ev)
                     fresh_sel = True
-                    if flags[0] == 0 and _gaps_kept(g0, ev[14][:nr], gap_keep):
+                    if flags[0] == 0 and _gaps_kept(g0, ev.run_gap[:nr], gap_keep):
                         evaluated = True
                     else:
                         alpha = _feasible_fraction(Y, delta, g0, gap_keep, 0.5, step, rod,
@@ -1109,7 +1109,7 @@ class NewtonSolver:
         system = self.system
         contact = system.step.candidates is not None
         runs = system.step.candidates.runs if contact else 0
-        self._allocate(max(runs, system.ev[0].shape[0]))
+        self._allocate(max(runs, system.ev.selection.shape[0]))
         st = self._state
         if (system.step.key != self.factor_key or contact or self._factored_with_contact):
             st["ctr"].factor_valid[0] = 0

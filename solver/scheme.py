@@ -40,7 +40,7 @@ from .contact.model import evaluate_into, evaluation_arrays, evaluation_potentia
 from .kinematics import (_exp_one, _matrix_into, _right_jacobian_into, _space_route_kernel,
                          quat_to_matrix)
 from .loads import _drag_kernel, point_loads_into
-from .kernel_data import ResidualBuffers, RodData, StepData
+from .kernel_data import CandidateArrays, ContactData, ResidualBuffers, RodData, StepData
 from .seabed import NO_SEABED, seabed_into
 
 __all__ = ["alpha_parameters", "StepParameters", "RodSystem", "BACKWARD_EULER"]
@@ -665,9 +665,11 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
     :meth:`RodSystem.residual` for what is computed when). rod, step: the run's and the
     step's constant data (:meth:`RodSystem.kernel_args`; :class:`~solver.kernel_data.RodData`,
     :class:`~solver.kernel_data.StepData`); cand: the step's contact
-    candidates (:attr:`solver.contact.ContactCandidates.arrays`, empty without);
+    candidates (:attr:`solver.contact.ContactCandidates.arrays`, a
+    :class:`~solver.kernel_data.CandidateArrays`, empty without);
     frozen: each run's frozen combination or empty; cdata: the contact model's
-    :attr:`~solver.contact.SelfContact.kernel_data`; ev: the contact evaluation arrays;
+    :attr:`~solver.contact.SelfContact.kernel_data`; ev: the contact evaluation arrays
+    (:class:`~solver.kernel_data.EvaluationArrays`);
     buf: :class:`~solver.kernel_data.ResidualBuffers`. Writes flags (4,): [0: 0 ok, 1 non-finite positions, 2 coincident contact points
     (the residual is NaN then), 1: active contacts P, 2: pose computed, 3: exact load
     data computed (with ``want_jac`` on the space route, where global or contact loads
@@ -694,7 +696,7 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
     sbc, sbn, sbj, sbl = buf.seabed_cells, buf.seabed_count, buf.seabed_partials, buf.seabed_loads
     Og, Aphi, bcj, flags = buf.Romega, buf.Aphi, buf.bc_jac, buf.flags
     n1 = Y.shape[0]
-    contact = cand[2].shape[0] > 0
+    contact = cand.run_start.shape[0] > 0
     turning = step.turning_start or step.turning_end
     need_pose = (has_glob or contact or (has_points and step.needs_pose) or turning
                  or has_seabed)
@@ -719,7 +721,7 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
             fill(R, np.nan)
             flags[0] = 1 if not finite else 2
             return
-        nodes, weights, force = ev[4], ev[5], ev[7]
+        nodes, weights, force = ev.nodes, ev.weights, ev.force
         fill(G, 0.0)
         for p in range(P):
             for a in range(5):
@@ -736,7 +738,7 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
             fill(diag, 0.0)
             for k in range(n1):
                 _right_jacobian_into(theta[k, 0], theta[k, 1], theta[k, 2], Jr, k)
-            _contact_band_kernel(nodes[:P], weights[:P], ev[8][:P], ev[9][:P], Rm, Y, Jr,
+            _contact_band_kernel(nodes[:P], weights[:P], ev.dF_dr[:P], ev.dF_dv[:P], Rm, Y, Jr,
                                  dt, diag)
     elif has_glob:
         copy_into(G, glob)
@@ -853,6 +855,19 @@ class StepTerms:
     key: tuple | None = None
 
 
+def _named_step_data(old) -> StepData:
+    """A step's data pickled before :mod:`solver.kernel_data` (a plain tuple: eleven
+    arrays, the scalars (8,) (Δt, cm, αf, has glob, has r_old, needs pose, the two ends
+    turning), the six point-load arrays) as a :class:`StepData`."""
+    old = tuple(old)
+    sc = old[11]
+    return StepData(*old[:11], dt=float(sc[0]), cm=float(sc[1]), af=float(sc[2]),
+                    has_glob=bool(sc[3]), has_r_old=bool(sc[4]), needs_pose=bool(sc[5]),
+                    turning_start=bool(sc[6]), turning_end=bool(sc[7]), pl_nodes=old[12],
+                    pl_cells=old[13], pl_side=old[14], pl_vals=old[15], pl_dead=old[16],
+                    pl_old=old[17])
+
+
 #: the attributes a pickled RodSystem held before :class:`StepTerms`, by field
 _OLD_STEP_NAMES = {"dt": "dt", "params": "params", "t_new": "t_new", "bc": "bc", "cm": "cm",
                    "Y_old": "Y_old", "Ydot_old": "Ydot_old", "_zconst": "zconst",
@@ -910,13 +925,13 @@ class RodSystem:
             self.contact_data = contact.kernel_data
         else:
             z = np.zeros(0)
-            self.contact_data = (np.zeros((0, 4), np.intp), np.zeros((0, 4, 4)), z, z.copy(),
-                                 z.copy(), np.zeros(9))
+            self.contact_data = ContactData(np.zeros((0, 4), np.intp), np.zeros((0, 4, 4)), z,
+                                            z.copy(), z.copy(), np.zeros(9))
         self.buf = self.buffers()
         self.ev = evaluation_arrays(0)
-        self._no_candidates = (np.zeros(0, np.intp), np.zeros(0, np.intp),
-                               np.zeros(0, np.intp), np.zeros(0, np.bool_),
-                               np.zeros(0, np.bool_))
+        self._no_candidates = CandidateArrays(np.zeros(0, np.intp), np.zeros(0, np.intp),
+                                              np.zeros(0, np.intp), np.zeros(0, np.bool_),
+                                              np.zeros(0, np.bool_))
         self._no_frozen = np.zeros(0, np.intp)
         #: the current step's data (:class:`StepTerms`), set by :meth:`begin_step`
         self.step = StepTerms(cand_arrays=self._no_candidates)
@@ -948,6 +963,18 @@ class RodSystem:
             old = tuple(self.rod_data)
             self.rod_data = RodData(*old[:6], ds=float(old[6][0]), has_drag=bool(old[6][1]),
                                     space=bool(old[6][2]), seabed=sb)
+        # ... and the contact model's, the candidates' and the step's data
+        if not isinstance(self.contact_data, ContactData):
+            self.contact_data = ContactData(*self.contact_data)
+            if self.contact is not None:
+                self.contact.kernel_data = self.contact_data
+        if not isinstance(self._no_candidates, CandidateArrays):
+            self._no_candidates = CandidateArrays(*self._no_candidates)
+        step = self.step
+        if not isinstance(step.cand_arrays, CandidateArrays):
+            step.cand_arrays = CandidateArrays(*step.cand_arrays)
+        if step.data is not None and not isinstance(step.data, StepData):
+            step.data = _named_step_data(step.data)
         self.buf = self.buffers()
         cand = self.step.candidates
         self.ev = evaluation_arrays(cand.runs if cand is not None else 0)
@@ -1008,7 +1035,7 @@ class RodSystem:
         candidates = candidates if (candidates is not None and candidates.runs > 0) else None
         if candidates is not None:
             cand_arrays = candidates.arrays
-            if self.ev[0].shape[0] < candidates.runs:
+            if self.ev.selection.shape[0] < candidates.runs:
                 self.ev = evaluation_arrays(2 * candidates.runs)
         else:
             cand_arrays = self._no_candidates
@@ -1199,7 +1226,7 @@ class RodSystem:
             if p < 0:
                 return 0, -math.inf
         self._summary = (r, p)
-        return p, (float(self.ev[12][:p].min()) if p else math.inf)
+        return p, (float(self.ev.gap[:p].min()) if p else math.inf)
 
     def summary_potential(self, r):
         """The contact law's stored energy (J) at the positions r (N+1, 3) m of the last
