@@ -20,7 +20,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["NewtonParams", "LinearSolve", "ExactProduct", "Operator", "GmresWork",
+__all__ = ["BandFactor", "NewtonParams", "LinearSolve", "ExactProduct", "Operator", "GmresWork",
            "NewtonWork", "NewtonCounters", "SeabedData", "RodData", "StepData",
            "ResidualBuffers", "CandidateArrays", "ContactData", "EvaluationArrays"]
 
@@ -206,6 +206,28 @@ class ResidualBuffers(NamedTuple):
 
 
 # ------------------------------------------------------------------------------ Newton
+class BandFactor(NamedTuple):
+    """``lu``: the storage of the band LU of :mod:`solver.banded`
+    (:func:`~solver.banded.block_storage`, factorised by
+    :func:`~solver.banded.block_factor`, applied by :func:`~solver.banded.block_solve`)."""
+
+    #: the windows' first 12 columns after elimination (N, 18, 12): U's upper triangle in
+    #: rows 0-11, the multipliers below
+    LW: np.ndarray
+    #: U's entries on node k + 1 (N, 12, 12)
+    UR: np.ndarray
+    #: the row interchanges of each window (N, 12) int
+    piv: np.ndarray
+    #: the last window's LU (12, 12)
+    LF: np.ndarray
+    #: the last window's row interchanges (12,) int
+    pivf: np.ndarray
+    #: work array: a window (18, 24)
+    W: np.ndarray
+    #: work array: a window's right-hand side (18,)
+    w: np.ndarray
+
+
 class NewtonParams(NamedTuple):
     """``prm``: the controls of one Newton solve (:func:`solver.newton._newton_kernel`),
     made by :meth:`solver.newton.NewtonSolver._params` from the solver's attributes."""
@@ -239,8 +261,8 @@ class LinearSolve(NamedTuple):
     """``lin``: the last factorisation of a Newton object and its scales
     (:func:`solver.newton._factor`)."""
 
-    #: the band LU's storage (:func:`solver.banded.block_storage`), factorised in place
-    lu: tuple
+    #: the band LU's storage (:class:`BandFactor`), factorised in place
+    lu: BandFactor
     #: row scale (n,) of the equilibration (:func:`solver.newton.equilibrate`)
     row_scale: np.ndarray
     #: column scale (12,) per node: the characteristic size of each kind of unknown

@@ -64,7 +64,7 @@ import numpy as np
 from .banded import (NV, block_factor, block_solve, block_storage, copy_into, fill,
                      true_at_run_time)
 from .contact.model import candidate_gaps_into
-from .kernel_data import (EXACT_PAIR_FIELDS, ExactProduct, GmresWork, LinearSolve,
+from .kernel_data import (EXACT_PAIR_FIELDS, BandFactor, ExactProduct, GmresWork, LinearSolve,
                           NewtonCounters, NewtonParams, NewtonWork, Operator)
 from .scheme import E3, E4, W, exact_loads_product, pose_into, residual_into
 
@@ -1244,7 +1244,7 @@ def _named_state(saved, system):
         tail["scalars"][0] = ex[15][0]
         ex = ex[:15] + tuple(tail.values())
     flags = op[4]
-    return {"lin": LinearSolve(*lin),
+    return {"lin": LinearSolve(BandFactor(*lin[0]), *lin[1:]),
             "op": Operator(op[0], op[1], op[2], ExactProduct(*ex),
                            np.array(flags[:1], np.int64), np.array(flags[1:2], np.int64)),
             "ctr": NewtonCounters(*(np.array(ctr[i:i + 1], np.int64) for i in range(4)))}
