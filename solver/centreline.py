@@ -172,6 +172,8 @@ class CentrelineRod:
     CHORD_CONTRACTION = 0.25
     #: the largest scaled update taken as rounding's floor when it stops contracting
     FLOOR = 1e-6
+    #: the residual (max over the rows, each in its scale) that rounding leaves
+    RESIDUAL_FLOOR = 1e-8
     MAX_ITERATIONS = 25
 
     def __init__(self, case, props, q0, r0):
@@ -192,6 +194,18 @@ class CentrelineRod:
         else:
             self.cdn = self.cdt = np.zeros(self.n)
         self.has_drag = bool(np.any(self.cdn) or np.any(self.cdt))
+        self.seabed = None
+        #: the nodes the sea floor's spring holds on in a Newton solve ((N+1,) bool,
+        #: None outside one; :meth:`solve`)
+        self.seabed_hold = None
+        self._frictionless = self.has_friction = False
+        if case.seabed is not None:
+            from .seabed import SeabedContact
+            self.seabed = SeabedContact(case.seabed, props.diameter)
+            scal = np.array(self.seabed.data.scalars, float)
+            self.has_friction = bool(scal[4] > 0.0 or scal[5] > 0.0)
+            scal[4] = scal[5] = 0.0
+            self._frictionless_data = self.seabed.data._replace(scalars=scal)
         self.factorizations = 0            # band LUs so far
         self.paths = {}
         self._last_problem = None          # (t, the problem at t): a step reads it thrice
@@ -209,10 +223,9 @@ class CentrelineRod:
         from .initial import initial_pose
         from .properties import RodProperties
 
-        for name in ("contact", "seabed"):
-            if getattr(case, name) is not None:
-                raise CentrelineError(f"{name}: numerics.formulation 'centreline' does "
-                                      "not take it yet; use 'goyal'")
+        if case.contact is not None:
+            raise CentrelineError("contact: numerics.formulation 'centreline' does not "
+                                  "take it yet; use 'goyal'")
         if case.numerics.tolerance is not None:
             raise CentrelineError("numerics.tolerance: the centreline scheme takes fixed "
                                   "steps (numerics.dt) only")
@@ -236,6 +249,8 @@ class CentrelineRod:
             return self._last_problem[1]
         prob = st.problem_at(self.case, t, self.props, self.q0, self.r0,
                              skip=tuple(self.paths))
+        if prob.seabed is not None:
+            prob = replace(prob, seabed=None)      # the dynamic law's (seabed_terms)
         if self.paths:
             prob = replace(prob, **{name: path.spec(t, getattr(prob, name).force)
                                     for name, path in self.paths.items()})
@@ -279,11 +294,65 @@ class CentrelineRod:
         moment = -np.einsum("...ij,...j->...i", R, body)
         return np.concatenate([force, moment], axis=-1)
 
+    def kinematics(self, Y, old: CentrelineState, co: _Coefficients):
+        """The nodes' positions r, velocities ṙ, global angular velocities Ω = R W and
+        tangents a3 = R e3, each (..., N+1, 3), of Y (..., N+1, 13) at the new level
+        (complex-step safe)."""
+        X = co.cX * self.increments(Y, old) + co.dX
+        R = st._rot(Y[..., 3:7])
+        return (Y[..., 0:3], X[..., 0:3], np.einsum("...ij,...j->...i", R, X[..., 3:6]),
+                R[..., :, 2])
+
+    def seabed_terms(self, Y, old: CentrelineState, co: _Coefficients, want: bool):
+        """The sea floor's loads per length at the nodes (N+1, 6), global (normal
+        reaction plus Coulomb friction, N/m; friction's moment about the centreline,
+        N m/m), the law of :mod:`solver.seabed` at each node's r, ṙ, Ω, a3 and radius
+        (:func:`solver.seabed.seabed_points`), the same nodal law and trapezoid as the
+        statics' normal spring (:func:`solver.statics.seabed_loads`); the loads
+        (N+1, 6) split as (normal (N+1, 3), friction (N+1, 3), moment (N+1, 3),
+        penetration (N+1,) m); and with ``want`` their exact derivative (N+1, 6, 7) with
+        respect to each node's (r, p): the law's partials by (x, u, Ω, t) chained with
+        ∂(r, ṙ)/∂r = (I, c_X I) and ∂(Ω, a3)/∂p by the complex step (4 evaluations).
+        None without a seabed."""
+        if self.seabed is None:
+            return None
+        from .seabed import seabed_points
+
+        n1 = self.n
+        x, u, Om, t = (np.ascontiguousarray(np.real(a), dtype=float)
+                       for a in self.kinematics(Y, old, co))
+        F, M = np.empty((n1, 6)), np.empty((n1, 3))
+        DF, DM = np.empty((n1, 3, 12)), np.empty((n1, 3, 12))
+        pen = np.empty(n1)
+        hold = self.seabed_hold if self.seabed_hold is not None else np.zeros(n1, bool)
+        data = self._frictionless_data if self._frictionless else self.seabed.data
+        seabed_points(x, u, Om, t, self.seabed.radius, data, bool(want),
+                      hold, F, M, DF, DM, pen)
+        L = np.concatenate([F[:, 0:3] + F[:, 3:6], M], axis=1)
+        split = (F[:, 0:3], F[:, 3:6], M, pen)
+        if not want:
+            return L, split, None
+        Yc = np.empty((4,) + Y.shape, dtype=complex)
+        Yc[:] = Y
+        for b in range(4):
+            Yc[b, :, 3 + b] += 1j * _EPS
+        _, _, Omc, tc = self.kinematics(Yc, old, co)
+        chain = np.zeros((n1, 12, 7))
+        chain[:, 0:3, 0:3] = np.eye(3)
+        chain[:, 3:6, 0:3] = co.cX * np.eye(3)
+        chain[:, 6:9, 3:7] = np.transpose(Omc.imag / _EPS, (1, 2, 0))
+        chain[:, 9:12, 3:7] = np.transpose(tc.imag / _EPS, (1, 2, 0))
+        block = np.einsum("kij,kjl->kil", np.concatenate([DF, DM], axis=1), chain)
+        return L, split, block
+
     def residual(self, Y, old, co, prob) -> np.ndarray:
         """The 13(N+1) dynamic rows (the static rows plus the nodal loads' trapezoid on
-        the force and moment rows) of Y (N+1, 13)."""
+        the force and moment rows: inertia, fluid and the sea floor) of Y (N+1, 13)."""
         G = st.residual(Y, prob)
         L = self.nodal_loads(Y, old, co)
+        sb = self.seabed_terms(Y, old, co, want=False)
+        if sb is not None:
+            L = L + sb[0]
         cells = G[st.N_START:-st.N_END].reshape(self.n - 1, NV)
         cells[:, 7:13] += 0.5 * self.h * (L[:-1] + L[1:])
         return G
@@ -319,6 +388,9 @@ class CentrelineRod:
             Yc[b, :, b] += 1j * _EPS
         dL = self.nodal_loads(Yc, old, co).imag / _EPS          # (7, N+1, 6)
         block = np.transpose(dL, (1, 2, 0))                    # (N+1, 6, 7)
+        sb = self.seabed_terms(Y, old, co, want=True)
+        if sb is not None:
+            block = block + sb[2]
         vals = 0.5 * self.h * block[self._nodes].ravel()
         ab[self._bandrow, self._cols] += vals          # each (row, column) once
         return ab
@@ -345,7 +417,64 @@ class CentrelineRod:
         Y[:, 3:7] = st._qmul(old.Y[:, 3:7], cayley_quaternion(D[:, 3:6]))
         return Y
 
+    #: re-decisions of the sea floor's held contact set in one step
+    REDECISIONS = 6
+
     def solve(self, old, co, prob, Y) -> tuple[np.ndarray, int, float]:
+        """Newton on the dynamic rows from Y (:meth:`newton`); (Y, iterations, scaled
+        update). With a sea floor, Newton holds a contact set: the nodes touching at the
+        old level or at Y hold the spring's line through p = 0 (pulling where an iterate
+        lifts them, :func:`solver.seabed.seabed_points`), so that the iterates do not
+        cycle between nodes touching and lifted (the force's kink at p = 0); a solution
+        where a held node does not touch releases it and Newton goes on from there, up
+        to REDECISIONS times. A solution where no held node is pulled is the law's (the
+        primal-dual active-set strategy as a semismooth Newton method: M. Hintermüller,
+        K. Ito, K. Kunisch, SIAM J. Optim. 13, 2002); a node an iterate presses into the
+        bottom joins the held set. Raises :class:`StepFailure`."""
+        if self.seabed is None:
+            return self.newton(old, co, prob, Y)
+        rest = _Coefficients(0.0, old.Xd, 0.0, old.X)
+        hold = (self._penetration(Y, old, co) > 0.0) | (self._penetration(old.Y, old, rest) > 0.0)
+        try:
+            return self._held_solve(old, co, prob, Y, hold)
+        except StepFailure:
+            if not self.has_friction:
+                raise
+        # friction's force scales with the normal one: from iterates pressed deep into the
+        # bottom it threw Newton off; settle the normal contact first
+        self._frictionless = True
+        try:
+            Y, its_a, _ = self._held_solve(old, co, prob, Y, hold)
+        finally:
+            self._frictionless = False
+        Y, its, err = self._held_solve(old, co, prob, Y, self._penetration(Y, old, co) > 0.0)
+        return Y, its_a + its, err
+
+    def _penetration(self, Y, old, co) -> np.ndarray:
+        """The nodes' surface penetration (N+1,) m into the bottom (negative: the gap)."""
+        return self.seabed_terms(Y, old, co, False)[1][3]
+
+    def _held_solve(self, old, co, prob, Y, hold):
+        """:meth:`newton` holding the contact set ``hold`` (N+1,) bool, re-decided where
+        a held node is pulled (:meth:`solve`)."""
+        total = 0
+        try:
+            for _ in range(self.REDECISIONS + 1):
+                self.seabed_hold = hold
+                Y, its, err = self.newton(old, co, prob, Y)
+                total += its
+                hold = self.seabed_hold
+                self.seabed_hold = None
+                pulled = hold & (self._penetration(Y, old, co) <= 0.0)
+                if not pulled.any():
+                    return Y, total, err
+                hold = hold & ~pulled
+        finally:
+            self.seabed_hold = None
+        raise StepFailure(f"the sea floor's contact set did not settle in "
+                          f"{self.REDECISIONS} re-decisions")
+
+    def newton(self, old, co, prob, Y) -> tuple[np.ndarray, int, float]:
         """Newton on the dynamic rows from Y; (Y, iterations, scaled update).
 
         Chord iterations: the band LU of the first iterate is kept while the updates
@@ -353,13 +482,22 @@ class CentrelineRod:
         where they do not (a full Newton step; the Jacobian is exact). Converged when the
         update scaled by :meth:`solver.statics.StaticProblem.scales` is below TOLERANCE,
         or below FLOOR and no longer contracting (rounding's floor: the step's matrix
-        grows as 1/(β Δt²), and so does the rounding of its solve). Raises
+        grows as 1/(β Δt²), and so does the rounding of its solve), or when a step with
+        a fresh Jacobian does not contract from a residual below RESIDUAL_FLOOR in the
+        rows' scales (an inextensible rod between held ends: its tension is rounding's
+        noise at 1e-5 of B/L², the residual at 1e-10 of it). Raises
         :class:`StepFailure` without convergence in MAX_ITERATIONS, on a singular
         Jacobian or a non-finite update."""
         scale = prob.scales()
+        weights = 1.0 / st._row_scales(prob)
         err = math.inf
         lu = None
         for it in range(1, self.MAX_ITERATIONS + 1):
+            if self.seabed_hold is not None and it > 1:
+                touch = self.seabed_terms(Y, old, co, False)[1][3] > 0.0
+                if np.any(touch & ~self.seabed_hold):
+                    self.seabed_hold = self.seabed_hold | touch     # held from now on
+                    lu = None
             G = self.residual(Y, old, co, prob)
             if lu is None:
                 try:
@@ -376,15 +514,47 @@ class CentrelineRod:
                 lu = None                                  # refactor here, redo
                 err = prev
                 continue
-            if fresh and it > 2 and err > 10.0 * prev and err > self.FLOOR:
-                raise StepFailure(f"Newton diverging (scaled update {prev:.3g} -> "
-                                  f"{err:.3g} with a fresh Jacobian)")
+            if fresh and it > 2 and err > prev and err > self.FLOOR:
+                # a fresh Newton step larger than the last: take the part of it that
+                # lowers the residual, or give up where none does
+                lam = self._line_search(Y, dY, G, old, co, prob, weights)
+                if lam <= self.SMALLEST_STEP:
+                    raise StepFailure(f"Newton diverging (scaled update {prev:.3g} -> "
+                                      f"{err:.3g} with a fresh Jacobian, no descent along it)")
+                if lam < 1.0:
+                    Y = Y - lam * dY
+                    lu = None
+                    err = prev
+                    continue
+            stalled = err > 0.5 * prev
+            at_rounding = (fresh and stalled
+                           and float(np.max(np.abs(G) * weights)) < self.RESIDUAL_FLOOR)
             fresh = False
             Y = Y - dY
-            if err < self.TOLERANCE or (err < self.FLOOR and err > 0.5 * prev):
+            if err < self.TOLERANCE or (err < self.FLOOR and stalled) or at_rounding:
                 return Y, it, err
         raise StepFailure(f"Newton did not converge in {self.MAX_ITERATIONS} iterations "
                           f"(scaled update {err:.3g})")
+
+    #: the smallest fraction of a Newton step the line search takes (2⁻⁸)
+    SMALLEST_STEP = 2.0 ** -8
+
+    def _line_search(self, Y, dY, G, old, co, prob, weights) -> float:
+        """The first λ of 1, ½, ¼ ... (down to SMALLEST_STEP) whose residual at Y − λ dY
+        is smaller in the rows' scaled 2-norm than G's (Armijo's backtracking on the
+        Newton direction; Deuflhard, *Newton Methods for Nonlinear Problems*, 2004,
+        § 3.1)."""
+        g0 = float(np.linalg.norm(G * weights))
+        lam = 1.0
+        while lam > self.SMALLEST_STEP:
+            try:
+                gt = float(np.linalg.norm(self.residual(Y - lam * dY, old, co, prob) * weights))
+            except FloatingPointError:
+                gt = math.inf
+            if gt < (1.0 - 1e-4 * lam) * g0:
+                return lam
+            lam *= 0.5
+        return 0.0
 
     def step(self, old: CentrelineState, h: float) -> tuple[CentrelineState, int, float]:
         """One generalized-α step of h (s) from ``old``: (the new state, Newton
@@ -432,6 +602,12 @@ class CentrelineRod:
         first = self.rest_state(t, Y)
         if X is not None:
             first.X = np.array(X, float)
+        if self.seabed is not None:
+            co = _Coefficients(0.0, first.Xd, 0.0, first.X)
+            if np.any(self.seabed_terms(first.Y, first, co, False)[1][3] >= 0.0):
+                # the bottom's force k max(p, 0) has a kink at p = 0 where the rod lies:
+                # no Taylor polynomial there, start with Ẋ = a = 0
+                return first
         delta = 0.25 * self.case.numerics.dt if delta is None else float(delta)
         Y1, A1 = self._taylor_step(first, delta)
         Y2, A2 = self._taylor_step(first, 0.5 * delta)

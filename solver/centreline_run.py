@@ -69,7 +69,7 @@ class CentrelineRun:
         self.case = case
         self.rod = rod = CentrelineRod.from_case(case)
         self.props = rod.props
-        self.system = SimpleNamespace(needs_pose=True, seabed=None)
+        self.system = SimpleNamespace(needs_pose=True, seabed=rod.seabed)
         self.newton = SimpleNamespace(factorizations=0, gmres_iterations=0)
         # the step control's figures in the seed scheme's names
         self.control = SimpleNamespace(refusals={}, last_dt=case.numerics.dt,
@@ -93,6 +93,7 @@ class CentrelineRun:
             raise CentrelineError(f"initial: the consistent start did not converge "
                                   f"({exc.reason})") from exc
         self.phi_start = self.state.phi.copy()
+        self.state.seabed_power = self._seabed_power(self.level)
         if start is None and (case.initial.twist_rate != 0.0
                               or case.initial.centreline is not None):
             # a twisted or curved start: Lk counts from the untwisted straight rod
@@ -112,6 +113,7 @@ class CentrelineRun:
         st.t = self.level.t
         st.Y = np.concatenate([fl["v"], fl["omega"], fl["f"], fl["kappa"]], axis=1)
         st.r = st.r_time = fl["r"]
+        st.v_global = st.v_global_time = self.level.X[:, 0:3].copy()
         st.q = st.q_time = fl["q"]
         st.quat_norm_error = float(np.abs(np.linalg.norm(st.q, axis=1) - 1.0).max())
         st.power = self._power(self.level)
@@ -177,6 +179,10 @@ class CentrelineRun:
             st.phi = self._end_angles(old, new, h)
             self._publish()
             st.work_in += 0.5 * h * (p_old + st.power)
+            if self.rod.seabed is not None:
+                power = self._seabed_power(new)
+                st.seabed_work += 0.5 * h * (st.seabed_power + power)
+                st.seabed_power = power
             total_its, self.last_residual, self.control.last_dt = its, err, h
             self.newton.factorizations = self.rod.factorizations
         self.last_iterations = total_its
@@ -186,9 +192,32 @@ class CentrelineRun:
         raise CentrelineError("numerics.tolerance: the centreline scheme takes fixed "
                               "steps (numerics.dt) only")
 
+    def _seabed_split(self, state):
+        """The sea floor's (normal, friction, moment (N+1, 3), penetration (N+1,)) at a
+        level, the loads its step solved with (:meth:`solver.centreline.CentrelineRod.
+        seabed_terms` at the level's own velocities)."""
+        rod = self.rod
+        co = SimpleNamespace(cX=0.0, dX=state.X)         # X = 0·Δ + X: the level's own
+        return rod.seabed_terms(state.Y, state, co, want=False)[1]
+
     def seabed_loads(self, pose=None):
-        raise CentrelineError("seabed: numerics.formulation 'centreline' does not take "
-                              "it yet")
+        """The sea floor's (normal reaction, friction, moment) per unit length (N+1, 3),
+        global, and the surface penetration (N+1,) m, at the current level (``pose`` is
+        the seed scheme's and must be None: there is one centreline)."""
+        if pose is not None:
+            raise CentrelineError("seabed: the centreline scheme has one pose, its own")
+        return self._seabed_split(self.level)
+
+    def _seabed_power(self, state) -> float:
+        """Power of the sea floor's loads on a level, W: ∫ (F·ṙ + M·Ω) ds (trapezoid),
+        0 without a seabed."""
+        if self.rod.seabed is None:
+            return 0.0
+        Fn, Ff, M, _ = self._seabed_split(state)
+        R = st._rot(state.Y[:, 3:7])
+        omega = np.einsum("kij,kj->ki", R, state.X[:, 3:6])
+        per = np.sum((Fn + Ff) * state.X[:, 0:3], axis=1) + np.sum(M * omega, axis=1)
+        return float(per @ self.props.quad_weights)
 
 
 def _from_start(start, stiffness, h):

@@ -93,7 +93,7 @@ from .banded import true_at_run_time
 from .kernel_data import SeabedData
 from .kinematics import _right_jacobian_into
 
-__all__ = ["SeabedContact", "seabed_into", "seabed_old_into", "seabed_cells", "node_penetration", "to_nodes",
+__all__ = ["SeabedContact", "seabed_into", "seabed_points", "seabed_old_into", "seabed_cells", "node_penetration", "to_nodes",
            "far_from_bottom", "contact_length", "hover_gap", "CONTACT_GAP", "touchdown",
            "NO_SEABED"]
 
@@ -793,6 +793,64 @@ def seabed_cells(r, vg, Rm, omega, data, F, M, pen):
             F[k, i] = a[i]
             F[k, 3 + i] = b[i]
             M[k, i] = c[i]
+
+
+@numba.njit(cache=True)
+def seabed_points(x, u, Om, t, radius, data, want, hold, F, M, DF, DM, pen):
+    """The seabed's law (:func:`_node`, module docstring) at m points of the centreline:
+    the normal reaction F[:, 0:3] and the friction F[:, 3:6] (F (m, 6), N/m) and the
+    moment M (m, 3) N m/m per unit length, global, from the positions x, velocities u, global angular velocities Om and
+    unit tangents t (m, 3) and the radii (m,) m; pen (m,) m the surface penetrations
+    (negative: the gap). With ``want`` also the law's exact partials (m, 3, 12) DF =
+    ∂(normal + friction)/∂(x, u, Om, t) and DM = ∂M/∂(x, u, Om, t), by the forward propagation of
+    :func:`_law` (zero where a point does not touch). The damper's branch is the law's
+    clamp at every evaluation. Points higher than the bottom's top plus their radius
+    times the steepest slope factor are skipped (zero load). A point with hold[k] True
+    that does not touch (p ≤ 0) takes the spring's line on, F = k p n (pulling, no damper
+    or friction; DF = −k n nᵀ on x, the tangent plane's): the contact set a Newton solve
+    holds (:meth:`solver.centreline.CentrelineRod.solve`)."""
+    E = _unit_seeds()
+    wk = np.zeros((9, 3, 12))
+    fn = np.empty(3)
+    ff = np.empty(3)
+    mm = np.empty(3)
+    dF = np.zeros((3, 12))
+    dM = np.zeros((3, 12))
+    scal = data.scalars
+    lim, slope = scal[8], scal[9]
+    for k in range(x.shape[0]):
+        for i in range(3):
+            F[k, i] = 0.0
+            F[k, 3 + i] = 0.0
+            M[k, i] = 0.0
+            for j in range(12):
+                DF[k, i, j] = 0.0
+                DM[k, i, j] = 0.0
+        if x[k, 2] - slope * radius[k] > lim and not hold[k]:
+            h, hx, hy, _ = _bottom(x[k, 0], x[k, 1], data)
+            pen[k] = radius[k] - (x[k, 2] - h) / math.sqrt(1.0 + hx * hx + hy * hy)
+            continue
+        pen[k] = _node(x[k], u[k], Om[k], t[k], radius[k], data, want, E[0], E[1], E[2],
+                       E[3], fn, ff, mm, dF, dM, wk)
+        if pen[k] <= 0.0:
+            if hold[k]:
+                h, hx, hy, _ = _bottom(x[k, 0], x[k, 1], data)
+                sq = math.sqrt(1.0 + hx * hx + hy * hy)
+                nv = (-hx / sq, -hy / sq, 1.0 / sq)
+                for i in range(3):
+                    F[k, i] = scal[2] * pen[k] * nv[i]
+                    if want:
+                        for j in range(3):
+                            DF[k, i, j] = -scal[2] * nv[i] * nv[j]
+            continue
+        for i in range(3):
+            F[k, i] = fn[i]
+            F[k, 3 + i] = ff[i]
+            M[k, i] = mm[i]
+            if want:
+                for j in range(12):
+                    DF[k, i, j] = dF[i, j]
+                    DM[k, i, j] = dM[i, j]
 
 
 @numba.njit(cache=True)
