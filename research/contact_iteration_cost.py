@@ -101,8 +101,8 @@ def _parts(run: RodRun, dt: float, repeats: int) -> tuple[dict, int, int]:
     Y, _, its, res, ok, _ = newton.solve(guess)
     st = newton._state
     rod, step, cand, cdata = system.kernel_args()
-    frozen = st["ws"][8][:0]
-    runs = cand[2].shape[0]
+    frozen = st["ws"].frozen[:0]
+    runs = cand.run_start.shape[0]
     x = np.random.default_rng(0).standard_normal(Y.size)
     out = np.empty_like(x)
     parts = {
@@ -121,10 +121,10 @@ def _parts(run: RodRun, dt: float, repeats: int) -> tuple[dict, int, int]:
         lambda: newton_mod._factor(Y, system.buf, system.ev, st["lin"], st["op"], rod,
                                    step, newton.CONTACT_BAND_WEIGHT, st["ctr"]),
         max(repeats // 4, 5))
-    lu, op = st["lin"][0], st["op"]
+    lu, op = st["lin"].lu, st["op"]
     timed["band LU alone"] = _median_ms(
-        lambda: block_factor(op[0], step[7], step[8], op[1], lu), max(repeats // 4, 5))
-    ab = _lapack_band(op[0], step[7], step[8], op[1])
+        lambda: block_factor(op.blocks, step.bc_rows, step.bc_cols, op.bc_scaled, lu), max(repeats // 4, 5))
+    ab = _lapack_band(op.blocks, step.bc_rows, step.bc_cols, op.bc_scaled)
     work = np.empty_like(ab, order="F")
     copy_ms = _median_ms(lambda: np.copyto(work, ab), max(repeats // 4, 5))
 
@@ -138,7 +138,7 @@ def _parts(run: RodRun, dt: float, repeats: int) -> tuple[dict, int, int]:
         # the buffers still hold the evaluation at Y made before the factorisation
         timed["operator set-up"] = _median_ms(
             lambda: newton_mod._set_operator(system.buf, system.ev, st["lin"], op, step,
-                                             newton.CONTACT_BAND_WEIGHT, step[11][2]),
+                                             newton.CONTACT_BAND_WEIGHT, step.af),
             repeats)
         timed["exact product"] = _median_ms(
             lambda: newton_mod._matvec(x, out, st["lin"], op, step, st["gm"]), repeats)

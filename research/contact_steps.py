@@ -116,7 +116,7 @@ def trace_newton() -> None:
 
     def traced_solve(self, Y_guess):
         out = solve(self, Y_guess)
-        self.last_trace = self._state["ws"][13][:out[2] + 1].copy()
+        self.last_trace = self._state["ws"].trace[:out[2] + 1].copy()
         return out
 
     def traced_feasible_start(self, guess):        # NewtonSolver.feasible_start, keeping
@@ -125,7 +125,7 @@ def trace_newton() -> None:
         rod, step, cand, cdata = system.kernel_args()
         out = np.empty((system.n_nodes, nm.NV))
         self.last_start_blend = float(nm._feasible_start(
-            step[0], np.ascontiguousarray(guess, dtype=float), step, rod, cand, cdata,
+            step.Y_old, np.ascontiguousarray(guess, dtype=float), step, rod, cand, cdata,
             self._state["ws"], out, self.START_GAP_KEEP))
         return out
 

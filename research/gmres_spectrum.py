@@ -106,13 +106,13 @@ class StepSystems:
                 newton.max_iterations = m
                 self._begin()
                 newton.solve(self.guess)
-                self.iterates.append(newton._state["ws"][0].copy())
+                self.iterates.append(newton._state["ws"].Y.copy())
         finally:
             newton.max_iterations = saved
         self._begin()
         st = newton._state
         self.lin, self.op, self.gm = st["lin"], st["op"], st["gm"]
-        self.n = self.lin[1].size
+        self.n = self.lin.row_scale.size
 
     def _begin(self) -> None:
         # the step set up again as the run does, from the start already made
@@ -125,14 +125,14 @@ class StepSystems:
         st = newton._state
         rod, step, cand, cdata = system.kernel_args()
         Y = self.iterates[k]
-        residual_into(Y, True, rod, step, cand, st["ws"][8][:0], cdata, system.buf, system.ev)
+        residual_into(Y, True, rod, step, cand, st["ws"].frozen[:0], cdata, system.buf, system.ev)
         if k == 0:
             newton_mod._factor(Y, system.buf, system.ev, self.lin, self.op, rod, step,
                                newton.CONTACT_BAND_WEIGHT, st["ctr"])
         else:
             newton_mod._set_operator(system.buf, system.ev, self.lin, self.op, step,
-                                     newton.CONTACT_BAND_WEIGHT, step[11][2])
-        return -system.buf[0] * self.lin[1]
+                                     newton.CONTACT_BAND_WEIGHT, step.af)
+        return -system.buf.R * self.lin.row_scale
 
     def matvec(self, x: np.ndarray) -> np.ndarray:
         """J x (n,), the operator as last set by :meth:`at`."""
@@ -145,7 +145,7 @@ class StepSystems:
     def precondition(self, x: np.ndarray) -> np.ndarray:
         """M⁻¹ x (n,): the band LU's solve."""
         y = np.array(x, dtype=float)
-        block_solve(self.lin[0], y)
+        block_solve(self.lin.lu, y)
         return y
 
 
@@ -272,8 +272,8 @@ COARSE_ROWS = {"E3 lateral": (6, 7), "E3": (6, 7, 8), "E1 and E2": (0, 1, 2, 3, 
 def contact_cells(sys_: StepSystems) -> np.ndarray:
     """The cells (m,) int, sorted, next to a node of the operator's contact pairs (the
     exact load product's nodes, 5 per pair)."""
-    P = int(sys_.op[4][1])
-    nodes = np.unique(sys_.op[3][8][:P])
+    P = int(sys_.op.pairs[0])
+    nodes = np.unique(sys_.op.exact.nodes[:P])
     n_cells = sys_.n // 12 - 1
     return np.unique(np.clip(np.concatenate([nodes - 1, nodes]), 0, n_cells - 1))
 
@@ -355,12 +355,14 @@ def augmented_matrix(sys_: StepSystems) -> tuple[sparse.csc_matrix, int]:
     nodes. Returns (matrix, n). No seabed terms (raises ValueError where cells touch)."""
     lin, op = sys_.lin, sys_.op
     step = sys_.run.system.kernel_args()[1]
-    blocks, bc_scaled, lrw, ex, flags = op
-    R, C, D, tmid, rdot, A0, G, L, nodes, w, Fp, d_dr, d_dv, dtdr, dwdt, scal = ex[:16]
-    if ex[20][0] > 0:
+    blocks, bc_scaled, lrw, ex = op.blocks, op.bc_scaled, op.load_row_weight, op.exact
+    R, C, D, tmid, rdot, A0, G, L = ex.R, ex.C, ex.D, ex.tmid, ex.rdot, ex.A0, ex.G, ex.L
+    nodes, w, Fp, d_dr, d_dv = ex.nodes, ex.weights, ex.force, ex.dF_dr, ex.dF_dv
+    dtdr, dwdt, scal = ex.dt_dr, ex.dw_dt, ex.scalars
+    if ex.seabed_count[0] > 0:
         raise ValueError("augmented_matrix: seabed cells touch; their terms are not assembled")
-    P = int(flags[1]) if flags[0] else 0
-    cs = lin[3]
+    P = int(op.pairs[0]) if op.coupled[0] else 0
+    cs = lin.col_scale
     nc = blocks.shape[0]
     n1 = nc + 1
     n = 12 * n1
@@ -378,10 +380,10 @@ def augmented_matrix(sys_: StepSystems) -> tuple[sparse.csc_matrix, int]:
 
     c_, i_, j_ = np.meshgrid(np.arange(nc), np.arange(12), np.arange(24), indexing="ij")
     put(6 + 12 * c_ + i_, 12 * c_ + j_, blocks)
-    bc_rows, bc_cols = step[7], step[8]
+    bc_rows, bc_cols = step.bc_rows, step.bc_cols
     put(bc_rows, bc_cols, bc_scaled[:bc_rows.shape[0]])
     for e in range(2):
-        if step[11][6 + e] != 0.0:
+        if step.turning_start if e == 0 else step.turning_end:
             k = 0 if e == 0 else n1 - 1
             ii, jj = np.meshgrid(np.arange(3), np.arange(3), indexing="ij")
             put(bc_rows[6 * e + ii], 12 * k + W + jj, bc_scaled[12 + 9 * e + 3 * ii + jj])
@@ -507,7 +509,7 @@ def augmented_study(run: RodRun, h: float, steps: int) -> None:
     last = None
     for _ in range(steps):
         sys_ = StepSystems(run, h)
-        print(f"t = {run.state.t:.4f} s, {int(sys_.op[4][1])} pairs, {len(sys_.iterates)} Newton "
+        print(f"t = {run.state.t:.4f} s, {int(sys_.op.pairs[0])} pairs, {len(sys_.iterates)} Newton "
               "iterates; GMRES iterations plain / augmented LU fresh / of the step's start "
               "(at iterate 0: of the last step's start)", flush=True)
         start = None

@@ -356,7 +356,7 @@ class DragWork(WorkAccount):
         rod = run.system.rod_data
         # a column view of the (N+1, 12) unknowns, as the compiled callers pass it (one
         # signature of the kernel)
-        _drag_kernel(np.ascontiguousarray(run.state.Y, dtype=float)[:, 0:3], rod[3], rod[4], b,
+        _drag_kernel(np.ascontiguousarray(run.state.Y, dtype=float)[:, 0:3], rod.cdn, rod.cdt, b,
                      np.empty((0, 3, 3)), False)
         return b, np.array(run.state.Y[:, 0:3], dtype=float)
 
@@ -367,7 +367,7 @@ class DragWork(WorkAccount):
         g, am, af = _rates(prob.params)
         rod = run.system.rod_data
         work = _drag_work(np.ascontiguousarray(sol.Y), run.state.Y, float(prob.h), g, am, af,
-                          rate_old, b_old, rod[3], rod[4], run.props.quad_weights, b, rate)
+                          rate_old, b_old, rod.cdn, rod.cdt, run.props.quad_weights, b, rate)
         return work, (b, rate)
 
 

@@ -23,15 +23,15 @@ research/contact_iteration_cost.py``, "band LU alone"). The elimination order
 and pivots being the band LU's, so is its stability (Golub & Van Loan, *Matrix
 Computations*, § 4.3 on band LU with partial pivoting).
 
-The factor's storage (a tuple, :func:`block_storage`): LW (N, 18, 12) the windows' first
-12 columns after elimination (U's upper triangle in rows 0-11, the multipliers below),
-UR (N, 12, 12) U's entries on node k + 1, piv (N, 12) the row interchanges, LF (12, 12)
-and pivf (12,) the last window's LU, and work arrays W (18, 24) and w (18,).
+The factor's storage is a :class:`solver.kernel_data.BandFactor` (:func:`block_storage`):
+LW, UR, piv, LF, pivf and the work arrays W, w, each described there.
 """
 from __future__ import annotations
 
 import numba
 import numpy as np
+
+from .kernel_data import BandFactor
 
 __all__ = ["BlockLU", "BandFactorError", "block_storage", "block_factor", "block_solve",
            "copy_into", "fill", "true_at_run_time", "NV"]
@@ -90,12 +90,12 @@ class BandFactorError(ArithmeticError):
 
 
 def block_storage(n_cells: int):
-    """The factor's storage for N = n_cells cells (module docstring): (LW (N, 18, 12),
-    UR (N, 12, 12), piv (N, 12) int, LF (12, 12), pivf (12,) int, W (18, 24), w (18,))."""
+    """The factor's storage for N = n_cells cells (module docstring), a
+    :class:`solver.kernel_data.BandFactor`."""
     n = int(n_cells)
-    return (np.zeros((n, _WIN, NV)), np.zeros((n, NV, NV)), np.zeros((n, NV), np.intp),
-            np.zeros((NV, NV)), np.zeros(NV, np.intp), np.zeros((_WIN, 2 * NV)),
-            np.zeros(_WIN))
+    return BandFactor(LW=np.zeros((n, _WIN, NV)), UR=np.zeros((n, NV, NV)),
+                      piv=np.zeros((n, NV), np.intp), LF=np.zeros((NV, NV)),
+                      pivf=np.zeros(NV, np.intp), W=np.zeros((_WIN, 2 * NV)), w=np.zeros(_WIN))
 
 
 @numba.njit(cache=True, inline="always")
@@ -180,7 +180,7 @@ def block_factor(blocks, bc_rows, bc_cols, bc_vals, lu):
     rows 0-5 at s = 0 and n−6 … n−1 at s = L, into the storage ``lu``
     (:func:`block_storage`). Returns 0, or 1 + the unknown whose pivot is exactly zero
     (a singular Jacobian)."""
-    LW, UR, piv, LF, pivf, W, w = lu
+    LW, UR, piv, LF, pivf, W, w = lu.LW, lu.UR, lu.piv, lu.LF, lu.pivf, lu.W, lu.w
     n_cells = blocks.shape[0]
     n = NV * (n_cells + 1)
     # the first window's carried rows: the boundary rows of s = 0
@@ -230,7 +230,7 @@ def block_solve(lu, x):
     side in the residual's row order and becomes the solution in the unknowns' order
     (the forward pass writes node k's entries only after it has read cell k's rows, so
     the two orders can share one array)."""
-    LW, UR, piv, LF, pivf, W, w = lu
+    LW, UR, piv, LF, pivf, W, w = lu.LW, lu.UR, lu.piv, lu.LF, lu.pivf, lu.W, lu.w
     n_cells = LW.shape[0]
     n = NV * (n_cells + 1)
     for i in range(6):

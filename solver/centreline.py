@@ -202,10 +202,10 @@ class CentrelineRod:
         if case.seabed is not None:
             from .seabed import SeabedContact
             self.seabed = SeabedContact(case.seabed, props.diameter)
-            scal = np.array(self.seabed.data[0], float)
+            scal = np.array(self.seabed.data.scalars, float)
             self.has_friction = bool(scal[4] > 0.0 or scal[5] > 0.0)
             scal[4] = scal[5] = 0.0
-            self._frictionless_data = (scal,) + tuple(self.seabed.data[1:])
+            self._frictionless_data = self.seabed.data._replace(scalars=scal)
         self.factorizations = 0            # band LUs so far
         self.paths = {}
         self._last_problem = None          # (t, the problem at t): a step reads it thrice

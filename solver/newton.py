@@ -64,6 +64,8 @@ import numpy as np
 from .banded import (NV, block_factor, block_solve, block_storage, copy_into, fill,
                      true_at_run_time)
 from .contact.model import candidate_gaps_into
+from .kernel_data import (EXACT_PAIR_FIELDS, BandFactor, ExactProduct, GmresWork, LinearSolve,
+                          NewtonCounters, NewtonParams, NewtonWork, Operator)
 from .scheme import E3, E4, W, exact_loads_product, pose_into, residual_into
 
 __all__ = ["NewtonSolver", "equilibrate", "scale_blocks", "FAILURES"]
@@ -167,32 +169,21 @@ def _matvec_kernel(blocks, x, load_weight, dB, out):
 
 # ----------------------------------------------------------------------------- kernels
 # The persistent state of a Newton object, as the kernels take it (allocated by
-# NewtonSolver._allocate):
-#   lin = (the LU's storage (solver.banded.block_storage), row scale (n,), s12 (12,),
-#          column scale (n,))
-#   op  = (scaled band blocks (N, 12, 24), scaled boundary values (12,), load row weight
-#          (N, 3), exact product data (R, C, D, tmid, rdot, A0, G, L, contact pairs, scal,
-#          scratch, the seabed's linearisation: exact_loads_product's ``op``), flags (2,)
-#          int: [coupled, pairs])
-#   gm  = (V (m+1, n), Z (m, n), H (m+1, m), cs, sn (m,), g (m+1,), w, x, r (n,),
-#          dY (N+1, 12), dB (N+1, 3), dS (N, 6))
-#   ws  = (Y, Ytrial (N+1, 12), delta, rhs, stall scale (n,), history (max_it + 1,),
-#          gaps g0, g1 (runs,), frozen (runs,) int, pose scratch q (N+1, 4), R (N+1, 3, 3),
-#          r, θ (N+1, 3), trace (max_it + 2, 4): per iteration the scaled residual, the
-#          feasibility fraction, the line-search fraction, GMRES's iterations; ṙ scratch
-#          (N+1, 3); the last iterate's positions (N+1, 3) and how far the last
-#          correction moved them (1,), for the position test)
-#   ctr = (factorisations, GMRES iterations, GMRES failures, factor valid) int64
+# NewtonSolver._allocate), is named tuples of solver.kernel_data: lin (LinearSolve),
+# op (Operator, its exact product an ExactProduct), gm (GmresWork), ws (NewtonWork),
+# ctr (NewtonCounters); prm (NewtonParams) the controls of a solve.
 
 
 def _product_tail(n1, nc, ds):
-    """The exact product's scalars (Δt, Δs, αf), scratch dφ, dr, dG (N+1, 3) and the
-    seabed's linearisation (cells (N,) int, count (1,) int, partials (N, 6, 12), loads
-    (N, 6), R ω (N+1, 3), ½Δt R J_r(θ) (N+1, 3, 3)): the tail of the operator's ``ex``
-    (module comment), zero."""
-    return (np.array([0.0, float(ds), 0.0]), np.zeros((n1, 3)), np.zeros((n1, 3)),
-            np.zeros((n1, 3)), np.zeros(nc, np.int64), np.zeros(1, np.int64),
-            np.zeros((nc, 6, 12)), np.zeros((nc, 6)), np.zeros((n1, 3)), np.zeros((n1, 3, 3)))
+    """The :class:`ExactProduct` fields from ``scalars`` on, zero: the scalars (Δt, Δs,
+    αf), scratch dφ, dr, dG (N+1, 3) and the seabed's linearisation (cells (N,) int,
+    count (1,) int, partials (N, 6, 12), loads (N, 6), R ω (N+1, 3), ½Δt R J_r(θ)
+    (N+1, 3, 3)), as a dict by field."""
+    return dict(scalars=np.array([0.0, float(ds), 0.0]), dphi=np.zeros((n1, 3)),
+                dr=np.zeros((n1, 3)), dG=np.zeros((n1, 3)),
+                seabed_cells=np.zeros(nc, np.int64), seabed_count=np.zeros(1, np.int64),
+                seabed_partials=np.zeros((nc, 6, 12)), seabed_loads=np.zeros((nc, 6)),
+                Romega=np.zeros((n1, 3)), Aphi=np.zeros((n1, 3, 3)))
 
 
 @numba.njit(cache=True)
@@ -202,68 +193,70 @@ def _set_operator(buf, ev, lin, op, step, weight, af):
     ``weight`` of the node-local contact blocks (the rest moves to the exact load
     product's node-local term L, so band + exact product is still the Jacobian; the
     row scale stays that of the full blocks), and the exact product's data."""
-    rs, s12 = lin[1], lin[2]
-    blocks, bc_scaled, lrw, ex, flags = op
-    _scale_blocks_kernel(buf[4], rs, s12, blocks)
-    bc_rows, bc_cols, bc_coef = step[7], step[8], step[9]
+    rs, s12 = lin.row_scale, lin.s12
+    blocks, bc_scaled, lrw, ex = op.blocks, op.bc_scaled, op.load_row_weight, op.exact
+    _scale_blocks_kernel(buf.blocks, rs, s12, blocks)
+    bc_rows, bc_cols, bc_coef = step.bc_rows, step.bc_cols, step.bc_coef
     for m in range(bc_rows.shape[0]):
         bc_scaled[m] = bc_coef[m] * rs[bc_rows[m]] * s12[bc_cols[m] % NV]
     for e in range(2):
-        # a towed end free to turn: its translation rows' block on ω (buf[-2]); 0 else
-        turning = step[11][6 + e] != 0.0
+        # a towed end free to turn: its translation rows' block on ω (buf.bc_jac); 0 else
+        turning = step.turning_start if e == 0 else step.turning_end
         for i in range(3):
             for j in range(3):
                 bc_scaled[12 + 9 * e + 3 * i + j] = (
-                    buf[-2][e, i, j] * rs[bc_rows[6 * e + i]] * s12[W + j] if turning else 0.0)
+                    buf.bc_jac[e, i, j] * rs[bc_rows[6 * e + i]] * s12[W + j] if turning
+                    else 0.0)
     nc = blocks.shape[0]
     for c in range(nc):
         for i in range(3):
             lrw[c, i] = 0.5 * (1.0 - af) * rs[6 + NV * c + E3 + i]
-    bflags = buf[-1]
+    bflags = buf.flags
     if bflags[3] == 0:
-        flags[0] = 0
-        flags[1] = 0
+        op.coupled[0] = 0
+        op.pairs[0] = 0
         return
     P = bflags[1]
-    (R, C, D, tmid, rdot, A0, G, L, nodes, w, Fp, d_dr, d_dv, dtdr, dwdt, scal, dphi, dr,
-     dG, sbc, sbn, sbj, sbl, Og, Aphi) = ex
-    copy_into(R, buf[6])
-    copy_into(C, buf[14])
-    copy_into(D, buf[15])
-    copy_into(tmid, buf[16])
-    copy_into(rdot, buf[17])
-    copy_into(A0, buf[18])
-    copy_into(G, buf[10])
-    copy_into(L, buf[19])
-    scal[0] = step[11][0]
-    scal[2] = af
+    nodes, w, Fp, d_dr, d_dv = ex.nodes, ex.weights, ex.force, ex.dF_dr, ex.dF_dv
+    dtdr, dwdt, L = ex.dt_dr, ex.dw_dt, ex.L
+    sbc, sbj, sbl = ex.seabed_cells, ex.seabed_partials, ex.seabed_loads
+    copy_into(ex.R, buf.Rm)
+    copy_into(ex.C, buf.C)
+    copy_into(ex.D, buf.D)
+    copy_into(ex.tmid, buf.tmid)
+    copy_into(ex.rdot, buf.rdot)
+    copy_into(ex.A0, buf.A0)
+    copy_into(ex.G, buf.G)
+    copy_into(L, buf.L)
+    ex.scalars[0] = step.dt
+    ex.scalars[2] = af
     # the seabed's linearisation (solver.seabed.seabed_into's ``lin``), its cells only
-    nsb = buf[24][0]
-    sbn[0] = nsb
+    nsb = buf.seabed_count[0]
+    ex.seabed_count[0] = nsb
     for j in range(nsb):
-        c = buf[23][j]
+        c = buf.seabed_cells[j]
         sbc[j] = c
         for i in range(6):
-            sbl[c, i] = buf[26][c, i]
+            sbl[c, i] = buf.seabed_loads[c, i]
             for m in range(12):
-                sbj[c, i, m] = buf[25][c, i, m]
+                sbj[c, i, m] = buf.seabed_partials[c, i, m]
     if nsb > 0:
-        copy_into(Og, buf[27])
-        copy_into(Aphi, buf[28])
+        copy_into(ex.Romega, buf.Romega)
+        copy_into(ex.Aphi, buf.Aphi)
     for p in range(P):
         for b in range(5):
-            nodes[p, b] = ev[4][p, b]
-            w[p, b] = ev[5][p, b]
-            dwdt[p, b] = ev[11][p, b]
+            nodes[p, b] = ev.nodes[p, b]
+            w[p, b] = ev.weights[p, b]
+            dwdt[p, b] = ev.dw_dt[p, b]
             for i in range(3):
-                dtdr[p, b, i] = ev[10][p, b, i]
+                dtdr[p, b, i] = ev.dt_dr[p, b, i]
                 for j in range(3):
-                    d_dr[p, b, i, j] = ev[8][p, b, i, j]
-                    d_dv[p, b, i, j] = ev[9][p, b, i, j]
+                    d_dr[p, b, i, j] = ev.dF_dr[p, b, i, j]
+                    d_dv[p, b, i, j] = ev.dF_dv[p, b, i, j]
         for i in range(3):
-            Fp[p, i] = ev[7][p, i]
+            Fp[p, i] = ev.force[p, i]
     if P > 0 and weight != 1.0:
-        diag = buf[11]
+        diag = buf.diag
         cut = 1.0 - weight
         for c in range(nc):
             for i in range(3):
@@ -275,8 +268,8 @@ def _set_operator(buf, ev, lin, op, step, weight, af):
             for i in range(3):
                 for j in range(6):
                     L[k, i, j] -= cut * diag[k, i, j]
-    flags[0] = 1
-    flags[1] = P
+    op.coupled[0] = 1
+    op.pairs[0] = P
 
 
 @numba.njit(cache=True)
@@ -284,21 +277,21 @@ def _factor(Y, buf, ev, lin, op, rod, step, weight, ctr):
     """Scale, assemble and LU-factorise the Jacobian whose cell blocks the last residual
     evaluation left in buf at the iterate Y (:func:`equilibrate`), and make it (with the
     exact load data) GMRES's operator. Returns False for a singular Jacobian."""
-    lu, rs, s12, cs = lin
-    _equilibrate(Y, buf[4], step[7], step[8], step[9], rod[5], rs, s12)
+    lu, rs, s12, cs = lin.lu, lin.row_scale, lin.s12, lin.col_scale
+    _equilibrate(Y, buf.blocks, step.bc_rows, step.bc_cols, step.bc_coef, rod.floor, rs, s12)
     n1 = Y.shape[0]
     for k in range(n1):
         for j in range(NV):
             cs[NV * k + j] = s12[j]
-    _set_operator(buf, ev, lin, op, step, weight, step[11][2])
-    if step[11][6] != 0.0 or step[11][7] != 0.0:
+    _set_operator(buf, ev, lin, op, step, weight, step.af)
+    if step.turning_start or step.turning_end:
         rows, cols = _turning_entries(step, n1)
-        if block_factor(op[0], rows, cols, op[1], lu) != 0:
+        if block_factor(op.blocks, rows, cols, op.bc_scaled, lu) != 0:
             return False
-    elif block_factor(op[0], step[7], step[8], op[1], lu) != 0:
+    elif block_factor(op.blocks, step.bc_rows, step.bc_cols, op.bc_scaled, lu) != 0:
         return False
-    ctr[0] += 1
-    ctr[3] = 1
+    ctr.factorizations[0] += 1
+    ctr.factor_valid[0] = 1
     return True
 
 
@@ -307,31 +300,31 @@ def _matvec(x, out, lin, op, step, gm):
     """The scaled Jacobian times x (n,) into out (n,): band cells and boundary rows of
     the operator, plus (self-contact configured) the exact load terms of the space-route
     pose in place of their node-local part (:func:`solver.scheme.exact_loads_product`)."""
-    blocks, bc_scaled, lrw, ex, flags = op
-    cs = lin[3]
-    if flags[0]:
-        dY, dB, dS = gm[9], gm[10], gm[11]
+    blocks, bc_scaled, lrw, ex = op.blocks, op.bc_scaled, op.load_row_weight, op.exact
+    cs = lin.col_scale
+    if op.coupled[0]:
+        dY, dB, dS = gm.dY, gm.dB, gm.dS
         n1 = dY.shape[0]
         for k in range(n1):
             for j in range(NV):
                 dY[k, j] = x[NV * k + j] * cs[NV * k + j]
-        exact_loads_product(dY, ex, flags[1], dB, dS)
+        exact_loads_product(dY, ex, op.pairs[0], dB, dS)
         _matvec_kernel(blocks, x, lrw, dB, out)
-        rs = lin[1]
-        sbc = ex[19]
-        for j in range(ex[20][0]):
+        rs = lin.row_scale
+        sbc = ex.seabed_cells
+        for j in range(ex.seabed_count[0]):
             c = sbc[j]
             base = 6 + NV * c
             for i in range(3):
                 out[base + E3 + i] += rs[base + E3 + i] * dS[c, i]
                 out[base + E4 + i] += rs[base + E4 + i] * dS[c, 3 + i]
     else:
-        _matvec_kernel(blocks, x, lrw[:0], gm[10][:0], out)
-    bc_rows, bc_cols = step[7], step[8]
+        _matvec_kernel(blocks, x, lrw[:0], gm.dB[:0], out)
+    bc_rows, bc_cols = step.bc_rows, step.bc_cols
     for m in range(bc_rows.shape[0]):
         out[bc_rows[m]] = bc_scaled[m] * x[bc_cols[m]]
     for e in range(2):
-        if step[11][6 + e] != 0.0:
+        if step.turning_start if e == 0 else step.turning_end:
             k = 0 if e == 0 else x.shape[0] // NV - 1
             for i in range(3):
                 for j in range(3):
@@ -347,14 +340,14 @@ def _turning_entries(step, n1):
     rows = np.empty(30, np.intp)
     cols = np.empty(30, np.intp)
     for m in range(12):
-        rows[m] = step[7][m]
-        cols[m] = step[8][m]
+        rows[m] = step.bc_rows[m]
+        cols[m] = step.bc_cols[m]
     for e in range(2):
         k = 0 if e == 0 else n1 - 1
         for i in range(3):
             for j in range(3):
                 m = 12 + 9 * e + 3 * i + j
-                rows[m] = step[7][6 * e + i]
+                rows[m] = step.bc_rows[6 * e + i]
                 cols[m] = NV * k + W + j
     return rows, cols
 
@@ -388,8 +381,9 @@ def _gmres(rhs, out, rtol, m, lin, op, step, gm, ctr):
     iterations). Counts its iterations and failures (m iterations without reaching
     rtol) in ctr. Source: Saad & Schultz, SIAM J. Sci. Stat. Comput. 7 (1986) 856-869.
     Returns the number of iterations."""
-    lu = lin[0]
-    V, Z, H, cs, sn, g, w, x0, r = gm[0], gm[1], gm[2], gm[3], gm[4], gm[5], gm[6], gm[7], gm[8]
+    lu = lin.lu
+    V, Z, H, cs, sn, g = gm.V, gm.Z, gm.H, gm.cs, gm.sn, gm.g
+    w, x0, r = gm.w, gm.x0, gm.r
     n = rhs.shape[0]
     for i in range(n):
         x0[i] = rhs[i]
@@ -449,9 +443,9 @@ def _gmres(rhs, out, rtol, m, lin, op, step, gm, ctr):
         for i in range(n):
             V[k + 1, i] = w[i] / hnext
     if not converged:
-        ctr[2] += 1
+        ctr.gmres_failures[0] += 1
     kk = k + 1
-    ctr[1] += kk
+    ctr.gmres_iterations[0] += kk
     y = _back_substitute(H, g, kk)
     for i in range(n):
         acc = x0[i]
@@ -500,10 +494,10 @@ def _max_scaled(R, rs):
 def _trial_gaps(Yt, step, rod, cand, cdata, ws, out):
     """The candidate gaps (R,) at the trial iterate Yt (:meth:`RodSystem.candidate_gaps`):
     its space-route positions, −inf everywhere when they are not finite."""
-    q, Rm, r, th = ws[9], ws[10], ws[11], ws[12]
+    q, Rm, r, th = ws.q, ws.Rm, ws.r, ws.theta
     yes = true_at_run_time(Yt)
-    pose_into(Yt, step[0], step[11][0], yes, step[4], step[5], step[6], yes, rod[6][0],
-              q, Rm, r, th, ws[14])
+    pose_into(Yt, step.Y_old, step.dt, yes, step.q_old, step.r_old, step.vg_old, yes, rod.ds,
+              q, Rm, r, th, ws.vg)
     for k in range(r.shape[0]):
         for c in range(3):
             if not np.isfinite(r[k, c]):
@@ -515,19 +509,19 @@ def _trial_gaps(Yt, step, rod, cand, cdata, ws, out):
 @numba.njit(cache=True)
 def _current_gaps(buf, ev, fresh, cand, cdata, g0):
     """The candidate gaps (R,) at the current iterate, into g0, for the feasibility
-    filter: the last residual evaluation's positions (buf[7]); ``fresh``: that evaluation
-    selected afresh, so its per-run gaps (ev[14]) are these gaps and are not computed
+    filter: the last residual evaluation's positions (buf.r); ``fresh``: that evaluation
+    selected afresh, so its per-run gaps (ev.run_gap) are these gaps and are not computed
     again (0.6 of a contact Newton iteration's ~8 ms at the seed example's 1000
     segments). Returns False where the filter does not apply (positions not finite, a
     gap NaN or −inf): every correction is then feasible."""
     nr = g0.shape[0]
-    r = buf[7]
+    r = buf.r
     for k in range(r.shape[0]):
         for c in range(3):
             if not np.isfinite(r[k, c]):
                 return False
     if fresh:
-        run_gap = ev[14]
+        run_gap = ev.run_gap
         for q in range(nr):
             g0[q] = run_gap[q]
     else:
@@ -561,8 +555,7 @@ def _feasible_fraction(Y, delta, g0, gap_keep, alpha, step, rod, cand, cdata, ws
     closest-point gaps of the step's candidates re-selected at each trial, so a
     correction cannot carry a strand through one it was not pressed against. alpha: the
     first fraction tried (1, or ½ where the whole correction is known to fail)."""
-    Yt, g1 = ws[1], ws[7]
-    g1 = g1[:g0.shape[0]]
+    Yt, g1 = ws.Y_trial, ws.gaps1[:g0.shape[0]]
     for _ in range(10):
         for k in range(Y.shape[0]):
             for j in range(NV):
@@ -588,10 +581,10 @@ def _feasible_start(Y_old, guess, step, rod, cand, cdata, ws, out, keep):
     the replay of the seed example's first contact, where an extrapolated start
     penetrated and Newton died at the barrier (docs/contact.md § 2). Returns the blend
     factor."""
-    nr = cand[2].shape[0]
-    g_old, g = ws[6][:nr], ws[7][:nr]
+    nr = cand.run_start.shape[0]
+    g_old, g = ws.gaps0[:nr], ws.gaps1[:nr]
     n1 = Y_old.shape[0]
-    still = ws[1]
+    still = ws.Y_trial
     copy_into(still, Y_old)
     for k in range(n1):
         for j in range(6):
@@ -652,36 +645,35 @@ def _position_converged(r, r_prev, moved, it, res, res_limit, bound, trace):
 @numba.njit(cache=True)
 def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ctr):
     """Newton's iterations for one step (the module docstring's strategy), compiled
-    whole. Y0 (N+1, 12): the start; prm: tolerance, iteration limit, least iterations,
-    the iterate from which the selection is frozen, GAP_KEEP, GMRES_REFACTOR, GMRES's
-    relative residual and iteration limit, CONTACT_BAND_WEIGHT, the position test's
-    bound (m, 0: no test) and residual limit; rod, step, cand, cdata:
+    whole. Y0 (N+1, 12): the start; prm: the controls
+    (:class:`~solver.kernel_data.NewtonParams`); rod, step, cand, cdata:
     :meth:`solver.scheme.RodSystem.kernel_args`; buf, ev: the residual's buffers; lin,
-    op, gm, ws, ctr: the Newton object's state (module comment above). The solution is
-    left in ws[0], its residual evaluation in buf. Returns (iterations, scaled residual
+    op, gm, ws, ctr: the Newton object's state (:mod:`solver.kernel_data`). The solution
+    is left in ws.Y, its residual evaluation in buf. Returns (iterations, scaled residual
     max_i |R_i| r_i, converged, failure code (:data:`FAILURES`))."""
-    tol = prm[0]
-    max_it = int(prm[1])
-    min_it = int(prm[2])
-    freeze_after = int(prm[3])
-    gap_keep = prm[4]
-    gm_refactor = int(prm[5])
-    gm_rtol = prm[6]
-    gm_max = int(prm[7])
-    weight = prm[8]
-    pos_bound = prm[9]
-    res_limit = prm[10]
-    R, Fn = buf[0], buf[2]
-    Y, Yt, delta_flat, rhs, stall_scale, history, frozen = ws[0], ws[1], ws[2], ws[3], ws[4], ws[5], ws[8]
-    rs, cs = lin[1], lin[3]
-    lu = lin[0]
+    tol = prm.tolerance
+    max_it = prm.max_iterations
+    min_it = prm.min_iterations
+    freeze_after = prm.freeze_after
+    gap_keep = prm.gap_keep
+    gm_refactor = prm.gmres_refactor
+    gm_rtol = prm.gmres_rtol
+    gm_max = prm.gmres_max
+    weight = prm.contact_band_weight
+    pos_bound = prm.position_bound
+    res_limit = prm.position_residual
+    R = buf.R
+    Y, Yt, delta_flat, rhs = ws.Y, ws.Y_trial, ws.delta, ws.rhs
+    stall_scale, history, frozen = ws.stall_scale, ws.history, ws.frozen
+    rs, cs = lin.row_scale, lin.col_scale
+    lu = lin.lu
     n1 = Y.shape[0]
     delta = delta_flat.reshape(n1, NV)
-    nr = cand[2].shape[0]
+    nr = cand.run_start.shape[0]
     contact = nr > 0
-    seabed = rod[7][0][0] != 0.0
+    seabed = rod.seabed.scalars[0] != 0.0
     # the seabed damper's branches held within the solve (solver.seabed.SeabedContact.freeze_control)
-    hold = rod[7][7]
+    hold = rod.seabed.hold
     held = seabed and not contact and hold[1] != 0.0
     hold_at = int(hold[2])
     hold[0] = 0.0
@@ -692,7 +684,7 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
     copy_into(Y, Y0)
     yes = true_at_run_time(Y0)      # want_jac's values, never literals (see its docstring)
     no = not yes
-    refactor = ctr[3] == 0 or contact
+    refactor = ctr.factor_valid[0] == 0 or contact
     res_prev = np.inf
     res = np.inf
     tiny = 0
@@ -703,10 +695,10 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
     fresh_sel = True
     # contact steps: the positions of the last iterate and how far the last correction
     # moved them (m), for the position test of NewtonSolver.CONTACT_POSITION_FRACTION
-    r_prev, moved = ws[15], ws[16]
+    r_prev, moved = ws.r_prev, ws.moved
     moved[0] = -1.0
     position_test = contact and pos_bound > 0.0
-    flags = buf[-1]
+    flags = buf.flags
     whole = True            # the last correction passed the feasibility filter whole
     for it in range(max_it + 1):
         if not cached:
@@ -727,16 +719,16 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
         elif contact:
             # the operator becomes the Jacobian at this iterate; the older band LU stays
             # the preconditioner
-            _set_operator(buf, ev, lin, op, step, weight, step[11][2])
+            _set_operator(buf, ev, lin, op, step, weight, step.af)
         res = _max_scaled(R, rs)
-        trace = ws[13]
+        trace = ws.trace
         trace[it, 0] = res
         trace[it, 1] = 1.0
         trace[it, 2] = 1.0
         trace[it, 3] = 0.0
         done = res <= tol and it >= min_it
         if position_test and not done:
-            done = _position_converged(buf[7], r_prev, moved, it, res, res_limit,
+            done = _position_converged(buf.r, r_prev, moved, it, res, res_limit,
                                        pos_bound, trace) and it >= min_it
         if held and hold[0] == 2.0 and hold[7] > 0.0 and (done or res <= hold[6]):
             # converged, or near the held branches' solution, with touching cells off
@@ -778,10 +770,10 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
         res_prev = res
         for i in range(rhs.shape[0]):
             rhs[i] = -R[i] * rs[i]
-        if op[4][0]:
-            failures = ctr[2]
+        if op.coupled[0]:
+            failures = ctr.gmres_failures[0]
             gmres_last = _gmres(rhs, delta_flat, gm_rtol, gm_max, lin, op, step, gm, ctr)
-            if ctr[2] > failures:
+            if ctr.gmres_failures[0] > failures:
                 if not fresh:
                     # a stale preconditioner: refactor here and solve again
                     if not contact:
@@ -790,14 +782,14 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
                         return it, np.inf, False, _SINGULAR
                     for i in range(rhs.shape[0]):
                         rhs[i] = -R[i] * rs[i]
-                    failures = ctr[2]
-                    if op[4][0]:
+                    failures = ctr.gmres_failures[0]
+                    if op.coupled[0]:
                         gmres_last = _gmres(rhs, delta_flat, gm_rtol, gm_max, lin, op, step,
                                             gm, ctr)
                     else:
                         copy_into(delta_flat, rhs)
                         block_solve(lu, delta_flat)
-                if ctr[2] > failures:
+                if ctr.gmres_failures[0] > failures:
                     # the contact coupling is too strong for the band preconditioner at
                     # this Δt: the correction is unreliable. Fail now; the caller cuts Δt.
                     return it + 1, res, False, _GMRES
@@ -811,14 +803,14 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
                 # from here on each contact keeps its partner segment (see
                 # SelfContact.closest): no switching between iterates
                 for q in range(nr):
-                    frozen[q] = ev[0][q]
+                    frozen[q] = ev.selection[q]
                 frozen_on = True
             # the feasibility filter, then the line search. Where the last correction
             # was taken whole and the selection is not frozen, the whole correction's
             # residual evaluation (which selects afresh, as the filter's trials do)
             # gives its gaps: when they pass, it is the line search's first trial and
             # the filter costs no evaluation of its own
-            g0 = ws[6][:nr]
+            g0 = ws.gaps0[:nr]
             f0 = _norm_scaled(R, rs)
             alpha = 1.0
             evaluated = False
@@ -829,7 +821,7 @@ def _newton_kernel(Y0, prm, rod, step, cand, cdata, buf, ev, lin, op, gm, ws, ct
                             Yt[k, j] = Y[k, j] + delta[k, j]
                     residual_into(Yt, yes, rod, step, cand, frozen[:0], cdata, buf, ev)
                     fresh_sel = True
-                    if flags[0] == 0 and _gaps_kept(g0, ev[14][:nr], gap_keep):
+                    if flags[0] == 0 and _gaps_kept(g0, ev.run_gap[:nr], gap_keep):
                         evaluated = True
                     else:
                         alpha = _feasible_fraction(Y, delta, g0, gap_keep, 0.5, step, rod,
@@ -999,8 +991,9 @@ class NewtonSolver:
 
     # ------------------------------------------------------------------ state
     def _allocate(self, runs):
-        """The kernels' persistent state (module comment) for up to ``runs`` candidate
-        runs; a factorisation and its operator survive a reallocation for more runs."""
+        """The kernels' persistent state (:mod:`solver.kernel_data`) for up to ``runs``
+        candidate runs; a factorisation and its operator survive a reallocation for more
+        runs."""
         sysm = self.system
         n, n1, nc = sysm.n, sysm.n_nodes, sysm.n_cells
         old = self._state
@@ -1011,37 +1004,43 @@ class NewtonSolver:
             cap = max(cap, 2 * old["cap"])
         m = self.GMRES_MAX
         if old is None:
-            lin = (block_storage(nc), np.ones(n), np.ones(NV), np.ones(n))
-            ctr = np.zeros(4, np.int64)
-            gm = (np.zeros((m + 1, n)), np.zeros((m, n)), np.zeros((m + 1, m)), np.zeros(m),
-                  np.zeros(m), np.zeros(m + 1), np.zeros(n), np.zeros(n), np.zeros(n),
-                  np.zeros((n1, NV)), np.zeros((n1, 3)), np.zeros((nc, 6)))
+            lin = LinearSolve(lu=block_storage(nc), row_scale=np.ones(n), s12=np.ones(NV),
+                              col_scale=np.ones(n))
+            ctr = NewtonCounters.zeros()
+            gm = GmresWork(V=np.zeros((m + 1, n)), Z=np.zeros((m, n)), H=np.zeros((m + 1, m)),
+                           cs=np.zeros(m), sn=np.zeros(m), g=np.zeros(m + 1), w=np.zeros(n),
+                           x0=np.zeros(n), r=np.zeros(n), dY=np.zeros((n1, NV)),
+                           dB=np.zeros((n1, 3)), dS=np.zeros((nc, 6)))
         else:
             lin, ctr, gm = old["lin"], old["ctr"], old["gm"]
-        pairs = (np.zeros((cap, 5), np.intp), np.zeros((cap, 5)), np.zeros((cap, 3)),
-                 np.zeros((cap, 5, 3, 3)), np.zeros((cap, 5, 3, 3)), np.zeros((cap, 5, 3)),
-                 np.zeros((cap, 5)))
+        pairs = dict(nodes=np.zeros((cap, 5), np.intp), weights=np.zeros((cap, 5)),
+                     force=np.zeros((cap, 3)), dF_dr=np.zeros((cap, 5, 3, 3)),
+                     dF_dv=np.zeros((cap, 5, 3, 3)), dt_dr=np.zeros((cap, 5, 3)),
+                     dw_dt=np.zeros((cap, 5)))
         if old is not None:
-            for new, prev in zip(pairs, old["op"][3][8:15]):
-                new[:prev.shape[0]] = prev
-            frame = old["op"][3][:8]
-            tail = old["op"][3][15:]
-            head = old["op"][:3]
-            flags = old["op"][4]
+            prev_op = old["op"]
+            for name in EXACT_PAIR_FIELDS:
+                prev = getattr(prev_op.exact, name)
+                pairs[name][:prev.shape[0]] = prev
+            ex = prev_op.exact._replace(**pairs)
+            op = prev_op._replace(exact=ex)
         else:
-            frame = (np.zeros((n1, 3, 3)), np.zeros((nc, 3, 3)), np.zeros((nc, 3, 3)),
-                     np.zeros((nc, 3)), np.zeros((n1, 3)), np.zeros((3, 3)),
-                     np.zeros((n1, 3)), np.zeros((n1, 3, 6)))
-            head = (np.zeros((nc, NV, 2 * NV)), np.zeros(30), np.zeros((nc, 3)))
-            flags = np.zeros(2, np.int64)
-            tail = _product_tail(n1, nc, sysm.p.ds)
-        ex = frame + pairs + tail
-        op = head + (ex, flags)
-        ws = (np.zeros((n1, NV)), np.zeros((n1, NV)), np.zeros(n), np.zeros(n), np.zeros(n),
-              np.zeros(self.max_iterations + 2), np.zeros(cap), np.zeros(cap),
-              np.zeros(cap, np.intp), np.zeros((n1, 4)), np.zeros((n1, 3, 3)),
-              np.zeros((n1, 3)), np.zeros((n1, 3)), np.zeros((self.max_iterations + 2, 4)),
-              np.zeros((n1, 3)), np.zeros((n1, 3)), np.zeros(1))
+            ex = ExactProduct(
+                R=np.zeros((n1, 3, 3)), C=np.zeros((nc, 3, 3)), D=np.zeros((nc, 3, 3)),
+                tmid=np.zeros((nc, 3)), rdot=np.zeros((n1, 3)), A0=np.zeros((3, 3)),
+                G=np.zeros((n1, 3)), L=np.zeros((n1, 3, 6)), **pairs,
+                **_product_tail(n1, nc, sysm.p.ds))
+            op = Operator(blocks=np.zeros((nc, NV, 2 * NV)), bc_scaled=np.zeros(30),
+                          load_row_weight=np.zeros((nc, 3)), exact=ex,
+                          coupled=np.zeros(1, np.int64), pairs=np.zeros(1, np.int64))
+        hist = self.max_iterations + 2
+        ws = NewtonWork(Y=np.zeros((n1, NV)), Y_trial=np.zeros((n1, NV)), delta=np.zeros(n),
+                        rhs=np.zeros(n), stall_scale=np.zeros(n), history=np.zeros(hist),
+                        gaps0=np.zeros(cap), gaps1=np.zeros(cap),
+                        frozen=np.zeros(cap, np.intp), q=np.zeros((n1, 4)),
+                        Rm=np.zeros((n1, 3, 3)), r=np.zeros((n1, 3)), theta=np.zeros((n1, 3)),
+                        trace=np.zeros((hist, 4)), vg=np.zeros((n1, 3)),
+                        r_prev=np.zeros((n1, 3)), moved=np.zeros(1))
         self._state = {"cap": cap, "lin": lin, "op": op, "gm": gm, "ws": ws, "ctr": ctr}
 
     def __getstate__(self):
@@ -1059,44 +1058,41 @@ class NewtonSolver:
         self._state = None
         if saved is not None:
             self._allocate(saved["cap"])
-            ex = saved["op"][3]
-            if len(ex) < len(self._state["op"][3]):
-                # a checkpoint from before the seabed's exact product: its (Δt, Δs) and
-                # scratch, then the seabed's arrays (empty: the next factorisation fills them)
-                n1, nc = self.system.n_nodes, self.system.n_cells
-                tail = _product_tail(n1, nc, float(ex[15][1]))
-                tail[0][0] = ex[15][0]
-                ex = ex[:15] + tail
-                saved = dict(saved, op=saved["op"][:3] + (ex,) + saved["op"][4:])
+            if not isinstance(saved["op"], Operator):
+                saved = dict(saved, **_named_state(saved, self.system))
             self._state.update(saved)
 
     @property
     def factorizations(self) -> int:
-        return 0 if self._state is None else int(self._state["ctr"][0])
+        return 0 if self._state is None else int(self._state["ctr"].factorizations[0])
 
     @property
     def gmres_iterations(self) -> int:
-        return 0 if self._state is None else int(self._state["ctr"][1])
+        return 0 if self._state is None else int(self._state["ctr"].gmres_iterations[0])
 
     @property
     def gmres_failures(self) -> int:
-        return 0 if self._state is None else int(self._state["ctr"][2])
+        return 0 if self._state is None else int(self._state["ctr"].gmres_failures[0])
 
     @property
     def factor_valid(self) -> bool:
-        return self._state is not None and bool(self._state["ctr"][3])
+        return self._state is not None and bool(self._state["ctr"].factor_valid[0])
 
     @factor_valid.setter
     def factor_valid(self, value: bool) -> None:
         if self._state is not None:
-            self._state["ctr"][3] = int(bool(value))
+            self._state["ctr"].factor_valid[0] = int(bool(value))
 
     def _params(self):
-        return np.array([self.tol, self.max_iterations, self.min_iterations, self.FREEZE_AFTER,
-                         self.GAP_KEEP, self.GMRES_REFACTOR, self.GMRES_RTOL, self.GMRES_MAX,
-                         self.CONTACT_BAND_WEIGHT,
-                         self.CONTACT_POSITION_FRACTION * self.position_tolerance,
-                         self.CONTACT_RESIDUAL_FACTOR * math.sqrt(self.tol)])
+        """The controls of a solve as :func:`_newton_kernel` takes them."""
+        return NewtonParams(
+            tolerance=float(self.tol), max_iterations=int(self.max_iterations),
+            min_iterations=int(self.min_iterations), freeze_after=int(self.FREEZE_AFTER),
+            gap_keep=float(self.GAP_KEEP), gmres_refactor=int(self.GMRES_REFACTOR),
+            gmres_rtol=float(self.GMRES_RTOL), gmres_max=int(self.GMRES_MAX),
+            contact_band_weight=float(self.CONTACT_BAND_WEIGHT),
+            position_bound=float(self.CONTACT_POSITION_FRACTION * self.position_tolerance),
+            position_residual=float(self.CONTACT_RESIDUAL_FACTOR * math.sqrt(self.tol)))
 
     # ------------------------------------------------------------------ solve
     def solve(self, Y_guess):
@@ -1113,18 +1109,18 @@ class NewtonSolver:
         system = self.system
         contact = system.step.candidates is not None
         runs = system.step.candidates.runs if contact else 0
-        self._allocate(max(runs, system.ev[0].shape[0]))
+        self._allocate(max(runs, system.ev.selection.shape[0]))
         st = self._state
         if (system.step.key != self.factor_key or contact or self._factored_with_contact):
-            st["ctr"][3] = 0
+            st["ctr"].factor_valid[0] = 0
         self.factor_key = system.step.key
         rod, step, cand, cdata = system.kernel_args()
-        factorizations = st["ctr"][0]
+        factorizations = int(st["ctr"].factorizations[0])
         its, res, ok, code = _newton_kernel(
             np.ascontiguousarray(Y_guess, dtype=float), self._params(), rod, step, cand, cdata,
             system.buf, system.ev, st["lin"], st["op"], st["gm"], st["ws"], st["ctr"])
-        rod[7][7][0] = 0.0          # the seabed's law at evaluations outside Newton
-        if st["ctr"][0] != factorizations:
+        rod.seabed.hold[0] = 0.0    # the seabed's law at evaluations outside Newton
+        if st["ctr"].factorizations[0] != factorizations:
             self._factored_with_contact = contact
         self.last_failure = FAILURES[code]
         #: whether the last solve's final residual used a frozen contact selection
@@ -1132,13 +1128,12 @@ class NewtonSolver:
         #: (RodSystem.contact_summary) is that of a fresh selection at the solution
         self.last_frozen = contact and its >= self.FREEZE_AFTER
         buf = system.buf
-        flags = buf[-1]
         pose = None
-        if flags[2] and np.isfinite(res):
-            has_r = system.contact is not None or bool(system.step.data[11][4])
-            pose = (buf[5].copy(), buf[6].copy(), buf[7].copy() if has_r else None,
-                    buf[8].copy())
-        return st["ws"][0].copy(), buf[2].copy(), int(its), float(res), bool(ok), pose
+        if buf.flags[2] and np.isfinite(res):
+            has_r = system.contact is not None or system.step.data.has_r_old
+            pose = (buf.q.copy(), buf.Rm.copy(), buf.r.copy() if has_r else None,
+                    buf.theta.copy())
+        return st["ws"].Y.copy(), buf.Fn.copy(), int(its), float(res), bool(ok), pose
 
     def feasible_start(self, guess):
         """A Newton start for the step set up by :meth:`RodSystem.begin_step` (with
@@ -1149,7 +1144,7 @@ class NewtonSolver:
         self._allocate(system.step.candidates.runs)
         rod, step, cand, cdata = system.kernel_args()
         out = np.empty((system.n_nodes, NV))
-        _feasible_start(step[0], np.ascontiguousarray(guess, dtype=float), step, rod, cand,
+        _feasible_start(step.Y_old, np.ascontiguousarray(guess, dtype=float), step, rod, cand,
                         cdata, self._state["ws"], out, self.START_GAP_KEEP)
         return out
 
@@ -1171,7 +1166,7 @@ class NewtonSolver:
         rod, step, cand, cdata = system.kernel_args()
         if not refactor:
             _set_operator(system.buf, system.ev, st["lin"], st["op"], step,
-                          self.CONTACT_BAND_WEIGHT, float(step[11][2]))
+                          self.CONTACT_BAND_WEIGHT, float(step.af))
             return
         if not _factor(np.ascontiguousarray(Y, dtype=float), system.buf, system.ev, st["lin"],
                        st["op"], rod, step, self.CONTACT_BAND_WEIGHT, st["ctr"]):
@@ -1182,17 +1177,17 @@ class NewtonSolver:
     @property
     def row_scale(self):
         """The row scale (n,) of the last factorisation."""
-        return self._state["lin"][1]
+        return self._state["lin"].row_scale
 
     @property
     def col_scale(self):
         """The column scale (n,) of the last factorisation."""
-        return self._state["lin"][3]
+        return self._state["lin"].col_scale
 
     @property
     def coupled(self) -> bool:
         """Whether the last operator has exact load terms (GMRES solves with it)."""
-        return self._state is not None and bool(self._state["op"][4][0])
+        return self._state is not None and bool(self._state["op"].coupled[0])
 
     def operator(self, x):
         """The scaled Jacobian of the last factorisation or iterate times x (n,)."""
@@ -1209,16 +1204,16 @@ class NewtonSolver:
         st = self._state
         rtol = self.GMRES_RTOL if rtol is None else float(rtol)
         out = np.empty(self.system.n)
-        failures = int(st["ctr"][2])
+        failures = int(st["ctr"].gmres_failures[0])
         its = _gmres(np.ascontiguousarray(rhs, dtype=float), out, rtol, self.GMRES_MAX,
                      st["lin"], st["op"], self.system.step.data, st["gm"], st["ctr"])
-        return out, int(its), int(st["ctr"][2]) == failures
+        return out, int(its), int(st["ctr"].gmres_failures[0]) == failures
 
     def band_solve(self, rhs):
         """The last LU's solution (n,) of rhs (n,) (the preconditioner; the node-local
         band of the Jacobian, :mod:`solver.banded`)."""
         x = np.array(rhs, dtype=float)
-        block_solve(self._state["lin"][0], x)
+        block_solve(self._state["lin"].lu, x)
         return x
 
     def filtered(self, e):
@@ -1233,3 +1228,23 @@ class NewtonSolver:
         rhs = self.system.step.cm * self.system.cell_inertia(e)
         x = self.band_solve(rhs * self.row_scale) * self.col_scale
         return x.reshape(e.shape)
+
+
+def _named_state(saved, system):
+    """A checkpoint's Newton state pickled before :mod:`solver.kernel_data` (plain
+    tuples: lin, op with its exact product's data, and an int64 counter array (4,)) as
+    the named tuples, by the positions they had then: {"lin", "op", "ctr"}."""
+    lin, op, ctr = saved["lin"], saved["op"], saved["ctr"]
+    ex = tuple(op[3])
+    names = ExactProduct._fields
+    if len(ex) < len(names):
+        # a checkpoint from before the seabed's exact product: its (Δt, Δs) and scratch,
+        # then the seabed's arrays (empty: the next factorisation fills them)
+        tail = _product_tail(system.n_nodes, system.n_cells, float(ex[15][1]))
+        tail["scalars"][0] = ex[15][0]
+        ex = ex[:15] + tuple(tail.values())
+    flags = op[4]
+    return {"lin": LinearSolve(BandFactor(*lin[0]), *lin[1:]),
+            "op": Operator(op[0], op[1], op[2], ExactProduct(*ex),
+                           np.array(flags[:1], np.int64), np.array(flags[1:2], np.int64)),
+            "ctr": NewtonCounters(*(np.array(ctr[i:i + 1], np.int64) for i in range(4)))}

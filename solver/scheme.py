@@ -40,6 +40,7 @@ from .contact.model import evaluate_into, evaluation_arrays, evaluation_potentia
 from .kinematics import (_exp_one, _matrix_into, _right_jacobian_into, _space_route_kernel,
                          quat_to_matrix)
 from .loads import _drag_kernel, point_loads_into
+from .kernel_data import CandidateArrays, ContactData, ResidualBuffers, RodData, StepData
 from .seabed import NO_SEABED, seabed_into
 
 __all__ = ["alpha_parameters", "StepParameters", "RodSystem", "BACKWARD_EULER"]
@@ -393,11 +394,8 @@ def exact_loads_product(dY, op, P, dB, dS):
     exact for the space-route pose, minus the node-local part the band holds, and the
     same for the seabed's cell loads, dS (N, 6) (the E3 and E4 cell rows' change, unscaled;
     only the rows of touching cells are written); ``op``: the pose, contact and seabed
-    data of :func:`residual_into` at the linearisation point (R, C, D, tmid, rdot, A0,
-    G, L and the first P contacts' nodes, weights, force, ∂F/∂r, ∂F/∂v, ∂t/∂r, ∂w/∂t;
-    (Δt, Δs, αf) s, m, 1; scratch dφ, dr, dG (N+1, 3); the seabed's cells, count,
-    partials and loads (:func:`solver.seabed.seabed_into`), R ω (N+1, 3) and
-    ½Δt R J_r(θ) (N+1, 3, 3)).
+    data of :func:`residual_into` at the linearisation point, the first P contacts
+    valid (:class:`solver.kernel_data.ExactProduct`).
 
     The pose's change is integrated along s (δφ_k, δr_k: the spatial rotation and the
     displacement of node k, through κ upstream and node 0's time route): the contact
@@ -411,8 +409,10 @@ def exact_loads_product(dY, op, P, dB, dS):
     (δ(Rᵀ F) = Rᵀ(F × δφ) for δR = [δφ]× R). Prefix sums along the rod, the pairs' load
     changes, the touching cells and the body-frame rotation in one pass each:
     O(N + P)."""
-    (R, C, D, tmid, rdot, A0, G, L, nodes, w, Fp, d_dr, d_dv, dtdr, dwdt, scal, dphi, dr, dG,
-     sbc, sbn, sbj, sbl, Og, Aphi) = op
+    R, C, D, tmid, rdot, A0, G, L = op.R, op.C, op.D, op.tmid, op.rdot, op.A0, op.G, op.L
+    nodes, w, Fp, d_dr, d_dv = op.nodes, op.weights, op.force, op.dF_dr, op.dF_dv
+    dtdr, dwdt, scal, dphi, dr, dG = op.dt_dr, op.dw_dt, op.scalars, op.dphi, op.dr, op.dG
+    sbn = op.seabed_count
     n1 = dY.shape[0]
     dt = scal[0]
     ds = scal[1]
@@ -484,7 +484,8 @@ def exact_loads_product(dY, op, P, dB, dS):
                 acc -= L[k, i, j] * dY[k, j]
             dB[k, i] = acc
     if sbn[0] > 0:
-        _seabed_product(dY, R, rdot, Og, Aphi, dphi, dr, sbc, sbn[0], sbj, sbl,
+        _seabed_product(dY, R, rdot, op.Romega, op.Aphi, dphi, dr, op.seabed_cells, sbn[0],
+                        op.seabed_partials, op.seabed_loads,
                         0.5 * dt, 0.5 * (1.0 - scal[2]), dS)
 
 
@@ -662,32 +663,42 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
     block and the data of the exact load product (:func:`exact_loads_product`), written
     into the buffers of :meth:`RodSystem.buffers` (module docstring for the equations;
     :meth:`RodSystem.residual` for what is computed when). rod, step: the run's and the
-    step's constant data (:meth:`RodSystem.kernel_args`); cand: the step's contact
-    candidates (:attr:`solver.contact.ContactCandidates.arrays`, empty without);
+    step's constant data (:meth:`RodSystem.kernel_args`; :class:`~solver.kernel_data.RodData`,
+    :class:`~solver.kernel_data.StepData`); cand: the step's contact
+    candidates (:attr:`solver.contact.ContactCandidates.arrays`, a
+    :class:`~solver.kernel_data.CandidateArrays`, empty without);
     frozen: each run's frozen combination or empty; cdata: the contact model's
-    :attr:`~solver.contact.SelfContact.kernel_data`; ev: the contact evaluation arrays.
-    Writes flags (4,): [0: 0 ok, 1 non-finite positions, 2 coincident contact points
+    :attr:`~solver.contact.SelfContact.kernel_data`; ev: the contact evaluation arrays
+    (:class:`~solver.kernel_data.EvaluationArrays`);
+    buf: :class:`~solver.kernel_data.ResidualBuffers`. Writes flags (4,): [0: 0 ok, 1 non-finite positions, 2 coincident contact points
     (the residual is NaN then), 1: active contacts P, 2: pose computed, 3: exact load
     data computed (with ``want_jac`` on the space route, where global or contact loads
     act or a seabed cell touches)]. The one implementation of the residual: Newton's compiled
     iterations and the Python method both call it."""
-    mass_t, stiffness, inertia, cdn, cdt, floor, rscal, seabed = rod
-    ds = rscal[0]
-    has_seabed = seabed[0][0] != 0.0
-    has_drag = rscal[1] != 0.0
-    space = rscal[2] != 0.0
-    (Y_old, zconst, flux_const, glob, q_old, r_old, vg_old, bc_rows, bc_cols, bc_coef,
-     bc_vals, sscal, pl_nodes, pl_cells, pl_side, pl_vals, pl_dead, pl_old) = step
-    dt, cm, af = sscal[0], sscal[1], sscal[2]
-    has_glob = sscal[3] != 0.0
-    has_r_old = sscal[4] != 0.0
+    mass_t, stiffness, inertia, cdn, cdt = rod.mass_t, rod.stiffness, rod.inertia, rod.cdn, rod.cdt
+    seabed = rod.seabed
+    ds = rod.ds
+    has_seabed = seabed.scalars[0] != 0.0
+    has_drag = rod.has_drag
+    space = rod.space
+    Y_old, zconst, flux_const, glob = step.Y_old, step.zconst, step.flux_const, step.glob
+    q_old, r_old, vg_old = step.q_old, step.r_old, step.vg_old
+    bc_rows, bc_cols, bc_coef, bc_vals = step.bc_rows, step.bc_cols, step.bc_coef, step.bc_vals
+    dt, cm, af = step.dt, step.cm, step.af
+    has_glob = step.has_glob
+    has_r_old = step.has_r_old
+    pl_nodes = step.pl_nodes
     has_points = pl_nodes.shape[0] > 0
-    (R, cells, Fn, dF, blocks, q, Rm, r, theta, vg, G, diag, loadrot, brot, C, D, tmid,
-     rdot, A0, L, drag_b, drag_j, Jr, sbc, sbn, sbj, sbl, Og, Aphi, bcj, flags) = buf
+    R, cells, Fn, dF, blocks = buf.R, buf.cells, buf.Fn, buf.dF, buf.blocks
+    q, Rm, r, theta, vg, G = buf.q, buf.Rm, buf.r, buf.theta, buf.vg, buf.G
+    diag, loadrot, brot, C, D, tmid = buf.diag, buf.loadrot, buf.brot, buf.C, buf.D, buf.tmid
+    rdot, A0, L, drag_b, drag_j, Jr = buf.rdot, buf.A0, buf.L, buf.drag_b, buf.drag_j, buf.Jr
+    sbc, sbn, sbj, sbl = buf.seabed_cells, buf.seabed_count, buf.seabed_partials, buf.seabed_loads
+    Og, Aphi, bcj, flags = buf.Romega, buf.Aphi, buf.bc_jac, buf.flags
     n1 = Y.shape[0]
-    contact = cand[2].shape[0] > 0
-    turning = sscal[6] != 0.0 or sscal[7] != 0.0
-    need_pose = (has_glob or contact or (has_points and sscal[5] != 0.0) or turning
+    contact = cand.run_start.shape[0] > 0
+    turning = step.turning_start or step.turning_end
+    need_pose = (has_glob or contact or (has_points and step.needs_pose) or turning
                  or has_seabed)
     for i in range(4):
         flags[i] = 0
@@ -710,7 +721,7 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
             fill(R, np.nan)
             flags[0] = 1 if not finite else 2
             return
-        nodes, weights, force = ev[4], ev[5], ev[7]
+        nodes, weights, force = ev.nodes, ev.weights, ev.force
         fill(G, 0.0)
         for p in range(P):
             for a in range(5):
@@ -727,7 +738,7 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
             fill(diag, 0.0)
             for k in range(n1):
                 _right_jacobian_into(theta[k, 0], theta[k, 1], theta[k, 2], Jr, k)
-            _contact_band_kernel(nodes[:P], weights[:P], ev[8][:P], ev[9][:P], Rm, Y, Jr,
+            _contact_band_kernel(nodes[:P], weights[:P], ev.dF_dr[:P], ev.dF_dv[:P], Rm, Y, Jr,
                                  dt, diag)
     elif has_glob:
         copy_into(G, glob)
@@ -747,7 +758,7 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
         # m/s), and with ``want_jac`` its block on ω^{n+1}: −½Δt [b]× J_r(θ) into bcj[e]
         # (the rotated load's derivative of node_terms_into)
         for e in range(2):
-            if sscal[6 + e] != 0.0:
+            if step.turning_start if e == 0 else step.turning_end:
                 m0 = 6 * e
                 k = 0 if e == 0 else n1 - 1
                 b = np.empty(3)
@@ -800,8 +811,8 @@ def residual_into(Y, want_jac, rod, step, cand, frozen, cdata, buf, ev):
                                                     + Rm[k, i, 2] * Jr[k, 2, j])
         flags[3] = 1
     if has_points:
-        point_loads_into(Y, Rm, theta, 0.5 * dt, ds, af, want_jac, pl_nodes, pl_cells, pl_side,
-                         pl_vals, pl_dead, pl_old, cells, blocks, Jr)
+        point_loads_into(Y, Rm, theta, 0.5 * dt, ds, af, want_jac, pl_nodes, step.pl_cells,
+                         step.pl_side, step.pl_vals, step.pl_dead, step.pl_old, cells, blocks, Jr)
     flags[1] = P
 
 
@@ -819,8 +830,8 @@ class StepTerms:
     (N+1, 3) N/m the global-frame load at t_new (or None), candidates the contact
     candidates (:class:`solver.contact.ContactCandidates`, None without any) and
     cand_arrays their kernel arrays, frozen_selection the frozen closest-point selection
-    (None: selected afresh at every iterate), data the step's tuple for
-    :func:`residual_into`, key what the Jacobian's band part depends on besides the
+    (None: selected afresh at every iterate), data the step's
+    :class:`~solver.kernel_data.StepData` for :func:`residual_into`, key what the Jacobian's band part depends on besides the
     iterate (:class:`solver.newton.NewtonSolver` keeps a factorisation while it is unchanged).
     The fields left None are those of a system before its first step.
     """
@@ -840,8 +851,21 @@ class StepTerms:
     glob_force: np.ndarray | None = None
     candidates: object = None
     frozen_selection: np.ndarray | None = None
-    data: tuple | None = None
+    data: StepData | None = None
     key: tuple | None = None
+
+
+def _named_step_data(old) -> StepData:
+    """A step's data pickled before :mod:`solver.kernel_data` (a plain tuple: eleven
+    arrays, the scalars (8,) (Δt, cm, αf, has glob, has r_old, needs pose, the two ends
+    turning), the six point-load arrays) as a :class:`StepData`."""
+    old = tuple(old)
+    sc = old[11]
+    return StepData(*old[:11], dt=float(sc[0]), cm=float(sc[1]), af=float(sc[2]),
+                    has_glob=bool(sc[3]), has_r_old=bool(sc[4]), needs_pose=bool(sc[5]),
+                    turning_start=bool(sc[6]), turning_end=bool(sc[7]), pl_nodes=old[12],
+                    pl_cells=old[13], pl_side=old[14], pl_vals=old[15], pl_dead=old[16],
+                    pl_old=old[17])
 
 
 #: the attributes a pickled RodSystem held before :class:`StepTerms`, by field
@@ -891,22 +915,23 @@ class RodSystem:
         cdn = loads.cdn if loads.has_drag else np.zeros(self.n_nodes)
         cdt = loads.cdt if loads.has_drag else np.zeros(self.n_nodes)
         #: the run's constant data as the compiled kernels take it (:func:`residual_into`)
-        self.rod_data = (props.mass_t, props.stiffness, props.inertia,
-                         np.ascontiguousarray(cdn, dtype=float),
-                         np.ascontiguousarray(cdt, dtype=float), self.floor,
-                         np.array([props.ds, float(loads.has_drag), float(contact is not None)]),
-                         NO_SEABED if seabed is None else seabed.data)
+        self.rod_data = RodData(mass_t=props.mass_t, stiffness=props.stiffness,
+                                inertia=props.inertia, cdn=np.ascontiguousarray(cdn, dtype=float),
+                                cdt=np.ascontiguousarray(cdt, dtype=float), floor=self.floor,
+                                ds=float(props.ds), has_drag=bool(loads.has_drag),
+                                space=contact is not None,
+                                seabed=NO_SEABED if seabed is None else seabed.data)
         if contact is not None:
             self.contact_data = contact.kernel_data
         else:
             z = np.zeros(0)
-            self.contact_data = (np.zeros((0, 4), np.intp), np.zeros((0, 4, 4)), z, z.copy(),
-                                 z.copy(), np.zeros(9))
+            self.contact_data = ContactData(np.zeros((0, 4), np.intp), np.zeros((0, 4, 4)), z,
+                                            z.copy(), z.copy(), np.zeros(9))
         self.buf = self.buffers()
         self.ev = evaluation_arrays(0)
-        self._no_candidates = (np.zeros(0, np.intp), np.zeros(0, np.intp),
-                               np.zeros(0, np.intp), np.zeros(0, np.bool_),
-                               np.zeros(0, np.bool_))
+        self._no_candidates = CandidateArrays(np.zeros(0, np.intp), np.zeros(0, np.intp),
+                                              np.zeros(0, np.intp), np.zeros(0, np.bool_),
+                                              np.zeros(0, np.bool_))
         self._no_frozen = np.zeros(0, np.intp)
         #: the current step's data (:class:`StepTerms`), set by :meth:`begin_step`
         self.step = StepTerms(cand_arrays=self._no_candidates)
@@ -929,8 +954,27 @@ class RodSystem:
         self.__dict__.update(state)
         # the seabed's kernel data as it is now (a checkpoint from before its last arrays)
         seabed = state.get("seabed")
-        self.rod_data = tuple(self.rod_data[:7]) + (
-            NO_SEABED if seabed is None else seabed.data,)
+        sb = NO_SEABED if seabed is None else seabed.data
+        if isinstance(self.rod_data, RodData):
+            self.rod_data = self.rod_data._replace(seabed=sb)
+        else:
+            # a checkpoint from before the data were named: a plain tuple whose seventh
+            # entry held (Δs, has drag, space route)
+            old = tuple(self.rod_data)
+            self.rod_data = RodData(*old[:6], ds=float(old[6][0]), has_drag=bool(old[6][1]),
+                                    space=bool(old[6][2]), seabed=sb)
+        # ... and the contact model's, the candidates' and the step's data
+        if not isinstance(self.contact_data, ContactData):
+            self.contact_data = ContactData(*self.contact_data)
+            if self.contact is not None:
+                self.contact.kernel_data = self.contact_data
+        if not isinstance(self._no_candidates, CandidateArrays):
+            self._no_candidates = CandidateArrays(*self._no_candidates)
+        step = self.step
+        if not isinstance(step.cand_arrays, CandidateArrays):
+            step.cand_arrays = CandidateArrays(*step.cand_arrays)
+        if step.data is not None and not isinstance(step.data, StepData):
+            step.data = _named_step_data(step.data)
         self.buf = self.buffers()
         cand = self.step.candidates
         self.ev = evaluation_arrays(cand.runs if cand is not None else 0)
@@ -948,16 +992,19 @@ class RodSystem:
         towed ends' ∂(v − RᵀV)/∂ω blocks (2, 3, 3) and the flags (4,) int."""
         n1, nc = self.n_nodes, self.n_cells
         R = np.zeros(self.n)
-        return (R, R[6:6 + NV * nc].reshape(nc, NV), np.zeros((n1, NV)), np.zeros((n1, NV, NV)),
-                np.zeros((nc, NV, 2 * NV)), np.zeros((n1, 4)), np.zeros((n1, 3, 3)),
-                np.zeros((n1, 3)), np.zeros((n1, 3)), np.zeros((n1, 3)), np.zeros((n1, 3)),
-                np.zeros((n1, 3, 6)), np.zeros((n1, 3, 3)), np.zeros((n1, 3)),
-                np.zeros((nc, 3, 3)), np.zeros((nc, 3, 3)), np.zeros((nc, 3)),
-                np.zeros((n1, 3)), np.zeros((3, 3)), np.zeros((n1, 3, 6)), np.zeros((n1, 3)),
-                np.zeros((n1, 3, 3)), np.zeros((n1, 3, 3)), np.zeros(nc, np.int64),
-                np.zeros(1, np.int64), np.zeros((nc, 6, 12)), np.zeros((nc, 6)),
-                np.zeros((n1, 3)), np.zeros((n1, 3, 3)), np.zeros((2, 3, 3)),
-                np.zeros(4, np.int64))
+        return ResidualBuffers(
+            R=R, cells=R[6:6 + NV * nc].reshape(nc, NV), Fn=np.zeros((n1, NV)),
+            dF=np.zeros((n1, NV, NV)), blocks=np.zeros((nc, NV, 2 * NV)), q=np.zeros((n1, 4)),
+            Rm=np.zeros((n1, 3, 3)), r=np.zeros((n1, 3)), theta=np.zeros((n1, 3)),
+            vg=np.zeros((n1, 3)), G=np.zeros((n1, 3)), diag=np.zeros((n1, 3, 6)),
+            loadrot=np.zeros((n1, 3, 3)), brot=np.zeros((n1, 3)), C=np.zeros((nc, 3, 3)),
+            D=np.zeros((nc, 3, 3)), tmid=np.zeros((nc, 3)), rdot=np.zeros((n1, 3)),
+            A0=np.zeros((3, 3)), L=np.zeros((n1, 3, 6)), drag_b=np.zeros((n1, 3)),
+            drag_j=np.zeros((n1, 3, 3)), Jr=np.zeros((n1, 3, 3)),
+            seabed_cells=np.zeros(nc, np.int64), seabed_count=np.zeros(1, np.int64),
+            seabed_partials=np.zeros((nc, 6, 12)), seabed_loads=np.zeros((nc, 6)),
+            Romega=np.zeros((n1, 3)), Aphi=np.zeros((n1, 3, 3)), bc_jac=np.zeros((2, 3, 3)),
+            flags=np.zeros(4, np.int64))
 
     # ------------------------------------------------------------------ per step setup
     def begin_step(self, dt, params: StepParameters, t_new, Y_old, Ydot_old, F_old,
@@ -988,7 +1035,7 @@ class RodSystem:
         candidates = candidates if (candidates is not None and candidates.runs > 0) else None
         if candidates is not None:
             cand_arrays = candidates.arrays
-            if self.ev[0].shape[0] < candidates.runs:
+            if self.ev.selection.shape[0] < candidates.runs:
                 self.ev = evaluation_arrays(2 * candidates.runs)
         else:
             cand_arrays = self._no_candidates
@@ -996,17 +1043,22 @@ class RodSystem:
         has_r = r_old is not None and v_old_global is not None
         if self.seabed is not None:
             self.seabed.begin_step(af, Y_old, q_old, r_old, v_old_global)
-        data = (
-            Y_old, zc, flux_const,
-            np.zeros((0, 3)) if glob is None else np.ascontiguousarray(glob, dtype=float),
-            np.zeros((n1, 4)) if q_old is None else np.ascontiguousarray(q_old, dtype=float),
-            np.ascontiguousarray(r_old, dtype=float) if has_r else np.zeros((n1, 3)),
-            np.ascontiguousarray(v_old_global, dtype=float) if has_r else np.zeros((n1, 3)),
+        pl_nodes, pl_cells, pl_side, pl_vals, pl_dead, pl_old = self._point_data(
+            t_new, dt, left_limit, Y_old, q_old, af)
+        data = StepData(
+            Y_old=Y_old, zconst=zc, flux_const=flux_const,
+            glob=np.zeros((0, 3)) if glob is None else np.ascontiguousarray(glob, dtype=float),
+            q_old=np.zeros((n1, 4)) if q_old is None else np.ascontiguousarray(q_old, dtype=float),
+            r_old=np.ascontiguousarray(r_old, dtype=float) if has_r else np.zeros((n1, 3)),
+            vg_old=(np.ascontiguousarray(v_old_global, dtype=float) if has_r
+                    else np.zeros((n1, 3))),
             # BoundaryRows makes these (12,) arrays intp and float
-            bc.rows, bc.cols, bc.coef, bc.values,
-            np.array([dt, cm, af, float(glob is not None), float(has_r),
-                      float(self.needs_pose), float(bc.turning[0]), float(bc.turning[1])])
-        ) + self._point_data(t_new, dt, left_limit, Y_old, q_old, af)
+            bc_rows=bc.rows, bc_cols=bc.cols, bc_coef=bc.coef, bc_vals=bc.values,
+            dt=float(dt), cm=float(cm), af=float(af), has_glob=glob is not None,
+            has_r_old=bool(has_r), needs_pose=bool(self.needs_pose),
+            turning_start=bool(bc.turning[0]), turning_end=bool(bc.turning[1]),
+            pl_nodes=pl_nodes, pl_cells=pl_cells, pl_side=pl_side, pl_vals=pl_vals,
+            pl_dead=pl_dead, pl_old=pl_old)
         # frozen_selection None: set by Newton (see SelfContact.closest); key: what the
         # Jacobian's band part depends on besides the iterate (solver.newton keeps a
         # factorisation across steps while this is unchanged)
@@ -1083,10 +1135,11 @@ class RodSystem:
         n1 = self.n_nodes
         q, R, r, theta = np.empty((n1, 4)), np.empty((n1, 3, 3)), np.empty((n1, 3)), np.empty((n1, 3))
         step = self.step
-        has_r = bool(step.data[11][4])
+        data = step.data
+        has_r = data.has_r_old
         space = self.contact is not None and step.r_old is not None
-        pose_into(np.ascontiguousarray(Y, dtype=float), step.data[0], float(step.dt), space,
-                  step.data[4], step.data[5], step.data[6], has_r,
+        pose_into(np.ascontiguousarray(Y, dtype=float), data.Y_old, float(step.dt), space,
+                  data.q_old, data.r_old, data.vg_old, has_r,
                   float(self.p.ds), q, R, r, theta, np.empty((n1, 3)))
         return q, R, (r if (space or has_r) else None), theta
 
@@ -1116,8 +1169,8 @@ class RodSystem:
         Fn = np.empty((n1, NV))
         dF = np.empty((n1, NV, NV))
         node_terms_into(Y, bool(want_jacobian), p.mass_t, p.stiffness, p.inertia,
-                        bool(self.loads.has_drag), self.rod_data[3], self.rod_data[4], rotate,
-                        Rm, theta, half, G, False, buf[11], Fn, dF, np.empty((n1, 3, 3)),
+                        bool(self.loads.has_drag), self.rod_data.cdn, self.rod_data.cdt, rotate,
+                        Rm, theta, half, G, False, buf.diag, Fn, dF, np.empty((n1, 3, 3)),
                         np.empty((n1, 3)), np.empty((n1, 3)), np.empty((n1, 3, 3)),
                         np.empty((n1, 3, 3)))
         return Fn, (dF if want_jacobian else None)
@@ -1131,7 +1184,7 @@ class RodSystem:
         residual_into(np.ascontiguousarray(Y, dtype=float), bool(want_jacobian), self.rod_data,
                       self.step.data, self.step.cand_arrays, fz, self.contact_data, buf,
                       self.ev)
-        return buf[-1]
+        return buf.flags
 
     def residual(self, Y, want_jacobian=False):
         """Residual (n,) of the step's difference equations at the iterate Y (N+1, 12).
@@ -1147,10 +1200,10 @@ class RodSystem:
         flags = self.evaluate(Y, want_jacobian, self.step.frozen_selection)
         pose = None
         if flags[2]:
-            has_r = self.contact is not None or bool(self.step.data[11][4])
-            pose = (buf[5].copy(), buf[6].copy(), buf[7].copy() if has_r else None,
-                    buf[8].copy())
-        return buf[0].copy(), buf[2].copy(), (buf[4] if want_jacobian else None), pose
+            has_r = self.contact is not None or self.step.data.has_r_old
+            pose = (buf.q.copy(), buf.Rm.copy(), buf.r.copy() if has_r else None,
+                    buf.theta.copy())
+        return buf.R.copy(), buf.Fn.copy(), (buf.blocks if want_jacobian else None), pose
 
     def contact_summary(self, r, v, fresh: bool):
         """(number of active contacts, smallest surface gap (m), inf without any) at the
@@ -1165,7 +1218,7 @@ class RodSystem:
         if self.step.candidates is None:
             return None
         if fresh:
-            p = int(self.buf[-1][1])
+            p = int(self.buf.flags[1])
         else:
             p = evaluate_into(np.ascontiguousarray(r, dtype=float),
                               np.ascontiguousarray(v, dtype=float), self.step.cand_arrays,
@@ -1173,7 +1226,7 @@ class RodSystem:
             if p < 0:
                 return 0, -math.inf
         self._summary = (r, p)
-        return p, (float(self.ev[12][:p].min()) if p else math.inf)
+        return p, (float(self.ev.gap[:p].min()) if p else math.inf)
 
     def summary_potential(self, r):
         """The contact law's stored energy (J) at the positions r (N+1, 3) m of the last

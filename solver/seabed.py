@@ -90,6 +90,7 @@ import numba
 import numpy as np
 
 from .banded import true_at_run_time
+from .kernel_data import SeabedData
 from .kinematics import _right_jacobian_into
 
 __all__ = ["SeabedContact", "seabed_into", "seabed_points", "seabed_old_into", "seabed_cells", "node_penetration", "to_nodes",
@@ -97,8 +98,9 @@ __all__ = ["SeabedContact", "seabed_into", "seabed_points", "seabed_old_into", "
            "NO_SEABED"]
 
 #: the kernels' data of a run without a seabed (the scalars' kind 0)
-NO_SEABED = (np.zeros(10), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros((1, 1)),
-             np.zeros((1, 12)), np.zeros(1), np.zeros(8))
+NO_SEABED = SeabedData(scalars=np.zeros(10), radius=np.zeros(1), grid_x=np.zeros(1),
+                       grid_y=np.zeros(1), grid_z=np.zeros((1, 1)),
+                       old_rows=np.zeros((1, 12)), modes=np.zeros(1), hold=np.zeros(8))
 
 # rows and columns of the node's unknowns (solver.scheme's V, W, E3, E4)
 _V, _E3, _E4 = 0, 6, 9
@@ -114,9 +116,7 @@ class SeabedContact:
 
     Attributes
     ----------
-    data : (scalars (10,): kind (1 flat, 2 grid), elevation m, k Pa, c Pa s, μa, μl,
-        static_to_kinetic, v_slip m/s, top m (highest bottom point), slope factor
-        max √(1 + hx² + hy²); radius (N+1,) m; grid x (nx,), y (ny,), z (nx, ny) m)
+    data : :class:`solver.kernel_data.SeabedData`, the kernels' data
     """
 
     def __init__(self, spec, diameter):
@@ -144,7 +144,8 @@ class SeabedContact:
         #: control of that hold (:meth:`freeze`)
         self.modes = np.full(radius.size - 1, -1.0)
         self.control = self.freeze_control()
-        self.data = (scal, radius, gx, gy, gz, self.old_rows, self.modes, self.control)
+        self.data = SeabedData(scalars=scal, radius=radius, grid_x=gx, grid_y=gy, grid_z=gz,
+                               old_rows=self.old_rows, modes=self.modes, hold=self.control)
         self.radius = radius
 
     def __setstate__(self, state):
@@ -152,12 +153,15 @@ class SeabedContact:
         self.__dict__.update(state)
         if "old_rows" not in state:
             self.old_rows = np.zeros((self.radius.size - 1, 12))
-            self.data = tuple(self.data[:5]) + (self.old_rows,)
         if "modes" not in state:
             # ... and from before the damper's branch was held within a step
             self.modes = np.full(self.radius.size - 1, -1.0)
             self.control = self.freeze_control()
-            self.data = tuple(self.data[:6]) + (self.modes, self.control)
+        if not isinstance(self.data, SeabedData):
+            # ... and from before the data were named (a plain tuple, its first five
+            # fields by position)
+            self.data = SeabedData(*tuple(self.data)[:5], old_rows=self.old_rows,
+                                   modes=self.modes, hold=self.control)
 
     #: hold the damper's branch within a step's Newton iterations (module docstring,
     #: :meth:`freeze_control`)
@@ -230,7 +234,7 @@ class SeabedContact:
         n1 = r.shape[0]
         eye = np.broadcast_to(np.eye(3), (n1, 3, 3))
         _, _, pen = self.cell_loads(r, np.zeros((n1, 3)), eye, np.zeros((n1, 3)))
-        return float(ds * np.sum(0.5 * self.data[0][2] * np.maximum(pen, 0.0) ** 2))
+        return float(ds * np.sum(0.5 * self.data.scalars[2] * np.maximum(pen, 0.0) ** 2))
 
 
 @numba.njit(cache=True, inline="always")
@@ -256,7 +260,7 @@ def _locate(g, x):
 def _bottom(x, y, data):
     """(h, hx, hy, hxy) of the bottom at global (x, y) m: the flat elevation, or the
     grid's bilinear interpolation with its derivatives (0 across a clamped axis)."""
-    scal, gx, gy, gz = data[0], data[2], data[3], data[4]
+    scal, gx, gy, gz = data.scalars, data.grid_x, data.grid_y, data.grid_z
     if scal[0] == 1.0:
         return scal[1], 0.0, 0.0, 0.0
     i, tx, inx = _locate(gx, x)
@@ -334,7 +338,7 @@ def _law(x, u, Om, t, rho, data, want, Dr, Du, DOm, Dt, Fn, Ff, M, DF, DM, wk, m
         Fn[i] = 0.0
         Ff[i] = 0.0
         M[i] = 0.0
-    scal = data[0]
+    scal = data.scalars
     kst, cdp, mua, mul, ratio, vs = scal[2], scal[3], scal[4], scal[5], scal[6], scal[7]
     h, hx, hy, hxy = _bottom(x[0], x[1], data)
     sq = math.sqrt(1.0 + hx * hx + hy * hy)
@@ -493,7 +497,7 @@ def _next_mode(frozen, law):
 def far_from_bottom(r, data):
     """True when every node is above the bottom's top by more than its radius times the
     steepest slope factor (then no node touches: the kernel is skipped)."""
-    scal, radius = data[0], data[1]
+    scal, radius = data.scalars, data.radius
     lim = scal[8]
     f = scal[9]
     for k in range(r.shape[0]):
@@ -601,7 +605,7 @@ def seabed_into(Y, Rm, r, vg, theta, dt, af, data, want, cells, blocks, record, 
     generalized-α level: (1 − αf) times the new level's plus αf times the old level's.
     Y (N+1, 12) the iterate with the new-level frames Rm (N+1, 3, 3), positions r and
     velocities ṙ = R v (N+1, 3), rotation increments θ (N+1, 3); dt (s); af = αf (the
-    old level's share is data[5], frozen at the step's start by
+    old level's share is data.old_rows, frozen at the step's start by
     :meth:`SeabedContact.begin_step`). The derivative is with respect to the cell's two nodes' v and ω
     at the new level. A cell whose midpoint is above the bottom's top plus its radius
     is skipped.
@@ -612,7 +616,7 @@ def seabed_into(Y, Rm, r, vg, theta, dt, af, data, want, cells, blocks, record, 
     lin = (cells (N,) int, their count (1,) int, ∂(F, M)/∂(x, u, Ω, t) (N, 6, 12) and
     (F, M) (N, 6) N/m, N m/m, global, at the new level), the partials by one more call of
     the law with unit seeds in the branch the cell was evaluated in."""
-    scal, radius = data[0], data[1]
+    scal, radius = data.scalars, data.radius
     if scal[0] == 0.0:
         return
     lim = scal[8]
@@ -647,12 +651,13 @@ def seabed_into(Y, Rm, r, vg, theta, dt, af, data, want, cells, blocks, record, 
         E = _unit_seeds()
         PF = np.empty((3, 12))
         PM = np.empty((3, 12))
-    modes, state = data[6], int(data[7][0])
+    modes, hold = data.modes, data.hold
+    state = int(hold[0])
     if state == 1:
         for c in range(n_cells):
             modes[c] = -1.0
     if state >= 1:
-        data[7][7] = 0.0
+        hold[7] = 0.0
     if not far_from_bottom(r, data):
         for c in range(n_cells):
             if not _cell_touches(r, radius, c, lim, f):
@@ -671,7 +676,7 @@ def seabed_into(Y, Rm, r, vg, theta, dt, af, data, want, cells, blocks, record, 
             if state == 2 and held == 1 and p <= 0.0:
                 modes[c] = -1.0         # clear of the bottom (a slope's skip test passed it)
             if state >= 2 and p > 0.0 and m != law:
-                data[7][7] += 1.0       # a touching cell off the law's branch
+                hold[7] += 1.0          # a touching cell off the law's branch
             if state == 1 or state == 3:
                 modes[c] = m
             if p <= 0.0 or m == 0:
@@ -717,7 +722,7 @@ def seabed_into(Y, Rm, r, vg, theta, dt, af, data, want, cells, blocks, record, 
                         blocks[c, row + 1, w0 + j] += hdt * (c2 * J[0, 0, j] - c0 * J[0, 2, j])
                         blocks[c, row + 2, w0 + j] += hdt * (-c1 * J[0, 0, j] + c0 * J[0, 1, j])
     if af != 0.0:
-        old = data[5]
+        old = data.old_rows
         for c in range(n_cells):
             for i in range(12):
                 cells[c, i] += old[c, i]
@@ -729,7 +734,7 @@ def seabed_old_into(Y_old, q_old, r_old, vg_old, af, data, out):
     and αf ½(R_aᵀ + R_bᵀ) M into the E4 columns of out (N, 12) (zero elsewhere): the law
     at each cell's midpoint on the old pose Y^n (N+1, 12), q^n (N+1, 4), r^n and ṙ^n
     (N+1, 3) (:func:`seabed_into`; constant in a step, so computed once at its start)."""
-    scal, radius = data[0], data[1]
+    scal, radius = data.scalars, data.radius
     if scal[0] == 0.0 or far_from_bottom(r_old, data):
         return
     lim = scal[8]
@@ -781,7 +786,7 @@ def seabed_cells(r, vg, Rm, omega, data, F, M, pen):
     z = np.zeros((3, 12))
     wk = np.zeros((9, 3, 12))
     for k in range(r.shape[0] - 1):
-        rho = _midpoint(r, vg, Rm, omega, data[1], k, x, u, Om, t)
+        rho = _midpoint(r, vg, Rm, omega, data.radius, k, x, u, Om, t)
         pen[k] = _node(x, u, Om, t, rho, data, not true_at_run_time(x), z, z, z, z, a, b,
                        c, z, z, wk)
         for i in range(3):
@@ -811,7 +816,7 @@ def seabed_points(x, u, Om, t, radius, data, want, hold, F, M, DF, DM, pen):
     mm = np.empty(3)
     dF = np.zeros((3, 12))
     dM = np.zeros((3, 12))
-    scal = data[0]
+    scal = data.scalars
     lim, slope = scal[8], scal[9]
     for k in range(x.shape[0]):
         for i in range(3):
@@ -853,7 +858,7 @@ def node_penetration(r, data, pen):
     """The surface penetration ρ − d (m, negative: the gap) of each node's centreline r
     (N+1, 3) into pen (N+1,) (module docstring; d the distance to the bottom's tangent
     plane under the node)."""
-    radius = data[1]
+    radius = data.radius
     for k in range(r.shape[0]):
         h, hx, hy, _ = _bottom(r[k, 0], r[k, 1], data)
         pen[k] = radius[k] - (r[k, 2] - h) / math.sqrt(1.0 + hx * hx + hy * hy)

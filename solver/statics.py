@@ -490,9 +490,9 @@ def contact_gap(Y: np.ndarray, prob: StaticProblem) -> float:
 def _static_seabed_data(sb):
     """The seabed's kernel data with its damping and friction set to zero: in statics the
     bottom is the normal spring alone (no velocity, no slip history)."""
-    scal = np.array(sb.data[0], float)
+    scal = np.array(sb.data.scalars, float)
     scal[3] = scal[4] = scal[5] = 0.0
-    return (scal,) + tuple(sb.data[1:])
+    return sb.data._replace(scalars=scal)
 
 
 def seabed_loads(Y: np.ndarray, prob: StaticProblem) -> np.ndarray:

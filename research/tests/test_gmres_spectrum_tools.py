@@ -70,7 +70,7 @@ def test_augmented_matrix_is_the_exact_contact_operator_on_a_real_contact_step()
     run = RodRun(case)
     _advance_to(run, 8.5, 0.05, 0)
     sys_ = gs.StepSystems(run, 0.01)
-    assert int(sys_.op[4][1]) > 0                      # contact pairs in the operator
+    assert int(sys_.op.pairs[0]) > 0                      # contact pairs in the operator
     rng = np.random.default_rng(3)
     for it in range(len(sys_.iterates)):
         rhs = sys_.at(it)

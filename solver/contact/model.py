@@ -32,6 +32,7 @@ import numba
 import numpy as np
 
 from ..banded import int_at_run_time, true_at_run_time
+from ..kernel_data import CandidateArrays, ContactData, EvaluationArrays
 from .geometry import (ALL_PAIRS_NODES, _block_pairs_kernel, _candidate_pairs_kernel,
                        _run_point, _segment_matrices, _segment_nodes, _swept_kernel,
                        candidate_pairs, close_node_pairs, max_distance, run_closest)
@@ -76,10 +77,10 @@ class ContactCandidates:
 
     @property
     def arrays(self):
-        """(owner, segment, run_start, first_vertex_is_end, last_vertex_is_end): the
-        candidates as the compiled kernels take them."""
-        return (self.owner, self.segment, self.run_start, self.first_vertex_is_end,
-                self.last_vertex_is_end)
+        """The candidates as the compiled kernels take them
+        (:class:`solver.kernel_data.CandidateArrays`)."""
+        return CandidateArrays(self.owner, self.segment, self.run_start,
+                               self.first_vertex_is_end, self.last_vertex_is_end)
 
     def __len__(self) -> int:
         return self.runs
@@ -258,11 +259,11 @@ class SelfContact:
         self.sin_half_aperture = 1.0 if self.aperture >= 180.0 else float(
             np.sin(np.radians(self.aperture) / 2.0))
         every = np.arange(s.size - 1)
-        #: what the compiled kernels take of this contact model, constant over a run:
-        #: every segment's curve nodes (N−1, 4) and matrix (N−1, 4, 4), the diameters,
-        #: ρA and nodal weights (N,), the law's parameter vector (9,)
-        self.kernel_data = (_segment_nodes(every, s.size), _segment_matrices(every, s.size),
-                            diameter, rho_a, self.weights, self.law.params)
+        #: what the compiled kernels take of this contact model, constant over a run
+        #: (:class:`solver.kernel_data.ContactData`)
+        self.kernel_data = ContactData(
+            seg_nodes=_segment_nodes(every, s.size), seg_mats=_segment_matrices(every, s.size),
+            diameter=diameter, rho_a=rho_a, weights=self.weights, law=self.law.params)
 
     # ------------------------------------------------------------------ checks
     def _check_field(self, name, arr) -> np.ndarray:
@@ -459,12 +460,12 @@ class SelfContact:
         p = evaluate_into(r, v, cand.arrays, fz, self.kernel_data, ev)
         if p < 0:
             raise ValueError("SelfContact.evaluate: coincident centreline points in a pair")
-        sel, i, j, t, nodes, weights, coef, force, d_dr, d_dv, dt_dr, dw_dt, gap, dist, _ = ev
         if p == 0:
-            return _empty_evaluation(sel)
-        return ContactEvaluation(i[:p], j[:p], t[:p], nodes[:p], weights[:p], coef[:p],
-                                 force[:p], d_dr[:p], d_dv[:p], dt_dr[:p], dw_dt[:p],
-                                 gap[:p], dist[:p], float(gap[:p].min()), int(p), sel)
+            return _empty_evaluation(ev.selection)
+        return ContactEvaluation(ev.owner[:p], ev.segment[:p], ev.t[:p], ev.nodes[:p],
+                                 ev.weights[:p], ev.coef[:p], ev.force[:p], ev.dF_dr[:p],
+                                 ev.dF_dv[:p], ev.dt_dr[:p], ev.dw_dt[:p], ev.gap[:p],
+                                 ev.distance[:p], float(ev.gap[:p].min()), int(p), ev.selection)
 
 
 @numba.njit(cache=True)
@@ -478,8 +479,8 @@ def evaluation_potential(ev, P, data):
     so that where the evaluation selected its closest points afresh (no frozen selection)
     at positions r the two are equal, bit for bit, to candidate_potential at r. data:
     :attr:`SelfContact.kernel_data`. Raises nothing."""
-    pi, pj, pt, dist = ev[1], ev[2], ev[3], ev[13]
-    seg_nodes, seg_mats, diameter, rho_a, w, law = data
+    pi, pj, pt, dist = ev.owner, ev.segment, ev.t, ev.distance
+    diameter, rho_a, w, law = data.diameter, data.rho_a, data.weights, data.law
     out = 0.0
     for p in range(P):
         i = pi[p]
@@ -708,27 +709,26 @@ def _covers_kernel(own1, seg1, own2, seg2, n):
 
 def evaluation_arrays(capacity: int):
     """Work arrays for :func:`evaluate_into` with room for ``capacity`` runs (one contact
-    at most per run): selection (R,) int, i, j (R,) int, t (R,), nodes (R, 5) int,
-    weights, coef (R, 5), force (R, 3), d_dr, d_dv (R, 5, 3, 3), dt_dr (R, 5, 3), dw_dt
-    (R, 5), gap, distance (R,); and per run (not per contact) the surface gap of its
-    closest point (R,) m, inf at an interior run edge (:func:`candidate_gaps_into`'s
-    value when the selection was made afresh)."""
+    at most per run; :class:`solver.kernel_data.EvaluationArrays`). The per-run gaps
+    (``run_gap``) are :func:`candidate_gaps_into`'s values when the selection was made
+    afresh."""
     r = int(capacity)
-    return (np.empty(r, np.intp), np.empty(r, np.intp), np.empty(r, np.intp), np.empty(r),
-            np.empty((r, 5), np.intp), np.empty((r, 5)), np.empty((r, 5)), np.empty((r, 3)),
-            np.empty((r, 5, 3, 3)), np.empty((r, 5, 3, 3)), np.empty((r, 5, 3)),
-            np.empty((r, 5)), np.empty(r), np.empty(r), np.empty(r))
+    return EvaluationArrays(
+        selection=np.empty(r, np.intp), owner=np.empty(r, np.intp),
+        segment=np.empty(r, np.intp), t=np.empty(r), nodes=np.empty((r, 5), np.intp),
+        weights=np.empty((r, 5)), coef=np.empty((r, 5)), force=np.empty((r, 3)),
+        dF_dr=np.empty((r, 5, 3, 3)), dF_dv=np.empty((r, 5, 3, 3)), dt_dr=np.empty((r, 5, 3)),
+        dw_dt=np.empty((r, 5)), gap=np.empty(r), distance=np.empty(r), run_gap=np.empty(r))
 
 
 @numba.njit(cache=True, inline="always")
 def _run_bounds(cand, q):
     """(first, last) combination index of run q and whether its outer vertices are rod
-    ends, from the candidates' arrays (owner, segment, run_start, first_is_end,
-    last_is_end)."""
-    own, seg, start, first_end, last_end = cand
+    ends, from the candidates' arrays (:class:`solver.kernel_data.CandidateArrays`)."""
+    start = cand.run_start
     lo = start[q]
-    hi = (start[q + 1] if q + 1 < start.shape[0] else own.shape[0]) - 1
-    return lo, hi, first_end[q], last_end[q]
+    hi = (start[q + 1] if q + 1 < start.shape[0] else cand.owner.shape[0]) - 1
+    return lo, hi, cand.first_is_end[q], cand.last_is_end[q]
 
 
 @numba.njit(cache=True, inline="always")
@@ -744,8 +744,8 @@ def candidate_gaps_into(r, cand, data, out):
     for a minimum at an interior run edge (:meth:`SelfContact.gaps`), into out; the
     selection is made afresh (not frozen). cand: :attr:`ContactCandidates.arrays`; data:
     :attr:`SelfContact.kernel_data`. Returns nothing."""
-    own, seg = cand[0], cand[1]
-    seg_nodes, seg_mats, diameter = data[0], data[1], data[2]
+    own, seg = cand.owner, cand.segment
+    seg_nodes, seg_mats, diameter = data.seg_nodes, data.seg_mats, data.diameter
     tb0 = np.empty((3, 4))
     tb1 = np.empty((3, 4))
     # no frozen segment (-1) and the search's iterations as run-time integers (one
@@ -769,13 +769,14 @@ def candidate_potential(r, cand, data):
     :func:`candidate_gaps_into`), kept as :func:`evaluate_into` keeps it (not an interior
     run edge, closer than the law's cut-off), ½ Δs_i ρĀ Ψ(d; D̄) with ρĀ and D̄ at the
     contact as the force takes them."""
-    own, seg = cand[0], cand[1]
-    seg_nodes, seg_mats, diameter, rho_a, w, law = data
+    own, seg = cand.owner, cand.segment
+    seg_nodes, seg_mats, diameter = data.seg_nodes, data.seg_mats, data.diameter
+    rho_a, w, law = data.rho_a, data.weights, data.law
     tb0 = np.empty((3, 4))
     tb1 = np.empty((3, 4))
     out = 0.0
     not_frozen, iterations = int_at_run_time(r, -1), int_at_run_time(r, 3)
-    for q in range(cand[2].shape[0]):
+    for q in range(cand.run_start.shape[0]):
         lo, hi, first_end, last_end = _run_bounds(cand, q)
         k, t, x0, x1, x2, d, c0, c1, c2, g, row = _run_point(
             r, own, seg, lo, hi, not_frozen, iterations, seg_nodes, seg_mats, tb0, tb1)
@@ -812,10 +813,12 @@ def evaluate_into(r, v, cand, frozen, data, ev):
     ∂w_a/∂t = ½ ∂c_a/∂t Δs_i/Δs_a (docs/contact.md § 1). The mean diameter and ρA at
     the contact are interpolated linearly on the segment; how they move with t is left
     out of the derivatives."""
-    (sel, pi, pj, pt, nodes, weights, coef, force, d_dr, d_dv, dt_dr, dw_dt, gap, dist,
-     run_gap) = ev
-    own, seg = cand[0], cand[1]
-    seg_nodes, seg_mats, diameter, rho_a, w, law = data
+    sel, pi, pj, pt, nodes = ev.selection, ev.owner, ev.segment, ev.t, ev.nodes
+    weights, coef, force, d_dr, d_dv = ev.weights, ev.coef, ev.force, ev.dF_dr, ev.dF_dv
+    dt_dr, dw_dt, gap, dist, run_gap = ev.dt_dr, ev.dw_dt, ev.gap, ev.distance, ev.run_gap
+    own, seg = cand.owner, cand.segment
+    seg_nodes, seg_mats, diameter = data.seg_nodes, data.seg_mats, data.diameter
+    rho_a, w, law = data.rho_a, data.weights, data.law
     tb0 = np.empty((3, 4))
     tb1 = np.empty((3, 4))
     dcoef = np.empty(5)
@@ -830,7 +833,7 @@ def evaluate_into(r, v, cand, frozen, data, ev):
     tang = np.empty(3)
     p = 0
     iterations = int_at_run_time(r, 3)
-    for q in range(cand[2].shape[0]):
+    for q in range(cand.run_start.shape[0]):
         lo, hi, first_end, last_end = _run_bounds(cand, q)
         fk = frozen[q] if frozen.shape[0] else -1
         k, t, x0, x1, x2, d, c10, c11, c12, g, row = _run_point(

@@ -123,10 +123,10 @@ def _gmres_works(run, Y):
     (stale, as between refactorisations): that iterate if GMRES then needs more than two
     iterations, else None."""
     newton, system = run.newton, run.system
-    delta, _, _ = newton.gmres(-system.buf[0] * newton.row_scale)
+    delta, _, _ = newton.gmres(-system.buf.R * newton.row_scale)
     Y1 = Y + (delta * newton.col_scale).reshape(Y.shape)
     newton.linearize(Y1, refactor=False)
-    return Y1 if newton.gmres(-system.buf[0] * newton.row_scale)[1] > 2 else None
+    return Y1 if newton.gmres(-system.buf.R * newton.row_scale)[1] > 2 else None
 
 
 def test_gmres_solves_the_exact_contact_operator(monkeypatch):
@@ -139,7 +139,7 @@ def test_gmres_solves_the_exact_contact_operator(monkeypatch):
     run, Y = _linearized_contact_iterate(monkeypatch, accept=_gmres_works)
     newton = run.newton
     assert newton.coupled
-    rhs = -run.system.buf[0] * newton.row_scale
+    rhs = -run.system.buf.R * newton.row_scale
     n = rhs.size
     A = np.column_stack([newton.operator(e) for e in np.eye(n)])
     exact = np.linalg.solve(A, rhs)

@@ -105,8 +105,8 @@ def test_fields_nobody_asked_for_are_neither_computed_nor_stored(monkeypatch):
 def _drag_share(run):
     """The Morison drag's part of the residual at a state moving sideways: the residual
     of the run's first step with the compiled residual's drag switch as the case set it,
-    minus the same with the switch off (the switch, ``rod_data``'s has-drag flag, is
-    what the compiled residual branches on)."""
+    minus the same with the switch off (the switch, ``rod_data.has_drag``, is what the
+    compiled residual branches on)."""
     from solver.scheme import BACKWARD_EULER
 
     system = run.system
@@ -115,19 +115,18 @@ def _drag_share(run):
     Y = run.state.Y.copy()
     Y[:, 0] = 0.1                                       # v1 = 0.1 m/s everywhere
     with_switch = system.residual(Y)[0]
-    flags = system.rod_data[6]
-    saved = flags[1]
-    flags[1] = 0.0
+    saved = system.rod_data
+    system.rod_data = saved._replace(has_drag=False)
     try:
         without = system.residual(Y)[0]
     finally:
-        flags[1] = saved
+        system.rod_data = saved
     return with_switch - without
 
 
 def test_no_fluid_terms_without_a_fluid():
     run = sim_mod.RodRun(Case.model_validate(seed_spec(contact=False, fluid=False)))
-    assert not run.loads.has_drag and run.system.rod_data[6][1] == 0.0
+    assert not run.loads.has_drag and run.system.rod_data.has_drag is False
     assert np.all(_drag_share(run) == 0.0)
     ds = integrate(Case.model_validate(seed_spec(contact=False, fluid=False)))
     assert ds.attrs["hockle_status"] == "completed"
@@ -136,7 +135,7 @@ def test_no_fluid_terms_without_a_fluid():
 def test_fluid_terms_are_used_with_a_fluid():
     # the counterpart of the test above, so that the switch is known to gate the term
     run = sim_mod.RodRun(Case.model_validate(seed_spec(contact=False, fluid=True, t_end=0.2)))
-    assert run.loads.has_drag and run.system.rod_data[6][1] == 1.0
+    assert run.loads.has_drag and run.system.rod_data.has_drag is True
     assert np.max(np.abs(_drag_share(run))) > 0.0
 
 
