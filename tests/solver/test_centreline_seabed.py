@@ -13,7 +13,7 @@ from solver import statics
 from solver.case import Case
 from solver.centreline import CentrelineRod
 from solver.centreline_run import CentrelineRun
-from solver.static_band import KL, KU
+from test_centreline import jacobian_error
 from test_seabed import D, FRICTION, G, NO_DRAG, W, _drag_case, _spec
 
 
@@ -45,25 +45,10 @@ def test_the_jacobian_with_the_sea_floor_is_exact():
     state.X[:, 3:6] = 0.3
     h = 0.01
     co = rod.coefficients(state, h)
-    prob = rod.problem(h)
-    Y = rod.predict(state, h)
-    _, split, _ = rod.seabed_terms(Y, state, co, False)
+    _, split, _ = rod.seabed_terms(rod.predict(state, h), state, co, False)
     assert np.all(split[3] > 0) and np.abs(split[1]).max() > 1.0   # touching, sliding
-    ab = rod.jacobian(Y, state, co, prob)
-    n = Y.size
-    J = np.zeros((n, n))
-    for i in range(n):
-        for j in range(max(0, i - KL), min(n, i + KU + 1)):
-            J[i, j] = ab[KL + KU + i - j, j]
-    eps = 1e-7
-    Jfd = np.empty_like(J)
-    for j in range(n):
-        Yp, Ym = Y.copy().ravel(), Y.copy().ravel()
-        Yp[j] += eps
-        Ym[j] -= eps
-        Jfd[:, j] = (rod.residual(Yp.reshape(Y.shape), state, co, prob)
-                     - rod.residual(Ym.reshape(Y.shape), state, co, prob)) / (2 * eps)
-    assert np.abs(J - Jfd).max() < 1e-7 * np.abs(J).max(), np.abs(J - Jfd).max()
+    err, size = jacobian_error(rod, state, h)
+    assert err < 1e-7 * size, err
 
 
 def test_a_static_equilibrium_on_the_bottom_is_a_dynamic_rest():
