@@ -18,11 +18,11 @@ smallest gap) and the comparison with the theory (docs/statics.md, "The plectone
 * plateau: in the two-phase model of Clauvelin, Audoly & Neukirch (Macromolecules 42,
   2009) and Neukirch & Marko (PRL 106, 2011) without thermal fluctuations and with the
   hard-core superhelix radius R = (D + g)/2, the plectonemic phase (pitch angle θ from
-  the superhelix axis, curvature sin²θ/R, writhe sin 2θ/(8πR) per unit length) coexists
-  with the straight phase when its energy per length B sin⁴θ/(2R²) − M sin 2θ/(4R),
-  minimised in θ, equals the straight phase's −T:
-      sin⁴θ (2 cos²θ / cos 2θ − ½) = T R²/B,   M_p = 4 B sin³θ cos θ / (R cos 2θ),
-  and every further turn goes into writhe: the extension falls by 8πR / sin 2θ per turn.
+  the superhelix axis, curvature sin²θ/R, writhe sin 2θ/(4πR) per unit length of rod;
+  tests/solver/test_topology.py) coexists with the straight phase when its energy per
+  length B sin⁴θ/(2R²) − M sin 2θ/(2R), minimised in θ, equals the straight phase's −T:
+      sin⁴θ (2 cos²θ / cos 2θ − ½) = T R²/B,   M_p = 2 B sin³θ cos θ / (R cos 2θ),
+  and every further turn goes into writhe: the extension falls by 4πR / sin 2θ per turn.
 """
 from __future__ import annotations
 
@@ -43,8 +43,8 @@ def theory(T, B, R):
     tau = T * R**2 / B
     th = brentq(lambda t: np.sin(t)**4 * (2 * np.cos(t)**2 / np.cos(2 * t) - 0.5) - tau,
                 1e-6, np.pi / 4 - 1e-9)
-    M = 4 * B * np.sin(th)**3 * np.cos(th) / (R * np.cos(2 * th))
-    return th, M, 8 * np.pi * R / np.sin(2 * th)
+    M = 2 * B * np.sin(th)**3 * np.cos(th) / (R * np.cos(2 * th))
+    return th, M, 4 * np.pi * R / np.sin(2 * th)
 
 
 def problem_family(L, N, *, B=1.0, C=1.0, T=1.0, D=0.4, g_hat=None, kappa=100.0,

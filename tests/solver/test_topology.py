@@ -1,6 +1,7 @@
 """Tests of solver.topology: twist (seed eq. 7), writhe (Klenin & Langowski), Lk."""
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -421,3 +422,33 @@ def test_parallel_writhe_in_a_process_forked_after_it():
     child.join(60)
     assert child.exitcode == 0
     assert queue.get(timeout=5) == pytest.approx(here, rel=1e-12)
+
+
+def _two_ply(height, radius, theta, ds=5e-4):
+    """A two-ply of pitch angle θ (rad, from the superhelix axis) and superhelix radius R
+    (m) rising to ``height`` (m): one strand up, a small end loop, the other strand back
+    down, half a turn apart; (points (M, 3), rod length of the two strands, m)."""
+    length = height / np.cos(theta)
+    s = np.arange(0.0, length, ds)
+    phi = s * np.sin(theta) / radius
+    up = np.stack([radius * np.cos(phi), radius * np.sin(phi), s * np.cos(theta)], 1)
+    down = np.stack([-radius * np.cos(phi), -radius * np.sin(phi), s * np.cos(theta)], 1)
+    ang = np.linspace(0.0, np.pi, 40)[1:-1]
+    top = up[-1]
+    centre = np.array([0.0, 0.0, top[2]])
+    loop = (centre + np.cos(ang)[:, None] * (top - centre)
+            + np.sin(ang)[:, None] * np.array([0.0, 0.0, radius]))
+    return np.vstack([up, loop, down[::-1]]), 2.0 * length
+
+
+def test_a_plys_writhe_per_length_of_rod_is_sin_2theta_over_4_pi_r():
+    """The writhe a plectoneme's ply adds per unit length of rod is sin 2θ/(4πR)
+    (Clauvelin, Audoly & Neukirch, Biophys. J. 96, 3716, 2009; Neukirch & Marko, PRL
+    106, 138104, 2011), not sin 2θ/(8πR): the writhe of two plies of different heights,
+    differenced so that their end loops cancel, over the rod length between them."""
+    radius, theta = 0.01, 0.4
+    short, l1 = _two_ply(0.3, radius, theta)
+    tall, l2 = _two_ply(0.6, radius, theta)
+    per_length = abs(writhe_polyline(tall) - writhe_polyline(short)) / (l2 - l1)
+    expected = math.sin(2 * theta) / (4 * math.pi * radius)
+    assert abs(per_length / expected - 1.0) < 1e-3, (per_length, expected)
