@@ -452,7 +452,8 @@ def ui_sweep_map(sweep_id: str, svc: Annotated[Services, Depends(services)],
                  owner: Annotated[str | None, Depends(caller)]) -> JSONResponse:
     """The sweep's parameters and, per member, its values, job, state and event times (None
     where the member has no result yet or the event did not happen): the threshold map
-    (``event_time`` of the combined dataset) available while members still run."""
+    (``event_time`` of the combined dataset) available while members still run; each
+    event's name with the label ``hockle run`` prints for it (``event_labels``)."""
     from .. import sweeps as sw
 
     sweep = svc.registry.get_sweep(sweep_id)
@@ -460,7 +461,7 @@ def ui_sweep_map(sweep_id: str, svc: Annotated[Services, Depends(services)],
         raise ProblemError(404, "sweep-not-found", "Sweep not found", f"no sweep with id {sweep_id}")
     jobs = svc.registry.get_many(sweep.job_ids)
     values = sw.member_values(sweep.parameters, sweep.combine)
-    members, names = [], []
+    members, names, labels = [], [], {}
     for index, (member, job_id) in enumerate(zip(values, sweep.job_ids)):
         job = jobs.get(job_id)
         times: dict[str, float | None] = {}
@@ -469,6 +470,7 @@ def ui_sweep_map(sweep_id: str, svc: Annotated[Services, Depends(services)],
                 times[event["name"]] = event["time"]
                 if event["name"] not in names:
                     names.append(event["name"])
+                    labels[event["name"]] = event["label"]
         members.append({"index": index, "values": member, "job_id": job_id,
                         "state": job.state if job is not None else "failed",
                         "event_time": times})
@@ -477,4 +479,4 @@ def ui_sweep_map(sweep_id: str, svc: Annotated[Services, Depends(services)],
     return JSONResponse({
         "sweep_id": sweep.id, "name": sweep.name, "combine": sweep.combine, "shape": shape,
         "parameters": [{"path": p, "values": v} for p, v in sweep.parameters.items()],
-        "events": names, "members": members})
+        "events": names, "event_labels": labels, "members": members})

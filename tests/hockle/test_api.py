@@ -171,7 +171,7 @@ def test_a_local_sweeps_successful_member_keeps_its_warning():
     """A member whose result carries hockle_warning (the thin-rod plectoneme at 10x its
     Δt: its loop sweeps across an end's closure, docs/numerics.md § 6) is successful with
     the warning as its member_message; the member at the case's own Δt has none."""
-    from test_contact_run import thin_plectoneme_case
+    from rodcases import thin_plectoneme_case
 
     ds = sweep(thin_plectoneme_case(0.02, 10.0), {"numerics.dt": [0.02, 0.2]}, workers=1)
     assert (ds["member_status"].values == "successful").all()

@@ -363,7 +363,7 @@ def _thin_plectoneme_at_ten_times_its_step():
     """The contact suite's thin-rod plectoneme (tests/solver/test_contact_run.py) at Δt = 0.2 s,
     10x its own, to 10 s: its loop sweeps across the closure of an end's tangent at
     9.4 s (docs/numerics.md § 6), and its result carries hockle_warning."""
-    from test_contact_run import thin_plectoneme_case
+    from rodcases import thin_plectoneme_case
 
     return thin_plectoneme_case(0.2, 10.0).model_dump(mode="json")
 

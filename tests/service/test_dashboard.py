@@ -156,6 +156,9 @@ def test_events_and_sweep_map(client, settings):
     assert mapped["shape"] == [2] and mapped["parameters"][0]["values"] == [1.0, 2.0]
     assert [m["state"] for m in mapped["members"]] == ["successful", "successful"]
     assert all("buckling_onset" in m["event_time"] for m in mapped["members"])
+    # the map's event selector shows hockle run's labels, not the raw names
+    assert mapped["event_labels"]["buckling_onset"] == "buckling onset"
+    assert set(mapped["event_labels"]) == set(mapped["events"])
     assert client.get("/v1/ui/sweeps/nope/map", headers=AUTH).status_code == 404
 
 

@@ -300,7 +300,7 @@ def test_a_successful_runs_warning_is_shown_on_its_page_and_in_the_list(browser,
     page, under the state, and marks its row in the list and in a sweep's member table; a
     run without one shows neither (the buckling rod of the test above)."""
     from selenium.webdriver.common.by import By
-    from test_contact_run import thin_plectoneme_case
+    from rodcases import thin_plectoneme_case
 
     case = thin_plectoneme_case(0.2, 10.0).model_dump(mode="json")
     case["name"] = "warned plectoneme"

@@ -65,7 +65,7 @@ def test_a_successful_members_warning_reaches_the_status_and_the_combined_result
     its warning is the member's ``message`` in the sweep's status and its
     ``member_message`` in the combined dataset (it was dropped there for successful
     members); the member at the case's own step has neither."""
-    from test_contact_run import thin_plectoneme_case
+    from rodcases import thin_plectoneme_case
 
     base = thin_plectoneme_case(0.02, 10.0).model_dump(mode="json")
     body = {"base": base, "combine": "zip", "parameters": {"numerics.dt": [0.02, 0.2]}}

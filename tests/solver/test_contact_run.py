@@ -17,6 +17,7 @@ import pytest
 from solver import Case, integrate
 from solver.simulation import RodRun
 from solver.step_problem import ProblemAssembly
+from rodcases import plectoneme_case, thin_plectoneme_case
 
 SEED = Path(__file__).resolve().parents[2] / "cases" / "goyal-writhing.yaml"
 
@@ -406,36 +407,6 @@ def test_route_controller_keeps_dt_after_the_strands_part(h1):
         assert not run.attempts[-1][2]
 
 
-def plectoneme_case(n_segments, dt, t_end=9.0):
-    """PyElastica's plectoneme example as benchmarks/pyelastica_compare.py sets it up: a
-    1-m rod, clamped at s = 0, its s = L end held laterally, free to slide axially and
-    turned at 1.257 rad/s; Morison drag, a 1e-4 N/m imperfection, the seed's contact law.
-    It buckles at 6.7 s and collapses into a plectoneme at 7.2 s."""
-    zero, still = {"velocity": 0.0}, {"angular_velocity": 0.0}
-    omega = 2.0 * np.pi * 10 / 50.0
-    radius = 0.025
-    area = np.pi * radius**2
-    spec = {
-        "schema_version": 1, "name": "plectoneme",
-        "rod": {"length": 1.0, "youngs_modulus": 1e6, "shear_modulus": 1e6 / 1.5,
-                "density": 1.0 / area, "diameter": 2 * radius},
-        "distributed_forces": [{"value": [1e-4, 0.0, 0.0]}],
-        "fluid": {"density": 1000.0, "added_mass_coefficient": 0.0,
-                  "drag_coefficient_normal": 0.04,
-                  "drag_coefficient_tangential": 0.04 / np.pi},
-        "contact": {"aperture": 90.0, "tolerance": 0.1, "k1": 1e-7, "k2": 3.0, "k3": 5.0,
-                    "k4": 0.0},
-        "boundary": {
-            "start": {"translation": [zero] * 3, "rotation": [still] * 3},
-            "end": {"translation": [zero, zero, {"force": 0.0}],
-                    "rotation": [still, still, {"angular_velocity": {
-                        "t": [0.0, 0.5], "value": [0.0, omega]}}]}},
-        "numerics": {"n_segments": n_segments, "dt": dt, "t_end": t_end, "rho_inf": 0.5},
-        "output": {"every": 1, "fields": ["position", "topology", "contact"]},
-    }
-    return Case.model_validate(spec)
-
-
 def test_a_step_leaving_the_end_beyond_its_drift_tolerance_ends_the_run():
     """contact.end_drift_tolerance bounds how far the output's s = L end (integrated from
     κ) may lie from the end's prescribed motion. PyElastica's plectoneme at N = 25,
@@ -681,16 +652,6 @@ def test_end_correction_keeps_second_order():
     orders = np.log2(np.array(d[:-1]) / np.array(d[1:]))
     assert np.all(orders > 1.8), orders
     assert np.linalg.norm(finals[-1][-1, :2]) < 1e-5
-
-
-def thin_plectoneme_case(dt, t_end):
-    """The contact suite's thin-rod plectoneme (benchmarks/contact_suite.py): PyElastica's
-    plectoneme of :func:`plectoneme_case` with a 1-cm rod (L/D = 100) on 200 segments,
-    the search margin twice the diameter; resolved at Δt = 0.02 s."""
-    spec = plectoneme_case(200, dt, t_end).model_dump(mode="json")
-    spec["rod"]["diameter"] = 0.01
-    spec["contact"]["tolerance"] = 0.02
-    return Case.model_validate(spec)
 
 
 def test_a_fixed_step_run_whose_writhe_crosses_the_closure_carries_a_warning():

@@ -927,7 +927,11 @@
     function drawMap(map) {
       var names = map.events.length ? map.events : ["buckling_onset"];
       var chosen = eventSel.value || "buckling_onset";
-      fill(eventSel, names.map(function (n) { return el("option", n === chosen ? { value: n, text: n, selected: true } : { value: n, text: n }); }));
+      var labels = map.event_labels || {};
+      fill(eventSel, names.map(function (n) {
+        var text = labels[n] || n;
+        return el("option", n === chosen ? { value: n, text: text, selected: true } : { value: n, text: text });
+      }));
       var event = eventSel.value, params = map.parameters;
       var rows, cols, rowLabel, colLabel;
       if (map.combine === "grid" && params.length === 2) {
