@@ -346,12 +346,13 @@ class CentrelineRod:
         block = np.einsum("kij,kjl->kil", np.concatenate([DF, DM], axis=1), chain)
         return L, split, block
 
-    def residual(self, Y, old, co, prob) -> np.ndarray:
+    def residual(self, Y, old, co, prob, seabed=None) -> np.ndarray:
         """The 13(N+1) dynamic rows (the static rows plus the nodal loads' trapezoid on
-        the force and moment rows: inertia, fluid and the sea floor) of Y (N+1, 13)."""
+        the force and moment rows: inertia, fluid and the sea floor) of Y (N+1, 13);
+        ``seabed``: :meth:`seabed_terms` at Y already evaluated (None: evaluated here)."""
         G = st.residual(Y, prob)
         L = self.nodal_loads(Y, old, co)
-        sb = self.seabed_terms(Y, old, co, want=False)
+        sb = self.seabed_terms(Y, old, co, want=False) if seabed is None else seabed
         if sb is not None:
             L = L + sb[0]
         cells = G[st.N_START:-st.N_END].reshape(self.n - 1, NV)
@@ -494,12 +495,16 @@ class CentrelineRod:
         err = math.inf
         lu = None
         for it in range(1, self.MAX_ITERATIONS + 1):
+            sb = None
             if self.seabed_hold is not None and it > 1:
-                touch = self.seabed_terms(Y, old, co, False)[1][3] > 0.0
+                # a node joining the held set touches (p > 0): its load is the law's
+                # either way, so these terms serve the residual too
+                sb = self.seabed_terms(Y, old, co, False)
+                touch = sb[1][3] > 0.0
                 if np.any(touch & ~self.seabed_hold):
                     self.seabed_hold = self.seabed_hold | touch     # held from now on
                     lu = None
-            G = self.residual(Y, old, co, prob)
+            G = self.residual(Y, old, co, prob, sb)
             if lu is None:
                 try:
                     lu = BorderedBandLU(self.jacobian(Y, old, co, prob))
