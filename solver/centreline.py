@@ -506,8 +506,10 @@ class CentrelineRod:
                     lu = None
             G = self.residual(Y, old, co, prob, sb)
             if lu is None:
+                ab = self.jacobian(Y, old, co, prob)
+                floor = max(self.RESIDUAL_FLOOR, rounding_floor(ab, Y, weights))
                 try:
-                    lu = BorderedBandLU(self.jacobian(Y, old, co, prob))
+                    lu = BorderedBandLU(ab)
                 except BandSingular as exc:
                     raise StepFailure(f"singular Jacobian ({exc})") from exc
                 self.factorizations += 1
@@ -516,26 +518,30 @@ class CentrelineRod:
             if not np.all(np.isfinite(dY)):
                 raise StepFailure("non-finite Newton update")
             prev, err = err, float(np.max(np.abs(dY) / scale))
+            at_floor = float(np.max(np.abs(G) * weights)) < floor
+            if at_floor and it > 1 and err > 0.5 * prev:
+                # the residual is rounding's and the update no longer contracts: the
+                # update is the solve's rounding (the step's matrix grows as 1/(β Δt²))
+                return Y, it, prev
             if not fresh and err > self.CHORD_CONTRACTION * prev:
                 lu = None                                  # refactor here, redo
                 err = prev
                 continue
-            if fresh and it > 2 and err > prev and err > self.FLOOR:
-                # a fresh Newton step larger than the last: take the part of it that
-                # lowers the residual; where none does, the whole step unless it grew
-                # tenfold
+            if fresh and err > self.FLOOR:
+                # a fresh Newton step: take the part of it that lowers the residual
+                # (a full step that raises it is how Newton cycles on the friction's
+                # saturation); where none does, the whole step unless it grew tenfold
                 lam = self._line_search(Y, dY, G, old, co, prob, weights)
-                if lam <= self.SMALLEST_STEP and err > 10.0 * prev:
+                if lam == 0.0 and err > 10.0 * prev:
                     raise StepFailure(f"Newton diverging (scaled update {prev:.3g} -> "
                                       f"{err:.3g} with a fresh Jacobian, no descent along it)")
-                if self.SMALLEST_STEP < lam < 1.0:
+                if 0.0 < lam < 1.0:
                     Y = Y - lam * dY
                     lu = None
                     err = prev
                     continue
             stalled = err > 0.5 * prev
-            at_rounding = (fresh and stalled
-                           and float(np.max(np.abs(G) * weights)) < self.RESIDUAL_FLOOR)
+            at_rounding = fresh and stalled and at_floor
             fresh = False
             Y = Y - dY
             if err < self.TOLERANCE or (err < self.FLOOR and stalled) or at_rounding:
@@ -609,12 +615,6 @@ class CentrelineRod:
         first = self.rest_state(t, Y)
         if X is not None:
             first.X = np.array(X, float)
-        if self.seabed is not None:
-            co = _Coefficients(0.0, first.Xd, 0.0, first.X)
-            if np.any(self.seabed_terms(first.Y, first, co, False)[1][3] >= 0.0):
-                # the bottom's force k max(p, 0) has a kink at p = 0 where the rod lies:
-                # no Taylor polynomial there, start with Ẋ = a = 0
-                return first
         delta = 0.25 * self.case.numerics.dt if delta is None else float(delta)
         Y1, A1 = self._taylor_step(first, delta)
         Y2, A2 = self._taylor_step(first, 0.5 * delta)
@@ -651,6 +651,24 @@ class CentrelineRod:
         static = st.fields(state.Y, self.problem(state.t))
         return {"kinetic": kin, "elastic": static["elastic_energy"],
                 "potential": static["load_potential"]}
+
+
+def rounding_floor(ab, Y, weights) -> float:
+    """The rounding level of the residual near Y (N+1, 13): ε max_i w_i Σ_j |J_ij| |Y_j|
+    (the bound on a backward-stable evaluation of J Y; Higham, *Accuracy and Stability of
+    Numerical Algorithms*, 2002, § 3.5), J in LAPACK band storage ``ab`` (2KL + KU + 1,
+    13(N+1)) and w (13(N+1),) the rows' weights. A step of Δt cut small has a matrix
+    growing as 1/(β Δt²) acting on positions of order the rod's length, so Newton's
+    residual stalls there above any fixed floor."""
+    y = np.abs(np.ravel(Y))
+    n = y.size
+    acc = np.zeros(n)
+    band = np.abs(ab[KL:])                       # row d holds J[j + d − KU, j]
+    for d in range(band.shape[0]):
+        off = d - KU
+        lo, hi = max(0, -off), min(n, n - off)
+        acc[lo + off:hi + off] += band[d, lo:hi] * y[lo:hi]
+    return float(np.finfo(float).eps * np.max(weights * acc))
 
 
 def box_centreline(q, r_start, h: float) -> np.ndarray:

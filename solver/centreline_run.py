@@ -171,7 +171,7 @@ class CentrelineRun:
                         "solver_diverged") from exc
                 h /= num.dt_cut_factor
                 continue
-            if not np.all(np.isfinite(new.Y)):
+            if not all(np.all(np.isfinite(x)) for x in (new.Y, new.X, new.Xd, new.a)):
                 raise SolverDivergence(f"non-finite state at t = {new.t:.6g} s", st.t, 0,
                                        math.inf, "nonfinite_state")
             old, p_old = self.level, st.power

@@ -93,6 +93,10 @@ def test_a_cable_dragged_along_its_axis_pulls_with_mu_w_l():
     s = L end pulled at 2 cm/s (20 slip velocities): the pull is μ w L and the seabed's
     work account the friction over the distance slid."""
     spec = _drag_case("axial").model_dump(mode="json", exclude_none=True)
+    # the cable starts touching the bottom with no penetration and settles onto the
+    # spring (w/k) in the first steps: the work account counts from 0.05 s, when the
+    # pull has moved the end 10 µm
+    settled = run_to(centreline(spec), 0.05).state.seabed_work
     run = run_to(centreline(spec), 1.5)
     from solver.loads import end_reactions
 
@@ -101,15 +105,18 @@ def test_a_cable_dragged_along_its_axis_pulls_with_mu_w_l():
     pull = re["reaction_force_start"][0] + re["reaction_force_end"][0]
     assert abs(pull / (0.3 * W) - 1.0) < 1e-6, (pull, 0.3 * W)
     slid = 0.02 * (1.5 - 0.25)
-    assert -run.state.seabed_work / (0.3 * W * slid) == pytest.approx(1.0, abs=0.005)
+    work = run.state.seabed_work - settled
+    assert -work / (0.3 * W * slid) == pytest.approx(1.0, abs=0.005)
 
 
 def test_a_cable_rolls_down_a_slope_at_two_thirds_g_sin_theta():
     """A free 1-m cable lying across a 14° slope (a bathymetry grid, μ = 0.5 with a
     1 mm/s slip velocity, vacuum, E = 5e8 Pa) rolls without slip: a solid cylinder's
-    a = (2/3) g sin θ, ½ a t² = 0.7911 m along the slope in 1 s. Measured ratios 0.99754,
-    0.99879, 0.99754 at Δt = 0.01, 0.005, 0.0025 s (Newton's Δt cuts make the steps
-    taken differ); the seed scheme travels 8 % less (issue 79)."""
+    a = (2/3) g sin θ, ½ a t² = 0.7911 m along the slope in 1 s. Measured ratios
+    1.0000354, 1.0000354, 1.0000359 at Δt = 0.01, 0.005, 0.0025 s: the start's
+    accelerations are the consistent ones (Taylor steps with the contact set held; a
+    start at Ẋ = 0 lagged by about Δt/2, 0.91 / 0.49 / 0.25 % short); the seed scheme
+    travels 8 % less (issue 79)."""
     th = math.radians(14.0)
     xs = [-5.0, 5.0]
     grid = {"x": xs, "y": [-5.0, 5.0], "z": [[-math.tan(th) * x] * 2 for x in xs]}
@@ -123,7 +130,7 @@ def test_a_cable_rolls_down_a_slope_at_two_thirds_g_sin_theta():
     run = run_to(centreline(spec), 1.0)
     along = float(np.mean(run.state.r[:, 0])) / math.cos(th)
     expected = 0.5 * (2.0 / 3.0) * G * math.sin(th)
-    assert abs(along / expected - 1.0) < 4e-3, (along, expected)
+    assert abs(along / expected - 1.0) < 2e-4, (along, expected)
     # it rolls: the spin about the axis is the speed over the radius
     spin = run.state.Y[:, 5]
     speed = np.linalg.norm(run.state.v_global_time, axis=1)
@@ -149,3 +156,29 @@ def test_a_twisted_plane_curve_starts_in_its_plane():
     assert np.linalg.norm(rod.r0[-1] - last) < 1e-5
     seed_r = initial_pose(rod.case, rod.props.s)[1]
     assert 1.6e-4 < seed_r[-1, 2] < 1.8e-4
+
+
+def test_the_hockle_case_pushed_in_lifts_off_the_bottom():
+    """cases/seabed-hockle.yaml without its contact block on 80 segments at its Δt: from
+    1 s the far end pushes the twisted cable in, the friction's regularised slope (stiff
+    against Δt) makes Newton's first steps from rest overshoot, and the cable leaves the
+    bottom near the pushed end. The run gets through (Newton backtracks along its steps
+    and accepts a residual at rounding's floor, :meth:`CentrelineRod.newton`; before,
+    every Δt cut of the first pushed step was refused), the held end on its path and the
+    centreline inextensible to Newton's tolerance."""
+    from pathlib import Path
+
+    spec = Case.from_file(Path(__file__).parents[2] / "cases" / "seabed-hockle.yaml"
+                          ).model_dump(mode="json")
+    spec["contact"] = None
+    spec["numerics"].update(formulation="centreline", n_segments=80, t_end=1.6)
+    spec["numerics"].pop("ds", None)
+    run = run_to(Case.model_validate(spec), 1.6)
+    assert run.state.t == pytest.approx(1.6)
+    touching = np.count_nonzero(run.seabed_loads()[3] > 0.0)
+    assert touching < 40                                 # lifted off: 81 nodes lay flat
+    pushed = 0.266667 * 0.6 ** 2 / 2                      # ∫ v dt, v ramping 1 -> 2 s
+    assert run.level.Y[-1, 0] == pytest.approx(run.rod.r0[-1, 0] - pushed, abs=1e-9)
+    a3 = statics._rot(run.level.Y[:, 3:7])[:, :, 2]
+    gap = np.diff(run.level.Y[:, 0:3], axis=0) - 0.5 * run.rod.h * (a3[:-1] + a3[1:])
+    assert np.abs(gap).max() < 1e-9                       # r' = a3, the box rule's
