@@ -15,8 +15,8 @@ statics. Prints the branch (end rotation in turns, end torque M, end shortening,
 smallest gap) and the comparison with the theory (docs/statics.md, "The plectoneme"):
 
 * buckling: Greenhill's torque with tension, M_b → 2√(BT) as TL²/B grows;
-* plateau: in the two-phase model of Clauvelin, Audoly & Neukirch (Macromolecules 42,
-  2009) and Neukirch & Marko (PRL 106, 2011) without thermal fluctuations and with the
+* plateau: in the two-phase model of Clauvelin, Audoly & Neukirch (Biophys. J. 96,
+  3716, 2009) and Neukirch & Marko (PRL 106, 2011) without thermal fluctuations and with the
   hard-core superhelix radius R = (D + g)/2, the plectonemic phase (pitch angle θ from
   the superhelix axis, curvature sin²θ/R, writhe sin 2θ/(4πR) per unit length of rod;
   tests/solver/test_topology.py) coexists with the straight phase when its energy per
