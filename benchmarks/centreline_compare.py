@@ -15,9 +15,17 @@ Sections (``--only`` picks some):
   scheme, run alternately ``--repeat`` times (medians), and where the two centrelines end.
 * ``hockle``: ``cases/seabed-hockle.yaml`` without its ``contact`` block on the centreline
   scheme (the seed's scheme needs the contact the case has): how far towards 4.5 s it runs
-  on 160 segments at Δt 0.05 s and on 320 at 0.025 s, and when the MBR is crossed,
-  and the largest speed of the cable resting on the bottom in its first 0.15 s at
-  Δt 0.0125 s, ρ∞ 0.5 and 0, frictionless (the sea floor's chatter).
+  on 160/320/640 segments at Δt 0.05/0.025/0.0125 s, on 160 at 0.025 and 320 at 0.05 (Δs
+  and Δt apart), and on 160 at 0.025 s with the friction coefficients 1 % higher; when
+  the MBR is crossed; the largest distance between these centrelines and the finest
+  grid's (and between the two frictions) at 1.1 ... 3 s; and the largest speed of the
+  cable resting on the bottom in its first 0.15 s at Δt 0.0125 s, ρ∞ 0.5 and 0,
+  frictionless (the sea floor's chatter).
+
+* ``plectoneme``: PyElastica's plectoneme (tests/rodcases.py) with the seed's contact law,
+  0-9 s, on 25 segments at Δt 0.1 and 0.05 s and 50 at 0.05 s, each scheme in turn (a
+  first run to compile, then the timed one): wall time, refused attempts, the first
+  contact, Wr at 9 s, the largest |Tw + Wr − Lk| and the smallest surface gap.
 
 Each line says the machine's load (1-min load average) at the start. Run from the
 repository's root: ``python -m benchmarks.centreline_compare [--only time space ...]``.
@@ -170,11 +178,16 @@ def section_seed(seed_end: float, repeat: int):
     print(f"  the two centrelines at {seed_end:g} s apart by {np.abs(a - b).max():.3g} m")
 
 
-def _hockle_run(n, dt, t_end, rho_inf=None, friction=True):
+SNAP_TIMES = (1.1, 1.25, 1.5, 2.0, 3.0)
+
+
+def _hockle_run(n, dt, t_end, rho_inf=None, friction=True, friction_scale=1.0):
     """The hockle case without contact on the centreline scheme on n segments, stepped
-    by dt to t_end (s): (the time reached, the largest node speed on the way (m/s), the
-    first time the smallest bend radius is below the case's MBR (s, None: never), the
-    reason it stopped or None, the run's Newton refusals)."""
+    by dt to t_end (s), the friction coefficients times ``friction_scale``: (the time
+    reached, the largest node speed on the way (m/s), the first time the smallest bend
+    radius is below the case's MBR (s, None: never), the reason it stopped or None, the
+    run's Newton refusals, {t: the centreline (161, 3) m at the 160-segment grid's nodes}
+    at SNAP_TIMES)."""
     from solver.centreline_run import CentrelineRun
     from solver.kinematics import min_bend_radius
     from solver.stepping.control import SolverDivergence
@@ -187,9 +200,12 @@ def _hockle_run(n, dt, t_end, rho_inf=None, friction=True):
         spec["numerics"]["rho_inf"] = rho_inf
     if not friction:
         spec["seabed"]["friction"] = None
+    else:
+        for key in ("axial", "lateral"):
+            spec["seabed"]["friction"][key] *= friction_scale
     case = Case.model_validate(spec)
     run = CentrelineRun(case)
-    fastest, reason, crossed = 0.0, None, None
+    fastest, reason, crossed, snaps = 0.0, None, None, {}
     for k in range(1, int(round(t_end / dt)) + 1):
         try:
             run.advance(k * dt)
@@ -200,29 +216,80 @@ def _hockle_run(n, dt, t_end, rho_inf=None, friction=True):
         radius, _ = min_bend_radius(run.state.Y[:, 9:12], run.props.s)
         if crossed is None and radius < case.rod.minimum_bend_radius:
             crossed = run.state.t
-    return run.state.t, fastest, crossed, reason, sum(run.control.refusals.values())
+        for ts in SNAP_TIMES:
+            if abs(run.state.t - ts) < 1e-9:
+                snaps[ts] = run.level.Y[:: n // 160, 0:3].copy()
+    return (run.state.t, fastest, crossed, reason, sum(run.control.refusals.values()),
+            snaps)
 
 
 def section_hockle():
     print(f"hockle case without contact on the centreline scheme ({_load()})")
-    for n, dt in ((160, 0.05), (320, 0.025)):
+    grids = ((160, 0.05, 1.0), (320, 0.025, 1.0), (640, 0.0125, 1.0), (160, 0.025, 1.0),
+             (320, 0.05, 1.0), (160, 0.025, 1.01))
+    snaps = {}
+    for n, dt, mu in grids:
         t0 = time.perf_counter()
-        t, _, crossed, reason, refused = _hockle_run(n, dt, 4.5)
-        print(f"  {n} segments, dt {dt:g} s, rho_inf 0.5, to 4.5 s: reached t = {t:.4g} s, "
-              f"MBR crossed at {crossed} s, {refused} Newton refusals, wall "
-              f"{time.perf_counter() - t0:.1f} s; {reason or 'completed'}")
+        t, _, crossed, reason, refused, snaps[n, dt, mu] = _hockle_run(
+            n, dt, 4.5, friction_scale=mu)
+        print(f"  {n} segments, dt {dt:g} s, friction x {mu:g}, to 4.5 s: reached "
+              f"t = {t:.4g} s, MBR crossed at {crossed} s, {refused} Newton refusals, "
+              f"wall {time.perf_counter() - t0:.1f} s; {reason or 'completed'}")
+    print("  largest distance between centrelines (mm) at t = "
+          + ", ".join(f"{t:g}" for t in SNAP_TIMES) + " s:")
+    pairs = [((n, dt, mu), (640, 0.0125, 1.0)) for n, dt, mu in grids[:2] + grids[3:5]]
+    pairs.append(((160, 0.025, 1.01), (160, 0.025, 1.0)))
+    for a, b in pairs:
+        got = [float(np.abs(snaps[a][t] - snaps[b][t]).max()) * 1e3
+               if t in snaps[a] and t in snaps[b] else math.nan for t in SNAP_TIMES]
+        print(f"    {a[0]}/{a[1]:g}/x{a[2]:g} - {b[0]}/{b[1]:g}/x{b[2]:g}: "
+              + " ".join(f"{x:.3g}" for x in got))
     for rho in (0.5, 0.0):
-        t, fastest, _, reason, _ = _hockle_run(160, 0.0125, 0.15, rho, friction=False)
+        t, fastest, _, reason, _, _ = _hockle_run(160, 0.0125, 0.15, rho, friction=False)
         print(f"  160 segments, dt 0.0125 s, rho_inf {rho:g}, no friction, resting "
               f"0-0.15 s: largest speed {fastest:.3g} m/s, reached t = {t:.4g} s"
               + (f" ({reason})" if reason else ""))
 
 
+def _plectoneme(n, dt, formulation):
+    """PyElastica's plectoneme (tests/rodcases.py) on ``formulation``: (wall s, the run's
+    status, refused attempts, first contact s, Wr at 9 s, largest |Tw + Wr − Lk|, the
+    smallest surface gap m)."""
+    import sys
+
+    sys.path.insert(0, str(ROOT / "tests"))
+    from rodcases import plectoneme_case
+
+    spec = plectoneme_case(n, dt).model_dump(mode="json")
+    spec["numerics"]["formulation"] = formulation
+    case = Case.model_validate(spec)
+    t0 = time.perf_counter()
+    ds = integrate(case)
+    wall = time.perf_counter() - t0
+    touching = ds.contact_count.values > 0
+    first = float(ds.time.values[np.argmax(touching)]) if touching.any() else math.nan
+    return (wall, ds.attrs["hockle_status"], ds.attrs.get("hockle_refused_attempts", ""),
+            first, float(ds.writhe.values[-1]), float(ds.topology_error.max()),
+            float(ds.min_surface_gap.min()))
+
+
+def section_plectoneme():
+    print(f"PyElastica's plectoneme with self-contact, 0-9 s, the schemes alternately "
+          f"({_load()})")
+    for n, dt in ((25, 0.1), (25, 0.05), (50, 0.05)):
+        for f in SCHEMES:
+            _plectoneme(n, dt, f)                      # compiled and cached first
+            wall, status, refused, first, wr, topo, gap = _plectoneme(n, dt, f)
+            print(f"  {n} segments, dt {dt:g} s, {f:10s}: {status}, wall {wall:.2f} s, "
+                  f"first contact {first:.2f} s, Wr(9 s) {wr:.3f}, |Tw+Wr-Lk| <= {topo:.3g}, "
+                  f"smallest gap {gap * 1e3:.3g} mm; refused: {refused}")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--only", nargs="+",
-                    choices=["time", "space", "galilean", "seed", "hockle"],
-                    default=["time", "space", "galilean", "seed", "hockle"])
+                    choices=["time", "space", "galilean", "seed", "hockle", "plectoneme"],
+                    default=["time", "space", "galilean", "seed", "hockle", "plectoneme"])
     ap.add_argument("--seed-end", type=float, default=8.0, help="s (default 8)")
     ap.add_argument("--repeat", type=int, default=3, help="seed runs per scheme (default 3)")
     args = ap.parse_args(argv)

@@ -1797,13 +1797,12 @@ class Case(BaseModel):
         if self.numerics.formulation != "centreline":
             return []
         missing = [name for name, present in (
-            ("contact", self.contact is not None),
-            ("numerics.tolerance", self.numerics.tolerance is not None)) if present]
+            ("numerics.tolerance", self.numerics.tolerance is not None),) if present]
         if not missing:
             return []
         return [_err(("numerics", "formulation"), "unsupported",
-                     "centreline does not take " + ", ".join(missing) + " yet (fixed steps, no "
-                     "self-contact); use goyal", "centreline")]
+                     "centreline does not take " + ", ".join(missing) + " yet (fixed "
+                     "steps); use goyal", "centreline")]
 
     def _check_initial(self) -> list[dict]:
         """The initial state: a centreline as long as the rod, positions where the ends

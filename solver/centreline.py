@@ -48,8 +48,12 @@ Richardson), so the start is consistent to O(δ³).
 Ends: the statics' end rows at t_n+1 (:func:`solver.statics.problem_at`): held
 translations at the positions the end's velocities integrate to, held rotations turning
 about the end's tangent, free ends under dead forces and zero moments. What the static
-end rows cannot say (follower end loads, a held end turned about a normal), self-contact
-and the sea floor are refused by :meth:`CentrelineRod.from_case` with the field named.
+end rows cannot say (follower end loads) is refused by :meth:`CentrelineRod.from_case`
+with the field named.
+
+Self-contact and the sea floor are nodal loads on the same rows (:meth:`CentrelineRod.
+contact_terms`, :meth:`CentrelineRod.seabed_terms`), their laws those of the seed
+scheme's run at the nodes' own r, ṙ and frames; the statics take the same laws at rest.
 """
 from __future__ import annotations
 
@@ -206,6 +210,10 @@ class CentrelineRod:
             self.has_friction = bool(scal[4] > 0.0 or scal[5] > 0.0)
             scal[4] = scal[5] = 0.0
             self._frictionless_data = self.seabed.data._replace(scalars=scal)
+        self.contact = None
+        if case.contact is not None:
+            from .contact import SelfContact
+            self.contact = SelfContact(case.contact, props.s, props.diameter, props.rho_a)
         self.factorizations = 0            # band LUs so far
         self.paths = {}
         self._last_problem = None          # (t, the problem at t): a step reads it thrice
@@ -218,14 +226,11 @@ class CentrelineRod:
     @classmethod
     def from_case(cls, case) -> "CentrelineRod":
         """The rod of a validated case. Raises :class:`CentrelineError` naming the field
-        the scheme does not take yet (``contact``, ``seabed``, ``numerics.tolerance``, a
-        non-uniform ``ds``) or the statics' end rows cannot say."""
+        the scheme does not take yet (``numerics.tolerance``) or the statics' end rows
+        cannot say."""
         from .initial import initial_pose, node_frames
         from .properties import RodProperties
 
-        if case.contact is not None:
-            raise CentrelineError("contact: numerics.formulation 'centreline' does not "
-                                  "take it yet; use 'goyal'")
         if case.numerics.tolerance is not None:
             raise CentrelineError("numerics.tolerance: the centreline scheme takes fixed "
                                   "steps (numerics.dt) only")
@@ -250,8 +255,9 @@ class CentrelineRod:
             return self._last_problem[1]
         prob = st.problem_at(self.case, t, self.props, self.q0, self.r0,
                              skip=tuple(self.paths))
-        if prob.seabed is not None:
-            prob = replace(prob, seabed=None)      # the dynamic law's (seabed_terms)
+        if prob.seabed is not None or prob.contact is not None:
+            # the dynamic laws' (seabed_terms, contact_terms)
+            prob = replace(prob, seabed=None, contact=None)
         if self.paths:
             prob = replace(prob, **{name: path.spec(t, getattr(prob, name).force)
                                     for name, path in self.paths.items()})
@@ -346,15 +352,68 @@ class CentrelineRod:
         block = np.einsum("kij,kjl->kil", np.concatenate([DF, DM], axis=1), chain)
         return L, split, block
 
+    def contact_terms(self, Y, old: CentrelineState, co: _Coefficients, want: bool):
+        """Self-contact's loads per length at the nodes (N+1, 3) N/m, global: the model of
+        :mod:`solver.contact.model` (its law with the approach rate's damping, between
+        each node and the closest point of the partner curve) at the nodes' r and ṙ of Y
+        (N+1, 13), the candidates searched afresh (within the tolerance) so that the
+        loads are a function of Y; the :class:`solver.contact.ContactEvaluation`; and with
+        ``want`` their derivative ∂L/∂r (3(N+1), 3(N+1)) sparse: node a's load w_a F
+        changes by w_a (∂F/∂r_b + c_X ∂F/∂v_b) δr_b + F (∂w_a/∂t) (∂t/∂r_b) δr_b (ṙ =
+        c_X Δr + d_X; the pair derivatives of the seed scheme's contact, exact). None
+        without ``contact``; (zeros, None, None) where no pair is within the tolerance.
+        The loads act on positions only (the aperture's tangent test picks the
+        candidates, a choice, not a load)."""
+        if self.contact is None:
+            return None
+        import scipy.sparse as sp
+        from .contact import assemble_nodal
+
+        n1 = self.n
+        Yr = np.real(Y)
+        r = np.ascontiguousarray(Yr[:, 0:3], dtype=float)
+        if not np.all(np.isfinite(r)):
+            raise StepFailure("non-finite positions")
+        u = np.ascontiguousarray(co.cX * self.increments(Yr, old)[:, 0:3] + co.dX[:, 0:3])
+        a3 = np.ascontiguousarray(st._rot(Yr[:, 3:7])[:, :, 2])
+        cand = self.contact.search(r, a3)
+        ev = None
+        if cand is not None:
+            try:
+                ev = self.contact.evaluate(cand, r, u)
+            except ValueError as exc:
+                raise StepFailure(f"contact: {exc}") from exc
+        if ev is None or ev.count == 0:
+            return np.zeros((n1, 3)), ev, None
+        L = assemble_nodal(ev, n1)
+        if not want:
+            return L, ev, None
+        dF = ev.d_force_d_r + co.cX * ev.d_force_d_v                 # (P, 5, 3, 3)
+        block = (ev.weights[:, :, None, None, None] * dF[:, None, :, :, :]
+                 + (ev.force[:, None, None, :, None] * ev.d_weights_d_t[:, :, None, None, None]
+                    * ev.d_t_d_r[:, None, :, None, :]))
+        shape = (ev.count, 5, 5, 3, 3)
+        na = ev.nodes[:, :, None, None, None]
+        nb = ev.nodes[:, None, :, None, None]
+        ca = np.arange(3)[None, None, None, :, None]
+        cb = np.arange(3)[None, None, None, None, :]
+        rows = np.broadcast_to(3 * na + ca, shape).ravel()
+        cols = np.broadcast_to(3 * nb + cb, shape).ravel()
+        dL = sp.csr_matrix((block.ravel(), (rows, cols)), shape=(3 * n1, 3 * n1))
+        return L, ev, dL
+
     def residual(self, Y, old, co, prob, seabed=None) -> np.ndarray:
         """The 13(N+1) dynamic rows (the static rows plus the nodal loads' trapezoid on
-        the force and moment rows: inertia, fluid and the sea floor) of Y (N+1, 13);
+        the force and moment rows: inertia, fluid, the sea floor and self-contact) of Y
+        (N+1, 13);
         ``seabed``: :meth:`seabed_terms` at Y already evaluated (None: evaluated here)."""
         G = st.residual(Y, prob)
         L = self.nodal_loads(Y, old, co)
         sb = self.seabed_terms(Y, old, co, want=False) if seabed is None else seabed
         if sb is not None:
             L = L + sb[0]
+        if self.contact is not None:
+            L[:, 0:3] += self.contact_terms(Y, old, co, want=False)[0]
         cells = G[st.N_START:-st.N_END].reshape(self.n - 1, NV)
         cells[:, 7:13] += 0.5 * self.h * (L[:-1] + L[1:])
         return G
@@ -482,7 +541,8 @@ class CentrelineRod:
         Chord iterations: the band LU of the first iterate is kept while the updates
         contract by CHORD_CONTRACTION or better, and refactored at the current iterate
         where they do not (a full Newton step; the Jacobian is exact). Converged when the
-        update scaled by :meth:`solver.statics.StaticProblem.scales` is below TOLERANCE,
+        update scaled by :meth:`solver.statics.StaticProblem.scales` (n and m by their
+        largest value at the start instead, where larger) is below TOLERANCE,
         or below FLOOR and no longer contracting (rounding's floor: the step's matrix
         grows as 1/(β Δt²), and so does the rounding of its solve), or when a step with
         a fresh Jacobian does not contract from a residual below RESIDUAL_FLOOR in the
@@ -490,7 +550,12 @@ class CentrelineRod:
         noise at 1e-5 of B/L², the residual at 1e-10 of it). Raises
         :class:`StepFailure` without convergence in MAX_ITERATIONS, on a singular
         Jacobian or a non-finite update."""
-        scale = prob.scales()
+        scale = prob.scales().copy()
+        # n and m relative to their largest value where that exceeds B/L², B/L (a rod
+        # pressed by loads far above its stiffness's scale: the updates of n then sit at
+        # the rounding of the loads, not of B/L²)
+        scale[7:10] = max(scale[7], float(np.abs(Y[:, 7:10]).max()))
+        scale[10:13] = max(scale[10], float(np.abs(Y[:, 10:13]).max()))
         weights = 1.0 / st._row_scales(prob)
         err = math.inf
         lu = None
@@ -507,11 +572,17 @@ class CentrelineRod:
             G = self.residual(Y, old, co, prob, sb)
             if lu is None:
                 ab = self.jacobian(Y, old, co, prob)
-                floor = max(self.RESIDUAL_FLOOR, rounding_floor(ab, Y, weights))
+                ct = self.contact_terms(Y, old, co, want=True)
                 try:
-                    lu = BorderedBandLU(ab)
-                except BandSingular as exc:
+                    if ct is None or ct[2] is None:
+                        lu = BorderedBandLU(ab)
+                        floor = rounding_floor(ab, Y, weights)
+                    else:
+                        lu = _ContactLU(ab, ct[2], prob)
+                        floor = lu.rounding_floor(Y, weights)
+                except (BandSingular, RuntimeError) as exc:
                     raise StepFailure(f"singular Jacobian ({exc})") from exc
+                floor = max(self.RESIDUAL_FLOOR, floor)
                 self.factorizations += 1
                 fresh = True
             dY = lu.solve(G, refine=False).reshape(Y.shape)
@@ -651,6 +722,31 @@ class CentrelineRod:
         static = st.fields(state.Y, self.problem(state.t))
         return {"kinetic": kin, "elastic": static["elastic_energy"],
                 "potential": static["load_potential"]}
+
+
+class _ContactLU:
+    """The step's Jacobian with self-contact: the band ``ab`` (LAPACK storage) plus the
+    contact's load derivative dL (3(N+1), 3(N+1)) on the force rows of the cells either
+    side of each node (h/2 each) and the position columns, which couples nodes far apart
+    along the rod; factored by SuperLU (scipy's ``splu``, COLAMD ordering). ``solve``
+    takes the band LU's arguments."""
+
+    def __init__(self, ab, dL, prob):
+        import scipy.sparse.linalg as spla
+
+        from .static_band import band_to_sparse
+
+        self.A = (band_to_sparse(ab[KL:])
+                  + st._load_rows(prob) @ dL @ st._position_columns(prob)).tocsc()
+        self._lu = spla.splu(self.A)
+
+    def rounding_floor(self, Y, weights) -> float:
+        """:func:`rounding_floor` of this matrix (the contact's stiff pairs included)."""
+        acc = abs(self.A) @ np.abs(np.ravel(Y))
+        return float(np.finfo(float).eps * np.max(weights * acc))
+
+    def solve(self, b, refine: bool = False):
+        return self._lu.solve(np.asarray(b, float))
 
 
 def rounding_floor(ab, Y, weights) -> float:

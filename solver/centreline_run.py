@@ -12,10 +12,12 @@ as they are (one centreline: the space route, the time route and the outputs are
 same positions, so ``position_route_difference`` and ``end_drift`` are 0 by
 construction).
 
-A step Newton does not converge is retried from the same state with Δt cut by
-``numerics.dt_cut_factor``, up to ``numerics.max_dt_cuts`` times, the cut steps
-completing the nominal step (the seed scheme's rule, :mod:`solver.stepping`); when all
-cuts fail, :class:`solver.stepping.control.SolverDivergence` (reason
+A step Newton does not converge (or in which strands pass through each other, with
+self-contact: :meth:`solver.contact.SelfContact.passes_through`) is retried from the same
+state with Δt cut by ``numerics.dt_cut_factor``, up to ``numerics.max_dt_cuts`` times,
+the cut steps completing the nominal step; the cut Δt is kept into the following nominal
+steps and grows back by the factor after ``GROW_AFTER`` accepted sub-steps (the seed
+scheme's rule, :mod:`solver.stepping`, without its growth guard); when all cuts fail, :class:`solver.stepping.control.SolverDivergence` (reason
 ``solver_diverged``) carries the partial result.
 
 The work put in (``work_in``, J) integrates by the trapezoid in time the power of the
@@ -54,10 +56,9 @@ class CentrelineRun:
     #: the recorder's output groups that need the pose (all do here)
     POSE_FIELDS = frozenset({"position", "orientation", "topology"})
 
-    #: what the scheme does not have yet, as the recorder reads it: no self-contact or
-    #: sea floor, no energy check (no growth guard either: control.guard.sigma is NaN,
-    #: "not checked")
-    contact = seabed = energy_check = None
+    #: what the scheme does not have yet, as the recorder reads it: no energy check (no
+    #: growth guard either: control.guard.sigma is NaN, "not checked")
+    seabed = energy_check = None
     contact_count = 0
     min_gap = math.inf
     energy_error = math.nan
@@ -68,6 +69,8 @@ class CentrelineRun:
                                   "not take a force written as code yet; use 'goyal'")
         self.case = case
         self.rod = rod = CentrelineRod.from_case(case)
+        #: self-contact's model (:class:`solver.contact.SelfContact`) or None
+        self.contact = rod.contact
         self.props = rod.props
         self.system = SimpleNamespace(needs_pose=True, seabed=rod.seabed)
         self.newton = SimpleNamespace(factorizations=0, gmres_iterations=0)
@@ -154,15 +157,24 @@ class CentrelineRun:
         scaled update). Raises :class:`SolverDivergence` when every cut fails."""
         num = self.case.numerics
         total_its = 0
-        cuts = 0
         st, refusals = self.state, self.control.refusals
-        h = t_target - st.t
+        h_full = t_target - st.t
+        cuts = min(self._cut_level, num.max_dt_cuts)
+        h = h_full / num.dt_cut_factor ** cuts
         while st.t < t_target - 1e-12 * max(1.0, t_target):
+            if cuts and self._accepted_at_level >= self.GROW_AFTER:
+                cuts -= 1                  # grow back by the factor
+                h *= num.dt_cut_factor
+                self._accepted_at_level = 0
             h = min(h, t_target - st.t)
             try:
                 new, its, err = self.rod.step(self.level, h)
+                if self.contact is not None and self.contact.passes_through(
+                        self.level.Y[:, 0:3], new.Y[:, 0:3]):
+                    raise StepFailure("strands passed through each other in the step")
             except StepFailure as exc:
-                refusals["newton"] = refusals.get("newton", 0) + 1
+                key = "crossing" if exc.reason.startswith("strands") else "newton"
+                refusals[key] = refusals.get(key, 0) + 1
                 cuts += 1
                 if cuts > num.max_dt_cuts:
                     raise SolverDivergence(
@@ -170,7 +182,9 @@ class CentrelineRun:
                         f"cuts at t = {st.t:.6g} s: {exc.reason}", st.t, 0, math.inf,
                         "solver_diverged") from exc
                 h /= num.dt_cut_factor
+                self._accepted_at_level = 0
                 continue
+            self._accepted_at_level += 1
             if not all(np.all(np.isfinite(x)) for x in (new.Y, new.X, new.Xd, new.a)):
                 raise SolverDivergence(f"non-finite state at t = {new.t:.6g} s", st.t, 0,
                                        math.inf, "nonfinite_state")
@@ -183,10 +197,26 @@ class CentrelineRun:
                 power = self._seabed_power(new)
                 st.seabed_work += 0.5 * h * (st.seabed_power + power)
                 st.seabed_power = power
+            if self.contact is not None:
+                self._contact_summary(new)
             total_its, self.last_residual, self.control.last_dt = its, err, h
             self.newton.factorizations = self.rod.factorizations
+        self._cut_level = cuts
         self.last_iterations = total_its
         return total_its, self.last_residual
+
+    #: accepted sub-steps at a cut Δt before it grows back by ``numerics.dt_cut_factor``
+    GROW_AFTER = 4
+    _cut_level = 0                         # the Δt level the next nominal step starts at
+    _accepted_at_level = 0
+
+    def _contact_summary(self, state) -> None:
+        """``contact_count`` (pairs within the law's reach) and ``min_gap`` (m, the
+        smallest surface gap of the pairs evaluated, inf with none) at a level."""
+        co = SimpleNamespace(cX=0.0, dX=state.X)
+        _, ev, _ = self.rod.contact_terms(state.Y, state, co, want=False)
+        self.contact_count = 0 if ev is None else int(ev.count)
+        self.min_gap = math.inf if ev is None or not ev.count else float(ev.min_gap)
 
     def step_adaptive(self, t_limit: float):
         raise CentrelineError("numerics.tolerance: the centreline scheme takes fixed "

@@ -215,11 +215,6 @@ def test_a_conservative_swing_keeps_its_energy_at_rho_inf_1():
 
 
 def test_what_the_scheme_does_not_take_is_refused_with_its_field():
-    contact = {"aperture": 90.0, "tolerance": 0.03, "k1": 1e-7, "k2": 3.0, "k3": 1e-6,
-               "k4": 1.0}
-    case = make_case(end=free_end(), contact=contact)
-    with pytest.raises(CentrelineError, match="^contact:"):
-        CentrelineRod.from_case(case)
     twisting_load = make_case(end={"translation": [{"force": 1.0}, {"force": 0.0},
                                                    {"force": 0.0}],
                                    "rotation": FREE_ROT})
