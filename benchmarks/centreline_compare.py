@@ -22,7 +22,7 @@ Sections (``--only`` picks some):
   cable resting on the bottom in its first 0.15 s at Δt 0.0125 s, ρ∞ 0.5 and 0,
   frictionless (the sea floor's chatter).
 
-* ``plectoneme``: PyElastica's plectoneme (tests/rodcases.py) with the seed's contact law,
+* ``plectoneme``: PyElastica's plectoneme (benchmarks/pyelastica_compare.py, its contact),
   0-9 s, on 25 segments at Δt 0.1 and 0.05 s and 50 at 0.05 s, each scheme in turn (a
   first run to compile, then the timed one): wall time, refused attempts, the first
   contact, Wr at 9 s, the largest |Tw + Wr − Lk| and the smallest surface gap.
@@ -252,15 +252,12 @@ def section_hockle():
 
 
 def _plectoneme(n, dt, formulation):
-    """PyElastica's plectoneme (tests/rodcases.py) on ``formulation``: (wall s, the run's
+    """PyElastica's plectoneme (benchmarks/pyelastica_compare.py) on ``formulation``: (wall s, the run's
     status, refused attempts, first contact s, Wr at 9 s, largest |Tw + Wr − Lk|, the
     smallest surface gap m)."""
-    import sys
+    from benchmarks.pyelastica_compare import hockle_plectoneme_case
 
-    sys.path.insert(0, str(ROOT / "tests"))
-    from rodcases import plectoneme_case
-
-    spec = plectoneme_case(n, dt).model_dump(mode="json")
+    spec = hockle_plectoneme_case(n, dt, 9.0, out_dt=dt).model_dump(mode="json")
     spec["numerics"]["formulation"] = formulation
     case = Case.model_validate(spec)
     t0 = time.perf_counter()

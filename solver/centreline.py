@@ -433,10 +433,10 @@ class CentrelineRod:
             rows.append(rr)
             cols.append(col)
             nodes.append(kk)
-        self._rows = np.concatenate(rows).ravel()
+        rows = np.concatenate(rows).ravel()
         self._cols = np.concatenate(cols).ravel()
         self._nodes = np.concatenate(nodes)
-        self._bandrow = KL + KU + self._rows - self._cols
+        self._bandrow = KL + KU + rows - self._cols
 
     def jacobian(self, Y, old, co, prob) -> np.ndarray:
         """∂G/∂Y in LAPACK band storage, exact to rounding: the static band
@@ -571,19 +571,7 @@ class CentrelineRod:
                     lu = None
             G = self.residual(Y, old, co, prob, sb)
             if lu is None:
-                ab = self.jacobian(Y, old, co, prob)
-                ct = self.contact_terms(Y, old, co, want=True)
-                try:
-                    if ct is None or ct[2] is None:
-                        lu = BorderedBandLU(ab)
-                        floor = rounding_floor(ab, Y, weights)
-                    else:
-                        lu = _ContactLU(ab, ct[2], prob)
-                        floor = lu.rounding_floor(Y, weights)
-                except (BandSingular, RuntimeError) as exc:
-                    raise StepFailure(f"singular Jacobian ({exc})") from exc
-                floor = max(self.RESIDUAL_FLOOR, floor)
-                self.factorizations += 1
+                lu, floor = self._factor(Y, old, co, prob, weights)
                 fresh = True
             dY = lu.solve(G, refine=False).reshape(Y.shape)
             if not np.all(np.isfinite(dY)):
@@ -619,6 +607,25 @@ class CentrelineRod:
                 return Y, it, err
         raise StepFailure(f"Newton did not converge in {self.MAX_ITERATIONS} iterations "
                           f"(scaled update {err:.3g})")
+
+    def _factor(self, Y, old, co, prob, weights):
+        """The step's Jacobian at Y factored (the band LU, or SuperLU with self-contact's
+        pairs, :class:`_ContactLU`) and the residual's rounding level there (at least
+        RESIDUAL_FLOOR, :func:`rounding_floor`). Raises :class:`StepFailure` on a
+        singular Jacobian."""
+        ab = self.jacobian(Y, old, co, prob)
+        ct = self.contact_terms(Y, old, co, want=True)
+        try:
+            if ct is None or ct[2] is None:
+                lu = BorderedBandLU(ab)
+                floor = rounding_floor(ab, Y, weights)
+            else:
+                lu = _ContactLU(ab, ct[2], prob)
+                floor = lu.rounding_floor(Y, weights)
+        except (BandSingular, RuntimeError) as exc:
+            raise StepFailure(f"singular Jacobian ({exc})") from exc
+        self.factorizations += 1
+        return lu, max(self.RESIDUAL_FLOOR, floor)
 
     #: the smallest fraction of a Newton step the line search takes (2⁻⁸)
     SMALLEST_STEP = 2.0 ** -8
