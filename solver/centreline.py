@@ -647,6 +647,20 @@ class CentrelineRod:
             lam *= 0.5
         return 0.0
 
+    def _start_guess(self, old, co, prob, h) -> np.ndarray:
+        """Newton's start for a step of h from ``old``: :meth:`predict`; with self-contact,
+        the old level instead where its residual is smaller in the rows' scaled 2-norm
+        (an extrapolation across a collapse pushes strands deep into the contact law,
+        whose residual Newton does not come back from)."""
+        Y = self.predict(old, h)
+        if self.contact is None:
+            return Y
+        weights = 1.0 / st._row_scales(prob)
+        with np.errstate(over="ignore", invalid="ignore"):
+            g_pred = float(np.linalg.norm(self.residual(Y, old, co, prob) * weights))
+            g_old = float(np.linalg.norm(self.residual(old.Y, old, co, prob) * weights))
+        return old.Y.copy() if g_old < g_pred or not math.isfinite(g_pred) else Y
+
     def step(self, old: CentrelineState, h: float) -> tuple[CentrelineState, int, float]:
         """One generalized-α step of h (s) from ``old``: (the new state, Newton
         iterations, last scaled update). ``old`` is not changed. Raises
@@ -654,7 +668,7 @@ class CentrelineRod:
         t = old.t + h
         prob = self.problem(t)
         co = self.coefficients(old, h)
-        Y, its, err = self.solve(old, co, prob, self.predict(old, h))
+        Y, its, err = self.solve(old, co, prob, self._start_guess(old, co, prob, h))
         D = self.increments(Y, old)
         p = self.params
         a = (D - h * old.X - h * h * (0.5 - p.beta) * old.a) / (p.beta * h * h)
