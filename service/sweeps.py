@@ -81,7 +81,7 @@ _UNITS = {"force": "N", "velocity": "m s-1", "angular_velocity": "rad s-1", "mom
           "shear_modulus": "Pa", "dt": "s", "t_end": "s", "ds": "m", "until": "s",
           "tolerance": "m", "drag_coefficient_normal": "1", "drag_coefficient_tangential": "1",
           "added_mass_coefficient": "1", "n_segments": "1", "rho_inf": "1",
-          "contact_rho_inf": "1"}
+          "contact_rho_inf": "1", "viscosity": "Pa s", "slenderness_length": "m"}
 
 class SweepError(ValueError):
     """A sweep request that cannot be expanded or whose members do not validate.

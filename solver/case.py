@@ -641,7 +641,23 @@ class Rod(BaseModel):
 
 
 class Fluid(BaseModel):
-    """The surrounding fluid (Morison-type added mass and drag). Omit for vacuum."""
+    """The surrounding fluid: buoyancy, Morison-type added mass and quadratic drag, and
+    with ``viscosity`` the linear Stokes drag of resistive-force theory. Omit for vacuum.
+
+    ``density`` (kg/m³) gives the buoyancy and the added mass; the Morison drag per length
+    is ½ρ_f D C_dn |v_n| v_n across the axis and ½ρ_f πD C_dt |v_t| v_t along it.
+    ``viscosity`` μ (Pa s; null: none) adds the drag of a slender body at low Reynolds
+    number, −R(ζ_n v_n + ζ_t v_t e3) per length and −ζ_r W3 a3 about the axis, with
+    ζ_n = 4πμ/(ln(ℓ/d) + 0.84), ζ_t = 2πμ/(ln(ℓ/d) − 0.20) (Tirado & García de la Torre,
+    J. Chem. Phys. 71, 2581, 1979, Table I, p⁻¹ = 0) and ζ_r = πμd² = 4πμa² (the exact
+    Stokes flow around a cylinder turning about its axis); ℓ is ``slenderness_length``,
+    the rod's length when null, d the local diameter (:mod:`solver.resistive_force`).
+    Both drags act where both are given, summed; at a Reynolds number Re = ρ_f |v| d/μ the
+    Morison share is of order Re, so a case at Re ≪ 1 (water at 25 °C: density 1000,
+    viscosity 8.9e-4) may keep the Morison defaults or set ``drag_coefficient_normal: 0``.
+    Only ``numerics.formulation: centreline`` takes ``viscosity`` (checked by
+    :class:`Case`), and ℓ/d must be at least 2 over the rod (checked by :class:`Case`).
+    """
 
     model_config = _MODEL_CONFIG
 
@@ -653,6 +669,32 @@ class Fluid(BaseModel):
     drag_coefficient_tangential: Finite = Field(
         0.0, ge=0, description="Tangential drag coefficient C_dt (dimensionless); >= 0."
     )
+    viscosity: Optional[Finite] = Field(
+        None, gt=0, description="Dynamic viscosity mu, Pa s; > 0; null: no viscous drag. Adds the "
+        "linear Stokes drag of resistive-force theory (low Reynolds number; water at 25 C: 8.9e-4); "
+        "numerics.formulation centreline only.")
+    slenderness_length: Optional[Finite] = Field(
+        None, gt=0, description="The length l of the slenderness factor ln(l/d) in the viscous drag "
+        "coefficients, m; > 0, l/d >= 2; null: rod.length. Only with viscosity.")
+
+    @model_validator(mode="after")
+    def _check(self) -> "Fluid":
+        if self.slenderness_length is not None and self.viscosity is None:
+            _raise("Fluid", [_err(("slenderness_length",), "unsupported",
+                                  "only read with fluid.viscosity (the viscous drag's "
+                                  "slenderness factor); give viscosity or leave it out",
+                                  self.slenderness_length)])
+        return self
+
+    @model_serializer(mode="wrap")
+    def _drop_unused(self, handler: Any):  # no return type: keeps the JSON schema
+        # added after schema 1's first release: written only when given, so that a case
+        # without them keeps its canonical JSON and spec_hash
+        out = handler(self)
+        for name in ("viscosity", "slenderness_length"):
+            if getattr(self, name) is None:
+                out.pop(name, None)
+        return out
 
 
 class DistributedForce(BaseModel):
@@ -1758,7 +1800,7 @@ class Case(BaseModel):
         errors = []
         for check in (partial._check_initial, partial._check_loads_on_rod,
                       partial._check_contact, partial._check_ill_posed_ends,
-                      lambda: partial._check_numerics(errors)):
+                      partial._check_fluid, lambda: partial._check_numerics(errors)):
             try:
                 got = check()
             except ValidationError as exc:            # _check_numerics' early raise
@@ -1781,7 +1823,7 @@ class Case(BaseModel):
         sets ``numerics.n_segments`` and ``numerics.ds`` from whichever was given."""
         errors = (self._check_initial() + self._check_loads_on_rod() + self._check_contact()
                   + self._check_ill_posed_ends() + self._check_seabed()
-                  + self._check_formulation())
+                  + self._check_formulation() + self._check_fluid())
         n_segments = self._check_numerics(errors)
         if n_segments:
             errors.extend(self._check_twist_resolved(n_segments))
@@ -1793,8 +1835,14 @@ class Case(BaseModel):
     def _check_formulation(self) -> list[dict]:
         """What the centreline scheme does not take yet, refused at numerics.formulation
         (the end conditions the statics' end rows cannot say are refused when the run is
-        built, :class:`solver.centreline.CentrelineError`)."""
+        built, :class:`solver.centreline.CentrelineError`); and what the seed scheme
+        (goyal) does not take, refused at the field: ``fluid.viscosity``."""
         if self.numerics.formulation != "centreline":
+            if self.fluid is not None and self.fluid.viscosity is not None:
+                return [_err(("fluid", "viscosity"), "unsupported",
+                             "the goyal scheme (numerics.formulation's default) does not "
+                             "take the viscous drag yet: set numerics.formulation: centreline",
+                             self.fluid.viscosity)]
             return []
         missing = [name for name, present in (
             ("numerics.tolerance", self.numerics.tolerance is not None),) if present]
@@ -1803,6 +1851,30 @@ class Case(BaseModel):
         return [_err(("numerics", "formulation"), "unsupported",
                      "centreline does not take " + ", ".join(missing) + " yet (fixed "
                      "steps); use goyal", "centreline")]
+
+    def _check_fluid(self) -> list[dict]:
+        """The viscous drag's slenderness factor ln(ℓ/d): ℓ/d at least
+        :data:`solver.resistive_force.SMALLEST_SLENDERNESS` at the largest diameter (ℓ:
+        ``fluid.slenderness_length`` or ``rod.length``), refused at the field that sets ℓ."""
+        fluid = self.fluid
+        if fluid is None or fluid.viscosity is None:
+            return []
+        from .resistive_force import SMALLEST_SLENDERNESS
+
+        rod = self.rod
+        diameter = rod.diameter
+        d = float(max(diameter.value) if isinstance(diameter, Profile) else diameter)
+        given = fluid.slenderness_length is not None
+        ell = float(fluid.slenderness_length if given else rod.length)
+        if ell >= SMALLEST_SLENDERNESS * d:
+            return []
+        loc = ("fluid", "slenderness_length") if given else ("fluid", "viscosity")
+        what = "fluid.slenderness_length" if given else "rod.length"
+        return [_err(loc, "not_slender",
+                     f"the viscous drag (resistive-force theory) needs a slender rod: "
+                     f"ℓ/d = {ell / d:.3g} with ℓ = {what} = {ell!r} m and the largest "
+                     f"rod.diameter {d!r} m, below {SMALLEST_SLENDERNESS:g}",
+                     fluid.slenderness_length if given else fluid.viscosity)]
 
     def _check_initial(self) -> list[dict]:
         """The initial state: a centreline as long as the rod, positions where the ends

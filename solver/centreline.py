@@ -12,9 +12,11 @@ distributed loads per length at the nodes::
 with ṙ the global velocity and W the body angular velocity (R' of the frame R = R(p):
 Ṙ = R [W]×), f the dead loads of the statics and f_fluid Morison's drag in still water,
 B_d = −½ ρ_f D C_dn |v_n| v_n − ½ ρ_f π D C_dt |v_t| v_t on the body velocity v = Rᵀ ṙ
-(the same law as :mod:`solver.loads`). The cell rows take the trapezoid of the nodal
-loads, so a cell row reads exactly as its static row with f + f_fluid − M r̈ in place of
-f: one discretisation of the rod in s for statics and dynamics, and a static equilibrium
+(the same law as :mod:`solver.loads`), plus with ``fluid.viscosity`` resistive-force
+theory's Stokes drag −R(ζ_n v_n + ζ_t v_t e3) and its moment −ζ_r W3 a3 about the axis
+(:mod:`solver.resistive_force`; the moment in the moment row, beside the inertia's). The
+cell rows take the trapezoid of the nodal loads, so a cell row reads exactly as its
+static row with f + f_fluid − M r̈ in place of f: one discretisation of the rod in s for statics and dynamics, and a static equilibrium
 is a dynamic state at rest (and a dynamic state a static solver's start) with nothing
 converted. Compatibility (r' = a3) and inextensibility are the kinematic rows of that
 centreline, so every position the run reports satisfies them to Newton's tolerance.
@@ -198,6 +200,13 @@ class CentrelineRod:
         else:
             self.cdn = self.cdt = np.zeros(self.n)
         self.has_drag = bool(np.any(self.cdn) or np.any(self.cdt))
+        #: resistive-force theory's Stokes drag coefficients per length (N+1,) each: ζ_n,
+        #: ζ_t (N s/m²) and ζ_r (N s) with ``fluid.viscosity``, else None
+        self.stokes = None
+        if fl is not None and fl.viscosity is not None:
+            from .resistive_force import resistive_force_coefficients
+            ell = case.rod.length if fl.slenderness_length is None else fl.slenderness_length
+            self.stokes = resistive_force_coefficients(fl.viscosity, props.diameter, ell)
         self.seabed = None
         #: the nodes the sea floor's spring holds on in a Newton solve ((N+1,) bool,
         #: None outside one; :meth:`solve`)
@@ -273,8 +282,11 @@ class CentrelineRod:
 
     def nodal_loads(self, Y, old: CentrelineState, co: _Coefficients):
         """Inertia and fluid loads per length at the nodes (..., N+1, 6), global: force
-        f_fluid − M r̈ (N/m) and moment −R(I Ẇ + W × I W) (N m/m), of Y (..., N+1, 13)
-        at the new level (complex-step safe)."""
+        f_fluid − M r̈ (N/m) and moment −R(I Ẇ + W × I W) − ζ_r W3 a3 (N m/m), of Y
+        (..., N+1, 13) at the new level (complex-step safe). f_fluid is Morison's drag
+        (module docstring) plus, with ``fluid.viscosity``, resistive-force theory's Stokes
+        drag −R(ζ_n v_n + ζ_t v_t e3) on the body velocity v = Rᵀṙ (:mod:`solver.
+        resistive_force`), linear in the velocities, so its Jacobian block is exact."""
         D = self.increments(Y, old)
         Xd = co.cXd * D + co.dXd
         X = co.cX * D + co.dX
@@ -285,6 +297,12 @@ class CentrelineRod:
         if np.any(self.added):
             an = acc - np.sum(a3 * acc, axis=-1, keepdims=True) * a3
             force = force - self.added[:, None] * an
+        if self.stokes is not None:
+            zn, zt, _ = self.stokes
+            # −R(ζ_n v_n + ζ_t v_t e3) = −ζ_n ṙ − (ζ_t − ζ_n)(a3·ṙ) a3: R v_n = ṙ − (a3·ṙ) a3
+            rdot = X[..., 0:3]
+            along = np.sum(a3 * rdot, axis=-1, keepdims=True)
+            force = force - zn[:, None] * rdot - (zt - zn)[:, None] * along * a3
         if self.has_drag:
             v = np.einsum("...ji,...j->...i", R, X[..., 0:3])        # body velocity
             vt = v[..., 2:3]
@@ -299,6 +317,8 @@ class CentrelineRod:
         IW = self.inertia * W
         body = self.inertia * Wd + np.cross(W, IW)
         moment = -np.einsum("...ij,...j->...i", R, body)
+        if self.stokes is not None:
+            moment = moment - (self.stokes[2] * W[..., 2])[..., None] * a3
         return np.concatenate([force, moment], axis=-1)
 
     def kinematics(self, Y, old: CentrelineState, co: _Coefficients):

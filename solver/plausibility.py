@@ -25,7 +25,10 @@ an input outside them by about an order of magnitude or more):
   apart are a few diameters across: the seed has 0.05, the seabed case 1.25);
 * gravity above 100 m/s² (10 g; mm/s² gives 9810);
 * a fixed ``numerics.dt`` (or ``dt_max``) above the period of the rod's lowest bending
-  mode (:func:`lowest_bending_period`): not one bending motion is resolved;
+  mode (:func:`lowest_bending_period`): not one bending motion is resolved; in a viscous
+  fluid (``fluid.viscosity``) where that mode is overdamped, above its relaxation time
+  instead (:func:`lowest_bending_relaxation_time`: the mode creeps, and steps far beyond
+  the inertial times are what the overdamped limit is for);
 * an end's axial compression above 100 times the largest Euler load 4π²EI/L² (both ends
   clamped), or a tension that strains the rod by more than 10 % (T/EA): the
   inextensible rod holds for strains of a few per cent.
@@ -37,7 +40,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["plausibility_warnings", "suspects", "lowest_bending_period", "RANGES"]
+__all__ = ["plausibility_warnings", "suspects", "lowest_bending_period",
+           "lowest_bending_relaxation_time", "RANGES"]
 
 #: (low, high) of each checked quantity, SI; None: not bounded on that side
 RANGES = {
@@ -217,6 +221,30 @@ def lowest_bending_period(case) -> float:
     return 2.0 * math.pi / omega
 
 
+def lowest_bending_relaxation_time(case) -> float | None:
+    """With ``fluid.viscosity``, the time (s) in which the rod's lowest bending mode
+    (both ends pinned, k = π/L) relaxes, ζ_n/(EI k⁴), where that mode is overdamped,
+    ζ_n² > 4 m EI k⁴ (of m ẅ + ζ_n ẇ + EI k⁴ w = 0), with the stiffest EI,
+    the lightest m and the smallest resistive-force coefficient ζ_n of the rod's sections
+    (:mod:`solver.resistive_force`); None without viscosity or where the mode swings
+    (then :func:`lowest_bending_period` is the slowest motion)."""
+    fluid = case.fluid
+    if fluid is None or fluid.viscosity is None:
+        return None
+    from .resistive_force import resistive_force_coefficients
+
+    ei, mass, _ = _bending(case)
+    rod = case.rod
+    s = np.linspace(0.0, float(rod.length), 201)
+    ell = float(rod.length if fluid.slenderness_length is None else fluid.slenderness_length)
+    zeta_n = float(resistive_force_coefficients(fluid.viscosity, rod.evaluate("diameter", s),
+                                                ell)[0].min())
+    stiffness = ei * (math.pi / float(rod.length)) ** 4
+    if zeta_n**2 <= 4.0 * mass * stiffness:
+        return None
+    return zeta_n / stiffness
+
+
 def _steps(case) -> list[dict]:
     num = case.numerics
     if num.tolerance is not None:
@@ -225,6 +253,17 @@ def _steps(case) -> list[dict]:
             return []
     else:
         step, where = num.dt, "numerics.dt"
+    relaxation = lowest_bending_relaxation_time(case)
+    if relaxation is not None:
+        # overdamped in the viscous fluid: the mode creeps, its inertial period is no scale
+        if step > relaxation:
+            return [_warn(where, "dt_unresolved",
+                          f"a step of {step:g} s is {step / relaxation:.3g} times the "
+                          f"relaxation time of the rod's lowest bending mode in the viscous "
+                          f"fluid ({relaxation:.3g} s, pinned ends: ζ_n/(EI (π/L)⁴), "
+                          f"overdamped): no bending motion is resolved; a tenth of it, "
+                          f"{relaxation / 10:.2g} s, resolves that mode")]
+        return []
     period = lowest_bending_period(case)
     if step > period:
         return [_warn(where, "dt_unresolved",

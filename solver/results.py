@@ -385,8 +385,13 @@ def _summary(case: Any, n_points: int, times: np.ndarray, status: str) -> str:
     ]
     if getattr(case, "contact", None) is not None:
         parts.append(", with self-contact")
-    if getattr(case, "fluid", None) is not None:
-        parts.append(", in a fluid (added mass and Morison drag)")
+    fluid = getattr(case, "fluid", None)
+    if fluid is not None:
+        if getattr(fluid, "viscosity", None) is not None:
+            parts.append(", in a viscous fluid (added mass, Morison drag and the Stokes drag "
+                         "of resistive-force theory)")
+        else:
+            parts.append(", in a fluid (added mass and Morison drag)")
     parts.append(f"): {n_points} grid points")
     if times.size:
         parts.append(f", simulation time {times[0]:g} s to {times[-1]:g} s")
