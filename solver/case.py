@@ -1493,8 +1493,8 @@ class Numerics(BaseModel):
         "goyal",
         description="The dynamic scheme: goyal, the seed paper's body-frame unknowns (v, omega, f, "
         "kappa) with positions integrated; centreline, each node's position, frame, force and "
-        "moment as unknowns, the statics' rows with inertia (experimental: fixed steps, no contact "
-        "or seabed yet; docs/numerics.md).",
+        "moment as unknowns, the statics' rows with inertia (experimental: fixed steps; "
+        "docs/numerics.md).",
     )
 
     @model_validator(mode="after")

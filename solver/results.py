@@ -379,9 +379,15 @@ def _encoding(arr: np.ndarray, dims: tuple[str, ...]) -> dict[str, Any]:
 
 
 def _summary(case: Any, n_points: int, times: np.ndarray, status: str) -> str:
+    numerics = getattr(case, "numerics", None)
+    if getattr(numerics, "formulation", "goyal") == "centreline":
+        scheme = ("positions and frames as unknowns, the box rule in arclength and Lie-group "
+                  "generalized-alpha in time")
+    else:
+        scheme = "generalized-alpha scheme in space and time"
     parts = [
         "Nonlinear dynamics of a twisted elastic rod (dynamic Kirchhoff rod of Goyal, "
-        "Perkins & Lee, generalized-alpha scheme in space and time"
+        f"Perkins & Lee, {scheme}"
     ]
     if getattr(case, "contact", None) is not None:
         parts.append(", with self-contact")
