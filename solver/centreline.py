@@ -194,12 +194,15 @@ class CentrelineRod:
         self.added = np.asarray(props.added_mass, float)
         self.inertia = np.asarray(props.inertia, float)
         fl = case.fluid
+        #: Morison's drag factors per length (½ρ_f D C_dn, ½ρ_f πD C_dt), each (N+1,)
+        #: kg/m², or None without drag
+        self.morison = None
         if fl is not None:
-            self.cdn = 0.5 * fl.density * props.diameter * fl.drag_coefficient_normal
-            self.cdt = 0.5 * fl.density * np.pi * props.diameter * fl.drag_coefficient_tangential
-        else:
-            self.cdn = self.cdt = np.zeros(self.n)
-        self.has_drag = bool(np.any(self.cdn) or np.any(self.cdt))
+            cdn = 0.5 * fl.density * props.diameter * fl.drag_coefficient_normal
+            cdt = 0.5 * fl.density * np.pi * props.diameter * fl.drag_coefficient_tangential
+            if np.any(cdn) or np.any(cdt):
+                self.morison = (np.asarray(cdn, float) * np.ones(self.n),
+                                np.asarray(cdt, float) * np.ones(self.n))
         #: resistive-force theory's Stokes drag coefficients per length (N+1,) each: ζ_n,
         #: ζ_t (N s/m²) and ζ_r (N s) with ``fluid.viscosity``, else None
         self.stokes = None
@@ -303,15 +306,16 @@ class CentrelineRod:
             rdot = X[..., 0:3]
             along = np.sum(a3 * rdot, axis=-1, keepdims=True)
             force = force - zn[:, None] * rdot - (zt - zn)[:, None] * along * a3
-        if self.has_drag:
+        if self.morison is not None:
+            cdn, cdt = self.morison
             v = np.einsum("...ji,...j->...i", R, X[..., 0:3])        # body velocity
             vt = v[..., 2:3]
             vn = v.copy()
             vn[..., 2] = 0.0
             speed = np.sqrt(np.sum(vn * vn, axis=-1, keepdims=True))
             # |vt| written sqrt(vt²): complex-step safe; its derivative at 0 is 0 in both
-            b = (-self.cdn[:, None] * speed * vn
-                 - self.cdt[:, None] * np.sqrt(vt * vt) * vt * np.array([0.0, 0.0, 1.0]))
+            b = (-cdn[:, None] * speed * vn
+                 - cdt[:, None] * np.sqrt(vt * vt) * vt * np.array([0.0, 0.0, 1.0]))
             force = force + np.einsum("...ij,...j->...i", R, b)
         W, Wd = X[..., 3:6], Xd[..., 3:6]
         IW = self.inertia * W
