@@ -178,7 +178,8 @@ class CentrelineRod:
     CHORD_CONTRACTION = 0.25
     #: the largest scaled update taken as rounding's floor when it stops contracting
     FLOOR = 1e-6
-    #: the residual (max over the rows, each in its scale) that rounding leaves
+    #: the least rounding level of the residual (max over the rows, each in its scale);
+    #: a step's own is :func:`rounding_floor` where larger
     RESIDUAL_FLOOR = 1e-8
     MAX_ITERATIONS = 25
 
@@ -382,16 +383,15 @@ class CentrelineRod:
         each node and the closest point of the partner curve) at the nodes' r and ṙ of Y
         (N+1, 13), the candidates searched afresh (within the tolerance) so that the
         loads are a function of Y; the :class:`solver.contact.ContactEvaluation`; and with
-        ``want`` their derivative ∂L/∂r (3(N+1), 3(N+1)) sparse: node a's load w_a F
-        changes by w_a (∂F/∂r_b + c_X ∂F/∂v_b) δr_b + F (∂w_a/∂t) (∂t/∂r_b) δr_b (ṙ =
-        c_X Δr + d_X; the pair derivatives of the seed scheme's contact, exact). None
+        ``want`` their derivative ∂L/∂r (3(N+1), 3(N+1)) sparse
+        (:func:`solver.contact.assemble_nodal_jacobian` with ∂F/∂r + c_X ∂F/∂v, as
+        ṙ = c_X Δr + d_X; the pair derivatives of the seed scheme's contact, exact). None
         without ``contact``; (zeros, None, None) where no pair is within the tolerance.
         The loads act on positions only (the aperture's tangent test picks the
         candidates, a choice, not a load)."""
         if self.contact is None:
             return None
-        import scipy.sparse as sp
-        from .contact import assemble_nodal
+        from .contact import assemble_nodal, assemble_nodal_jacobian
 
         n1 = self.n
         Yr = np.real(Y)
@@ -412,18 +412,7 @@ class CentrelineRod:
         L = assemble_nodal(ev, n1)
         if not want:
             return L, ev, None
-        dF = ev.d_force_d_r + co.cX * ev.d_force_d_v                 # (P, 5, 3, 3)
-        block = (ev.weights[:, :, None, None, None] * dF[:, None, :, :, :]
-                 + (ev.force[:, None, None, :, None] * ev.d_weights_d_t[:, :, None, None, None]
-                    * ev.d_t_d_r[:, None, :, None, :]))
-        shape = (ev.count, 5, 5, 3, 3)
-        na = ev.nodes[:, :, None, None, None]
-        nb = ev.nodes[:, None, :, None, None]
-        ca = np.arange(3)[None, None, None, :, None]
-        cb = np.arange(3)[None, None, None, None, :]
-        rows = np.broadcast_to(3 * na + ca, shape).ravel()
-        cols = np.broadcast_to(3 * nb + cb, shape).ravel()
-        dL = sp.csr_matrix((block.ravel(), (rows, cols)), shape=(3 * n1, 3 * n1))
+        dL = assemble_nodal_jacobian(ev, n1, ev.d_force_d_r + co.cX * ev.d_force_d_v)
         return L, ev, dL
 
     def residual(self, Y, old, co, prob, seabed=None) -> np.ndarray:
@@ -568,8 +557,8 @@ class CentrelineRod:
         update scaled by :meth:`solver.statics.StaticProblem.scales` (n and m by their
         largest value at the start instead, where larger) is below TOLERANCE,
         or below FLOOR and no longer contracting (rounding's floor: the step's matrix
-        grows as 1/(β Δt²), and so does the rounding of its solve), or when a step with
-        a fresh Jacobian does not contract from a residual below RESIDUAL_FLOOR in the
+        grows as 1/(β Δt²), and so does the rounding of its solve), or when an update no
+        longer halves from a residual below its rounding level (:meth:`_factor`) in the
         rows' scales (an inextensible rod between held ends: its tension is rounding's
         noise at 1e-5 of B/L², the residual at 1e-10 of it). Raises
         :class:`StepFailure` without convergence in MAX_ITERATIONS, on a singular

@@ -451,26 +451,14 @@ def contact_loads(Y: np.ndarray, prob: StaticProblem) -> np.ndarray:
 
 def _contact_load_jacobian(Y, prob) -> sp.csr_matrix:
     """∂L/∂r (3(N+1), 3(N+1)) of :func:`contact_loads` from the dynamic model's exact
-    pair derivatives: node a's load w_a F changes by w_a δF + F (∂w_a/∂t) Σ_b ∂t/∂r_b
-    δr_b (``d_force_d_r``, ``d_weights_d_t``, ``d_t_d_r`` of
-    :class:`solver.contact.ContactEvaluation`)."""
+    pair derivatives (:func:`solver.contact.assemble_nodal_jacobian`)."""
+    from .contact import assemble_nodal_jacobian
+
     n1 = prob.n_segments + 1
     ev = _contact_evaluation(Y, prob)
     if ev is None or ev.count == 0:
         return sp.csr_matrix((3 * n1, 3 * n1))
-    # block[p, a, b] (3, 3): ∂(w_a F_p)/∂r_b
-    block = (ev.weights[:, :, None, None, None] * ev.d_force_d_r[:, None, :, :, :]
-             + (ev.force[:, None, None, :, None] * ev.d_weights_d_t[:, :, None, None, None]
-                * ev.d_t_d_r[:, None, :, None, :]))
-    P = ev.count
-    na = ev.nodes[:, :, None, None, None]
-    nb = ev.nodes[:, None, :, None, None]
-    ca = np.arange(3)[None, None, None, :, None]
-    cb = np.arange(3)[None, None, None, None, :]
-    shape = (P, 5, 5, 3, 3)
-    rows = np.broadcast_to(3 * na + ca, shape).ravel()
-    cols = np.broadcast_to(3 * nb + cb, shape).ravel()
-    return sp.csr_matrix((block.ravel(), (rows, cols)), shape=(3 * n1, 3 * n1))
+    return assemble_nodal_jacobian(ev, n1)
 
 
 def contact_gap(Y: np.ndarray, prob: StaticProblem) -> float:

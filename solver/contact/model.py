@@ -158,6 +158,33 @@ def assemble_nodal(ev: ContactEvaluation, n_nodes: int) -> np.ndarray:
     return out
 
 
+def assemble_nodal_jacobian(ev: ContactEvaluation, n_nodes: int, d_force=None):
+    """∂L/∂r (3 n_nodes, 3 n_nodes) sparse (CSR) of :func:`assemble_nodal`'s loads L,
+    N/m²: node a's load w_a F changes by w_a (∂F/∂r_b) δr_b + F (∂w_a/∂t) (∂t/∂r_b) δr_b
+    (the closest point sliding along the partner curve; ``d_weights_d_t``, ``d_t_d_r``).
+    ``d_force`` (P, 5, 3, 3) N/m² replaces ``ev.d_force_d_r`` where the velocities depend
+    on the positions too (a time step's ∂F/∂r + c ∂F/∂v, c in 1/s). Entries of a repeated
+    ghost node add up. The statics' and the centreline scheme's contact Jacobian."""
+    import scipy.sparse as sp
+
+    n3 = 3 * int(n_nodes)
+    if ev.count == 0:
+        return sp.csr_matrix((n3, n3))
+    dF = ev.d_force_d_r if d_force is None else d_force
+    # block[p, a, b] (3, 3): ∂(w_a F_p)/∂r_b
+    block = (ev.weights[:, :, None, None, None] * dF[:, None, :, :, :]
+             + (ev.force[:, None, None, :, None] * ev.d_weights_d_t[:, :, None, None, None]
+                * ev.d_t_d_r[:, None, :, None, :]))
+    shape = (ev.count, 5, 5, 3, 3)
+    na = ev.nodes[:, :, None, None, None]
+    nb = ev.nodes[:, None, :, None, None]
+    ca = np.arange(3)[None, None, None, :, None]
+    cb = np.arange(3)[None, None, None, None, :]
+    rows = np.broadcast_to(3 * na + ca, shape).ravel()
+    cols = np.broadcast_to(3 * nb + cb, shape).ravel()
+    return sp.csr_matrix((block.ravel(), (rows, cols)), shape=(n3, n3))
+
+
 def _spec_value(spec, name, default=None):
     if isinstance(spec, dict):
         return spec.get(name, default)

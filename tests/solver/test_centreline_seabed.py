@@ -114,9 +114,8 @@ def test_a_cable_rolls_down_a_slope_at_two_thirds_g_sin_theta():
     1 mm/s slip velocity, vacuum, E = 5e8 Pa) rolls without slip: a solid cylinder's
     a = (2/3) g sin θ, ½ a t² = 0.7911 m along the slope in 1 s. Measured ratios
     1.0000354, 1.0000354, 1.0000359 at Δt = 0.01, 0.005, 0.0025 s: the start's
-    accelerations are the consistent ones (Taylor steps with the contact set held; a
-    start at Ẋ = 0 lagged by about Δt/2, 0.91 / 0.49 / 0.25 % short); the seed scheme
-    travels 8 % less (issue 79)."""
+    accelerations are the consistent ones (Taylor steps with the contact set held); the
+    seed scheme travels 8 % less (issue 79)."""
     th = math.radians(14.0)
     xs = [-5.0, 5.0]
     grid = {"x": xs, "y": [-5.0, 5.0], "z": [[-math.tan(th) * x] * 2 for x in xs]}
@@ -163,9 +162,8 @@ def test_the_hockle_case_pushed_in_lifts_off_the_bottom():
     1 s the far end pushes the twisted cable in, the friction's regularised slope (stiff
     against Δt) makes Newton's first steps from rest overshoot, and the cable leaves the
     bottom near the pushed end. The run gets through (Newton backtracks along its steps
-    and accepts a residual at rounding's floor, :meth:`CentrelineRod.newton`; before,
-    every Δt cut of the first pushed step was refused), the held end on its path and the
-    centreline inextensible to Newton's tolerance."""
+    and accepts a residual at its rounding level, :meth:`CentrelineRod.newton`), the held
+    end on its path and the centreline inextensible to Newton's tolerance."""
     from pathlib import Path
 
     spec = Case.from_file(Path(__file__).parents[2] / "cases" / "seabed-hockle.yaml"
