@@ -465,6 +465,17 @@ def _number_or_table(value: Any, handler: Any) -> Union[float, Table]:
 Material = Annotated[Union[Annotated[float, Field(gt=0)], Profile], WrapValidator(_material)]
 
 
+def _number_or_profile(value: Any, handler: Any) -> Union[float, Profile]:
+    """A finite number of either sign, or a :class:`Profile`."""
+    if isinstance(value, (dict, Profile)):
+        return Profile.model_validate(value)
+    return _as_float(value)
+
+
+#: a signed property along the rod: a finite number or a profile in s
+SignedProfile = Annotated[Union[float, Profile], WrapValidator(_number_or_profile)]
+
+
 # --------------------------------------------------------------------------- representable
 
 #: the normal range of a double: below DOUBLE_MIN a number loses significant bits (subnormal)
@@ -600,17 +611,25 @@ class Rod(BaseModel):
         None, gt=0, description="The cable's minimum bend radius (MBR, from its datasheet), m; > 0; "
         "null: none. The result's events then say when the smallest bend radius first falls "
         "below it (solver.results.run_events).")
+    intrinsic_curvature: Optional[list[SignedProfile]] = Field(
+        None, min_length=3, max_length=3,
+        description="The unloaded rod's curvatures and twist [kappa0_1, kappa0_2, kappa0_3] in the "
+        "body frame, 1/m, each a number or a profile in s (m); the constitutive law is "
+        "q = K (kappa - kappa0). null: straight and untwisted. Taken by the statics and "
+        "numerics.formulation: centreline.")
 
     @model_validator(mode="after")
     def _check_stations(self) -> "Rod":
         errors = representability_errors(self)
-        for name in MATERIAL_PROPERTIES:
-            prop = getattr(self, name)
+        profiles = [((name,), getattr(self, name)) for name in MATERIAL_PROPERTIES]
+        profiles += [(("intrinsic_curvature", i), prop)
+                     for i, prop in enumerate(self.intrinsic_curvature or ())]
+        for loc, prop in profiles:
             if isinstance(prop, Profile):
                 for k, s in enumerate(prop.s):
                     if not (0.0 <= s <= self.length):
                         errors.append(
-                            _err((name, "s", k), "out_of_range", f"must be within [0, length] = [0, {self.length!r}] m", s)
+                            _err(loc + ("s", k), "out_of_range", f"must be within [0, length] = [0, {self.length!r}] m", s)
                         )
         _raise("Rod", errors)
         return self
@@ -620,8 +639,19 @@ class Rod(BaseModel):
         # added after schema 1's first release: written only when given, so that a case
         # without it keeps its canonical JSON and spec_hash
         out = handler(self)
-        if self.minimum_bend_radius is None:
-            out.pop("minimum_bend_radius", None)
+        for name in ("minimum_bend_radius", "intrinsic_curvature"):
+            if getattr(self, name) is None:
+                out.pop(name, None)
+        return out
+
+    def evaluate_intrinsic_curvature(self, s: Any) -> np.ndarray:
+        """κ⁰ (..., 3) (1/m) at arclengths ``s`` (m, any shape): each component's number
+        broadcast or profile interpolated linearly (held outside its stations); zeros
+        without ``intrinsic_curvature``. Raises nothing."""
+        s_arr = np.asarray(s, dtype=float)
+        out = np.zeros(s_arr.shape + (3,))
+        for i, prop in enumerate(self.intrinsic_curvature or ()):
+            out[..., i] = prop.evaluate(s_arr) if isinstance(prop, Profile) else float(prop)
         return out
 
     def evaluate(self, name: str, s: Any) -> np.ndarray:
@@ -1836,8 +1866,15 @@ class Case(BaseModel):
         """What the centreline scheme does not take yet, refused at numerics.formulation
         (the end conditions the statics' end rows cannot say are refused when the run is
         built, :class:`solver.centreline.CentrelineError`); and what the seed scheme
-        (goyal) does not take, refused at the field: ``fluid.viscosity``."""
+        (goyal) does not take, refused at the field: ``fluid.viscosity``,
+        ``rod.intrinsic_curvature``."""
         if self.numerics.formulation != "centreline":
+            if self.rod.intrinsic_curvature is not None:
+                return [_err(("rod", "intrinsic_curvature"), "unsupported",
+                             "the goyal scheme (numerics.formulation's default) does not "
+                             "take an intrinsic curvature: set numerics.formulation: "
+                             "centreline (the statics and the centreline scheme take it)",
+                             self.rod.intrinsic_curvature)]
             if self.fluid is not None and self.fluid.viscosity is not None:
                 return [_err(("fluid", "viscosity"), "unsupported",
                              "the goyal scheme (numerics.formulation's default) does not "

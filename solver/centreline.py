@@ -733,18 +733,18 @@ class CentrelineRod:
 
     # ------------------------------------------------------------------ outputs
     def body_fields(self, state: CentrelineState) -> dict:
-        """The seed's body-frame fields of a state: v, ω, f (Rᵀ n), κ (K⁻¹ Rᵀ m), each
-        (N+1, 3), with the positions r (N+1, 3) and quaternions q (N+1, 4)."""
+        """The seed's body-frame fields of a state: v, ω, f (Rᵀ n), κ (K⁻¹ Rᵀ m + κ⁰),
+        each (N+1, 3), with the positions r (N+1, 3) and quaternions q (N+1, 4)."""
         Y = state.Y
         R = st._rot(Y[:, 3:7])
         body = lambda x: np.einsum("kji,kj->ki", R, x)     # noqa: E731
         return {"v": body(state.X[:, 0:3]), "omega": state.X[:, 3:6].copy(),
                 "f": body(Y[:, 7:10]),
-                "kappa": body(Y[:, 10:13]) / self.props.stiffness,
+                "kappa": body(Y[:, 10:13]) / self.props.stiffness + self.problem(state.t).kappa0,
                 "r": Y[:, 0:3].copy(), "q": Y[:, 3:7].copy()}
 
     def energies(self, state: CentrelineState) -> dict:
-        """Kinetic ½∫(ṙ·M ṙ + W·I W) ds, elastic ½∫κ·Kκ ds and the dead loads'
+        """Kinetic ½∫(ṙ·M ṙ + W·I W) ds, elastic ½∫(κ − κ⁰)·K(κ − κ⁰) ds and the dead loads'
         potential −∫f·r ds − Σ F·r over the ends' loaded components (J, trapezoid in s;
         :func:`solver.statics.fields`)."""
         w = self.props.quad_weights

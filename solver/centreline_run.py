@@ -83,7 +83,7 @@ class CentrelineRun:
         # the seed scheme's names of the current state (:meth:`_publish`)
         self.state = SimpleNamespace(t=0.0, phi=np.zeros(2), work_in=0.0, seabed_work=0.0)
         if start is not None:
-            Y, X = _from_start(start, rod.props.stiffness, rod.h)
+            Y, X = _from_start(start, rod.props.stiffness, rod.h, rod.problem(start.t).kappa0)
             t = float(start.t)
             if start.phi is not None:
                 self.state.phi = np.asarray(start.phi, float).copy()
@@ -250,9 +250,9 @@ class CentrelineRun:
         return float(per @ self.props.quad_weights)
 
 
-def _from_start(start, stiffness, h):
+def _from_start(start, stiffness, h, kappa0):
     """(Y (N+1, 13), X (N+1, 6)) of a :class:`solver.initial.StartState`: n = R f,
-    m = R K κ, ṙ = R v, W = ω, and the centreline the box rule builds from its frames
+    m = R K (κ − κ⁰) (κ⁰ (N+1, 3) the intrinsic curvature, 1/m), ṙ = R v, W = ω, and the centreline the box rule builds from its frames
     from its first point (:func:`solver.centreline.box_centreline`: another scheme's
     positions satisfy the position rows only to its discretisation error)."""
     q = np.asarray(start.q, float)
@@ -261,6 +261,6 @@ def _from_start(start, stiffness, h):
     glob = lambda x: np.einsum("kij,kj->ki", R, np.asarray(x, float))   # noqa: E731
     r = box_centreline(q, np.asarray(start.r, float)[0], h)
     Y = np.concatenate([r, q, glob(start.f),
-                        glob(stiffness * np.asarray(start.kappa, float))], axis=1)
+                        glob(stiffness * (np.asarray(start.kappa, float) - kappa0))], axis=1)
     X = np.concatenate([glob(start.v), np.asarray(start.omega, float)], axis=1)
     return Y, X

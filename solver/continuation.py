@@ -69,16 +69,16 @@ def range_unrepresentable(p0: StaticProblem, p1: StaticProblem) -> Optional[str]
     The bordered system of every corrector step carries the parameter's column
     G_λ̂ = (∂G/∂λ)·(λ1 − λ0) (:meth:`_Scaled.g_lam`): the change of the problem's loads over
     the whole range, beside the rod's own entries, whose sizes are the rod's units (forces
-    EJ/L², distributed loads EJ/L³, positions L, rotations 1, stiffness EJ). Where that change
-    is more than 1/PIVOT_RTOL = 1e14 of those units, every pivot of the rod's rows is below
+    EJ/L², distributed loads EJ/L³, positions L, rotations 1, stiffness EJ, curvatures
+    1/L). Where that change is more than 1/PIVOT_RTOL = 1e14 of those units, every pivot of the rod's rows is below
     PIVOT_RTOL of the column's and the LU is singular to rounding
     (:func:`solver.statics._check_pivots`), from the first step; a `to` of ±1e308 N made the
     change infinite as well. Only the data the parameter moves are compared (end forces and
-    positions, distributed loads, end twist, stiffness)."""
+    positions, distributed loads, end twist, stiffness, intrinsic curvature)."""
     b = float(np.max(p0.stiffness[:, :2]))
     length = float(p0.length)
     units = {"force": b / length**2, "load": b / length**3, "position": length,
-             "twist": 1.0, "stiffness": b}
+             "twist": 1.0, "stiffness": b, "curvature": 1.0 / length}
     changes = {
         "the end forces": (np.concatenate([p1.start.force - p0.start.force,
                                            p1.end.force - p0.end.force]), "force", "N"),
@@ -89,6 +89,7 @@ def range_unrepresentable(p0: StaticProblem, p1: StaticProblem) -> Optional[str]
         "the end twist": (np.array([p1.start.twist - p0.start.twist,
                                     p1.end.twist - p0.end.twist]), "twist", "rad"),
         "the stiffness": (p1.stiffness - p0.stiffness, "stiffness", "N m²"),
+        "the intrinsic curvature": (p1.kappa0 - p0.kappa0, "curvature", "1/m"),
     }
     limit = 1.0 / PIVOT_RTOL
     for name, (delta, unit, si) in changes.items():

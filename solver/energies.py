@@ -6,8 +6,9 @@ total is conserved to round-off and Newton tolerance rather than to O(Δs²) (a 
 sum over nodes fluctuates by about Δs²). Quadratic terms are ½⟨B κ⟩·⟨κ⟩, ½⟨m v⟩·⟨v⟩, so
 q is averaged, not κ, where the stiffness varies.
 
-* bending   U_b = ½ ∫ (EJ1 κ1² + EJ2 κ2²) ds
-* torsion   U_t = ½ ∫ GJ3 κ3² ds
+* bending   U_b = ½ ∫ (EJ1 (κ1 − κ⁰1)² + EJ2 (κ2 − κ⁰2)²) ds
+* torsion   U_t = ½ ∫ GJ3 (κ3 − κ⁰3)² ds
+  (κ⁰ the intrinsic curvature, ``props.intrinsic_curvature``, zero where none is given)
 * kinetic   T   = ½ ∫ (ρA |v|² + ωᵀ I ω) ds      (the rod's own)
 * fluid     T_f = ½ ∫ C_a ρ_f A |v_n|² ds        (the added mass's share, reported apart)
 * total     E   = U_b + U_t + T + T_f
@@ -50,10 +51,22 @@ def _energies_kernel(Y, stiffness, rho_a, inertia, added_mass, ds, out):
     out[3] = 0.5 * ds * tf
 
 
+def _elastic_strain(Y: np.ndarray, props) -> np.ndarray:
+    """Y (N+1, 12) with κ replaced by κ − κ⁰ (a copy where the rod has an intrinsic
+    curvature, Y itself where it has none)."""
+    kappa0 = getattr(props, "intrinsic_curvature", None)
+    if kappa0 is None:
+        return Y
+    Z = np.array(Y, dtype=float)
+    Z[:, 9:12] -= kappa0
+    return Z
+
+
 def _energy_parts(Y: np.ndarray, props) -> np.ndarray:
     """Bending, torsion, kinetic and fluid energy (4,), J, of the state Y (N+1, 12)
     (:func:`_energies_kernel`)."""
     e = np.empty(4)
+    Y = _elastic_strain(Y, props)
     _energies_kernel(np.ascontiguousarray(Y, dtype=float), props.stiffness, props.rho_a,
                      props.inertia, props.added_mass, float(props.ds), e)
     return e
@@ -86,10 +99,11 @@ def total_and_kinetic(Y: np.ndarray, props) -> tuple[float, float]:
 def end_loads(Y: np.ndarray, props) -> np.ndarray:
     """Loads (2, 6) on the rod at s = 0 and s = L, conjugate to (v, ω) of the end nodes
     in the body frame: −(f, q) at s = 0 and +(f, q) at s = L, f in N and q = diag(EJ1,
-    EJ2, GJ3)·κ in N·m (seed eqs. 2-5, boundary terms of the box scheme's flux).
+    EJ2, GJ3)·(κ − κ⁰) in N·m (seed eqs. 2-5, boundary terms of the box scheme's flux).
 
     Y : (N+1, 12) state (v, ω, f, κ); props : RodProperties. Raises nothing.
     """
+    Y = _elastic_strain(Y, props)
     out = np.empty((2, 6))
     out[0, 0:3] = -Y[0, 6:9]
     out[0, 3:6] = -props.stiffness[0] * Y[0, 9:12]

@@ -39,18 +39,22 @@ __all__ = ["LoadModel", "PointLoads", "point_loads_into", "end_reactions"]
 NODE_SNAP = 1e-9
 
 
-def end_reactions(Y, q, stiffness) -> dict:
+def end_reactions(Y, q, stiffness, kappa0=None) -> dict:
     """The loads the surroundings apply to the rod at its ends, global frame (the output
     group ``reactions``): force −R f and moment −R q at s = 0, R f and R q at s = L
-    (q = B κ; the sign convention of :mod:`solver.boundary`), each (3,) N or N m, from
-    the unknowns Y (N+1, 12), the frames' quaternions q (N+1, 4) and the stiffness
-    (N+1, 3). A point load at an end is not part of its reaction (f at s = L is the
-    force beyond the load, at s = 0 the one before it: module docstring)."""
+    (q = B (κ − κ⁰); the sign convention of :mod:`solver.boundary`), each (3,) N or N m,
+    from the unknowns Y (N+1, 12), the frames' quaternions q (N+1, 4), the stiffness
+    (N+1, 3) and the intrinsic curvature κ⁰ (N+1, 3) 1/m (None: zero). A point load at
+    an end is not part of its reaction (f at s = L is the force beyond the load, at
+    s = 0 the one before it: module docstring)."""
     from .kinematics import quat_to_matrix
 
     R = quat_to_matrix(np.asarray(q, float)[[0, -1]])
     f = np.asarray(Y, float)[[0, -1], 6:9]
-    m = np.asarray(stiffness, float)[[0, -1]] * np.asarray(Y, float)[[0, -1], 9:12]
+    kappa = np.asarray(Y, float)[[0, -1], 9:12]
+    if kappa0 is not None:
+        kappa = kappa - np.asarray(kappa0, float)[[0, -1]]
+    m = np.asarray(stiffness, float)[[0, -1]] * kappa
     return {"reaction_force_start": -(R[0] @ f[0]), "reaction_force_end": R[1] @ f[1],
             "reaction_moment_start": -(R[0] @ m[0]), "reaction_moment_end": R[1] @ m[1]}
 

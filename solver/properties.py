@@ -4,7 +4,9 @@ For a solid circular section of diameter D (m):
 
 * area A = πD²/4 (m²);
 * bending area moments J1 = J2 = A D²/16 = πD⁴/64 (m⁴), torsion J3 = A D²/8 = πD⁴/32;
-* stiffness diag(EJ1, EJ2, GJ3) (N m²), the constitutive law of seed eq. (1), q = Bκ;
+* stiffness diag(EJ1, EJ2, GJ3) (N m²), the constitutive law of seed eq. (1), q = Bκ,
+  about the intrinsic curvature κ⁰ (1/m, ``rod.intrinsic_curvature``) where one is
+  given: q = B(κ − κ⁰);
 * mass per length ρA (kg/m), mass moment of inertia per length I = ρ·diag(J1, J2, J3)
   (kg m);
 * with a fluid (Morison, numerics-notes §2.3): added mass C_a ρ_f A on the normal
@@ -15,6 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Optional
 
 import numpy as np
 
@@ -38,6 +41,7 @@ class RodProperties:
     mass_t: np.ndarray       # (N+1, 3) translational mass incl. added mass, kg/m
     added_mass: np.ndarray   # (N+1,) C_a ρ_f A on the normal components, kg/m
     quad_weights: np.ndarray  # (N+1,) trapezoid weights for ∫ ds, m
+    intrinsic_curvature: Optional[np.ndarray] = None  # (N+1, 3) κ⁰, 1/m; None: zero
 
     @classmethod
     def from_case(cls, case) -> "RodProperties":
@@ -72,8 +76,12 @@ class RodProperties:
         mass_t = np.stack([rho_a + added, rho_a + added, rho_a], axis=1)
         w = np.full(n + 1, ds)
         w[0] = w[-1] = 0.5 * ds
+        kappa0 = None
+        if getattr(rod, "intrinsic_curvature", None) is not None:
+            kappa0 = np.ascontiguousarray(rod.evaluate_intrinsic_curvature(s), dtype=float)
         return cls(s=s, ds=ds, diameter=d, area=area, stiffness=stiffness, rho_a=rho_a,
-                   inertia=inertia, mass_t=mass_t, added_mass=added, quad_weights=w)
+                   inertia=inertia, mass_t=mass_t, added_mass=added, quad_weights=w,
+                   intrinsic_curvature=kappa0)
 
     @cached_property
     def fastest_wave_period(self) -> float:

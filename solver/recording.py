@@ -159,7 +159,9 @@ def snapshot(run, fields: set, route_current: bool = False, pose=None) -> dict:
     if "kappa" in fields:
         out["kappa"] = Y[:, 9:12].copy()
     if "moment" in fields:
-        out["moment"] = run.props.stiffness * Y[:, 9:12]
+        kappa0 = run.props.intrinsic_curvature
+        out["moment"] = run.props.stiffness * (Y[:, 9:12] if kappa0 is None
+                                               else Y[:, 9:12] - kappa0)
     if "position" in fields:
         out["position"] = run.state.r.copy()
     if "orientation" in fields:
@@ -171,7 +173,8 @@ def snapshot(run, fields: set, route_current: bool = False, pose=None) -> dict:
     if "topology" in fields:
         out.update(_topology(run))
     if "reactions" in fields:
-        out.update(end_reactions(Y, run.state.q, run.props.stiffness))
+        out.update(end_reactions(Y, run.state.q, run.props.stiffness,
+                                 run.props.intrinsic_curvature))
     if "contact" in fields:
         out["contact_count"] = run.contact_count
         out["min_surface_gap"] = run.min_gap

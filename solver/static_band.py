@@ -74,15 +74,16 @@ def _rotation(p, R):
 
 
 @numba.njit(cache=True)
-def _cell(y, Ka, Kb, fa, fb, h, Ra, Rb, kb, out):
+def _cell(y, Ka, Kb, k0a, k0b, fa, fb, h, Ra, Rb, kb, out):
     """The 13 box-rule rows of one cell (solver.statics._cell_rows) from y (26,): node a's
-    13 unknowns (r, p, n, m) then node b's; Ka, Kb (3,) stiffness, fa, fb (3,) loads;
-    Ra, Rb (3, 3) and kb (3,) work arrays."""
+    13 unknowns (r, p, n, m) then node b's; Ka, Kb (3,) stiffness, k0a, k0b (3,) the
+    intrinsic curvature κ⁰ (1/m), fa, fb (3,) loads; Ra, Rb (3, 3) and kb (3,) work
+    arrays. The curvature is κ = K⁻¹Rᵀm + κ⁰ (the law m = R K (κ − κ⁰))."""
     _rotation(y[3:7], Ra)
     _rotation(y[16:20], Rb)
     for c in range(3):
-        ka = (Ra[0, c] * y[10] + Ra[1, c] * y[11] + Ra[2, c] * y[12]) / Ka[c]
-        kk = (Rb[0, c] * y[23] + Rb[1, c] * y[24] + Rb[2, c] * y[25]) / Kb[c]
+        ka = (Ra[0, c] * y[10] + Ra[1, c] * y[11] + Ra[2, c] * y[12]) / Ka[c] + k0a[c]
+        kk = (Rb[0, c] * y[23] + Rb[1, c] * y[24] + Rb[2, c] * y[25]) / Kb[c] + k0b[c]
         kb[c] = 0.5 * (ka + kk)
         out[c] = y[13 + c] - y[c] - 0.5 * h * (Ra[c, 2] + Rb[c, 2])
         out[7 + c] = y[20 + c] - y[7 + c] + 0.5 * h * (fa[c] + fb[c])
@@ -100,12 +101,13 @@ def _cell(y, Ka, Kb, fa, fb, h, Ra, Rb, kb, out):
 
 
 @numba.njit(cache=True)
-def cell_band(Y, K, F, h, ab):
+def cell_band(Y, K, K0, F, h, ab):
     """Write ∂(cell rows)/∂Y of every cell into the band storage ``ab`` (its other
     entries untouched).
 
-    Y (N+1, 13) the node unknowns, K (N+1, 3) EJ1, EJ2, GJ3 (N m²), F (N+1, 3) the dead
-    load per length (N/m), h the cell length (m); ab (2 KL + KU + 1, 13(N+1)).
+    Y (N+1, 13) the node unknowns, K (N+1, 3) EJ1, EJ2, GJ3 (N m²), K0 (N+1, 3) the
+    intrinsic curvature κ⁰ (1/m), F (N+1, 3) the dead load per length (N/m), h the cell
+    length (m); ab (2 KL + KU + 1, 13(N+1)).
     The rows are linear in r, n and m (solver.statics, the box rule): their columns
     are written in closed form, ±I, h/2 [a3]× of the moment rows on n, and on m the
     quaternion rows' −h/8 L(p_a + p_b) K⁻¹ Rᵀ (L(P) v = P ⊗ (0, v)); the 8 quaternion
@@ -162,7 +164,7 @@ def cell_band(Y, K, F, h, ab):
         # the quaternion columns by the complex step
         for j in (3, 4, 5, 6, 16, 17, 18, 19):
             y[j] += 1j * _EPS
-            _cell(y, K[i], K[i + 1], F[i], F[i + 1], h, Ra, Rb, kb, out)
+            _cell(y, K[i], K[i + 1], K0[i], K0[i + 1], F[i], F[i + 1], h, Ra, Rb, kb, out)
             y[j] = y[j].real
             col = ca + j
             for r in range(NV):
@@ -170,9 +172,9 @@ def cell_band(Y, K, F, h, ab):
 
 
 @numba.njit(cache=True)
-def cell_residual(Y, K, F, h, out):
+def cell_residual(Y, K, K0, F, h, out):
     """The cells' 13 rows of :func:`solver.statics.residual` for a real Y (N+1, 13) into
-    out (N, 13) (K, F, h as :func:`cell_band`)."""
+    out (N, 13) (K, K0, F, h as :func:`cell_band`)."""
     N = Y.shape[0] - 1
     y = np.empty(26)
     Ra = np.empty((3, 3))
@@ -182,7 +184,7 @@ def cell_residual(Y, K, F, h, out):
         for j in range(NV):
             y[j] = Y[i, j]
             y[NV + j] = Y[i + 1, j]
-        _cell(y, K[i], K[i + 1], F[i], F[i + 1], h, Ra, Rb, kb, out[i])
+        _cell(y, K[i], K[i + 1], K0[i], K0[i + 1], F[i], F[i + 1], h, Ra, Rb, kb, out[i])
 
 
 @numba.njit(cache=True)

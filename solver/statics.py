@@ -9,8 +9,10 @@ unshearable Kirchhoff rod with global-frame unknowns per node k = 0..N (13 per n
     n_k (3)   internal force, N (global): the force of the part s+ on the part s-
     m_k (3)   internal moment, N m (global)
 
-with the constitutive law m = R K κ, K = diag(EJ1, EJ2, GJ3) (seed eq. 1, natural shape
-straight), so κ_k = K⁻¹ R(p_k)ᵀ m_k. Kirchhoff's static equations (Antman, *Nonlinear
+with the constitutive law m = R K (κ − κ⁰), K = diag(EJ1, EJ2, GJ3) (seed eq. 1; κ⁰ the
+intrinsic curvature and twist, ``rod.intrinsic_curvature``, zero for a rod straight and
+untwisted when unloaded; the linear law about a curved rest shape, Antman, *Nonlinear
+Problems of Elasticity*, 2nd ed., § 8.2), so κ_k = K⁻¹ R(p_k)ᵀ m_k + κ⁰_k. Kirchhoff's static equations (Antman, *Nonlinear
 Problems of Elasticity*, ch. 8; the form of van der Heijden & Thompson, Nonlinear Dyn. 21,
 2000) ::
 
@@ -179,6 +181,8 @@ class StaticProblem:
               repulsion, without damping (:func:`contact_loads`)
     seabed : :class:`solver.seabed.SeabedContact` or None: the bottom's normal spring, without
              damping and friction (:func:`seabed_loads`)
+    intrinsic_curvature : (N+1, 3) κ⁰ (1/m) in the body frame, or None (zero): the
+             curvatures and twist of the unloaded rod, m = R K (κ − κ⁰)
     """
 
     length: float
@@ -192,6 +196,14 @@ class StaticProblem:
     reference: np.ndarray = field(default_factory=lambda: np.array([1.0, 0, 0, 0]))
     contact: Optional[object] = None
     seabed: Optional[object] = None
+    intrinsic_curvature: Optional[np.ndarray] = None
+
+    @property
+    def kappa0(self) -> np.ndarray:
+        """(N+1, 3) the intrinsic curvature κ⁰, 1/m (zeros where none is given)."""
+        if self.intrinsic_curvature is None:
+            return np.zeros((self.n_segments + 1, 3))
+        return self.intrinsic_curvature
 
     @property
     def h(self) -> float:
@@ -228,7 +240,7 @@ def residual(Y, prob: StaticProblem) -> np.ndarray:
     """
     out = np.empty(NV * (prob.n_segments + 1), dtype=Y.dtype)
     if Y.dtype == np.float64 and Y.ndim == 2:        # the compiled cells
-        cell_residual(np.ascontiguousarray(Y), prob.stiffness, prob.load, prob.h,
+        cell_residual(np.ascontiguousarray(Y), prob.stiffness, prob.kappa0, prob.load, prob.h,
                       out[N_START:-N_END].reshape(prob.n_segments, NV))
     else:                                             # complex (the complex step)
         out[N_START:-N_END] = _cell_rows(Y, prob).ravel()
@@ -247,7 +259,7 @@ def _cell_rows(Y, prob: StaticProblem) -> np.ndarray:
     r, p, n, m = Y[..., 0:3], Y[..., 3:7], Y[..., 7:10], Y[..., 10:13]
     R = _rot(p)
     a3 = R[..., :, 2]
-    kappa = np.einsum("...kji,...kj->...ki", R, m) / prob.stiffness
+    kappa = np.einsum("...kji,...kj->...ki", R, m) / prob.stiffness + prob.kappa0
     kbar = 0.5 * (kappa[..., :-1, :] + kappa[..., 1:, :])
     zero = np.zeros(kbar.shape[:-1] + (1,), dtype=kbar.dtype)
     omega = np.concatenate([zero, kbar], axis=-1)
@@ -364,7 +376,8 @@ def band_jacobian(Y: np.ndarray, prob: StaticProblem) -> np.ndarray:
     N = prob.n_segments
     n = NV * (N + 1)
     ab = band_storage(n)
-    cell_band(np.ascontiguousarray(Y, dtype=float), prob.stiffness, prob.load, prob.h, ab)
+    cell_band(np.ascontiguousarray(Y, dtype=float), prob.stiffness, prob.kappa0, prob.load,
+              prob.h, ab)
     ends = np.empty((2, NV), dtype=complex)
     diag = KL + KU
     start_rows = np.arange(N_START)
@@ -642,7 +655,7 @@ def solve(prob: StaticProblem, Y0: Optional[np.ndarray] = None, *, tol: float = 
 
     Converged when the scaled update (by :meth:`StaticProblem.scales`) is below ``tol``.
     Without convergence from the start and with ``ramp``, the dead loads (distributed
-    and end forces) are raised from 0 in steps (halved on a failure, at most 64 solves),
+    and end forces) and the intrinsic curvature are raised from 0 in steps (halved on a failure, at most 64 solves),
     each solve starting from the last. Raises :class:`StaticsError` on a singular
     Jacobian or no convergence.
     """
@@ -668,9 +681,12 @@ def solve(prob: StaticProblem, Y0: Optional[np.ndarray] = None, *, tol: float = 
 
 
 def scaled_loads(prob: StaticProblem, a: float) -> StaticProblem:
-    """``prob`` with every dead load (distributed, end forces) times ``a``."""
+    """``prob`` with every dead load (distributed, end forces) and the intrinsic curvature
+    κ⁰ times ``a`` (the ramp of :func:`solve`: κ⁰ loads the straight start as a moment
+    −K κ⁰ would)."""
+    k0 = None if prob.intrinsic_curvature is None else a * prob.intrinsic_curvature
     return replace(prob, load=a * prob.load, start=replace(prob.start, force=a * prob.start.force),
-                   end=replace(prob.end, force=a * prob.end.force))
+                   end=replace(prob.end, force=a * prob.end.force), intrinsic_curvature=k0)
 
 
 def _row_scales(prob: StaticProblem) -> np.ndarray:
@@ -882,13 +898,15 @@ def critical_mode(Y: np.ndarray, prob: StaticProblem) -> np.ndarray:
 
 def fields(Y: np.ndarray, prob: StaticProblem) -> dict:
     """Positions (N+1, 3) m, κ (N+1, 3) 1/m, quaternions (N+1, 4), internal force and
-    moment (N+1, 3) N, N m, the elastic energy ½∫κ·Kκ ds (J, trapezoid) and the potential
-    of the dead loads −∫f·r ds − Σ F·r over the ends' loaded components (J)."""
+    moment (N+1, 3) N, N m, the elastic energy ½∫(κ − κ⁰)·K(κ − κ⁰) ds (J, trapezoid) and
+    the potential of the dead loads −∫f·r ds − Σ F·r over the ends' loaded components
+    (J)."""
     R = _rot(Y[:, 3:7])
-    kappa = np.einsum("kji,kj->ki", R, Y[:, 10:13]) / prob.stiffness
+    strain = np.einsum("kji,kj->ki", R, Y[:, 10:13]) / prob.stiffness     # κ − κ⁰
+    kappa = strain + prob.kappa0
     w = np.full(prob.n_segments + 1, prob.h)
     w[0] = w[-1] = 0.5 * prob.h
-    elastic = 0.5 * float(np.sum(w * np.sum(prob.stiffness * kappa**2, axis=1)))
+    elastic = 0.5 * float(np.sum(w * np.sum(prob.stiffness * strain**2, axis=1)))
     potential = -float(np.sum(w * np.sum(prob.load * Y[:, 0:3], axis=1)))
     for end, r in ((prob.start, Y[0, 0:3]), (prob.end, Y[-1, 0:3])):
         loaded = ~end.held
@@ -1079,7 +1097,8 @@ def problem_at(case, t: float, props, q, r, skip=()) -> StaticProblem:
                          stiffness=np.asarray(props.stiffness, float), load=load,
                          start=ends["start"], end=ends["end"], mass=props.rho_a,
                          inertia=inertia, reference=np.asarray(q[0], float),
-                         contact=contact, seabed=seabed)
+                         contact=contact, seabed=seabed,
+                         intrinsic_curvature=props.intrinsic_curvature)
 
 
 def with_load(prob: StaticProblem, **changes) -> StaticProblem:
@@ -1093,7 +1112,7 @@ def start_state(Y: np.ndarray, prob: StaticProblem, mode: Optional[np.ndarray] =
                 amplitude: float = 0.0, t: float = 0.0):
     """A :class:`solver.initial.StartState` at rest (v = ω = 0) in the equilibrium ``Y``
     (N+1, 13), plus ``amplitude`` (m) times ``mode`` ((N+1, 13), e.g. :func:`critical_mode`,
-    largest position component 1 m) when given: f = Rᵀn, κ = K⁻¹Rᵀm (body frame, the
+    largest position component 1 m) when given: f = Rᵀn, κ = K⁻¹Rᵀm + κ⁰ (body frame, the
     dynamic scheme's unknowns), q renormalised, r as they are, the end rotations about a3
     (the linking number's φ) from the ends' ``twist``. Time ``t`` (s)."""
     from .initial import StartState
@@ -1104,7 +1123,7 @@ def start_state(Y: np.ndarray, prob: StaticProblem, mode: Optional[np.ndarray] =
     q = Z[:, 3:7] / np.linalg.norm(Z[:, 3:7], axis=1)[:, None]
     R = _rot(q)
     f = np.einsum("kji,kj->ki", R, Z[:, 7:10])
-    kappa = np.einsum("kji,kj->ki", R, Z[:, 10:13]) / prob.stiffness
+    kappa = np.einsum("kji,kj->ki", R, Z[:, 10:13]) / prob.stiffness + prob.kappa0
     zeros = np.zeros_like(f)
     return StartState(t=float(t), v=zeros, omega=zeros.copy(), f=f, kappa=kappa, q=q,
                       r=np.ascontiguousarray(Z[:, 0:3]),
