@@ -363,6 +363,29 @@ def _as_float(value: Any) -> float:
 # --------------------------------------------------------------------------- tables
 
 
+#: the boundary a closed rod is given (both ends free: the join's rows replace them)
+_CLOSED_BOUNDARY = {
+    name: {"translation": [{"force": 0.0}] * 3, "rotation": [{"moment": 0.0}] * 3}
+    for name in ("start", "end")}
+
+
+def _closed_rod_ends(data: Any) -> Any:
+    """A case mapping of a closed rod with its boundary filled in (both ends free, never
+    read: the join's rows replace the ends'). Raises ``ValidationError`` at ``boundary``
+    where a closed rod is given one."""
+    if not isinstance(data, dict):
+        return data
+    rod = data.get("rod")
+    if not (isinstance(rod, dict) and rod.get("closed") is True):
+        return data
+    if data.get("boundary") is not None:
+        raise ValidationError.from_exception_data("Case", [{
+            "type": PydanticCustomError("inconsistent", "a closed rod (rod.closed) has no ends: "
+                                        "leave boundary out"),
+            "loc": ("boundary",), "input": data["boundary"]}])
+    return {**data, "boundary": _CLOSED_BOUNDARY}
+
+
 def _check_increasing(values: list[float], name: str, noun: str) -> list[dict]:
     errors = []
     for k in range(1, len(values)):
@@ -617,6 +640,10 @@ class Rod(BaseModel):
         "body frame, 1/m, each a number or a profile in s (m); the constitutive law is "
         "q = K (kappa - kappa0). null: straight and untwisted. Taken by the statics and "
         "numerics.formulation: centreline.")
+    closed: bool = Field(
+        False, description="A closed rod (a ring: a plasmid, a loop of cable): s = L joined to s = 0 "
+        "with continuity of position, frame, force and moment; no boundary. It starts as a "
+        "circle (initial.linking_number). Only numerics.formulation: centreline, dynamics.")
 
     @model_validator(mode="after")
     def _check_stations(self) -> "Rod":
@@ -642,6 +669,8 @@ class Rod(BaseModel):
         for name in ("minimum_bend_radius", "intrinsic_curvature"):
             if getattr(self, name) is None:
                 out.pop(name, None)
+        if not self.closed:
+            out.pop("closed", None)
         return out
 
     def evaluate_intrinsic_curvature(self, s: Any) -> np.ndarray:
@@ -920,6 +949,10 @@ class Initial(BaseModel):
     twist_rate: Finite = Field(0.0, description="Initial twist rate kappa_3, rad/m, along the whole rod.")
     from_result: Optional[FromResult] = Field(
         None, description="Start from an earlier result's state at one of its output times; null: no.")
+    linking_number: Optional[int] = Field(
+        None, description="A closed rod's start: the circle's frame turns this many times about its "
+        "tangent (its Lk, turns; the excess over the relaxed ring's is Lk minus the integral of "
+        "kappa0_3 over 2 pi); only with rod.closed; null: 0.")
 
     tangent: Vector3 = Field(
         default_factory=lambda: [0.0, 0.0, 1.0],
@@ -1002,6 +1035,8 @@ class Initial(BaseModel):
             out.pop("twist_rate", None)
         if self.from_result is None:
             out.pop("from_result", None)
+        if self.linking_number is None:
+            out.pop("linking_number", None)
         return out
 
     @property
@@ -1750,7 +1785,8 @@ class Case(BaseModel):
     )
     initial: Initial = Field(default_factory=Initial, description="Initial configuration: straight "
                              "(global directions) or a given centreline, and a twist rate.")
-    boundary: Boundary = Field(..., description="Boundary conditions at s = 0 and s = L, body-frame components.")
+    boundary: Boundary = Field(..., description="Boundary conditions at s = 0 and s = L, body-frame "
+                               "components. Left out for a closed rod (rod.closed), which has no ends.")
     contact: Optional[Contact] = Field(None, description="Self-contact parameters; null: no self-contact search.")
     seabed: Optional[Seabed] = Field(None, description="Sea floor: flat or a bathymetry grid, normal "
                                      "stiffness and damping, friction; null: none (docs/seabed.md).")
@@ -1789,6 +1825,7 @@ class Case(BaseModel):
         validation each section without errors is validated on its own, and every check
         across sections whose sections are all valid adds its errors to the raised
         ``ValidationError`` (those needing a broken section are left out)."""
+        data = _closed_rod_ends(data)
         try:
             return handler(data)
         except ValidationError as exc:
@@ -1853,7 +1890,7 @@ class Case(BaseModel):
         sets ``numerics.n_segments`` and ``numerics.ds`` from whichever was given."""
         errors = (self._check_initial() + self._check_loads_on_rod() + self._check_contact()
                   + self._check_ill_posed_ends() + self._check_seabed()
-                  + self._check_formulation() + self._check_fluid())
+                  + self._check_formulation() + self._check_fluid() + self._check_closed())
         n_segments = self._check_numerics(errors)
         if n_segments:
             errors.extend(self._check_twist_resolved(n_segments))
@@ -1888,6 +1925,33 @@ class Case(BaseModel):
         return [_err(("numerics", "formulation"), "unsupported",
                      "centreline does not take " + ", ".join(missing) + " yet (fixed "
                      "steps); use goyal", "centreline")]
+
+    def _check_closed(self) -> list[dict]:
+        """A closed rod (``rod.closed``): the centreline scheme only, no contact yet, a
+        circle for a start (no ``initial.centreline`` or ``twist_rate``; its twist is
+        ``initial.linking_number``); ``linking_number`` only for a closed rod."""
+        ini = self.initial
+        if not self.rod.closed:
+            if ini.linking_number is not None:
+                return [_err(("initial", "linking_number"), "inconsistent",
+                             "only a closed rod (rod.closed: true) starts from a linked "
+                             "circle; an open rod's twist is initial.twist_rate",
+                             ini.linking_number)]
+            return []
+        errors = []
+        if self.numerics.formulation != "centreline":
+            errors.append(_err(("rod", "closed"), "unsupported",
+                               "a closed rod runs on numerics.formulation: centreline only", True))
+        if self.contact is not None:
+            errors.append(_err(("contact",), "unsupported",
+                               "self-contact on a closed rod is not supported yet", None))
+        for name in ("centreline", "twist_rate"):
+            if getattr(ini, name) not in (None, 0.0):
+                errors.append(_err(("initial", name), "inconsistent",
+                                   "a closed rod starts from a circle: leave out "
+                                   f"initial.{name} (the circle's twist is "
+                                   "initial.linking_number)", None))
+        return errors
 
     def _check_fluid(self) -> list[dict]:
         """The viscous drag's slenderness factor ln(ℓ/d): ℓ/d at least
@@ -1951,6 +2015,12 @@ class Case(BaseModel):
         gave non-finite quaternions and an internal_error at run time)."""
         ds = self.rod.length / n_segments
         rate = abs(float(self.initial.twist_rate))
+        link = self.initial.linking_number
+        if self.rod.closed and link is not None and abs(link) * 2 > n_segments:
+            return [_err(("initial", "linking_number"), "not_resolved",
+                         f"{link} turns over {n_segments} cells turn the section by more "
+                         "than π rad (half a turn) per cell, more than the grid holds: "
+                         f"raise numerics.n_segments to at least {2 * abs(link)}", link)]
         if not rate * ds > math.pi:
             return []
         return [_err(("initial", "twist_rate"), "not_resolved",
@@ -2213,6 +2283,15 @@ class Case(BaseModel):
         return cls.from_text(raw, suffix, source=str(path))
 
     # ----------------------------------------------------------------- identity and size
+
+    @model_serializer(mode="wrap")
+    def _drop_closed_ends(self, handler: Any):  # no return type: keeps the JSON schema
+        # a closed rod has no ends: its boundary (both ends free, filled in by
+        # _closed_rod_ends) is not written, so that the written case validates again
+        out = handler(self)
+        if self.rod.closed:
+            out.pop("boundary", None)
+        return out
 
     def canonical_json(self) -> str:
         """The case as canonical JSON: defaults filled in, sorted keys, no whitespace.

@@ -622,18 +622,24 @@ class CentrelineRod:
                           f"(scaled update {err:.3g})")
 
     def _factor(self, Y, old, co, prob, weights):
-        """The step's Jacobian at Y factored (the band LU, or SuperLU with self-contact's
-        pairs, :class:`_ContactLU`) and the residual's rounding level there (at least
-        RESIDUAL_FLOOR, :func:`rounding_floor`). Raises :class:`StepFailure` on a
-        singular Jacobian."""
+        """The step's Jacobian at Y factored (the band LU; SuperLU where self-contact's
+        pairs or a closed rod's join couple nodes outside the band, :class:`_SparseLU`)
+        and the residual's rounding level there (at least RESIDUAL_FLOOR,
+        :func:`rounding_floor`). Raises :class:`StepFailure` on a singular Jacobian."""
         ab = self.jacobian(Y, old, co, prob)
         ct = self.contact_terms(Y, old, co, want=True)
+        extra = None
+        if ct is not None and ct[2] is not None:
+            extra = st._load_rows(prob) @ ct[2] @ st._position_columns(prob)
+        if prob.closed:
+            join = st.join_coupling(Y, prob)
+            extra = join if extra is None else extra + join
         try:
-            if ct is None or ct[2] is None:
+            if extra is None:
                 lu = BorderedBandLU(ab)
                 floor = rounding_floor(ab, Y, weights)
             else:
-                lu = _ContactLU(ab, ct[2], prob)
+                lu = _SparseLU(ab, extra)
                 floor = lu.rounding_floor(Y, weights)
         except (BandSingular, RuntimeError) as exc:
             raise StepFailure(f"singular Jacobian ({exc})") from exc
@@ -758,20 +764,20 @@ class CentrelineRod:
                 "potential": static["load_potential"]}
 
 
-class _ContactLU:
-    """The step's Jacobian with self-contact: the band ``ab`` (LAPACK storage) plus the
-    contact's load derivative dL (3(N+1), 3(N+1)) on the force rows of the cells either
-    side of each node (h/2 each) and the position columns, which couples nodes far apart
-    along the rod; factored by SuperLU (scipy's ``splu``, COLAMD ordering). ``solve``
-    takes the band LU's arguments."""
+class _SparseLU:
+    """The step's Jacobian where entries lie outside the band: the band ``ab`` (LAPACK
+    storage) plus ``extra`` (13(N+1))² sparse — self-contact's load derivative on the
+    force rows of the cells either side of each node (h/2 each) and the position
+    columns, which couples nodes far apart along the rod, and a closed rod's join rows
+    on nodes 0 and N (:func:`solver.statics.join_coupling`); factored by SuperLU
+    (scipy's ``splu``, COLAMD ordering). ``solve`` takes the band LU's arguments."""
 
-    def __init__(self, ab, dL, prob):
+    def __init__(self, ab, extra):
         import scipy.sparse.linalg as spla
 
         from .static_band import band_to_sparse
 
-        self.A = (band_to_sparse(ab[KL:])
-                  + st._load_rows(prob) @ dL @ st._position_columns(prob)).tocsc()
+        self.A = (band_to_sparse(ab[KL:]) + extra).tocsc()
         self._lu = spla.splu(self.A)
 
     def rounding_floor(self, Y, weights) -> float:

@@ -195,9 +195,12 @@ def initial_pose(case, s):
 
     A straight rod without twist starts as it always has (the same arrays, bit for bit):
     every node's frame (``normal``, ``tangent × normal``, ``tangent``), r = s·tangent.
+    A closed rod starts from its circle (:func:`ring_pose`).
     """
     from .kinematics import quat_from_matrix, space_route
 
+    if getattr(case.rod, "closed", False):
+        return ring_pose(case, s)
     ini = case.initial
     s = np.asarray(s, dtype=float)
     n1 = s.size
@@ -221,6 +224,46 @@ def initial_pose(case, s):
     R, kappa, r0 = _frames(curve, s - s[0], normal, twist)
     q0 = quat_from_matrix(R[0])
     q, r = space_route(q0, np.asarray(r0, float), kappa, float(s[1] - s[0]))
+    return q, r, kappa
+
+
+def ring_pose(case, s):
+    """A closed rod's start (q (N+1, 4), r (N+1, 3) m, κ (N+1, 3) 1/m, as
+    :func:`initial_pose`): the circle of circumference L through the origin, tangent
+    ``initial.tangent`` there and bending towards ``initial.normal`` (its centre at
+    R·normal, R = L/2π), its frame turned about the tangent by ``initial.linking_number``
+    turns uniformly (φ = 2π Lk s/L): a1 = cos φ u + sin φ b, u the unit vector to the
+    centre, b = tangent × normal, so κ = (sin φ/R, cos φ/R, 2π Lk/L). A plane circle has
+    no writhe, so Lk = Tw. Node N is node 0 again (the same position and frame, the
+    quaternion's sign aside)."""
+    from .kinematics import quat_from_matrix
+
+    ini = case.initial
+    s = np.asarray(s, dtype=float)
+    length = float(case.rod.length)
+    t0 = np.asarray(ini.tangent, float)
+    t0 = t0 / np.linalg.norm(t0)
+    n0 = np.asarray(ini.normal, float)
+    n0 = n0 - np.dot(n0, t0) * t0
+    n0 = n0 / np.linalg.norm(n0)
+    b = np.cross(t0, n0)
+    radius = length / (2.0 * np.pi)
+    theta = s / radius
+    link = int(ini.linking_number or 0)
+    phi = 2.0 * np.pi * link * s / length
+    c, sn = np.cos(theta)[:, None], np.sin(theta)[:, None]
+    r = radius * (sn * t0 + (1.0 - c) * n0)
+    a3 = c * t0 + sn * n0
+    u = c * n0 - sn * t0
+    a1 = np.cos(phi)[:, None] * u + np.sin(phi)[:, None] * b
+    a2 = np.cross(a3, a1)
+    q = np.array([quat_from_matrix(np.column_stack([x, y, z])) for x, y, z in zip(a1, a2, a3)])
+    # one sign along s (q and −q are one frame; the box rule's rows need neighbours close)
+    flip = np.cumsum(np.r_[0, np.einsum("ki,ki->k", q[1:], q[:-1]) < 0.0]) % 2 == 1
+    q[flip] *= -1.0
+    kappa = np.stack([np.sin(phi) / radius, np.cos(phi) / radius,
+                      np.full(s.size, 2.0 * np.pi * link / length)], axis=1)
+    r[-1] = r[0]
     return q, r, kappa
 
 

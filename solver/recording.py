@@ -208,10 +208,18 @@ def _seabed(run, pose) -> dict:
 
 
 def _topology(run) -> dict:
-    """Twist, writhe and linking number of the run's state (turns; docs/topology.md)."""
-    from .topology import linking_number, twist, writhe
+    """Twist, writhe and linking number of the run's state (turns; docs/topology.md). A
+    closed rod's Wr is that of its closed polygon (no closure at infinity) and its Lk
+    the start circle's ``initial.linking_number``, a topological invariant: Tw + Wr
+    stays on it while no strand passes through another (``topology_error``)."""
+    from .topology import linking_number, twist, writhe, writhe_closed
 
     tw = twist(run.state.Y[:, 11], run.props.s)
+    if getattr(run.case.rod, "closed", False):
+        wr = writhe_closed(run.state.r[:-1])
+        lk = float(run.case.initial.linking_number or 0)
+        return dict(twist=tw, writhe=wr, linking_number=lk,
+                    topology_error=abs(tw + wr - lk), writhe_closure_passages=0.0)
     wr = writhe(run.state.r)
     lk = linking_number(run.state.phi[0], run.state.phi[1])
     # the open rod's writhe is that of the curve closed by its end tangents'

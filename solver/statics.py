@@ -78,7 +78,7 @@ __all__ = ["EndSpec", "StaticProblem", "StaticSolution", "StaticsError", "residu
            "jacobian", "solve", "straight_guess", "unstable_modes", "lu_det_sign",
            "static_problem", "quat_axis_angle", "contact_loads", "seabed_loads",
            "contact_gap", "NV", "N_START", "band_jacobian", "band_ready", "factor_jacobian",
-           "problem_at",
+           "problem_at", "join_coupling",
            "nearest_eigenvalues"]
 
 NV = 13          # unknowns per node
@@ -183,6 +183,9 @@ class StaticProblem:
              damping and friction (:func:`seabed_loads`)
     intrinsic_curvature : (N+1, 3) κ⁰ (1/m) in the body frame, or None (zero): the
              curvatures and twist of the unloaded rod, m = R K (κ − κ⁰)
+    closed : a closed rod (``rod.closed``): node N is node 0 again, joined by
+             :func:`_closed_rows` instead of the ends' rows (the centreline scheme's
+             rows; a static solve refuses it, :func:`static_problem`)
     """
 
     length: float
@@ -197,6 +200,7 @@ class StaticProblem:
     contact: Optional[object] = None
     seabed: Optional[object] = None
     intrinsic_curvature: Optional[np.ndarray] = None
+    closed: bool = False
 
     @property
     def kappa0(self) -> np.ndarray:
@@ -274,7 +278,10 @@ def _cell_rows(Y, prob: StaticProblem) -> np.ndarray:
 
 
 def _end_rows(Y, prob: StaticProblem):
-    """The 7 rows at s = 0 and the 6 at s = L of Y (N+1, 13)."""
+    """The 7 rows at s = 0 and the 6 at s = L of Y (N+1, 13) (of a closed rod:
+    :func:`_closed_rows`)."""
+    if prob.closed:
+        return _closed_rows(Y, prob)
     st, en = prob.start, prob.end
     r0, p0, n0, m0 = Y[0, 0:3], Y[0, 3:7], Y[0, 7:10], Y[0, 10:13]
     rN, pN, nN, mN = Y[-1, 0:3], Y[-1, 3:7], Y[-1, 7:10], Y[-1, 10:13]
@@ -293,14 +300,34 @@ def _end_rows(Y, prob: StaticProblem):
     return start, end
 
 
+def _closed_rows(Y, prob: StaticProblem):
+    """The 13 rows that join node N to node 0 of a closed rod, in place of the ends'
+    (7, 6): at s = 0 the internal loads continue across the join, n_N − n_0 = 0,
+    m_N − m_0 = 0, and |p_0|² = 1; at s = L the centreline and the frame close,
+    r_N − r_0 = 0 and vec(p̄_0 ⊗ p_N) = 0 (p_N = ±p_0, one frame; the Cayley rows carry
+    |p| exactly, so the fourth component is not a condition, and the frame's turns
+    around the ring, its linking number, are kept by continuity). With inertia these
+    rows and the cells' are regular; without (a static ring) they are singular along
+    the ring's rigid motions and, for an isotropic rod, the spin of every section about
+    the tangent (Domokos & Healey, J. Nonlinear Sci. 11, 2001, for the ring's further
+    "hidden symmetry"), which is why the statics refuse closed rods."""
+    n0, m0, p0 = Y[0, 7:10], Y[0, 10:13], Y[0, 3:7]
+    start = np.concatenate([Y[-1, 7:10] - n0, Y[-1, 10:13] - m0, [p0 @ p0 - 1.0]])
+    end = np.concatenate([Y[-1, 0:3] - Y[0, 0:3], _qmul(_qconj(p0), Y[-1, 3:7])[1:]])
+    return start, end
+
+
 _PATTERNS: dict = {}
 
 
-def _pattern(n_segments: int):
+def _pattern(n_segments: int, closed: bool = False):
     """The CSC structure of the Jacobian (indices, indptr) and, per colour, the positions
-    of its entries in the CSC data and their rows (cached per N)."""
-    if n_segments in _PATTERNS:
-        return _PATTERNS[n_segments]
+    of its entries in the CSC data and their rows (cached per N and ``closed``). Nodes of
+    one parity share no row, so they share a colour (26 colours); a closed rod's join
+    rows read nodes 0 and N both, so node N takes colours of its own (39)."""
+    key = (n_segments, bool(closed))
+    if key in _PATTERNS:
+        return _PATTERNS[key]
     N = n_segments
     k = np.arange(N + 1)
     comp = np.arange(NV)
@@ -311,36 +338,51 @@ def _pattern(n_segments: int):
         kk = k[lo:hi]
         r = (base(kk)[:, None] + comp[None, :])                    # (n, 13)
         blocks.append((np.repeat(kk, NV), r.ravel()))
-    blocks.append((np.zeros(N_START, int), np.arange(N_START)))
-    blocks.append((np.full(N_END, N), NV * (N + 1) - N_END + np.arange(N_END)))
+    start_rows = np.arange(N_START)
+    end_rows = NV * (N + 1) - N_END + np.arange(N_END)
+    blocks.append((np.zeros(N_START, int), start_rows))
+    blocks.append((np.full(N_END, N), end_rows))
+    if closed:
+        blocks.append((np.full(N_START, N), start_rows))
+        blocks.append((np.zeros(N_END, int), end_rows))
     node = np.concatenate([b[0] for b in blocks])
     row = np.concatenate([b[1] for b in blocks])
     rows = np.repeat(row, NV)
     cols = (NV * node[:, None] + comp[None, :]).ravel()
-    colour = ((node[:, None] % 2) * NV + comp[None, :]).ravel()
+    group = node % 2
+    if closed:
+        group = np.where(node == N, 2, group)
+    colour = (group[:, None] * NV + comp[None, :]).ravel()
     order = np.lexsort((rows, cols))
     rows, cols, colour = rows[order], cols[order], colour[order]
     n = NV * (N + 1)
     indptr = np.concatenate([[0], np.cumsum(np.bincount(cols, minlength=n))])
     groups = []
-    for c in range(2 * NV):
+    for c in range((3 if closed else 2) * NV):
         pos = np.flatnonzero(colour == c)
         groups.append((pos, rows[pos]))
     pat = (rows, indptr, groups)
-    _PATTERNS[n_segments] = pat
+    _PATTERNS[key] = pat
     return pat
 
 
 def jacobian(Y: np.ndarray, prob: StaticProblem) -> sp.csc_matrix:
     """∂G/∂Y, exact to rounding (complex step by column groups, all 26 groups in one
-    batched evaluation of the cell rows), sparse (13(N+1))²."""
-    indices, indptr, groups = _pattern(prob.n_segments)
+    batched evaluation of the cell rows; 39 for a closed rod), sparse (13(N+1))²."""
+    closed = prob.closed
+    indices, indptr, groups = _pattern(prob.n_segments, closed)
     ng = len(groups)
     Yc = np.empty((ng,) + Y.shape, dtype=complex)
     Yc[:] = Y
+    N = prob.n_segments
     for c in range(ng):
         par, comp = divmod(c, NV)
-        Yc[c, par::2, comp] += 1j * _EPS
+        if par == 2:
+            Yc[c, N, comp] += 1j * _EPS
+        elif closed:
+            Yc[c, par:N:2, comp] += 1j * _EPS            # node N: colours of its own
+        else:
+            Yc[c, par::2, comp] += 1j * _EPS
     G = np.empty((ng, Y.size))
     G[:, N_START:-N_END] = _cell_rows(Yc, prob).reshape(ng, -1).imag
     vals = np.empty(indices.size)
@@ -359,9 +401,10 @@ def jacobian(Y: np.ndarray, prob: StaticProblem) -> sp.csc_matrix:
 
 def band_ready(prob: StaticProblem) -> bool:
     """True where the Jacobian is a band (:mod:`solver.static_band`): no self-contact
-    (its pairs couple distant nodes) and no seabed (its load Jacobian goes the sparse
-    way, with the contact's)."""
-    return prob.contact is None and prob.seabed is None
+    (its pairs couple distant nodes), no seabed (its load Jacobian goes the sparse
+    way, with the contact's) and an open rod (a closed one's join couples nodes 0 and
+    N)."""
+    return prob.contact is None and prob.seabed is None and not prob.closed
 
 
 def band_jacobian(Y: np.ndarray, prob: StaticProblem) -> np.ndarray:
@@ -369,19 +412,28 @@ def band_jacobian(Y: np.ndarray, prob: StaticProblem) -> np.ndarray:
     exact to rounding: the cells by the compiled per-cell complex step, the 13 end rows by
     the complex step of :func:`_end_rows` (13 evaluations: the start rows depend on node 0
     only and the end rows on node N only, so one step perturbs both ends). The same
-    matrix as :func:`jacobian`. Raises :class:`StaticsError` where the problem has
-    self-contact or a seabed (:func:`band_ready`)."""
-    if not band_ready(prob):
+    matrix as :func:`jacobian`; of a closed rod, the part inside the band (the join's
+    rows on the columns of nodes 0 and N lie outside it: :func:`join_coupling`). Raises
+    :class:`StaticsError` where the problem has self-contact or a seabed
+    (:func:`band_ready`)."""
+    if prob.contact is not None or prob.seabed is not None:
         raise StaticsError("the Jacobian with self-contact or a seabed is not a band")
     N = prob.n_segments
     n = NV * (N + 1)
     ab = band_storage(n)
     cell_band(np.ascontiguousarray(Y, dtype=float), prob.stiffness, prob.kappa0, prob.load,
               prob.h, ab)
-    ends = np.empty((2, NV), dtype=complex)
     diag = KL + KU
     start_rows = np.arange(N_START)
     end_rows = n - N_END + np.arange(N_END)
+    if prob.closed:
+        J = _join_jacobian(Y, prob)
+        for c in range(NV):
+            ab[diag + start_rows - c, c] = J[:N_START, c]
+            col = NV * N + c
+            ab[diag + end_rows - col, col] = J[N_START:, NV + c]
+        return ab
+    ends = np.empty((2, NV), dtype=complex)
     for c in range(NV):
         ends[0], ends[1] = Y[0], Y[-1]
         ends[:, c] += 1j * _EPS
@@ -390,6 +442,38 @@ def band_jacobian(Y: np.ndarray, prob: StaticProblem) -> np.ndarray:
         col = NV * N + c
         ab[diag + end_rows - col, col] = end.imag / _EPS
     return ab
+
+
+def _join_jacobian(Y: np.ndarray, prob: StaticProblem) -> np.ndarray:
+    """(13, 26) ∂(the 13 join rows of a closed rod, :func:`_closed_rows`)/∂(node 0's
+    unknowns, node N's), by 26 complex steps (exact to rounding)."""
+    ends = np.empty((2, NV), dtype=complex)
+    J = np.empty((N_START + N_END, 2 * NV))
+    for node in range(2):
+        for c in range(NV):
+            ends[0], ends[1] = Y[0], Y[-1]
+            ends[node, c] += 1j * _EPS
+            start, end = _closed_rows(ends, prob)
+            J[:N_START, NV * node + c] = start.imag / _EPS
+            J[N_START:, NV * node + c] = end.imag / _EPS
+    return J
+
+
+def join_coupling(Y: np.ndarray, prob: StaticProblem) -> sp.csc_matrix:
+    """(13(N+1))² sparse: a closed rod's join rows on the columns outside the band, the
+    s = 0 rows on node N's unknowns and the s = L rows on node 0's (exact, as
+    :func:`band_jacobian`, which holds the rest); an empty matrix for an open rod."""
+    N = prob.n_segments
+    n = NV * (N + 1)
+    if not prob.closed:
+        return sp.csc_matrix((n, n))
+    J = _join_jacobian(Y, prob)
+    comp = np.arange(NV)
+    rows = np.concatenate([np.repeat(np.arange(N_START), NV),
+                           np.repeat(n - N_END + np.arange(N_END), NV)])
+    cols = np.concatenate([np.tile(NV * N + comp, N_START), np.tile(comp, N_END)])
+    vals = np.concatenate([J[:N_START, NV:].ravel(), J[N_START:, :NV].ravel()])
+    return sp.csc_matrix((vals, (rows, cols)), shape=(n, n))
 
 
 # --------------------------------------------------------------------------- contact, seabed
@@ -1055,11 +1139,19 @@ def static_problem(case, time: Optional[float] = None) -> StaticProblem:
     rotation is held (dead in its fixed frame) or with ``frame: global``; point loads with
     ``body: false`` at grid nodes. Self-contact (``contact``) enters by its law's
     repulsion without damping (:func:`contact_loads`), the seabed by its normal spring
-    without damping and friction (:func:`seabed_loads`); fluid drag does not enter.
+    without damping and friction (:func:`seabed_loads`); fluid drag does not enter. A
+    closed rod (``rod.closed``) is refused: its static rows are singular
+    (:func:`_closed_rows`), a dynamic run takes it.
     """
     from .initial import initial_pose
     from .properties import RodProperties
 
+    if getattr(case.rod, "closed", False):
+        raise StaticsError("rod.closed: the statics do not take a closed rod yet (its "
+                           "equilibria are not isolated: the ring's rigid motions and an "
+                           "isotropic rod's spin about its centreline leave the rows "
+                           "singular); a dynamic run (numerics.formulation: centreline) "
+                           "takes it")
     t = float(case.numerics.t_end if time is None else time)
     if not np.isfinite(t) or t < 0:
         raise StaticsError(f"time: {t} is not a time >= 0")
@@ -1078,6 +1170,8 @@ def problem_at(case, t: float, props, q, r, skip=()) -> StaticProblem:
     :func:`static_problem`."""
     N = case.numerics.n_segments
     load, extra_force = _dead_loads(case, props, t)
+    if getattr(case.rod, "closed", False):
+        return _closed_problem(case, props, q, r, load, extra_force)
     ends = {}
     for name, k in (("start", 0), ("end", N)):
         if name in skip:
@@ -1099,6 +1193,27 @@ def problem_at(case, t: float, props, q, r, skip=()) -> StaticProblem:
                          inertia=inertia, reference=np.asarray(q[0], float),
                          contact=contact, seabed=seabed,
                          intrinsic_curvature=props.intrinsic_curvature)
+
+
+def _closed_problem(case, props, q, r, load, extra_force) -> StaticProblem:
+    """The rows of a closed rod (``rod.closed``): the cells' and the join's
+    (:func:`_closed_rows`) with the dead loads, a point load at s = 0 or s = L (one
+    point, the join) as P/h at node 0 and at node N, so that the cells either side carry
+    P/2 each, as at an interior node. The centreline scheme's rows (it adds the sea
+    floor's loads itself); a static solve refuses a closed rod (:func:`static_problem`).
+    Raises nothing beyond :func:`problem_at`."""
+    N = case.numerics.n_segments
+    h = float(case.rod.length) / N
+    load = load.copy()
+    joint = (extra_force["start"] + extra_force["end"]) / h
+    load[0] += joint
+    load[-1] += joint
+    return StaticProblem(length=float(case.rod.length), n_segments=N,
+                         stiffness=np.asarray(props.stiffness, float), load=load,
+                         start=clamp(r[0], q[0]), end=free_end(), mass=props.rho_a,
+                         inertia=np.asarray(props.inertia[:, 0], float),
+                         reference=np.asarray(q[0], float),
+                         intrinsic_curvature=props.intrinsic_curvature, closed=True)
 
 
 def with_load(prob: StaticProblem, **changes) -> StaticProblem:
