@@ -45,8 +45,9 @@ per unit length.
   of the segment length h to the pair's distance d and to λ. Measured on single pairs of
   straight segments (parallel, at 45° and crossed, side by side or offset by h/2 and h)
   against 64 points, the worst relative error of the pair's energy with the default 6
-  points: 1e-7 for d ≥ h and λ ≥ h/2, 5e-7 for d ≥ h and λ ≥ h/4, 3e-5 for d ≥ h/2 and
-  λ ≥ h/2, 4e-4 for d ≥ h/3 and λ ≥ h/2, 4e-3 at d = h/4 and λ = h/4
+  points is below 2e-7 for d ≥ h and λ ≥ h/2, 1e-6 for d ≥ h and λ ≥ h/4, 5e-5 for
+  d ≥ h/2 and λ ≥ h/2, 5e-4 for d ≥ h/3 and λ ≥ h/2 (measured 1.0e-7, 5.0e-7, 3.0e-5,
+  4.4e-4), and 4e-3 at d = h/4 and λ = h/4
   (:func:`quadrature_error`; tests/solver/test_electrostatics.py). Keep the segments no
   longer than the closest approach the case expects (for DNA, its diameter) and twice
   the Debye length. Where a pair straddles the switch the integrand is C² only there,
