@@ -98,9 +98,8 @@ def debye_length(salt_concentration: float, temperature: float,
                  relative_permittivity: float = WATER_PERMITTIVITY) -> float:
     """The Debye length λ (m) of a 1:1 salt of molar concentration c (mol/L) at the
     temperature T (K): λ = √(ε₀ ε_r k_B T / (2 N_A e² · 1000 c)) (the ionic strength of a
-    1:1 salt is c; Debye & Hückel 1923; Israelachvili, *Intermolecular and Surface
-    Forces*, 3rd ed., eq. 14.36). 0.1 mol/L at 25 °C in water: 0.96 nm. Raises ValueError
-    for a value that is not finite and > 0."""
+    1:1 salt is c; Debye & Hückel 1923). 0.1 mol/L at 25 °C in water: 0.96 nm. Raises
+    ValueError for a value that is not finite and > 0."""
     for name, v in (("salt_concentration", salt_concentration), ("temperature", temperature),
                     ("relative_permittivity", relative_permittivity)):
         if not (np.isfinite(v) and v > 0):
