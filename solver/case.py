@@ -78,6 +78,7 @@ __all__ = [
     "EndCondition",
     "Boundary",
     "Contact",
+    "Electrostatics",
     "Bathymetry",
     "Friction",
     "Seabed",
@@ -1360,6 +1361,78 @@ class Contact(BaseModel):
         return out
 
 
+class Electrostatics(BaseModel):
+    """Screened electrostatics: the Debye–Hückel repulsion of a charged rod (DNA) between
+    its non-adjacent segments (:mod:`solver.electrostatics`, docs/contact.md § 7). Omit
+    for none.
+
+    The energy of two line elements ds, ds' at distance ρ is
+    ν²/(4π ε₀ ε_r) e^{−ρ/λ}/ρ ds ds' (two parallel lines at distance d repel with
+    ν²/(2π ε₀ ε_r λ) K₁(d/λ) per length), switched off C²-smoothly over the last Debye
+    length before ``cutoff`` · λ, between segments at least ``exclusion`` apart in
+    arclength, by Gauss–Legendre quadrature with ``quadrature_points`` per segment. λ is
+    ``debye_length``, or that of a 1:1 salt of ``salt_concentration`` at
+    ``temperature`` (λ = √(ε₀ ε_r k_B T / (2 N_A e² 1000 c))); give one or the other.
+    Only ``numerics.formulation: centreline`` takes it (checked by :class:`Case`).
+    """
+
+    model_config = _MODEL_CONFIG
+
+    charge_per_length: Finite = Field(
+        ..., gt=0, description="Magnitude of the (effective) line charge nu, C/m; > 0 (for DNA, "
+        "Stigter's effective charge, docs/contact.md section 7; the bare charge of B-DNA is "
+        "2e per 0.34 nm = 9.4e-10 C/m).")
+    debye_length: Optional[Finite] = Field(
+        None, gt=0, description="Debye screening length lambda, m; > 0; null: from salt_concentration "
+        "and temperature.")
+    salt_concentration: Optional[Finite] = Field(
+        None, gt=0, description="Molar concentration of a 1:1 salt (NaCl), mol/L; > 0; with "
+        "temperature, instead of debye_length.")
+    temperature: Optional[Finite] = Field(
+        None, gt=0, description="Temperature, K; > 0; with salt_concentration, instead of debye_length.")
+    relative_permittivity: Finite = Field(
+        78.4, ge=1, description="Relative permittivity of the solvent (dimensionless); >= 1; "
+        "default water at 25 C (IAPWS, Fernandez et al. 1997).")
+    cutoff: Finite = Field(
+        6.0, ge=2, description="Cut-off distance in Debye lengths; >= 2 (the interaction is switched "
+        "off over the last Debye length before it).")
+    exclusion: Optional[Finite] = Field(
+        None, gt=0, description="Least arclength between two segments that interact, m; > 0; "
+        "null: the cut-off distance (a straight rod then stores no electrostatic energy).")
+    quadrature_points: Integer = Field(
+        6, ge=1, le=16, description="Gauss-Legendre points per segment of a pair; 1 to 16.")
+
+    @model_validator(mode="after")
+    def _check(self) -> "Electrostatics":
+        errors = []
+        salt = self.salt_concentration is not None or self.temperature is not None
+        if self.debye_length is not None and salt:
+            loc = "salt_concentration" if self.salt_concentration is not None else "temperature"
+            errors.append(_err((loc,), "unsupported", "give debye_length or "
+                               "salt_concentration with temperature, not both",
+                               getattr(self, loc)))
+        elif self.debye_length is None and not salt:
+            errors.append(_err(("debye_length",), "missing", "give debye_length, or "
+                               "salt_concentration and temperature", None))
+        elif self.debye_length is None:
+            for name in ("salt_concentration", "temperature"):
+                if getattr(self, name) is None:
+                    errors.append(_err((name,), "missing", "the Debye length from the salt "
+                                       "needs both salt_concentration and temperature", None))
+        _raise("Electrostatics", errors)
+        return self
+
+    def screening_length(self) -> float:
+        """λ (m): ``debye_length``, or that of the salt at the temperature
+        (:func:`solver.electrostatics.debye_length`)."""
+        if self.debye_length is not None:
+            return float(self.debye_length)
+        from .electrostatics import debye_length
+
+        return debye_length(self.salt_concentration, self.temperature,
+                            self.relative_permittivity)
+
+
 #: the most points a bathymetry grid may hold (a case stays a case)
 MAX_BATHYMETRY_POINTS = 1_000_000
 #: how far (a share of the largest diameter) the cable's surface may start below the bottom
@@ -1790,6 +1863,9 @@ class Case(BaseModel):
     contact: Optional[Contact] = Field(None, description="Self-contact parameters; null: no self-contact search.")
     seabed: Optional[Seabed] = Field(None, description="Sea floor: flat or a bathymetry grid, normal "
                                      "stiffness and damping, friction; null: none (docs/seabed.md).")
+    electrostatics: Optional[Electrostatics] = Field(
+        None, description="Screened (Debye-Hueckel) repulsion between non-adjacent segments of a charged "
+        "rod; null: none (docs/contact.md section 7). numerics.formulation centreline only.")
     numerics: Numerics = Field(..., description="Grid (m), time step (s) and solver controls.")
     output: Output = Field(default_factory=Output, description="Stored variables and output stride.")
 
@@ -1904,20 +1980,26 @@ class Case(BaseModel):
         (the end conditions the statics' end rows cannot say are refused when the run is
         built, :class:`solver.centreline.CentrelineError`); and what the seed scheme
         (goyal) does not take, refused at the field: ``fluid.viscosity``,
-        ``rod.intrinsic_curvature``."""
+        ``rod.intrinsic_curvature``, ``electrostatics``."""
         if self.numerics.formulation != "centreline":
+            errors = []
             if self.rod.intrinsic_curvature is not None:
-                return [_err(("rod", "intrinsic_curvature"), "unsupported",
-                             "the goyal scheme (numerics.formulation's default) does not "
-                             "take an intrinsic curvature: set numerics.formulation: "
-                             "centreline (the statics and the centreline scheme take it)",
-                             self.rod.intrinsic_curvature)]
+                errors.append(_err(("rod", "intrinsic_curvature"), "unsupported",
+                                   "the goyal scheme (numerics.formulation's default) does not "
+                                   "take an intrinsic curvature: set numerics.formulation: "
+                                   "centreline (the statics and the centreline scheme take it)",
+                                   self.rod.intrinsic_curvature))
             if self.fluid is not None and self.fluid.viscosity is not None:
-                return [_err(("fluid", "viscosity"), "unsupported",
-                             "the goyal scheme (numerics.formulation's default) does not "
-                             "take the viscous drag yet: set numerics.formulation: centreline",
-                             self.fluid.viscosity)]
-            return []
+                errors.append(_err(("fluid", "viscosity"), "unsupported",
+                                   "the goyal scheme (numerics.formulation's default) does not "
+                                   "take the viscous drag yet: set numerics.formulation: "
+                                   "centreline", self.fluid.viscosity))
+            if self.electrostatics is not None:
+                errors.append(_err(("electrostatics",), "unsupported",
+                                   "the goyal scheme (numerics.formulation's default) does not "
+                                   "take screened electrostatics yet: set "
+                                   "numerics.formulation: centreline", None))
+            return errors
         missing = [name for name, present in (
             ("numerics.tolerance", self.numerics.tolerance is not None),) if present]
         if not missing:
@@ -1942,9 +2024,11 @@ class Case(BaseModel):
         if self.numerics.formulation != "centreline":
             errors.append(_err(("rod", "closed"), "unsupported",
                                "a closed rod runs on numerics.formulation: centreline only", True))
-        if self.contact is not None:
-            errors.append(_err(("contact",), "unsupported",
-                               "self-contact on a closed rod is not supported yet", None))
+        for name in ("contact", "electrostatics"):
+            if getattr(self, name) is not None:
+                errors.append(_err((name,), "unsupported",
+                                   f"{name} on a closed rod is not supported yet (the pair "
+                                   "search's arclength exclusion is not periodic)", None))
         for name in ("centreline", "twist_rate"):
             if getattr(ini, name) not in (None, 0.0):
                 errors.append(_err(("initial", name), "inconsistent",
@@ -2240,6 +2324,12 @@ class Case(BaseModel):
             out.pop("point_loads", None)
         if self.seabed is None:
             out.pop("seabed", None)
+        if self.electrostatics is None:
+            out.pop("electrostatics", None)
+        if self.rod.closed:
+            # a closed rod has no ends: its boundary (both ends free, filled in by
+            # _closed_rod_ends) is not written, so that the written case validates again
+            out.pop("boundary", None)
         return out
 
     # ----------------------------------------------------------------- loading
@@ -2283,15 +2373,6 @@ class Case(BaseModel):
         return cls.from_text(raw, suffix, source=str(path))
 
     # ----------------------------------------------------------------- identity and size
-
-    @model_serializer(mode="wrap")
-    def _drop_closed_ends(self, handler: Any):  # no return type: keeps the JSON schema
-        # a closed rod has no ends: its boundary (both ends free, filled in by
-        # _closed_rod_ends) is not written, so that the written case validates again
-        out = handler(self)
-        if self.rod.closed:
-            out.pop("boundary", None)
-        return out
 
     def canonical_json(self) -> str:
         """The case as canonical JSON: defaults filled in, sorted keys, no whitespace.

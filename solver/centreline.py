@@ -56,6 +56,10 @@ with the field named.
 Self-contact and the sea floor are nodal loads on the same rows (:meth:`CentrelineRod.
 contact_terms`, :meth:`CentrelineRod.seabed_terms`), their laws those of the seed
 scheme's run at the nodes' own r, ṙ and frames; the statics take the same laws at rest.
+Screened electrostatics (``electrostatics``, :mod:`solver.electrostatics`) depends on the
+positions alone and is the statics' own term (:func:`solver.statics.electrostatic_loads`
+in the static rows of the step's problem), its Jacobian ∂L/∂r added on the force rows
+and position columns beside the contact's (:meth:`CentrelineRod.pair_load_jacobian`).
 """
 from __future__ import annotations
 
@@ -416,11 +420,14 @@ class CentrelineRod:
         return L, ev, dL
 
     def residual(self, Y, old, co, prob, seabed=None) -> np.ndarray:
-        """The 13(N+1) dynamic rows (the static rows plus the nodal loads' trapezoid on
-        the force and moment rows: inertia, fluid, the sea floor and self-contact) of Y
-        (N+1, 13);
+        """The 13(N+1) dynamic rows (the static rows, with electrostatics where the case
+        has it, plus the nodal loads' trapezoid on the force and moment rows: inertia,
+        fluid, the sea floor and self-contact) of Y (N+1, 13);
         ``seabed``: :meth:`seabed_terms` at Y already evaluated (None: evaluated here)."""
-        G = st.residual(Y, prob)
+        try:
+            G = st.residual(Y, prob)
+        except st.StaticsError as exc:            # the electrostatics' pairs
+            raise StepFailure(str(exc)) from exc
         L = self.nodal_loads(Y, old, co)
         sb = self.seabed_terms(Y, old, co, want=False) if seabed is None else seabed
         if sb is not None:
@@ -454,8 +461,10 @@ class CentrelineRod:
     def jacobian(self, Y, old, co, prob) -> np.ndarray:
         """∂G/∂Y in LAPACK band storage, exact to rounding: the static band
         (:func:`solver.statics.band_jacobian`) plus h/2 of each node's load block
-        ∂L_k/∂(r_k, p_k), by the complex step (7 evaluations, all nodes at once)."""
-        ab = st.band_jacobian(Y, prob)
+        ∂L_k/∂(r_k, p_k), by the complex step (7 evaluations, all nodes at once). The
+        pairs' loads (self-contact, electrostatics) are not a band:
+        :meth:`pair_load_jacobian`."""
+        ab = st.band_jacobian(Y, st.without_pair_loads(prob))
         Yc = np.empty((7,) + Y.shape, dtype=complex)
         Yc[:] = Y
         for b in range(7):
@@ -627,10 +636,10 @@ class CentrelineRod:
         and the residual's rounding level there (at least RESIDUAL_FLOOR,
         :func:`rounding_floor`). Raises :class:`StepFailure` on a singular Jacobian."""
         ab = self.jacobian(Y, old, co, prob)
-        ct = self.contact_terms(Y, old, co, want=True)
+        dL = self.pair_load_jacobian(Y, old, co, prob)
         extra = None
-        if ct is not None and ct[2] is not None:
-            extra = st._load_rows(prob) @ ct[2] @ st._position_columns(prob)
+        if dL is not None:
+            extra = st._load_rows(prob) @ dL @ st._position_columns(prob)
         if prob.closed:
             join = st.join_coupling(Y, prob)
             extra = join if extra is None else extra + join
@@ -645,6 +654,23 @@ class CentrelineRod:
             raise StepFailure(f"singular Jacobian ({exc})") from exc
         self.factorizations += 1
         return lu, max(self.RESIDUAL_FLOOR, floor)
+
+    def pair_load_jacobian(self, Y, old, co, prob):
+        """The pairs' load derivative ∂L/∂r (3(N+1), 3(N+1)) sparse, N/m², at Y
+        (N+1, 13): self-contact's (:meth:`contact_terms`, with its velocities' c_X) plus
+        the electrostatics' (position only: :func:`solver.statics.electrostatic_loads`
+        of the step's problem); None where neither has a pair. Raises
+        :class:`StepFailure` as :meth:`residual`."""
+        ct = self.contact_terms(Y, old, co, want=True)
+        dL = None if ct is None else ct[2]
+        if prob.electrostatics is not None:
+            try:
+                de = st._electrostatic_load_jacobian(Y, prob)
+            except st.StaticsError as exc:
+                raise StepFailure(str(exc)) from exc
+            if de.nnz:
+                dL = de if dL is None else dL + de
+        return dL
 
     #: the smallest fraction of a Newton step the line search takes (2⁻⁸)
     SMALLEST_STEP = 2.0 ** -8
@@ -766,11 +792,12 @@ class CentrelineRod:
 
 class _SparseLU:
     """The step's Jacobian where entries lie outside the band: the band ``ab`` (LAPACK
-    storage) plus ``extra`` (13(N+1))² sparse — self-contact's load derivative on the
-    force rows of the cells either side of each node (h/2 each) and the position
-    columns, which couples nodes far apart along the rod, and a closed rod's join rows
-    on nodes 0 and N (:func:`solver.statics.join_coupling`); factored by SuperLU
-    (scipy's ``splu``, COLAMD ordering). ``solve`` takes the band LU's arguments."""
+    storage) plus ``extra`` (13(N+1))² sparse — the pairs' load derivative (self-contact,
+    electrostatics) on the force rows of the cells either side of each node (h/2 each)
+    and the position columns, which couples nodes far apart along the rod, and a closed
+    rod's join rows on nodes 0 and N (:func:`solver.statics.join_coupling`); factored by
+    SuperLU (scipy's ``splu``, COLAMD ordering). ``solve`` takes the band LU's
+    arguments."""
 
     def __init__(self, ab, extra):
         import scipy.sparse.linalg as spla

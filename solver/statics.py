@@ -46,12 +46,14 @@ ACM TOMS 29, 2003): ∂G/∂y_j = Im G(y + iε e_j)/ε with ε = 1e-30, no subtr
 truncation or cancellation error; 26 residual evaluations colour the whole matrix (nodes
 of one parity share no row).
 
-Self-contact and the seabed (optional, ``StaticProblem.contact``/``seabed``) add nodal load
-densities L_k (N/m) to the force rows, h/2 (L_i + L_i+1) per cell: the dynamic contact
-model at rest (its law without damping, :func:`contact_loads`) and the bottom's normal
-spring without damping or friction (:func:`seabed_loads`), with their exact derivatives
-with respect to the positions. Both are conservative; the energies of :func:`fields`
-leave their potentials out.
+Self-contact, the seabed and screened electrostatics (optional, ``StaticProblem.contact``/
+``seabed``/``electrostatics``) add nodal load densities L_k (N/m) to the force rows,
+h/2 (L_i + L_i+1) per cell: the dynamic contact model at rest (its law without damping,
+:func:`contact_loads`), the bottom's normal spring without damping or friction
+(:func:`seabed_loads`) and the Debye–Hückel repulsion between non-adjacent segments
+(:func:`electrostatic_loads`, :mod:`solver.electrostatics`), with their exact
+derivatives with respect to the positions. All three are conservative; the energies of
+:func:`fields` leave their potentials out.
 
 Stability: the linearised dynamics about an equilibrium are M z̈ + K z = 0 with the
 dynamic box rule; in the static rows this reads J z = μ B z, μ = −ω², where B puts the
@@ -77,6 +79,7 @@ from .static_band import (KL, KU, BandSingular, BorderedBandLU, band_storage, ce
 __all__ = ["EndSpec", "StaticProblem", "StaticSolution", "StaticsError", "residual",
            "jacobian", "solve", "straight_guess", "unstable_modes", "lu_det_sign",
            "static_problem", "quat_axis_angle", "contact_loads", "seabed_loads",
+           "electrostatic_loads", "without_pair_loads",
            "contact_gap", "NV", "N_START", "band_jacobian", "band_ready", "factor_jacobian",
            "problem_at", "join_coupling",
            "nearest_eigenvalues"]
@@ -186,6 +189,8 @@ class StaticProblem:
     closed : a closed rod (``rod.closed``): node N is node 0 again, joined by
              :func:`_closed_rows` instead of the ends' rows (the centreline scheme's
              rows; a static solve refuses it, :func:`static_problem`)
+    electrostatics : :class:`solver.electrostatics.ScreenedElectrostatics` or None: the
+             Debye–Hückel repulsion between non-adjacent segments (:func:`electrostatic_loads`)
     """
 
     length: float
@@ -199,6 +204,7 @@ class StaticProblem:
     reference: np.ndarray = field(default_factory=lambda: np.array([1.0, 0, 0, 0]))
     contact: Optional[object] = None
     seabed: Optional[object] = None
+    electrostatics: Optional[object] = None
     intrinsic_curvature: Optional[np.ndarray] = None
     closed: bool = False
 
@@ -249,8 +255,8 @@ def residual(Y, prob: StaticProblem) -> np.ndarray:
     else:                                             # complex (the complex step)
         out[N_START:-N_END] = _cell_rows(Y, prob).ravel()
     out[:N_START], out[-N_END:] = _end_rows(Y, prob)
-    if prob.contact is not None or prob.seabed is not None:
-        extra = contact_loads(Y, prob) + seabed_loads(Y, prob)
+    if not band_ready(prob):
+        extra = contact_loads(Y, prob) + seabed_loads(Y, prob) + electrostatic_loads(Y, prob)
         cells = out[N_START:-N_END].reshape(prob.n_segments, NV)
         cells[:, 7:10] += 0.5 * prob.h * (extra[:-1] + extra[1:])
     return out
@@ -393,18 +399,26 @@ def jacobian(Y: np.ndarray, prob: StaticProblem) -> sp.csc_matrix:
     vals /= _EPS
     n = NV * (prob.n_segments + 1)
     J = sp.csc_matrix((vals, indices, indptr), shape=(n, n))
-    if prob.contact is None and prob.seabed is None:
+    if band_ready(prob):
         return J
-    dL = _contact_load_jacobian(Y, prob) + _seabed_load_jacobian(Y, prob)
+    dL = (_contact_load_jacobian(Y, prob) + _seabed_load_jacobian(Y, prob)
+          + _electrostatic_load_jacobian(Y, prob))
     return (J + _load_rows(prob) @ dL @ _position_columns(prob)).tocsc()
 
 
 def band_ready(prob: StaticProblem) -> bool:
     """True where the Jacobian is a band (:mod:`solver.static_band`): no self-contact
-    (its pairs couple distant nodes), no seabed (its load Jacobian goes the sparse
-    way, with the contact's) and an open rod (a closed one's join couples nodes 0 and
-    N)."""
-    return prob.contact is None and prob.seabed is None and not prob.closed
+    and no electrostatics (their pairs couple distant nodes), no seabed (its load
+    Jacobian goes the sparse way, with the contact's) and an open rod (a closed one's
+    join couples nodes 0 and N)."""
+    return (prob.contact is None and prob.seabed is None and prob.electrostatics is None
+            and not prob.closed)
+
+
+def without_pair_loads(prob: StaticProblem) -> StaticProblem:
+    """``prob`` without its electrostatics: the rows a band holds, for a caller that adds
+    the pairs' load Jacobian itself (:class:`solver.centreline.CentrelineRod`)."""
+    return prob if prob.electrostatics is None else replace(prob, electrostatics=None)
 
 
 def band_jacobian(Y: np.ndarray, prob: StaticProblem) -> np.ndarray:
@@ -414,10 +428,11 @@ def band_jacobian(Y: np.ndarray, prob: StaticProblem) -> np.ndarray:
     only and the end rows on node N only, so one step perturbs both ends). The same
     matrix as :func:`jacobian`; of a closed rod, the part inside the band (the join's
     rows on the columns of nodes 0 and N lie outside it: :func:`join_coupling`). Raises
-    :class:`StaticsError` where the problem has self-contact or a seabed
-    (:func:`band_ready`)."""
-    if prob.contact is not None or prob.seabed is not None:
-        raise StaticsError("the Jacobian with self-contact or a seabed is not a band")
+    :class:`StaticsError` where the problem has self-contact, a seabed or
+    electrostatics (:func:`band_ready`)."""
+    if not (prob.contact is None and prob.seabed is None and prob.electrostatics is None):
+        raise StaticsError("the Jacobian with self-contact, a seabed or electrostatics "
+                           "is not a band")
     N = prob.n_segments
     n = NV * (N + 1)
     ab = band_storage(n)
@@ -556,6 +571,40 @@ def _contact_load_jacobian(Y, prob) -> sp.csr_matrix:
     if ev is None or ev.count == 0:
         return sp.csr_matrix((3 * n1, 3 * n1))
     return assemble_nodal_jacobian(ev, n1)
+
+
+def _electrostatic_evaluation(Y, prob, want_jacobian):
+    """:meth:`solver.electrostatics.ScreenedElectrostatics.evaluate` at the positions of Y
+    (N+1, 13), or None without ``prob.electrostatics``. Raises :class:`StaticsError` for
+    non-finite positions or kept segments that meet."""
+    es = prob.electrostatics
+    if es is None:
+        return None
+    r = np.ascontiguousarray(np.real(Y[:, 0:3]), dtype=float)
+    try:
+        return es.evaluate(r, want_jacobian=want_jacobian)
+    except ValueError as exc:
+        raise StaticsError(f"electrostatics: {exc}") from exc
+
+
+def electrostatic_loads(Y: np.ndarray, prob: StaticProblem) -> np.ndarray:
+    """Screened electrostatics' load density (N+1, 3) N/m (global) at the state Y
+    (N+1, 13), zeros without ``prob.electrostatics``: the nodal forces −∂U/∂r_i of the
+    Debye–Hückel energy between non-adjacent segments over the nodes' shares of the grid
+    (:mod:`solver.electrostatics`). Raises :class:`StaticsError` as
+    :func:`_electrostatic_evaluation`."""
+    ev = _electrostatic_evaluation(Y, prob, False)
+    return np.zeros((prob.n_segments + 1, 3)) if ev is None else ev.loads
+
+
+def _electrostatic_load_jacobian(Y, prob) -> sp.csr_matrix:
+    """∂L/∂r (3(N+1), 3(N+1)) of :func:`electrostatic_loads`, exact (the kernel's second
+    derivatives under the quadrature)."""
+    ev = _electrostatic_evaluation(Y, prob, True)
+    if ev is None:
+        n3 = 3 * (prob.n_segments + 1)
+        return sp.csr_matrix((n3, n3))
+    return ev.jacobian
 
 
 def contact_gap(Y: np.ndarray, prob: StaticProblem) -> float:
@@ -802,7 +851,7 @@ def _damped(prob, Y, G, dY):
 def _newton(prob, Y0, tol, max_iterations):
     Y = straight_guess(prob) if Y0 is None else np.array(Y0, float)
     scale = prob.scales()
-    damp = prob.contact is not None or prob.seabed is not None
+    damp = not band_ready(prob)
     for it in range(1, max_iterations + 1):
         G = residual(Y, prob)
         lu = factor_jacobian(Y, prob)
@@ -1139,7 +1188,8 @@ def static_problem(case, time: Optional[float] = None) -> StaticProblem:
     rotation is held (dead in its fixed frame) or with ``frame: global``; point loads with
     ``body: false`` at grid nodes. Self-contact (``contact``) enters by its law's
     repulsion without damping (:func:`contact_loads`), the seabed by its normal spring
-    without damping and friction (:func:`seabed_loads`); fluid drag does not enter. A
+    without damping and friction (:func:`seabed_loads`), ``electrostatics`` by its
+    Debye–Hückel repulsion (:func:`electrostatic_loads`); fluid drag does not enter. A
     closed rod (``rod.closed``) is refused: its static rows are singular
     (:func:`_closed_rows`), a dynamic run takes it.
     """
@@ -1180,7 +1230,13 @@ def problem_at(case, t: float, props, q, r, skip=()) -> StaticProblem:
         ends[name] = _end_spec(getattr(case.boundary, name), f"boundary.{name}", q[k], r[k],
                                t, extra_force[name])
     inertia = np.asarray(props.inertia[:, 0], float)
-    contact = seabed = None
+    contact = seabed = electrostatics = None
+    if case.electrostatics is not None:
+        from .electrostatics import ScreenedElectrostatics
+        es = case.electrostatics
+        electrostatics = ScreenedElectrostatics(
+            props.s, es.charge_per_length, es.screening_length(), es.relative_permittivity,
+            es.cutoff, es.exclusion, es.quadrature_points)
     if case.contact is not None:
         from .contact import SelfContact
         contact = SelfContact(case.contact, props.s, props.diameter, props.rho_a)
@@ -1191,7 +1247,7 @@ def problem_at(case, t: float, props, q, r, skip=()) -> StaticProblem:
                          stiffness=np.asarray(props.stiffness, float), load=load,
                          start=ends["start"], end=ends["end"], mass=props.rho_a,
                          inertia=inertia, reference=np.asarray(q[0], float),
-                         contact=contact, seabed=seabed,
+                         contact=contact, seabed=seabed, electrostatics=electrostatics,
                          intrinsic_curvature=props.intrinsic_curvature)
 
 
