@@ -12,7 +12,7 @@ unshearable Kirchhoff rod with global-frame unknowns per node k = 0..N (13 per n
 with the constitutive law m = R K (κ − κ⁰), K = diag(EJ1, EJ2, GJ3) (seed eq. 1; κ⁰ the
 intrinsic curvature and twist, ``rod.intrinsic_curvature``, zero for a rod straight and
 untwisted when unloaded; the linear law about a curved rest shape, Antman, *Nonlinear
-Problems of Elasticity*, 2nd ed., § 8.2), so κ_k = K⁻¹ R(p_k)ᵀ m_k + κ⁰_k. Kirchhoff's static equations (Antman, *Nonlinear
+Problems of Elasticity*, 2nd ed., ch. 8), so κ_k = K⁻¹ R(p_k)ᵀ m_k + κ⁰_k. Kirchhoff's static equations (Antman, *Nonlinear
 Problems of Elasticity*, ch. 8; the form of van der Heijden & Thompson, Nonlinear Dyn. 21,
 2000) ::
 
@@ -313,10 +313,12 @@ def _closed_rows(Y, prob: StaticProblem):
     r_N − r_0 = 0 and vec(p̄_0 ⊗ p_N) = 0 (p_N = ±p_0, one frame; the Cayley rows carry
     |p| exactly, so the fourth component is not a condition, and the frame's turns
     around the ring, its linking number, are kept by continuity). With inertia these
-    rows and the cells' are regular; without (a static ring) they are singular along
+    rows and the cells' are regular. Without (a static ring) they are singular along
     the ring's rigid motions and, for an isotropic rod, the spin of every section about
-    the tangent (Domokos & Healey, J. Nonlinear Sci. 11, 2001, for the ring's further
-    "hidden symmetry"), which is why the statics refuse closed rods."""
+    the tangent; fixing node 0's position and frame instead of the n, m continuity
+    leaves a null space still (measured on the equilibrium circle at 16 segments: one
+    null vector at Lk = 0, three at Lk = 1), which is why the statics refuse closed
+    rods."""
     n0, m0, p0 = Y[0, 7:10], Y[0, 10:13], Y[0, 3:7]
     start = np.concatenate([Y[-1, 7:10] - n0, Y[-1, 10:13] - m0, [p0 @ p0 - 1.0]])
     end = np.concatenate([Y[-1, 0:3] - Y[0, 0:3], _qmul(_qconj(p0), Y[-1, 3:7])[1:]])
