@@ -742,23 +742,65 @@ class CentrelineRod:
         Y, _, _ = self.solve(first, co, prob, Y0)
         return Y, co.cXd * self.increments(Y, first) + co.dXd
 
-    def start(self, Y=None, t: float = 0.0, X=None, delta: float | None = None
-              ) -> CentrelineState:
+    #: a start from rest whose Δt exceeds this many of the viscous drag's inertial
+    #: times starts on the overdamped (slow) manifold (:meth:`start`): a step longer
+    #: than the inertial layer does not resolve it (the released bent rod of
+    #: tests/solver/test_viscous.py: its mode's amplitude offset 5.7e-4, 4.1e-3, 0.11
+    #: from the inertial start at Δt = 3, 10, 100 τ, 1.8e-6, 2.6e-6, 8.4e-5 from the slow)
+    SLOW_START_STEPS = 1.0
+
+    def inertial_time(self) -> float:
+        """The viscous drag's longest inertial time (s) over the nodes, the largest of
+        (ρA + C_a ρ_f A)/ζ_n, ρA/ζ_t and ρJ3/ζ_r; 0 without ``fluid.viscosity``."""
+        if self.stokes is None:
+            return 0.0
+        zn, zt, zr = self.stokes
+        return float(max(np.max((self.mass + self.added) / zn), np.max(self.mass / zt),
+                         np.max(self.inertia[:, 2] / zr)))
+
+    def start(self, Y=None, t: float = 0.0, X=None, delta: float | None = None,
+              slow: bool | None = None) -> CentrelineState:
         """A consistent start in Y (N+1, 13) (default the initial pose) at t (s) with the
         velocities X (N+1, 6) (default rest): the accelerations Ẋ(t) and the internal
         loads (n, m)(t) from three Taylor steps of δ, δ/2 and δ/4 (default δ = Δt/4),
-        extrapolated (Richardson, to O(δ³)) to δ → 0; a = Ẋ. Raises
-        :class:`StepFailure` when a Taylor step does not converge."""
+        extrapolated (Richardson, to O(δ³)) to δ → 0; a = Ẋ.
+
+        ``slow`` (default: from rest, with ``fluid.viscosity``, at a Δt beyond
+        SLOW_START_STEPS inertial times, :meth:`inertial_time`): start on the overdamped
+        manifold instead, where the drag balances the loads at t+ (the velocities X(0+)
+        and n, m of the same Taylor steps with the inertia left out, extrapolated alike;
+        Ẋ = a = 0). From rest, the consistent start's Ẋ(0) = f/m belongs to the inertial
+        layer of duration τ, which such a step does not resolve and which the algebraic
+        acceleration would carry into the positions (docs/numerics.md § 9); the slow
+        start skips that layer, as an overdamped model does (the positions then differ
+        from the inertial ones by the layer's travel, v∞ τ). Raises :class:`StepFailure`
+        when a Taylor step does not converge."""
         first = self.rest_state(t, Y)
         if X is not None:
             first.X = np.array(X, float)
+        if slow is None:
+            slow = (X is None and self.stokes is not None and self.case.numerics.dt
+                    > self.SLOW_START_STEPS * self.inertial_time())
         delta = 0.25 * self.case.numerics.dt if delta is None else float(delta)
-        Y1, A1 = self._taylor_step(first, delta)
-        Y2, A2 = self._taylor_step(first, 0.5 * delta)
-        Y4, A4 = self._taylor_step(first, 0.25 * delta)
+        saved = self.mass, self.added, self.inertia
+        if slow:
+            self.mass, self.added, self.inertia = (np.zeros_like(a) for a in saved)
+        try:
+            steps = [self._taylor_step(first, f * delta) for f in (1.0, 0.5, 0.25)]
+        finally:
+            self.mass, self.added, self.inertia = saved
+        (Y1, A1), (Y2, A2), (Y4, A4) = steps
         # Richardson on three halvings: the terms in δ and δ² cancel
-        Xd = (8.0 * A4 - 6.0 * A2 + A1) / 3.0
         first.Y[:, 7:13] = (8.0 * Y4[:, 7:13] - 6.0 * Y2[:, 7:13] + Y1[:, 7:13]) / 3.0
+        if slow:
+            # the velocity at δ, X0 + δẊ, of the inertia-free steps, extrapolated alike
+            X1, X2, X4 = (first.X + f * delta * A for f, A in ((1.0, A1), (0.5, A2),
+                                                                 (0.25, A4)))
+            first.X = (8.0 * X4 - 6.0 * X2 + X1) / 3.0
+            first.Xd = np.zeros_like(first.X)
+            first.a = np.zeros_like(first.X)
+            return first
+        Xd = (8.0 * A4 - 6.0 * A2 + A1) / 3.0
         first.Xd = Xd
         first.a = Xd.copy()
         return first
