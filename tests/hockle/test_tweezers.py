@@ -5,6 +5,7 @@ figures, on synthetic datasets whose curves are known by construction and on a t
 from __future__ import annotations
 
 import copy
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -174,3 +175,61 @@ def test_a_tiny_run_in_the_tweezers_form():
     assert np.abs(series["extension"] - 1.0).max() < 1e-6
     late = ds["time"].values >= 1.5
     assert series["torque"][late] == pytest.approx(series["twist_torque"][late], rel=1e-3)
+
+
+DNA_CASE = Path(__file__).resolve().parents[2] / "cases" / "dna-tweezers.yaml"
+KT = 4.11e-21                                      # J at 25 °C
+
+
+def _dna(t_end=None):
+    case = Case.from_file(DNA_CASE)
+    if t_end is not None:
+        case = Case.model_validate(case.model_dump(mode="json") | {
+            "numerics": case.model_dump(mode="json")["numerics"] | {"t_end": t_end}})
+    return case
+
+
+def test_the_dna_case_states_the_protocol_in_si_with_the_moduli_of_its_stiffnesses():
+    """B = 50 nm kT = E π d⁴/64 and C = 100 nm kT = G π d⁴/32 at d = 2 nm (to 1e-4); it
+    is a tweezers run pulled at s = L by 1 pN along +z."""
+    case = _dna()
+    d = case.rod.diameter
+    assert case.rod.youngs_modulus * np.pi * d**4 / 64 == pytest.approx(50e-9 * KT, rel=1e-4)
+    assert case.rod.shear_modulus * np.pi * d**4 / 32 == pytest.approx(100e-9 * KT, rel=1e-4)
+    protocol = tweezers_protocol(case.model_dump(mode="json"))
+    assert protocol["force_end"] == "end" and protocol["force"] == pytest.approx(1e-12)
+
+
+def test_the_dna_case_before_it_buckles():
+    """The case's first 2 ms (1.9 turns, below Greenhill's 2√(B F) = 28.7 pN nm at 2.2
+    turns): straight at 200 nm, its torque the straight rod's 2π C n / L (to 1 %; the
+    spin's Stokes moment ζ_r ω L is 0.014 pN nm) once the ramp is past."""
+    from solver.simulation import integrate
+
+    series = tweezers_series(integrate(_dna(2.0e-3)))
+    assert series["turns"][-1] == pytest.approx(1.9)
+    assert np.abs(series["extension"] - 2e-7).max() < 1e-12
+    late = series["turns"] > 0.5
+    assert series["torque"][late] == pytest.approx(series["twist_torque"][late], rel=1e-2)
+
+
+@pytest.mark.slow
+def test_the_dna_case_forms_a_plectoneme():
+    """The whole case (about 40 s): it buckles near 2√(B F) (29.7 pN nm measured at 2.3
+    turns), the loop wraps into a plectoneme held apart by contact (no strand passage:
+    Tw + Wr = Lk, no closure passage), past 2.5 turns the torque stays on a plateau of
+    6.6-6.9 pN nm and the extension falls by about 31 nm per turn (docs/tweezers.md)."""
+    from solver.simulation import integrate
+
+    ds = integrate(_dna())
+    series = tweezers_series(ds)
+    n, tq, ext = series["turns"], series["torque"] * 1e21, series["extension"] * 1e9
+    peak = int(np.argmax(tq))
+    assert 2.2 < n[peak] < 2.4 and 28.0 < tq[peak] < 31.0
+    past = n >= 2.5
+    assert 6.0 < tq[past].min() and tq[past].max() < 7.5
+    slope = np.polyfit(n[past], ext[past], 1)[0]
+    assert -36.0 < slope < -26.0
+    assert float(ds["writhe"][-1]) > 2.5 and int(ds["contact_count"][-1]) > 0
+    assert float(ds["topology_error"].max()) < 0.01
+    assert int(ds["writhe_closure_passages"].max()) == 0
