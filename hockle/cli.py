@@ -796,7 +796,8 @@ def build_parser() -> tuple[argparse.ArgumentParser, str | None]:
         "PNG files",
         description="Draw the seed paper's figures from a result file: the rod (a tube of "
         "its diameter, contact sites and ends marked) at the run's events with orthogonal "
-        "views (Fig. 6), energies (Fig. 7) and twist, writhe and linking number (Fig. 8). "
+        "views (Fig. 6), energies (Fig. 7) and twist, writhe and linking number (Fig. 8); for a "
+        "magnetic-tweezers run, extension and torque against the turns. "
         "From a sweep's combined file (hockle sweep): the threshold map, each event's time "
         "and the linking number at buckling against the varied parameter(s), and the "
         "members' writhe over time.",

@@ -14,6 +14,9 @@
   kinetic + taken by the seabed + dissipated = energy at the start + work in).
 * :func:`plot_topology` (Fig. 8): Tw, Wr and Lk vs time (the dashboard's colours,
   :data:`TOPOLOGY_COLOURS`), with |Tw + Wr - Lk| below.
+* :func:`plot_tweezers`: for a magnetic-tweezers run (:func:`solver.results.
+  tweezers_protocol`), the extension against turns (the hat curve) and the torque against
+  turns, from :func:`solver.results.tweezers_series` (docs/tweezers.md).
 
 The drawing of the rod (:func:`rod_box`, :func:`setup_rod_axes`, :func:`draw_rod`,
 :func:`rod_legend_handles`) and of the curves (:func:`energy_lines`,
@@ -43,13 +46,15 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Rectangle
 from matplotlib.ticker import NullFormatter
 
-from solver.results import minimum_bend_radius_of, node_departure, run_events
+from solver.results import minimum_bend_radius_of, node_departure, run_events, tweezers_series
 
 __all__ = [
     "plot_all",
     "plot_snapshots",
     "plot_energies",
     "plot_topology",
+    "plot_tweezers",
+    "tweezers_units",
     "snapshot_times",
     "event_times",
     "writhe_jumps",
@@ -975,8 +980,82 @@ def plot_all(
     stem: str = "result",
     on_skip: Notify | None = _stderr,
 ) -> list[Path]:
-    """Figs. 6, 7 and 8 for ``ds`` into ``out_dir``; returns the paths written."""
+    """Figs. 6, 7 and 8 for ``ds`` into ``out_dir``, and the tweezers curves of a
+    tweezers run (:func:`plot_tweezers`); returns the paths written."""
     paths = plot_snapshots(ds, out_dir, times=times, stem=stem, on_skip=on_skip)
     paths += plot_energies(ds, out_dir, stem=stem, on_skip=on_skip)
     paths += plot_topology(ds, out_dir, stem=stem, on_skip=on_skip)
+    paths += plot_tweezers(ds, out_dir, stem=stem, on_skip=on_skip)
+    return paths
+
+
+#: a rod shorter than this (m) is drawn in the single-molecule units nm, pN and pN nm
+MOLECULAR_LENGTH = 1e-5
+
+
+def tweezers_units(length: float) -> dict[str, tuple[str, float]]:
+    """The units :func:`plot_tweezers` labels its axes in, for a rod of ``length`` (m):
+    ``{"extension": (label, factor), "torque": ..., "force": ...}``, the factor turning
+    the SI value into the label's unit. Below :data:`MOLECULAR_LENGTH` (10 µm, a
+    molecule) nm, pN nm and pN, the SI multiples a single-molecule experiment reports
+    (1 nm = 1e-9 m, 1 pN nm = 1e-21 N m); above it m, N m and N. The data stay SI."""
+    if length < MOLECULAR_LENGTH:
+        return {"extension": ("nm", 1e9), "torque": ("pN nm", 1e21), "force": ("pN", 1e12)}
+    return {"extension": ("m", 1.0), "torque": ("N m", 1.0), "force": ("N", 1.0)}
+
+
+def plot_tweezers(
+    ds: xr.Dataset, out_dir: str | Path, stem: str = "result", on_skip: Notify | None = _stderr
+) -> list[Path]:
+    """The magnetic-tweezers curves of a tweezers run, against the turns put in.
+
+    ``<stem>_extension.png``: the extension along the force (the hat curve; needs
+    ``position``); ``<stem>_torque.png``: the rod's torque about the force's axis at the
+    pulled end (needs the ``reactions`` output), with the straight rod's 2π G J3 n / L
+    dashed for a uniform rod. Both from :func:`solver.results.tweezers_series`, in the
+    units of :func:`tweezers_units`. A result whose case is not a tweezers run
+    (:data:`solver.results.TWEEZERS_RULE`) draws nothing and says nothing; a tweezers run
+    without the variables a figure needs reports it through ``on_skip``.
+    """
+    series = tweezers_series(ds)
+    if series is None:
+        return []
+    units = tweezers_units(series["length"])
+    turns = series["turns"]
+    force_unit, force_factor = units["force"]
+    pull = f"{series['force'] * force_factor:.3g} {force_unit}"
+    marker = "o" if turns.size < 30 else None
+    paths = []
+    if series["extension"] is None:
+        if on_skip:
+            on_skip("tweezers extension skipped: the dataset has no 'position' variable")
+    else:
+        unit, factor = units["extension"]
+        fig = Figure(figsize=(7.0, 4.8), layout="constrained")
+        ax = fig.add_subplot()
+        ax.plot(turns, series["extension"] * factor, color="C0", marker=marker, ms=3)
+        ax.set_xlabel("turns n (prescribed end rotation / 2π)")
+        ax.set_ylabel(f"extension along the force ({unit})")
+        ax.set_title(f"{_title(ds)}: extension at a force of {pull}")
+        ax.grid(alpha=0.3)
+        paths.append(_save(fig, Path(out_dir) / f"{stem}_extension.png"))
+    if series["torque"] is None:
+        if on_skip:
+            on_skip("tweezers torque skipped: the dataset has no reaction_moment_* variables "
+                    "(output.fields: reactions)")
+    else:
+        unit, factor = units["torque"]
+        fig = Figure(figsize=(7.0, 4.8), layout="constrained")
+        ax = fig.add_subplot()
+        ax.plot(turns, series["torque"] * factor, color="C3", marker=marker, ms=3,
+                label="torque at the pulled end")
+        if series["twist_torque"] is not None:
+            ax.plot(turns, series["twist_torque"] * factor, color="0.4", ls="--", lw=1,
+                    label="straight rod, 2π G J n / L")
+        ax.set_xlabel("turns n (prescribed end rotation / 2π)")
+        ax.set_ylabel(f"torque about the force's axis ({unit})")
+        ax.set_title(f"{_title(ds)}: torque at a force of {pull}")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+        paths.append(_save(fig, Path(out_dir) / f"{stem}_torque.png"))
     return paths

@@ -52,6 +52,9 @@ __all__ = [
     "bend_radius_series",
     "minimum_bend_radius_of",
     "on_bottom",
+    "tweezers_protocol",
+    "tweezers_series",
+    "TWEEZERS_RULE",
     "apply_metadata",
     "FIELD_VARIABLES",
     "DIAGNOSTIC_VARIABLES",
@@ -871,6 +874,176 @@ def on_bottom(ds) -> np.ndarray | None:
     if "seabed" not in _case_of(ds) or "seabed_contact_length" not in ds:
         return None
     return np.nan_to_num(np.asarray(ds["seabed_contact_length"].values, dtype=float)) > 0
+
+
+#: How a result is recognised as a magnetic-tweezers run (:func:`tweezers_protocol`), in
+#: words for the docs and ``hockle plot``'s help.
+TWEEZERS_RULE = (
+    "a run is a tweezers run when its case starts straight (no initial.centreline), both ends "
+    "in the body frame, each with one condition per item: every rotation item an "
+    "angular_velocity, items 0 and 1 zero (each end's tangent stays fixed: the surface and a "
+    "bead held by its magnet), item 2 a number or table (the turns); one end pulled by a "
+    "constant axial force > 0 (translation item 2, a number: the tension) with its items 0 "
+    "and 1 a zero force or a zero velocity; the other end held (every translation item "
+    "velocity 0).")
+
+
+def _single_conditions(items) -> list | None:
+    """The one condition mapping of each item of an end's ``translation`` or ``rotation``
+    (canonical JSON: a list of conditions per item), or None when an item switches in time
+    or the group does not have 3 items."""
+    if not isinstance(items, list) or len(items) != 3:
+        return None
+    out = []
+    for item in items:
+        if isinstance(item, dict):
+            item = [item]
+        if not isinstance(item, list) or len(item) != 1 or not isinstance(item[0], dict):
+            return None
+        out.append(item[0])
+    return out
+
+
+def _number(value) -> float | None:
+    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
+
+
+def tweezers_protocol(case: Mapping) -> dict | None:
+    """The magnetic-tweezers protocol a case states, or None when it states none.
+
+    The rule is :data:`TWEEZERS_RULE` (docs/tweezers.md, "The case form"): one end pulled
+    along its fixed tangent by a constant axial force, both ends' tangents held, the rod
+    turned about its axis by the ends' ``angular_velocity`` item 2 (either end or both).
+
+    Parameters
+    ----------
+    case : mapping
+        A case document as the canonical JSON holds it (a result's ``case`` attribute,
+        parsed), or as written (single condition mappings are read as one-item lists).
+
+    Returns
+    -------
+    dict or None
+        ``force_end`` ("start" or "end", the pulled end), ``force`` (N, > 0, the tension),
+        ``axis`` ((3,) unit vector, global: ``initial.tangent``, the force's direction at
+        s = L and minus it at s = 0, the axis extension and torque are measured along),
+        ``spin`` ({"start": value, "end": value}: each end's ``angular_velocity`` item 2,
+        rad/s, a number or a ``{t, value}`` table) and ``length`` (m, ``rod.length``).
+    """
+    boundary = case.get("boundary") if isinstance(case, Mapping) else None
+    initial = (case.get("initial") or {}) if isinstance(case, Mapping) else {}
+    if not isinstance(boundary, Mapping) or initial.get("centreline") is not None:
+        return None
+    groups = {}
+    for name in ("start", "end"):
+        ec = boundary.get(name)
+        if not isinstance(ec, Mapping) or ec.get("frame", "body") != "body":
+            return None
+        rotation = _single_conditions(ec.get("rotation"))
+        translation = _single_conditions(ec.get("translation"))
+        if rotation is None or translation is None:
+            return None
+        if any(set(c) != {"angular_velocity"} for c in rotation):
+            return None
+        if any(_number(rotation[i]["angular_velocity"]) != 0.0 for i in (0, 1)):
+            return None
+        groups[name] = (translation, rotation[2]["angular_velocity"])
+    pulled = [name for name, (tr, _) in groups.items()
+              if set(tr[2]) == {"force"} and (_number(tr[2]["force"]) or 0.0) > 0.0]
+    if len(pulled) != 1:
+        return None
+    force_end = pulled[0]
+    held = "start" if force_end == "end" else "end"
+    if any(c != {"velocity": 0.0} for c in groups[held][0]):      # 0 == 0.0: either spelling
+        return None
+    if any(c not in ({"force": 0.0}, {"velocity": 0.0}) for c in groups[force_end][0][:2]):
+        return None
+    tangent = np.asarray(initial.get("tangent", [0.0, 0.0, 1.0]), dtype=float)
+    length = _number((case.get("rod") or {}).get("length"))
+    if tangent.shape != (3,) or not np.linalg.norm(tangent) > 0 or length is None:
+        return None
+    axis = tangent / np.linalg.norm(tangent)
+    return {"force_end": force_end, "force": float(groups[force_end][0][2]["force"]),
+            "axis": axis if force_end == "end" else -axis,
+            "spin": {name: groups[name][1] for name in groups}, "length": length}
+
+
+def _rotation_angle(rate, times: np.ndarray) -> np.ndarray:
+    """(T,) rad: ∫_0^t of an angular velocity (rad/s, a number or a ``{t, value}`` table,
+    piecewise linear and held outside its knots) at each of ``times`` (T,) s, exact."""
+    number = _number(rate)
+    if number is not None:
+        return number * times
+    tk = np.asarray(rate["t"], dtype=float)
+    vk = np.asarray(rate["value"], dtype=float)
+    top = float(np.max(times)) if times.size else 0.0
+    knots = np.unique(np.concatenate([[0.0], tk[(tk > 0.0) & (tk < top)], times]))
+    values = np.interp(knots, tk, vk)
+    angle = np.concatenate([[0.0], np.cumsum(0.5 * (values[1:] + values[:-1]) * np.diff(knots))])
+    return np.interp(times, knots, angle)
+
+
+def _torsional_stiffness(case: Mapping) -> float | None:
+    """G J3 = G π d⁴/32 (N m²) of a uniform rod (numbers, not profiles), else None."""
+    rod = case.get("rod") or {}
+    g, d = _number(rod.get("shear_modulus")), _number(rod.get("diameter"))
+    return None if g is None or d is None else g * np.pi * d ** 4 / 32.0
+
+
+def tweezers_series(ds) -> dict | None:
+    """The magnetic-tweezers curves of a result: turns, extension and torque at each
+    stored time.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A result dataset whose case is a tweezers run (:func:`tweezers_protocol`).
+
+    Returns
+    -------
+    dict or None
+        None when the case is not a tweezers run or the dataset stores no time. Else the
+        protocol's entries (:func:`tweezers_protocol`) and, each (T,):
+
+        * ``turns``: the prescribed rotation of the end s = L less that of s = 0 about
+          the axis, in turns (1 = 2π rad), integrated exactly from the case's tables from
+          t = 0 (the linking number's sign: with one end held, Lk(t) = turns);
+        * ``extension`` (m): (r(L) − r(0))·axis, the pulled end's height above the held
+          one along the force, as the instrument reads the bead; None without
+          ``position``;
+        * ``torque`` (N m): the rod's internal twisting moment at the pulled end along the
+          axis, m·axis with m = R q (``reaction_moment_end``·axis at s = L,
+          −``reaction_moment_start``·axis at s = 0), positive where the rod is overwound
+          (turns > 0), the torque the rod puts on a bead turned back; None without the
+          ``reactions`` output;
+        * ``twist_torque`` (N m): the straight rod's torque at the same turns,
+          2π G J3 turns / L (a uniform rod only, else None): the linear rise before it
+          buckles.
+    """
+    protocol = tweezers_protocol(_case_of(ds)) if ds is not None else None
+    if protocol is None or "time" not in ds.coords or ds.sizes.get("time", 0) == 0:
+        return None
+    t = np.asarray(ds["time"].values, dtype=float)
+    spin = protocol["spin"]
+    turns = (_rotation_angle(spin["end"], t) - _rotation_angle(spin["start"], t)) / (2 * np.pi)
+    axis = protocol["axis"]
+    extension = None
+    if "position" in ds:
+        pos = np.asarray(ds["position"].transpose("time", "s", "xyz").values, dtype=float)
+        extension = (pos[:, -1, :] - pos[:, 0, :]) @ np.asarray(axis, float) * (
+            1.0 if protocol["force_end"] == "end" else -1.0)
+    name = f"reaction_moment_{protocol['force_end']}"
+    torque = None
+    if name in ds:
+        moment = np.asarray(ds[name].transpose("time", "xyz").values, dtype=float)
+        # R q at s = L is reaction_moment_end; at s = 0 it is -reaction_moment_start, and
+        # the axis there is minus the tangent: the two signs cancel
+        torque = moment @ np.asarray(axis, float)
+    stiffness = _torsional_stiffness(_case_of(ds))
+    twist_torque = None if stiffness is None else (
+        2 * np.pi * stiffness * turns / protocol["length"])
+    return {**protocol, "turns": turns, "extension": extension, "torque": torque,
+            "twist_torque": twist_torque}
 
 
 def _loop_formed(ds, wr: np.ndarray | None) -> int | None:
