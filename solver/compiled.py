@@ -132,7 +132,7 @@ def _warm_up_search(contact, cand) -> None:
     _search_kernel(helix, np.gradient(helix, axis=0), a, b, sh, 0.1, 1.0)
     moved, dh = helix + [0.0, 0.0, 0.001], np.full(nh, 0.02)
     _swept_reach(helix, moved, sh, dh, 0.1)
-    _swept_any_within(helix, moved, a, b, dh)
+    _swept_any_within(helix, moved, a, b, dh, sh, 0.1)
 
 
 def _warm_up_spec() -> dict:

@@ -28,6 +28,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import math
+
 import numba
 import numpy as np
 
@@ -327,13 +329,17 @@ class SelfContact:
         """Collision check of a step from node positions r_old to r_new (N, 3) m
         (docs/contact.md): True when two nodes beyond the exclusion, moving linearly from
         their old to their new positions, come closer than a quarter of the sum of their
-        diameters within the step (a strand passed through another between the candidate
-        searches). A pair can come that close only if it ends closer than ½D_max plus
-        twice the largest node displacement, so the O(N) pre-test of :meth:`may_touch`
-        at that reach (tangents: the chords of r_new) rules most steps out at once, and
-        the swept distances are computed for the node pairs within it
-        (:func:`~.geometry.close_node_pairs`, :func:`~.geometry.swept_min_distance`).
-        Compiled in two passes (:func:`_swept_reach`, :func:`_swept_any_within`).
+        diameters within the step, or two segments at such nodes do at one of the
+        step's sub-times (:func:`_swept_segments_within`: two strands crossing between
+        their nodes, which the nodes' own distances miss where a segment is longer than
+        about a third of the diameter); a strand passed through another between the
+        candidate searches. A pair can come that close only if it ends closer than
+        ½D_max plus twice the largest node displacement plus the longest segment, so
+        the O(N) pre-test of :meth:`may_touch` at that reach (tangents: the chords of
+        r_new) rules most steps out at once, and the swept distances are computed for
+        the node pairs within it (:func:`~.geometry.close_node_pairs`,
+        :func:`~.geometry.swept_min_distance`). Compiled in two passes
+        (:func:`_swept_reach`, :func:`_swept_any_within`).
         Raises ValueError (from :func:`~.geometry.close_node_pairs`) for non-finite
         positions on grids of more than ``ALL_PAIRS_NODES`` nodes; the solver passes only
         converged, finite ones."""
@@ -348,7 +354,8 @@ class SelfContact:
         if radius < 0.0:
             return False
         a, b = close_node_pairs(r1, radius, self.s, self.separation_cut)
-        return a.size > 0 and bool(_swept_any_within(r0, r1, a, b, self.diameter))
+        return a.size > 0 and bool(_swept_any_within(r0, r1, a, b, self.diameter, self.s,
+                                                     float(self.separation_cut)))
 
     # ------------------------------------------------------------------ candidates
     def candidates(self, positions, tangents, reach: float = 0.0) -> ContactCandidates:
@@ -521,11 +528,18 @@ def evaluation_potential(ev, P, data):
 @numba.njit(cache=True)
 def _swept_reach(r0, r1, s, diameter, min_separation):
     """:meth:`SelfContact.passes_through`'s pre-test: the reach ½D_max + 2 max_k |r1_k −
-    r0_k| (m) within which a pair of r1 (N, 3) must lie to come closer than ½D over the
-    step, or −1 when the test of :func:`_may_touch_kernel` (tangents: the chords of r1,
-    the last one repeated) rules every pair out at that distance."""
+    r0_k| + the longest chord of r1 (m) within which a node pair of r1 (N, 3) must lie
+    for the pair, or segments at its nodes, to come closer than ½D over the step, or −1
+    when the test of :func:`_may_touch_kernel` (tangents: the chords of r1, the last
+    one repeated) rules every pair out at that distance."""
     n = r1.shape[0]
-    radius = 0.5 * np.max(diameter) + 2.0 * max_distance(r1, r0)
+    chord = 0.0
+    for k in range(n - 1):
+        d0 = r1[k + 1, 0] - r1[k, 0]
+        d1 = r1[k + 1, 1] - r1[k, 1]
+        d2 = r1[k + 1, 2] - r1[k, 2]
+        chord = max(chord, math.sqrt(d0 * d0 + d1 * d1 + d2 * d2))
+    radius = 0.5 * np.max(diameter) + 2.0 * max_distance(r1, r0) + chord
     t = np.empty((n, 3))
     for k in range(n):
         lo = min(k, n - 2)
@@ -537,15 +551,88 @@ def _swept_reach(r0, r1, s, diameter, min_separation):
 
 
 @numba.njit(cache=True)
-def _swept_any_within(r0, r1, a, b, diameter):
+def _swept_any_within(r0, r1, a, b, diameter, s, cut):
     """Whether any node pair (a, b) (P,) moving linearly from r0 to r1 (N, 3) comes
     closer than ½ · ½(D_a + D_b) within the step (:func:`~.geometry._swept_kernel`'s
-    closest approach)."""
+    closest approach), or segments at such nodes do (:func:`_swept_segments_within`;
+    s (N,) m and ``cut`` (m) its arclength exclusion)."""
     closest = np.empty(a.shape[0])
     _swept_kernel(r0, r1, a, b, closest)
     for p in range(a.shape[0]):
         if closest[p] < 0.5 * (0.5 * (diameter[a[p]] + diameter[b[p]])):
             return True
+    return _swept_segments_within(r0, r1, a, b, diameter, s, cut)
+
+
+#: the most sub-times :func:`_swept_segments_within` takes in one step
+SWEPT_SUBSTEPS = 256
+
+
+@numba.njit(cache=True)
+def _segment_distance(p0, p1, q0, q1):
+    """The distance (m) between segments [p0, p1] and [q0, q1] (each (3,)), Lumelsky's
+    clamped minimisation (Inf. Process. Lett. 21, 1985; :func:`~.geometry.segment_segment`
+    for one pair)."""
+    d1 = p1 - p0
+    d2 = q1 - q0
+    r = p0 - q0
+    a = d1 @ d1
+    e = d2 @ d2
+    f = d2 @ r
+    c = d1 @ r
+    b = d1 @ d2
+    denom = a * e - b * b
+    sv = 0.0
+    if denom > 1e-14 * a * e and denom > 0.0:
+        sv = min(max((b * f - c * e) / denom, 0.0), 1.0)
+    tv = (b * sv + f) / e if e > 0.0 else 0.0
+    if tv < 0.0:
+        tv = 0.0
+        sv = min(max(-c / a, 0.0), 1.0) if a > 0.0 else 0.0
+    elif tv > 1.0:
+        tv = 1.0
+        sv = min(max((b - c) / a, 0.0), 1.0) if a > 0.0 else 0.0
+    diff = p0 + sv * d1 - q0 - tv * d2
+    return math.sqrt(diff @ diff)
+
+
+@numba.njit(cache=True)
+def _swept_segments_within(r0, r1, a, b, diameter, s, cut):
+    """Whether two segments, one at each node of a pair (a, b) (P,) (k − 1 → k and
+    k → k + 1 at node k), their nodes beyond ``cut`` (m) in arclength s (N,) from the
+    other segment's, come closer than the node test's threshold, ½ of their four
+    diameters' mean, at one of the step's sub-times t_k = k/K, the nodes moving
+    linearly from r0 to r1 (N, 3). Two segments crossing at some time are at distance 0
+    then, and the distance of two segments changes by at most their points' relative
+    displacement, at most 2 max_k |r1_k − r0_k| over the step; K = ⌈4 max_k |r1_k −
+    r0_k| / (½ D_min)⌉ (at most SWEPT_SUBSTEPS) puts a sub-time within half the
+    threshold of every crossing."""
+    n = r0.shape[0]
+    move = 0.0
+    for k in range(n):
+        d = r1[k] - r0[k]
+        move = max(move, math.sqrt(d @ d))
+    thr_min = 0.5 * np.min(diameter)
+    steps = min(SWEPT_SUBSTEPS, max(1, int(math.ceil(2.0 * 2.0 * move / thr_min))))
+    for p in range(a.shape[0]):
+        for i in (a[p] - 1, a[p]):
+            if i < 0 or i + 1 >= n:
+                continue
+            for j in (b[p] - 1, b[p]):
+                if j < 0 or j + 1 >= n:
+                    continue
+                if (abs(s[i] - s[j]) <= cut or abs(s[i + 1] - s[j]) <= cut
+                        or abs(s[i] - s[j + 1]) <= cut or abs(s[i + 1] - s[j + 1]) <= cut):
+                    continue
+                thr = 0.125 * (diameter[i] + diameter[i + 1] + diameter[j] + diameter[j + 1])
+                for k in range(steps + 1):
+                    t = k / steps
+                    d = _segment_distance(r0[i] + t * (r1[i] - r0[i]),
+                                          r0[i + 1] + t * (r1[i + 1] - r0[i + 1]),
+                                          r0[j] + t * (r1[j] - r0[j]),
+                                          r0[j + 1] + t * (r1[j + 1] - r0[j + 1]))
+                    if d < thr:
+                        return True
     return False
 
 
@@ -699,7 +786,7 @@ def _passes_through_all_pairs(r0, r1, s, diameter, min_separation, cut):
         return False
     a, b = _block_pairs_kernel(r1, s, r1.shape[0], np.zeros((0, 2), np.intp), np.zeros(1),
                                radius, cut)
-    return a.size > 0 and _swept_any_within(r0, r1, a, b, diameter)
+    return a.size > 0 and _swept_any_within(r0, r1, a, b, diameter, s, cut)
 
 
 @numba.njit(cache=True)

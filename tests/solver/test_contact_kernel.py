@@ -669,3 +669,28 @@ def test_passes_through_tells_a_strand_crossing_another_within_a_step():
     line = np.c_[s2, np.zeros(200), np.zeros(200)]
     sc2 = make(spec(aperture=180.0), s2)
     assert not sc2.passes_through(line, line + [0.0, 0.3, 0.0])
+
+
+def test_passes_through_tells_strands_crossing_between_their_nodes():
+    """Two straight strands of segments three diameters long (h = 0.06 m, D = 0.02 m),
+    one above the other and crossed at right angles, the upper one moved down through
+    the lower in one step so that it crosses it midway between nodes: no node comes
+    within D/2 of another node at any time (the nearest pass is h/√2 = 2.1 D), so only
+    the segments' sweep tells it (at sub-times, SWEPT_SUBSTEPS at most); stopping one
+    diameter short of the other strand is no passage."""
+    h, n = 0.06, 21
+    s = np.arange(2 * n) * h
+    x = (np.arange(n) - n // 2 + 0.5) * h          # crossing midway between nodes
+    lower = np.c_[x, np.zeros(n), np.zeros(n)]
+    upper = np.c_[np.zeros(n), x[::-1], np.full(n, 0.05)]
+    # one rod: the lower strand, then (one long segment on) the upper strand
+    r0 = np.vstack([lower, upper])
+    sc = make(spec(aperture=180.0, tolerance=0.03), s)
+    down = r0.copy()
+    down[n:, 2] = -0.05
+    short = r0.copy()
+    short[n:, 2] = 0.021
+    nodes = np.linalg.norm(r0[:n, None, :2] - r0[None, n:, :2], axis=2).min()
+    assert nodes > 2.0 * DIAM                       # the nodes never meet
+    assert sc.passes_through(r0, down)
+    assert not sc.passes_through(r0, short)
