@@ -30,21 +30,19 @@ import argparse
 import time
 
 import numpy as np
-from scipy.optimize import brentq
 
 from solver import statics as st
 from solver.contact import SelfContact
 from solver.continuation import continuation
+from solver.results import plectoneme_two_phase
 from solver.topology import twist, writhe
 
 
 def theory(T, B, R):
-    """(θ, plateau torque M_p, extension slope per turn, m) of the plectonemic phase."""
-    tau = T * R**2 / B
-    th = brentq(lambda t: np.sin(t)**4 * (2 * np.cos(t)**2 / np.cos(2 * t) - 0.5) - tau,
-                1e-6, np.pi / 4 - 1e-9)
-    M = 2 * B * np.sin(th)**3 * np.cos(th) / (R * np.cos(2 * th))
-    return th, M, 4 * np.pi * R / np.sin(2 * th)
+    """(θ, plateau torque M_p, extension slope per turn, m) of the plectonemic phase
+    (:func:`solver.results.plectoneme_two_phase`)."""
+    p = plectoneme_two_phase(B, T, R)
+    return p["theta"], p["torque"], p["extension_per_turn"]
 
 
 def problem_family(L, N, *, B=1.0, C=1.0, T=1.0, D=0.4, g_hat=None, kappa=100.0,

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import json
+import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -55,6 +56,8 @@ __all__ = [
     "tweezers_protocol",
     "tweezers_series",
     "TWEEZERS_RULE",
+    "plectoneme_two_phase",
+    "ply_axis_distance",
     "apply_metadata",
     "FIELD_VARIABLES",
     "DIAGNOSTIC_VARIABLES",
@@ -1044,6 +1047,76 @@ def tweezers_series(ds) -> dict | None:
         2 * np.pi * stiffness * turns / protocol["length"])
     return {**protocol, "turns": turns, "extension": extension, "torque": torque,
             "twist_torque": twist_torque}
+
+
+def plectoneme_two_phase(bending_stiffness: float, tension: float, radius: float) -> dict:
+    """The plectonemic phase of an elastic rod with a hard core under tension and torque,
+    coexisting with the straight phase (the two-phase model without thermal fluctuations
+    or electrostatics: Clauvelin, Audoly & Neukirch, Biophys. J. 96, 3716, 2009; Neukirch &
+    Marko, PRL 106, 138104, 2011; docs/statics.md, "The plectoneme").
+
+    The ply of superhelix radius R and pitch angle θ (from its axis; curvature sin²θ/R,
+    writhe sin 2θ/(4πR) per unit length of rod) has the energy B sin⁴θ/(2R²) −
+    M sin 2θ/(2R) per length; it coexists with the straight phase (−T) where, minimised
+    in θ, they are equal: sin⁴θ (2 cos²θ/cos 2θ − ½) = T R²/B, M_p = 2B sin³θ cos θ/(R cos 2θ);
+    every further turn then goes into writhe and the extension falls by 4πR/sin 2θ.
+
+    Parameters
+    ----------
+    bending_stiffness : float
+        B, N m² (> 0).
+    tension : float
+        T, N (> 0).
+    radius : float
+        R, m (> 0): half the distance between the ply's two axes.
+
+    Returns
+    -------
+    dict
+        ``theta`` (rad), ``torque`` M_p (N m), ``extension_per_turn`` 4πR/sin 2θ (m).
+
+    Raises
+    ------
+    ValueError
+        For a non-positive or non-finite argument, or T R²/B beyond the phase's range
+        (θ → π/4).
+    """
+    from scipy.optimize import brentq
+
+    B, T, R = float(bending_stiffness), float(tension), float(radius)
+    if not all(math.isfinite(x) and x > 0.0 for x in (B, T, R)):
+        raise ValueError(f"plectoneme_two_phase: B, T, R must be positive, got {B}, {T}, {R}")
+    tau = T * R * R / B
+
+    def excess(th):
+        return math.sin(th) ** 4 * (2.0 * math.cos(th) ** 2 / math.cos(2.0 * th) - 0.5) - tau
+
+    hi = math.pi / 4 - 1e-9
+    if not excess(hi) > 0.0:
+        raise ValueError(f"plectoneme_two_phase: T R²/B = {tau:.3g} has no plectonemic phase")
+    th = brentq(excess, 1e-12, hi, xtol=1e-15)
+    return {"theta": th,
+            "torque": 2.0 * B * math.sin(th) ** 3 * math.cos(th) / (R * math.cos(2.0 * th)),
+            "extension_per_turn": 4.0 * math.pi * R / math.sin(2.0 * th)}
+
+
+def ply_axis_distance(positions, s, far: float) -> np.ndarray:
+    """Each node's distance (N+1,) m to the nearest segment of the centreline that lies
+    more than ``far`` (m) away along the rod: in a plectoneme's ply, the distance between
+    its two axes (2R); inf where no segment is that far. positions (N+1, 3) m, s (N+1,) m
+    (segment k from node k to k + 1, its arclength its midpoint's). Raises nothing."""
+    from .contact.geometry import segment_segment
+
+    r = np.asarray(positions, dtype=float)
+    s = np.asarray(s, dtype=float)
+    mid = 0.5 * (s[1:] + s[:-1])
+    out = np.full(r.shape[0], np.inf)
+    for i in range(r.shape[0]):
+        seg = np.nonzero(np.abs(mid - s[i]) > far)[0]
+        if seg.size:
+            p = np.repeat(r[i][None], seg.size, axis=0)
+            out[i] = float(segment_segment(p, p, r[seg], r[seg + 1]).min())
+    return out
 
 
 def _loop_formed(ds, wr: np.ndarray | None) -> int | None:

@@ -233,3 +233,11 @@ def test_the_dna_case_forms_a_plectoneme():
     assert float(ds["writhe"][-1]) > 2.5 and int(ds["contact_count"][-1]) > 0
     assert float(ds["topology_error"].max()) < 0.01
     assert int(ds["writhe_closure_passages"].max()) == 0
+    # beside the two-phase theory with R from the simulated ply (benchmarks/
+    # tweezers_plateau.py prints it): the extension per turn within 5 % (measured
+    # 0.994), the torque plateau 6 % above the theory's M_p (measured 1.060)
+    from benchmarks.tweezers_plateau import compare
+
+    c = compare(ds, _dna())
+    assert abs(c["extension_per_turn"] / c["theory_extension_per_turn"] - 1.0) < 0.05, c
+    assert 1.0 < c["torque_mean"] / c["theory_torque"] < 1.1, c

@@ -360,3 +360,30 @@ def test_round_trip_of_a_real_run(case, tmp_path):
     for name in back.data_vars:
         assert back[name].attrs.get("units") is not None, name
         assert back[name].attrs.get("long_name"), name
+
+
+def test_the_two_phase_plectoneme_coexists_with_the_straight_rod():
+    """solver.results.plectoneme_two_phase: at its θ and M_p the ply's energy per length
+    B sin⁴θ/(2R²) − M sin 2θ/(2R), minimised in θ (zero derivative), equals the straight
+    phase's −T; a turn puts 2πR·2/sin 2θ of rod into the ply (its writhe per length is
+    sin 2θ/(4πR)); bad arguments are refused."""
+    import math
+
+    from solver.results import plectoneme_two_phase
+
+    B, T, R = 2.05e-28, 1e-12, 1.2e-9
+    p = plectoneme_two_phase(B, T, R)
+    th, M = p["theta"], p["torque"]
+
+    def energy(t):
+        return B * math.sin(t) ** 4 / (2 * R * R) - M * math.sin(2 * t) / (2 * R)
+
+    assert energy(th) == pytest.approx(-T, rel=1e-9)
+    h = 1e-6
+    assert abs(energy(th + h) - energy(th - h)) / (2 * h) < 1e-9 * T
+    assert p["extension_per_turn"] == pytest.approx(1.0 / (math.sin(2 * th) / (4 * math.pi * R)),
+                                                   rel=1e-12)
+    with pytest.raises(ValueError):
+        plectoneme_two_phase(B, -T, R)
+    with pytest.raises(ValueError):
+        plectoneme_two_phase(1.0, 1e12, 1.0)          # θ within 1e-9 of π/4
