@@ -2009,8 +2009,8 @@ class Case(BaseModel):
                      "steps); use goyal", "centreline")]
 
     def _check_closed(self) -> list[dict]:
-        """A closed rod (``rod.closed``): the centreline scheme only, no contact yet, a
-        circle for a start (no ``initial.centreline`` or ``twist_rate``; its twist is
+        """A closed rod (``rod.closed``): the centreline scheme only (self-contact and
+        electrostatics periodic: :func:`solver.statics._pair_models`), a circle for a start (no ``initial.centreline`` or ``twist_rate``; its twist is
         ``initial.linking_number``); ``linking_number`` only for a closed rod."""
         ini = self.initial
         if not self.rod.closed:
@@ -2024,11 +2024,6 @@ class Case(BaseModel):
         if self.numerics.formulation != "centreline":
             errors.append(_err(("rod", "closed"), "unsupported",
                                "a closed rod runs on numerics.formulation: centreline only", True))
-        for name in ("contact", "electrostatics"):
-            if getattr(self, name) is not None:
-                errors.append(_err((name,), "unsupported",
-                                   f"{name} on a closed rod is not supported yet (the pair "
-                                   "search's arclength exclusion is not periodic)", None))
         for name in ("centreline", "twist_rate"):
             if getattr(ini, name) not in (None, 0.0):
                 errors.append(_err(("initial", name), "inconsistent",
