@@ -226,6 +226,43 @@ def assemble_nodal_jacobian(ev: ContactEvaluation, n_nodes: int, d_force=None):
     return close_join_jacobian(jac) if ev.closed else jac
 
 
+def _checked_grid(s, diameter, rho_a, closed):
+    """(s, diameter, rho_a) as float arrays (N,) for :class:`SelfContact`. Raises
+    ValueError for a grid that is not 1-D with at least 2 nodes (4 on a closed rod),
+    strictly increasing and finite, or diameters and ρA of another shape, not finite or
+    not > 0."""
+    s = np.asarray(s, dtype=float)
+    diameter = np.asarray(diameter, dtype=float)
+    rho_a = np.asarray(rho_a, dtype=float)
+    if s.ndim != 1 or s.size < (4 if closed else 2):
+        raise ValueError(f"SelfContact: s must be 1-D with at least 2 nodes (4 on a "
+                         f"closed rod), got {s.shape}")
+    for name, arr in (("diameter", diameter), ("rho_a", rho_a)):
+        if arr.shape != s.shape:
+            raise ValueError(f"SelfContact: {name} has shape {arr.shape}, s has {s.shape}")
+    for name, arr in (("s", s), ("diameter", diameter), ("rho_a", rho_a)):
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"SelfContact: {name} must be finite")
+    if np.any(np.diff(s) <= 0.0):
+        raise ValueError("SelfContact: s must be strictly increasing")
+    if np.any(diameter <= 0.0) or np.any(rho_a <= 0.0):
+        raise ValueError("SelfContact: diameter and rho_a must be > 0")
+    return s, diameter, rho_a
+
+
+def _min_separation(s, cut) -> float:
+    """The smallest arclength separation (m) beyond ``cut`` (m) between two nodes of the
+    grid s (N,), inf where no pair is that far apart (:meth:`SelfContact.may_touch`)."""
+    partner = np.searchsorted(s, s + cut, side="right")
+    node = np.arange(s.size)
+    cand = np.concatenate([partner - 1, partner])
+    own = np.concatenate([node, node])
+    valid = (cand > own) & (cand < s.size)
+    sep = s[cand[valid]] - s[own[valid]]
+    sep = sep[sep > cut]
+    return float(sep.min()) if sep.size else float("inf")
+
+
 def _spec_value(spec, name, default=None):
     if isinstance(spec, dict):
         return spec.get(name, default)
@@ -261,22 +298,7 @@ class SelfContact:
     """
 
     def __init__(self, spec, s, diameter, rho_a, closed: bool = False):
-        s = np.asarray(s, dtype=float)
-        diameter = np.asarray(diameter, dtype=float)
-        rho_a = np.asarray(rho_a, dtype=float)
-        if s.ndim != 1 or s.size < (4 if closed else 2):
-            raise ValueError(f"SelfContact: s must be 1-D with at least 2 nodes (4 on a "
-                             f"closed rod), got {s.shape}")
-        for name, arr in (("diameter", diameter), ("rho_a", rho_a)):
-            if arr.shape != s.shape:
-                raise ValueError(f"SelfContact: {name} has shape {arr.shape}, s has {s.shape}")
-        for name, arr in (("s", s), ("diameter", diameter), ("rho_a", rho_a)):
-            if not np.all(np.isfinite(arr)):
-                raise ValueError(f"SelfContact: {name} must be finite")
-        if np.any(np.diff(s) <= 0.0):
-            raise ValueError("SelfContact: s must be strictly increasing")
-        if np.any(diameter <= 0.0) or np.any(rho_a <= 0.0):
-            raise ValueError("SelfContact: diameter and rho_a must be > 0")
+        s, diameter, rho_a = _checked_grid(s, diameter, rho_a, closed)
 
         def num(name, lo=None, lo_open=False, hi=None, optional=False):
             v = _spec_value(spec, name)
@@ -330,16 +352,8 @@ class SelfContact:
         self.weights = nodal_weights(s, self.closed)
         # pairs must be further apart than the exclusion by more than rounding
         self.separation_cut = self.exclusion + 1e-9 * (s[-1] - s[0]) / (s.size - 1)
-        partner = np.searchsorted(s, s + self.separation_cut, side="right")
-        node = np.arange(s.size)
-        cand = np.concatenate([partner - 1, partner])
-        own = np.concatenate([node, node])
-        valid = (cand > own) & (cand < s.size)
-        sep = s[cand[valid]] - s[own[valid]]
-        sep = sep[sep > self.separation_cut]
-        self.min_separation = float(sep.min()) if sep.size else float("inf")
-        if self.closed:
-            self.min_separation = 0.0          # no pre-test bound on a ring
+        # the pre-test's smallest grid separation beyond the cut (none on a ring)
+        self.min_separation = 0.0 if self.closed else _min_separation(s, self.separation_cut)
         self.sin_half_aperture = 1.0 if self.aperture >= 180.0 else float(
             np.sin(np.radians(self.aperture) / 2.0))
         every = np.arange(s.size - 1)
