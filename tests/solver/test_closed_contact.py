@@ -56,12 +56,13 @@ def contact_loads(contact, r, v=None):
     return assemble_nodal(ev, n1), ev, assemble_nodal_jacobian(ev, n1)
 
 
-def test_contact_loads_do_not_depend_on_which_point_is_node_0():
+@pytest.mark.parametrize("n", [60, 200])
+def test_contact_loads_do_not_depend_on_which_point_is_node_0(n):
     """The figure-eight's crossing at the join (node 0) and, numbered again, 7 and 20
     nodes away from it: the same pairs, the loads the same loads renumbered (1e-12 of the
     largest), node N's those of node 0, the momentum balanced over the ring's nodes; a
-    run on each crossing runs across the join (segments N − 1 then 0)."""
-    n = 60
+    run on each crossing runs across the join (segments N − 1 then 0). On 60 segments
+    the search tests all node pairs at once, on 200 the blocked k-d tree's."""
     contact = ring_contact(n)
     L, ev, _ = contact_loads(contact, figure_eight(n))
     assert ev.count >= 4 and ev.min_gap < CONTACT["barrier_gap"]
@@ -104,6 +105,22 @@ def test_no_pair_across_the_join_or_between_node_0_and_node_n():
     assert kept == {tuple(sorted(((k + 1) % n, (m + 1) % n))) for k, m in kept}
     assert np.all(np.minimum(pairs[:, 1] - pairs[:, 0], n - (pairs[:, 1] - pairs[:, 0])) >= 3)
     assert [0, n - 2] in ScreenedElectrostatics(s, **es).pairs(r).tolist()
+
+
+@pytest.mark.parametrize("n", [60, 200])
+def test_the_swept_test_sees_strands_pass_through_each_other_on_the_join(n):
+    """SelfContact.passes_through on the figure-eight whose crossing is the join: the
+    lobes swapping over and under there (z → −z) is a pass-through; moving apart, or the
+    whole ring moving 10 mm, is not (node N, at node 0's place, is no partner of it:
+    an open rod's rule would see the two pass through each other at every step)."""
+    contact = ring_contact(n)
+    r = figure_eight(n)
+    assert contact.passes_through(r, figure_eight(n, gap=-1.1))
+    assert not contact.passes_through(r, figure_eight(n, gap=3.0))
+    assert not contact.passes_through(r, r + [0.01, 0.0, 0.0])
+    s = np.linspace(0.0, 1.0, n + 1)
+    open_rod = SelfContact(CONTACT, s, np.full(n + 1, D), np.full(n + 1, 0.5))
+    assert open_rod.passes_through(r, r + [0.01, 0.0, 0.0])
 
 
 def test_the_step_jacobian_with_contact_on_a_closed_rod_is_exact():
