@@ -1306,7 +1306,8 @@ class Contact(BaseModel):
     k3: Finite = Field(..., ge=0, description="Contact damping coefficient (SI, per the solver's contact law); >= 0.")
     k4: Finite = Field(..., ge=0, description="Contact damping exponent (dimensionless); >= 0.")
     exclusion: Optional[Finite] = Field(
-        None, ge=0, description="Minimum arclength separation of a contact pair, m; >= 0; null: 2 x the largest diameter."
+        None, ge=0, description="Minimum arclength separation of a contact pair, m (on a closed rod "
+        "the shorter way round the ring); >= 0; null: 2 x the largest diameter."
     )
     law: Literal["seed", "barrier"] = Field(
         "seed",
@@ -1397,7 +1398,8 @@ class Electrostatics(BaseModel):
         6.0, ge=2, description="Cut-off distance in Debye lengths; >= 2 (the interaction is switched "
         "off over the last Debye length before it).")
     exclusion: Optional[Finite] = Field(
-        None, gt=0, description="Least arclength between two segments that interact, m; > 0; "
+        None, gt=0, description="Least arclength between two segments that interact, m (on a closed "
+        "rod the shorter way round the ring); > 0; "
         "null: the cut-off distance (a straight rod then stores no electrostatic energy).")
     quadrature_points: Integer = Field(
         6, ge=1, le=16, description="Gauss-Legendre points per segment of a pair; 1 to 16.")
