@@ -1306,7 +1306,8 @@ class Contact(BaseModel):
     k3: Finite = Field(..., ge=0, description="Contact damping coefficient (SI, per the solver's contact law); >= 0.")
     k4: Finite = Field(..., ge=0, description="Contact damping exponent (dimensionless); >= 0.")
     exclusion: Optional[Finite] = Field(
-        None, ge=0, description="Minimum arclength separation of a contact pair, m; >= 0; null: 2 x the largest diameter."
+        None, ge=0, description="Minimum arclength separation of a contact pair, m (on a closed rod "
+        "the shorter way round the ring); >= 0; null: 2 x the largest diameter."
     )
     law: Literal["seed", "barrier"] = Field(
         "seed",
@@ -1397,7 +1398,8 @@ class Electrostatics(BaseModel):
         6.0, ge=2, description="Cut-off distance in Debye lengths; >= 2 (the interaction is switched "
         "off over the last Debye length before it).")
     exclusion: Optional[Finite] = Field(
-        None, gt=0, description="Least arclength between two segments that interact, m; > 0; "
+        None, gt=0, description="Least arclength between two segments that interact, m (on a closed "
+        "rod the shorter way round the ring); > 0; "
         "null: the cut-off distance (a straight rod then stores no electrostatic energy).")
     quadrature_points: Integer = Field(
         6, ge=1, le=16, description="Gauss-Legendre points per segment of a pair; 1 to 16.")
@@ -2009,8 +2011,8 @@ class Case(BaseModel):
                      "steps); use goyal", "centreline")]
 
     def _check_closed(self) -> list[dict]:
-        """A closed rod (``rod.closed``): the centreline scheme only, no contact yet, a
-        circle for a start (no ``initial.centreline`` or ``twist_rate``; its twist is
+        """A closed rod (``rod.closed``): the centreline scheme only (self-contact and
+        electrostatics periodic: :func:`solver.statics._pair_models`), a circle for a start (no ``initial.centreline`` or ``twist_rate``; its twist is
         ``initial.linking_number``); ``linking_number`` only for a closed rod."""
         ini = self.initial
         if not self.rod.closed:
@@ -2024,11 +2026,6 @@ class Case(BaseModel):
         if self.numerics.formulation != "centreline":
             errors.append(_err(("rod", "closed"), "unsupported",
                                "a closed rod runs on numerics.formulation: centreline only", True))
-        for name in ("contact", "electrostatics"):
-            if getattr(self, name) is not None:
-                errors.append(_err((name,), "unsupported",
-                                   f"{name} on a closed rod is not supported yet (the pair "
-                                   "search's arclength exclusion is not periodic)", None))
         for name in ("centreline", "twist_rate"):
             if getattr(ini, name) not in (None, 0.0):
                 errors.append(_err(("initial", name), "inconsistent",

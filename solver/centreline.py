@@ -230,7 +230,8 @@ class CentrelineRod:
         self.contact = None
         if case.contact is not None:
             from .contact import SelfContact
-            self.contact = SelfContact(case.contact, props.s, props.diameter, props.rho_a)
+            self.contact = SelfContact(case.contact, props.s, props.diameter, props.rho_a,
+                                       closed=bool(getattr(case.rod, "closed", False)))
         self.factorizations = 0            # band LUs so far
         self.paths = {}
         self._last_problem = None          # (t, the problem at t): a step reads it thrice

@@ -129,10 +129,10 @@ def _warm_up_search(contact, cand) -> None:
     a, b = close_node_pairs(helix, 5.5 * (sh[1] - sh[0]), sh, 0.1)
     # what the search and the tunnelling check do with such a grid's pairs (on grids of at
     # most ALL_PAIRS_NODES nodes they are parts of one compiled call)
-    _search_kernel(helix, np.gradient(helix, axis=0), a, b, sh, 0.1, 1.0)
+    _search_kernel(helix, np.gradient(helix, axis=0), a, b, sh, 0.1, 1.0, np.inf)
     moved, dh = helix + [0.0, 0.0, 0.001], np.full(nh, 0.02)
     _swept_reach(helix, moved, sh, dh, 0.1)
-    _swept_any_within(helix, moved, a, b, dh, sh, 0.1)
+    _swept_any_within(helix, moved, a, b, dh, sh, 0.1, np.inf)
 
 
 def _warm_up_spec() -> dict:

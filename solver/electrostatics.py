@@ -38,7 +38,9 @@ per unit length.
   cut-off r_c, leaves out every pair that would interact on a straight rod, so a straight
   rod stores no electrostatic energy and the term acts only between parts that the rod's
   shape brings together (a loop, a plectoneme, a hairpin). Adjacent segments (gap 0) are
-  always left out (the exclusion is > 0).
+  always left out (the exclusion is > 0). On a closed rod (``closed``, node N node 0
+  again) the gap is measured round the ring, the shorter way, min(s_l − s_{k+1},
+  L − (s_{l+1} − s_k)): segments N − 1 and 0 are adjacent.
 * **Quadrature.** Gauss–Legendre with ``points`` nodes on each segment of a pair
   (``points``² evaluations of φ per pair). The integrand is analytic away from the
   switch, and the error falls geometrically with the points at a rate set by the ratio
@@ -61,7 +63,9 @@ per unit length.
   node, L_i = F_i / w_i (N/m), w_i the node's share of the grid (the trapezoid weights,
   :func:`solver.contact.nodal_weights`), which the box rule's force rows take as
   h/2 (L_i + L_{i+1}) per cell (:func:`solver.statics.residual`), and the Jacobian
-  ∂L/∂r (3(N+1), 3(N+1)) sparse from the kernel's exact second derivatives.
+  ∂L/∂r (3(N+1), 3(N+1)) sparse from the kernel's exact second derivatives. Of a closed
+  rod node N's force is node 0's, its weight the ring's (h_0 + h_{N−1})/2, and the
+  density at both (:func:`solver.contact.model.close_join`).
 
 Pure: no I/O, no state between calls.
 """
@@ -167,6 +171,8 @@ class ScreenedElectrostatics:
     cutoff : r_c / λ, > 1 (the switch runs over the last Debye length)
     exclusion : m, > 0, or None (the cut-off r_c): the least arclength between kept segments
     points : Gauss–Legendre points per segment, ≥ 1
+    closed : a closed rod, its node N node 0 again: the exclusion measured round the ring
+             and node N's loads node 0's (module doc)
 
     Raises
     ------
@@ -177,11 +183,11 @@ class ScreenedElectrostatics:
     def __init__(self, s, charge_per_length: float, debye_length: float,
                  relative_permittivity: float = WATER_PERMITTIVITY,
                  cutoff: float = DEFAULT_CUTOFF, exclusion: float | None = None,
-                 points: int = DEFAULT_POINTS):
+                 points: int = DEFAULT_POINTS, closed: bool = False):
         from .contact.model import nodal_weights
 
         s = np.asarray(s, dtype=float)
-        if s.ndim != 1 or s.size < 2 or not np.all(np.isfinite(s)) or np.any(np.diff(s) <= 0):
+        if s.ndim != 1 or s.size < (4 if closed else 2) or not np.all(np.isfinite(s)) or np.any(np.diff(s) <= 0):
             raise ValueError("ScreenedElectrostatics: s must be 1-D, finite, strictly "
                              "increasing, with at least 2 nodes")
         checks = (("charge_per_length", charge_per_length, None),
@@ -207,7 +213,8 @@ class ScreenedElectrostatics:
         self.prefactor = float(charge_per_length) ** 2 / (
             4.0 * np.pi * VACUUM_PERMITTIVITY * float(relative_permittivity))
         self.seg = np.diff(s)                          # segment arclengths h_k, m
-        self.weights = nodal_weights(s)                # nodal shares w_i, m
+        self.closed = bool(closed)
+        self.weights = nodal_weights(s, self.closed)   # nodal shares w_i, m
         #: the pair rule: (coef (n, n, 4), ww (n, n)), x_ab = Σ_m coef[a, b, m] r_m over
         #: the nodes (k, k+1, l, l+1) and the product weights (:func:`_pair_rule`)
         self.rule = _pair_rule(int(points))
@@ -230,7 +237,8 @@ class ScreenedElectrostatics:
         further apart in arclength than the exclusion
         (:func:`solver.contact.geometry.close_node_pairs`), their segments, those at
         least the exclusion apart in arclength, and of those the pairs whose midpoints
-        are closer than r_c plus their half chords. Raises ValueError for non-finite
+        are closer than r_c plus their half chords (of a closed rod, the node pairs of
+        nodes 0 .. N − 1 and the gaps round the ring). Raises ValueError for non-finite
         positions."""
         from .contact.geometry import close_node_pairs
 
@@ -240,14 +248,27 @@ class ScreenedElectrostatics:
         n_seg = self.seg.size
         chord = np.linalg.norm(np.diff(r, axis=0), axis=1)
         slack = 1e-9 * float(self.seg.mean())
-        a, b = close_node_pairs(r, self.r_cut + float(chord.max()), self.s,
-                                max(self.exclusion - 2.0 * slack, 0.0))
-        lo, hi = np.minimum(a, b), np.maximum(a, b)
-        k = np.concatenate([lo - 1, lo - 1, lo, lo])
-        m = np.concatenate([hi - 1, hi, hi - 1, hi])
-        ok = (k >= 0) & (m < n_seg) & (m > k)
-        k, m = k[ok], m[ok]
-        ok = self.s[m] - self.s[k + 1] >= self.exclusion - slack
+        cut = max(self.exclusion - 2.0 * slack, 0.0)
+        radius = self.r_cut + float(chord.max())
+        if self.closed:
+            s = self.s
+            a, b = close_node_pairs(r[:-1], radius, s[:-1], cut, float(s[-1] - s[0]))
+            # the segments either side of each node, round the ring
+            k = np.concatenate([(a - 1) % n_seg, (a - 1) % n_seg, a, a])
+            m = np.concatenate([(b - 1) % n_seg, b, (b - 1) % n_seg, b])
+            k, m = np.minimum(k, m), np.maximum(k, m)
+            ok = m > k
+            k, m = k[ok], m[ok]
+            gap = np.minimum(s[m] - s[k + 1], (s[-1] - s[0]) - (s[m + 1] - s[k]))
+        else:
+            a, b = close_node_pairs(r, radius, self.s, cut)
+            lo, hi = np.minimum(a, b), np.maximum(a, b)
+            k = np.concatenate([lo - 1, lo - 1, lo, lo])
+            m = np.concatenate([hi - 1, hi, hi - 1, hi])
+            ok = (k >= 0) & (m < n_seg) & (m > k)
+            k, m = k[ok], m[ok]
+            gap = self.s[m] - self.s[k + 1]
+        ok = gap >= self.exclusion - slack
         key = np.unique(k[ok] * n_seg + m[ok])
         k, m = key // n_seg, key % n_seg
         mid = 0.5 * (r[:-1] + r[1:])
@@ -265,7 +286,10 @@ class ScreenedElectrostatics:
         quadrature point, with x the vector between the points, ρ = |x|, n = x/ρ:
         ∂U/∂x = A h_k h_l w_a w_b φ'(ρ) n and ∂²U/∂x² = A h_k h_l w_a w_b (φ'' n nᵀ +
         (φ'/ρ)(I − n nᵀ)), chained by x = Σ_m c_m r_m. Raises ValueError for non-finite
-        positions or two kept segments that meet (ρ = 0)."""
+        positions or two kept segments that meet (ρ = 0). Of a closed rod the loads and
+        rows of node N are node 0's (:func:`solver.contact.model.close_join`)."""
+        from .contact.model import close_join, close_join_jacobian
+
         r = np.ascontiguousarray(r, dtype=float)
         n1 = r.shape[0]
         if r.shape != (self.s.size, 3):
@@ -291,6 +315,8 @@ class ScreenedElectrostatics:
         node_grad = np.einsum("pabi,abq->pqi", grad, coef)         # (P, 4, 3)
         np.add.at(loads, nodes, -node_grad)
         loads /= self.weights[:, None]
+        if self.closed:
+            loads = close_join(loads)
         jac = None
         if want_jacobian:
             eye = np.eye(3)
@@ -306,6 +332,8 @@ class ScreenedElectrostatics:
             rows = np.broadcast_to(rows, shape).ravel()
             cols = np.broadcast_to(cols, shape).ravel()
             jac = sp.csr_matrix((block.ravel(), (rows, cols)), shape=(3 * n1, 3 * n1))
+            if self.closed:
+                jac = close_join_jacobian(jac)
         return ElectrostaticLoads(energy, loads, jac, pairs)
 
 

@@ -1232,16 +1232,8 @@ def problem_at(case, t: float, props, q, r, skip=()) -> StaticProblem:
         ends[name] = _end_spec(getattr(case.boundary, name), f"boundary.{name}", q[k], r[k],
                                t, extra_force[name])
     inertia = np.asarray(props.inertia[:, 0], float)
-    contact = seabed = electrostatics = None
-    if case.electrostatics is not None:
-        from .electrostatics import ScreenedElectrostatics
-        es = case.electrostatics
-        electrostatics = ScreenedElectrostatics(
-            props.s, es.charge_per_length, es.screening_length(), es.relative_permittivity,
-            es.cutoff, es.exclusion, es.quadrature_points)
-    if case.contact is not None:
-        from .contact import SelfContact
-        contact = SelfContact(case.contact, props.s, props.diameter, props.rho_a)
+    contact, electrostatics = _pair_models(case, props)
+    seabed = None
     if case.seabed is not None:
         from .seabed import SeabedContact
         seabed = SeabedContact(case.seabed, props.diameter)
@@ -1253,25 +1245,49 @@ def problem_at(case, t: float, props, q, r, skip=()) -> StaticProblem:
                          intrinsic_curvature=props.intrinsic_curvature)
 
 
+def _pair_models(case, props):
+    """(self-contact, screened electrostatics) of ``case`` on its evaluated properties
+    (:class:`solver.contact.SelfContact`, :class:`solver.electrostatics.
+    ScreenedElectrostatics`), each None where the case has none; of a closed rod
+    (``rod.closed``) both periodic: the arclength exclusion measured round the ring,
+    node N's loads node 0's."""
+    closed = bool(getattr(case.rod, "closed", False))
+    contact = electrostatics = None
+    if case.electrostatics is not None:
+        from .electrostatics import ScreenedElectrostatics
+        es = case.electrostatics
+        electrostatics = ScreenedElectrostatics(
+            props.s, es.charge_per_length, es.screening_length(), es.relative_permittivity,
+            es.cutoff, es.exclusion, es.quadrature_points, closed=closed)
+    if case.contact is not None:
+        from .contact import SelfContact
+        contact = SelfContact(case.contact, props.s, props.diameter, props.rho_a,
+                              closed=closed)
+    return contact, electrostatics
+
+
 def _closed_problem(case, props, q, r, load, extra_force) -> StaticProblem:
     """The rows of a closed rod (``rod.closed``): the cells' and the join's
     (:func:`_closed_rows`) with the dead loads, a point load at s = 0 or s = L (one
     point, the join) as P/h at node 0 and at node N, so that the cells either side carry
-    P/2 each, as at an interior node. The centreline scheme's rows (it adds the sea
-    floor's loads itself); a static solve refuses a closed rod (:func:`static_problem`).
-    Raises nothing beyond :func:`problem_at`."""
+    P/2 each, as at an interior node; self-contact and electrostatics periodic
+    (:func:`_pair_models`). The centreline scheme's rows (it adds the sea floor's loads
+    and self-contact's dynamic law itself); a static solve refuses a closed rod
+    (:func:`static_problem`). Raises nothing beyond :func:`problem_at`."""
     N = case.numerics.n_segments
     h = float(case.rod.length) / N
     load = load.copy()
     joint = (extra_force["start"] + extra_force["end"]) / h
     load[0] += joint
     load[-1] += joint
+    contact, electrostatics = _pair_models(case, props)
     return StaticProblem(length=float(case.rod.length), n_segments=N,
                          stiffness=np.asarray(props.stiffness, float), load=load,
                          start=clamp(r[0], q[0]), end=free_end(), mass=props.rho_a,
                          inertia=np.asarray(props.inertia[:, 0], float),
                          reference=np.asarray(q[0], float),
-                         intrinsic_curvature=props.intrinsic_curvature, closed=True)
+                         intrinsic_curvature=props.intrinsic_curvature, closed=True,
+                         contact=contact, electrostatics=electrostatics)
 
 
 def with_load(prob: StaticProblem, **changes) -> StaticProblem:

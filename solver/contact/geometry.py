@@ -139,19 +139,30 @@ _CATMULL_ROM_ENDS = np.stack([_fold_ends(_CATMULL_ROM, lo, hi)
                                              (True, True))])
 
 
-def _segment_nodes(j, n_nodes):
+def _segment_nodes(j, n_nodes, closed=False):
     """The four node indices (M, 4) of the Catmull-Rom cubic on each segment j (M,) int,
-    clamped to the rod (the ghost nodes beyond an end are folded into the matrices)."""
+    clamped to the rod (the ghost nodes beyond an end are folded into the matrices). Of
+    a closed rod (nodes 0 .. N, node N node 0 again, n_nodes = N + 1) the neighbours
+    across the join instead: node N − 1 before segment 0, node 1 after segment N − 1
+    (whose second node is N)."""
     idx = np.empty((j.shape[0], 4), dtype=np.intp)
-    idx[:, 0] = np.maximum(j - 1, 0)
+    if closed:
+        ring = n_nodes - 1
+        idx[:, 0] = np.where(j - 1 < 0, j - 1 + ring, j - 1)
+        idx[:, 3] = np.where(j + 2 > ring, j + 2 - ring, j + 2)
+    else:
+        idx[:, 0] = np.maximum(j - 1, 0)
+        idx[:, 3] = np.minimum(j + 2, n_nodes - 1)
     idx[:, 1] = j
     idx[:, 2] = j + 1
-    idx[:, 3] = np.minimum(j + 2, n_nodes - 1)
     return idx
 
 
-def _segment_matrices(j, n_nodes):
-    """The Catmull-Rom matrix (M, 4, 4) of each segment j (M,) int, its ends folded."""
+def _segment_matrices(j, n_nodes, closed=False):
+    """The Catmull-Rom matrix (M, 4, 4) of each segment j (M,) int, its ends folded (of
+    a closed rod every segment is interior: :func:`_segment_nodes`)."""
+    if closed:
+        return _CATMULL_ROM_ENDS[np.zeros(j.shape[0], np.intp)]
     return _CATMULL_ROM_ENDS[(j - 1 < 0).astype(np.intp) + 2 * (j + 2 > n_nodes - 1)]
 
 
@@ -324,7 +335,8 @@ def _run_closest_kernel(r, own, seg, start, frozen, iterations, seg_nodes, seg_m
             b1_out[q, b] = tb1[row, b]
 
 
-def run_closest(positions, owner, segment, run_start, frozen=None, iterations=3):
+def run_closest(positions, owner, segment, run_start, frozen=None, iterations=3,
+                closed=False):
     """For each run of owner/segment combinations (as :func:`run_minima`), the
     combination whose partner curve segment holds the owner's closest point, and that
     point (:func:`point_curve`): the polyline's closest segment of the run
@@ -335,7 +347,7 @@ def run_closest(positions, owner, segment, run_start, frozen=None, iterations=3)
     (N, 3) m; owner, segment (M,) int, run_start (R,) int as :func:`run_minima` takes
     them (indices not checked). Compiled (numba): one pass over the runs, no (3R, 3)
     gathers; every segment's nodes and matrix from :func:`_segment_nodes` and
-    :func:`_segment_matrices`."""
+    :func:`_segment_matrices` (``closed``: of a closed rod, across its join)."""
     r = np.ascontiguousarray(positions, dtype=float)
     every = np.arange(r.shape[0] - 1)
     start = np.ascontiguousarray(run_start, dtype=np.intp)
@@ -353,8 +365,9 @@ def run_closest(positions, owner, segment, run_start, frozen=None, iterations=3)
           else np.ascontiguousarray(frozen, dtype=np.intp))
     _run_closest_kernel(r, np.ascontiguousarray(owner, dtype=np.intp),
                         np.ascontiguousarray(segment, dtype=np.intp), start, fz,
-                        int(iterations), _segment_nodes(every, r.shape[0]),
-                        _segment_matrices(every, r.shape[0]), k, t, x, d, c1, g, idx, b0, b1)
+                        int(iterations), _segment_nodes(every, r.shape[0], closed),
+                        _segment_matrices(every, r.shape[0], closed), k, t, x, d, c1, g,
+                        idx, b0, b1)
     return k, t, x, d, c1, g, idx, b0, b1
 
 
@@ -398,7 +411,7 @@ ALL_PAIRS_NODES = 128
 BLOCK_MIN_NODES = 4
 
 
-def close_node_pairs(positions, radius, s, separation_cut):
+def close_node_pairs(positions, radius, s, separation_cut, period=np.inf):
     """Node pairs (a < b) closer than ``radius`` (m) and further apart in arclength than
     ``separation_cut`` (m), as two (P,) int arrays (no order). On grids of at most
     :data:`ALL_PAIRS_NODES` nodes from a compiled loop over all pairs (the whole grid as
@@ -413,8 +426,11 @@ def close_node_pairs(positions, radius, s, separation_cut):
     drops (43,000 pairs for 4,300 kept at the seed example's 1000 segments, 199,000 for
     43,000 at 2000: 0.8 and 7.8 ms against 0.23 and 1.06 ms over blocks, measured 2026-11-23).
     With fewer than :data:`BLOCK_MIN_NODES` nodes per block the tree is built on the
-    nodes. positions (N, 3) m, s (N,) m non-decreasing. Raises ValueError for non-finite
-    positions beyond :data:`ALL_PAIRS_NODES` nodes (as scipy's tree does).
+    nodes. positions (N, 3) m, s (N,) m non-decreasing. ``period`` (m): a closed rod's
+    length L, its N distinct nodes given (node N, node 0 again, left out), the arclength
+    separation then measured around the ring, min(|Δs|, L − |Δs|); inf for an open rod.
+    Raises ValueError for non-finite positions beyond :data:`ALL_PAIRS_NODES` nodes (as
+    scipy's tree does).
     """
     n = len(positions)
     r = np.ascontiguousarray(positions, dtype=float)
@@ -425,7 +441,7 @@ def close_node_pairs(positions, radius, s, separation_cut):
     if n <= ALL_PAIRS_NODES:
         # all pairs: the whole grid as one block
         return _block_pairs_kernel(r, s, n, np.zeros((0, 2), np.intp), np.zeros(1),
-                                   float(radius), float(separation_cut))
+                                   float(radius), float(separation_cut), float(period))
     ds = (s[-1] - s[0]) / (n - 1) if s[-1] > s[0] else 0.0
     m = int(radius / ds) if ds > 0.0 else 0
     if m < BLOCK_MIN_NODES:
@@ -436,7 +452,7 @@ def close_node_pairs(positions, radius, s, separation_cut):
     bp = cKDTree(centres).query_pairs(r=float(radius) + 2.0 * float(h.max()),
                                       output_type="ndarray")
     return _block_pairs_kernel(r, s, m, np.ascontiguousarray(bp, dtype=np.intp), h,
-                               float(radius), float(separation_cut))
+                               float(radius), float(separation_cut), float(period))
 
 
 @numba.njit(cache=True)
@@ -467,12 +483,15 @@ def _block_bounds(r, m):
 
 
 @numba.njit(cache=True)
-def _block_pairs_kernel(r, s, m, block_pairs, h, radius, cut):
+def _block_pairs_kernel(r, s, m, block_pairs, h, radius, cut, period):
     """The node pairs (a < b) within ``radius`` and beyond ``cut`` in arclength of the
     blocks of m nodes (:func:`_block_bounds`) in block_pairs (Q, 2) (A < B) and of each
     block with itself: blocks whose largest arclength separation is at most ``cut`` are
     skipped whole, and in the others each node's partners start beyond the cut (s (N,)
-    non-decreasing, as arclength is). Two passes, count and fill."""
+    non-decreasing, as arclength is). ``period``: a ring's length (m; inf for an open
+    rod), pairs then also beyond the cut the other way round, L − (s_b − s_a) > cut (the
+    skip stays right: the periodic separation is at most the linear one). Two passes,
+    count and fill."""
     n = r.shape[0]
     nb = h.shape[0]
     r2 = radius * radius
@@ -505,6 +524,8 @@ def _block_pairs_kernel(r, s, m, block_pairs, h, radius, cut):
                 while jc < b_hi and not s[jc] - s[i] > cut:
                     jc += 1
                 for j in range(max(jc, i + 1), b_hi):
+                    if not s[j] - s[i] < period - cut:
+                        break           # s non-decreasing: the rest are near round the ring
                     d0 = r[i, 0] - r[j, 0]
                     d1 = r[i, 1] - r[j, 1]
                     d2 = r[i, 2] - r[j, 2]
@@ -579,7 +600,8 @@ def _candidate_pairs_kernel(r, t, a, b, sin_half_aperture):
     return owner, partner
 
 
-def candidate_pairs(positions, tangents, radius, s, separation_cut, sin_half_aperture):
+def candidate_pairs(positions, tangents, radius, s, separation_cut, sin_half_aperture,
+                    period=np.inf):
     """Node pairs for the contact search, both orders: (owner (M,), partner (M,)) int
     arrays sorted by owner and then partner, each pair with centreline distance ≤
     ``radius`` (m), arclength separation > ``separation_cut`` (m) (:func:`close_node_pairs`)
@@ -587,10 +609,11 @@ def candidate_pairs(positions, tangents, radius, s, separation_cut, sin_half_ape
     (|a3 · n| ≤ sin(θ/2), n the unit vector between them; seed § 3). positions (N, 3) m,
     tangents (N, 3) unit a3 axes, s (N,) m. The cones and the ordering are one compiled
     pass (:func:`_candidate_pairs_kernel`), where numpy's filters and deduplication had
-    taken 2 of the search's 3.4 ms at the seed example's 32 s. Raises nothing of its own
-    (scipy's k-d tree rejects non-finite positions)."""
+    taken 2 of the search's 3.4 ms at the seed example's 32 s. ``period``: a ring's
+    length (:func:`close_node_pairs`). Raises nothing of its own (scipy's k-d tree
+    rejects non-finite positions)."""
     r = np.ascontiguousarray(positions, dtype=float)
-    a, b = close_node_pairs(r, radius, s, separation_cut)
+    a, b = close_node_pairs(r, radius, s, separation_cut, period)
     return _candidate_pairs_kernel(r, np.ascontiguousarray(tangents, dtype=float),
                                    np.ascontiguousarray(a, dtype=np.intp),
                                    np.ascontiguousarray(b, dtype=np.intp),

@@ -41,7 +41,8 @@ from .geometry import (ALL_PAIRS_NODES, _block_pairs_kernel, _candidate_pairs_ke
 from .laws import BarrierLaw, SeedLaw, law_cutoff, law_force, law_potential
 
 __all__ = ["SelfContact", "ContactCandidates", "ContactEvaluation", "assemble_nodal",
-           "nodal_weights", "GAP_FLOOR_FRACTION", "EXCLUSION_DIAMETERS"]
+           "nodal_weights", "close_join", "close_join_jacobian", "GAP_FLOOR_FRACTION",
+           "EXCLUSION_DIAMETERS"]
 
 #: gap_floor = GAP_FLOOR_FRACTION × mean diameter: below it the repulsion is linear.
 GAP_FLOOR_FRACTION = 1.0e-3
@@ -114,6 +115,8 @@ class ContactEvaluation:
     count : int               P
     selection : (R,) int or None  the combination chosen in every candidate run (active or
                               not), to pass back as ``frozen`` (:meth:`SelfContact.closest`)
+    closed : bool             of a closed rod: the loads of node N (node 0 again) are
+                              node 0's (:func:`assemble_nodal`)
     """
 
     i: np.ndarray
@@ -132,24 +135,59 @@ class ContactEvaluation:
     min_gap: float
     count: int
     selection: np.ndarray | None = None
+    closed: bool = False
 
 
-def nodal_weights(s) -> np.ndarray:
+def nodal_weights(s, closed: bool = False) -> np.ndarray:
     """Nodal quadrature weights Δs (m) of a grid s (N,): half cells at the ends, so
-    Σ Δs = s_{N−1} − s_0 (the trapezoid rule)."""
+    Σ Δs = s_{N−1} − s_0 (the trapezoid rule). ``closed``: of a ring whose last node is
+    its first again, that node's two half cells at both (Σ over the distinct nodes,
+    all but the last, is the ring's length)."""
     s = np.asarray(s, dtype=float)
     w = np.zeros_like(s)
     if s.size >= 2:
         h = np.diff(s)
         w[:-1] += 0.5 * h
         w[1:] += 0.5 * h
+        if closed:
+            w[0] = w[-1] = 0.5 * (h[0] + h[-1])
     return w
+
+
+def close_join(loads: np.ndarray) -> np.ndarray:
+    """A closed rod's nodal load densities (N+1, k) with node N's added to node 0's and
+    node 0's total at both (a copy): node N is node 0 again, the same material point
+    with the same weight (:func:`nodal_weights` with ``closed``), and the box rule takes
+    a density at both ends of the grid, h/2 into the cells either side of the join, as at
+    an interior node (:func:`solver.statics._load_rows`, as
+    :func:`solver.statics._closed_problem` puts a point load at the join)."""
+    out = np.array(loads, dtype=float)
+    out[0] += out[-1]
+    out[-1] = out[0]
+    return out
+
+
+def close_join_jacobian(jac):
+    """∂L/∂r (3(N+1), 3(N+1)) sparse of loads L that :func:`close_join` then closes: its
+    rows of node 0 and node N both their sum (CSR). The columns stay: a closed rod's
+    loads may depend on r_N as well as r_0 (the segment N − 1 ends at node N)."""
+    import scipy.sparse as sp
+
+    n3 = jac.shape[0]
+    k = np.arange(n3)
+    top = k < 3
+    bottom = k >= n3 - 3
+    rows = np.concatenate([k, k[top], k[bottom]])
+    cols = np.concatenate([k, k[top] + n3 - 3, k[bottom] - (n3 - 3)])
+    fold = sp.csr_matrix((np.ones(rows.size), (rows, cols)), shape=(n3, n3))
+    return (fold @ sp.csr_matrix(jac)).tocsr()
 
 
 def assemble_nodal(ev: ContactEvaluation, n_nodes: int) -> np.ndarray:
     """Nodal contact force density (n_nodes, 3) N/m, global: Σ_pairs w_a F at each node a.
-    Σ_k Δs_k out_k = 0 to round-off (momentum balance). Raises ValueError for a node index
-    outside [0, n_nodes)."""
+    Σ_k Δs_k out_k = 0 to round-off (momentum balance; of a closed rod over nodes 0 ..
+    N − 1, its loads at node N those at node 0 again: :func:`close_join`). Raises
+    ValueError for a node index outside [0, n_nodes)."""
     out = np.zeros((int(n_nodes), 3))
     if ev.count == 0:
         return out
@@ -157,7 +195,7 @@ def assemble_nodal(ev: ContactEvaluation, n_nodes: int) -> np.ndarray:
         raise ValueError(f"assemble_nodal: node index outside [0, {n_nodes})")
     for a in range(ev.nodes.shape[1]):
         np.add.at(out, ev.nodes[:, a], ev.weights[:, a, None] * ev.force)
-    return out
+    return close_join(out) if ev.closed else out
 
 
 def assemble_nodal_jacobian(ev: ContactEvaluation, n_nodes: int, d_force=None):
@@ -166,7 +204,9 @@ def assemble_nodal_jacobian(ev: ContactEvaluation, n_nodes: int, d_force=None):
     (the closest point sliding along the partner curve; ``d_weights_d_t``, ``d_t_d_r``).
     ``d_force`` (P, 5, 3, 3) N/m² replaces ``ev.d_force_d_r`` where the velocities depend
     on the positions too (a time step's ∂F/∂r + c ∂F/∂v, c in 1/s). Entries of a repeated
-    ghost node add up. The statics' and the centreline scheme's contact Jacobian."""
+    ghost node add up; of a closed rod node N's rows are added to node 0's, at both
+    (:func:`close_join_jacobian`). The statics' and the centreline scheme's contact
+    Jacobian."""
     import scipy.sparse as sp
 
     n3 = 3 * int(n_nodes)
@@ -184,7 +224,45 @@ def assemble_nodal_jacobian(ev: ContactEvaluation, n_nodes: int, d_force=None):
     cb = np.arange(3)[None, None, None, None, :]
     rows = np.broadcast_to(3 * na + ca, shape).ravel()
     cols = np.broadcast_to(3 * nb + cb, shape).ravel()
-    return sp.csr_matrix((block.ravel(), (rows, cols)), shape=(n3, n3))
+    jac = sp.csr_matrix((block.ravel(), (rows, cols)), shape=(n3, n3))
+    return close_join_jacobian(jac) if ev.closed else jac
+
+
+def _checked_grid(s, diameter, rho_a, closed):
+    """(s, diameter, rho_a) as float arrays (N,) for :class:`SelfContact`. Raises
+    ValueError for a grid that is not 1-D with at least 2 nodes (4 on a closed rod),
+    strictly increasing and finite, or diameters and ρA of another shape, not finite or
+    not > 0."""
+    s = np.asarray(s, dtype=float)
+    diameter = np.asarray(diameter, dtype=float)
+    rho_a = np.asarray(rho_a, dtype=float)
+    if s.ndim != 1 or s.size < (4 if closed else 2):
+        raise ValueError(f"SelfContact: s must be 1-D with at least 2 nodes (4 on a "
+                         f"closed rod), got {s.shape}")
+    for name, arr in (("diameter", diameter), ("rho_a", rho_a)):
+        if arr.shape != s.shape:
+            raise ValueError(f"SelfContact: {name} has shape {arr.shape}, s has {s.shape}")
+    for name, arr in (("s", s), ("diameter", diameter), ("rho_a", rho_a)):
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"SelfContact: {name} must be finite")
+    if np.any(np.diff(s) <= 0.0):
+        raise ValueError("SelfContact: s must be strictly increasing")
+    if np.any(diameter <= 0.0) or np.any(rho_a <= 0.0):
+        raise ValueError("SelfContact: diameter and rho_a must be > 0")
+    return s, diameter, rho_a
+
+
+def _min_separation(s, cut) -> float:
+    """The smallest arclength separation (m) beyond ``cut`` (m) between two nodes of the
+    grid s (N,), inf where no pair is that far apart (:meth:`SelfContact.may_touch`)."""
+    partner = np.searchsorted(s, s + cut, side="right")
+    node = np.arange(s.size)
+    cand = np.concatenate([partner - 1, partner])
+    own = np.concatenate([node, node])
+    valid = (cand > own) & (cand < s.size)
+    sep = s[cand[valid]] - s[own[valid]]
+    sep = sep[sep > cut]
+    return float(sep.min()) if sep.size else float("inf")
 
 
 def _spec_value(spec, name, default=None):
@@ -205,6 +283,14 @@ class SelfContact:
         optionally ``law`` ("seed" or "barrier"), ``barrier_gap`` ĝ (m) and
         ``barrier_stiffness`` κ (1/s²) for the barrier law.
     s : (N,) m, strictly increasing;  diameter : (N,) m > 0;  rho_a : (N,) kg/m > 0.
+    closed : bool
+        A closed rod (``rod.closed``): its last node is its first again (the same
+        position). The search and the owners run on the distinct nodes 0 .. N − 2, the
+        arclength separation is measured round the ring, min(|Δs|, L − |Δs|), the
+        partner curve runs on across the join (no ghost nodes, no rod ends), the weights
+        are the ring's and an evaluation's loads at the last node are the first's
+        (:func:`close_join`). The O(N) pre-test has nothing to rule out on a ring (its
+        mean tangent's projections change sign), so every search is made.
 
     Raises
     ------
@@ -213,22 +299,8 @@ class SelfContact:
         barrier law without a positive ``barrier_gap``/``barrier_stiffness``.
     """
 
-    def __init__(self, spec, s, diameter, rho_a):
-        s = np.asarray(s, dtype=float)
-        diameter = np.asarray(diameter, dtype=float)
-        rho_a = np.asarray(rho_a, dtype=float)
-        if s.ndim != 1 or s.size < 2:
-            raise ValueError(f"SelfContact: s must be 1-D with at least 2 nodes, got {s.shape}")
-        for name, arr in (("diameter", diameter), ("rho_a", rho_a)):
-            if arr.shape != s.shape:
-                raise ValueError(f"SelfContact: {name} has shape {arr.shape}, s has {s.shape}")
-        for name, arr in (("s", s), ("diameter", diameter), ("rho_a", rho_a)):
-            if not np.all(np.isfinite(arr)):
-                raise ValueError(f"SelfContact: {name} must be finite")
-        if np.any(np.diff(s) <= 0.0):
-            raise ValueError("SelfContact: s must be strictly increasing")
-        if np.any(diameter <= 0.0) or np.any(rho_a <= 0.0):
-            raise ValueError("SelfContact: diameter and rho_a must be > 0")
+    def __init__(self, spec, s, diameter, rho_a, closed: bool = False):
+        s, diameter, rho_a = _checked_grid(s, diameter, rho_a, closed)
 
         def num(name, lo=None, lo_open=False, hi=None, optional=False):
             v = _spec_value(spec, name)
@@ -274,24 +346,24 @@ class SelfContact:
         self.diameter = diameter
         self.rho_a = rho_a
         self.n_nodes = s.size
-        self.weights = nodal_weights(s)
+        self.closed = bool(closed)
+        #: the nodes that own pairs (all but the last of a closed rod, node 0 again) and
+        #: the arclength period (m: a ring's length, inf for an open rod)
+        self.ring = s.size - 1 if self.closed else s.size
+        self.period = float(s[-1] - s[0]) if self.closed else np.inf
+        self.weights = nodal_weights(s, self.closed)
         # pairs must be further apart than the exclusion by more than rounding
         self.separation_cut = self.exclusion + 1e-9 * (s[-1] - s[0]) / (s.size - 1)
-        partner = np.searchsorted(s, s + self.separation_cut, side="right")
-        node = np.arange(s.size)
-        cand = np.concatenate([partner - 1, partner])
-        own = np.concatenate([node, node])
-        valid = (cand > own) & (cand < s.size)
-        sep = s[cand[valid]] - s[own[valid]]
-        sep = sep[sep > self.separation_cut]
-        self.min_separation = float(sep.min()) if sep.size else float("inf")
+        # the pre-test's smallest grid separation beyond the cut (none on a ring)
+        self.min_separation = 0.0 if self.closed else _min_separation(s, self.separation_cut)
         self.sin_half_aperture = 1.0 if self.aperture >= 180.0 else float(
             np.sin(np.radians(self.aperture) / 2.0))
         every = np.arange(s.size - 1)
         #: what the compiled kernels take of this contact model, constant over a run
         #: (:class:`solver.kernel_data.ContactData`)
         self.kernel_data = ContactData(
-            seg_nodes=_segment_nodes(every, s.size), seg_mats=_segment_matrices(every, s.size),
+            seg_nodes=_segment_nodes(every, s.size, self.closed),
+            seg_mats=_segment_matrices(every, s.size, self.closed),
             diameter=diameter, rho_a=rho_a, weights=self.weights, law=self.law.params)
 
     # ------------------------------------------------------------------ checks
@@ -343,19 +415,20 @@ class SelfContact:
         Raises ValueError (from :func:`~.geometry.close_node_pairs`) for non-finite
         positions on grids of more than ``ALL_PAIRS_NODES`` nodes; the solver passes only
         converged, finite ones."""
-        r0 = np.ascontiguousarray(r_old, dtype=float)
-        r1 = np.ascontiguousarray(r_new, dtype=float)
+        m = self.ring                           # a ring's distinct nodes
+        r0 = np.ascontiguousarray(r_old, dtype=float)[:m]
+        r1 = np.ascontiguousarray(r_new, dtype=float)[:m]
+        s, diameter = self.s[:m], self.diameter[:m]
         if 2 <= r1.shape[0] <= ALL_PAIRS_NODES:
             # a small grid: the same steps in one compiled call
-            return bool(_passes_through_all_pairs(r0, r1, self.s, self.diameter,
-                                                  self.min_separation,
-                                                  float(self.separation_cut)))
-        radius = _swept_reach(r0, r1, self.s, self.diameter, self.min_separation)
+            return bool(_passes_through_all_pairs(r0, r1, s, diameter, self.min_separation,
+                                                  float(self.separation_cut), self.period))
+        radius = _swept_reach(r0, r1, s, diameter, self.min_separation)
         if radius < 0.0:
             return False
-        a, b = close_node_pairs(r1, radius, self.s, self.separation_cut)
-        return a.size > 0 and bool(_swept_any_within(r0, r1, a, b, self.diameter, self.s,
-                                                     float(self.separation_cut)))
+        a, b = close_node_pairs(r1, radius, s, self.separation_cut, self.period)
+        return a.size > 0 and bool(_swept_any_within(r0, r1, a, b, diameter, s,
+                                                     float(self.separation_cut), self.period))
 
     # ------------------------------------------------------------------ candidates
     def candidates(self, positions, tangents, reach: float = 0.0) -> ContactCandidates:
@@ -373,8 +446,9 @@ class SelfContact:
         if np.any(tn == 0.0):
             raise ValueError("SelfContact: tangents must be non-zero")
         t = t / tn[:, None]
-        own, par = candidate_pairs(r, t, self.tolerance + reach, self.s,
-                                   self.separation_cut, self.sin_half_aperture)
+        m = self.ring
+        own, par = candidate_pairs(r[:m], t[:m], self.tolerance + reach, self.s[:m],
+                                   self.separation_cut, self.sin_half_aperture, self.period)
         return self._runs(own, par, sorted_unique=True)
 
     def search(self, positions, tangents, reach: float = 0.0):
@@ -383,22 +457,24 @@ class SelfContact:
         (N, 3) from the solver (tangents need not be unit). Returns the candidates, or
         None where no pair can be within tolerance + reach (m) or none is. Non-finite
         positions give None (the step that made them fails in Newton)."""
-        r = np.ascontiguousarray(positions, dtype=float)
-        t = np.ascontiguousarray(tangents, dtype=float)
+        m = self.ring                           # a ring's distinct nodes
+        r = np.ascontiguousarray(positions, dtype=float)[:m]
+        t = np.ascontiguousarray(tangents, dtype=float)[:m]
+        s = self.s[:m]
         radius = self.tolerance + reach
         if 2 <= r.shape[0] <= ALL_PAIRS_NODES:
             # a small grid: the same steps in one compiled call
-            searched, *arrays = _search_all_pairs(r, t, self.s, self.min_separation,
+            searched, *arrays = _search_all_pairs(r, t, s, self.min_separation,
                                                   float(radius), float(self.separation_cut),
-                                                  self.sin_half_aperture)
+                                                  self.sin_half_aperture, self.period)
             return ContactCandidates(*arrays) if searched and arrays[2].size else None
         if not self.may_touch_unchecked(r, t, reach):
             return None
         if not np.isfinite(r).all():
             return None
-        a, b = close_node_pairs(r, radius, self.s, self.separation_cut)
-        arrays = _search_kernel(r, t, a, b, self.s, self.separation_cut,
-                                self.sin_half_aperture)
+        a, b = close_node_pairs(r, radius, s, self.separation_cut, self.period)
+        arrays = _search_kernel(r, t, a, b, s, self.separation_cut,
+                                self.sin_half_aperture, self.period)
         return ContactCandidates(*arrays) if arrays[2].size else None
 
     def merge(self, c1: ContactCandidates, c2: ContactCandidates) -> ContactCandidates:
@@ -411,7 +487,7 @@ class SelfContact:
         own, par = _merge_nodes_kernel(sets[0].owner, sets[0].segment,
                                        none if other is None else other.owner,
                                        none if other is None else other.segment,
-                                       self.s, self.separation_cut)
+                                       self.s, self.separation_cut, self.period, self.ring)
         return self._runs(own, par)
 
     def covers(self, cand: ContactCandidates, other: ContactCandidates) -> bool:
@@ -431,7 +507,7 @@ class SelfContact:
         (:func:`_runs_kernel`)."""
         owner, segment, start, first, last = _runs_kernel(
             np.ascontiguousarray(own, dtype=np.intp), np.ascontiguousarray(par, dtype=np.intp),
-            self.s, self.separation_cut, self.n_nodes, bool(sorted_unique))
+            self.s, self.separation_cut, self.ring, bool(sorted_unique), self.period)
         return ContactCandidates(owner, segment, start, first, last)
 
     # ------------------------------------------------------------------ closest points
@@ -445,7 +521,8 @@ class SelfContact:
         keeps that segment (the closest point still slides along it): Newton freezes the
         selection after a few iterates so that a minimum near a node cannot move back and
         forth between the two segments that meet there."""
-        k, *geo = run_closest(positions, cand.owner, cand.segment, cand.run_start, frozen)
+        k, *geo = run_closest(positions, cand.owner, cand.segment, cand.run_start, frozen,
+                              closed=self.closed)
         start = cand.run_start
         last = np.append(start[1:], cand.owner.size) - 1
         tk = geo[0]
@@ -499,7 +576,8 @@ class SelfContact:
         return ContactEvaluation(ev.owner[:p], ev.segment[:p], ev.t[:p], ev.nodes[:p],
                                  ev.weights[:p], ev.coef[:p], ev.force[:p], ev.dF_dr[:p],
                                  ev.dF_dv[:p], ev.dt_dr[:p], ev.dw_dt[:p], ev.gap[:p],
-                                 ev.distance[:p], float(ev.gap[:p].min()), int(p), ev.selection)
+                                 ev.distance[:p], float(ev.gap[:p].min()), int(p), ev.selection,
+                                 self.closed)
 
 
 @numba.njit(cache=True)
@@ -551,17 +629,17 @@ def _swept_reach(r0, r1, s, diameter, min_separation):
 
 
 @numba.njit(cache=True)
-def _swept_any_within(r0, r1, a, b, diameter, s, cut):
+def _swept_any_within(r0, r1, a, b, diameter, s, cut, period):
     """Whether any node pair (a, b) (P,) moving linearly from r0 to r1 (N, 3) comes
     closer than ½ · ½(D_a + D_b) within the step (:func:`~.geometry._swept_kernel`'s
     closest approach), or segments at such nodes do (:func:`_swept_segments_within`;
-    s (N,) m and ``cut`` (m) its arclength exclusion)."""
+    s (N,) m, ``cut`` (m) its arclength exclusion, ``period`` a ring's length or inf)."""
     closest = np.empty(a.shape[0])
     _swept_kernel(r0, r1, a, b, closest)
     for p in range(a.shape[0]):
         if closest[p] < 0.5 * (0.5 * (diameter[a[p]] + diameter[b[p]])):
             return True
-    return _swept_segments_within(r0, r1, a, b, diameter, s, cut)
+    return _swept_segments_within(r0, r1, a, b, diameter, s, cut, period)
 
 
 #: the most sub-times :func:`_swept_segments_within` takes in one step
@@ -597,10 +675,11 @@ def _segment_distance(p0, p1, q0, q1):
 
 
 @numba.njit(cache=True)
-def _swept_segments_within(r0, r1, a, b, diameter, s, cut):
+def _swept_segments_within(r0, r1, a, b, diameter, s, cut, period):
     """Whether two segments, one at each node of a pair (a, b) (P,) (k − 1 → k and
-    k → k + 1 at node k), their nodes beyond ``cut`` (m) in arclength s (N,) from the
-    other segment's, come closer than the node test's threshold, ½ of their four
+    k → k + 1 at node k; on a ring of length ``period`` (m; inf for an open rod) of the
+    N distinct nodes, N − 1 → 0 too), their nodes beyond ``cut`` (m) in arclength s (N,)
+    from the other segment's (:func:`_separation`), come closer than the node test's threshold, ½ of their four
     diameters' mean, at one of the step's sub-times t_k = k/K, the nodes moving
     linearly from r0 to r1 (N, 3). Two segments crossing at some time are at distance 0
     then, and the distance of two segments changes by at most their points' relative
@@ -614,23 +693,31 @@ def _swept_segments_within(r0, r1, a, b, diameter, s, cut):
         move = max(move, math.sqrt(d @ d))
     thr_min = 0.5 * np.min(diameter)
     steps = min(SWEPT_SUBSTEPS, max(1, int(math.ceil(2.0 * 2.0 * move / thr_min))))
+    ring = period < np.inf
     for p in range(a.shape[0]):
         for i in (a[p] - 1, a[p]):
-            if i < 0 or i + 1 >= n:
+            if ring:
+                i = i % n
+            elif i < 0 or i + 1 >= n:
                 continue
+            i1 = (i + 1) % n
             for j in (b[p] - 1, b[p]):
-                if j < 0 or j + 1 >= n:
+                if ring:
+                    j = j % n
+                elif j < 0 or j + 1 >= n:
                     continue
-                if (abs(s[i] - s[j]) <= cut or abs(s[i + 1] - s[j]) <= cut
-                        or abs(s[i] - s[j + 1]) <= cut or abs(s[i + 1] - s[j + 1]) <= cut):
+                j1 = (j + 1) % n
+                if (_separation(s, i, j, period) <= cut or _separation(s, i1, j, period) <= cut
+                        or _separation(s, i, j1, period) <= cut
+                        or _separation(s, i1, j1, period) <= cut):
                     continue
-                thr = 0.125 * (diameter[i] + diameter[i + 1] + diameter[j] + diameter[j + 1])
+                thr = 0.125 * (diameter[i] + diameter[i1] + diameter[j] + diameter[j1])
                 for k in range(steps + 1):
                     t = k / steps
                     d = _segment_distance(r0[i] + t * (r1[i] - r0[i]),
-                                          r0[i + 1] + t * (r1[i + 1] - r0[i + 1]),
+                                          r0[i1] + t * (r1[i1] - r0[i1]),
                                           r0[j] + t * (r1[j] - r0[j]),
-                                          r0[j + 1] + t * (r1[j + 1] - r0[j + 1]))
+                                          r0[j1] + t * (r1[j1] - r0[j1]))
                     if d < thr:
                         return True
     return False
@@ -665,12 +752,27 @@ def _may_touch_kernel(r, t, s, min_separation, reach):
     return not (c > 0.0 and c * min_separation >= reach)
 
 
+@numba.njit(cache=True, inline="always")
+def _separation(s, a, b, period):
+    """The arclength separation (m) of nodes a and b of the grid s: |s_a − s_b|, of a
+    ring of length ``period`` the shorter way round, min(|Δs|, L − |Δs|) (inf for an
+    open rod: |Δs| exactly)."""
+    d = abs(s[a] - s[b])
+    return min(d, period - d)
+
+
 @numba.njit(cache=True)
-def _runs_kernel(own, par, s, cut, n, sorted_unique):
-    """The body of :meth:`SelfContact._runs`: node pairs (own, par) (M,) into runs, as
-    (owner (K,), segment (K,), run_start (R,), first_vertex_is_end, last_vertex_is_end
-    (R,) bool). Unsorted pairs are deduplicated and sorted by owner, then partner."""
+def _runs_kernel(own, par, s, cut, n, sorted_unique, period):
+    """The body of :meth:`SelfContact._runs`: node pairs (own, par) (M,) of nodes
+    0 .. n − 1 into runs, as (owner (K,), segment (K,), run_start (R,),
+    first_vertex_is_end, last_vertex_is_end (R,) bool). Unsorted pairs are deduplicated
+    and sorted by owner, then partner. Of a ring (``period`` its length, m; n its
+    distinct nodes) the partners are ordered round the ring from the owner, index
+    (p − o) mod n, so that a run runs on across the join (its segments N − 1, 0, …,
+    segment N − 1 ending at node N, node 0 again), the separations are periodic
+    (:func:`_separation`) and no run ends at a rod end."""
     m = own.shape[0]
+    closed = period < np.inf
     if not sorted_unique and m:
         keys = np.sort(own * n + par)
         uniq = 1
@@ -681,6 +783,12 @@ def _runs_kernel(own, par, s, cut, n, sorted_unique):
         m = uniq
         own = keys[:m] // n
         par = keys[:m] % n
+    if closed and m:
+        # each owner's partners in ring order from it (the owner's own index is 0,
+        # inside the exclusion, so a run never wraps past it)
+        keys = np.sort(own[:m] * n + (par[:m] - own[:m]) % n)
+        own = keys // n
+        par = keys % n
     if m == 0:
         return (np.zeros(0, np.intp), np.zeros(0, np.intp), np.zeros(0, np.intp),
                 np.zeros(0, np.bool_), np.zeros(0, np.bool_))
@@ -706,11 +814,12 @@ def _runs_kernel(own, par, s, cut, n, sorted_unique):
     # exclusion from the owner; keep runs of at least one segment
     total = 0
     keep = 0
+    shift = 1 if closed else 0              # back from ring order to node indices
     for q in range(n_runs):
         o = ro[q]
-        if lo[q] - 1 >= 0 and abs(s[o] - s[lo[q] - 1]) > cut:
+        if lo[q] - 1 >= 0 and _separation(s, o, (lo[q] - 1 + shift * o) % n, period) > cut:
             lo[q] -= 1
-        if hi[q] + 1 < n and abs(s[o] - s[hi[q] + 1]) > cut:
+        if hi[q] + 1 < n and _separation(s, o, (hi[q] + 1 + shift * o) % n, period) > cut:
             hi[q] += 1
         if hi[q] - lo[q] > 0:
             ro[keep] = o
@@ -726,21 +835,21 @@ def _runs_kernel(own, par, s, cut, n, sorted_unique):
     k = 0
     for q in range(keep):
         start[q] = k
-        first[q] = lo[q] == 0
-        last[q] = hi[q] == n - 1
+        first[q] = lo[q] == 0 and not closed
+        last[q] = hi[q] == n - 1 and not closed
         for j in range(lo[q], hi[q]):
             owner[k] = ro[q]
-            segment[k] = j
+            segment[k] = (j + shift * ro[q]) % n
             k += 1
     return owner, segment, start, first, last
 
 
 @numba.njit(cache=True)
-def _search_kernel(r, t, a, b, s, cut, sin_half_aperture):
+def _search_kernel(r, t, a, b, s, cut, sin_half_aperture, period):
     """Node pairs (a, b) of a k-d tree search into the candidates' arrays
     (:meth:`SelfContact.search`): the tangents t (N, 3) normalised, the aperture cones
     and the ordering (:func:`~.geometry._candidate_pairs_kernel`), then the runs
-    (:func:`_runs_kernel`)."""
+    (:func:`_runs_kernel`; ``period`` a ring's length, inf for an open rod)."""
     n = r.shape[0]
     tu = np.empty((n, 3))
     for k in range(n):
@@ -748,18 +857,18 @@ def _search_kernel(r, t, a, b, s, cut, sin_half_aperture):
         for c in range(3):
             tu[k, c] = t[k, c] / nrm if nrm > 0.0 else 0.0
     own, par = _candidate_pairs_kernel(r, tu, a, b, sin_half_aperture)
-    return _runs_kernel(own, par, s, cut, n, true_at_run_time(r))
+    return _runs_kernel(own, par, s, cut, n, true_at_run_time(r), period)
 
 
 @numba.njit(cache=True)
-def _search_all_pairs(r, t, s, min_separation, radius, cut, sin_half_aperture):
+def _search_all_pairs(r, t, s, min_separation, radius, cut, sin_half_aperture, period):
     """:meth:`SelfContact.search` on a grid of at most ALL_PAIRS_NODES nodes, in one
     call: the pre-test (:func:`_may_touch_kernel` at ``radius`` = tolerance + reach), the
     finiteness check, all node pairs within radius (:func:`~.geometry._block_pairs_kernel`
     on the whole grid, as :func:`~.geometry.close_node_pairs` takes them) and
-    :func:`_search_kernel`. Returns (searched, owner, segment, run_start, first, last):
-    searched False (and no candidates) where the pre-test or the finiteness check
-    stopped the search."""
+    :func:`_search_kernel` (``period``: a ring's length, inf for an open rod). Returns
+    (searched, owner, segment, run_start, first, last): searched False (and no
+    candidates) where the pre-test or the finiteness check stopped the search."""
     n = r.shape[0]
     searched = _may_touch_kernel(r, t, s, min_separation, radius)
     if searched:
@@ -769,30 +878,35 @@ def _search_all_pairs(r, t, s, min_separation, radius, cut, sin_half_aperture):
                     searched = False
     if searched:
         a, b = _block_pairs_kernel(r, s, n, np.zeros((0, 2), np.intp), np.zeros(1),
-                                   radius, cut)
+                                   radius, cut, period)
     else:
         a, b = np.zeros(0, np.intp), np.zeros(0, np.intp)
-    owner, segment, start, first, last = _search_kernel(r, t, a, b, s, cut, sin_half_aperture)
+    owner, segment, start, first, last = _search_kernel(r, t, a, b, s, cut, sin_half_aperture,
+                                                        period)
     return searched, owner, segment, start, first, last
 
 
 @numba.njit(cache=True)
-def _passes_through_all_pairs(r0, r1, s, diameter, min_separation, cut):
+def _passes_through_all_pairs(r0, r1, s, diameter, min_separation, cut, period):
     """:meth:`SelfContact.passes_through` on a grid of at most ALL_PAIRS_NODES nodes, in
     one call: :func:`_swept_reach`, the node pairs within it (as
-    :func:`~.geometry.close_node_pairs` takes them) and :func:`_swept_any_within`."""
+    :func:`~.geometry.close_node_pairs` takes them, ``period`` a ring's length) and
+    :func:`_swept_any_within`."""
     radius = _swept_reach(r0, r1, s, diameter, min_separation)
     if radius < 0.0:
         return False
     a, b = _block_pairs_kernel(r1, s, r1.shape[0], np.zeros((0, 2), np.intp), np.zeros(1),
-                               radius, cut)
-    return a.size > 0 and _swept_any_within(r0, r1, a, b, diameter, s, cut)
+                               radius, cut, period)
+    return a.size > 0 and _swept_any_within(r0, r1, a, b, diameter, s, cut, period)
 
 
 @numba.njit(cache=True)
-def _merge_nodes_kernel(own1, seg1, own2, seg2, s, cut):
+def _merge_nodes_kernel(own1, seg1, own2, seg2, s, cut, period, ring):
     """The node pairs of :meth:`SelfContact.merge`: (owner, segment) and (owner,
-    segment + 1) of both sets, those further apart in arclength than ``cut`` (m)."""
+    segment + 1) of both sets, those further apart in arclength than ``cut`` (m). Of a
+    ring (``period`` its length, m; ``ring`` its distinct nodes) segment + 1 = N is node
+    0 and the separation is periodic (:func:`_separation`); an open rod passes inf and
+    its node count."""
     m = 2 * (own1.shape[0] + own2.shape[0])
     own = np.empty(m, np.intp)
     par = np.empty(m, np.intp)
@@ -802,7 +916,9 @@ def _merge_nodes_kernel(own1, seg1, own2, seg2, s, cut):
             for d in range(2):
                 o = oa[q]
                 p = sa[q] + d
-                if abs(s[o] - s[p]) > cut:
+                if p >= ring:
+                    p -= ring
+                if _separation(s, o, p, period) > cut:
                     own[k] = o
                     par[k] = p
                     k += 1

@@ -126,8 +126,6 @@ def test_a_closed_rods_refusals_name_their_field():
         ({"boundary": {"start": {}, "end": {}}}, "boundary", "no ends"),
         ({"numerics": {"n_segments": 40, "dt": 0.01, "t_end": 0.5}}, "rod.closed",
          "centreline"),
-        ({"contact": {"aperture": 60.0, "tolerance": 0.03, "k1": 1.0, "k2": 2.0,
-                      "k3": 0.0, "k4": 0.0}}, "contact", "closed"),
         ({"initial": {"linking_number": 1, "twist_rate": 1.0}}, "initial.twist_rate",
          "circle"),
         ({"initial": {"linking_number": 30}}, "initial.linking_number", "not_resolved|half"),
