@@ -183,3 +183,29 @@ def thin_plectoneme_case(dt, t_end):
     spec["rod"]["diameter"] = 0.01
     spec["contact"]["tolerance"] = 0.02
     return Case.model_validate(spec)
+
+
+def step_jacobian_fd(rod, Y, old, co, prob, eps: float = 1e-7) -> np.ndarray:
+    """Central differences (13(N+1), 13(N+1)) of a centreline step's residual
+    (:meth:`solver.centreline.CentrelineRod.residual`) at Y (N+1, 13), column by column:
+    the oracle of the step's exact Jacobian."""
+    fd = np.empty((Y.size, Y.size))
+    for j in range(Y.size):
+        d = np.zeros(Y.size)
+        d[j] = eps
+        d = d.reshape(Y.shape)
+        fd[:, j] = (rod.residual(Y + d, old, co, prob) - rod.residual(Y - d, old, co, prob)) / (2 * eps)
+    return fd
+
+
+def refused(spec, loc, text):
+    """Assert that validating the case mapping ``spec`` fails with an error at ``loc``
+    (a tuple, as pydantic's ``loc``) whose message contains ``text``."""
+    import pytest
+    from pydantic import ValidationError
+
+    with pytest.raises(ValidationError) as info:
+        Case.model_validate(spec)
+    errors = [e for e in info.value.errors() if e["loc"] == loc]
+    assert errors, info.value.errors()
+    assert text in errors[0]["msg"], errors[0]["msg"]

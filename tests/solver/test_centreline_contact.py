@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from rodcases import clamped_end, free_end, hairpin, plectoneme_case
+from rodcases import clamped_end, free_end, hairpin, plectoneme_case, step_jacobian_fd
 from solver import statics
 from solver.case import Case
 from solver.centreline import CentrelineRod
@@ -77,13 +77,7 @@ def test_the_jacobian_with_self_contact_is_exact():
     _, ev, dL = rod.contact_terms(Y, state, co, want=True)
     assert ev.count > 10 and dL.nnz > 0
     J = full_jacobian(rod, Y, state, co, prob)
-    Jfd = np.empty_like(J)
-    eps = 1e-7
-    for j in range(Y.size):
-        d = np.zeros(Y.size)
-        d[j] = eps
-        Jfd[:, j] = (rod.residual(Y + d.reshape(Y.shape), state, co, prob)
-                     - rod.residual(Y - d.reshape(Y.shape), state, co, prob)) / (2 * eps)
+    Jfd = step_jacobian_fd(rod, Y, state, co, prob)
     assert np.abs(J - Jfd).max() < 1e-7 * np.abs(J).max()
 
 

@@ -12,6 +12,7 @@ import math
 import numpy as np
 import pytest
 
+from rodcases import step_jacobian_fd
 from solver import statics
 from solver.case import Case
 from solver.centreline import CentrelineRod
@@ -152,13 +153,7 @@ def test_the_step_jacobian_with_contact_on_a_closed_rod_is_exact():
     assert np.all((ev.t > 0.05) & (ev.t < 0.95))
     J = (band_to_sparse(rod.jacobian(Y, state, co, prob)[KL:]) + statics.join_coupling(Y, prob)
          + statics._load_rows(prob) @ dL @ statics._position_columns(prob)).toarray()
-    Jfd = np.empty_like(J)
-    eps = 1e-7
-    for j in range(Y.size):
-        d = np.zeros(Y.size)
-        d[j] = eps
-        Jfd[:, j] = (rod.residual(Y + d.reshape(Y.shape), state, co, prob)
-                     - rod.residual(Y - d.reshape(Y.shape), state, co, prob)) / (2 * eps)
+    Jfd = step_jacobian_fd(rod, Y, state, co, prob)
     assert np.abs(J - Jfd).max() < 1e-7 * np.abs(J).max()
 
 

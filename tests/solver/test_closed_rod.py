@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
+from rodcases import step_jacobian_fd
 from solver import statics
 from solver.case import Case
 from solver.centreline import CentrelineRod
@@ -79,14 +80,7 @@ def test_the_step_jacobian_with_the_join_is_the_residuals_derivative():
     Y = old.Y + 1e-3 * rng.standard_normal(old.Y.shape)
     from solver.centreline import _SparseLU
     A = _SparseLU(rod.jacobian(Y, old, co, prob), statics.join_coupling(Y, prob)).A.toarray()
-    eps = 1e-6
-    fd = np.empty_like(A)
-    for j in range(Y.size):
-        dY = np.zeros(Y.size)
-        dY[j] = eps
-        gp = rod.residual(Y + dY.reshape(Y.shape), old, co, prob)
-        gm = rod.residual(Y - dY.reshape(Y.shape), old, co, prob)
-        fd[:, j] = (gp - gm) / (2 * eps)
+    fd = step_jacobian_fd(rod, Y, old, co, prob, eps=1e-6)
     assert np.abs(A - fd).max() < 1e-6 * np.abs(A).max()
     # the join's rows reach outside the band: nodes 0 and N both
     assert np.abs(A[:statics.N_START, -statics.NV:]).max() > 0.5

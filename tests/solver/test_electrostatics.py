@@ -11,11 +11,10 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from pydantic import ValidationError
 from scipy.optimize import brentq
 from scipy.special import k0, k1
 
-from rodcases import clamped_end, free_end, hairpin
+from rodcases import clamped_end, free_end, hairpin, refused, step_jacobian_fd
 from solver import statics
 from solver.case import Case
 from solver.centreline import CentrelineRod
@@ -217,13 +216,6 @@ def es_spec(electrostatics, formulation="centreline", n=20) -> dict:
     return spec
 
 
-def _refused(spec, loc, text):
-    with pytest.raises(ValidationError) as info:
-        Case.model_validate(spec)
-    errors = [e for e in info.value.errors() if e["loc"] == loc]
-    assert errors, info.value.errors()
-    assert text in errors[0]["msg"], errors[0]["msg"]
-
 
 @pytest.mark.parametrize("block, loc, text", [
     ({"charge_per_length": 0.0, "debye_length": 0.01}, "charge_per_length", "greater than 0"),
@@ -243,11 +235,11 @@ def _refused(spec, loc, text):
      "Extra inputs"),
 ])
 def test_bad_input_names_the_field(block, loc, text):
-    _refused(es_spec(block), ("electrostatics", loc), text)
+    refused(es_spec(block), ("electrostatics", loc), text)
 
 
 def test_the_goyal_scheme_refuses_electrostatics_at_the_field():
-    _refused(es_spec({"charge_per_length": 1e-5, "debye_length": 0.01}, formulation=None),
+    refused(es_spec({"charge_per_length": 1e-5, "debye_length": 0.01}, formulation=None),
              ("electrostatics",), "numerics.formulation: centreline")
 
 
@@ -344,13 +336,7 @@ def test_the_step_jacobian_with_electrostatics_is_exact():
     assert dL is not None and dL.nnz > 0
     J = (band_to_sparse(rod.jacobian(Y, state, co, prob)[KL:])
          + statics._load_rows(prob) @ dL @ statics._position_columns(prob)).toarray()
-    Jfd = np.empty_like(J)
-    eps = 1e-7
-    for j in range(Y.size):
-        e = np.zeros(Y.size)
-        e[j] = eps
-        Jfd[:, j] = (rod.residual(Y + e.reshape(Y.shape), state, co, prob)
-                     - rod.residual(Y - e.reshape(Y.shape), state, co, prob)) / (2 * eps)
+    Jfd = step_jacobian_fd(rod, Y, state, co, prob)
     assert np.abs(J - Jfd).max() < 1e-7 * np.abs(J).max()
     # and the statics' sparse Jacobian holds the same pairs
     Js = statics.jacobian(Y, prob).toarray()

@@ -9,9 +9,8 @@ import math
 
 import numpy as np
 import pytest
-from pydantic import ValidationError
 
-from rodcases import free_end
+from rodcases import free_end, refused
 from solver.case import Case
 from solver.centreline import AlphaParameters, CentrelineRod
 from solver.resistive_force import resistive_force_coefficients
@@ -353,40 +352,33 @@ def test_integrate_runs_a_viscous_case():
 
 # --------------------------------------------------------------- the case language
 
-def _refused(spec, loc, text):
-    with pytest.raises(ValidationError) as info:
-        Case.model_validate(spec)
-    errors = [e for e in info.value.errors() if e["loc"] == loc]
-    assert errors, info.value.errors()
-    assert text in errors[0]["msg"], errors[0]["msg"]
-
 
 @pytest.mark.parametrize("mu", [0.0, -8.9e-4])
 def test_viscosity_must_be_positive(mu):
-    _refused(viscous_spec(mu=mu), ("fluid", "viscosity"), "greater than 0")
+    refused(viscous_spec(mu=mu), ("fluid", "viscosity"), "greater than 0")
 
 
 def test_the_goyal_scheme_refuses_viscosity_at_the_field():
     spec = viscous_spec()
     del spec["numerics"]["formulation"]                       # the default, goyal
-    _refused(spec, ("fluid", "viscosity"), "numerics.formulation: centreline")
+    refused(spec, ("fluid", "viscosity"), "numerics.formulation: centreline")
 
 
 def test_slenderness_length_is_read_with_viscosity_only_and_must_leave_a_slender_rod():
     spec = viscous_spec()
     del spec["fluid"]["viscosity"]
     spec["fluid"]["slenderness_length"] = 0.5
-    _refused(spec, ("fluid", "slenderness_length"), "only read with fluid.viscosity")
+    refused(spec, ("fluid", "slenderness_length"), "only read with fluid.viscosity")
     spec = viscous_spec()
     spec["fluid"]["slenderness_length"] = 0.015                  # ℓ/d = 1.5
-    _refused(spec, ("fluid", "slenderness_length"), "ℓ/d = 1.5")
+    refused(spec, ("fluid", "slenderness_length"), "ℓ/d = 1.5")
     spec = viscous_spec()
     spec["rod"]["length"] = 0.015
     spec["numerics"]["n_segments"] = 2
-    _refused(spec, ("fluid", "viscosity"), "rod.length")
+    refused(spec, ("fluid", "viscosity"), "rod.length")
     spec = viscous_spec()
     spec["rod"]["diameter"] = {"s": [0.0, 1.0], "value": [0.01, 0.6]}
-    _refused(spec, ("fluid", "viscosity"), "largest rod.diameter 0.6")
+    refused(spec, ("fluid", "viscosity"), "largest rod.diameter 0.6")
 
 
 def test_a_slenderness_length_sets_the_logarithm():
