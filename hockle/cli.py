@@ -424,6 +424,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         return EXIT_INVALID
     out = Path(args.output) if args.output else Path(Path(args.case).stem + ".nc")
 
+    from solver.centreline import CentrelineError
     from solver.checkpoint import Checkpoint, CheckpointError
     from solver.simulation import SolverDivergence, integrate
 
@@ -500,6 +501,10 @@ def cmd_run(args: argparse.Namespace) -> int:
         except KeyboardInterrupt:
             _err("hockle: aborted; no results written")
             return EXIT_INTERRUPTED
+        except CentrelineError as exc:
+            # a field the centreline scheme refuses when the run is built (before any step)
+            _err(f"hockle run: {args.case}: {exc}; no results written")
+            return EXIT_INVALID
         wall = time.perf_counter() - wall0
         if not _write(ds, out):
             return EXIT_ERROR

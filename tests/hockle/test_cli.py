@@ -240,6 +240,22 @@ def test_run_invalid_case(tmp_path, capsys):
     assert not (tmp_path / "bad.nc").exists()
 
 
+def test_run_names_the_field_the_centreline_scheme_refuses(tmp_path, capsys):
+    """A field the centreline scheme refuses when the run is built (a point load off the
+    grid's nodes) is an invalid case: exit 2, the field and the reason on stderr, no
+    traceback and no file."""
+    spec = copy.deepcopy(TINY)
+    spec["numerics"]["formulation"] = "centreline"
+    spec["numerics"].pop("tolerance", None)
+    length = spec["rod"]["length"]
+    spec["point_loads"] = [{"s": 0.37 * length, "value": [0.0, 1e-3, 0.0]}]
+    case = write_case(tmp_path / "off.yaml", spec)
+    assert main(["run", str(case), "-o", str(tmp_path / "off.nc"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "point_loads.0.s" in err and "not a grid node" in err and "Traceback" not in err
+    assert not (tmp_path / "off.nc").exists()
+
+
 def test_run_out_of_wall_clock_budget_writes_partial_file(tmp_path, capsys):
     spec = copy.deepcopy(TINY)
     spec["numerics"]["wall_clock_budget"] = 1e-6  # s: spent before the first step ends
