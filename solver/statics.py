@@ -737,14 +737,53 @@ def _perm_parity(perm: np.ndarray) -> int:
     return -1 if (n - cycles) % 2 else 1
 
 
-def factor(A):
-    """splu of a sparse square matrix; raises :class:`StaticsError` when singular."""
+class EquilibratedLU:
+    """The LU of a square matrix A through its equilibrated Dr A Dc: Dc the given column
+    scales (the unknowns' sizes; default 1), Dr one over each row's largest entry of
+    A Dc (Bunch, Math. Comp. 25, 1971; Golub & Van Loan, *Matrix Computations*, 4th ed.,
+    § 3.5.2). A rod's rows mix metres, newtons and newton-metres: DNA in SI units puts
+    1e27 between a moment row's entries and a quaternion row's, so the pivots of A itself
+    say nothing about singularity (:func:`_check_pivots` compares them with the largest),
+    those of Dr A Dc do. ``solve(b, trans="N"|"T", refine=...)`` solves A x = b or
+    Aᵀ x = b (b (n,) or (n, k)); ``det_sign`` is the sign of det A (Dr, Dc > 0); ``lu``
+    the factor of Dr A Dc (``splu``'s, or :class:`solver.static_band.BorderedBandLU`'s)."""
+
+    def __init__(self, lu, r, c):
+        self.lu, self.r, self.c = lu, r, c
+        self.det_sign = lu_det_sign(lu)
+
+    def solve(self, b, trans: str = "N", refine: bool = True):
+        b = np.asarray(b, float)
+        r = self.r if b.ndim == 1 else self.r[:, None]
+        c = self.c if b.ndim == 1 else self.c[:, None]
+        if trans == "T":
+            return r * self.lu.solve(c * b, trans="T")
+        if isinstance(self.lu, BorderedBandLU):
+            return c * self.lu.solve(r * b, refine=refine)
+        return c * self.lu.solve(r * b)
+
+
+def _row_equilibration(A) -> np.ndarray:
+    """(n,) one over each row's largest |entry| of the sparse A (1 for an empty row)."""
+    big = np.asarray(abs(sp.csr_matrix(A)).max(axis=1).todense()).ravel()
+    return 1.0 / np.where(big > 0.0, big, 1.0)
+
+
+def factor(A, col_scale=None):
+    """The sparse LU (scipy's ``splu``) of a square matrix A through its equilibrated
+    Dr A Dc (:class:`EquilibratedLU`; ``col_scale`` (n,) Dc, default 1); raises
+    :class:`StaticsError` when singular (a pivot of Dr A Dc below PIVOT_RTOL of the
+    largest)."""
+    A = sp.csc_matrix(A)
+    c = np.ones(A.shape[1]) if col_scale is None else np.asarray(col_scale, float)
+    Ac = A @ sp.diags(c)
+    r = _row_equilibration(Ac)
     try:
-        lu = spla.splu(sp.csc_matrix(A))
+        lu = spla.splu(sp.csc_matrix(sp.diags(r) @ Ac))
     except RuntimeError as exc:
         raise StaticsError(f"singular Jacobian ({exc})") from exc
     _check_pivots(lu.U.diagonal())
-    return lu
+    return EquilibratedLU(lu, r, c)
 
 
 #: a pivot below this fraction of the largest in size is zero to rounding (:func:`_check_pivots`)
@@ -760,18 +799,40 @@ def _check_pivots(d):
 
 
 def factor_jacobian(Y: np.ndarray, prob: StaticProblem):
-    """The LU of ∂G/∂Y at Y (N+1, 13), a 13(N+1)-square matrix: LAPACK's band LU (:class:`solver.static_band.BorderedBandLU`
-    with no border) where the Jacobian is a band (:func:`band_ready`), else scipy's
-    sparse LU (:func:`factor`); either has ``solve``. Raises :class:`StaticsError` when
-    the Jacobian is singular (a pivot zero, or below 1e-14 of the largest)."""
+    """The LU of ∂G/∂Y at Y (N+1, 13), a 13(N+1)-square matrix, through its equilibrated
+    Dr J Dc (Dc the unknowns' scales, :meth:`StaticProblem.scales`; Dr one over each
+    row's largest entry; :class:`EquilibratedLU`): LAPACK's band LU
+    (:class:`solver.static_band.BorderedBandLU` with no border) where the Jacobian is a
+    band (:func:`band_ready`), else scipy's sparse LU (:func:`factor`); it has
+    ``solve`` and ``det_sign``. Raises :class:`StaticsError` when the Jacobian is
+    singular (a pivot of Dr J Dc zero, or below 1e-14 of the largest)."""
+    c = np.tile(prob.scales(), prob.n_segments + 1)
     if band_ready(prob):
+        ab = band_jacobian(Y, prob)
+        r = _equilibrate_band(ab, c)
         try:
-            lu = BorderedBandLU(band_jacobian(Y, prob))
+            lu = BorderedBandLU(ab)
         except BandSingular as exc:
             raise StaticsError(f"singular Jacobian ({exc})") from exc
         _check_pivots(lu.lu[KL + KU])
-        return lu
-    return factor(jacobian(Y, prob))
+        return EquilibratedLU(lu, r, c)
+    return factor(jacobian(Y, prob), c)
+
+
+def _equilibrate_band(ab, c) -> np.ndarray:
+    """Scale the band ``ab`` (LAPACK storage, A[i, j] at ab[KL + KU + i − j, j]) in place
+    to Dr A Dc with Dc = diag(c) and Dr one over each row's largest |entry| of A Dc
+    (:class:`EquilibratedLU`); returns Dr's diagonal (n,)."""
+    n = ab.shape[1]
+    d = KL + KU
+    ab[KL:] *= c[None, :]
+    rows = np.arange(n)[None, :] + np.arange(-KU, KL + 1)[:, None]   # i of ab[d + k, j]
+    inside = (rows >= 0) & (rows < n)
+    big = np.zeros(n)
+    np.maximum.at(big, rows[inside], np.abs(ab[KL:][inside]))
+    r = 1.0 / np.where(big > 0.0, big, 1.0)
+    ab[KL:] *= np.where(inside, r[np.clip(rows, 0, n - 1)], 1.0)
+    return r
 
 
 @dataclass
@@ -1020,7 +1081,7 @@ def unstable_modes(Y: np.ndarray, prob: StaticProblem, k: int = 8, lu=None):
 def critical_mode(Y: np.ndarray, prob: StaticProblem) -> np.ndarray:
     """(N+1, 13) the eigenvector of the pencil with μ nearest zero (real part), scaled
     to a largest position component of 1 m."""
-    lu = factor(jacobian(Y, prob))
+    lu = factor(jacobian(Y, prob), np.tile(prob.scales(), prob.n_segments + 1))
     B = mass_matrix(Y, prob)
     n = B.shape[0]
     op = spla.LinearOperator((n, n), matvec=lambda x: lu.solve(B @ x), dtype=float)

@@ -584,3 +584,25 @@ def test_rod_on_the_seabed_sinks_by_weight_over_stiffness():
     pen = D / 2 - sol.Y[N // 2:, 2]
     assert np.max(np.abs(pen / (w / k) - 1)) < 1e-6
     assert np.max(np.abs(sol.Y[:, 7] - 0.1)) < 1e-9     # no friction takes the axial load
+
+
+def test_dna_in_si_units_solves_through_the_equilibrated_lu():
+    """cases/dna-tweezers.yaml's statics at 1.9 turns (before it buckles): 200 nm of DNA
+    in SI units, whose rows span ~1e27 (a moment row's N m against a quaternion row's 1),
+    so the pivots of J itself were below 1e-14 of the largest and the solve was refused
+    as singular; through the equilibrated Dr J Dc (statics.EquilibratedLU) Newton
+    converges, the rod stays straight at 200 nm with the torque 2πC n/L of the straight
+    twisted rod (to the box rule's 3e-4, measured), and it is stable."""
+    import math
+    from pathlib import Path
+
+    from solver.case import Case
+
+    case = Case.from_file(Path(__file__).resolve().parents[2] / "cases" / "dna-tweezers.yaml")
+    prob = st.static_problem(case, 2.0e-3)
+    sol = st.solve(prob)
+    turns = prob.end.twist / (2 * math.pi)
+    torque = 2 * math.pi * 4.11e-28 * turns / 2e-7
+    assert sol.Y[-1, 12] == pytest.approx(torque, rel=1e-3)
+    assert sol.Y[-1, 2] - sol.Y[0, 2] == pytest.approx(2e-7, rel=1e-9)
+    assert st.unstable_modes(sol.Y, prob)[0] == 0
