@@ -824,14 +824,18 @@ def _equilibrate_band(ab, c) -> np.ndarray:
     to Dr A Dc with Dc = diag(c) and Dr one over each row's largest |entry| of A Dc
     (:class:`EquilibratedLU`); returns Dr's diagonal (n,)."""
     n = ab.shape[1]
-    d = KL + KU
-    ab[KL:] *= c[None, :]
-    rows = np.arange(n)[None, :] + np.arange(-KU, KL + 1)[:, None]   # i of ab[d + k, j]
-    inside = (rows >= 0) & (rows < n)
+    band = ab[KL:]                        # band[k, j] = A[j + k − KU, j]
+    band *= c[None, :]
     big = np.zeros(n)
-    np.maximum.at(big, rows[inside], np.abs(ab[KL:][inside]))
+    for k in range(KL + KU + 1):          # diagonal by diagonal: rows i = j + k − KU
+        off = k - KU
+        lo, hi = max(0, -off), min(n, n - off)
+        np.maximum(big[lo + off:hi + off], np.abs(band[k, lo:hi]), out=big[lo + off:hi + off])
     r = 1.0 / np.where(big > 0.0, big, 1.0)
-    ab[KL:] *= np.where(inside, r[np.clip(rows, 0, n - 1)], 1.0)
+    for k in range(KL + KU + 1):
+        off = k - KU
+        lo, hi = max(0, -off), min(n, n - off)
+        band[k, lo:hi] *= r[lo + off:hi + off]
     return r
 
 
