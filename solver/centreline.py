@@ -745,9 +745,7 @@ class CentrelineRod:
 
     #: a start from rest whose Δt exceeds this many of the viscous drag's inertial
     #: times starts on the overdamped (slow) manifold (:meth:`start`): a step longer
-    #: than the inertial layer does not resolve it (the released bent rod of
-    #: tests/solver/test_viscous.py: its mode's amplitude offset 5.7e-4, 4.1e-3, 0.11
-    #: from the inertial start at Δt = 3, 10, 100 τ, 1.8e-6, 2.6e-6, 8.4e-5 from the slow)
+    #: than the inertial layer does not resolve it (tests/solver/test_viscous.py)
     SLOW_START_STEPS = 1.0
 
     def inertial_time(self) -> float:

@@ -316,9 +316,7 @@ def _closed_rows(Y, prob: StaticProblem):
     rows and the cells' are regular. Without (a static ring) they are singular along
     the ring's rigid motions and, for an isotropic rod, the spin of every section about
     the tangent; fixing node 0's position and frame instead of the n, m continuity
-    leaves a null space still (measured on the equilibrium circle at 16 segments: one
-    null vector at Lk = 0, three at Lk = 1), which is why the statics refuse closed
-    rods."""
+    leaves a null space still, which is why the statics refuse closed rods."""
     n0, m0, p0 = Y[0, 7:10], Y[0, 10:13], Y[0, 3:7]
     start = np.concatenate([Y[-1, 7:10] - n0, Y[-1, 10:13] - m0, [p0 @ p0 - 1.0]])
     end = np.concatenate([Y[-1, 0:3] - Y[0, 0:3], _qmul(_qconj(p0), Y[-1, 3:7])[1:]])
@@ -479,7 +477,8 @@ def _join_jacobian(Y: np.ndarray, prob: StaticProblem) -> np.ndarray:
 def join_coupling(Y: np.ndarray, prob: StaticProblem) -> sp.csc_matrix:
     """(13(N+1))² sparse: a closed rod's join rows on the columns outside the band, the
     s = 0 rows on node N's unknowns and the s = L rows on node 0's (exact, as
-    :func:`band_jacobian`, which holds the rest); an empty matrix for an open rod."""
+    :func:`band_jacobian`, which holds the rest); an empty matrix for an open rod. Raises
+    nothing."""
     N = prob.n_segments
     n = NV * (N + 1)
     if not prob.closed:
