@@ -69,13 +69,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from . import statics as st
+from .centreline_loads import node_motion_kernel, nodal_loads_kernel, rounding_level
 from .static_band import KL, KU, BandSingular, BorderedBandLU
 
 __all__ = ["AlphaParameters", "CentrelineState", "CentrelineRod", "CentrelineError",
            "StepFailure", "cayley_quaternion", "cayley_vector"]
 
 NV = st.NV
-_EPS = 1e-30
 
 
 class CentrelineError(ValueError):
@@ -199,15 +199,6 @@ class CentrelineRod:
         self.added = np.asarray(props.added_mass, float)
         self.inertia = np.asarray(props.inertia, float)
         fl = case.fluid
-        #: Morison's drag factors per length (½ρ_f D C_dn, ½ρ_f πD C_dt), each (N+1,)
-        #: kg/m², or None without drag
-        self.morison = None
-        if fl is not None:
-            cdn = 0.5 * fl.density * props.diameter * fl.drag_coefficient_normal
-            cdt = 0.5 * fl.density * np.pi * props.diameter * fl.drag_coefficient_tangential
-            if np.any(cdn) or np.any(cdt):
-                self.morison = (np.asarray(cdn, float) * np.ones(self.n),
-                                np.asarray(cdt, float) * np.ones(self.n))
         #: resistive-force theory's Stokes drag coefficients per length (N+1,) each: ζ_n,
         #: ζ_t (N s/m²) and ζ_r (N s) with ``fluid.viscosity``, else None
         self.stokes = None
@@ -215,6 +206,17 @@ class CentrelineRod:
             from .resistive_force import resistive_force_coefficients
             ell = case.rod.length if fl.slenderness_length is None else fl.slenderness_length
             self.stokes = resistive_force_coefficients(fl.viscosity, props.diameter, ell)
+        #: the fluid's factors per node for :func:`solver.centreline_loads.
+        #: nodal_loads_kernel`: the Stokes drag's (ζ_n, ζ_t, ζ_r) (N+1, 3) and Morison's
+        #: drag (½ρ_f D C_dn, ½ρ_f πD C_dt) (N+1, 2) kg/m², zeros where absent
+        self.fluid_factors = (np.zeros((self.n, 3)), np.zeros((self.n, 2)))
+        if self.stokes is not None:
+            self.fluid_factors[0][:] = np.stack(np.broadcast_arrays(*self.stokes), axis=1)
+        if fl is not None:
+            self.fluid_factors[1][:, 0] = (0.5 * fl.density * props.diameter
+                                           * fl.drag_coefficient_normal)
+            self.fluid_factors[1][:, 1] = (0.5 * fl.density * np.pi * props.diameter
+                                           * fl.drag_coefficient_tangential)
         self.seabed = None
         #: the nodes the sea floor's spring holds on in a Newton solve ((N+1,) bool,
         #: None outside one; :meth:`solve`)
@@ -235,6 +237,9 @@ class CentrelineRod:
         self.factorizations = 0            # band LUs so far
         self.paths = {}
         self._last_problem = None          # (t, the problem at t): a step reads it thrice
+        #: where an end held after a load phase was when the phase ended: {(item's
+        #: field, t_a): r (3,) m} (:func:`solver.statics._dof`), recorded by the run
+        self.anchors = {}
         for name, k in (("start", 0), ("end", self.n - 1)):
             ec = getattr(case.boundary, name)
             if EndPath.applies(ec):
@@ -259,10 +264,22 @@ class CentrelineRod:
         rod = cls(case, props, q, box_centreline(q, r[0], props.ds))
         try:
             rod.problem(0.0)
+            # an end held after a load phase: checked with a stand-in for where it stops
+            for name, where, t_a in st.load_to_held_switches(case):
+                rod.anchors[(where, t_a)] = rod.r0[0 if name == "start" else -1]
             rod.problem(case.numerics.t_end)
         except st.StaticsError as exc:
             raise CentrelineError(str(exc)) from exc
+        finally:
+            rod.anchors.clear()
+            rod._last_problem = None
         return rod
+
+    def anchor(self, where: str, t_a: float, r) -> None:
+        """Record that the end of the translation item ``where`` held from t_a (s) on,
+        after a load phase, was at r (3,) m then (:func:`solver.statics._dof`)."""
+        self.anchors[(where, float(t_a))] = np.array(r, float)
+        self._last_problem = None
 
     # ------------------------------------------------------------------ the rows
     def problem(self, t: float) -> st.StaticProblem:
@@ -272,7 +289,7 @@ class CentrelineRod:
         if self._last_problem is not None and self._last_problem[0] == t:
             return self._last_problem[1]
         prob = st.problem_at(self.case, t, self.props, self.q0, self.r0,
-                             skip=tuple(self.paths))
+                             skip=tuple(self.paths), anchors=self.anchors)
         if prob.seabed is not None or prob.contact is not None:
             # the dynamic laws' (seabed_terms, contact_terms)
             prob = replace(prob, seabed=None, contact=None)
@@ -289,56 +306,24 @@ class CentrelineRod:
         dth = cayley_vector(old.Y[:, 3:7], Y[..., 3:7])
         return np.concatenate([dr, dth], axis=-1)
 
-    def nodal_loads(self, Y, old: CentrelineState, co: _Coefficients):
-        """Inertia and fluid loads per length at the nodes (..., N+1, 6), global: force
+    def nodal_loads(self, Y, old: CentrelineState, co: _Coefficients, want: bool = False):
+        """Inertia and fluid loads per length at the nodes (N+1, 6), global: force
         f_fluid − M r̈ (N/m) and moment −R(I Ẇ + W × I W) − ζ_r W3 a3 (N m/m), of Y
-        (..., N+1, 13) at the new level (complex-step safe). f_fluid is Morison's drag
-        (module docstring) plus, with ``fluid.viscosity``, resistive-force theory's Stokes
-        drag −R(ζ_n v_n + ζ_t v_t e3) on the body velocity v = Rᵀṙ (:mod:`solver.
-        resistive_force`), linear in the velocities, so its Jacobian block is exact."""
-        D = self.increments(Y, old)
-        Xd = co.cXd * D + co.dXd
-        X = co.cX * D + co.dX
-        R = st._rot(Y[..., 3:7])
-        a3 = R[..., :, 2]
-        acc = Xd[..., 0:3]
-        force = -self.mass[:, None] * acc
-        if np.any(self.added):
-            an = acc - np.sum(a3 * acc, axis=-1, keepdims=True) * a3
-            force = force - self.added[:, None] * an
-        if self.stokes is not None:
-            zn, zt, _ = self.stokes
-            # −R(ζ_n v_n + ζ_t v_t e3) = −ζ_n ṙ − (ζ_t − ζ_n)(a3·ṙ) a3: R v_n = ṙ − (a3·ṙ) a3
-            rdot = X[..., 0:3]
-            along = np.sum(a3 * rdot, axis=-1, keepdims=True)
-            force = force - zn[:, None] * rdot - (zt - zn)[:, None] * along * a3
-        if self.morison is not None:
-            cdn, cdt = self.morison
-            v = np.einsum("...ji,...j->...i", R, X[..., 0:3])        # body velocity
-            vt = v[..., 2:3]
-            vn = v.copy()
-            vn[..., 2] = 0.0
-            speed = np.sqrt(np.sum(vn * vn, axis=-1, keepdims=True))
-            # |vt| written sqrt(vt²): complex-step safe; its derivative at 0 is 0 in both
-            b = (-cdn[:, None] * speed * vn
-                 - cdt[:, None] * np.sqrt(vt * vt) * vt * np.array([0.0, 0.0, 1.0]))
-            force = force + np.einsum("...ij,...j->...i", R, b)
-        W, Wd = X[..., 3:6], Xd[..., 3:6]
-        IW = self.inertia * W
-        body = self.inertia * Wd + np.cross(W, IW)
-        moment = -np.einsum("...ij,...j->...i", R, body)
-        if self.stokes is not None:
-            moment = moment - (self.stokes[2] * W[..., 2])[..., None] * a3
-        return np.concatenate([force, moment], axis=-1)
-
-    def kinematics(self, Y, old: CentrelineState, co: _Coefficients):
-        """The nodes' positions r, velocities ṙ, global angular velocities Ω = R W and
-        tangents a3 = R e3, each (..., N+1, 3), of Y (..., N+1, 13) at the new level
-        (complex-step safe)."""
-        X = co.cX * self.increments(Y, old) + co.dX
-        R = st._rot(Y[..., 3:7])
-        return (Y[..., 0:3], X[..., 0:3], np.einsum("...ij,...j->...i", R, X[..., 3:6]),
-                R[..., :, 2])
+        (N+1, 13) at the new level; with ``want`` also their derivative by each node's
+        (r, p), (N+1, 6, 7), exact by the complex step (else None). f_fluid is Morison's
+        drag (module docstring) plus, with ``fluid.viscosity``, resistive-force theory's
+        Stokes drag −R(ζ_n v_n + ζ_t v_t e3) on the body velocity v = Rᵀṙ (:mod:`solver.
+        resistive_force`). Compiled: :func:`solver.centreline_loads.nodal_loads_kernel`."""
+        n1 = self.n
+        L = np.empty((n1, 6))
+        dL = np.empty((n1, 6, 7)) if want else np.empty((0, 6, 7))
+        zeta, drag = self.fluid_factors
+        nodal_loads_kernel(np.ascontiguousarray(Y, dtype=float), old.Y, float(co.cXd),
+                           np.ascontiguousarray(co.dXd, dtype=float), float(co.cX),
+                           np.ascontiguousarray(co.dX, dtype=float),
+                           self.mass, self.added, self.inertia, zeta, drag, bool(want),
+                           L, dL)
+        return L, (dL if want else None)
 
     def seabed_terms(self, Y, old: CentrelineState, co: _Coefficients, want: bool):
         """The sea floor's loads per length at the nodes (N+1, 6), global (normal
@@ -356,8 +341,13 @@ class CentrelineRod:
         from .seabed import seabed_points
 
         n1 = self.n
-        x, u, Om, t = (np.ascontiguousarray(np.real(a), dtype=float)
-                       for a in self.kinematics(Y, old, co))
+        x = np.ascontiguousarray(Y[:, 0:3], dtype=float)
+        u, Om, t = np.empty((n1, 3)), np.empty((n1, 3)), np.empty((n1, 3))
+        dOm, dt = (np.empty((n1, 3, 4)), np.empty((n1, 3, 4))) if want else (
+            np.empty((0, 3, 4)), np.empty((0, 3, 4)))
+        node_motion_kernel(np.ascontiguousarray(Y, dtype=float), old.Y, float(co.cX),
+                           np.ascontiguousarray(co.dX, dtype=float), bool(want),
+                           u, Om, t, dOm, dt)
         F, M = np.empty((n1, 6)), np.empty((n1, 3))
         DF, DM = np.empty((n1, 3, 12)), np.empty((n1, 3, 12))
         pen = np.empty(n1)
@@ -369,16 +359,11 @@ class CentrelineRod:
         split = (F[:, 0:3], F[:, 3:6], M, pen)
         if not want:
             return L, split, None
-        Yc = np.empty((4,) + Y.shape, dtype=complex)
-        Yc[:] = Y
-        for b in range(4):
-            Yc[b, :, 3 + b] += 1j * _EPS
-        _, _, Omc, tc = self.kinematics(Yc, old, co)
         chain = np.zeros((n1, 12, 7))
         chain[:, 0:3, 0:3] = np.eye(3)
         chain[:, 3:6, 0:3] = co.cX * np.eye(3)
-        chain[:, 6:9, 3:7] = np.transpose(Omc.imag / _EPS, (1, 2, 0))
-        chain[:, 9:12, 3:7] = np.transpose(tc.imag / _EPS, (1, 2, 0))
+        chain[:, 6:9, 3:7] = dOm
+        chain[:, 9:12, 3:7] = dt
         block = np.einsum("kij,kjl->kil", np.concatenate([DF, DM], axis=1), chain)
         return L, split, block
 
@@ -429,7 +414,7 @@ class CentrelineRod:
             G = st.residual(Y, prob)
         except st.StaticsError as exc:            # the electrostatics' pairs
             raise StepFailure(str(exc)) from exc
-        L = self.nodal_loads(Y, old, co)
+        L = self.nodal_loads(Y, old, co)[0]
         sb = self.seabed_terms(Y, old, co, want=False) if seabed is None else seabed
         if sb is not None:
             L = L + sb[0]
@@ -455,9 +440,9 @@ class CentrelineRod:
             cols.append(col)
             nodes.append(kk)
         rows = np.concatenate(rows).ravel()
-        self._cols = np.concatenate(cols).ravel()
-        self._nodes = np.concatenate(nodes)
-        self._bandrow = KL + KU + rows - self._cols
+        cols = np.concatenate(cols).ravel()
+        #: (band storage rows, columns, nodes) of the nodes' load blocks
+        self._band_at = (KL + KU + rows - cols, cols, np.concatenate(nodes))
 
     def jacobian(self, Y, old, co, prob) -> np.ndarray:
         """∂G/∂Y in LAPACK band storage, exact to rounding: the static band
@@ -466,17 +451,12 @@ class CentrelineRod:
         pairs' loads (self-contact, electrostatics) are not a band:
         :meth:`pair_load_jacobian`."""
         ab = st.band_jacobian(Y, st.without_pair_loads(prob))
-        Yc = np.empty((7,) + Y.shape, dtype=complex)
-        Yc[:] = Y
-        for b in range(7):
-            Yc[b, :, b] += 1j * _EPS
-        dL = self.nodal_loads(Yc, old, co).imag / _EPS          # (7, N+1, 6)
-        block = np.transpose(dL, (1, 2, 0))                    # (N+1, 6, 7)
+        block = self.nodal_loads(Y, old, co, want=True)[1]     # (N+1, 6, 7)
         sb = self.seabed_terms(Y, old, co, want=True)
         if sb is not None:
             block = block + sb[2]
-        vals = 0.5 * self.h * block[self._nodes].ravel()
-        ab[self._bandrow, self._cols] += vals          # each (row, column) once
+        rows, cols, nodes = self._band_at
+        ab[rows, cols] += 0.5 * self.h * block[nodes].ravel()     # each (row, column) once
         return ab
 
     # ------------------------------------------------------------------ the step
@@ -707,12 +687,20 @@ class CentrelineRod:
             g_old = float(np.linalg.norm(self.residual(old.Y, old, co, prob) * weights))
         return old.Y.copy() if g_old < g_pred or not math.isfinite(g_pred) else Y
 
-    def step(self, old: CentrelineState, h: float) -> tuple[CentrelineState, int, float]:
+    def step(self, old: CentrelineState, h: float,
+             t: float | None = None) -> tuple[CentrelineState, int, float]:
         """One generalized-α step of h (s) from ``old``: (the new state, Newton
-        iterations, last scaled update). ``old`` is not changed. Raises
-        :class:`StepFailure`."""
-        t = old.t + h
-        prob = self.problem(t)
+        iterations, last scaled update); ``t`` the new level's time where it is exactly a
+        breakpoint (default old.t + h), whose loads and conditions are then their left
+        limits (those of the last float below t: a load switched on at t acts from the
+        next step on, a restart's, :class:`solver.centreline_run.CentrelineRun`).
+        ``old`` is not changed. Raises :class:`StepFailure`."""
+        if t is None:
+            t = old.t + h
+            prob = self.problem(t)
+        else:
+            t = float(t)
+            prob = self.problem(float(np.nextafter(t, -np.inf)))
         co = self.coefficients(old, h)
         Y, its, err = self.solve(old, co, prob, self._start_guess(old, co, prob, h))
         D = self.increments(Y, old)
@@ -721,6 +709,24 @@ class CentrelineRod:
         new = CentrelineState(t, Y, co.cX * D + co.dX, co.cXd * D + co.dXd, a,
                               (Y[:, 7:13] - old.Y[:, 7:13]) / h)
         return new, its, err
+
+    #: the impact step's length as a share of the run's Δt (:meth:`impact`)
+    IMPACT_STEP = 1e-6
+
+    def impact(self, level: CentrelineState) -> np.ndarray:
+        """The velocities X+ (N+1, 6) just after ``level``, where a condition that holds
+        an end took over from a load (an impulsive constraint: the end's velocity jumps,
+        and with it the rod's): one backward-Euler step of δ = IMPACT_STEP Δt on the
+        rows in force after level.t, Ẋ = (X+ − X−)/δ, X+ = Δ/δ. As δ → 0 its rows are
+        the impulse–momentum balance M (X+ − X−) = the constraints' impulse with X+
+        satisfying the constraints' velocity form (a perfectly inelastic impact; Pfeiffer
+        & Glocker, *Multibody Dynamics with Unilateral Contacts*, 1996, ch. 6); its
+        positions, δ X+ away, are not kept. Raises :class:`StepFailure`."""
+        delta = self.IMPACT_STEP * self.case.numerics.dt
+        co = _Coefficients(1.0 / delta ** 2, -level.X / delta, 1.0 / delta,
+                           np.zeros_like(level.X))
+        Y = self.solve(level, co, self.problem(level.t + delta), level.Y.copy())[0]
+        return co.cX * self.increments(Y, level) + co.dX
 
     # ------------------------------------------------------------------ the start
     def rest_state(self, t: float = 0.0, Y=None) -> CentrelineState:
@@ -863,16 +869,10 @@ def rounding_floor(ab, Y, weights) -> float:
     Numerical Algorithms*, 2002, § 3.5), J in LAPACK band storage ``ab`` (2KL + KU + 1,
     13(N+1)) and w (13(N+1),) the rows' weights. A step of Δt cut small has a matrix
     growing as 1/(β Δt²) acting on positions of order the rod's length, so Newton's
-    residual stalls there above any fixed floor."""
-    y = np.abs(np.ravel(Y))
-    n = y.size
-    acc = np.zeros(n)
-    band = np.abs(ab[KL:])                       # row d holds J[j + d − KU, j]
-    for d in range(band.shape[0]):
-        off = d - KU
-        lo, hi = max(0, -off), min(n, n - off)
-        acc[lo + off:hi + off] += band[d, lo:hi] * y[lo:hi]
-    return float(np.finfo(float).eps * np.max(weights * acc))
+    residual stalls there above any fixed floor. Compiled:
+    :func:`solver.centreline_loads.rounding_level`."""
+    return float(rounding_level(ab, KL, KU, np.ravel(Y).astype(float),
+                                np.ascontiguousarray(weights, dtype=float)))
 
 
 def box_centreline(q, r_start, h: float) -> np.ndarray:

@@ -34,6 +34,7 @@ import numpy as np
 
 from . import statics as st
 from .centreline import CentrelineError, CentrelineRod, StepFailure, box_centreline
+from .stepping import breakpoints
 from .stepping.control import SolverDivergence
 
 __all__ = ["CentrelineRun"]
@@ -89,6 +90,16 @@ class CentrelineRun:
                 self.state.phi = np.asarray(start.phi, float).copy()
             if start.work_in is not None:
                 self.state.work_in = float(start.work_in)
+        #: where the case's loads or conditions jump (s, sorted; :func:`solver.stepping.
+        #: breakpoints` without the tables' kinks, whose corners cost O(Δslope Δt²)
+        #: once): the steps land on them and restart there; and the ends held after a
+        #: load phase, [(end, item, t_a)]
+        self.breaks = breakpoints(case, kinks=False)
+        self.switches = st.load_to_held_switches(case)
+        for name, where, t_a in self.switches:
+            if t_a < t:
+                # a start after the switch: the held end is where the start has it
+                self._anchor_at(name, where, t_a, t, Y)
         try:
             # the centreline's own level (r, q, n, m and their rates)
             self.level = rod.start(Y, t, X)
@@ -139,6 +150,49 @@ class CentrelineRun:
         dist = float(np.sum(self.props.quad_weights * np.sum(load * X[:, 0:3], axis=1)))
         return float(ends) + dist
 
+    def _anchor_at(self, name: str, where: str, t_a: float, t: float, Y) -> None:
+        """Record where the end ``name`` held from t_a on (after a load phase) was at t_a,
+        from the nodes' unknowns Y (N+1, 13) at t ≥ t_a (the velocities held since moved
+        it by their integral, which the anchor takes back)."""
+        k = 0 if name == "start" else -1
+        r = np.array(Y[k, 0:3], float)
+        if t > t_a:
+            self.rod.anchor(where, t_a, np.zeros(3))
+            spec = getattr(self.rod.problem(t), name)
+            i = int(where.rsplit(".", 1)[1])
+            since = spec.position @ spec.axes[:, i]      # the integral over [t_a, t]
+            r = r - since * spec.axes[:, i]
+        self.rod.anchor(where, t_a, r)
+
+    def _restart(self, level, impact: bool):
+        """The level at a breakpoint it landed on made consistent with what is in force
+        after it: Ẋ and (n, m) from the start's Taylor steps (:meth:`solver.centreline.
+        CentrelineRod.start`) at the level's positions and velocities, which a load's
+        jump or a velocity table's corner leaves continuous while the accelerations jump
+        (generalized-α's carried accelerations cost the order: measured 1.03 on the
+        2-segment cantilever of tests/solver/test_step_control.py, 1.99 with the restart;
+        Arnold & Brüls 2007). With ``impact`` (an end held after a load phase: its
+        velocity jumps) the velocities are first those after the impact
+        (:meth:`solver.centreline.CentrelineRod.impact`): carried into the held steps,
+        the jump rang undamped at ρ∞ = 1. Not in a viscous fluid (the caller's rule: the
+        inertial start at steps beyond the drag's inertial time, docs/numerics.md § 9).
+        Raises :class:`StepFailure` where the impact or a Taylor step does not
+        converge (the caller then goes on from the level as it is, counting a refused
+        "restart", or, after an impact, stops the run)."""
+        X = self.rod.impact(level) if impact else level.X
+        return self.rod.start(level.Y, level.t, X)
+
+    def _landing(self, t: float, h: float) -> tuple[float, float | None]:
+        """The step from t (s) of at most h (s), shortened to land on the first breakpoint
+        inside it (a step ending within 1e-9 h of one ends on it): (h, the breakpoint
+        landed on or None)."""
+        tol = 1e-9 * h
+        i = int(np.searchsorted(self.breaks, t + tol, side="right"))
+        if i < self.breaks.size and self.breaks[i] <= t + h + tol:
+            tb = float(self.breaks[i])
+            return tb - t, tb
+        return h, None
+
     def _end_angles(self, old, new, h) -> np.ndarray:
         """The ends' rotations about a3 (rad) at the new level: a held end's prescribed
         angle (the statics' ``twist``, exact), else the trapezoid of its node's W3."""
@@ -162,13 +216,28 @@ class CentrelineRun:
         cuts = min(self._cut_level, num.max_dt_cuts)
         h = h_full / num.dt_cut_factor ** cuts
         while st.t < t_target - 1e-12 * max(1.0, t_target):
+            if self._pending_restart is not None:
+                t_b, impact = self._pending_restart
+                self._pending_restart = None
+                if self.level.t == t_b:
+                    try:
+                        self.level = self._restart(self.level, impact)
+                    except StepFailure as exc:
+                        if impact:
+                            raise SolverDivergence(
+                                f"the impact at the breakpoint t = {t_b:.6g} s did not "
+                                f"converge: {exc.reason}", st.t, 0, math.inf,
+                                "solver_diverged") from exc
+                        refusals["restart"] = refusals.get("restart", 0) + 1
+                    self._publish()
             if cuts and self._accepted_at_level >= self.GROW_AFTER:
                 cuts -= 1                  # grow back by the factor
                 h *= num.dt_cut_factor
                 self._accepted_at_level = 0
             h = min(h, t_target - st.t)
+            step, landed = self._landing(st.t, h)
             try:
-                new, its, err = self.rod.step(self.level, h)
+                new, its, err = self.rod.step(self.level, step, landed)
                 if self.contact is not None and self.contact.passes_through(
                         self.level.Y[:, 0:3], new.Y[:, 0:3]):
                     raise StepFailure("strands passed through each other in the step")
@@ -190,16 +259,24 @@ class CentrelineRun:
                                        math.inf, "nonfinite_state")
             old, p_old = self.level, st.power
             self.level = new
-            st.phi = self._end_angles(old, new, h)
+            held = [t_a for _, _, t_a in self.switches if landed == t_a]
+            for name, where, t_a in self.switches:
+                if landed == t_a:
+                    self._anchor_at(name, where, t_a, t_a, new.Y)
+            if landed is not None and self.rod.stokes is None:
+                # the level recorded at the breakpoint is its left limit; the next step
+                # starts from the restart
+                self._pending_restart = (landed, bool(held))
+            st.phi = self._end_angles(old, new, step)
             self._publish()
-            st.work_in += 0.5 * h * (p_old + st.power)
+            st.work_in += 0.5 * step * (p_old + st.power)
             if self.rod.seabed is not None:
                 power = self._seabed_power(new)
-                st.seabed_work += 0.5 * h * (st.seabed_power + power)
+                st.seabed_work += 0.5 * step * (st.seabed_power + power)
                 st.seabed_power = power
             if self.contact is not None:
                 self._contact_summary(new)
-            total_its, self.last_residual, self.control.last_dt = its, err, h
+            total_its, self.last_residual, self.control.last_dt = its, err, step
             self.newton.factorizations = self.rod.factorizations
         self._cut_level = cuts
         self.last_iterations = total_its
@@ -209,6 +286,7 @@ class CentrelineRun:
     GROW_AFTER = 4
     _cut_level = 0                         # the Δt level the next nominal step starts at
     _accepted_at_level = 0
+    _pending_restart = None                # (the breakpoint landed on, impact or not)
 
     def _contact_summary(self, state) -> None:
         """``contact_count`` (pairs within the law's reach) and ``min_gap`` (m, the

@@ -100,6 +100,18 @@ def warm_up() -> None:
     lu = BorderedBandLU(statics.band_jacobian(sol.Y, prob), np.ones(sol.Y.size),
                         np.ones(sol.Y.size))
     lu.solve(np.ones(sol.Y.size + 1))
+    _warm_up_centreline(bottom)
+
+
+def _warm_up_centreline(spec) -> None:
+    """The centreline scheme's kernels (nodal loads, kinematics, rounding level) for
+    :func:`warm_up`: a step of the rod of ``spec`` (a case's dict, on the bottom)."""
+    from .case import Case
+    from .centreline import CentrelineRod
+
+    spec["numerics"]["formulation"] = "centreline"
+    rod = CentrelineRod.from_case(Case.model_validate(spec))
+    rod.step(rod.start(), 0.01)
 
 
 def _warm_up_search(contact, cand) -> None:

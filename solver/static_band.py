@@ -216,7 +216,8 @@ class BorderedBandLU:
     :data:`KU`): block elimination on the band LU of J, with one step of iterative
     refinement where asked (module docstring).
 
-    ab : (2 KL + KU + 1, n) J in LAPACK band storage (not changed)
+    ab : (2 KL + KU + 1, n) J in LAPACK band storage (not changed; without borders it is
+         kept by reference for :attr:`band`, so the caller must not change it either)
     W, C : (n, k) the border columns and rows (k = 0, 1 or 2)
     D : (k, k) the corner (default zeros)
 
@@ -229,8 +230,8 @@ class BorderedBandLU:
     def __init__(self, ab: np.ndarray, W=None, C=None, D=None):
         n = ab.shape[1]
         self.n = n
-        self.band = np.asfortranarray(ab[KL:])
-        self.norm = float(np.max(np.abs(self.band)))
+        self._ab = ab
+        self._band = self._norm = None
         self.W = np.zeros((n, 0)) if W is None else np.asarray(W, float).reshape(n, -1)
         self.lu, self.piv, info = dgbtrf(ab, KL, KU)
         d = self.lu[KL + KU]
@@ -263,6 +264,21 @@ class BorderedBandLU:
             sign *= int(np.sign(np.linalg.det(self.S)))
         self.det_sign = sign
         self._sparse = None
+
+    @property
+    def band(self) -> np.ndarray:
+        """J in BLAS band storage (KL + KU + 1, n), Fortran-ordered (copied when first
+        asked: a factor without borders never needs it)."""
+        if self._band is None:
+            self._band = np.asfortranarray(self._ab[KL:])
+        return self._band
+
+    @property
+    def norm(self) -> float:
+        """max |J_ij|."""
+        if self._norm is None:
+            self._norm = float(np.max(np.abs(self.band)))
+        return self._norm
 
     def _band_solve(self, b):
         x, info = dgbtrs(self.lu, KL, KU, b, self.piv)

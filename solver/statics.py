@@ -1131,25 +1131,55 @@ def _integral(cond, t0: float, t1: float) -> float:
     return float(np.trapezoid(vals, tt)) if hasattr(np, "trapezoid") else float(np.trapz(vals, tt))
 
 
-def _dof(conditions, t: float, where: str):
+def _dof(conditions, t: float, where: str, anchors=None):
     """(kind of the condition in force at t, its value at t, its integral over [0, t]);
-    raises StaticsError if a kinematic condition at t follows a load before t."""
+    raises StaticsError if a kinematic condition at t follows a load before t, unless
+    ``anchors`` holds where the end was when that load phase ended: {(where, t_a):
+    r_a (3,) m}, t_a the last load phase's ``until``. The kind is then "anchored" and
+    the third item (r_a, the integral over [t_a, t]) instead (the dynamic centreline
+    scheme records r_a when its run reaches t_a: :class:`solver.centreline.
+    CentrelineRod`)."""
     t0 = 0.0
-    total = 0.0
-    for j, cond in enumerate(conditions):
+    total = since = 0.0
+    t_load = None                               # the last load phase's until
+    for cond in conditions:
         t1 = t if cond.until is None else min(t, cond.until)
-        if cond.kinematic or cond.kind == "position":
-            if cond.kind != "position":
-                total += _integral(cond, t0, t1) if t1 > t0 else 0.0
+        if cond.kinematic and cond.kind != "position" and t1 > t0:
+            part = _integral(cond, t0, t1)
+            total += part
+            since += part
         if cond.until is None or t <= cond.until:
-            if j > 0 and cond.kinematic and not all(c.kinematic for c in conditions[:j]):
-                raise StaticsError(f"{where}: held at t = {t} s after a load phase: the "
-                                   "static problem does not know where the end stopped")
-            if cond.kind == "position":
+            if cond.kind == "position":                 # absolute: needs no anchor
                 return "position", cond.value_at(t), None
+            if t_load is not None and cond.kinematic:
+                key = (where, t_load)
+                if anchors is None or key not in anchors:
+                    raise StaticsError(f"{where}: held at t = {t} s after a load phase: "
+                                       "the static problem does not know where the end "
+                                       "stopped")
+                return "anchored", cond.value_at(t), (np.asarray(anchors[key], float), since)
             return cond.kind, cond.value_at(t), total
+        if not cond.kinematic:
+            t_load, since = cond.until, 0.0
         t0 = cond.until
     raise AssertionError("validated conditions cover every time")
+
+
+def load_to_held_switches(case) -> list:
+    """The ends' translation items held after a load phase: [(end name "start"/"end",
+    the item's ``where`` as :func:`_dof` keys it, t_a)] for each load phase's ``until``
+    t_a followed by a kinematic condition (the times at which the dynamic centreline
+    scheme records where the end is, :func:`_dof`'s ``anchors``)."""
+    out = []
+    for name in ("start", "end"):
+        ec = getattr(case.boundary, name)
+        if ec is None:
+            continue
+        for i, conditions in enumerate(ec.translation):
+            for a, b in zip(conditions[:-1], conditions[1:]):
+                if not a.kinematic and b.kinematic:
+                    out.append((name, f"boundary.{name}.translation.{i}", float(a.until)))
+    return out
 
 
 def _dead_loads(case, props, t: float):
@@ -1193,10 +1223,11 @@ def _dead_loads(case, props, t: float):
     return load, extra_force
 
 
-def _end_spec(ec, where: str, qk, rk, t: float, extra) -> EndSpec:
+def _end_spec(ec, where: str, qk, rk, t: float, extra, anchors=None) -> EndSpec:
     """The :class:`EndSpec` of the case's end conditions ``ec`` at time t, the end's
     initial frame qk (4,) and position rk (3,) m, plus point loads ``extra`` (3,) N at the
-    end. Raises StaticsError naming ``where`` for what a static problem cannot take."""
+    end; ``anchors`` as :func:`_dof`'s. Raises StaticsError naming ``where`` for what a
+    static problem cannot take."""
     rot = [_dof(ec.rotation[i], t, f"{where}.rotation.{i}") for i in range(3)]
     kinds = {kd for kd, _, _ in rot}
     if kinds == {"angular_velocity"}:
@@ -1222,10 +1253,19 @@ def _end_spec(ec, where: str, qk, rk, t: float, extra) -> EndSpec:
     pos = np.array(rk, float)
     force = np.zeros(3)
     for i in range(3):
-        kind, value, integral = _dof(ec.translation[i], t, f"{where}.translation.{i}")
+        kind, value, integral = _dof(ec.translation[i], t, f"{where}.translation.{i}",
+                                     anchors)
         if kind == "position":
             held[i] = True
             pos = pos + (value - axes[:, i] @ pos) * axes[:, i]
+        elif kind == "anchored":
+            # where the end was when the load phase ended, moved along since
+            held[i] = True
+            r_a, since = integral
+            if ec.frame != "global" and i < 2 and twist != 0:
+                raise StaticsError(f"{where}.translation.{i}: a body-frame velocity "
+                                   "across a turning end depends on the path")
+            pos = pos + (axes[:, i] @ r_a + since - axes[:, i] @ pos) * axes[:, i]
         elif kind == "velocity":
             held[i] = True
             if ec.frame != "global" and i < 2 and integral != 0 and twist != 0:
@@ -1276,13 +1316,14 @@ def static_problem(case, time: Optional[float] = None) -> StaticProblem:
     return problem_at(case, t, props, q, r)
 
 
-def problem_at(case, t: float, props, q, r, skip=()) -> StaticProblem:
+def problem_at(case, t: float, props, q, r, skip=(), anchors=None) -> StaticProblem:
     """The static problem of ``case`` at time t (s) on its evaluated properties ``props``
     (:class:`solver.properties.RodProperties`), from initial frames q (N+1, 4) and
     positions r (N+1, 3) m (only the ends' are read): :func:`static_problem` without
     recomputing them, the rows the centreline scheme (:mod:`solver.centreline`) steps
     on. The ends named in ``skip`` ("start", "end") are left free under their point
-    loads for the caller to replace. Raises :class:`StaticsError` as
+    loads for the caller to replace; ``anchors``: where an end held after a load phase
+    was when that phase ended (:func:`_dof`). Raises :class:`StaticsError` as
     :func:`static_problem`."""
     N = case.numerics.n_segments
     load, extra_force = _dead_loads(case, props, t)
@@ -1294,7 +1335,7 @@ def problem_at(case, t: float, props, q, r, skip=()) -> StaticProblem:
             ends[name] = free_end(extra_force[name])
             continue
         ends[name] = _end_spec(getattr(case.boundary, name), f"boundary.{name}", q[k], r[k],
-                               t, extra_force[name])
+                               t, extra_force[name], anchors)
     inertia = np.asarray(props.inertia[:, 0], float)
     contact, electrostatics = _pair_models(case, props)
     seabed = None

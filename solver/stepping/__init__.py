@@ -91,8 +91,9 @@ def _table_kinks(t, value) -> list:
     return [float(x) for x in t[change > KINK_FRACTION * steepest]]
 
 
-def breakpoints(case) -> np.ndarray:
-    """Times (s) in (0, t_end) at which the case's loads or boundary conditions change.
+def breakpoints(case, kinks: bool = True) -> np.ndarray:
+    """Times (s) in (0, t_end) at which the case's loads or boundary conditions change;
+    ``kinks=False``: only where they jump (no table's kinks).
 
     Collected: ``start`` and ``end`` of every distributed force and point load with a
     non-zero value (unless its ``factor`` table is 0 there: no jump) and the kinks of
@@ -114,7 +115,7 @@ def breakpoints(case) -> np.ndarray:
             times.append(float(df.start))
         if df.end is not None and df.scale_at(df.end) != 0.0:
             times.append(float(df.end))
-        if df.factor is not None:
+        if df.factor is not None and kinks:
             times.extend(_table_kinks(df.factor.t, df.factor.value))
     for load in case.point_loads:
         if not np.any(np.asarray(load.value, float) != 0):
@@ -123,7 +124,7 @@ def breakpoints(case) -> np.ndarray:
             times.append(float(load.start))
         if load.end is not None and load.scale_at(load.end) != 0.0:
             times.append(float(load.end))
-        if load.factor is not None:
+        if load.factor is not None and kinks:
             times.extend(_table_kinks(load.factor.t, load.factor.value))
     for end in (case.boundary.start, case.boundary.end):
         for group in (end.translation, end.rotation):
@@ -132,7 +133,7 @@ def breakpoints(case) -> np.ndarray:
                     if cond.until is not None:
                         times.append(float(cond.until))
                     value = cond.value
-                    if hasattr(value, "t"):
+                    if hasattr(value, "t") and kinks:
                         times.extend(_table_kinks(value.t, value.value))
     times = sorted(t for t in times if 0.0 < t < t_end * (1.0 - 1e-12))
     out = []

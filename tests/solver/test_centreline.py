@@ -276,3 +276,78 @@ def test_the_formulation_is_checked_and_kept_out_of_the_canonical_json():
     err = info.value.errors()[0]
     assert err["loc"] == ("numerics", "formulation")
     assert "numerics.tolerance" in err["msg"]
+
+
+def test_an_end_held_after_a_load_phase_stays_where_the_phase_left_it():
+    """The seed example's s = L end slides freely along the rod, then is held (``until``):
+    the static rows cannot know where it stopped; the run lands a step on the switch (here
+    0.25 s, between steps of 0.1 s), records where the end is and holds it there."""
+    from solver.centreline_run import CentrelineRun
+
+    sliding = {"translation": [{"velocity": 0.0}, {"velocity": 0.0},
+                               [{"until": 0.25, "force": 0.0}, {"velocity": 0.0}]],
+               "rotation": [{"angular_velocity": 0.0}] * 3}
+    # a 1-m rod along z clamped at s = 0, its far end held across (x, y) and free along
+    # z: the weight (−x) bows the rod, which draws the free end in along z
+    case = make_case(n_segments=10, dt=0.1, t_end=0.6, end=sliding,
+                     gravity=(-9.81, 0.0, 0.0))
+    run = CentrelineRun(case)
+    z0 = run.level.Y[-1, 2]
+    ends = {}
+    for k in range(1, 7):
+        run.advance(0.1 * k)
+        ends[round(run.level.t, 12)] = run.level.Y[-1, 2]
+    ((where, t_a), r_a), = run.rod.anchors.items()
+    assert where == "boundary.end.translation.2" and t_a == 0.25
+    assert z0 - r_a[2] > 1e-3                        # it slid before the switch
+    for t in (0.3, 0.4, 0.5, 0.6):
+        assert abs(ends[t] - r_a[2]) < 1e-12, (t, ends[t] - r_a[2])
+
+
+@pytest.mark.parametrize("rho_inf", [1.0, 0.5])
+def test_second_order_through_a_load_switched_on_mid_run(rho_inf, monkeypatch):
+    """The seed scheme's switch case (tests/solver/test_step_control.py: a 2-segment
+    cantilever in water under 0.05 N/m switched on at 0.3 s, Δt 0.0125 -> 0.0016 s
+    against 2e-4 s) on this scheme: the step lands on the switch with the loads' left
+    limit and the level is restarted there with the start's Taylor steps. Without them
+    the observed order was 1.03 (the load acted from the step ending at the switch, and
+    generalized-α carried the accelerations of before)."""
+    from solver import simulation
+    from solver.centreline_run import CentrelineRun
+    from test_step_control import switched_load_positions
+
+    monkeypatch.setattr(simulation, "make_run", CentrelineRun)
+    ref = switched_load_positions(0.05 / 256, rho_inf, 0.3)
+    dts = [0.0125, 0.00625, 0.003125, 0.0015625]
+    errors = [np.abs(switched_load_positions(dt, rho_inf, 0.3) - ref).max() for dt in dts]
+    order = fitted_order(dts, errors)
+    assert abs(order - 2.0) <= 0.2, (order, errors)
+
+
+@pytest.mark.parametrize("rho_inf", [1.0, 0.5])
+def test_an_end_held_after_sliding_stops_the_rod_without_ringing(rho_inf, monkeypatch):
+    """The seed scheme's sliding-then-held rod (tests/solver/test_step_control.py: pushed
+    along its axis by 0.5 N/m, both ends free along it until its start is held at 0.2 s):
+    the held end stops the inextensible rod at once, its velocity 0 and its end force the
+    static 0.5 N from the next output on. Without the impact's velocities the jump rang
+    undamped at ρ∞ = 1 (v = ±0.212 m/s, the end force growing to −64 N by 0.6 s)."""
+    from solver import simulation
+    from solver.centreline_run import CentrelineRun
+    from solver.simulation import integrate
+    from rodcases import RHO, kin
+
+    monkeypatch.setattr(simulation, "make_run", CentrelineRun)
+    still = [kin(key="angular_velocity")] * 3
+    start = {"translation": [kin(), kin(), [{"until": 0.2, "force": 0.0}, kin()]],
+             "rotation": still}
+    end = {"translation": [kin(), kin(), {"force": 0.0}], "rotation": still}
+    case = make_case(n_segments=10, dt=0.05, t_end=0.6, rho_inf=rho_inf, start=start,
+                     end=end, forces=[{"value": [0.0, 0.0, 0.5]}], fields=("v", "f"))
+    ds = integrate(case)
+    t = ds.time.values
+    v_end, f_end = ds.v.values[:, 0, 2], ds.f.values[:, 0, 2]
+    sliding = t < 0.2 + 1e-9
+    np.testing.assert_allclose(v_end[sliding], 0.5 / (RHO * np.pi * 1e-4) * t[sliding],
+                               rtol=1e-6)
+    np.testing.assert_allclose(v_end[~sliding], 0.0, atol=1e-9)
+    np.testing.assert_allclose(f_end[~sliding], 0.5, rtol=1e-6)

@@ -192,7 +192,7 @@ def test_warm_up_loads_every_compiled_kernel():
         for name in ("solver.topology", "solver.kinematics", "solver.scheme", "solver.loads",
                      "solver.newton", "solver.contact.geometry", "solver.contact.model",
                      "solver.contact.laws", "solver.banded", "solver.energies",
-                     "solver.static_band"):
+                     "solver.static_band", "solver.centreline_loads"):
             module = importlib.import_module(name)
             kernels += [(name, k, bool(v.signatures)) for k, v in vars(module).items()
                         if isinstance(v, CPUDispatcher) and v.py_func.__module__ == name]
@@ -219,6 +219,7 @@ def test_warm_up_loads_every_compiled_kernel():
                "solver.kinematics._right_jacobian_into", "solver.loads._drag_kernel",
                "solver.loads.point_loads_into",
                "solver.contact.laws.law_potential", "solver.contact.laws._repulsion_integral",
+               "solver.centreline_loads._node_load", "solver.centreline_loads._node_motion",
                "solver.newton._matvec_kernel", "solver.newton._set_operator",
                "solver.newton._factor", "solver.newton._matvec", "solver.newton._dot",
                "solver.newton._turning_entries",
