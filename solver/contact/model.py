@@ -647,31 +647,53 @@ SWEPT_SUBSTEPS = 256
 
 
 @numba.njit(cache=True)
-def _segment_distance(p0, p1, q0, q1):
-    """The distance (m) between segments [p0, p1] and [q0, q1] (each (3,)), Lumelsky's
-    clamped minimisation (Inf. Process. Lett. 21, 1985; :func:`~.geometry.segment_segment`
-    for one pair)."""
-    d1 = p1 - p0
-    d2 = q1 - q0
-    r = p0 - q0
-    a = d1 @ d1
-    e = d2 @ d2
-    f = d2 @ r
-    c = d1 @ r
-    b = d1 @ d2
+def _segment_distance(r0, r1, i, i1, j, j1, t):
+    """The distance (m) between the segments [r_i, r_i1] and [r_j, r_j1] at the sub-time
+    t ∈ [0, 1] of a step in which the nodes move linearly from r0 to r1 (N, 3):
+    Lumelsky's clamped minimisation (Inf. Process. Lett. 21, 1985;
+    :func:`~.geometry.segment_segment` for one pair), on scalars (no temporaries)."""
+    d1 = np.empty(3)
+    d2 = np.empty(3)
+    rr = np.empty(3)
+    for c in range(3):
+        pa = r0[i, c] + t * (r1[i, c] - r0[i, c])
+        pb = r0[i1, c] + t * (r1[i1, c] - r0[i1, c])
+        qa = r0[j, c] + t * (r1[j, c] - r0[j, c])
+        qb = r0[j1, c] + t * (r1[j1, c] - r0[j1, c])
+        d1[c] = pb - pa
+        d2[c] = qb - qa
+        rr[c] = pa - qa
+    a = d1[0] * d1[0] + d1[1] * d1[1] + d1[2] * d1[2]
+    e = d2[0] * d2[0] + d2[1] * d2[1] + d2[2] * d2[2]
+    f = d2[0] * rr[0] + d2[1] * rr[1] + d2[2] * rr[2]
+    cc = d1[0] * rr[0] + d1[1] * rr[1] + d1[2] * rr[2]
+    b = d1[0] * d2[0] + d1[1] * d2[1] + d1[2] * d2[2]
     denom = a * e - b * b
     sv = 0.0
     if denom > 1e-14 * a * e and denom > 0.0:
-        sv = min(max((b * f - c * e) / denom, 0.0), 1.0)
+        sv = min(max((b * f - cc * e) / denom, 0.0), 1.0)
     tv = (b * sv + f) / e if e > 0.0 else 0.0
     if tv < 0.0:
         tv = 0.0
-        sv = min(max(-c / a, 0.0), 1.0) if a > 0.0 else 0.0
+        sv = min(max(-cc / a, 0.0), 1.0) if a > 0.0 else 0.0
     elif tv > 1.0:
         tv = 1.0
-        sv = min(max((b - c) / a, 0.0), 1.0) if a > 0.0 else 0.0
-    diff = p0 + sv * d1 - q0 - tv * d2
-    return math.sqrt(diff @ diff)
+        sv = min(max((b - cc) / a, 0.0), 1.0) if a > 0.0 else 0.0
+    out = 0.0
+    for c in range(3):
+        diff = rr[c] + sv * d1[c] - tv * d2[c]
+        out += diff * diff
+    return math.sqrt(out)
+
+
+@numba.njit(cache=True)
+def _relative_move(r0, r1, u, w):
+    """|Δr_u − Δr_w| (m): the relative displacement of nodes u and w over the step."""
+    out = 0.0
+    for c in range(3):
+        d = (r1[u, c] - r0[u, c]) - (r1[w, c] - r0[w, c])
+        out += d * d
+    return math.sqrt(out)
 
 
 @numba.njit(cache=True)
@@ -679,20 +701,16 @@ def _swept_segments_within(r0, r1, a, b, diameter, s, cut, period):
     """Whether two segments, one at each node of a pair (a, b) (P,) (k − 1 → k and
     k → k + 1 at node k; on a ring of length ``period`` (m; inf for an open rod) of the
     N distinct nodes, N − 1 → 0 too), their nodes beyond ``cut`` (m) in arclength s (N,)
-    from the other segment's (:func:`_separation`), come closer than the node test's threshold, ½ of their four
-    diameters' mean, at one of the step's sub-times t_k = k/K, the nodes moving
-    linearly from r0 to r1 (N, 3). Two segments crossing at some time are at distance 0
-    then, and the distance of two segments changes by at most their points' relative
-    displacement, at most 2 max_k |r1_k − r0_k| over the step; K = ⌈4 max_k |r1_k −
-    r0_k| / (½ D_min)⌉ (at most SWEPT_SUBSTEPS) puts a sub-time within half the
-    threshold of every crossing."""
+    from the other segment's (:func:`_separation`), come closer than the node test's
+    threshold, ½ of their four diameters' mean, at the step's start, its end or one of
+    its sub-times t_k = k/K, the nodes moving linearly from r0 to r1 (N, 3). The
+    distance of two segments changes at most by their points' relative displacement,
+    at most m = the largest |Δr_u − Δr_w| of their nodes u, w over the step: a pair
+    whose distances d0 at the start and d1 at the end have (d0 + d1 − m)/2 ≥ the
+    threshold stays beyond it throughout (skipped), and K = ⌈2m / threshold⌉ (at most
+    SWEPT_SUBSTEPS) puts a sub-time within a quarter of the threshold of every
+    crossing."""
     n = r0.shape[0]
-    move = 0.0
-    for k in range(n):
-        d = r1[k] - r0[k]
-        move = max(move, math.sqrt(d @ d))
-    thr_min = 0.5 * np.min(diameter)
-    steps = min(SWEPT_SUBSTEPS, max(1, int(math.ceil(2.0 * 2.0 * move / thr_min))))
     ring = period < np.inf
     for p in range(a.shape[0]):
         for i in (a[p] - 1, a[p]):
@@ -712,13 +730,17 @@ def _swept_segments_within(r0, r1, a, b, diameter, s, cut, period):
                         or _separation(s, i1, j1, period) <= cut):
                     continue
                 thr = 0.125 * (diameter[i] + diameter[i1] + diameter[j] + diameter[j1])
-                for k in range(steps + 1):
-                    t = k / steps
-                    d = _segment_distance(r0[i] + t * (r1[i] - r0[i]),
-                                          r0[i1] + t * (r1[i1] - r0[i1]),
-                                          r0[j] + t * (r1[j] - r0[j]),
-                                          r0[j1] + t * (r1[j1] - r0[j1]))
-                    if d < thr:
+                d0 = _segment_distance(r0, r1, i, i1, j, j1, 0.0)
+                d1 = _segment_distance(r0, r1, i, i1, j, j1, 1.0)
+                if d0 < thr or d1 < thr:
+                    return True
+                m = max(_relative_move(r0, r1, i, j), _relative_move(r0, r1, i, j1),
+                        _relative_move(r0, r1, i1, j), _relative_move(r0, r1, i1, j1))
+                if 0.5 * (d0 + d1 - m) >= thr:
+                    continue
+                steps = min(SWEPT_SUBSTEPS, max(2, int(math.ceil(2.0 * m / thr))))
+                for k in range(1, steps):
+                    if _segment_distance(r0, r1, i, i1, j, j1, k / steps) < thr:
                         return True
     return False
 

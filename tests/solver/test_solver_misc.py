@@ -232,6 +232,7 @@ def test_warm_up_loads_every_compiled_kernel():
                "solver.contact.geometry._curve_point", "solver.contact.geometry._run_point",
                "solver.contact.model._run_bounds", "solver.contact.model._at_contact",
                "solver.contact.model._separation", "solver.contact.model._segment_distance",
+               "solver.contact.model._relative_move",
                "solver.contact.model._swept_segments_within",
                "solver.contact.laws._smoothstep", "solver.contact.laws._barrier_p",
                "solver.contact.laws._repulsion", "solver.contact.laws.law_cutoff",
