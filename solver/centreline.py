@@ -186,6 +186,12 @@ class CentrelineRod:
     #: a step's own is :func:`rounding_floor` where larger
     RESIDUAL_FLOOR = 1e-8
     MAX_ITERATIONS = 25
+    #: with ``thermal``, the largest change of a quaternion's component in one Newton
+    #: update (a turn of about 2·0.2 rad): a longer update is shortened to it (a thermal
+    #: step's random kicks turn sections by tenths of a radian, and the Cayley map's
+    #: velocity 2 vec(d)/w(d) is singular at a half turn: full updates from the old
+    #: level overshot there and diverged)
+    LARGEST_TURN = 0.2
 
     def __init__(self, case, props, q0, r0):
         self.case = case
@@ -232,6 +238,12 @@ class CentrelineRod:
             from .contact import SelfContact
             self.contact = SelfContact(case.contact, props.s, props.diameter, props.rho_a,
                                        closed=bool(getattr(case.rod, "closed", False)))
+        #: the random loads of ``thermal`` (:class:`solver.thermal.ThermalForcing`), or None
+        self.thermal = None
+        if getattr(case, "thermal", None) is not None and self.stokes is not None:
+            from .thermal import ThermalForcing
+            self.thermal = ThermalForcing(case.thermal.temperature, case.thermal.seed,
+                                          self.stokes, props.quad_weights)
         self.factorizations = 0            # band LUs so far
         self.paths = {}
         self._last_problem = None          # (t, the problem at t): a step reads it thrice
@@ -257,12 +269,28 @@ class CentrelineRod:
         r = initial_pose(case, props.s)[1]
         q = q / np.linalg.norm(q, axis=1)[:, None]
         rod = cls(case, props, q, box_centreline(q, r[0], props.ds))
+        rod._check_thermal()
         try:
             rod.problem(0.0)
             rod.problem(case.numerics.t_end)
         except st.StaticsError as exc:
             raise CentrelineError(str(exc)) from exc
         return rod
+
+    def _check_thermal(self) -> None:
+        """Refuse a thermal case whose ρ∞ and Δt cannot hold its temperature
+        (:func:`solver.thermal.check_step`: the resolved modes at this m/(ζΔt), and the
+        lowest bending mode). Raises :class:`CentrelineError` naming ``numerics.dt``."""
+        if self.thermal is None:
+            return
+        from .plausibility import lowest_bending_relaxation_time
+        from .thermal import check_step
+
+        num = self.case.numerics
+        why = check_step(num.rho_inf, num.dt, self.inertial_time(),
+                         lowest_bending_relaxation_time(self.case))
+        if why is not None:
+            raise CentrelineError(f"numerics.dt: {why}")
 
     # ------------------------------------------------------------------ the rows
     def problem(self, t: float) -> st.StaticProblem:
@@ -329,7 +357,10 @@ class CentrelineRod:
         moment = -np.einsum("...ij,...j->...i", R, body)
         if self.stokes is not None:
             moment = moment - (self.stokes[2] * W[..., 2])[..., None] * a3
-        return np.concatenate([force, moment], axis=-1)
+        out = np.concatenate([force, moment], axis=-1)
+        if self.thermal is not None and self.thermal.load is not None:
+            out = out + self.thermal.load          # the step's random loads, constant
+        return out
 
     def kinematics(self, Y, old: CentrelineState, co: _Coefficients):
         """The nodes' positions r, velocities ṙ, global angular velocities Ω = R W and
@@ -599,6 +630,9 @@ class CentrelineRod:
             dY = lu.solve(G, refine=False).reshape(Y.shape)
             if not np.all(np.isfinite(dY)):
                 raise StepFailure("non-finite Newton update")
+            turn = float(np.abs(dY[:, 3:7]).max())
+            if self.thermal is not None and turn > self.LARGEST_TURN:
+                dY = dY * (self.LARGEST_TURN / turn)
             prev, err = err, float(np.max(np.abs(dY) / scale))
             at_floor = float(np.max(np.abs(G) * weights)) < floor
             if at_floor and it > 1 and err > 0.5 * prev:
@@ -697,9 +731,10 @@ class CentrelineRod:
         """Newton's start for a step of h from ``old``: :meth:`predict`; with self-contact,
         the old level instead where its residual is smaller in the rows' scaled 2-norm
         (an extrapolation across a collapse pushes strands deep into the contact law,
-        whose residual Newton does not come back from)."""
+        whose residual Newton does not come back from); the same with ``thermal`` (the
+        last step's velocity is its random kick, which the next step does not repeat)."""
         Y = self.predict(old, h)
-        if self.contact is None:
+        if self.contact is None and self.thermal is None:
             return Y
         weights = 1.0 / st._row_scales(prob)
         with np.errstate(over="ignore", invalid="ignore"):
@@ -714,6 +749,9 @@ class CentrelineRod:
         t = old.t + h
         prob = self.problem(t)
         co = self.coefficients(old, h)
+        if self.thermal is not None:
+            # the random loads of this attempt, a3 at the old level (solver.thermal)
+            self.thermal.prepare(old.t, h, st._rot(old.Y[:, 3:7])[:, :, 2])
         Y, its, err = self.solve(old, co, prob, self._start_guess(old, co, prob, h))
         D = self.increments(Y, old)
         p = self.params

@@ -15,7 +15,9 @@ construction).
 A step Newton does not converge (or in which strands pass through each other, with
 self-contact: :meth:`solver.contact.SelfContact.passes_through`) is retried from the same
 state with Δt cut by ``numerics.dt_cut_factor``, up to ``numerics.max_dt_cuts`` times,
-the cut steps completing the nominal step; the cut Δt is kept into the following nominal
+the cut steps completing the nominal step (with ``thermal``, the nominal step's random
+impulses are drawn once at its start and the cut steps take their parts of them by the
+Brownian bridge, :class:`solver.thermal.ThermalForcing`); the cut Δt is kept into the following nominal
 steps and grows back by the factor after ``GROW_AFTER`` accepted sub-steps (the seed
 scheme's rule, :mod:`solver.stepping`, without its growth guard); when all cuts fail, :class:`solver.stepping.control.SolverDivergence` (reason
 ``solver_diverged``) carries the partial result.
@@ -161,6 +163,9 @@ class CentrelineRun:
         h_full = t_target - st.t
         cuts = min(self._cut_level, num.max_dt_cuts)
         h = h_full / num.dt_cut_factor ** cuts
+        thermal = self.rod.thermal
+        if thermal is not None:
+            thermal.begin(st.t, t_target)        # the nominal step's random impulses
         while st.t < t_target - 1e-12 * max(1.0, t_target):
             if cuts and self._accepted_at_level >= self.GROW_AFTER:
                 cuts -= 1                  # grow back by the factor
@@ -185,6 +190,8 @@ class CentrelineRun:
                 self._accepted_at_level = 0
                 continue
             self._accepted_at_level += 1
+            if thermal is not None:
+                thermal.accept()                 # cut steps: the rest of the impulse
             if not all(np.all(np.isfinite(x)) for x in (new.Y, new.X, new.Xd, new.a)):
                 raise SolverDivergence(f"non-finite state at t = {new.t:.6g} s", st.t, 0,
                                        math.inf, "nonfinite_state")
