@@ -60,6 +60,9 @@ Screened electrostatics (``electrostatics``, :mod:`solver.electrostatics`) depen
 positions alone and is the statics' own term (:func:`solver.statics.electrostatic_loads`
 in the static rows of the step's problem), its Jacobian ∂L/∂r added on the force rows
 and position columns beside the contact's (:meth:`CentrelineRod.pair_load_jacobian`).
+Thermal fluctuations (``thermal``, :mod:`solver.thermal`) add the step's random force and
+axial moment per length to the nodal loads, constant through the step (drawn by
+:meth:`CentrelineRod.step` at the old level's tangents), so the Jacobian is unchanged.
 """
 from __future__ import annotations
 
@@ -287,10 +290,10 @@ class CentrelineRod:
         from .thermal import check_step
 
         num = self.case.numerics
-        why = check_step(num.rho_inf, num.dt, self.inertial_time(),
+        why = check_step(self.params, num.dt, self.inertial_time(),
                          lowest_bending_relaxation_time(self.case))
         if why is not None:
-            raise CentrelineError(f"numerics.dt: {why}")
+            raise CentrelineError(f"numerics.dt: (numerics.rho_inf = {num.rho_inf:g}) {why}")
 
     # ------------------------------------------------------------------ the rows
     def problem(self, t: float) -> st.StaticProblem:
@@ -323,7 +326,9 @@ class CentrelineRod:
         (..., N+1, 13) at the new level (complex-step safe). f_fluid is Morison's drag
         (module docstring) plus, with ``fluid.viscosity``, resistive-force theory's Stokes
         drag −R(ζ_n v_n + ζ_t v_t e3) on the body velocity v = Rᵀṙ (:mod:`solver.
-        resistive_force`), linear in the velocities, so its Jacobian block is exact."""
+        resistive_force`), linear in the velocities, so its Jacobian block is exact; with
+        ``thermal``, plus the step's random loads (:attr:`solver.thermal.ThermalForcing.
+        load`, a constant of the step)."""
         D = self.increments(Y, old)
         Xd = co.cXd * D + co.dXd
         X = co.cX * D + co.dX
@@ -744,8 +749,10 @@ class CentrelineRod:
 
     def step(self, old: CentrelineState, h: float) -> tuple[CentrelineState, int, float]:
         """One generalized-α step of h (s) from ``old``: (the new state, Newton
-        iterations, last scaled update). ``old`` is not changed. Raises
-        :class:`StepFailure`."""
+        iterations, last scaled update). ``old`` is not changed. With ``thermal``, the
+        attempt's random loads are drawn first (:meth:`solver.thermal.ThermalForcing.
+        prepare`: the same interval gives the same loads until the run accepts it).
+        Raises :class:`StepFailure`."""
         t = old.t + h
         prob = self.problem(t)
         co = self.coefficients(old, h)

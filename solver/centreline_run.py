@@ -17,8 +17,8 @@ self-contact: :meth:`solver.contact.SelfContact.passes_through`) is retried from
 state with Δt cut by ``numerics.dt_cut_factor``, up to ``numerics.max_dt_cuts`` times,
 the cut steps completing the nominal step (with ``thermal``, the nominal step's random
 impulses are drawn once at its start and the cut steps take their parts of them by the
-Brownian bridge, :class:`solver.thermal.ThermalForcing`); the cut Δt is kept into the following nominal
-steps and grows back by the factor after ``GROW_AFTER`` accepted sub-steps (the seed
+Brownian bridge, :class:`solver.thermal.ThermalForcing`); the cut Δt is kept into the
+following nominal steps and grows back by the factor after ``GROW_AFTER`` accepted sub-steps (the seed
 scheme's rule, :mod:`solver.stepping`, without its growth guard); when all cuts fail, :class:`solver.stepping.control.SolverDivergence` (reason
 ``solver_diverged``) carries the partial result.
 

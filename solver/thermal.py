@@ -126,14 +126,11 @@ class ThermalForcing:
         self._proposal = None
 
 
-def _mode_transition(rho_inf: float, lam_h: float, inertia: float):
-    """Generalized-α (:class:`solver.centreline.AlphaParameters`) on one linear mode
-    m ẍ + ζ ẋ + k x = f_n held at t_n+1, in units ζ = 1, h = 1 (k = λh, m = inertia =
-    m/(ζh)): the state (x, v, ẍ, a) -> (A (4, 4), b (4,)) with s_n+1 = A s_n + b f_n."""
-    from .centreline import AlphaParameters
-
-    p = AlphaParameters.from_rho_inf(rho_inf)
-    am, af, g, be = p.alpha_m, p.alpha_f, p.gamma, p.beta
+def _mode_transition(params, lam_h: float, inertia: float):
+    """Generalized-α of ``params`` on one linear mode m ẍ + ζ ẋ + k x = f_n held at
+    t_n+1, in units ζ = 1, h = 1 (k = λh, m = inertia = m/(ζh)): the state
+    (x, v, ẍ, a) -> (A (4, 4), b (4,)) with s_n+1 = A s_n + b f_n."""
+    am, af, g, be = params.alpha_m, params.alpha_f, params.gamma, params.beta
     cA = 1.0 / be
     dA = np.array([-cA, -cA, 0.0, -(0.5 - be) / be])           # a_n+1 = cA x' + dA·s
     cV, dV = g * cA, np.array([0.0, 1.0, 0.0, 1.0 - g]) + g * dA
@@ -146,9 +143,10 @@ def _mode_transition(rho_inf: float, lam_h: float, inertia: float):
     return A, b
 
 
-def stationary_variance_ratio(rho_inf: float, lam_h: float, inertia: float = 0.0) -> float:
+def stationary_variance_ratio(params, lam_h: float, inertia: float = 0.0) -> float:
     """The stationary variance of one linear mode under the scheme, over kT/k
-    (1: the right temperature): generalized-α at ``rho_inf`` on m ẍ + ζ ẋ + k x = f,
+    (1: the right temperature): generalized-α of ``params`` (α_m, α_f, γ, β:
+    :class:`solver.centreline.AlphaParameters`) on m ẍ + ζ ẋ + k x = f,
     λΔt = ``lam_h`` = kΔt/ζ, ``inertia`` = m/(ζΔt) (0 is taken as 1e-12; DNA's
     overdamped steps have 1e-2 or less), the force held over each step at t_n+1 with
     variance 2kTζ/Δt (:class:`ThermalForcing`). From the discrete Lyapunov equation
@@ -159,9 +157,9 @@ def stationary_variance_ratio(rho_inf: float, lam_h: float, inertia: float = 0.0
     :class:`ValueError` where the scheme does not damp the mode."""
     from scipy.linalg import solve_discrete_lyapunov
 
-    A, b = _mode_transition(rho_inf, lam_h, max(float(inertia), 1e-12))
+    A, b = _mode_transition(params, lam_h, max(float(inertia), 1e-12))
     if np.max(np.abs(np.linalg.eigvals(A))) >= 1.0 - 1e-12:
-        raise ValueError(f"generalized-α at ρ∞ = {rho_inf} does not damp the mode "
+        raise ValueError(f"generalized-α {params} does not damp the mode "
                          f"(λΔt = {lam_h}, m/(ζΔt) = {inertia})")
     S = solve_discrete_lyapunov(A, 2.0 * np.outer(b, b))       # kT = ζ = Δt = 1
     return float(S[0, 0] * lam_h)
@@ -173,35 +171,36 @@ RESOLVED_LAM_H = 0.05
 _LAM_H = np.logspace(-4, math.log10(RESOLVED_LAM_H), 13)
 
 
-def temperature_error(rho_inf: float, inertia: float = 0.0) -> float:
+def temperature_error(params, inertia: float = 0.0) -> float:
     """The largest |r − 1| of :func:`stationary_variance_ratio` over the modes the step
-    resolves, λΔt from 1e-4 to RESOLVED_LAM_H (13 points, logarithmic), at this ρ∞ and
-    m/(ζΔt); inf where the scheme does not damp some mode."""
+    resolves, λΔt from 1e-4 to RESOLVED_LAM_H (13 points, logarithmic), for generalized-α
+    of ``params`` at m/(ζΔt); inf where the scheme does not damp some mode."""
     try:
-        return max(abs(stationary_variance_ratio(rho_inf, x, inertia) - 1.0) for x in _LAM_H)
+        return max(abs(stationary_variance_ratio(params, x, inertia) - 1.0) for x in _LAM_H)
     except ValueError:
         return math.inf
 
 
-def check_step(rho_inf: float, dt: float, inertial_time: float,
+def check_step(params, dt: float, inertial_time: float,
                relaxation_time: float | None) -> str | None:
-    """Why a thermal run at ρ∞, Δt (s) cannot hold its temperature, or None: the modes
+    """Why a thermal run of generalized-α ``params`` at Δt (s) cannot hold its
+    temperature, or None: the modes
     the step resolves (λΔt ≤ RESOLVED_LAM_H) off by more than TEMPERATURE_TOLERANCE at
     m/(ζΔt) = inertial_time/Δt (:func:`temperature_error`: steps near the inertial time
     τ = m/ζ), or the lowest bending mode's (relaxation time ``relaxation_time`` s,
     :func:`solver.plausibility.lowest_bending_relaxation_time`; None: not overdamped,
     not checked) temperature off by more than it."""
     inertia = inertial_time / dt
-    err = temperature_error(rho_inf, inertia)
+    err = temperature_error(params, inertia)
     if err > TEMPERATURE_TOLERANCE:
-        return (f"at rho_inf = {rho_inf:g} and dt = {dt:g} s, {inertia:.3g} inertial times "
+        return (f"at this rho_inf and dt = {dt:g} s, {inertia:.3g} inertial times "
                 f"m/zeta ({inertial_time:.3g} s), generalized-alpha samples the resolved modes' "
                 f"temperature up to {100 * err:.3g} % off (more than "
-                f"{100 * TEMPERATURE_TOLERANCE:g} %): take dt far from the inertial time "
-                f"(docs/thermal.md)")
+                f"{100 * TEMPERATURE_TOLERANCE:g} %; rho_inf 1 does not damp the overdamped "
+                f"steps' inertial mode at all; docs/thermal.md)")
     if relaxation_time is not None:
         lam_h = dt / relaxation_time
-        r = stationary_variance_ratio(rho_inf, lam_h, inertia)
+        r = stationary_variance_ratio(params, lam_h, inertia)
         if abs(r - 1.0) > TEMPERATURE_TOLERANCE:
             return (f"dt = {dt:g} s is {lam_h:.3g} relaxation times of the rod's lowest "
                     f"bending mode ({relaxation_time:.3g} s): the scheme samples it at "
