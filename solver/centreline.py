@@ -283,17 +283,19 @@ class CentrelineRod:
     def _check_thermal(self) -> None:
         """Refuse a thermal case whose ρ∞ and Δt cannot hold its temperature
         (:func:`solver.thermal.check_step`: the resolved modes at this m/(ζΔt), and the
-        lowest bending mode). Raises :class:`CentrelineError` naming ``numerics.dt``."""
+        lowest bending mode). Raises :class:`CentrelineError` naming ``numerics.rho_inf``
+        or ``numerics.dt``."""
         if self.thermal is None:
             return
         from .plausibility import lowest_bending_relaxation_time
         from .thermal import check_step
 
         num = self.case.numerics
-        why = check_step(self.params, num.dt, self.inertial_time(),
-                         lowest_bending_relaxation_time(self.case))
-        if why is not None:
-            raise CentrelineError(f"numerics.dt: (numerics.rho_inf = {num.rho_inf:g}) {why}")
+        refused = check_step(self.params, num.dt, self.inertial_time(),
+                             lowest_bending_relaxation_time(self.case))
+        if refused is not None:
+            field, why = refused
+            raise CentrelineError(f"{field}: {why}")
 
     # ------------------------------------------------------------------ the rows
     def problem(self, t: float) -> st.StaticProblem:

@@ -137,7 +137,8 @@ def test_the_resolved_modes_hold_their_temperature_and_rho_inf_1_is_refused():
             assert temperature_error(AlphaParameters.from_rho_inf(rho), inertia) < 0.036
     one = AlphaParameters.from_rho_inf(1.0)
     assert temperature_error(one, 1e-3) == math.inf
-    assert "does not damp" in check_step(one, 1e-9, 1e-12, None)
+    field, why = check_step(one, 1e-9, 1e-12, None)
+    assert field == "numerics.rho_inf" and "does not damp" in why
 
 
 def test_a_free_rod_diffuses_at_kt_over_its_drag():
@@ -216,10 +217,11 @@ def test_a_thermal_case_needs_viscosity_and_the_centreline_scheme():
 
 
 def test_a_step_that_cannot_hold_the_temperature_is_refused_naming_the_field():
-    """ρ∞ = 1, and a step of a tenth of the lowest bending mode's relaxation time
-    (pinned ends, ζ_n/(B (π/L)⁴): the mode sampled at 95 % of its temperature) are
-    refused when the run is built, at numerics.dt with the reason."""
-    with pytest.raises(CentrelineError, match=r"numerics.dt: \(numerics.rho_inf = 1\)"):
+    """ρ∞ = 1 (at numerics.rho_inf), and a step of a fifth of the lowest bending mode's
+    relaxation time (pinned ends, ζ_n/(B (π/L)⁴): the mode sampled more than 5 % below its
+    temperature; at numerics.dt) are refused when the run is built, with the reason; a
+    fiftieth is taken."""
+    with pytest.raises(CentrelineError, match="numerics.rho_inf: .*rho_inf 1 does not damp"):
         CentrelineRod.from_case(Case.model_validate(dna_spec(rho_inf=1.0)))
     from solver.plausibility import lowest_bending_relaxation_time
 
