@@ -21,11 +21,12 @@ Newton solve and its Jacobian is the deterministic one.
 At a large step the scheme cools the stiff modes. On one linear mode
 m ẍ + ζ ẋ + k x = f with the force held at t_n+1, generalized-α's relations give a
 stationary variance (kT/k)·r(λΔt, ρ∞, m/(ζΔt)) (:func:`stationary_variance_ratio`, from
-the discrete Lyapunov equation); at overdamped steps (m/(ζΔt) ≪ 1) r is within 0.7 % of
-backward Euler's 2/(2 + λΔt) at every ρ∞ (docs/thermal.md § 2): a mode is at its
-temperature within 5 % where λΔt ≤ 0.1, i.e. where the step resolves its relaxation
-time 1/λ, and colder beyond. A thermal case whose step does not resolve the lowest bending
-mode so is refused (:func:`check_step`).
+the discrete Lyapunov equation); at overdamped steps (m/(ζΔt) ≪ 1) r is at most backward
+Euler's 2/(2 + λΔt), by a factor 0.90 to 1 that depends on ρ∞ (docs/thermal.md § 2): a
+mode is within 3.6 % of its temperature where λΔt ≤ RESOLVED_LAM_H = 0.05, i.e. where
+the step resolves its relaxation time 1/λ, and colder beyond. A thermal case whose step
+does not resolve the lowest bending mode so, or whose ρ∞ (1) does not damp the inertial
+mode, is refused (:func:`check_step`).
 
 Cut steps: a nominal step's force impulses are drawn once, at its start
 (:meth:`ThermalForcing.begin`); a sub-step of it takes its part by the Brownian bridge
