@@ -79,6 +79,7 @@ __all__ = [
     "Boundary",
     "Contact",
     "Electrostatics",
+    "Thermal",
     "Bathymetry",
     "Friction",
     "Seabed",
@@ -1435,6 +1436,23 @@ class Electrostatics(BaseModel):
                             self.relative_permittivity)
 
 
+class Thermal(BaseModel):
+    """Thermal fluctuations: Langevin forces and moments at ``temperature`` whose
+    covariance matches the viscous drag (fluctuation–dissipation; :mod:`solver.thermal`,
+    docs/thermal.md). Omit for none. Needs ``fluid.viscosity`` and
+    ``numerics.formulation: centreline`` (checked by :class:`Case`).
+    """
+
+    model_config = _MODEL_CONFIG
+
+    temperature: Finite = Field(
+        ..., gt=0, description="Temperature T, K; > 0 (kT = 1.380649e-23 J/K x T; 298.15 K: "
+        "4.116e-21 J).")
+    seed: Integer = Field(
+        ..., ge=0, description="Seed of the random forces (numpy PCG64), an integer >= 0: the same "
+        "seed gives the same run, bit for bit.")
+
+
 #: the most points a bathymetry grid may hold (a case stays a case)
 MAX_BATHYMETRY_POINTS = 1_000_000
 #: how far (a share of the largest diameter) the cable's surface may start below the bottom
@@ -1868,6 +1886,10 @@ class Case(BaseModel):
     electrostatics: Optional[Electrostatics] = Field(
         None, description="Screened (Debye-Hueckel) repulsion between non-adjacent segments of a charged "
         "rod; null: none (docs/contact.md section 7). numerics.formulation centreline only.")
+    thermal: Optional[Thermal] = Field(
+        None, description="Thermal fluctuations (Langevin forces and moments matching the viscous "
+        "drag) at a temperature, K, from a seed; null: none (docs/thermal.md). Needs "
+        "fluid.viscosity; numerics.formulation centreline only.")
     numerics: Numerics = Field(..., description="Grid (m), time step (s) and solver controls.")
     output: Output = Field(default_factory=Output, description="Stored variables and output stride.")
 
@@ -1982,7 +2004,7 @@ class Case(BaseModel):
         (the end conditions the statics' end rows cannot say are refused when the run is
         built, :class:`solver.centreline.CentrelineError`); and what the seed scheme
         (goyal) does not take, refused at the field: ``fluid.viscosity``,
-        ``rod.intrinsic_curvature``, ``electrostatics``."""
+        ``rod.intrinsic_curvature``, ``electrostatics``, ``thermal``."""
         if self.numerics.formulation != "centreline":
             errors = []
             if self.rod.intrinsic_curvature is not None:
@@ -2001,6 +2023,11 @@ class Case(BaseModel):
                                    "the goyal scheme (numerics.formulation's default) does not "
                                    "take screened electrostatics yet: set "
                                    "numerics.formulation: centreline", None))
+            if self.thermal is not None:
+                errors.append(_err(("thermal",), "unsupported",
+                                   "the goyal scheme (numerics.formulation's default) does not "
+                                   "take thermal fluctuations: set numerics.formulation: "
+                                   "centreline", None))
             return errors
         missing = [name for name, present in (
             ("numerics.tolerance", self.numerics.tolerance is not None),) if present]
@@ -2037,9 +2064,16 @@ class Case(BaseModel):
     def _check_fluid(self) -> list[dict]:
         """The viscous drag's slenderness factor ln(ℓ/d): ℓ/d at least
         :data:`solver.resistive_force.SMALLEST_SLENDERNESS` at the largest diameter (ℓ:
-        ``fluid.slenderness_length`` or ``rod.length``), refused at the field that sets ℓ."""
+        ``fluid.slenderness_length`` or ``rod.length``), refused at the field that sets ℓ;
+        ``thermal`` needs ``fluid.viscosity`` (the drag its forces balance), refused at
+        ``thermal``."""
         fluid = self.fluid
         if fluid is None or fluid.viscosity is None:
+            if getattr(self, "thermal", None) is not None:
+                return [_err(("thermal",), "missing_viscosity",
+                             "thermal fluctuations need fluid.viscosity: the random forces' "
+                             "covariance is that of the viscous drag (fluctuation-"
+                             "dissipation); give fluid.viscosity or leave thermal out", None)]
             return []
         from .resistive_force import SMALLEST_SLENDERNESS
 
@@ -2323,6 +2357,8 @@ class Case(BaseModel):
             out.pop("seabed", None)
         if self.electrostatics is None:
             out.pop("electrostatics", None)
+        if self.thermal is None:
+            out.pop("thermal", None)
         if self.rod.closed:
             # a closed rod has no ends: its boundary (both ends free, filled in by
             # _closed_rod_ends) is not written, so that the written case validates again

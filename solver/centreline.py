@@ -60,6 +60,9 @@ Screened electrostatics (``electrostatics``, :mod:`solver.electrostatics`) depen
 positions alone and is the statics' own term (:func:`solver.statics.electrostatic_loads`
 in the static rows of the step's problem), its Jacobian ∂L/∂r added on the force rows
 and position columns beside the contact's (:meth:`CentrelineRod.pair_load_jacobian`).
+Thermal fluctuations (``thermal``, :mod:`solver.thermal`) add the step's random force and
+axial moment per length to the nodal loads, constant through the step (drawn by
+:meth:`CentrelineRod.step` at the old level's tangents), so the Jacobian is unchanged.
 """
 from __future__ import annotations
 
@@ -186,6 +189,12 @@ class CentrelineRod:
     #: a step's own is :func:`rounding_floor` where larger
     RESIDUAL_FLOOR = 1e-8
     MAX_ITERATIONS = 25
+    #: with ``thermal``, the largest change of a quaternion's component in one Newton
+    #: update (a turn of about 2·0.2 rad): a longer update is shortened to it (a thermal
+    #: step's random kicks turn sections by tenths of a radian, and the Cayley map's
+    #: velocity 2 vec(d)/w(d) is singular at a half turn: full updates from the old
+    #: level overshot there and diverged)
+    LARGEST_TURN = 0.2
 
     def __init__(self, case, props, q0, r0):
         self.case = case
@@ -234,6 +243,12 @@ class CentrelineRod:
             from .contact import SelfContact
             self.contact = SelfContact(case.contact, props.s, props.diameter, props.rho_a,
                                        closed=bool(getattr(case.rod, "closed", False)))
+        #: the random loads of ``thermal`` (:class:`solver.thermal.ThermalForcing`), or None
+        self.thermal = None
+        if getattr(case, "thermal", None) is not None and self.stokes is not None:
+            from .thermal import ThermalForcing
+            self.thermal = ThermalForcing(case.thermal.temperature, case.thermal.seed,
+                                          self.stokes, props.quad_weights)
         self.factorizations = 0            # band LUs so far
         self.paths = {}
         self._last_problem = None          # (t, the problem at t): a step reads it thrice
@@ -262,6 +277,7 @@ class CentrelineRod:
         r = initial_pose(case, props.s)[1]
         q = q / np.linalg.norm(q, axis=1)[:, None]
         rod = cls(case, props, q, box_centreline(q, r[0], props.ds))
+        rod._check_thermal()
         try:
             rod.problem(0.0)
             # an end held after a load phase: checked with a stand-in for where it stops
@@ -280,6 +296,23 @@ class CentrelineRod:
         after a load phase, was at r (3,) m then (:func:`solver.statics._dof`)."""
         self.anchors[(where, float(t_a))] = np.array(r, float)
         self._last_problem = None
+
+    def _check_thermal(self) -> None:
+        """Refuse a thermal case whose ρ∞ and Δt cannot hold its temperature
+        (:func:`solver.thermal.check_step`: the resolved modes at this m/(ζΔt), and the
+        lowest bending mode). Raises :class:`CentrelineError` naming ``numerics.rho_inf``
+        or ``numerics.dt``."""
+        if self.thermal is None:
+            return
+        from .plausibility import lowest_bending_relaxation_time
+        from .thermal import check_step
+
+        num = self.case.numerics
+        refused = check_step(self.params, num.dt, self.inertial_time(),
+                             lowest_bending_relaxation_time(self.case))
+        if refused is not None:
+            field, why = refused
+            raise CentrelineError(f"{field}: {why}")
 
     # ------------------------------------------------------------------ the rows
     def problem(self, t: float) -> st.StaticProblem:
@@ -313,7 +346,9 @@ class CentrelineRod:
         (r, p), (N+1, 6, 7), exact by the complex step (else None). f_fluid is Morison's
         drag (module docstring) plus, with ``fluid.viscosity``, resistive-force theory's
         Stokes drag −R(ζ_n v_n + ζ_t v_t e3) on the body velocity v = Rᵀṙ (:mod:`solver.
-        resistive_force`). Compiled: :func:`solver.centreline_loads.nodal_loads_kernel`."""
+        resistive_force`); with ``thermal``, plus the step's random loads
+        (:attr:`solver.thermal.ThermalForcing.load`, a constant of the step). Compiled:
+        :func:`solver.centreline_loads.nodal_loads_kernel`."""
         n1 = self.n
         L = np.empty((n1, 6))
         dL = np.empty((n1, 6, 7)) if want else np.empty((0, 6, 7))
@@ -323,6 +358,8 @@ class CentrelineRod:
                            np.ascontiguousarray(co.dX, dtype=float),
                            self.mass, self.added, self.inertia, zeta, drag, bool(want),
                            L, dL)
+        if self.thermal is not None and self.thermal.load is not None:
+            L += self.thermal.load                 # the step's random loads, constant
         return L, (dL if want else None)
 
     def seabed_terms(self, Y, old: CentrelineState, co: _Coefficients, want: bool):
@@ -579,6 +616,9 @@ class CentrelineRod:
             dY = lu.solve(G, refine=False).reshape(Y.shape)
             if not np.all(np.isfinite(dY)):
                 raise StepFailure("non-finite Newton update")
+            turn = float(np.abs(dY[:, 3:7]).max())
+            if self.thermal is not None and turn > self.LARGEST_TURN:
+                dY = dY * (self.LARGEST_TURN / turn)
             prev, err = err, float(np.max(np.abs(dY) / scale))
             at_floor = float(np.max(np.abs(G) * weights)) < floor
             if at_floor and it > 1 and err > 0.5 * prev:
@@ -686,9 +726,10 @@ class CentrelineRod:
         """Newton's start for a step of h from ``old``: :meth:`predict`; with self-contact,
         the old level instead where its residual is smaller in the rows' scaled 2-norm
         (an extrapolation across a collapse pushes strands deep into the contact law,
-        whose residual Newton does not come back from)."""
+        whose residual Newton does not come back from); the same with ``thermal`` (the
+        last step's velocity is its random kick, which the next step does not repeat)."""
         Y = self.predict(old, h)
-        if self.contact is None:
+        if self.contact is None and self.thermal is None:
             return Y
         weights = 1.0 / st._row_scales(prob)
         with np.errstate(over="ignore", invalid="ignore"):
@@ -703,7 +744,9 @@ class CentrelineRod:
         breakpoint (default old.t + h), whose loads and conditions are then their left
         limits (those of the last float below t: a load switched on at t acts from the
         next step on, a restart's, :class:`solver.centreline_run.CentrelineRun`).
-        ``old`` is not changed. Raises :class:`StepFailure`."""
+        ``old`` is not changed. With ``thermal``, the attempt's random loads are drawn
+        first (:meth:`solver.thermal.ThermalForcing.prepare`: the same interval gives the
+        same loads until the run accepts it). Raises :class:`StepFailure`."""
         if t is None:
             t = old.t + h
             prob = self.problem(t)
@@ -711,6 +754,9 @@ class CentrelineRod:
             t = float(t)
             prob = self.problem(float(np.nextafter(t, -np.inf)))
         co = self.coefficients(old, h)
+        if self.thermal is not None:
+            # the random loads of this attempt, a3 at the old level (solver.thermal)
+            self.thermal.prepare(old.t, h, st._rot(old.Y[:, 3:7])[:, :, 2])
         Y, its, err = self.solve(old, co, prob, self._start_guess(old, co, prob, h))
         D = self.increments(Y, old)
         p = self.params

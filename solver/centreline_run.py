@@ -15,8 +15,10 @@ construction).
 A step Newton does not converge (or in which strands pass through each other, with
 self-contact: :meth:`solver.contact.SelfContact.passes_through`) is retried from the same
 state with Δt cut by ``numerics.dt_cut_factor``, up to ``numerics.max_dt_cuts`` times,
-the cut steps completing the nominal step; the cut Δt is kept into the following nominal
-steps and grows back by the factor after ``GROW_AFTER`` accepted sub-steps (the seed
+the cut steps completing the nominal step (with ``thermal``, the nominal step's random
+impulses are drawn once at its start and the cut steps take their parts of them by the
+Brownian bridge, :class:`solver.thermal.ThermalForcing`); the cut Δt is kept into the
+following nominal steps and grows back by the factor after ``GROW_AFTER`` accepted sub-steps (the seed
 scheme's rule, :mod:`solver.stepping`, without its growth guard); when all cuts fail, :class:`solver.stepping.control.SolverDivergence` (reason
 ``solver_diverged``) carries the partial result.
 
@@ -164,6 +166,25 @@ class CentrelineRun:
             r = r - since * spec.axes[:, i]
         self.rod.anchor(where, t_a, r)
 
+    def _take_restart(self) -> None:
+        """The restart the last accepted step left pending at the breakpoint it landed on
+        (:meth:`_restart`), now that the run goes on from there. Raises
+        :class:`SolverDivergence` where an impact does not converge."""
+        t_b, impact = self._pending_restart
+        self._pending_restart = None
+        if self.level.t != t_b:
+            return
+        try:
+            self.level = self._restart(self.level, impact)
+        except StepFailure as exc:
+            if impact:
+                raise SolverDivergence(
+                    f"the impact at the breakpoint t = {t_b:.6g} s did not converge: "
+                    f"{exc.reason}", self.state.t, 0, math.inf, "solver_diverged") from exc
+            refusals = self.control.refusals
+            refusals["restart"] = refusals.get("restart", 0) + 1
+        self._publish()
+
     def _restart(self, level, impact: bool):
         """The level at a breakpoint it landed on made consistent with what is in force
         after it: Ẋ and (n, m) from the start's Taylor steps (:meth:`solver.centreline.
@@ -215,21 +236,12 @@ class CentrelineRun:
         h_full = t_target - st.t
         cuts = min(self._cut_level, num.max_dt_cuts)
         h = h_full / num.dt_cut_factor ** cuts
+        thermal = self.rod.thermal
+        if thermal is not None:
+            thermal.begin(st.t, t_target)        # the nominal step's random impulses
         while st.t < t_target - 1e-12 * max(1.0, t_target):
             if self._pending_restart is not None:
-                t_b, impact = self._pending_restart
-                self._pending_restart = None
-                if self.level.t == t_b:
-                    try:
-                        self.level = self._restart(self.level, impact)
-                    except StepFailure as exc:
-                        if impact:
-                            raise SolverDivergence(
-                                f"the impact at the breakpoint t = {t_b:.6g} s did not "
-                                f"converge: {exc.reason}", st.t, 0, math.inf,
-                                "solver_diverged") from exc
-                        refusals["restart"] = refusals.get("restart", 0) + 1
-                    self._publish()
+                self._take_restart()
             if cuts and self._accepted_at_level >= self.GROW_AFTER:
                 cuts -= 1                  # grow back by the factor
                 h *= num.dt_cut_factor
@@ -254,6 +266,8 @@ class CentrelineRun:
                 self._accepted_at_level = 0
                 continue
             self._accepted_at_level += 1
+            if thermal is not None:
+                thermal.accept()                 # cut steps: the rest of the impulse
             if not all(np.all(np.isfinite(x)) for x in (new.Y, new.X, new.Xd, new.a)):
                 raise SolverDivergence(f"non-finite state at t = {new.t:.6g} s", st.t, 0,
                                        math.inf, "nonfinite_state")

@@ -404,6 +404,10 @@ def _summary(case: Any, n_points: int, times: np.ndarray, status: str) -> str:
                          "of resistive-force theory)")
         else:
             parts.append(", in a fluid (added mass and Morison drag)")
+    thermal = getattr(case, "thermal", None)
+    if thermal is not None:
+        parts.append(f", with thermal fluctuations at {float(thermal.temperature):g} K "
+                     f"(seed {int(thermal.seed)})")
     parts.append(f"): {n_points} grid points")
     if times.size:
         parts.append(f", simulation time {times[0]:g} s to {times[-1]:g} s")
