@@ -769,9 +769,9 @@ class CentrelineRod:
     IMPACT_STEP = 1e-6
 
     def impact(self, level: CentrelineState) -> np.ndarray:
-        """The velocities X+ (N+1, 6) just after ``level``, where a condition that holds
-        an end took over from a load (an impulsive constraint: the end's velocity jumps,
-        and with it the rod's): one backward-Euler step of δ = IMPACT_STEP Δt on the
+        """The velocities X+ (N+1, 6) (ṙ m/s, body angular velocity W rad/s) just after
+        ``level``, where a condition that holds an end took over from a load (an
+        impulsive constraint: the end's velocity jumps, and with it the rod's): one backward-Euler step of δ = IMPACT_STEP Δt on the
         rows in force after level.t, Ẋ = (X+ − X−)/δ, X+ = Δ/δ. As δ → 0 its rows are
         the impulse–momentum balance M (X+ − X−) = the constraints' impulse with X+
         satisfying the constraints' velocity form (a perfectly inelastic impact; Pfeiffer

@@ -16,8 +16,25 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from .static_band import _rotation
+
 #: the complex step's size (the derivative is its imaginary part / EPS; no cancellation)
 EPS = 1e-30
+
+
+@numba.njit(cache=True)
+def _increment(y, yo, D):
+    """The increment Δ = (Δr, Δθ) (m, rad) of a node from its old level yo (7,) (r, p) to
+    y (7,) into D (6,) (complex-safe): Δr = r − r_old and Δθ = 2 vec(d)/w(d),
+    d = p̄_old ⊗ p, the Cayley map's inverse (:func:`solver.centreline.cayley_vector`)."""
+    for e in range(3):
+        D[e] = y[e] - yo[e]
+    aw, ax, ay, az = yo[3], -yo[4], -yo[5], -yo[6]
+    bw, bx, by, bz = y[3], y[4], y[5], y[6]
+    dw = aw * bw - ax * bx - ay * by - az * bz
+    D[3] = 2.0 * (aw * bx + ax * bw + ay * bz - az * by) / dw
+    D[4] = 2.0 * (aw * by - ax * bz + ay * bw + az * bx) / dw
+    D[5] = 2.0 * (aw * bz + ax * by - ay * bx + az * bw) / dw
 
 
 @numba.njit(cache=True)
@@ -31,31 +48,14 @@ def _node_load(y, yo, cXd, dXd, cX, dX, mass, added, inertia, zeta, drag, out, w
     (2,) Morison's ½ρ_f D C_dn, ½ρ_f πD C_dt (kg/m²), zeros where the case has none;
     work (4, 9) complex scratch."""
     D = work[0]
-    for e in range(3):
-        D[e] = y[e] - yo[e]
-    # d = p̄_old ⊗ p
-    aw, ax, ay, az = yo[3], -yo[4], -yo[5], -yo[6]
-    bw, bx, by, bz = y[3], y[4], y[5], y[6]
-    dw = aw * bw - ax * bx - ay * by - az * bz
-    D[3] = 2.0 * (aw * bx + ax * bw + ay * bz - az * by) / dw
-    D[4] = 2.0 * (aw * by - ax * bz + ay * bw + az * bx) / dw
-    D[5] = 2.0 * (aw * bz + ax * by - ay * bx + az * bw) / dw
+    _increment(y, yo, D)
     Xd = work[1]
     X = work[2]
     for e in range(6):
         Xd[e] = cXd * D[e] + dXd[e]
         X[e] = cX * D[e] + dX[e]
-    w, x, yy, z = y[3], y[4], y[5], y[6]
     R = work[3].reshape((3, 3))
-    R[0, 0] = w * w + x * x - yy * yy - z * z
-    R[0, 1] = 2.0 * (x * yy - w * z)
-    R[0, 2] = 2.0 * (x * z + w * yy)
-    R[1, 0] = 2.0 * (x * yy + w * z)
-    R[1, 1] = w * w - x * x + yy * yy - z * z
-    R[1, 2] = 2.0 * (yy * z - w * x)
-    R[2, 0] = 2.0 * (x * z - w * yy)
-    R[2, 1] = 2.0 * (yy * z + w * x)
-    R[2, 2] = w * w - x * x - yy * yy + z * z
+    _rotation(y[3:7], R)
     acc_t = R[0, 2] * Xd[0] + R[1, 2] * Xd[1] + R[2, 2] * Xd[2]
     rdot_t = R[0, 2] * X[0] + R[1, 2] * X[1] + R[2, 2] * X[2]
     for e in range(3):
@@ -138,31 +138,21 @@ def rounding_level(ab, kl, ku, y, weights):
 
 
 @numba.njit(cache=True)
-def _node_motion(y, yo, cX, dX, out):
+def _node_motion(y, yo, cX, dX, out, R, D):
     """One node's velocity ṙ (m/s), global angular velocity Ω = R W (rad/s) and tangent
     a3 = R e3 into out (9,) complex, of y (7,) complex (r, p at the new level), yo (7,)
-    the old level's, X = cX Δ + dX (dX (6,)) as in :func:`_node_load`."""
-    aw, ax, ay, az = yo[3], -yo[4], -yo[5], -yo[6]
-    bw, bx, by, bz = y[3], y[4], y[5], y[6]
-    dw = aw * bw - ax * bx - ay * by - az * bz
-    th0 = 2.0 * (aw * bx + ax * bw + ay * bz - az * by) / dw
-    th1 = 2.0 * (aw * by - ax * bz + ay * bw + az * bx) / dw
-    th2 = 2.0 * (aw * bz + ax * by - ay * bx + az * bw) / dw
+    the old level's, X = cX Δ + dX (dX (6,)) as in :func:`_node_load`; R (3, 3) complex
+    scratch; D (6,) complex scratch."""
+    _increment(y, yo, D)
     for e in range(3):
-        out[e] = cX * (y[e] - yo[e]) + dX[e]
-    W0 = cX * th0 + dX[3]
-    W1 = cX * th1 + dX[4]
-    W2 = cX * th2 + dX[5]
-    w, x, yy, z = bw, bx, by, bz
-    out[3] = (w * w + x * x - yy * yy - z * z) * W0 + 2.0 * (x * yy - w * z) * W1 \
-        + 2.0 * (x * z + w * yy) * W2
-    out[4] = 2.0 * (x * yy + w * z) * W0 + (w * w - x * x + yy * yy - z * z) * W1 \
-        + 2.0 * (yy * z - w * x) * W2
-    out[5] = 2.0 * (x * z - w * yy) * W0 + 2.0 * (yy * z + w * x) * W1 \
-        + (w * w - x * x - yy * yy + z * z) * W2
-    out[6] = 2.0 * (x * z + w * yy)
-    out[7] = 2.0 * (yy * z - w * x)
-    out[8] = w * w - x * x - yy * yy + z * z
+        out[e] = cX * D[e] + dX[e]
+    W0 = cX * D[3] + dX[3]
+    W1 = cX * D[4] + dX[4]
+    W2 = cX * D[5] + dX[5]
+    _rotation(y[3:7], R)
+    for e in range(3):
+        out[3 + e] = R[e, 0] * W0 + R[e, 1] * W1 + R[e, 2] * W2
+        out[6 + e] = R[e, 2]
 
 
 @numba.njit(cache=True)
@@ -174,11 +164,13 @@ def node_motion_kernel(Y, Yold, cX, dX, want, u, Om, t, dOm, dt):
     y = np.empty(7, np.complex128)
     yo = np.empty(7, np.complex128)
     out = np.empty(9, np.complex128)
+    R = np.empty((3, 3), np.complex128)
+    D = np.empty(6, np.complex128)
     for k in range(n1):
         for j in range(7):
             y[j] = Y[k, j]
             yo[j] = Yold[k, j]
-        _node_motion(y, yo, cX, dX[k], out)
+        _node_motion(y, yo, cX, dX[k], out, R, D)
         for e in range(3):
             u[k, e] = out[e].real
             Om[k, e] = out[3 + e].real
@@ -187,7 +179,7 @@ def node_motion_kernel(Y, Yold, cX, dX, want, u, Om, t, dOm, dt):
             continue
         for b in range(4):
             y[3 + b] = Y[k, 3 + b] + 1j * EPS
-            _node_motion(y, yo, cX, dX[k], out)
+            _node_motion(y, yo, cX, dX[k], out, R, D)
             for e in range(3):
                 dOm[k, e, b] = out[3 + e].imag / EPS
                 dt[k, e, b] = out[6 + e].imag / EPS

@@ -334,16 +334,11 @@ def test_an_end_held_after_sliding_stops_the_rod_without_ringing(rho_inf, monkey
     from solver import simulation
     from solver.centreline_run import CentrelineRun
     from solver.simulation import integrate
-    from rodcases import RHO, kin
+    from rodcases import RHO
+    from test_step_control import sliding_then_held_case
 
     monkeypatch.setattr(simulation, "make_run", CentrelineRun)
-    still = [kin(key="angular_velocity")] * 3
-    start = {"translation": [kin(), kin(), [{"until": 0.2, "force": 0.0}, kin()]],
-             "rotation": still}
-    end = {"translation": [kin(), kin(), {"force": 0.0}], "rotation": still}
-    case = make_case(n_segments=10, dt=0.05, t_end=0.6, rho_inf=rho_inf, start=start,
-                     end=end, forces=[{"value": [0.0, 0.0, 0.5]}], fields=("v", "f"))
-    ds = integrate(case)
+    ds = integrate(sliding_then_held_case(rho_inf, t_end=0.6))
     t = ds.time.values
     v_end, f_end = ds.v.values[:, 0, 2], ds.f.values[:, 0, 2]
     sliding = t < 0.2 + 1e-9

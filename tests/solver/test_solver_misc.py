@@ -220,6 +220,7 @@ def test_warm_up_loads_every_compiled_kernel():
                "solver.loads.point_loads_into",
                "solver.contact.laws.law_potential", "solver.contact.laws._repulsion_integral",
                "solver.centreline_loads._node_load", "solver.centreline_loads._node_motion",
+               "solver.centreline_loads._increment",
                "solver.newton._matvec_kernel", "solver.newton._set_operator",
                "solver.newton._factor", "solver.newton._matvec", "solver.newton._dot",
                "solver.newton._turning_entries",

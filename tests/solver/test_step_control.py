@@ -48,20 +48,25 @@ def test_steps_land_on_a_breakpoint_inside_a_step():
     assert dt[7] == pytest.approx(0.1 - 0.01, rel=2e-3)    # 0.71 -> 0.8 after the restart
 
 
+def sliding_then_held_case(rho_inf, t_end=0.5):
+    """A straight rod pushed along its axis by 0.5 N/m, both ends free along it, until its
+    start is held at 0.2 s (10 segments, Δt 0.05 s to t_end; outputs v and f)."""
+    still = [kin(key="angular_velocity")] * 3
+    start = {"translation": [kin(), kin(), [{"until": 0.2, "force": 0.0}, kin()]],
+             "rotation": still}
+    end = {"translation": [kin(), kin(), {"force": 0.0}], "rotation": still}
+    return make_case(n_segments=10, dt=0.05, t_end=t_end, rho_inf=rho_inf, start=start,
+                     end=end, forces=[{"value": [0.0, 0.0, 0.5]}], fields=("v", "f"))
+
+
 def test_a_held_sliding_end_does_not_ring_after_the_switch():
     """A straight rod pushed along its axis by 0.5 N/m slides freely (force 0 at both ends)
     until 0.2 s, when its start is held: its velocity jumps to 0 and the end force is
     the static b·L = 0.5 N from the next step on, for ρ∞ = 1 and 0.5. With one
     backward-Euler restart step the impulse it carried (ρA L Δv/ε ≈ 2e4 N) rang on at
     ±2e4 N, undamped at ρ∞ = 1 (docs/numerics.md § 7)."""
-    still = [kin(key="angular_velocity")] * 3
-    start = {"translation": [kin(), kin(), [{"until": 0.2, "force": 0.0}, kin()]],
-             "rotation": still}
-    end = {"translation": [kin(), kin(), {"force": 0.0}], "rotation": still}
     for rho_inf in (1.0, 0.5):
-        case = make_case(n_segments=10, dt=0.05, t_end=0.5, rho_inf=rho_inf, start=start,
-                         end=end, forces=[{"value": [0.0, 0.0, 0.5]}], fields=("v", "f"))
-        ds = integrate(case)
+        ds = integrate(sliding_then_held_case(rho_inf))
         t = ds.time.values
         v_end, f_end = ds.v.values[:, 0, 2], ds.f.values[:, 0, 2]
         sliding = t < 0.2 + 1e-9
