@@ -107,6 +107,15 @@ def _open(driver, stack, fragment: str, key: str | None = KEY) -> None:
         _wait(driver, lambda d: not login.is_displayed(), what="the key to be accepted")
 
 
+def _element(driver, element_id: str, timeout: float = 60):
+    """The element with ``element_id`` once the page has made it: a job page builds its
+    view (the 3-D canvas, the plots) only after its job's record has arrived."""
+    from selenium.webdriver.common.by import By
+
+    return _wait(driver, lambda d: d.find_elements(By.ID, element_id), timeout,
+                 f"#{element_id}")[0]
+
+
 def _shot(driver, name: str) -> None:
     target = os.environ.get("HOCKLE_UI_SCREENSHOTS")
     if target:
@@ -226,12 +235,12 @@ def test_job_page_draws_plots_and_the_rod(browser, stack):
     case = buckling_case("rod in 3-D", force=-10.0, angular_velocity=4.0)
     job_id = _successful_job(stack, case)
     _open(browser, stack, f"/job/{job_id}")
-    plots = browser.find_element(By.ID, "plots")
+    plots = _element(browser, "plots")
     _wait(browser, lambda d: int(plots.get_attribute("data-count") or 0) >= 4, 60, "the plots")
     shown = {p.get_attribute("data-plot") for p in browser.find_elements(By.CSS_SELECTOR, ".plot")}
     assert {"energies", "topology", "dt", "newton"} <= shown
     assert len(browser.find_elements(By.CSS_SELECTOR, "#plots .plot canvas")) >= 4
-    canvas = browser.find_element(By.ID, "rod3d")
+    canvas = _element(browser, "rod3d")
     _wait(browser, lambda d: canvas.get_attribute("data-points"), 60, "the 3-D view")
     assert int(canvas.get_attribute("data-points")) == 25
     assert canvas.get_attribute("data-scale-bar").endswith(("m", "mm"))     # a length scale
@@ -278,7 +287,7 @@ def test_job_page_draws_the_seabed_under_the_rod(browser, stack):
     case["seabed"] = {"elevation": -0.01}
     job_id = _successful_job(stack, case)
     _open(browser, stack, f"/job/{job_id}")
-    canvas = browser.find_element(By.ID, "rod3d")
+    canvas = _element(browser, "rod3d")
     _wait(browser, lambda d: int(canvas.get_attribute("data-seabed-quads") or 0) > 0, 60,
           "the seabed drawn")
     assert canvas.get_attribute("data-seabed") == "elevation"
@@ -448,7 +457,7 @@ def test_a_continuation_jobs_page_draws_its_branch(browser, stack):
                     "the diagram")[0]
     _wait(browser, lambda d: int(diagram.get_attribute("data-segments") or 0) > 0, 60,
           "the diagram drawn")
-    canvas = browser.find_element(By.ID, "rod3d")
+    canvas = _element(browser, "rod3d")
     _wait(browser, lambda d: canvas.get_attribute("data-points"), 60, "the shape drawn")
     # the diagram: a segment between each pair of points of one part, the branch point
     # marked, every point with a stored shape drawn (and clickable); lateral excursion
