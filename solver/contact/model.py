@@ -633,13 +633,68 @@ def _swept_any_within(r0, r1, a, b, diameter, s, cut, period):
     """Whether any node pair (a, b) (P,) moving linearly from r0 to r1 (N, 3) comes
     closer than ½ · ½(D_a + D_b) within the step (:func:`~.geometry._swept_kernel`'s
     closest approach), or segments at such nodes do (:func:`_swept_segments_within`;
-    s (N,) m, ``cut`` (m) its arclength exclusion, ``period`` a ring's length or inf)."""
+    s (N,) m, ``cut`` (m) its arclength exclusion, ``period`` a ring's length or inf),
+    over the pairs that :func:`_pairs_that_may_meet` keeps."""
+    a, b = _pairs_that_may_meet(r0, r1, a, b, diameter, period < np.inf)
     closest = np.empty(a.shape[0])
     _swept_kernel(r0, r1, a, b, closest)
     for p in range(a.shape[0]):
         if closest[p] < 0.5 * (0.5 * (diameter[a[p]] + diameter[b[p]])):
             return True
     return _swept_segments_within(r0, r1, a, b, diameter, s, cut, period)
+
+
+@numba.njit(cache=True)
+def _pairs_that_may_meet(r0, r1, a, b, diameter, ring):
+    """The node pairs of (a, b) (P,) that, moving linearly from r0 to r1 (N, 3) m, may
+    come within the collision tests' thresholds (at most ½ D_max) at some time of the
+    step, themselves or segments at them: (a', b') (P',). At sub-time t the nodes'
+    separation is r1_a − r1_b − (1 − t)(Δr_a − Δr_b), at least |r1_a − r1_b| −
+    |Δr_a − Δr_b|, and every point of a segment at node k is within ℓ_k of r_k, ℓ_k the
+    longest of k's segments at the step's start or end (a segment's length is convex
+    along the linear motion): a pair with |r1_a − r1_b| − |Δr_a − Δr_b| − ℓ_a − ℓ_b ≥
+    ½ D_max cannot meet and is dropped. The reach of :func:`_swept_reach` is set by the
+    largest absolute displacement; a rod that moves nearly rigidly keeps most pairs
+    within it while their relative motion is small. ``ring``: node N − 1 joins node 0."""
+    n = r0.shape[0]
+    reach = np.empty(n)
+    for k in range(n):
+        reach[k] = 0.0
+    for k in range(n if ring else n - 1):
+        k1 = (k + 1) % n
+        ln = 0.0
+        for r in (r0, r1):
+            d0 = r[k1, 0] - r[k, 0]
+            d1 = r[k1, 1] - r[k, 1]
+            d2 = r[k1, 2] - r[k, 2]
+            ln = max(ln, math.sqrt(d0 * d0 + d1 * d1 + d2 * d2))
+        reach[k] = max(reach[k], ln)
+        reach[k1] = max(reach[k1], ln)
+    thr = 0.5 * np.max(diameter)
+    keep = np.empty(a.shape[0], np.bool_)
+    count = 0
+    for p in range(a.shape[0]):
+        i = a[p]
+        j = b[p]
+        sep = 0.0
+        rel = 0.0
+        for c in range(3):
+            x = r1[i, c] - r1[j, c]
+            y = (r1[i, c] - r0[i, c]) - (r1[j, c] - r0[j, c])
+            sep += x * x
+            rel += y * y
+        keep[p] = math.sqrt(sep) - math.sqrt(rel) - reach[i] - reach[j] < thr
+        if keep[p]:
+            count += 1
+    a_out = np.empty(count, a.dtype)
+    b_out = np.empty(count, b.dtype)
+    q = 0
+    for p in range(a.shape[0]):
+        if keep[p]:
+            a_out[q] = a[p]
+            b_out[q] = b[p]
+            q += 1
+    return a_out, b_out
 
 
 #: the most sub-times :func:`_swept_segments_within` takes in one step

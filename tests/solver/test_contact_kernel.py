@@ -694,3 +694,39 @@ def test_passes_through_tells_strands_crossing_between_their_nodes():
     assert nodes > 2.0 * DIAM                       # the nodes never meet
     assert sc.passes_through(r0, down)
     assert not sc.passes_through(r0, short)
+
+
+def test_swept_pair_filter_keeps_every_pair_that_meets():
+    """_pairs_that_may_meet drops only pairs that cannot come within ½ D_max over the
+    step: on random wiggles of a folded strand (nodes moved by up to 4 diameters, so the
+    reach of _swept_reach covers many pairs), every node pair whose swept node distance or
+    whose segments' sampled distance falls below ½ D_max is kept, and the collision
+    verdict with the filter equals the verdict on all the pairs."""
+    from solver.contact.geometry import close_node_pairs, swept_min_distance
+    from solver.contact.model import (_pairs_that_may_meet, _swept_any_within,
+                                      _swept_segments_within)
+
+    rng = np.random.default_rng(7)
+    s, r, _ = hairpin(n_straight=40)
+    diameter = np.full(len(s), DIAM)
+    cut = 2.0 * DIAM
+    verdicts = kept_total = 0
+    for trial in range(40):
+        scale = DIAM * (0.2 if trial % 2 else 4.0)
+        r1 = r + scale * rng.standard_normal(r.shape) + rng.standard_normal(3) * 0.1
+        a, b = close_node_pairs(r1, 1.0, s, cut, np.inf)
+        ka, kb = _pairs_that_may_meet(r, r1, a, b, diameter, False)
+        kept = set(zip(ka.tolist(), kb.tolist()))
+        kept_total += len(kept)
+        near = swept_min_distance(r, r1, a, b) < 0.5 * DIAM
+        for p in np.flatnonzero(near):
+            assert (a[p], b[p]) in kept
+        for p in range(a.size):
+            if (a[p], b[p]) not in kept:
+                one = np.array([a[p]]), np.array([b[p]])
+                assert not _swept_segments_within(r, r1, *one, diameter, s, cut, np.inf)
+        full = bool(np.any(swept_min_distance(r, r1, a, b) < 0.5 * DIAM)
+                    or _swept_segments_within(r, r1, a, b, diameter, s, cut, np.inf))
+        assert _swept_any_within(r, r1, a, b, diameter, s, cut, np.inf) == full
+        verdicts += full
+    assert 0 < verdicts < 40 and kept_total > 0

@@ -235,6 +235,7 @@ def test_warm_up_loads_every_compiled_kernel():
                "solver.contact.model._separation", "solver.contact.model._segment_distance",
                "solver.contact.model._relative_move",
                "solver.contact.model._swept_segments_within",
+               "solver.contact.model._pairs_that_may_meet",
                "solver.contact.laws._smoothstep", "solver.contact.laws._barrier_p",
                "solver.contact.laws._repulsion", "solver.contact.laws.law_cutoff",
                "solver.contact.laws.law_force", "solver.banded.copy_into",
