@@ -260,3 +260,20 @@ def test_a_free_chain_has_the_worm_like_chains_short_scale_statistics():
     for s, ratio, _ in f["tangent"][:3]:
         assert ratio == pytest.approx(1.0, abs=0.03), (s, ratio)
     assert f["twist"][1][1] == pytest.approx(1.0, abs=0.03), f["twist"][1]
+
+
+def test_a_thermal_run_resumed_from_a_checkpoint_repeats_it_bit_for_bit():
+    """The generator's state travels with the checkpoint (the run is pickled whole, its
+    ThermalForcing with it): a run resumed at 20 of its 40 steps draws the same random
+    loads as the uninterrupted one and writes the same positions to the last bit."""
+    from solver.checkpoint import Checkpoint
+    from solver.simulation import integrate
+    from test_checkpoint import assert_identical, run_with_checkpoint_at
+
+    spec = dna_spec(steps=40)
+    spec["output"] = {"every": 5, "fields": ["position"]}
+    case = Case.model_validate(spec)
+    full, data = run_with_checkpoint_at(case, 20e-9)
+    ck = Checkpoint.loads(data, case)
+    assert 0.0 < ck.t < 40e-9
+    assert_identical(full, integrate(case, resume=ck))
