@@ -7,7 +7,11 @@ the wall time, the steps, refusals and factorisations, and the functions that ta
 most time. Then, on the last contact step's Jacobian (the band plus the pairs' blocks that
 ``solver.centreline._SparseLU`` factors), SuperLU's factorisation and solve under the
 column orderings scipy offers, against LAPACK's band LU of the same matrix without the
-pairs (``solver.static_band.BorderedBandLU``): what a factor outside SuperLU could save.
+pairs (``solver.static_band.BorderedBandLU``): what a factor outside SuperLU could save;
+and two ways around SuperLU on that matrix, both with the pairs' entries inside the band
+added to it and factored by the band LU: the Woodbury (capacitance) solve with the pairs'
+columns outside the band as the low-rank part, and GMRES preconditioned by the band LU
+(scipy's ``gmres``, relative residual 1e-12).
 
 Run from the repository's root: ``python -m research.centreline_contact_cost``
 (about 1.5 minutes on 2 cores). Cited in docs/numerics.md § 9 ("Limits").
@@ -22,13 +26,15 @@ import time
 from pathlib import Path
 
 import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from threadpoolctl import threadpool_limits
 
 from solver import centreline as C
 from solver.case import Case
 from solver.centreline_run import CentrelineRun
-from solver.static_band import BorderedBandLU
+from solver.static_band import KL, KU, BorderedBandLU
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -104,7 +110,35 @@ def main(argv=None) -> int:
     band.solve(b)
     print(f"  band LU without the pairs: factor {1e3 * min(times):.1f} ms, solve "
           f"{1e3 * (time.perf_counter() - t0):.2f} ms")
+    _around_superlu(ab, extra, A, b)
     return 0
+
+
+def _around_superlu(ab, extra, A, b) -> None:
+    """The Woodbury solve and band-preconditioned GMRES on A = band(ab) + extra."""
+    e = extra.tocoo()
+    inside = (e.row - e.col >= -KU) & (e.row - e.col <= KL)
+    ab2 = ab.copy()
+    ab2[KL + KU + e.row[inside] - e.col[inside], e.col[inside]] += e.data[inside]
+    off = sp.csc_matrix((e.data[~inside], (e.row[~inside], e.col[~inside])), shape=A.shape)
+    off.eliminate_zeros()
+    cols = np.flatnonzero(np.diff(off.indptr))
+    t0 = time.perf_counter()
+    band = BorderedBandLU(ab2)
+    Z = band._band_solve(off[:, cols].toarray())
+    cap = sla.lu_factor(np.eye(cols.size) + Z[cols, :])
+    factor = time.perf_counter() - t0
+    y = band._band_solve(b)
+    x = y - Z @ sla.lu_solve(cap, y[cols])
+    print(f"  Woodbury on the {cols.size} columns outside the band: factor "
+          f"{1e3 * factor:.1f} ms, residual {np.abs(A @ x - b).max() / np.abs(b).max():.1e}")
+    its = [0]
+    t0 = time.perf_counter()
+    x, _ = spla.gmres(A, b, M=spla.LinearOperator(A.shape, matvec=band._band_solve),
+                      rtol=1e-12, restart=100, maxiter=300, callback_type="pr_norm",
+                      callback=lambda _: its.__setitem__(0, its[0] + 1))
+    print(f"  GMRES with the band LU: {its[0]} iterations, {1e3 * (time.perf_counter() - t0):.1f}"
+          f" ms a solve, residual {np.abs(A @ x - b).max() / np.abs(b).max():.1e}")
 
 
 if __name__ == "__main__":
