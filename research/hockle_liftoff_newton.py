@@ -40,15 +40,16 @@ def main(argv=None) -> int:
     log, rounds = [], []
     step, newton = C.CentrelineRod.step, C.CentrelineRod.newton
 
-    def traced_newton(rod, old, co, prob, Y):
+    def traced_newton(rod, old, co, prob, Y, tolerance=None):
         held = None if rod.seabed_hold is None else int(rod.seabed_hold.sum())
         try:
-            out = newton(rod, old, co, prob, Y)
+            out = newton(rod, old, co, prob, Y, tolerance)
         except C.StepFailure:
             rounds.append(f"[held {held}: failed]")
             raise
         after = None if rod.seabed_hold is None else int(rod.seabed_hold.sum())
-        rounds.append(f"[held {held}->{after}, {out[1]} its]")
+        to = "" if tolerance is None else f" to {tolerance:g}"
+        rounds.append(f"[held {held}->{after}, {out[1]} its{to}]")
         return out
 
     def traced_step(rod, old, h, t=None):
