@@ -237,7 +237,8 @@ def section_hockle():
         t, _, crossed, reason, refused, snaps[n, dt, mu] = _hockle_run(
             n, dt, 4.5, friction_scale=mu)
         print(f"  {n} segments, dt {dt:g} s, friction x {mu:g}, to 4.5 s: reached "
-              f"t = {t:.4g} s, MBR crossed at {crossed} s, {refused} Newton refusals, "
+              f"t = {t:.4g} s, MBR crossed at "
+              f"{'never' if crossed is None else format(crossed, '.4g') + ' s'}, {refused} Newton refusals, "
               f"wall {time.perf_counter() - t0:.1f} s; {reason or 'completed'}")
     print("  largest distance between centrelines (mm) at t = "
           + ", ".join(f"{t:g}" for t in SNAP_TIMES) + " s:")
