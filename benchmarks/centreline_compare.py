@@ -236,9 +236,9 @@ def section_hockle():
         t0 = time.perf_counter()
         t, _, crossed, reason, refused, snaps[n, dt, mu] = _hockle_run(
             n, dt, 4.5, friction_scale=mu)
+        when = "never" if crossed is None else f"at {crossed:.4g} s"
         print(f"  {n} segments, dt {dt:g} s, friction x {mu:g}, to 4.5 s: reached "
-              f"t = {t:.4g} s, MBR crossed at "
-              f"{'never' if crossed is None else format(crossed, '.4g') + ' s'}, {refused} Newton refusals, "
+              f"t = {t:.4g} s, MBR crossed {when}, {refused} Newton refusals, "
               f"wall {time.perf_counter() - t0:.1f} s; {reason or 'completed'}")
     print("  largest distance between centrelines (mm) at t = "
           + ", ".join(f"{t:g}" for t in SNAP_TIMES) + " s:")

@@ -533,9 +533,9 @@ class CentrelineRod:
         where a held node does not touch releases it and Newton goes on from there, up
         to REDECISIONS times; the rounds before the first in which no held node is
         pulled end once Newton's scaled update is below REDECIDE_AT (the set is re-decided
-        from a near solution: the cable peels off the bottom a node or two a round, and
-        converging every round to TOLERANCE cost a quarter more of the hockle case's
-        wall). A solution where no held node is pulled is the law's (the
+        from a near solution: a cable lifting off the bottom peels a node or two a round,
+        and converging every round to TOLERANCE was wasted work). A solution where no
+        held node is pulled is the law's (the
         primal-dual active-set strategy as a semismooth Newton method: M. Hintermüller,
         K. Ito, K. Kunisch, SIAM J. Optim. 13, 2002); a node an iterate presses into the
         bottom joins the held set. Raises :class:`StepFailure`."""
@@ -744,9 +744,8 @@ class CentrelineRod:
         whose residual Newton does not come back from); the same with ``thermal`` (the
         last step's velocity is its random kick, which the next step does not repeat) and
         with a sea floor (a cable lifting off the bottom changes n by tens of newtons in a
-        cut step, and n extrapolated along that rate over the next step threw Newton off:
-        the hockle case without its contact block to 4.5 s, 14 refused steps and 2715
-        factorisations against 6 and 1661)."""
+        cut step, and n extrapolated along that rate over the next step threw Newton
+        off)."""
         Y = self.predict(old, h)
         if self.contact is None and self.thermal is None and self.seabed is None:
             return Y

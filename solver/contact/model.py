@@ -657,9 +657,7 @@ def _pairs_that_may_meet(r0, r1, a, b, diameter, ring):
     largest absolute displacement; a rod that moves nearly rigidly keeps most pairs
     within it while their relative motion is small. ``ring``: node N − 1 joins node 0."""
     n = r0.shape[0]
-    reach = np.empty(n)
-    for k in range(n):
-        reach[k] = 0.0
+    reach = np.zeros(n)
     for k in range(n if ring else n - 1):
         k1 = (k + 1) % n
         ln = 0.0
@@ -677,13 +675,11 @@ def _pairs_that_may_meet(r0, r1, a, b, diameter, ring):
         i = a[p]
         j = b[p]
         sep = 0.0
-        rel = 0.0
         for c in range(3):
             x = r1[i, c] - r1[j, c]
-            y = (r1[i, c] - r0[i, c]) - (r1[j, c] - r0[j, c])
             sep += x * x
-            rel += y * y
-        keep[p] = math.sqrt(sep) - math.sqrt(rel) - reach[i] - reach[j] < thr
+        keep[p] = (math.sqrt(sep) - _relative_move(r0, r1, i, j) - reach[i] - reach[j]
+                   < thr)
         if keep[p]:
             count += 1
     a_out = np.empty(count, a.dtype)
