@@ -76,7 +76,7 @@ from .centreline_loads import node_motion_kernel, nodal_loads_kernel, rounding_l
 from .static_band import KL, KU, BandSingular, BorderedBandLU
 
 __all__ = ["AlphaParameters", "CentrelineState", "CentrelineRod", "CentrelineError",
-           "StepFailure", "cayley_quaternion", "cayley_vector"]
+           "StepFailure", "cayley_quaternion", "cayley_vector", "meet_held_ends"]
 
 NV = st.NV
 
@@ -276,7 +276,14 @@ class CentrelineRod:
         q = node_frames(case, props.s)
         r = initial_pose(case, props.s)[1]
         q = q / np.linalg.norm(q, axis=1)[:, None]
-        rod = cls(case, props, q, box_centreline(q, r[0], props.ds))
+        r = box_centreline(q, r[0], props.ds)
+        if not getattr(case.rod, "closed", False):
+            try:
+                ends = st.problem_at(case, 0.0, props, q, r)
+            except st.StaticsError as exc:
+                raise CentrelineError(str(exc)) from exc
+            q, r = meet_held_ends(q, r, props.s, ends.start, ends.end)
+        rod = cls(case, props, q, r)
         rod._check_thermal()
         try:
             rod.problem(0.0)
@@ -957,6 +964,64 @@ def box_centreline(q, r_start, h: float) -> np.ndarray:
     r[0] = r_start
     r[1:] = r_start + np.cumsum(0.5 * h * (a3[:-1] + a3[1:]), axis=0)
     return r
+
+
+def meet_held_ends(q, r, s, start: st.EndSpec, end: st.EndSpec):
+    """The box rule's initial centreline moved onto the case's held end positions at t = 0.
+
+    The frames q (N+1, 4) of the case's curve build the centreline r (N+1, 3) m by the
+    box rule's position rows from its first point (:func:`box_centreline`), whose last
+    point misses the curve's by the rule's O(Δs²) error; an end held at a given
+    ``position`` (a catenary pinned above the bottom) would then start off its hold, and
+    the start's Taylor steps would have to move it there in a fraction of a step (n ∝
+    1/δ²; the start's Newton does not converge on the catenary touchdown). Here the
+    start's held components shift the whole pose, and the end's held components are met
+    by turning the frames: each node's frame turned by φ_k = c_k a3_k × λ (global), the
+    λ (3,) of least norm whose turned tangents move the end onto its hold to first order
+    (δr_N = Σ_k w_k c_k (I − a3_k a3_kᵀ) λ, w the trapezoid's weights), repeated until
+    the end is held to 1e-13 L; c(s) = 1, times s/L where the start's rotation is held
+    and (L − s)/L where the end's is, so held frames stay as they are. The turn is
+    smooth along s and of the size of the miss over L. ``start``, ``end``: the t = 0 end
+    conditions (:class:`solver.statics.EndSpec`); s (N+1,) m the nodes' arclengths.
+    Returns (q, r); both unchanged (the same arrays) where every held component already
+    holds to 1e-13 L. Raises :class:`CentrelineError` naming
+    ``boundary.end.translation`` where turning the frames cannot reach the hold (a
+    straight initial centreline cannot lengthen)."""
+    from .kinematics import quat_exp
+
+    length = float(s[-1] - s[0])
+    tol = 1e-13 * length
+    h = float(s[1] - s[0])
+    P = start.axes[:, start.held]
+    miss = P @ (P.T @ (start.position - r[0]))
+    if np.max(np.abs(miss), initial=0.0) > tol:
+        r = r + miss
+    E = end.axes[:, end.held]
+    if E.shape[1] == 0:
+        return q, r
+    c = np.ones_like(s)
+    if start.rotation_held:
+        c = c * (s - s[0]) / length
+    if end.rotation_held:
+        c = c * (s[-1] - s) / length
+    w = np.full(s.shape, h)
+    w[[0, -1]] = 0.5 * h
+    gap = E.T @ (end.position - r[-1])
+    first = float(np.max(np.abs(gap)))
+    for _ in range(20):
+        if np.max(np.abs(gap)) <= tol:
+            return q, r
+        a3 = st._rot(q)[:, :, 2]
+        A = np.einsum("k,kij->ij", w * c, np.eye(3) - a3[:, :, None] * a3[:, None, :])
+        lam = np.linalg.lstsq(E.T @ A, gap, rcond=1e-12)[0]
+        q = st._qmul(quat_exp(c[:, None] * np.cross(a3, lam)), q)
+        q = q / np.linalg.norm(q, axis=1)[:, None]
+        r = box_centreline(q, r[0], h)
+        gap = E.T @ (end.position - r[-1])
+    raise CentrelineError(
+        f"boundary.end.translation: the held position lies {first:.3g} m from where the "
+        f"initial centreline's frames put the end, and turning the frames does not reach "
+        f"it (an initial centreline too short or straight to reach the hold)")
 
 
 class EndPath:

@@ -4,6 +4,7 @@ orders in time and s on the project's tip case, the order through a load switche
 from rest (consistent start), Galilean invariance of a towed pendulum, the energy of a
 conservative swing at ρ∞ = 1, an exact Jacobian, and refusals that name the field."""
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,11 +12,14 @@ import pytest
 from rodcases import free_end, make_case
 from solver import statics
 from solver.case import Case
-from solver.centreline import (CentrelineError, CentrelineRod, cayley_quaternion,
-                               cayley_vector)
+from solver.centreline import (CentrelineError, CentrelineRod, box_centreline,
+                               cayley_quaternion, cayley_vector)
 from test_convergence_order import fitted_order, tip_case
 
 FREE_ROT = [{"moment": 0.0}] * 3
+
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def run(rod, state, dt, t_end):
@@ -346,3 +350,52 @@ def test_an_end_held_after_sliding_stops_the_rod_without_ringing(rho_inf, monkey
                                rtol=1e-6)
     np.testing.assert_allclose(v_end[~sliding], 0.0, atol=1e-9)
     np.testing.assert_allclose(f_end[~sliding], 0.5, rtol=1e-6)
+
+
+def test_an_end_held_at_a_position_starts_on_its_hold():
+    """The box rule's centreline built from the case's frames misses an end held at a
+    given position by the rule's O(Δs²) error (cases/catenary-touchdown.yaml, pinned
+    1 m above the bottom, on 80 segments: 66 µm); the start turns the frames so that the
+    end sits on its hold, the box rows still exact, the frames turned by about the miss
+    over the length, and the consistent start converges (it did not: the Taylor steps
+    had to move the end onto its hold within Δt/4, with n ∝ 1/δ²)."""
+    from solver.initial import node_frames
+
+    spec = Case.from_file(ROOT / "cases" / "catenary-touchdown.yaml").model_dump(mode="json")
+    spec["numerics"]["formulation"] = "centreline"
+    case = Case.model_validate(spec)
+    rod = CentrelineRod.from_case(case)
+    hold = np.array([3.512378, 0.0, 1.0])
+    assert np.abs(rod.r0[-1] - hold).max() < 1e-12
+    assert np.abs(rod.r0 - box_centreline(rod.q0, rod.r0[0], rod.h)).max() < 1e-14
+    q = node_frames(case, rod.props.s)
+    q = q / np.linalg.norm(q, axis=1)[:, None]
+    missed = np.abs(box_centreline(q, rod.r0[0], rod.h)[-1] - hold).max()
+    assert 1e-5 < missed < 1e-4
+    turn = np.linalg.norm(cayley_vector(q, rod.q0), axis=1).max()
+    assert turn < 10.0 * missed / case.rod.length
+    state = rod.start()
+    assert np.abs(state.Y[-1, 0:3] - hold).max() < 1e-12
+    # the pull on the pin: the suspended weight's share, not an impulse
+    assert np.abs(state.Y[-1, 7:10]).max() < 5.0
+
+
+def test_an_end_held_beyond_a_straight_rods_reach_is_refused():
+    """A straight rod cannot lengthen: turning its frames cannot take its end 1 cm beyond
+    it (case validation refuses such a case on its own check; the start's refusal names
+    the field too)."""
+    from solver.centreline import meet_held_ends
+
+    s = np.linspace(0.0, 1.0, 21)
+    q = np.tile([1.0, 0.0, 0.0, 0.0], (21, 1))                  # a3 = z
+    r = box_centreline(q, np.zeros(3), 0.05)
+    start = statics.clamp(np.zeros(3), q[0])
+    beyond = statics.clamp(np.array([0.0, 0.0, 1.01]), q[-1])
+    beyond = statics.EndSpec(beyond.axes, beyond.held, beyond.position, beyond.force,
+                             False, beyond.quaternion)
+    with pytest.raises(CentrelineError, match="boundary.end.translation"):
+        meet_held_ends(q, r, s, start, beyond)
+    # on its hold already: the same arrays back
+    there = statics.clamp(r[-1], q[-1])
+    q2, r2 = meet_held_ends(q, r, s, start, there)
+    assert q2 is q and r2 is r
