@@ -26,6 +26,12 @@ Sections (``--only`` picks some):
   (the seed's first): wall time, Newton iterations, refused attempts, the first contact,
   Wr at 20, 30 and 45 s and the largest |Lk − Tw − Wr|.
 
+* ``touchdown``: ``cases/catenary-touchdown.yaml`` as it is (0-20 s), the schemes
+  alternately, twice (the first to compile): wall time, refused attempts, the suspended
+  length L − s_touchdown against the catenary's √(h² + 2ah), a = H/w, at its first
+  defined output, its largest relative distance while H ramps and at the end, and how far
+  the touchdown walks along the cable.
+
 * ``plectoneme``: PyElastica's plectoneme (benchmarks/pyelastica_compare.py, its contact),
   0-9 s, on 25 segments at Δt 0.1 and 0.05 s and 50 at 0.05 s, each scheme in turn (a
   first run to compile, then the timed one): wall time, refused attempts, the first
@@ -308,13 +314,39 @@ def section_seedfull():
               f"|Lk - Tw - Wr| {float(np.nanmax(ds.topology_error.values)):.2g} ({_load()})")
 
 
+def section_touchdown():
+    print(f"cases/catenary-touchdown.yaml (0-20 s), the schemes alternately ({_load()})")
+    spec = Case.from_file(ROOT / "cases" / "catenary-touchdown.yaml").model_dump(mode="json")
+    w = 500.0 * np.pi * 0.01 ** 2 * 9.81          # submerged weight, N/m
+    for repeat in range(2):
+        for f in SCHEMES:
+            spec["numerics"]["formulation"] = f
+            t0 = time.perf_counter()
+            ds = integrate(Case.model_validate(spec))
+            wall = time.perf_counter() - t0
+            if repeat == 0:
+                continue                                # compiled and cached first
+            t = ds.time.values
+            H = 1.0 + 2.0 * np.clip(t - 2.0, 0.0, 10.0) / 10.0
+            suspended = 4.0 - ds["seabed_touchdown"].values
+            catenary = np.sqrt(1.0 + 2.0 * H / w)
+            off = suspended / catenary - 1.0
+            i = int(np.flatnonzero(np.isfinite(suspended))[0])
+            print(f"  {f:10s} {ds.attrs['hockle_status']}, wall {wall:.1f} s, refused: "
+                  f"{ds.attrs.get('hockle_refused_attempts') or 'none'}; suspended {suspended[i]:.3f} m "
+                  f"at {t[i]:g} s against {catenary[i]:.3f} m, largest off "
+                  f"{100 * np.nanmax(np.abs(off)):.1f} %, at 20 s {suspended[-1]:.3f} against "
+                  f"{catenary[-1]:.3f} m ({100 * off[-1]:.2f} %), the touchdown walks "
+                  f"{suspended[-1] - suspended[i]:.2f} m ({_load()})")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--only", nargs="+",
                     choices=["time", "space", "galilean", "seed", "seedfull", "hockle",
-                             "plectoneme"],
+                             "touchdown", "plectoneme"],
                     default=["time", "space", "galilean", "seed", "seedfull", "hockle",
-                             "plectoneme"])
+                             "touchdown", "plectoneme"])
     ap.add_argument("--seed-end", type=float, default=8.0, help="s (default 8)")
     ap.add_argument("--repeat", type=int, default=3, help="seed runs per scheme (default 3)")
     args = ap.parse_args(argv)

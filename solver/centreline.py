@@ -228,8 +228,9 @@ class CentrelineRod:
                                            * fl.drag_coefficient_tangential)
         self.seabed = None
         #: the nodes the sea floor's spring holds on in a Newton solve ((N+1,) bool,
-        #: None outside one; :meth:`solve`)
-        self.seabed_hold = None
+        #: None outside one; :meth:`solve`), and the damper's branch each node is held on
+        #: ((N+1,) −1: the law's clamp, 0, 1, 2: :func:`solver.seabed.seabed_points`)
+        self.seabed_hold = self.seabed_modes = None
         self._frictionless = self.has_friction = False
         if case.seabed is not None:
             from .seabed import SeabedContact
@@ -258,7 +259,8 @@ class CentrelineRod:
         for name, k in (("start", 0), ("end", self.n - 1)):
             ec = getattr(case.boundary, name)
             if EndPath.applies(ec):
-                self.paths[name] = EndPath(ec, q0[k], r0[k], case.numerics.t_end)
+                self.paths[name] = EndPath(ec, q0[k], r0[k], case.numerics.t_end,
+                                           start=name == "start")
         self._band_index()
 
     @classmethod
@@ -369,7 +371,8 @@ class CentrelineRod:
             L += self.thermal.load                 # the step's random loads, constant
         return L, (dL if want else None)
 
-    def seabed_terms(self, Y, old: CentrelineState, co: _Coefficients, want: bool):
+    def seabed_terms(self, Y, old: CentrelineState, co: _Coefficients, want: bool,
+                     laws=None):
         """The sea floor's loads per length at the nodes (N+1, 6), global (normal
         reaction plus Coulomb friction, N/m; friction's moment about the centreline,
         N m/m), the law of :mod:`solver.seabed` at each node's r, ṙ, Ω, a3 and radius
@@ -379,7 +382,9 @@ class CentrelineRod:
         penetration (N+1,) m); and with ``want`` their exact derivative (N+1, 6, 7) with
         respect to each node's (r, p): the law's partials by (x, u, Ω, t) chained with
         ∂(r, ṙ)/∂r = (I, c_X I) and ∂(Ω, a3)/∂p by the complex step (4 evaluations).
-        None without a seabed."""
+        The damper's branch of each node is ``seabed_modes``' (None: the law's clamp
+        everywhere; :meth:`_held_solve`); ``laws`` (N+1,), where given, receives the law's
+        own branch at each touching node (−1 elsewhere). None without a seabed."""
         if self.seabed is None:
             return None
         from .seabed import seabed_points
@@ -396,9 +401,11 @@ class CentrelineRod:
         DF, DM = np.empty((n1, 3, 12)), np.empty((n1, 3, 12))
         pen = np.empty(n1)
         hold = self.seabed_hold if self.seabed_hold is not None else np.zeros(n1, bool)
+        modes = self.seabed_modes if self.seabed_modes is not None else np.full(n1, -1.0)
+        laws = np.empty(n1) if laws is None else laws
         data = self._frictionless_data if self._frictionless else self.seabed.data
         seabed_points(x, u, Om, t, self.seabed.radius, data, bool(want),
-                      hold, F, M, DF, DM, pen)
+                      hold, modes, F, M, DF, DM, pen, laws)
         L = np.concatenate([F[:, 0:3] + F[:, 3:6], M], axis=1)
         split = (F[:, 0:3], F[:, 3:6], M, pen)
         if not want:
@@ -545,7 +552,15 @@ class CentrelineRod:
         held node is pulled is the law's (the
         primal-dual active-set strategy as a semismooth Newton method: M. Hintermüller,
         K. Ito, K. Kunisch, SIAM J. Optim. 13, 2002); a node an iterate presses into the
-        bottom joins the held set. Raises :class:`StepFailure`."""
+        bottom joins the held set. Where the damper's slope in the step exceeds the
+        spring's (c c_X > k, c_X = γ/(βh): a step short against c/k), the damper's clamp
+        (N between 0 and 2kp) is held the same way: each node touching at Newton's start
+        keeps the law's branch there (N = 0, the free kp − c n·ṙ, or 2kp) through a
+        round, and a round whose solution has a node on a branch the law does not take
+        there re-decides it (:func:`next_branches`) and goes on. There the clamp's slope
+        jumps by c c_X/k across its bounds, which swap with the sign of n·ṙ between
+        iterates: Newton cycled (the seed scheme holds its cells' branches alike:
+        :mod:`solver.seabed`). Raises :class:`StepFailure`."""
         if self.seabed is None:
             return self.newton(old, co, prob, Y)
         rest = _Coefficients(0.0, old.Xd, 0.0, old.X)
@@ -565,33 +580,46 @@ class CentrelineRod:
         Y, its, err = self._held_solve(old, co, prob, Y, self._penetration(Y, old, co) > 0.0)
         return Y, its_a + its, err
 
-    def _penetration(self, Y, old, co) -> np.ndarray:
-        """The nodes' surface penetration (N+1,) m into the bottom (negative: the gap)."""
-        return self.seabed_terms(Y, old, co, False)[1][3]
+    def _penetration(self, Y, old, co, laws=None) -> np.ndarray:
+        """The nodes' surface penetration (N+1,) m into the bottom (negative: the gap);
+        ``laws`` (N+1,), where given, receives the law's damper branch at each touching
+        node (−1 elsewhere)."""
+        return self.seabed_terms(Y, old, co, False, laws)[1][3]
 
     def _held_solve(self, old, co, prob, Y, hold):
-        """:meth:`newton` holding the contact set ``hold`` (N+1,) bool, re-decided where
-        a held node is pulled (:meth:`solve`): to REDECIDE_AT until a round pulls no held
-        node, from then on to TOLERANCE."""
+        """:meth:`newton` holding the contact set ``hold`` (N+1,) bool and each touching
+        node's damper branch, re-decided where a held node is pulled or a node's held
+        branch is not the law's at the round's solution (:meth:`solve`): to REDECIDE_AT
+        until a round needs neither, from then on to TOLERANCE."""
         total = 0
         loose = True
+        laws = np.empty(self.n)
+        self._penetration(Y, old, co, laws)
+        scal = self.seabed.data.scalars
+        # the law's branches at Newton's start, held where the damper's slope in the
+        # step, c c_X, exceeds the spring's k (else the clamp's kinks are mild: None)
+        modes = laws.copy() if scal[3] * co.cX > scal[2] else None
         try:
             for _ in range(self.REDECISIONS + 1):
-                self.seabed_hold = hold
+                self.seabed_hold, self.seabed_modes = hold, modes
                 Y, its, err = self.newton(old, co, prob, Y,
                                           self.REDECIDE_AT if loose else None)
                 total += its
                 hold = self.seabed_hold
                 self.seabed_hold = None
-                pulled = hold & (self._penetration(Y, old, co) <= 0.0)
-                if not pulled.any():
+                pulled = hold & (self._penetration(Y, old, co, laws) <= 0.0)
+                off = (False if modes is None
+                       else ((modes >= 0.0) & (laws >= 0.0) & (modes != laws)).any())
+                if not pulled.any() and not off:
                     if not loose:
                         return Y, total, err
                     loose = False                 # the same set, to TOLERANCE
                     continue
                 hold = hold & ~pulled
+                if modes is not None:
+                    modes = next_branches(modes, laws)
         finally:
-            self.seabed_hold = None
+            self.seabed_hold = self.seabed_modes = None
         raise StepFailure(f"the sea floor's contact set did not settle in "
                           f"{self.REDECISIONS} re-decisions")
 
@@ -966,6 +994,17 @@ def box_centreline(q, r_start, h: float) -> np.ndarray:
     return r
 
 
+def next_branches(modes, laws) -> np.ndarray:
+    """The damper's branches (N+1,) after a round of :meth:`CentrelineRod._held_solve`,
+    from the held ones ``modes`` and the law's own at the round's solution ``laws``
+    (each −1: none, or not touching; 0: N = 0, 1: free, 2: N = 2kp): the law's, except
+    that a node held at one bound whose law gives the other goes to the free branch
+    between them (the seed scheme's rule, :func:`solver.seabed._next_mode`: N is
+    monotone in the penetration rate, so the root lies between the two bounds')."""
+    swap = (modes >= 0.0) & (modes != 1.0) & (laws >= 0.0) & (laws != 1.0) & (modes != laws)
+    return np.where(swap, 1.0, laws)
+
+
 def meet_held_ends(q, r, s, start: st.EndSpec, end: st.EndSpec):
     """The box rule's initial centreline moved onto the case's held end positions at t = 0.
 
@@ -1035,12 +1074,14 @@ class EndPath:
     a normal is path-dependent, which the statics' end rows (twist about a3 only) do not
     carry."""
 
-    def __init__(self, ec, q0, r0, t_end: float):
+    def __init__(self, ec, q0, r0, t_end: float, start: bool = False):
         from scipy.integrate import solve_ivp
 
         from .case import Table
 
         self.ec = ec
+        #: the end s = 0 (its force items' applied load is minus the internal force)
+        self.start = bool(start)
         rates = [ec.rotation[i][0] for i in range(3)]
         moves = [ec.translation[i][0] for i in range(3)]
         self.held = np.array([m.kind == "velocity" for m in moves])
@@ -1095,11 +1136,13 @@ class EndPath:
     def spec(self, t: float, extra_force) -> st.EndSpec:
         """The statics' :class:`solver.statics.EndSpec` of the end at t: the frame held at
         q(t); velocity items held at the path's point along a_i(t); force items the
-        force F_i a_i(t) (N), plus ``extra_force`` (3,) N (point loads there)."""
+        internal force F_i a_i(t) (N; the load applied at s = 0 is its negative), plus
+        ``extra_force`` (3,) N (point loads there, applied)."""
         q, r = self.at(t)
         axes = st._rot(q)
         force = np.asarray(extra_force, float).copy()
+        sign = -1.0 if self.start else 1.0
         for i, m in self.force_items:
-            force = force + m.value_at(t) * axes[:, i]
+            force = force + sign * m.value_at(t) * axes[:, i]
         return st.EndSpec(axes=axes, held=self.held.copy(), position=r, force=force,
                           rotation_held=True, quaternion=q, twist=0.0)

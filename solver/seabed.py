@@ -796,19 +796,22 @@ def seabed_cells(r, vg, Rm, omega, data, F, M, pen):
 
 
 @numba.njit(cache=True)
-def seabed_points(x, u, Om, t, radius, data, want, hold, F, M, DF, DM, pen):
+def seabed_points(x, u, Om, t, radius, data, want, hold, modes, F, M, DF, DM, pen, laws):
     """The seabed's law (:func:`_node`, module docstring) at m points of the centreline:
     the normal reaction F[:, 0:3] and the friction F[:, 3:6] (F (m, 6), N/m) and the
     moment M (m, 3) N m/m per unit length, global, from the positions x, velocities u, global angular velocities Om and
     unit tangents t (m, 3) and the radii (m,) m; pen (m,) m the surface penetrations
     (negative: the gap). With ``want`` also the law's exact partials (m, 3, 12) DF =
     ∂(normal + friction)/∂(x, u, Om, t) and DM = ∂M/∂(x, u, Om, t), by the forward propagation of
-    :func:`_law` (zero where a point does not touch). The damper's branch is the law's
-    clamp at every evaluation. Points higher than the bottom's top plus their radius
-    times the steepest slope factor are skipped (zero load). A point with hold[k] True
-    that does not touch (p ≤ 0) takes the spring's line on, F = k p n (pulling, no damper
-    or friction; DF = −k n nᵀ on x, the tangent plane's): the contact set a Newton solve
-    holds (:meth:`solver.centreline.CentrelineRod.solve`)."""
+    :func:`_law` (zero where a point does not touch). The damper's branch of point k is
+    modes[k] (m,): −1 the law's clamp, 0, 1, 2 a branch held (N = 0, the free
+    kp − c n·ṙ, 2kp; :func:`_law`); laws (m,) receives the law's own branch at each
+    touching point (−1 where it does not touch). Points higher than the bottom's top
+    plus their radius times the steepest slope factor are skipped (zero load). A point
+    with hold[k] True that does not touch (p ≤ 0) takes the spring's line on,
+    F = k p n (pulling, no damper or friction; DF = −k n nᵀ on x, the tangent
+    plane's): the contact set a Newton solve holds
+    (:meth:`solver.centreline.CentrelineRod.solve`)."""
     E = _unit_seeds()
     wk = np.zeros((9, 3, 12))
     fn = np.empty(3)
@@ -818,6 +821,8 @@ def seabed_points(x, u, Om, t, radius, data, want, hold, F, M, DF, DM, pen):
     dM = np.zeros((3, 12))
     scal = data.scalars
     lim, slope = scal[8], scal[9]
+    # the rule off, typed as a run-time value (the branch held or the clamp: modes)
+    yes = true_at_run_time(x)
     for k in range(x.shape[0]):
         for i in range(3):
             F[k, i] = 0.0
@@ -826,12 +831,16 @@ def seabed_points(x, u, Om, t, radius, data, want, hold, F, M, DF, DM, pen):
             for j in range(12):
                 DF[k, i, j] = 0.0
                 DM[k, i, j] = 0.0
+        laws[k] = -1.0
         if x[k, 2] - slope * radius[k] > lim and not hold[k]:
             h, hx, hy, _ = _bottom(x[k, 0], x[k, 1], data)
             pen[k] = radius[k] - (x[k, 2] - h) / math.sqrt(1.0 + hx * hx + hy * hy)
             continue
-        pen[k] = _node(x[k], u[k], Om[k], t[k], radius[k], data, want, E[0], E[1], E[2],
-                       E[3], fn, ff, mm, dF, dM, wk)
+        p, _, law = _law(x[k], u[k], Om[k], t[k], radius[k], data, want, E[0], E[1], E[2],
+                         E[3], fn, ff, mm, dF, dM, wk, int(modes[k]), not yes)
+        pen[k] = p
+        if p > 0.0:
+            laws[k] = law
         if pen[k] <= 0.0:
             if hold[k]:
                 h, hx, hy, _ = _bottom(x[k, 0], x[k, 1], data)

@@ -1252,6 +1252,9 @@ def _end_spec(ec, where: str, qk, rk, t: float, extra, anchors=None) -> EndSpec:
     held = np.zeros(3, bool)
     pos = np.array(rk, float)
     force = np.zeros(3)
+    # a force item gives the internal force n there (docs/case-spec.md, "Frames and
+    # signs"): the load applied to the end s = L is +n, to the end s = 0 it is −n
+    sign = -1.0 if where == "boundary.start" else 1.0
     for i in range(3):
         kind, value, integral = _dof(ec.translation[i], t, f"{where}.translation.{i}",
                                      anchors)
@@ -1276,7 +1279,7 @@ def _end_spec(ec, where: str, qk, rk, t: float, extra, anchors=None) -> EndSpec:
             if not held_rot and ec.frame != "global" and value != 0:
                 raise StaticsError(f"{where}.translation.{i}: a body-frame force on an "
                                    "end free to turn is a follower load")
-            force = force + value * axes[:, i]
+            force = force + sign * value * axes[:, i]
     force = force + extra
     return EndSpec(axes=axes, held=held, position=pos, force=force,
                    rotation_held=held_rot, quaternion=quat, twist=twist)

@@ -399,3 +399,31 @@ def test_an_end_held_beyond_a_straight_rods_reach_is_refused():
     there = statics.clamp(r[-1], q[-1])
     q2, r2 = meet_held_ends(q, r, s, start, there)
     assert q2 is q and r2 is r
+
+
+def test_a_start_force_item_is_the_internal_force_there():
+    """A ``force`` item gives the internal force n there, the part beyond on the part
+    before (docs/case-spec.md, "Frames and signs"): the load applied at s = 0 is −n. A
+    weightless rod along z held at s = L with 1 N along z at s = 0 is in 1 N of tension
+    (n = +1 N along z) in the statics and stays so at rest on the centreline scheme; the
+    end path of a start turned about a normal (:class:`solver.centreline.EndPath`)
+    applies −n too. (The statics' end rows had taken the item as the applied load at
+    s = 0: 1 N of compression, and cases/catenary-touchdown.yaml's lying cable slid 2.8 m
+    towards the pin in 3 s instead of holding still.)"""
+    start = {"translation": [{"velocity": 0.0}, {"velocity": 0.0}, {"force": 1.0}],
+             "rotation": [{"angular_velocity": 0.0}] * 3}            # along a3 = z
+    case = make_case(start=start, n_segments=10, dt=0.01, t_end=0.05)
+    prob = statics.static_problem(case, 0.0)
+    assert np.abs(prob.start.force - [0.0, 0.0, -1.0]).max() == 0.0
+    sol = statics.solve(prob)
+    assert np.abs(sol.Y[:, 7:10] - [0.0, 0.0, 1.0]).max() < 1e-9
+    rod = CentrelineRod.from_case(case)
+    state = run(rod, rod.start(), 0.01, 0.05)
+    assert np.abs(state.Y[:, 7:10] - [0.0, 0.0, 1.0]).max() < 1e-9
+    assert np.abs(state.Y[:, 0:3] - rod.r0).max() < 1e-12
+    turned = {"translation": [{"velocity": 0.0}, {"velocity": 0.0}, {"force": 1.0}],
+              "rotation": [{"angular_velocity": 0.1}, {"angular_velocity": 0.0},
+                           {"angular_velocity": 0.0}]}
+    rod = CentrelineRod.from_case(make_case(start=turned, n_segments=10))
+    spec = rod.paths["start"].spec(0.02, np.zeros(3))
+    assert np.abs(spec.force + spec.axes[:, 2]).max() < 1e-15

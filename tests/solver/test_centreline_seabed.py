@@ -222,3 +222,37 @@ def test_loose_rounds_of_the_contact_set_reach_the_same_steps():
             assert its_loose < its_tight
             compared += 1
     assert compared >= 2
+
+
+def test_next_branches_take_the_laws_or_the_free_branch_between_two_bounds():
+    """The damper's branches after a round (−1 none, 0: N = 0, 1 free, 2: N = 2kp): the
+    law's, except that a node held at one bound whose law gives the other goes to the
+    free branch between them (the seed scheme's rule, solver.seabed._next_mode)."""
+    from solver.centreline import next_branches
+    from solver.seabed import _next_mode
+
+    modes = np.array([-1.0, 0.0, 0.0, 2.0, 2.0, 1.0, 1.0, 0.0, 2.0, 1.0])
+    laws = np.array([2.0, 2.0, 1.0, 0.0, 2.0, 0.0, 2.0, -1.0, -1.0, 1.0])
+    assert next_branches(modes, laws).tolist() == [2.0, 1.0, 1.0, 1.0, 2.0, 0.0, 2.0, -1.0,
+                                                   -1.0, 1.0]
+    touching = laws >= 0
+    assert all(next_branches(modes, laws)[touching]
+               == [_next_mode(int(m), int(w)) for m, w in zip(modes[touching], laws[touching])])
+
+
+def test_a_soft_catenary_on_a_damped_bottom_steps_without_refusals():
+    """cases/catenary-touchdown.yaml (the default damping, c/k = 0.1 s, at Δt = 0.05 s:
+    the damper's slope in a step is 3× the spring's) to 0.5 s: with each touching node's
+    damper branch held through Newton's rounds no step is refused (with the law's clamp
+    at every iterate every step was cut 3-4 times: the clamp's bounds swapped between
+    iterates), and the lying cable, pulled away from the pin by its start's 1 N (a
+    ``force`` item: the internal force there), holds still within a millimetre."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    spec = Case.from_file(root / "cases" / "catenary-touchdown.yaml").model_dump(mode="json")
+    spec["numerics"].update(formulation="centreline", t_end=0.5)
+    run = run_to(Case.model_validate(spec), 0.5)
+    assert run.control.refusals == {}
+    assert abs(run.level.Y[0, 0]) < 1e-3
+    assert run.rod.seabed_modes is None and run.rod.seabed_hold is None

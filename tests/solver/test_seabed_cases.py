@@ -83,7 +83,9 @@ def test_catenary_touchdown_follows_the_catenary_as_it_is_pulled():
     catenary = np.sqrt(1.0 + 2.0 * H / w)
     off = np.abs(suspended / catenary - 1.0)
     assert np.nanmax(off) < 0.08 and off[-1] < 0.05
-    assert suspended[-1] - suspended[0] > 0.6
+    # (on the centreline scheme the cable laid at zero penetration presses the bottom
+    # from its first step on: no touchdown at t = 0)
+    assert suspended[-1] - suspended[np.isfinite(suspended)][0] > 0.6
 
 
 def test_loop_formed_on_a_seabed_waits_for_the_bottom():
