@@ -1,7 +1,8 @@
 """hockle and MoorDyn on a seabed (issue 43): a cable hanging from a fairlead onto a flat
 bottom, the catenary with touchdown, at rest and while the fairlead moves away.
 
-Run: ``nice -n 10 python -m benchmarks.moordyn_seabed_compare [--quick]`` (MoorDyn-C's
+Run: ``nice -n 10 python -m benchmarks.moordyn_seabed_compare [--quick] [--formulation
+centreline]`` (hockle's scheme; the results file and figures are the default's; MoorDyn-C's
 Python package, ``pip install moordyn==2.7.2``; benchmark-only). It prints a Markdown
 section and writes ``benchmarks/results/moordyn_seabed_compare.json``.
 
@@ -71,6 +72,9 @@ ROOT = HERE.parent
 from benchmarks.moordyn_compare import loadavg, to_json
 
 NAME = "moordyn_seabed_compare"
+#: hockle's scheme (``numerics.formulation``; ``--formulation``): the results file and
+#: the figures are the default scheme's; another scheme's run only prints
+FORMULATION = "goyal"
 LENGTH, DIAMETER, DENSITY = 4.0, 0.02, 1500.0
 RADIUS = DIAMETER / 2
 AREA = math.pi * DIAMETER**2 / 4
@@ -201,7 +205,7 @@ def hockle_case(n: int, dt: float, t_end: float):
                               "value": [fairlead_v(t) for t in knots]}},
                 {"velocity": 0.0}, {"velocity": 0.0}], "rotation": mom0}},
         "numerics": {"n_segments": int(n), "dt": float(dt), "t_end": float(t_end),
-                     "rho_inf": 0.0},
+                     "rho_inf": 0.0, "formulation": FORMULATION},
         "output": {"every": max(1, int(round(OUT_DT / dt))),
                    "fields": ["position", "reactions"]},
     })
@@ -442,9 +446,11 @@ def _f(x, fmt="{:.3f}"):
 def render(res: dict) -> str:
     cfg, runs = res["config"], res["runs"]
     L = ["### MoorDyn: a cable hanging onto the seabed (catenary with touchdown)", ""]
+    scheme = res.get("formulation", "goyal")
+    flag = "" if scheme == "goyal" else f" --formulation {scheme}"
     L.append(
-        f"`nice -n 10 python -m benchmarks.moordyn_seabed_compare` (MoorDyn "
-        f"{res.get('moordyn_version', '?')}). A 4-m cable (D = 0.02 m, 1500 kg/m³ in water, "
+        f"`nice -n 10 python -m benchmarks.moordyn_seabed_compare{flag}` (MoorDyn "
+        f"{res.get('moordyn_version', '?')}; hockle's {scheme} scheme). A 4-m cable (D = 0.02 m, 1500 kg/m³ in water, "
         "w = 1.541 N/m, EI = 9.8e-4 N·m², no friction) pinned on a flat bottom at one end "
         f"and {HEIGHT:g} m above it at the other, X₀ = {X0:.4f} m away (the catenary of "
         f"a = H/w = {A0:g} m); at rest to {T_MOVE:g} s, then the fairlead moves {DX:g} m "
@@ -584,7 +590,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--render", action="store_true", help="rebuild from the saved JSON")
+    ap.add_argument("--formulation", choices=["goyal", "centreline"], default="goyal",
+                    help="hockle's scheme (default goyal; centreline only prints)")
     args = ap.parse_args()
+    global FORMULATION
+    FORMULATION = args.formulation
     path = HERE / "results" / f"{NAME}.json"
     figdir = ROOT / "docs" / "figures" / "benchmarks"
     if args.render:
@@ -598,8 +608,9 @@ def main() -> None:
     res["moordyn_version"] = version("moordyn")
     res["quick"] = args.quick
     res["utc"] = time.strftime("%Y-%m-%d %H:%M", time.gmtime())
+    res["formulation"] = FORMULATION
     js = to_json(res)
-    if not args.quick:
+    if not args.quick and FORMULATION == "goyal":
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(json.dumps(js))
         figure(js, figdir)
