@@ -594,11 +594,13 @@ class CentrelineRod:
         total = 0
         loose = True
         laws = np.empty(self.n)
-        self._penetration(Y, old, co, laws)
         scal = self.seabed.data.scalars
         # the law's branches at Newton's start, held where the damper's slope in the
         # step, c c_X, exceeds the spring's k (else the clamp's kinks are mild: None)
-        modes = laws.copy() if scal[3] * co.cX > scal[2] else None
+        modes = None
+        if scal[3] * co.cX > scal[2]:
+            self._penetration(Y, old, co, laws)
+            modes = laws.copy()
         try:
             for _ in range(self.REDECISIONS + 1):
                 self.seabed_hold, self.seabed_modes = hold, modes
@@ -1080,8 +1082,8 @@ class EndPath:
         from .case import Table
 
         self.ec = ec
-        #: the end s = 0 (its force items' applied load is minus the internal force)
-        self.start = bool(start)
+        #: the sign of the load its force items apply (:func:`solver.statics.applied_sign`)
+        self.sign = st.applied_sign("start" if start else "end")
         rates = [ec.rotation[i][0] for i in range(3)]
         moves = [ec.translation[i][0] for i in range(3)]
         self.held = np.array([m.kind == "velocity" for m in moves])
@@ -1141,8 +1143,7 @@ class EndPath:
         q, r = self.at(t)
         axes = st._rot(q)
         force = np.asarray(extra_force, float).copy()
-        sign = -1.0 if self.start else 1.0
         for i, m in self.force_items:
-            force = force + sign * m.value_at(t) * axes[:, i]
+            force = force + self.sign * m.value_at(t) * axes[:, i]
         return st.EndSpec(axes=axes, held=self.held.copy(), position=r, force=force,
                           rotation_held=True, quaternion=q, twist=0.0)

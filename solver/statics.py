@@ -76,7 +76,7 @@ import scipy.sparse.linalg as spla
 from .static_band import (KL, KU, BandSingular, BorderedBandLU, band_storage, cell_band,
                           cell_residual)
 
-__all__ = ["EndSpec", "StaticProblem", "StaticSolution", "StaticsError", "residual",
+__all__ = ["EndSpec", "applied_sign", "StaticProblem", "StaticSolution", "StaticsError", "residual",
            "jacobian", "solve", "straight_guess", "unstable_modes", "lu_det_sign",
            "static_problem", "quat_axis_angle", "contact_loads", "seabed_loads",
            "electrostatic_loads", "without_pair_loads",
@@ -1223,6 +1223,17 @@ def _dead_loads(case, props, t: float):
     return load, extra_force
 
 
+def applied_sign(end: str) -> float:
+    """The sign that turns an end's ``force`` item into the load applied there
+    (:attr:`EndSpec.force`): a force item gives the internal force n, the part beyond s
+    on the part before it (docs/case-spec.md, "Frames and signs"), so the load applied
+    to the end s = L (``end = "end"``) is +n and to the end s = 0 (``"start"``) −n.
+    Raises ValueError for another name."""
+    if end not in ("start", "end"):
+        raise ValueError(f"applied_sign: the end is 'start' or 'end', got {end!r}")
+    return -1.0 if end == "start" else 1.0
+
+
 def _end_spec(ec, where: str, qk, rk, t: float, extra, anchors=None) -> EndSpec:
     """The :class:`EndSpec` of the case's end conditions ``ec`` at time t, the end's
     initial frame qk (4,) and position rk (3,) m, plus point loads ``extra`` (3,) N at the
@@ -1252,9 +1263,7 @@ def _end_spec(ec, where: str, qk, rk, t: float, extra, anchors=None) -> EndSpec:
     held = np.zeros(3, bool)
     pos = np.array(rk, float)
     force = np.zeros(3)
-    # a force item gives the internal force n there (docs/case-spec.md, "Frames and
-    # signs"): the load applied to the end s = L is +n, to the end s = 0 it is −n
-    sign = -1.0 if where == "boundary.start" else 1.0
+    sign = applied_sign(where.rsplit(".", 1)[-1])
     for i in range(3):
         kind, value, integral = _dof(ec.translation[i], t, f"{where}.translation.{i}",
                                      anchors)
