@@ -155,6 +155,14 @@ class _Coefficients:
     dX: np.ndarray
 
 
+def _hat(w):
+    """The cross-product matrices [w]× (..., 3, 3) of vectors w (..., 3)."""
+    z = np.zeros(w.shape[:-1])
+    return np.stack([np.stack([z, -w[..., 2], w[..., 1]], -1),
+                     np.stack([w[..., 2], z, -w[..., 0]], -1),
+                     np.stack([-w[..., 1], w[..., 0], z], -1)], -2)
+
+
 def cayley_quaternion(c):
     """The unit quaternion (..., 4) of the Cayley map of the rotation vector c (..., 3)
     (rad): ∝ (1, c/2), a rotation by 2 atan(|c|/2) about c."""
@@ -509,6 +517,106 @@ class CentrelineRod:
         rows, cols, nodes = self._band_at
         ab[rows, cols] += 0.5 * self.h * block[nodes].ravel()     # each (row, column) once
         return ab
+
+    def growth_rate(self, state: CentrelineState, shift: float, v0=None):
+        """The fastest growth rate near ``shift`` (1/s) of the dynamics linearised about
+        a level: (σ (1/s, −inf where none is found), the eigenvector) of
+        :func:`solver.stepping.guard.pencil_growth_rate` on :meth:`pencil`, or None
+        where the level has pairs (self-contact or electrostatics within reach) or is
+        a closed rod (their couplings are not in the band; the contact law's stiffness
+        is no instability), or where the level is not near a static balance
+        (:meth:`dynamic_share` above QUASI_STATIC). Columns scaled by
+        :meth:`solver.statics.StaticProblem.scales`."""
+        import scipy.sparse as sp
+
+        from .static_band import band_to_sparse
+        from .stepping.guard import pencil_growth_rate
+
+        prob = self.problem(state.t)
+        rest = _Coefficients(0.0, state.Xd, 0.0, state.X)
+        if (prob.closed or self.dynamic_share(state, prob) > self.QUASI_STATIC
+                or self.pair_load_jacobian(state.Y, state, rest, prob) is not None):
+            return None
+        s = float(shift)
+        K, C, M = self.pencil(state, prob)
+        d = np.tile(prob.scales(), self.n)
+        D = sp.diags(d)
+        try:
+            lu = BorderedBandLU(K + s * C + s * s * M)
+        except BandSingular:
+            return -math.inf, None
+        return pencil_growth_rate(lambda b: lu.solve(b) / d, band_to_sparse(M[KL:]) @ D,
+                                  band_to_sparse(C[KL:]) @ D, s, v0)
+
+    #: the largest :meth:`dynamic_share` at which :meth:`growth_rate` estimates σ
+    QUASI_STATIC = 0.1
+
+    def dynamic_share(self, state: CentrelineState, prob) -> float:
+        """How far a level is from a static balance: the largest inertia and fluid force
+        per length at its nodes (:meth:`nodal_loads`, N/m) over the static force scale
+        B/L³ + max |f| + max |n|/L (B the largest bending stiffness, f the dead loads
+        per length, n the level's internal force). 0 at rest. The growth guard's
+        frozen rates are those of an instability growing from a near balance: on the
+        DNA-like rod of tests/solver/test_stability.py twisted past Greenhill and at
+        rest (share 8e-13) σ = 9.03e3 1/s, and a run perturbed along the mode grows at
+        9.02e3 1/s; once it buckles (shares 0.4 to 6) the frozen pencil has rates of
+        5e4 to 5e6 1/s where runs perturbed along the mode, at steps of 0.05/σ, decay
+        (``python -m research.centreline_growth_rate``)."""
+        L = self.nodal_loads(state.Y, state, _Coefficients(0.0, state.Xd, 0.0, state.X))[0]
+        B = float(np.max(self.props.stiffness[:, :2]))
+        length = float(self.props.s[-1])
+        scale = (B / length**3 + float(np.abs(prob.load).max())
+                 + float(np.abs(state.Y[:, 7:10]).max()) / length)
+        return float(np.abs(L[:, 0:3]).max()) / scale
+
+    def pencil(self, state: CentrelineState, prob):
+        """(K, C, M), each (2KL + KU + 1, 13(N+1)) in LAPACK band storage: the dynamics
+        linearised about a level, M ÿ + C ẏ + K y = 0 for a perturbation y of its
+        (r, p, n, m), frozen at its velocities and accelerations.
+
+        A step's rows are affine in generalized-α's coefficients of Ẋ = c_Ẋ Δ + d_Ẋ and
+        X = c_X Δ + d_X (:meth:`coefficients`); about the level itself (old = the level,
+        Δ = 0, d_Ẋ and d_X its own Ẋ and X) the nodal loads' blocks at (c_Ẋ, c_X) =
+        (1, 0), (0, 1) and (0, 0) give M (the inertia) and C (the fluid's, the sea
+        floor's and the gyroscopic rate terms) by differences, and K is the step's
+        Jacobian at (0, 0). A body-frame perturbation η of a frame moving at W changes
+        its angular velocity by δW = η̇ + W × η and δẆ = η̈ + W × η̇ + Ẇ × η (from
+        R exp(η̂)); the step's Cayley increments leave that transport to the group, so
+        it is added here: with A = ∂L/∂Ẇ and B = ∂L/∂W per node (the p-columns of M and
+        C through Θ⁺ = Θᵀ/4, Θ = ∂Δθ/∂p = 2 vec(p̄ ⊗ ·)), K gains (A [Ẇ]× + B [W]×) Θ
+        and C gains A [W]× Θ. Without it, a rod spinning fast had frozen rates of the
+        size √(|J Ẇ|/J) that no perturbation showed (the DNA-like rod of
+        tests/solver/test_stability.py after it buckles: 1.5e8 1/s)."""
+        Y = state.Y
+
+        def blocks(c1, c2):
+            co = _Coefficients(c1, state.Xd, c2, state.X)
+            b = self.nodal_loads(Y, state, co, want=True)[1]
+            sb = self.seabed_terms(Y, state, co, want=True)
+            return b if sb is None else b + sb[2]
+
+        b0 = blocks(0.0, 0.0)
+        Mb, Cb = blocks(1.0, 0.0) - b0, blocks(0.0, 1.0) - b0
+        p = Y[:, 3:7]
+        theta = np.empty((self.n, 3, 4))
+        for j in range(4):
+            e = np.zeros_like(p)
+            e[:, j] = 1.0
+            theta[:, :, j] = 2.0 * st._qmul(st._qconj(p), e)[:, 1:]
+        A = Mb[:, :, 3:7] @ theta.transpose(0, 2, 1) / 4.0
+        B = Cb[:, :, 3:7] @ theta.transpose(0, 2, 1) / 4.0
+        W, Wd = _hat(state.X[:, 3:6]), _hat(state.Xd[:, 3:6])
+        Kt, Ct = np.zeros_like(b0), np.zeros_like(b0)
+        Kt[:, :, 3:7] = (A @ Wd + B @ W) @ theta
+        Ct[:, :, 3:7] = A @ W @ theta
+        K = self.jacobian(Y, state, _Coefficients(0.0, state.Xd, 0.0, state.X), prob)
+        rows, cols, nodes = self._band_at
+        out = []
+        for blk in (Kt, Cb + Ct, Mb):
+            ab = np.zeros_like(K) if blk is not Kt else K
+            ab[rows, cols] += 0.5 * self.h * blk[nodes].ravel()
+            out.append(ab)
+        return tuple(out)
 
     # ------------------------------------------------------------------ the step
     def coefficients(self, old: CentrelineState, h: float) -> _Coefficients:

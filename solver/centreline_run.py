@@ -18,9 +18,12 @@ state with Δt cut by ``numerics.dt_cut_factor``, up to ``numerics.max_dt_cuts``
 the cut steps completing the nominal step (with ``thermal``, the nominal step's random
 impulses are drawn once at its start and the cut steps take their parts of them by the
 Brownian bridge, :class:`solver.thermal.ThermalForcing`); the cut Δt is kept into the
-following nominal steps and grows back by the factor after ``GROW_AFTER`` accepted sub-steps (the seed
-scheme's rule, :mod:`solver.stepping`, without its growth guard); when all cuts fail, :class:`solver.stepping.control.SolverDivergence` (reason
-``solver_diverged``) carries the partial result.
+following nominal steps and grows back by the factor after ``GROW_AFTER`` accepted
+sub-steps (the seed scheme's rule, :mod:`solver.stepping`). The growth guard
+(``numerics.growth_guard``, :meth:`CentrelineRun._growth_ok`) refuses a converged step
+whose Δt exceeds g/σ, σ the fastest growth rate of the dynamics linearised about the new
+level, and cuts Δt below that cap, where it stays until σ falls. When all cuts fail,
+:class:`solver.stepping.control.SolverDivergence` (reason ``solver_diverged``) carries the partial result.
 
 The work put in (``work_in``, J) integrates by the trapezoid in time the power of the
 ends, n·ṙ + m·ω at s = L minus the same at s = 0 (ω = R W global), and of the dead loads,
@@ -38,6 +41,7 @@ from . import statics as st
 from .centreline import CentrelineError, CentrelineRod, StepFailure, box_centreline
 from .stepping import breakpoints
 from .stepping.control import SolverDivergence
+from .stepping.guard import GrowthGuard
 
 __all__ = ["CentrelineRun"]
 
@@ -59,8 +63,7 @@ class CentrelineRun:
     #: the recorder's output groups that need the pose (all do here)
     POSE_FIELDS = frozenset({"position", "orientation", "topology"})
 
-    #: what the scheme does not have yet, as the recorder reads it: no energy check (no
-    #: growth guard either: control.guard.sigma is NaN, "not checked")
+    #: what the scheme does not have yet, as the recorder reads it: no energy check
     seabed = energy_check = None
     contact_count = 0
     min_gap = math.inf
@@ -79,7 +82,11 @@ class CentrelineRun:
         self.newton = SimpleNamespace(factorizations=0, gmres_iterations=0)
         # the step control's figures in the seed scheme's names
         self.control = SimpleNamespace(refusals={}, last_dt=case.numerics.dt,
-                                       guard=SimpleNamespace(sigma=math.nan))
+                                       guard=GrowthGuard(case.numerics.growth_guard))
+        p = rod.props
+        #: the bending time scale L²√(ρA/EJ) (s) of the growth guard's rule
+        self.tc = float(p.s[-1] ** 2 * math.sqrt(np.max(p.rho_a)
+                                                 / np.max(p.stiffness[:, :2])))
         self.last_iterations = 0
         self.last_residual = 0.0
         Y, X, t = None, None, 0.0
@@ -242,7 +249,8 @@ class CentrelineRun:
         while st.t < t_target - 1e-12 * max(1.0, t_target):
             if self._pending_restart is not None:
                 self._take_restart()
-            if cuts and self._accepted_at_level >= self.GROW_AFTER:
+            if (cuts and self._accepted_at_level >= self.GROW_AFTER
+                    and h * num.dt_cut_factor <= self.control.guard.cap() * (1.0 + 1e-9)):
                 cuts -= 1                  # grow back by the factor
                 h *= num.dt_cut_factor
                 self._accepted_at_level = 0
@@ -253,6 +261,9 @@ class CentrelineRun:
                 if self.contact is not None and self.contact.passes_through(
                         self.level.Y[:, 0:3], new.Y[:, 0:3]):
                     raise StepFailure("strands passed through each other in the step")
+                if not self._growth_ok(new, step):
+                    h, cuts = self._growth_cut(h, cuts, h_full)
+                    continue
             except StepFailure as exc:
                 key = "crossing" if exc.reason.startswith("strands") else "newton"
                 refusals[key] = refusals.get(key, 0) + 1
@@ -266,6 +277,7 @@ class CentrelineRun:
                 self._accepted_at_level = 0
                 continue
             self._accepted_at_level += 1
+            self.control.guard.since += 1
             if thermal is not None:
                 thermal.accept()                 # cut steps: the rest of the impulse
             if not all(np.all(np.isfinite(x)) for x in (new.Y, new.X, new.Xd, new.a)):
@@ -295,6 +307,41 @@ class CentrelineRun:
         self._cut_level = cuts
         self.last_iterations = total_its
         return total_its, self.last_residual
+
+    def _growth_cut(self, h: float, cuts: int, h_full: float) -> tuple[float, int]:
+        """After a growth refusal: (Δt, cuts) cut by ``numerics.dt_cut_factor`` until
+        within the guard's cap (the levels it forbids skipped). Raises
+        :class:`SolverDivergence` where that takes more than ``numerics.max_dt_cuts``
+        cuts of the nominal step h_full (s)."""
+        num, guard = self.case.numerics, self.control.guard
+        refusals = self.control.refusals
+        refusals["growth"] = refusals.get("growth", 0) + 1
+        cap = guard.cap() * (1.0 + 1e-9)
+        while h > cap and cuts <= num.max_dt_cuts:
+            h /= num.dt_cut_factor
+            cuts += 1
+        if cuts > num.max_dt_cuts:
+            t = self.state.t
+            raise SolverDivergence(
+                f"at t = {t:.6g} s the fastest growth rate is {guard.sigma:.3g} 1/s: the "
+                f"growth guard needs Δt ≤ {guard.cap():.3g} s, more than "
+                f"numerics.max_dt_cuts = {num.max_dt_cuts} cuts of {h_full:.3g} s (set "
+                f"numerics.growth_guard to null to run without the check)", t, 0, math.inf,
+                "solver_diverged")
+        self._accepted_at_level = 0
+        return h, cuts
+
+    def _growth_ok(self, new, h: float) -> bool:
+        """The growth guard (``numerics.growth_guard``, :meth:`solver.stepping.guard.
+        GrowthGuard.check`) on a converged step of h (s) to the level ``new``: σ of the
+        dynamics linearised about it (:meth:`solver.centreline.CentrelineRod.
+        growth_rate`); True without a guard, and at a level with pairs or a closed rod
+        (not estimated there: the last σ stands)."""
+        guard = self.control.guard
+        if guard.limit is None:
+            return True
+        return guard.check(h, self.tc, lambda shift, v0: self.rod.growth_rate(new, shift, v0),
+                           look_far=True)
 
     #: accepted sub-steps at a cut Δt before it grows back by ``numerics.dt_cut_factor``
     GROW_AFTER = 4

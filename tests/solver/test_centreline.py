@@ -427,3 +427,131 @@ def test_a_start_force_item_is_the_internal_force_there():
     rod = CentrelineRod.from_case(make_case(start=turned, n_segments=10))
     spec = rod.paths["start"].spec(0.02, np.zeros(3))
     assert np.abs(spec.force + spec.axes[:, 2]).max() < 1e-15
+
+
+COLUMN = dict(n_segments=20, dt=1.0, t_end=4.0, diameter=0.01,
+              start={"translation": [{"velocity": 0.0}] * 3, "rotation": [{"angular_velocity": 0.0}] * 3})
+
+
+def _column_spec(n, rho_inf=0.0, dt=1.0, guard=1.0, imperfection=True):
+    """The steel column of tests/solver/test_stability.py (L = 1 m, D = 1 cm), clamped at
+    s = 0 and, at s = L, held laterally and in rotation with an axial thrust of 1.5 P_cr
+    (P_cr = 4π²B/L²), at rest straight; a small lateral force on its middle."""
+    from rodcases import E
+
+    B = E * math.pi * 0.01**4 / 64
+    pcr = 4.0 * math.pi**2 * B
+    held = {"translation": [{"velocity": 0.0}] * 2 + [{"force": -1.5 * pcr}],
+            "rotation": [{"angular_velocity": 0.0}] * 3}
+    kw = dict(COLUMN, n_segments=n, dt=dt, rho_inf=rho_inf, end=held,
+              fields=("position",))
+    if imperfection:
+        kw["forces"] = [{"value": [1e-4 * pcr, 0.0, 0.0], "start": 0.0, "s_range": [0.3, 0.7]}]
+    spec = make_case(**kw).model_dump()
+    spec["numerics"]["formulation"] = "centreline"
+    spec["numerics"]["growth_guard"] = guard
+    return spec
+
+
+def _euler_bernoulli_growth(thrust_ratio=1.5, points=800):
+    """The continuum's growth rate (1/s) of that column: the largest σ with
+    B w'''' + P w'' + ρA σ² w = 0, w = w' = 0 at both ends, by central differences on
+    ``points`` intervals (its error here 2e-5 of σ)."""
+    from rodcases import E, RHO
+
+    B, m = E * math.pi * 0.01**4 / 64, RHO * math.pi * 0.01**2 / 4
+    P = thrust_ratio * 4.0 * math.pi**2 * B
+    h = 1.0 / points
+    n = points - 1
+    d2 = (np.diag(-2.0 * np.ones(n)) + np.diag(np.ones(n - 1), 1) + np.diag(np.ones(n - 1), -1))
+    d4 = d2 @ d2                         # 5 at the corners, where the ghost node
+    d4[0, 0] += 2.0                      # mirroring the first (clamped) makes it 7
+    d4[-1, -1] += 2.0
+    A = B * d4 / h**4 + P * d2 / h**2
+    return math.sqrt(-np.linalg.eigvalsh(A).min() / m)
+
+
+def test_the_growth_rate_of_a_column_beyond_euler_converges_at_second_order():
+    """σ of the dynamics linearised about the straight column (CentrelineRod.growth_rate,
+    the quadratic pencil's shift-invert Arnoldi) on 10-80 segments against the
+    continuum's 3.728 1/s: second order in s (measured errors 7.7, 1.8, 0.45, 0.12 %)."""
+    from solver.centreline_run import CentrelineRun
+
+    exact = _euler_bernoulli_growth()
+    assert abs(exact - 3.728) < 1e-3
+    errors = []
+    for n in (10, 20, 40, 80):
+        run_ = CentrelineRun(Case.model_validate(_column_spec(n, imperfection=False)))
+        sigma, _ = run_.rod.growth_rate(run_.level, 2.0)
+        errors.append(exact - sigma)
+    assert all(e > 0.0 for e in errors)
+    assert errors[2] < 5e-3 * exact
+    ratios = np.array(errors[:-1]) / np.array(errors[1:])
+    assert np.all((ratios > 3.4) & (ratios < 4.6)), ratios
+
+
+@pytest.mark.parametrize("rho_inf", [0.0, 0.5, 1.0])
+def test_the_growth_guard_cuts_a_step_that_would_hold_a_column_straight(rho_inf):
+    """The column at Δt = 1 s (σΔt = 3.7): without the guard every ρ∞ damps the growing
+    mode and the run completes straight (largest deflection 1.9e-5, 2.3e-4 and 1.1e-3 L
+    at 4 s, measured); with it (numerics.growth_guard 1) the first step is refused, Δt
+    cut to 0.25 s ≤ 1/σ, σ recorded, and the column buckles."""
+    from solver.simulation import integrate
+
+    ds = integrate(Case.model_validate(_column_spec(20, rho_inf)))
+    assert ds.attrs["hockle_status"] == "completed"
+    sigma = ds.step_growth_rate.values
+    assert abs(sigma[0] - 3.6596) < 1e-3                       # 20 segments' σ
+    assert ds.step_dt.values[0] <= 1.0 / sigma[0]
+    assert "growth 1" in ds.attrs["hockle_refused_attempts"]
+    assert np.abs(ds.position.values[:, :, 0]).max() > 0.3
+    off = integrate(Case.model_validate(_column_spec(20, rho_inf, guard=None)))
+    assert np.abs(off.position.values[:, :, 0]).max() < 2e-3
+    assert np.all(np.isnan(off.step_growth_rate.values))
+
+
+def test_the_growth_guard_catches_a_twist_that_crosses_greenhill_within_a_step(monkeypatch):
+    """The stability map's rod (tests/solver/test_step_control.py: 0.5 m, 40 segments,
+    5 N of tension, twisted at 10 rad/s to 1.1 × Greenhill's critical twist, an
+    imperfection load) at Δt = 0.3 s: at 1.2 s (0.85 of the critical twist) there is no
+    growth, at 1.5 s σ ≈ 16 1/s, beyond the near disc (4g/Δt = 13.3 1/s); the guard
+    looks further where the near disc holds none, cuts the step and the rod buckles
+    (measured writhe −0.247 at 1.8 s against the reference's −0.166; without the far
+    look −0.004)."""
+    import test_step_control
+    from solver.simulation import integrate
+
+    class Captured(Exception):
+        pass
+
+    def capture(case, *args, **kwargs):
+        raise Captured(case.model_dump())
+
+    monkeypatch.setattr(test_step_control, "integrate", capture)
+    with pytest.raises(Captured) as info:
+        test_step_control.test_the_guard_looks_further_when_a_known_growth_leaves_its_disc()
+    spec = info.value.args[0]
+    spec["numerics"]["formulation"] = "centreline"
+    ds = integrate(Case.model_validate(spec))
+    sigma = ds.step_growth_rate.values
+    assert np.all(sigma[:3] == 0.0)                  # checked, none below the critical twist
+    assert 10.0 < np.nanmax(sigma) < 30.0
+    assert "growth" in ds.attrs["hockle_refused_attempts"]
+    assert abs(float(ds.writhe.values[-1])) > 0.5 * 0.166
+
+
+def test_the_guard_estimates_only_near_a_static_balance():
+    """CentrelineRod.dynamic_share: 0 at rest, where the growth rate is estimated; a
+    swinging cantilever (its weight across it, 0.3 s after release: inertia carries the
+    weight) is far from a balance, and growth_rate declines (None)."""
+    spec = cantilever().model_dump()
+    spec["numerics"]["formulation"] = "centreline"
+    rod = CentrelineRod.from_case(Case.model_validate(spec))
+    rest = rod.rest_state()
+    assert rod.dynamic_share(rest, rod.problem(0.0)) == 0.0
+    assert rod.growth_rate(rest, 200.0) is not None
+    state = rod.start()
+    for _ in range(30):
+        state = rod.step(state, 0.01)[0]
+    assert rod.dynamic_share(state, rod.problem(state.t)) > 0.5
+    assert rod.growth_rate(state, 200.0) is None
