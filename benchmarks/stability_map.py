@@ -42,10 +42,14 @@ Also recorded per run: Newton iterations per nominal step (mean, max), rejected 
 attempts (each followed by a Δt cut; counted by wrapping ``RodRun.try_step``), nominal steps
 that needed cuts, the smallest substep, wall time.
 
-Run: ``python -m benchmarks.stability_map [--quick]`` (quick: Δt ∈ {1e-3, 1e-2, 0.1, 1},
-ρ∞ ∈ {0, 0.5, 1}, reference from 2e-3/1e-3 s). Writes ``benchmarks/results/
-stability_map.json`` and ``stability_map.png`` and ``stability_map_error.png`` into the
-figure directory (docs/figures/benchmarks/ by default).
+Run: ``python -m benchmarks.stability_map [--quick] [--formulation centreline]`` (quick:
+Δt ∈ {1e-3, 1e-2, 0.1, 1}, ρ∞ ∈ {0, 0.5, 1}, reference from 2e-3/1e-3 s). Writes
+``benchmarks/results/stability_map.json`` and ``stability_map.png`` and
+``stability_map_error.png`` into the figure directory (docs/figures/benchmarks/ by
+default); with ``--formulation centreline`` the map of the centreline scheme (its own
+reference; every name with ``_centreline``), whose invariants differ in two: p is a
+Newton unknown, unit to 1e-6 (``QUAT_TOL_CENTRELINE``), and its chords are the box rule's,
+Δs |a3_k + a3_k+1|/2 (to 1e-8 plus four times the quaternion's norm error), not Δs.
 """
 from __future__ import annotations
 
@@ -78,6 +82,7 @@ QUICK_DTS = [1e-3, 1e-2, 0.1, 1.0]
 QUICK_RHOS = [0.0, 0.5, 1.0]
 
 ENERGY_TOL, LK_TOL, LK_GROSS, QUAT_TOL, ACCURACY = 0.02, 0.05, 0.25, 1e-12, 0.10
+QUAT_TOL_CENTRELINE = 1e-6
 CLASSES = ("accurate", "inaccurate", "diverged", "failure")
 COLOURS = {"accurate": "#4daf4a", "inaccurate": "#ffbf00", "diverged": "#377eb8",
            "failure": "#e41a1c"}
@@ -108,8 +113,8 @@ def twist_angle() -> float:
     return FACTOR * greenhill_critical_torque(TENSION * L**2 / B) * B / gj3
 
 
-def make_case(dt: float, rho_inf: float) -> Case:
-    """The map's case at time step dt (s) and ρ∞ (module docstring)."""
+def make_case(dt: float, rho_inf: float, formulation: str = "goyal") -> Case:
+    """The map's case at time step dt (s) and ρ∞ on a scheme (module docstring)."""
     phi = twist_angle()
     t_twist = phi / RATE                    # the trapezoidal rate table integrates to φ
     zero, rot0 = {"velocity": 0.0}, {"angular_velocity": 0.0}
@@ -128,7 +133,8 @@ def make_case(dt: float, rho_inf: float) -> Case:
                           "value": [0.0, RATE, RATE, 0.0]}}]},
             "end": {"translation": [zero, zero, {"force": TENSION}],
                     "rotation": [rot0, rot0, rot0]}},
-        "numerics": {"n_segments": N_SEG, "dt": dt, "t_end": T_END, "rho_inf": rho_inf},
+        "numerics": {"n_segments": N_SEG, "dt": dt, "t_end": T_END, "rho_inf": rho_inf,
+                     "formulation": formulation},
         "output": {"every": max(1, int(round(1e-3 / dt))),
                    "fields": ["position", "orientation", "moment", "energies", "topology"]},
     }
@@ -136,25 +142,37 @@ def make_case(dt: float, rho_inf: float) -> Case:
 
 
 @contextmanager
-def counting_attempts():
+def counting_attempts(formulation: str = "goyal"):
     """Count step attempts and rejections (each rejection is followed by a Δt cut) by
-    wrapping ``RodRun.try_step`` for the duration of the block."""
+    wrapping ``RodRun.try_step`` (centreline: ``CentrelineRod.step``, whose Newton
+    failures raise; the growth guard's refusals are added from the result's
+    ``hockle_refused_attempts`` by :func:`run_one`) for the duration of the block."""
     counts = {"attempts": 0, "rejected": 0, "min_h": math.inf}
-    original = _simulation.RodRun.try_step
+    if formulation == "centreline":
+        from solver.centreline import CentrelineRod as owner
+        name = "step"
+    else:
+        owner, name = _simulation.RodRun, "try_step"
+    original = getattr(owner, name)
 
-    def wrapped(self, h, **kwargs):
-        out = original(self, h, **kwargs)
+    def wrapped(self, *args, **kwargs):
+        h = args[1] if owner is not _simulation.RodRun else args[0]
         counts["attempts"] += 1
         counts["min_h"] = min(counts["min_h"], h)
-        if not out[0]:
+        try:
+            out = original(self, *args, **kwargs)
+        except Exception:
+            counts["rejected"] += 1
+            raise
+        if owner is _simulation.RodRun and not out[0]:
             counts["rejected"] += 1
         return out
 
-    _simulation.RodRun.try_step = wrapped
+    setattr(owner, name, wrapped)
     try:
         yield counts
     finally:
-        _simulation.RodRun.try_step = original
+        setattr(owner, name, original)
 
 
 def _nonfinite(ds) -> list[str]:
@@ -208,16 +226,31 @@ def sanity(ds, case) -> dict:
     trap = ds.work_in.values
     out["energy_excess_over_work_in"] = float((e - trap).max()) / max(
         float(np.abs(trap).max()), 1e-300)
-    if out["energy_excess"] > ENERGY_TOL:
+    # the centreline run's work_in sums the trapezoid of its power over every sub-step
+    # (solver.centreline_run); discrete_work's trapezoid over an output interval with cut
+    # steps inside read 7.7 % of W too little on its Δt = 1 s runs, whose work_in balances
+    # E to 0.02 %
+    excess = (out["energy_excess_over_work_in"]
+              if case.numerics.formulation == "centreline" else out["energy_excess"])
+    if excess > ENERGY_TOL:
         out["violations"].append(f"energy exceeds work by {out['energy_excess']:.3g} of max W")
     out["quaternion_error"] = max(
         float(ds.quaternion_norm_error.max()),
         float(np.abs(np.linalg.norm(ds.orientation.values, axis=2) - 1).max()))
-    if out["quaternion_error"] > QUAT_TOL:
+    centreline = case.numerics.formulation == "centreline"
+    if out["quaternion_error"] > (QUAT_TOL_CENTRELINE if centreline else QUAT_TOL):
         out["violations"].append(f"|q| - 1 = {out['quaternion_error']:.3g}")
     seg = np.linalg.norm(np.diff(ds.position.values, axis=1), axis=2)
-    out["spacing_error"] = float(np.abs(seg / case.numerics.ds - 1).max())
-    if out["spacing_error"] > 1e-8:
+    chord, tol = case.numerics.ds, 1e-8
+    if centreline:
+        from solver.kinematics import quat_to_matrix
+
+        q = ds.orientation.values
+        a3 = quat_to_matrix(q.reshape(-1, 4)).reshape(q.shape[:2] + (3, 3))[..., 2]
+        chord = chord * np.linalg.norm(a3[:, 1:] + a3[:, :-1], axis=2) / 2
+        tol += 4.0 * out["quaternion_error"]
+    out["spacing_error"] = float(np.abs(seg / chord - 1).max())
+    if out["spacing_error"] > tol:
         out["violations"].append(f"node spacing off by {out['spacing_error']:.3g}")
     x = (ds.twist + ds.writhe - ds.linking_number).values
     passages = np.round(x / 2.0)
@@ -231,12 +264,12 @@ def sanity(ds, case) -> dict:
     return out
 
 
-def run_one(dt: float, rho_inf: float) -> dict:
+def run_one(dt: float, rho_inf: float, formulation: str = "goyal") -> dict:
     """One run of the map: outcome, observables at T, sanity values, cost."""
-    case = make_case(dt, rho_inf)
+    case = make_case(dt, rho_inf, formulation)
     res = {"dt": dt, "rho_inf": rho_inf, "nominal_steps": case.n_steps}
     t0 = time.perf_counter()
-    with counting_attempts() as counts:
+    with counting_attempts(formulation) as counts:
         try:
             ds = integrate(case)
             res["outcome"] = "completed"
@@ -253,6 +286,10 @@ def run_one(dt: float, rho_inf: float) -> dict:
     if ds is None:
         res["class"] = "failure"
         return res
+    if formulation == "centreline":
+        growth = ds.attrs.get("hockle_refused_attempts", "")
+        res["rejected_attempts"] += sum(int(p.split()[1]) for p in growth.split(", ")
+                                        if p.startswith("growth "))
     its = ds.step_newton_iterations.values
     sdt = ds.step_dt.values
     res.update(newton_per_step=float(its.mean()) if its.size else None,
@@ -287,22 +324,22 @@ def richardson(fine: dict, coarse: dict, ratio: float) -> dict:
     return out
 
 
-def run(quick: bool = False) -> dict:
+def run(quick: bool = False, formulation: str = "goyal") -> dict:
     """All runs, the reference, the classification; returns the result dictionary."""
     dts, rhos = (QUICK_DTS, QUICK_RHOS) if quick else (DTS, RHOS)
     t_all = time.perf_counter()
     runs = []
     for rho in rhos:
         for dt in dts:
-            r = run_one(dt, rho)
+            r = run_one(dt, rho, formulation)
             runs.append(r)
             print(f"  rho_inf = {rho:4.2f}  dt = {dt:7.1e} s: {r['outcome']:9s} "
                   f"{r.get('newton_per_step') or float('nan'):5.2f} it/step  "
                   f"{r['rejected_attempts']:4d} cuts  {r['wall_s']:6.1f} s", flush=True)
     fine_dt = dts[0]
     by_key = {(r["dt"], r["rho_inf"]): r for r in runs}
-    fine = by_key.get((fine_dt, 0.5)) or run_one(fine_dt, 0.5)
-    coarse = run_one(2 * fine_dt, 0.5)
+    fine = by_key.get((fine_dt, 0.5)) or run_one(fine_dt, 0.5, formulation)
+    coarse = run_one(2 * fine_dt, 0.5, formulation)
     ref = richardson(fine, coarse, 2.0)
     ref.update(dt_fine=fine_dt, dt_coarse=2 * fine_dt, rho_inf=0.5,
                wall_s=coarse["wall_s"])
@@ -317,7 +354,8 @@ def run(quick: bool = False) -> dict:
         r["buckled"] = abs(r["writhe"]) > 0.1 * abs(ref["writhe"])
         r["class"] = "accurate" if err <= ACCURACY and not r["lk_flag"] else "inaccurate"
     counts = {c: sum(r["class"] == c for r in runs) for c in CLASSES}
-    res = {"quick": quick, "dts": dts, "rho_infs": rhos, "t_end": T_END, "n_segments": N_SEG,
+    res = {"quick": quick, "formulation": formulation, "dts": dts, "rho_infs": rhos,
+           "t_end": T_END, "n_segments": N_SEG,
            "length": L, "diameter": D, "tension": TENSION, "twist_rate": RATE,
            "twist_angle": twist_angle(), "accuracy_threshold": ACCURACY,
            "energy_tolerance": ENERGY_TOL, "lk_tolerance": LK_TOL,
@@ -396,7 +434,8 @@ def figures(res: dict, figdir: Path) -> list[str]:
     ax.legend(handles=[Patch(color=COLOURS[c], label=c) for c in CLASSES],
               loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
     fig.tight_layout()
-    names = ["stability_map.png"]
+    tag = "_centreline" if res.get("formulation") == "centreline" else ""
+    names = [f"stability_map{tag}.png"]
     fig.savefig(figdir / names[0], dpi=130)
     plt.close(fig)
 
@@ -423,7 +462,7 @@ def figures(res: dict, figdir: Path) -> list[str]:
     a2.set_title("Newton iterations per step (all substeps)", fontsize=9)
     a1.legend(fontsize=8)
     fig.tight_layout()
-    names.append("stability_map_error.png")
+    names.append(f"stability_map{tag}_error.png")
     fig.savefig(figdir / names[1], dpi=130)
     plt.close(fig)
     return names
@@ -434,8 +473,11 @@ def markdown(res: dict, names: list[str]) -> str:
     by_key = {(r["dt"], r["rho_inf"]): r for r in res["runs"]}
     ref = res["reference"]
     letter = {"accurate": "ok", "inaccurate": "inacc.", "diverged": "div.", "failure": "FAIL"}
+    centreline = res.get("formulation") == "centreline"
+    shape = ("|p| = 1 to 1e-6, chords the box rule's Δs |a3_k + a3_k+1|/2" if centreline
+             else "|q| = 1 to 1e-12, spacing = Δs")
     lines = [
-        "## Stability map over Δt and ρ∞",
+        "## Stability map over Δt and ρ∞" + (" (centreline scheme)" if centreline else ""),
         "",
         f"A stiff, fast twisted rod: seed material, D = {res['diameter']} m, "
         f"L = {res['length']} m, in water, {res['n_segments']} segments; clamped at s = 0 "
@@ -454,7 +496,7 @@ def markdown(res: dict, names: list[str]) -> str:
         "torsional energy at T (the latter alone is fooled by runs that never buckle but "
         "reach about the right twist). Classes: *ok* = completed, sane (finite, "
         f"E ≤ W + {res['energy_tolerance']:.0%} of W with W the discrete work done on the "
-        "rod, |q| = 1 to 1e-12, spacing = Δs, |Tw + Wr − Lk| below a quarter turn modulo "
+        f"rod, {shape}, |Tw + Wr − Lk| below a quarter turn modulo "
         f"strand passages), within {res['accuracy_threshold']:.0%} of the reference and "
         f"|Tw + Wr − Lk| ≤ {res['lk_tolerance']} turns; *inacc.* = sane but off by more "
         "(marked * where |Tw + Wr − Lk| > "
@@ -547,31 +589,40 @@ def reading(res: dict) -> str:
     return " ".join(parts)
 
 
-def section(figdir: Path, quick: bool = False) -> str:
-    """Run the stability map, save its figures into `figdir`, write
-    benchmarks/results/stability_map.json and return the Markdown section."""
+def results_path(formulation: str = "goyal") -> Path:
+    """benchmarks/results/stability_map.json (centreline: stability_map_centreline.json)."""
+    return RESULTS if formulation == "goyal" else RESULTS.with_name(
+        f"stability_map_{formulation}.json")
+
+
+def section(figdir: Path, quick: bool = False, formulation: str = "goyal") -> str:
+    """Run the stability map, save its figures into `figdir`, write its results
+    (:func:`results_path`) and return the Markdown section."""
     figdir = Path(figdir)
     figdir.mkdir(parents=True, exist_ok=True)
-    res = run(quick)
+    res = run(quick, formulation)
     names = figures(res, figdir)
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(json.dumps(res, indent=1, default=float))
+    path = results_path(formulation)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(res, indent=1, default=float))
     return markdown(res, names)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="4 Δt × 3 ρ∞, about a minute or less")
+    ap.add_argument("--formulation", choices=("goyal", "centreline"), default="goyal",
+                    help="the scheme mapped (numerics.formulation)")
     ap.add_argument("--figdir", type=Path, default=FIGDIR)
     ap.add_argument("--replot", action="store_true",
                     help="redraw figures and text from the saved results, no runs")
     args = ap.parse_args()
     if args.replot:
-        res = json.loads(RESULTS.read_text())
+        res = json.loads(results_path(args.formulation).read_text())
         args.figdir.mkdir(parents=True, exist_ok=True)
         print(markdown(res, figures(res, args.figdir)))
         return
-    print(section(args.figdir, args.quick))
+    print(section(args.figdir, args.quick, args.formulation))
 
 
 if __name__ == "__main__":
