@@ -26,10 +26,14 @@ def formulation_under_test(monkeypatch):
     from solver.centreline import CentrelineError
     from solver.centreline_run import CentrelineRun
 
+    from rodcases import CENTRELINE_RUNS
+
     def make_run(case, extra_force=None, start=None):
         try:
-            return CentrelineRun(case, extra_force, start)
+            run = CentrelineRun(case, extra_force, start)
         except CentrelineError:
             return simulation.RodRun(case, extra_force, start)
+        CENTRELINE_RUNS[id(case)] = case
+        return run
 
     monkeypatch.setattr(simulation, "make_run", make_run)

@@ -10,6 +10,16 @@ from solver.case import Case
 
 E, G, RHO, RHO_F = 1.25e7, 5.0e6, 1500.0, 1000.0
 
+#: the cases the time loop ran on the centreline scheme under HOCKLE_TEST_FORMULATION
+#: (tests/conftest.py), by id (the case kept, so that its id is not reused)
+CENTRELINE_RUNS: dict[int, Case] = {}
+
+
+def ran_on_centreline(case) -> bool:
+    """Whether ``case``'s run took the centreline scheme (its own numerics.formulation, or
+    the suite's HOCKLE_TEST_FORMULATION=centreline)."""
+    return case.numerics.formulation == "centreline" or id(case) in CENTRELINE_RUNS
+
 
 def kin(value=0.0, key="velocity"):
     return {key: value}
