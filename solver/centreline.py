@@ -204,6 +204,14 @@ class CentrelineRod:
     #: level overshot there and diverged)
     LARGEST_TURN = 0.2
 
+    #: the largest turn of a node's frame in one step, rad (π/2): a longer step is
+    #: refused and cut. The Cayley increment 2 tan(θ/2) grows without bound towards a
+    #: half turn, where Newton can land on the other side: the twisted rod of
+    #: tests/solver/test_solver_misc.py at Δt = 1 s, ρ∞ 0.5, turned its middle node by
+    #: 3.13 rad in a step in which its ends did not turn, a full turn of twist too many
+    #: (elastic energy 12 times the work put in)
+    LARGEST_STEP_TURN = 0.5 * math.pi
+
     def __init__(self, case, props, q0, r0):
         self.case = case
         self.props = props
@@ -922,6 +930,10 @@ class CentrelineRod:
             self.thermal.prepare(old.t, h, st._rot(old.Y[:, 3:7])[:, :, 2])
         Y, its, err = self.solve(old, co, prob, self._start_guess(old, co, prob, h))
         D = self.increments(Y, old)
+        turn = 2.0 * float(np.arctan(0.5 * np.sqrt(np.max(np.sum(D[:, 3:6] ** 2, axis=1)))))
+        if turn > self.LARGEST_STEP_TURN:
+            raise StepFailure(f"a node turned by {turn:.3g} rad in the step (more than "
+                              f"{self.LARGEST_STEP_TURN:.3g})")
         p = self.params
         a = (D - h * old.X - h * h * (0.5 - p.beta) * old.a) / (p.beta * h * h)
         new = CentrelineState(t, Y, co.cX * D + co.dX, co.cXd * D + co.dXd, a,
