@@ -73,6 +73,7 @@ import numpy as np
 
 from . import statics as st
 from .centreline_loads import node_motion_kernel, nodal_loads_kernel, rounding_level
+from .kinematics import skew
 from .static_band import KL, KU, BandSingular, BorderedBandLU
 
 __all__ = ["AlphaParameters", "CentrelineState", "CentrelineRod", "CentrelineError",
@@ -153,14 +154,6 @@ class _Coefficients:
     dXd: np.ndarray
     cX: float
     dX: np.ndarray
-
-
-def _hat(w):
-    """The cross-product matrices [w]× (..., 3, 3) of vectors w (..., 3)."""
-    z = np.zeros(w.shape[:-1])
-    return np.stack([np.stack([z, -w[..., 2], w[..., 1]], -1),
-                     np.stack([w[..., 2], z, -w[..., 0]], -1),
-                     np.stack([-w[..., 1], w[..., 0], z], -1)], -2)
 
 
 def cayley_quaternion(c):
@@ -528,7 +521,8 @@ class CentrelineRod:
 
     def growth_rate(self, state: CentrelineState, shift: float, v0=None):
         """The fastest growth rate near ``shift`` (1/s) of the dynamics linearised about
-        a level: (σ (1/s, −inf where none is found), the eigenvector) of
+        a level: (σ (1/s, −inf where none is found), the eigenvector (2·13(N+1),) in
+        the scaled unknowns) of
         :func:`solver.stepping.guard.pencil_growth_rate` on :meth:`pencil`, or None
         where the level has pairs (self-contact or electrostatics within reach) or is
         a closed rod (their couplings are not in the band; the contact law's stiffness
@@ -596,9 +590,8 @@ class CentrelineRod:
         R exp(η̂)); the step's Cayley increments leave that transport to the group, so
         it is added here: with A = ∂L/∂Ẇ and B = ∂L/∂W per node (the p-columns of M and
         C through Θ⁺ = Θᵀ/4, Θ = ∂Δθ/∂p = 2 vec(p̄ ⊗ ·)), K gains (A [Ẇ]× + B [W]×) Θ
-        and C gains A [W]× Θ. Without it, a rod spinning fast had frozen rates of the
-        size √(|J Ẇ|/J) that no perturbation showed (the DNA-like rod of
-        tests/solver/test_stability.py after it buckles: 1.5e8 1/s)."""
+        and C gains A [W]× Θ. Raises nothing of its own (what :meth:`jacobian` and
+        :meth:`nodal_loads` raise on a non-finite level)."""
         Y = state.Y
 
         def blocks(c1, c2):
@@ -617,7 +610,7 @@ class CentrelineRod:
             theta[:, :, j] = 2.0 * st._qmul(st._qconj(p), e)[:, 1:]
         A = Mb[:, :, 3:7] @ theta.transpose(0, 2, 1) / 4.0
         B = Cb[:, :, 3:7] @ theta.transpose(0, 2, 1) / 4.0
-        W, Wd = _hat(state.X[:, 3:6]), _hat(state.Xd[:, 3:6])
+        W, Wd = skew(state.X[:, 3:6]), skew(state.Xd[:, 3:6])
         Kt, Ct = np.zeros_like(b0), np.zeros_like(b0)
         Kt[:, :, 3:7] = (A @ Wd + B @ W) @ theta
         Ct[:, :, 3:7] = A @ W @ theta

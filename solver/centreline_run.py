@@ -365,8 +365,9 @@ class CentrelineRun:
         """The growth guard (``numerics.growth_guard``, :meth:`solver.stepping.guard.
         GrowthGuard.check`) on a converged step of h (s) to the level ``new``: σ of the
         dynamics linearised about it (:meth:`solver.centreline.CentrelineRod.
-        growth_rate`); True without a guard, and at a level with pairs or a closed rod
-        (not estimated there: the last σ stands)."""
+        growth_rate`); True without a guard, and the last σ stands where the rod declines
+        to estimate (pairs, a closed rod, a viscous fluid, a level far from a static
+        balance)."""
         guard = self.control.guard
         if guard.limit is None:
             return True
