@@ -89,7 +89,7 @@ from .scheme import pose_into
 from .loads import _drag_kernel
 
 __all__ = ["EnergyBalance", "WorkAccount", "EndWork", "GlobalLoadWork", "DragWork",
-           "SeabedWork", "ContactWork", "StepBalance"]
+           "SeabedWork", "ContactWork", "StepBalance", "CentrelineBalance"]
 
 
 class StepBalance(NamedTuple):
@@ -569,6 +569,139 @@ class EnergyBalance:
         carry["energy"] = energy
         carry["kinetic"] = kinetic
         return StepBalance(float(error), float(scale), float(energy), work, carry)
+
+    def refuses(self, bal: StepBalance) -> bool:
+        """The step injected more than the tolerance (a NaN error refuses too)."""
+        return not bal.error <= self.tolerance * bal.scale
+
+
+class CentrelineBalance:
+    """The per-step energy check of the centreline scheme
+    (:class:`solver.centreline_run.CentrelineRun`): the module's ε on one centreline,
+
+        ε = E^{n+1} − E^n − W − (U_s^n − U_s^{n+1}) − (U_c^n − U_c^{n+1}) + W_c     (J)
+
+    E the rod's energy (:func:`solver.energies.total_and_kinetic` of the body fields the
+    outputs read), W the scheme's discrete work of the ends, the dead loads and the
+    thermal impulses (:meth:`solver.centreline_run.CentrelineRun._work`), U_s the sea
+    floor's spring energy at the nodes where its law acts (:meth:`solver.seabed.
+    SeabedContact.nodal_stored_energy`), U_c the contact law's (:meth:`solver.contact.
+    model.SelfContact.potential`, both levels with the candidates searched at the new
+    one), W_c the internal force's work on the box rule's chords (:meth:`chord_work`).
+    Dissipative forces are left out, as in :class:`EnergyBalance` (Morison's and the
+    viscous drag in still water, the seabed's damper and friction, the contact law's
+    damping): the check is one-sided. Refused, with :class:`EnergyBalance`'s tolerance
+    and rule, where
+
+        ε > tolerance × max(T^n, T^{n+1}, 1e-5 (E + U_s + U_c), |W_c|,
+                            |ΔU_el| (h|κ − κ⁰|)²_max, 1e-9 EJ/L).
+
+    Two terms are the box rule's, whose discrete energy is not the trapezoid's
+    E at O((hκ)²):
+
+    * *The chords* (W_c, and |W_c| in the scale): the position rows make a cell's chord
+      |r_{i+1} − r_i| = h cos(φ/2), φ the angle between its tangents, so the chords
+      shorten as cells bend and the tension works on that. On the soft hanging cable of
+      tests/solver/test_global_ends.py (ρ∞ 0, settling) ε without W_c is about −W, the
+      gravity work of the sway's rise, ten to a hundred times the sway's kinetic energy,
+      and the check refused 765 steps at Δt = 0.1 s (454 and 527 at 0.05 and 0.2 s) for
+      the same sag; W_c takes out 80-100 % of it (the first step: ε −1.902e-5 J, W_c
+      +1.902e-5 J) and with it the cable has none (largest ε/scale 0.28).
+    * *The frames' turn* (|ΔU_el| (hκ)² in the scale): a cell's frames turn by the
+      Cayley map of its mean κ, 2 atan(hκ/2) rather than hκ, so the end moment's work
+      along them and the trapezoid's U_el = ½∫(κ − κ⁰)·K(κ − κ⁰) ds part at O((hκ)²) of
+      what a step stores: on a straight rod twisted past Greenhill's threshold by its
+      end (40 segments, hκ up to 0.15) ε = 1.2e-3 of the step's ΔU_el, 0.06 (hκ)² ΔU_el,
+      and every step was refused down to the smallest against the other terms, whose
+      1e-5 E is 1.2e-5 of ΔU_el there (research/notes/centreline.md).
+
+    What it refuses (tests/solver/test_centreline_energy.py): the first fall of
+    cases/catenary-touchdown.yaml onto the bottom's spring at Δt = 0.05 s, where the
+    damper, taken at generalized-α's velocity of a mode far beyond the step (upward
+    while the node went 26 µm down), pumped 6e-4 J into the spring (T 9.3e-4 J at
+    0.05 s against 3.7e-6 J at Δt/4); a column's buckling starting within a step at
+    ρ∞ 0 without the growth guard. Not measured: the restart at a breakpoint (its
+    Taylor steps re-solve n and m at the level's positions, and the nodal κ's split
+    across each cell, which the frames leave free, moves E by up to 0.3 % there on the
+    sin² pulse of tests/solver/test_verification.py), cases with electrostatics (its
+    potential is no account yet) or thermal noise (the noise's work is a fluctuation the
+    drag takes out again; a check would chase it).
+
+    Parameters
+    ----------
+    tolerance : float (``numerics.energy_tolerance``)
+    floor : float, J (1e-9 EJ/L)
+    """
+
+    ENERGY_SHARE = EnergyBalance.ENERGY_SHARE
+
+    def __init__(self, tolerance: float, floor: float):
+        self.tolerance = float(tolerance)
+        self.floor = float(floor)
+
+    @classmethod
+    def for_run(cls, run) -> Optional["CentrelineBalance"]:
+        """The check of a centreline run, or None without ``numerics.energy_tolerance``
+        and with electrostatics or thermal noise (class docstring)."""
+        tol = run.case.numerics.energy_tolerance
+        if tol is None or run.case.electrostatics is not None or run.rod.thermal is not None:
+            return None
+        props = run.props
+        length = float(props.s[-1] - props.s[0])
+        return cls(tol, 1e-9 * float(np.max(props.stiffness[:, :2])) / length)
+
+    @staticmethod
+    def _level(run, state, cand):
+        """(E, T, U_s + U_c, U_el) of a level (J), the contact's energy over ``cand``,
+        and the largest h|κ − κ⁰| over the nodes."""
+        fl = run.rod.body_fields(state)
+        Y = np.concatenate([fl["v"], fl["omega"], fl["f"], fl["kappa"]], axis=1)
+        energy, kinetic = total_and_kinetic(Y, run.props)
+        strain = run.rod.h * np.linalg.norm(fl["kappa"] - run.rod.problem(state.t).kappa0,
+                                            axis=1)
+        stored = 0.0
+        if run.rod.seabed is not None:
+            stored += run.rod.seabed.nodal_stored_energy(run._seabed_split(state)[3],
+                                                         run.props.quad_weights)
+        if cand is not None:
+            stored += run.contact.potential(cand, state.Y[:, 0:3])
+        return energy, kinetic, stored, float(np.max(strain))
+
+    def measure(self, run, old, new, work: float) -> StepBalance:
+        """The balance (:class:`StepBalance`; its work: the scheme's ``work`` and the
+        chords' W_c, J) of the converged step from the level ``old`` to ``new``
+        (:class:`solver.centreline.CentrelineState`) with the scheme's work ``work`` (J).
+        Raises nothing; non-finite levels give a NaN error, which :meth:`refuses`."""
+        cand = None
+        if run.contact is not None:
+            r = np.ascontiguousarray(new.Y[:, 0:3], dtype=float)
+            a3 = np.ascontiguousarray(quat_to_matrix(new.Y[:, 3:7])[:, :, 2])
+            cand = run.contact.search(r, a3)
+        e0, t0, u0, k0 = self._level(run, old, cand)
+        e1, t1, u1, k1 = self._level(run, new, cand)
+        chord = self.chord_work(old.Y, new.Y)
+        error = e1 - e0 - work - (u0 - u1) + chord
+        box = abs((e1 - t1) - (e0 - t0)) * max(k0, k1) ** 2
+        scale = max(t0, t1, self.ENERGY_SHARE * max(e0 + u0, e1 + u1), box, abs(chord),
+                    self.floor)
+        return StepBalance(float(error), float(scale), float(e1),
+                           {"work": work, "chords": chord}, {"stored": u1})
+
+    @staticmethod
+    def chord_work(Y0, Y1) -> float:
+        """The internal force's work on the box rule's chords over a step (J): Σ_i
+        n̄_i·ĉ_i (|c_i^{n+1}| − |c_i^n|), c_i = r_{i+1} − r_i the cell's chord, ĉ_i the unit
+        of c_i^n + c_i^{n+1}, n̄_i the mean of the cell's two nodes at both levels; Y0, Y1
+        (N+1, 13) the levels' unknowns. The position rows make |c_i| = h cos(φ_i/2), φ_i
+        the angle between the cell's two tangents: the discrete centreline's chords
+        shorten as a cell bends, by O((hκ)²), and the tension does work on that, which
+        the inextensible continuum has not."""
+        c0, c1 = np.diff(Y0[:, 0:3], axis=0), np.diff(Y1[:, 0:3], axis=0)
+        u = c0 + c1
+        u /= np.linalg.norm(u, axis=1)[:, None]
+        n = Y0[:, 7:10] + Y1[:, 7:10]
+        nbar = 0.25 * np.sum((n[1:] + n[:-1]) * u, axis=1)
+        return float(nbar @ (np.linalg.norm(c1, axis=1) - np.linalg.norm(c0, axis=1)))
 
     def refuses(self, bal: StepBalance) -> bool:
         """The step injected more than the tolerance (a NaN error refuses too)."""

@@ -22,7 +22,10 @@ following nominal steps and grows back by the factor after ``GROW_AFTER`` accept
 sub-steps (the seed scheme's rule, :mod:`solver.stepping`). The growth guard
 (``numerics.growth_guard``, :meth:`CentrelineRun._growth_ok`) refuses a converged step
 whose Δt exceeds g/σ, σ the fastest growth rate of the dynamics linearised about the new
-level, and cuts Δt below that cap, where it stays until σ falls. When all cuts fail,
+level, and cuts Δt below that cap, where it stays until σ falls. The energy check
+(``numerics.energy_tolerance``, :class:`solver.balance.CentrelineBalance`,
+:meth:`CentrelineRun._check_energy`) refuses a converged step that put in more energy
+than its loads' work allows, and Δt is cut as after a Newton failure. When all cuts fail,
 :class:`solver.stepping.control.SolverDivergence` (reason ``solver_diverged``) carries the partial result.
 
 The work put in (``work_in``, J) is the scheme's discrete work (:meth:`CentrelineRun.
@@ -39,6 +42,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from . import statics as st
+from .balance import CentrelineBalance
 from .centreline import CentrelineError, CentrelineRod, StepFailure, box_centreline
 from .stepping import breakpoints
 from .stepping.control import SolverDivergence
@@ -64,7 +68,8 @@ class CentrelineRun:
     #: the recorder's output groups that need the pose (all do here)
     POSE_FIELDS = frozenset({"position", "orientation", "topology"})
 
-    #: what the scheme does not have yet, as the recorder reads it: no energy check
+    #: the recorder's defaults: the energy check (:class:`solver.balance.
+    #: CentrelineBalance`, None: off) and its largest ε/scale over the nominal step
     seabed = energy_check = None
     contact_count = 0
     min_gap = math.inf
@@ -90,6 +95,7 @@ class CentrelineRun:
                                                  / np.max(p.stiffness[:, :2])))
         self.last_iterations = 0
         self.last_residual = 0.0
+        self.energy_check = CentrelineBalance.for_run(self)
         Y, X, t = None, None, 0.0
         # the seed scheme's names of the current state (:meth:`_publish`)
         self.state = SimpleNamespace(t=0.0, phi=np.zeros(2), work_in=0.0, seabed_work=0.0)
@@ -296,9 +302,12 @@ class CentrelineRun:
                 if not self._growth_ok(new, step):
                     h, cuts = self._growth_cut(h, cuts, h_full)
                     continue
+                work = self._work(self.level, new, landed)
+                self._check_energy(self.level, new, work)
             except StepFailure as exc:
                 key = ("crossing" if exc.reason.startswith("strands") else
-                       "turn" if exc.reason.startswith("a node turned") else "newton")
+                       "turn" if exc.reason.startswith("a node turned") else
+                       "energy" if exc.reason.startswith(self.ENERGY_REFUSAL) else "newton")
                 refusals[key] = refusals.get(key, 0) + 1
                 cuts += 1
                 if cuts > num.max_dt_cuts:
@@ -328,7 +337,7 @@ class CentrelineRun:
                 self._pending_restart = (landed, bool(held))
             st.phi = self._end_angles(old, new, step)
             self._publish()
-            st.work_in += self._work(old, new, landed)
+            st.work_in += work
             if self.rod.seabed is not None:
                 power = self._seabed_power(new)
                 st.seabed_work += 0.5 * step * (st.seabed_power + power)
@@ -340,6 +349,26 @@ class CentrelineRun:
         self._cut_level = cuts
         self.last_iterations = total_its
         return total_its, self.last_residual
+
+    #: how a step refused by the energy check starts its reason
+    ENERGY_REFUSAL = "the step put in more energy than its loads' work"
+
+    def _check_energy(self, old, new, work: float) -> None:
+        """The energy check (``numerics.energy_tolerance``, :class:`solver.balance.
+        CentrelineBalance`) of a converged step from the level ``old`` to ``new`` with the
+        scheme's work ``work`` (J): raises :class:`StepFailure` (refusal key "energy")
+        where it put in more than the tolerance allows, else keeps the largest ε/scale of
+        the nominal step in ``energy_error``. Nothing without the check."""
+        check = self.energy_check
+        if check is None:
+            return
+        bal = check.measure(self, old, new, work)
+        if check.refuses(bal):
+            raise StepFailure(f"{self.ENERGY_REFUSAL} (ε = {bal.error:.3g} J against a "
+                              f"scale of {bal.scale:.3g} J; numerics.energy_tolerance = "
+                              f"{check.tolerance:g})")
+        if math.isnan(self.energy_error) or bal.relative > self.energy_error:
+            self.energy_error = bal.relative
 
     def _growth_cut(self, h: float, cuts: int, h_full: float) -> tuple[float, int]:
         """After a growth refusal: (Δt, cuts) cut by ``numerics.dt_cut_factor`` until

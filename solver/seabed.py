@@ -236,6 +236,15 @@ class SeabedContact:
         _, _, pen = self.cell_loads(r, np.zeros((n1, 3)), eye, np.zeros((n1, 3)))
         return float(ds * np.sum(0.5 * self.data.scalars[2] * np.maximum(pen, 0.0) ** 2))
 
+    def nodal_stored_energy(self, penetration, weights) -> float:
+        """The spring's stored energy U = Σ_k w_k ½ k max(p_k, 0)² (J) of the law taken at
+        the nodes (the centreline scheme's and the statics'): penetrations p (N+1,) m,
+        quadrature weights w (N+1,) m. Its gradient is the nodal spring force w_k k p_k
+        along the surface normal (flat bottom; each grid cell's tangent plane)."""
+        pen = np.maximum(np.asarray(penetration, dtype=float), 0.0)
+        return float(np.sum(np.asarray(weights, dtype=float) * 0.5
+                            * self.data.scalars[2] * pen ** 2))
+
 
 @numba.njit(cache=True, inline="always")
 def _locate(g, x):
