@@ -657,8 +657,9 @@ class CentrelineBalance:
         fl = run.rod.body_fields(state)
         Y = np.concatenate([fl["v"], fl["omega"], fl["f"], fl["kappa"]], axis=1)
         energy, kinetic = total_and_kinetic(Y, run.props)
-        strain = run.rod.h * np.linalg.norm(fl["kappa"] - run.rod.problem(state.t).kappa0,
-                                            axis=1)
+        # h|κ − κ⁰| = h|K⁻¹ Rᵀ m| (the law m = R K (κ − κ⁰))
+        body_m = np.einsum("kji,kj->ki", quat_to_matrix(state.Y[:, 3:7]), state.Y[:, 10:13])
+        strain = run.rod.h * np.linalg.norm(body_m / run.props.stiffness, axis=1)
         stored = 0.0
         if run.rod.seabed is not None:
             stored += run.rod.seabed.nodal_stored_energy(run._seabed_split(state)[3],
