@@ -178,10 +178,10 @@ class CentrelineRun:
         tests/solver/test_solver_misc.py at Δt = 1 s, 1.7 rad in a step: by 34 %)."""
         rod = self.rod
         w = self.props.quad_weights
-        # the loads in force within the step: at a breakpoint the right limit of the
-        # old level's time and the left limit of the new one's (a distributed force's
-        # window [start, end] is in force at its end, where the step after it has none:
-        # the old level's value over-counted a sin² pulse of windows by 26 %)
+        # the loads in force within the step: the right limit at the old level's time
+        # and the left limit at the new one's (at a breakpoint the level's own value is
+        # one side's; read at a window's end the old level's load counted the window
+        # over the step after it: a sin² pulse of windows by 26 %)
         f0 = rod.problem(float(np.nextafter(old.t, np.inf))).load
         f1 = rod.problem(float(np.nextafter(new.t, -np.inf))).load
         dr = new.Y[:, 0:3] - old.Y[:, 0:3]

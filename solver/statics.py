@@ -1195,7 +1195,7 @@ def _dead_loads(case, props, t: float):
         rho = np.asarray(case.rod.evaluate("density", s), float)
         load += ((rho - rho_f) * props.area)[:, None] * np.asarray(case.gravity, float)
     for i, dfc in enumerate(case.distributed_forces):
-        if t < dfc.start or (dfc.end is not None and t > dfc.end):
+        if not dfc.is_active(t):              # start <= t < end, the case's window
             continue
         fac = 1.0 if dfc.factor is None else dfc.factor.value_at(t)
         mask = np.ones(N + 1, bool)
@@ -1204,7 +1204,7 @@ def _dead_loads(case, props, t: float):
         load[mask] += fac * np.asarray(dfc.value, float)
     extra_force = {"start": np.zeros(3), "end": np.zeros(3)}
     for i, pl in enumerate(case.point_loads):
-        if t < pl.start or (pl.end is not None and t > pl.end):
+        if not (pl.start <= t and (pl.end is None or t < pl.end)):   # start <= t < end
             continue
         if pl.body:
             raise StaticsError(f"point_loads.{i}.body: a follower load is not conservative; "

@@ -75,9 +75,9 @@ def test_the_first_fall_onto_the_spring_at_a_large_step_is_refused():
 def test_the_work_of_a_load_switched_off_at_a_breakpoint_is_not_counted_after_it():
     """A sin² pulse of distributed force made of windows [(k−½)Δt, (k+½)Δt] on the
     clamped-sliding beam of tests/solver/test_verification.py (ρ∞ 1, linear amplitude):
-    a window is in force at its end, where the step after it has none, so the work's old
-    level takes the load's right limit there; read at the breakpoint it counted each
-    window's load over the following half step (work_in 26 % above the energy). What is
+    the work's old level takes the load's right limit; read at the breakpoint (where the
+    static rows took a window's end as inside it, next test) it counted each window's
+    load over the following half step (work_in 26 % above the energy). What is
     left (0.5 %) is the restarts', whose Taylor steps re-solve n and m at each
     breakpoint (not measured by the check)."""
     spec = make_spec(start=CLAMPED, end=CLAMPED_SLIDING, n_segments=100, dt=2e-3,
@@ -103,3 +103,22 @@ def test_a_twisted_rod_is_not_refused_for_the_box_rules_energy():
     assert "energy" not in ds.attrs["hockle_refused_attempts"]
     assert np.nanmax(ds.step_energy_error.values) < 0.5
     assert math.isclose(ds.energy_total.values[-1], ds.work_in.values[-1], rel_tol=1e-3)
+
+
+def test_a_load_window_is_off_at_its_end_in_the_static_rows():
+    """A distributed force and a point load for start <= t < end (the case language's
+    window, solver.case.DistributedForce.is_active) in the rows the centreline scheme
+    and the statics read (solver.statics.problem_at): on just before the end, off at
+    it (the rows took the end as inside the window)."""
+    from solver.centreline import CentrelineRod
+
+    spec = make_spec(start=CLAMPED, end=CLAMPED_SLIDING, n_segments=10, dt=2e-3,
+                     t_end=0.06, rho_inf=1.0, diameter=VIB_D,
+                     forces=[{"value": [1.6e-3, 1.2e-3, 0.0], "start": 0.01, "end": 0.025}])
+    spec["point_loads"] = [{"s": 0.5 * spec["rod"]["length"], "value": [0.0, 0.0, 1.0],
+                            "start": 0.01, "end": 0.025}]
+    rod = CentrelineRod.from_case(_centreline(spec))
+    on, at_end = rod.problem(0.0249).load, rod.problem(0.025).load
+    assert np.abs(on).max() > 1e-3
+    assert not at_end.any()
+    assert np.abs(rod.problem(0.01).load).max() > 1e-3        # on from its start
