@@ -638,6 +638,9 @@ class CentrelineBalance:
     def __init__(self, tolerance: float, floor: float):
         self.tolerance = float(tolerance)
         self.floor = float(floor)
+        #: (the level last measured, its figures without U_c): an accepted step's new
+        #: level is the next step's old one, measured once
+        self._kept = None
 
     @classmethod
     def for_run(cls, run) -> Optional["CentrelineBalance"]:
@@ -650,23 +653,28 @@ class CentrelineBalance:
         length = float(props.s[-1] - props.s[0])
         return cls(tol, 1e-9 * float(np.max(props.stiffness[:, :2])) / length)
 
-    @staticmethod
-    def _level(run, state, cand):
-        """(E, T, U_s + U_c, U_el) of a level (J), the contact's energy over ``cand``,
-        and the largest h|κ − κ⁰| over the nodes."""
-        fl = run.rod.body_fields(state)
-        Y = np.concatenate([fl["v"], fl["omega"], fl["f"], fl["kappa"]], axis=1)
-        energy, kinetic = total_and_kinetic(Y, run.props)
-        # h|κ − κ⁰| = h|K⁻¹ Rᵀ m| (the law m = R K (κ − κ⁰))
-        body_m = np.einsum("kji,kj->ki", quat_to_matrix(state.Y[:, 3:7]), state.Y[:, 10:13])
-        strain = run.rod.h * np.linalg.norm(body_m / run.props.stiffness, axis=1)
-        stored = 0.0
-        if run.rod.seabed is not None:
-            stored += run.rod.seabed.nodal_stored_energy(run._seabed_split(state)[3],
-                                                         run.props.quad_weights)
+    def _level(self, run, state, cand):
+        """(E, T, U_s + U_c, the largest h|κ − κ⁰| over the nodes) of a level (J, J, J,
+        dimensionless), the contact's energy over the candidates ``cand``."""
+        if self._kept is not None and self._kept[0] is state:
+            energy, kinetic, stored, strain = self._kept[1]
+        else:
+            fl = run.rod.body_fields(state)
+            Y = np.concatenate([fl["v"], fl["omega"], fl["f"], fl["kappa"]], axis=1)
+            energy, kinetic = total_and_kinetic(Y, run.props)
+            # h|κ − κ⁰| = h|K⁻¹ Rᵀ m| (the law m = R K (κ − κ⁰))
+            body_m = np.einsum("kji,kj->ki", quat_to_matrix(state.Y[:, 3:7]),
+                               state.Y[:, 10:13])
+            strain = float(np.max(run.rod.h * np.linalg.norm(body_m / run.props.stiffness,
+                                                              axis=1)))
+            stored = 0.0
+            if run.rod.seabed is not None:
+                stored = run.rod.seabed.nodal_stored_energy(run._seabed_split(state)[3],
+                                                            run.props.quad_weights)
+            self._kept = (state, (energy, kinetic, stored, strain))
         if cand is not None:
             stored += run.contact.potential(cand, state.Y[:, 0:3])
-        return energy, kinetic, stored, float(np.max(strain))
+        return energy, kinetic, stored, strain
 
     def measure(self, run, old, new, work: float) -> StepBalance:
         """The balance (:class:`StepBalance`; its work: the scheme's ``work`` and the

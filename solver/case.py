@@ -843,6 +843,10 @@ class PointLoad(BaseModel):
                                       self.end)])
         return self
 
+    def is_active(self, t: float) -> bool:
+        """Whether the load acts at time ``t`` (s): ``start <= t < end``."""
+        return self.start <= t and (self.end is None or t < self.end)
+
     def scale_at(self, t: float) -> float:
         """The ``factor`` table at time ``t`` (s), 1 without one (dimensionless)."""
         return 1.0 if self.factor is None else self.factor.value_at(t)

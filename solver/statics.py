@@ -1204,7 +1204,7 @@ def _dead_loads(case, props, t: float):
         load[mask] += fac * np.asarray(dfc.value, float)
     extra_force = {"start": np.zeros(3), "end": np.zeros(3)}
     for i, pl in enumerate(case.point_loads):
-        if not (pl.start <= t and (pl.end is None or t < pl.end)):   # start <= t < end
+        if not pl.is_active(t):               # start <= t < end, the case's window
             continue
         if pl.body:
             raise StaticsError(f"point_loads.{i}.body: a follower load is not conservative; "
