@@ -38,6 +38,11 @@ keeps what the growth guard has learnt; a step itself is tried by
   weights each wavelength along the rod by the displacement it carries
   (:class:`DisplacementWeight`), so that the grid's shortest waves, excited by every
   sudden load, are not followed at tight tolerances.
+* **Local error of the centreline scheme** (:class:`DisplacementErrorControl`): its
+  positions and frames are unknowns, so the estimate is the displacements' own,
+  C(ρ∞)·h²·(a_{n+1} − a_n) from generalized-α's algebraic accelerations (the Newmark
+  estimator of Zienkiewicz & Xie with generalized-α's constant), no predictor, no
+  step doubling and no displacement weight.
 * **PI controller**: h_{n+1} = h_n·0.9·(1/e_n)^{0.3/k}·(e_{n−1}/e_n)^{0.4/k}, k = 3
   (Gustafsson, ACM TOMS 17 (1991) 533-554; Söderlind, ACM TOMS 29 (2003) 1-26), with
   the elementary controller h_n·(θ/e_n)^{1/k} (θ its steady ratio 0.9¹⁰) while the
@@ -61,7 +66,8 @@ from ..scheme import _apply_M_kernel
 
 __all__ = ["breakpoints", "RESTART_FRACTION", "RESTART_STEPS", "extrapolate",
            "kappa_distance", "ErrorControl", "PIController", "DisplacementWeight",
-           "error_constant", "growth_rate", "hermite"]
+           "error_constant", "growth_rate", "hermite", "DisplacementErrorControl",
+           "landing_step", "floored_step"]
 
 #: size of the backward-Euler restart step, as a fraction of the nominal Δt
 RESTART_FRACTION = 1e-4
@@ -691,3 +697,117 @@ class ErrorControl(PIController):
         self.peak = state[3].copy()
         self.low_prev = state[4]
 
+
+
+def landing_step(h: float, remaining: float) -> tuple[float, bool]:
+    """The step to try (s) of a controller's size h (s) with ``remaining`` (s) to the
+    next stop, and whether it lands there: the remainder when h reaches it, half of it
+    when h would leave less than itself, else h."""
+    last = h >= remaining * (1.0 - 1e-9)
+    return (remaining if last else (0.5 * remaining if 2.0 * h > remaining else h)), last
+
+
+def floored_step(h: float, h_try: float, h_min: float):
+    """The retry size (s) after a refused attempt of h_try (s) whose next size would be
+    h (s), with the floor h_min (s): h where it is not below the floor; h_min where it is
+    but the refused attempt was above the floor, so that the smallest step is tried
+    before the run is given up; None where the refused attempt was itself at (or,
+    landing on a stop, below) the floor. Without the floor's own try a run could end "no
+    step down to the smallest is trusted" with the smallest never tried (PyElastica's
+    plectoneme, ρ∞ = 0.8, N = 25, Δt = 0.1 s, with Newton's tolerance ×1.1: an energy
+    refusal at 80 µs, the next cut 20 µs below the floor of 24 µs, after a step of 40 µs
+    had passed; docs/contact.md § 3)."""
+    if h >= h_min * (1.0 - 1e-9):
+        return h
+    if h_try > h_min * (1.0 + 1e-9):
+        return h_min
+    return None
+
+
+class DisplacementErrorControl(PIController):
+    """Local error estimate and PI step-size controller of ``numerics.tolerance`` on the
+    centreline scheme (``numerics.formulation: centreline``), whose positions r and
+    frames are unknowns.
+
+    Estimate: generalized-α's displacement update Δ = h X_n + h²((½ − β) a_n + β a_n+1),
+    with the algebraic acceleration a tracking Ẍ(t + (α_m − α_f) h) (Chung & Hulbert
+    1993), has the local error (β + (α_m − α_f)/2 − 1/6) h³ X⃛ = C(ρ∞) h³ X⃛, the first-order
+    form's constant (:func:`error_constant`: 1/12 at ρ∞ = 1, 1/9 at ½, 1/3 at 0), and
+    a_n+1 − a_n = h X⃛ + O(h²), so
+
+        e = C(ρ∞) h² (a_n+1 − a_n)                      (N+1, 6): m (global), rad (body)
+
+    (the Newmark estimator of Zienkiewicz & Xie, Earthquake Eng. Struct. Dyn. 20 (1991)
+    871-887, with generalized-α's constant). It needs no history: the first step after a
+    start or a restart is measured like any other (the restart's a is consistent with
+    what is in force after the jump).
+
+    Norm: three groups, the positions (m), the frame's turn about a1, a2 (bending, rad)
+    and about a3 (twist, rad); for each the root mean square over nodes of the node's
+    error vector against absolute·u + relative·S, u = (L, 1 rad, 1 rad) and S the
+    group's largest value at any accepted level so far of the node's displacement
+    |r − r(0)| and, for the turns, the larger of the parts of the node's turn from the
+    start's frame (the rotation vector of p̄(0) ⊗ p, at most π) and of the bending and
+    twist the rod holds, ∫|κ₁,₂| ds and ∫|κ₃| ds: a lateral motion that has not yet
+    grown (before a buckling) is measured against its own small size, not against the
+    twist, and a twist error against the twist the rod carries (a cable laid with six
+    turns holds 38 rad, while its frames turn by tenths of a radian as it lifts off).
+    The turns' errors and sizes pass through the displacement weight along the rod
+    (:class:`DisplacementWeight`, ℓ = L/π) first: a rod's rotational inertia is small,
+    so the frames' algebraic accelerations carry the grid's short torsional and
+    bending-rotation waves, which every contact and friction change excites, at sizes
+    that move no position (measured on cases/seabed-hockle.yaml's lift-off,
+    docs/numerics.md § 9); the positions, which the turns' long waves move, are
+    measured as they are. Accept when the largest ratio is ≤ 1.
+
+    Parameters: relative, absolute (dimensionless), length L (m), rho_inf, s (N+1,)
+    the node arclengths (m) of the weight.
+    """
+
+    #: (start, stop) columns of the groups in the estimate and the displacements
+    GROUPS = ((0, 3), (3, 5), (5, 6))
+
+    def __init__(self, relative: float, absolute: float, length: float, rho_inf: float,
+                 s):
+        super().__init__()
+        self.smooth = DisplacementWeight(s)
+        self.rtol = float(relative)
+        self.atol = float(absolute)
+        self.units = np.array([float(length), 1.0, 1.0])
+        self.C = error_constant(rho_inf)
+        #: the largest displacement of each group at an accepted level
+        self.peak = np.zeros(len(self.GROUPS))
+
+    def estimate(self, h: float, a_old: np.ndarray, a_new: np.ndarray) -> np.ndarray:
+        """The local error (N+1, 6) of a step of h (s) whose algebraic accelerations at
+        its two levels are a_old and a_new (N+1, 6): C h² (a_new − a_old)."""
+        return self.C * h * h * (a_new - a_old)
+
+    def sizes(self, moved: np.ndarray, held) -> np.ndarray:
+        """The groups' sizes (3,) at a level: the largest norms on the rod of ``moved``
+        (N+1, 6), each node's displacement from the start (m, global) and turn from the
+        start's frame (rad, body), the turns through the displacement weight; the turns'
+        at least ``held`` (2,), the bending and twist the rod holds, ∫|κ₁,₂| ds and
+        ∫|κ₃| ds (rad)."""
+        out = np.sqrt(np.max(_group_sq(self._weighted(moved), self.GROUPS), axis=0))
+        out[1:] = np.maximum(out[1:], held)
+        return out
+
+    def _weighted(self, x: np.ndarray) -> np.ndarray:
+        """x (N+1, 6) with its turns (columns 3-5) through the displacement weight."""
+        out = x.copy()
+        out[:, 3:6] = self.smooth(x[:, 3:6])
+        return out
+
+    def ratio(self, error: np.ndarray, moved: np.ndarray, held) -> float:
+        """The error ratio (estimate / tolerance) of a step's local error ``error``
+        (N+1, 6), :meth:`estimate`, with the new level's ``moved`` and ``held``
+        (:meth:`sizes`)."""
+        scale = self.atol * self.units + self.rtol * np.maximum(self.peak,
+                                                                self.sizes(moved, held))
+        rms = np.sqrt(np.mean(_group_sq(self._weighted(error), self.GROUPS), axis=0))
+        return float(np.max(rms / scale))
+
+    def push(self, moved: np.ndarray, held) -> None:
+        """Record an accepted level's sizes (:meth:`sizes`) in the peaks."""
+        self.peak = np.maximum(self.peak, self.sizes(moved, held))

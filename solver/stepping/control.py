@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 from typing import NamedTuple, Optional
 
-from . import RESTART_FRACTION, RESTART_STEPS, breakpoints
+from . import RESTART_FRACTION, RESTART_STEPS, breakpoints, floored_step, landing_step
 from .guard import GrowthGuard
 
 __all__ = ["Attempt", "SolverDivergence", "StepControl"]
@@ -412,13 +412,7 @@ class StepControl:
                        error_ratio=ratio)
 
     # ------------------------------------------------------------------ shared rules
-    @staticmethod
-    def _landing(h: float, remaining: float) -> tuple[float, bool]:
-        """The step to try (s) of a controller's size h (s) with ``remaining`` (s) to the
-        next stop, and whether it lands there: the remainder when h reaches it, half of
-        it when h would leave less than itself, else h."""
-        last = h >= remaining * (1.0 - 1e-9)
-        return (remaining if last else (0.5 * remaining if 2.0 * h > remaining else h)), last
+    _landing = staticmethod(landing_step)
 
     def _retry_size(self, run, h_try: float, ctl, att: Attempt, by_error: bool,
                     ratio: float, refused):
@@ -434,22 +428,7 @@ class StepControl:
             return min(0.5 * h_try, self.guard.cap()), refused
         return h_try / run.case.numerics.dt_cut_factor, refused
 
-    @staticmethod
-    def _floored(h: float, h_try: float, h_min: float):
-        """The retry size (s) after a refused attempt of h_try (s) whose next size would be
-        h (s), with the floor h_min (s): h where it is not below the floor; h_min where
-        it is but the refused attempt was above the floor, so that the smallest step is
-        tried before the run is given up; None where the refused attempt was itself at
-        (or, landing on a stop, below) the floor. Without the floor's own try a run could
-        end "no step down to the smallest is trusted" with the smallest never tried
-        (PyElastica's plectoneme, ρ∞ = 0.8, N = 25, Δt = 0.1 s, with Newton's tolerance
-        ×1.1: an energy refusal at 80 µs, the next cut 20 µs below the floor of 24 µs,
-        after a step of 40 µs had passed; docs/contact.md § 3)."""
-        if h >= h_min * (1.0 - 1e-9):
-            return h
-        if h_try > h_min * (1.0 + 1e-9):
-            return h_min
-        return None
+    _floored = staticmethod(floored_step)
 
     def _count_refusal(self, run, h, att: Attempt, reason=None) -> None:
         """Count the attempt ``att`` of h (s) just refused under ``reason`` (default its
