@@ -37,6 +37,14 @@ Sections (``--only`` picks some):
   first run to compile, then the timed one): wall time, refused attempts, the first
   contact, Wr at 9 s, the largest |Tw + Wr − Lk| and the smallest surface gap.
 
+* ``control``: error-controlled steps (``numerics.tolerance``, relative = absolute) on
+  the tip case at 1e-2, 1e-3 and 1e-4, the schemes alternately: accepted steps, refused
+  attempts, wall time and the final positions' largest error (against each scheme's
+  fixed-step 1/1280 s run) over the tip's 0.4 m travel; then ``cases/seabed-hockle.yaml``
+  to 10 s on the centreline scheme at relative 1e-3, absolute 1e-4 (the state every
+  0.05 s) beside its fixed 0.05-s steps: wall time, accepted steps, median step, refused
+  attempts, Wr at 10 s.
+
 Each line says the machine's load (1-min load average) at the start. Run from the
 repository's root: ``python -m benchmarks.centreline_compare [--only time space ...]``.
 """
@@ -340,13 +348,47 @@ def section_touchdown():
                   f"{suspended[-1] - suspended[i]:.2f} m ({_load()})")
 
 
+def section_control():
+    print(f"error-controlled steps, tip case, 40 segments, rho_inf 0.5 ({_load()})")
+    refs = {f: _final(tip_case(40, 1 / 1280, f)) for f in SCHEMES}
+    for tol in (1e-2, 1e-3, 1e-4):
+        for f in SCHEMES:                               # the schemes alternately
+            spec = tip_case(40, 0.01, f).model_dump(mode="json")
+            spec["numerics"]["tolerance"] = {"relative": tol, "absolute": tol}
+            t0 = time.perf_counter()
+            ds = integrate(Case.model_validate(spec))
+            wall = time.perf_counter() - t0
+            err = float(np.abs(ds.position.isel(time=-1).values - refs[f]).max()) / 0.4
+            print(f"  tolerance {tol:g}, {f:10s}: {ds.sizes['step']} steps, refused: "
+                  f"{ds.attrs.get('hockle_refused_attempts') or 'none'}, wall {wall:.2f} s, "
+                  f"error {err:.3g} of the travel")
+    print(f"cases/seabed-hockle.yaml to 10 s, centreline, fixed 0.05-s steps and "
+          f"tolerance 1e-3/1e-4 ({_load()})")
+    base = Case.from_file(ROOT / "cases" / "seabed-hockle.yaml").model_dump(mode="json")
+    base["numerics"]["formulation"] = "centreline"
+    for controlled in (False, True):
+        spec = {**base, "numerics": dict(base["numerics"]), "output": dict(base["output"])}
+        if controlled:
+            spec["numerics"]["tolerance"] = {"relative": 1e-3, "absolute": 1e-4}
+            spec["output"].pop("every", None)
+            spec["output"]["interval"] = 0.05
+        t0 = time.perf_counter()
+        ds = integrate(Case.model_validate(spec))
+        wall = time.perf_counter() - t0
+        dt = ds.step_dt.values
+        print(f"  {'tolerance' if controlled else 'fixed':9s}: {ds.attrs['hockle_status']}, "
+              f"wall {wall:.1f} s, {dt.size} steps, median {1e3 * np.median(dt):.3g} ms, "
+              f"refused: {ds.attrs.get('hockle_refused_attempts') or 'none'}, Wr at 10 s "
+              f"{float(ds.writhe[-1]):.4f} ({_load()})")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--only", nargs="+",
                     choices=["time", "space", "galilean", "seed", "seedfull", "hockle",
-                             "touchdown", "plectoneme"],
+                             "touchdown", "plectoneme", "control"],
                     default=["time", "space", "galilean", "seed", "seedfull", "hockle",
-                             "touchdown", "plectoneme"])
+                             "touchdown", "plectoneme", "control"])
     ap.add_argument("--seed-end", type=float, default=8.0, help="s (default 8)")
     ap.add_argument("--repeat", type=int, default=3, help="seed runs per scheme (default 3)")
     args = ap.parse_args(argv)

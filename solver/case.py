@@ -2004,9 +2004,10 @@ class Case(BaseModel):
         return self
 
     def _check_formulation(self) -> list[dict]:
-        """What the centreline scheme does not take yet, refused at numerics.formulation
-        (the end conditions the statics' end rows cannot say are refused when the run is
-        built, :class:`solver.centreline.CentrelineError`); and what the seed scheme
+        """What the centreline scheme does not take, refused at the field (error-controlled
+        steps with thermal fluctuations, at ``numerics.tolerance``; the end conditions the
+        statics' end rows cannot say are refused when the run is built,
+        :class:`solver.centreline.CentrelineError`); and what the seed scheme
         (goyal) does not take, refused at the field: ``fluid.viscosity``,
         ``rod.intrinsic_curvature``, ``electrostatics``, ``thermal``."""
         if self.numerics.formulation != "centreline":
@@ -2033,13 +2034,12 @@ class Case(BaseModel):
                                    "take thermal fluctuations: set numerics.formulation: "
                                    "centreline", None))
             return errors
-        missing = [name for name, present in (
-            ("numerics.tolerance", self.numerics.tolerance is not None),) if present]
-        if not missing:
-            return []
-        return [_err(("numerics", "formulation"), "unsupported",
-                     "centreline does not take " + ", ".join(missing) + " yet (fixed "
-                     "steps); use goyal", "centreline")]
+        if self.thermal is not None and self.numerics.tolerance is not None:
+            return [_err(("numerics", "tolerance"), "unsupported",
+                         "error-controlled steps do not take thermal fluctuations: the "
+                         "local error estimate would follow the noise (each step's random "
+                         "impulses are fresh); give a fixed numerics.dt", None)]
+        return []
 
     def _check_closed(self) -> list[dict]:
         """A closed rod (``rod.closed``): the centreline scheme only (self-contact and

@@ -275,14 +275,10 @@ class CentrelineRod:
     @classmethod
     def from_case(cls, case) -> "CentrelineRod":
         """The rod of a validated case. Raises :class:`CentrelineError` naming the field
-        the scheme does not take yet (``numerics.tolerance``) or the statics' end rows
-        cannot say."""
+        the statics' end rows cannot say."""
         from .initial import initial_pose, node_frames
         from .properties import RodProperties
 
-        if case.numerics.tolerance is not None:
-            raise CentrelineError("numerics.tolerance: the centreline scheme takes fixed "
-                                  "steps (numerics.dt) only")
         props = RodProperties.from_case(case)
         q = node_frames(case, props.s)
         r = initial_pose(case, props.s)[1]

@@ -36,6 +36,7 @@ trapezoid in time.
 """
 from __future__ import annotations
 
+import copy
 import math
 from types import SimpleNamespace
 
@@ -44,7 +45,8 @@ import numpy as np
 from . import statics as st
 from .balance import CentrelineBalance
 from .centreline import CentrelineError, CentrelineRod, StepFailure, box_centreline
-from .stepping import breakpoints
+from .stepping import (DisplacementErrorControl, breakpoints, floored_step, hermite,
+                       landing_step)
 from .stepping.control import SolverDivergence
 from .stepping.guard import GrowthGuard
 
@@ -124,6 +126,17 @@ class CentrelineRun:
                                   f"({exc.reason})") from exc
         self.phi_start = self.state.phi.copy()
         self.state.seabed_power = self._seabed_power(self.level)
+        #: the error control of ``numerics.tolerance`` (None: fixed steps), the start's
+        #: positions and frames its sizes count from, and the next step's size (s)
+        self.errctl, self._h_next = None, case.numerics.dt
+        tol = case.numerics.tolerance
+        if tol is not None:
+            self.errctl = DisplacementErrorControl(tol.relative, tol.absolute,
+                                                   float(rod.props.s[-1]),
+                                                   case.numerics.rho_inf, rod.props.s)
+        self._origin = (self.level.Y[:, 0:3].copy(), self.level.Y[:, 3:7].copy())
+        if self.errctl is not None:
+            self.errctl.push(*self._moved(self.level))
         if start is None and (case.initial.twist_rate != 0.0
                               or case.initial.centreline is not None):
             # a twisted or curved start: Lk counts from the untwisted straight rod
@@ -295,20 +308,12 @@ class CentrelineRun:
             h = min(h, t_target - st.t)
             step, landed = self._landing(st.t, h)
             try:
-                new, its, err = self.rod.step(self.level, step, landed)
-                if self.contact is not None and self.contact.passes_through(
-                        self.level.Y[:, 0:3], new.Y[:, 0:3]):
-                    raise StepFailure("strands passed through each other in the step")
-                if not self._growth_ok(new, step):
+                attempt = self._attempt(step, landed)
+                if attempt is None:              # the growth guard's refusal
                     h, cuts = self._growth_cut(h, cuts, h_full)
                     continue
-                work = self._work(self.level, new, landed)
-                self._check_energy(self.level, new, work)
             except StepFailure as exc:
-                key = ("crossing" if exc.reason.startswith("strands") else
-                       "turn" if exc.reason.startswith("a node turned") else
-                       "energy" if exc.reason.startswith(self.ENERGY_REFUSAL) else "newton")
-                refusals[key] = refusals.get(key, 0) + 1
+                self._count_refusal(exc)
                 cuts += 1
                 if cuts > num.max_dt_cuts:
                     raise SolverDivergence(
@@ -319,36 +324,71 @@ class CentrelineRun:
                 self._accepted_at_level = 0
                 continue
             self._accepted_at_level += 1
-            self.control.guard.since += 1
             if thermal is not None:
                 thermal.accept()                 # cut steps: the rest of the impulse
-            if not all(np.all(np.isfinite(x)) for x in (new.Y, new.X, new.Xd, new.a)):
-                raise SolverDivergence(f"non-finite state at t = {new.t:.6g} s", st.t, 0,
-                                       math.inf, "nonfinite_state")
-            old = self.level
-            self.level = new
-            held = [t_a for _, _, t_a in self.switches if landed == t_a]
-            for name, where, t_a in self.switches:
-                if landed == t_a:
-                    self._anchor_at(name, where, t_a, t_a, new.Y)
-            if landed is not None and self.rod.stokes is None:
-                # the level recorded at the breakpoint is its left limit; the next step
-                # starts from the restart
-                self._pending_restart = (landed, bool(held))
-            st.phi = self._end_angles(old, new, step)
-            self._publish()
-            st.work_in += work
-            if self.rod.seabed is not None:
-                power = self._seabed_power(new)
-                st.seabed_work += 0.5 * step * (st.seabed_power + power)
-                st.seabed_power = power
-            if self.contact is not None:
-                self._contact_summary(new)
-            total_its, self.last_residual, self.control.last_dt = its, err, step
-            self.newton.factorizations = self.rod.factorizations
+            total_its = self._accept(*attempt, step, landed)
         self._cut_level = cuts
         self.last_iterations = total_its
         return total_its, self.last_residual
+
+    def _attempt(self, h: float, landed):
+        """One step of h (s) from the current level, ending on the breakpoint ``landed``
+        (s) or None, checked: (the new level, Newton iterations, scaled update, the work
+        put in, J), or None where the growth guard refuses it. Raises
+        :class:`StepFailure` where Newton does not converge, strands pass through each
+        other, a node turns too far or the energy check refuses it."""
+        new, its, err = self.rod.step(self.level, h, landed)
+        if self.contact is not None and self.contact.passes_through(
+                self.level.Y[:, 0:3], new.Y[:, 0:3]):
+            raise StepFailure("strands passed through each other in the step")
+        if not self._growth_ok(new, h):
+            return None
+        work = self._work(self.level, new, landed)
+        self._check_energy(self.level, new, work)
+        return new, its, err, work
+
+    def _count_refusal(self, exc: StepFailure) -> None:
+        """Count a refused attempt under its reason's key (crossing, turn, energy,
+        newton) in ``control.refusals``."""
+        key = ("crossing" if exc.reason.startswith("strands") else
+               "turn" if exc.reason.startswith("a node turned") else
+               "energy" if exc.reason.startswith(self.ENERGY_REFUSAL) else "newton")
+        refusals = self.control.refusals
+        refusals[key] = refusals.get(key, 0) + 1
+
+    def _accept(self, new, its: int, err: float, work: float, h: float, landed) -> int:
+        """Make the checked level ``new`` of a step of h (s) the run's (ending on the
+        breakpoint ``landed`` or None; Newton's ``its`` and ``err``, the work ``work``, J):
+        the ends held from a switch anchored, a restart left pending at a breakpoint, the
+        end angles, the work and the sea floor's work, the contact summary. Returns
+        ``its``. Raises :class:`SolverDivergence` on a non-finite level."""
+        st = self.state
+        self.control.guard.since += 1
+        if not all(np.all(np.isfinite(x)) for x in (new.Y, new.X, new.Xd, new.a)):
+            raise SolverDivergence(f"non-finite state at t = {new.t:.6g} s", st.t, 0,
+                                   math.inf, "nonfinite_state")
+        old = self.level
+        self.level = new
+        held = [t_a for _, _, t_a in self.switches if landed == t_a]
+        for name, where, t_a in self.switches:
+            if landed == t_a:
+                self._anchor_at(name, where, t_a, t_a, new.Y)
+        if landed is not None and self.rod.stokes is None:
+            # the level recorded at the breakpoint is its left limit; the next step
+            # starts from the restart
+            self._pending_restart = (landed, bool(held))
+        st.phi = self._end_angles(old, new, h)
+        self._publish()
+        st.work_in += work
+        if self.rod.seabed is not None:
+            power = self._seabed_power(new)
+            st.seabed_work += 0.5 * h * (st.seabed_power + power)
+            st.seabed_power = power
+        if self.contact is not None:
+            self._contact_summary(new)
+        self.last_residual, self.control.last_dt = err, h
+        self.newton.factorizations = self.rod.factorizations
+        return its
 
     #: how a step refused by the energy check starts its reason
     ENERGY_REFUSAL = "the step put in more energy than its loads' work"
@@ -420,9 +460,113 @@ class CentrelineRun:
         self.contact_count = 0 if ev is None else int(ev.count)
         self.min_gap = math.inf if ev is None or not ev.count else float(ev.min_gap)
 
-    def step_adaptive(self, t_limit: float):
-        raise CentrelineError("numerics.tolerance: the centreline scheme takes fixed "
-                              "steps (numerics.dt) only")
+    # ------------------------------------------------------------- error control
+    def _moved(self, level) -> tuple[np.ndarray, np.ndarray]:
+        """What :class:`solver.stepping.DisplacementErrorControl` measures errors against
+        at ``level``: each node's displacement from the start (m, global) and turn from
+        the start's frame (rotation vector, rad, body), (N+1, 6); and the bending and
+        twist the rod holds, ∫|κ₁,₂| ds and ∫|κ₃| ds (rad, trapezoid), (2,)."""
+        r0, p0 = self._origin
+        moved = np.concatenate([level.Y[:, 0:3] - r0,
+                                _rotation_vector(p0, level.Y[:, 3:7])], axis=1)
+        kappa = self.rod.body_fields(level)["kappa"]
+        w = self.props.quad_weights
+        held = np.array([w @ np.hypot(kappa[:, 0], kappa[:, 1]), w @ np.abs(kappa[:, 2])])
+        return moved, held
+
+    def step_adaptive(self, t_stop: float):
+        """One accepted error-controlled step (``numerics.tolerance``) toward t_stop (s):
+        never past t_stop or the next breakpoint, landing on them exactly (a step that
+        would leave less than itself before the stop is halved instead,
+        :func:`solver.stepping.landing_step`). The step's local error is
+        :class:`solver.stepping.DisplacementErrorControl`'s; a step refused for it is
+        retried at the PI controller's smaller size, one refused by the growth guard at
+        half its size within g/σ, one whose Newton, crossing, turn or energy check fails
+        at Δt/dt_cut_factor; the floor is 1e-9 t_end (:func:`solver.stepping.
+        floored_step`). Returns (Newton iterations of all attempts, the accepted step's
+        scaled update). Raises :class:`SolverDivergence` when a step at the floor is
+        refused."""
+        num, ctl, guard = self.case.numerics, self.errctl, self.control.guard
+        if self._pending_restart is not None:
+            self._take_restart()
+            ctl.forget()
+        t = self.level.t
+        snap = 1e-9 * self._h_next
+        later = self.breaks[self.breaks > t + snap]
+        at_break = bool(later.size and later[0] <= t_stop + snap)
+        stop = float(later[0]) if at_break else float(t_stop)
+        h_min = 1e-9 * max(num.t_end, num.dt)
+        h_max = num.dt_max if num.dt_max is not None else math.inf
+        h, refused, total = self._h_next, None, 0
+        while True:
+            h = min(h, h_max, guard.cap())
+            h_try, last = landing_step(h, stop - t)
+            landed = stop if last and at_break else None
+            try:
+                attempt = self._attempt(h_try, stop if last else None)
+            except StepFailure as exc:
+                self._count_refusal(exc)
+                h_next, why = h_try / num.dt_cut_factor, exc.reason
+            else:
+                if attempt is None:
+                    refusals = self.control.refusals
+                    refusals["growth"] = refusals.get("growth", 0) + 1
+                    h_next, why = min(0.5 * h_try, guard.cap()), "growth"
+                else:
+                    new = attempt[0]
+                    total += attempt[1]
+                    sizes = self._moved(new)
+                    ratio = ctl.ratio(ctl.estimate(h_try, self.level.a, new.a), *sizes)
+                    if ratio <= 1.0:
+                        ctl.push(*sizes)
+                        h_new = ctl.accepted(h_try, ratio)
+                        # a step shortened to land on a stop does not shrink the next one
+                        self._h_next = max(h_new, h) if h_try < h else h_new
+                        self._accept(*attempt, h_try, landed)
+                        self.last_iterations = total
+                        return total, self.last_residual
+                    refusals = self.control.refusals
+                    refusals["error"] = refusals.get("error", 0) + 1
+                    h_next, refused = ctl.rejected(h_try, ratio, refused), (h_try, ratio)
+                    why = f"local error {ratio:.3g} × numerics.tolerance"
+            h = floored_step(h_next, h_try, h_min)
+            if h is None:
+                raise SolverDivergence(
+                    f"time step from t = {t:.6g} s could not be completed down to the "
+                    f"smallest step 1e-9 t_end = {h_min:.3g} s (last refusal: {why})",
+                    t, 0, math.inf, "solver_diverged")
+
+    def dense_state(self):
+        """What :meth:`interpolated_snapshot` needs of the level a step starts from: the
+        level (never changed in place) and the run's end angles, work and sea floor's
+        work and power there."""
+        st = self.state
+        return (self.level, st.phi.copy(), st.work_in, st.power, st.seabed_work,
+                st.seabed_power)
+
+    def interpolated_snapshot(self, fields: set, t: float, start) -> dict:
+        """The outputs (:func:`solver.recording.snapshot`) at t (s) inside the last
+        accepted step, which began at the :meth:`dense_state` ``start``: the dense
+        output of error-controlled steps (:func:`interpolated_level` for the level; the
+        end angles, the work in and the sea floor's work by cubic Hermite interpolation
+        with their rates W3 at the end nodes and the powers). The contact count and
+        smallest gap are the step's."""
+        from .recording import snapshot
+
+        level0, phi0, w0, p0, sw0, sp0 = start
+        st = self.state
+        h = st.t - level0.t
+        s = (t - level0.t) / h
+        view = copy.copy(self)
+        view.state = vs = copy.copy(st)
+        view.level = interpolated_level(level0, self.level, t)
+        view._publish()
+        vs.phi = hermite(s, h, phi0, level0.X[[0, -1], 5], st.phi, self.level.X[[0, -1], 5])
+        vs.work_in = float(hermite(s, h, w0, p0, st.work_in, st.power))
+        if self.rod.seabed is not None:
+            vs.seabed_work = float(hermite(s, h, sw0, sp0, st.seabed_work,
+                                           st.seabed_power))
+        return snapshot(view, fields, route_current=True)
 
     def _seabed_split(self, state):
         """The sea floor's (normal, friction, moment (N+1, 3), penetration (N+1,)) at a
@@ -450,6 +594,55 @@ class CentrelineRun:
         omega = np.einsum("kij,kj->ki", R, state.X[:, 3:6])
         per = np.sum((Fn + Ff) * state.X[:, 0:3], axis=1) + np.sum(M * omega, axis=1)
         return float(per @ self.props.quad_weights)
+
+
+def interpolated_level(old, new, t: float):
+    """The level at t (s) between two levels ``old`` and ``new``
+    (:class:`solver.centreline.CentrelineState`) of one step: the dense output of
+    error-controlled steps (Hairer, Nørsett & Wanner I, § II.6). Positions r by cubic
+    Hermite interpolation with their rates ṙ; each frame p_old ⊗ exp(ψ(t)), ψ the cubic Hermite interpolant of the rotation vector from p_old with
+    ψ(old.t) = 0, ψ'(old.t) = W_old, ψ(new.t) = ψ_1 (the step's turn) and
+    ψ'(new.t) = J_r⁻¹(ψ_1) W_new (the right Jacobian of SO(3)'s exponential:
+    p' = ½ p ⊗ W with p = p_old ⊗ exp(ψ) gives W = J_r(ψ) ψ'); the velocities X by cubic
+    Hermite with their rates Ẋ; n, m, Ẋ, a and the load rate linear. The interpolant's
+    error is O(h³) against the scheme's O(h²) global error."""
+    h = new.t - old.t
+    s = (t - old.t) / h
+    Y = (1.0 - s) * old.Y + s * new.Y
+    Y[:, 0:3] = hermite(s, h, old.Y[:, 0:3], old.X[:, 0:3], new.Y[:, 0:3], new.X[:, 0:3])
+    psi1 = _rotation_vector(old.Y[:, 3:7], new.Y[:, 3:7])
+    psi = hermite(s, h, 0.0 * psi1, old.X[:, 3:6], psi1, _inverse_right_jacobian(
+        psi1, new.X[:, 3:6]))
+    Y[:, 3:7] = st._qmul(old.Y[:, 3:7], _quaternion_exp(psi))
+    lin = lambda a, b: (1.0 - s) * a + s * b                              # noqa: E731
+    X = hermite(s, h, old.X, old.Xd, new.X, new.Xd)
+    from .centreline import CentrelineState
+
+    return CentrelineState(float(t), Y, X, lin(old.Xd, new.Xd), lin(old.a, new.a),
+                           lin(old.load_rate, new.load_rate))
+
+
+def _inverse_right_jacobian(psi, w):
+    """J_r⁻¹(ψ) w (..., 3): w + ½ ψ × w + (1/θ² − (1 + cos θ)/(2θ sin θ)) ψ × (ψ × w),
+    θ = |ψ|, the inverse of SO(3)'s right Jacobian (Solà, Deray & Atchuthan, *A micro
+    Lie theory for state estimation in robotics*, arXiv:1812.01537, 2018; the
+    coefficient → 1/12 as θ → 0)."""
+    th = np.linalg.norm(psi, axis=-1, keepdims=True)
+    small = th < 1e-4
+    ths = np.where(small, 1.0, th)
+    c = np.where(small, 1.0 / 12.0 + th ** 2 / 720.0,
+                 1.0 / ths ** 2 - (1.0 + np.cos(ths)) / (2.0 * ths * np.sin(ths)))
+    pw = np.cross(psi, w)
+    return w + 0.5 * pw + c * np.cross(psi, pw)
+
+
+def _quaternion_exp(psi):
+    """The unit quaternion (..., 4) (w, x, y, z) of the rotation vector ψ (..., 3) rad:
+    (cos(θ/2), sin(θ/2) ψ/θ), θ = |ψ|."""
+    th = np.linalg.norm(psi, axis=-1, keepdims=True)
+    half = 0.5 * th
+    sinc = np.where(th > 1e-12, np.sin(half) / np.where(th > 1e-12, th, 1.0), 0.5)
+    return np.concatenate([np.cos(half), sinc * psi], axis=-1)
 
 
 def _rotation_vector(p_old, p_new):

@@ -385,7 +385,7 @@ class OutputRecorder:
             self.records.append(snapshot(self.run, self.fields))
         else:
             self.times.append(t)
-            self.records.append(interpolated_snapshot(self.run, self.fields, t, start))
+            self.records.append(self.run.interpolated_snapshot(self.fields, t, start))
 
     def finish(self, status, message="", reason=None):
         """The result dataset with ``hockle_status`` = status; a run that did not

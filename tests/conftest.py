@@ -15,7 +15,7 @@ def compiled_kernels():
 def formulation_under_test(monkeypatch):
     """With HOCKLE_TEST_FORMULATION=centreline in the environment, every run the time loop
     builds (:func:`solver.simulation.make_run`) is a centreline run where the case allows
-    one (no tolerance or end the scheme refuses; else the seed scheme's),
+    one (no end the scheme refuses; else the seed scheme's),
     so the whole suite measures the centreline scheme against the same expectations
     (docs/numerics.md § 9). Unset (the default and CI): nothing changes."""
     import os

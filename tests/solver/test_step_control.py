@@ -221,14 +221,18 @@ def test_achieved_error_follows_the_tolerance():
     assert steps[0] < steps[1] < steps[2]
 
 
+@pytest.mark.parametrize("formulation", ["goyal", "centreline"])
 @pytest.mark.parametrize("interpolate", [False, True])
-def test_adaptive_steps_land_on_outputs_breakpoints_and_respect_dt_max(interpolate):
+def test_adaptive_steps_land_on_outputs_breakpoints_and_respect_dt_max(interpolate,
+                                                                        formulation):
     # landing: the steps end on the output times; dense output: only on the breakpoints
-    # and t_end, the outputs in between interpolated, at the same times
+    # and t_end, the outputs in between interpolated, at the same times (both schemes:
+    # the centreline's error control, tests/solver/test_centreline_error_control.py)
     case = make_case(n_segments=10, dt=0.01, t_end=1.0, end=free_end(), fluid=FLUID,
                      forces=[{"value": [0.05, 0.0, 0.0], "start": 0.33, "end": 0.71}])
     spec = case.model_dump()
-    spec["numerics"].update(tolerance={"relative": 1e-3, "absolute": 1e-3}, dt_max=0.07)
+    spec["numerics"].update(tolerance={"relative": 1e-3, "absolute": 1e-3}, dt_max=0.07,
+                            formulation=formulation)
     spec["output"].update(interval=0.25, interpolate=interpolate)
     ds = integrate(Case.model_validate(spec))
     assert ds.attrs["hockle_status"] == "completed"
