@@ -1,8 +1,12 @@
 """One run of a case on the centreline scheme (``numerics.formulation: centreline``).
 
 :class:`CentrelineRun` steps a :class:`solver.centreline.CentrelineRod` with the case's
-fixed Δt and hands the time loop of :func:`solver.simulation.integrate` (its recorder,
-progress, observer and checkpoints) the state in the names the seed scheme's run uses
+fixed Δt (:meth:`CentrelineRun.advance`) or, with ``numerics.tolerance``, with steps
+chosen from their local error (:meth:`CentrelineRun.step_adaptive`,
+:class:`solver.stepping.DisplacementErrorControl`; dense output by
+:func:`interpolated_level`) and hands the time loop of
+:func:`solver.simulation.integrate` (its recorder, progress, observer and checkpoints)
+the state in the names the seed scheme's run uses
 (``run.state``, as :class:`solver.state.RunState`; ``run.control.refusals``,
 ``run.control.last_dt``, ``run.control.guard.sigma``, as
 :class:`solver.stepping.control.StepControl`; ``run.system.seabed`` None): ``Y``
@@ -109,10 +113,12 @@ class CentrelineRun:
             if start.work_in is not None:
                 self.state.work_in = float(start.work_in)
         #: where the case's loads or conditions jump (s, sorted; :func:`solver.stepping.
-        #: breakpoints` without the tables' kinks, whose corners cost O(Δslope Δt²)
-        #: once): the steps land on them and restart there; and the ends held after a
-        #: load phase, [(end, item, t_a)]
-        self.breaks = breakpoints(case, kinks=False)
+        #: breakpoints`; with fixed steps without the tables' kinks, whose corners cost
+        #: O(Δslope Δt²) once, with error control with them: the estimate has no X⃛
+        #: across a corner, and a step of the quasi-static twisting spans seconds): the
+        #: steps land on them and restart there; and the ends held after a load phase,
+        #: [(end, item, t_a)]
+        self.breaks = breakpoints(case, kinks=case.numerics.tolerance is not None)
         self.switches = st.load_to_held_switches(case)
         for name, where, t_a in self.switches:
             if t_a < t:
@@ -126,17 +132,18 @@ class CentrelineRun:
                                   f"({exc.reason})") from exc
         self.phi_start = self.state.phi.copy()
         self.state.seabed_power = self._seabed_power(self.level)
-        #: the error control of ``numerics.tolerance`` (None: fixed steps), the start's
-        #: positions and frames its sizes count from, and the next step's size (s)
-        self.errctl, self._h_next = None, case.numerics.dt
+        #: the error control of ``numerics.tolerance`` (None: fixed steps); it keeps the
+        #: next step's size (``h_next``, s) and the start's positions and frames its
+        #: sizes count from (``origin``)
+        self.errctl = None
         tol = case.numerics.tolerance
         if tol is not None:
-            self.errctl = DisplacementErrorControl(tol.relative, tol.absolute,
-                                                   float(rod.props.s[-1]),
-                                                   case.numerics.rho_inf, rod.props.s)
-        self._origin = (self.level.Y[:, 0:3].copy(), self.level.Y[:, 3:7].copy())
-        if self.errctl is not None:
-            self.errctl.push(*self._moved(self.level))
+            ctl = self.errctl = DisplacementErrorControl(
+                tol.relative, tol.absolute, float(rod.props.s[-1]), case.numerics.rho_inf,
+                rod.props.s)
+            ctl.h_next = case.numerics.dt
+            ctl.origin = (self.level.Y[:, 0:3].copy(), self.level.Y[:, 3:7].copy())
+            ctl.push(*self._moved(self.level))
         if start is None and (case.initial.twist_rate != 0.0
                               or case.initial.centreline is not None):
             # a twisted or curved start: Lk counts from the untwisted straight rod
@@ -232,6 +239,7 @@ class CentrelineRun:
         self._pending_restart = None
         if self.level.t != t_b:
             return
+        self._before = None                   # the restart's n, m are not the left's
         try:
             self.level = self._restart(self.level, impact)
         except StepFailure as exc:
@@ -369,6 +377,7 @@ class CentrelineRun:
                                    math.inf, "nonfinite_state")
         old = self.level
         self.level = new
+        self._before = old
         held = [t_a for _, _, t_a in self.switches if landed == t_a]
         for name, where, t_a in self.switches:
             if landed == t_a:
@@ -451,6 +460,7 @@ class CentrelineRun:
     _cut_level = 0                         # the Δt level the next nominal step starts at
     _accepted_at_level = 0
     _pending_restart = None                # (the breakpoint landed on, impact or not)
+    _before = None                         # the level before the current one, or None
 
     def _contact_summary(self, state) -> None:
         """``contact_count`` (pairs within the law's reach) and ``min_gap`` (m, the
@@ -466,7 +476,7 @@ class CentrelineRun:
         at ``level``: each node's displacement from the start (m, global) and turn from
         the start's frame (rotation vector, rad, body), (N+1, 6); and the bending and
         twist the rod holds, ∫|κ₁,₂| ds and ∫|κ₃| ds (rad, trapezoid), (2,)."""
-        r0, p0 = self._origin
+        r0, p0 = self.errctl.origin
         moved = np.concatenate([level.Y[:, 0:3] - r0,
                                 _rotation_vector(p0, level.Y[:, 3:7])], axis=1)
         kappa = self.rod.body_fields(level)["kappa"]
@@ -491,13 +501,13 @@ class CentrelineRun:
             self._take_restart()
             ctl.forget()
         t = self.level.t
-        snap = 1e-9 * self._h_next
+        snap = 1e-9 * ctl.h_next
         later = self.breaks[self.breaks > t + snap]
         at_break = bool(later.size and later[0] <= t_stop + snap)
         stop = float(later[0]) if at_break else float(t_stop)
         h_min = 1e-9 * max(num.t_end, num.dt)
         h_max = num.dt_max if num.dt_max is not None else math.inf
-        h, refused, total = self._h_next, None, 0
+        h, refused, total = ctl.h_next, None, 0
         while True:
             h = min(h, h_max, guard.cap())
             h_try, last = landing_step(h, stop - t)
@@ -521,7 +531,7 @@ class CentrelineRun:
                         ctl.push(*sizes)
                         h_new = ctl.accepted(h_try, ratio)
                         # a step shortened to land on a stop does not shrink the next one
-                        self._h_next = max(h_new, h) if h_try < h else h_new
+                        ctl.h_next = max(h_new, h) if h_try < h else h_new
                         self._accept(*attempt, h_try, landed)
                         self.last_iterations = total
                         return total, self.last_residual
@@ -538,11 +548,12 @@ class CentrelineRun:
 
     def dense_state(self):
         """What :meth:`interpolated_snapshot` needs of the level a step starts from: the
-        level (never changed in place) and the run's end angles, work and sea floor's
-        work and power there."""
+        level (never changed in place), the one before it where no restart came between
+        (else None), and the run's end angles, work and sea floor's work and power
+        there."""
         st = self.state
         return (self.level, st.phi.copy(), st.work_in, st.power, st.seabed_work,
-                st.seabed_power)
+                st.seabed_power, self._before)
 
     def interpolated_snapshot(self, fields: set, t: float, start) -> dict:
         """The outputs (:func:`solver.recording.snapshot`) at t (s) inside the last
@@ -553,13 +564,15 @@ class CentrelineRun:
         smallest gap are the step's."""
         from .recording import snapshot
 
-        level0, phi0, w0, p0, sw0, sp0 = start
+        level0, phi0, w0, p0, sw0, sp0, before = start
+        if self._before is not level0:
+            before = None              # the step began at a restart: n, m jumped there
         st = self.state
         h = st.t - level0.t
         s = (t - level0.t) / h
         view = copy.copy(self)
         view.state = vs = copy.copy(st)
-        view.level = interpolated_level(level0, self.level, t)
+        view.level = interpolated_level(level0, self.level, t, before)
         view._publish()
         vs.phi = hermite(s, h, phi0, level0.X[[0, -1], 5], st.phi, self.level.X[[0, -1], 5])
         vs.work_in = float(hermite(s, h, w0, p0, st.work_in, st.power))
@@ -596,7 +609,7 @@ class CentrelineRun:
         return float(per @ self.props.quad_weights)
 
 
-def interpolated_level(old, new, t: float):
+def interpolated_level(old, new, t: float, before=None):
     """The level at t (s) between two levels ``old`` and ``new``
     (:class:`solver.centreline.CentrelineState`) of one step: the dense output of
     error-controlled steps (Hairer, Nørsett & Wanner I, § II.6). Positions r by cubic
@@ -604,11 +617,22 @@ def interpolated_level(old, new, t: float):
     ψ(old.t) = 0, ψ'(old.t) = W_old, ψ(new.t) = ψ_1 (the step's turn) and
     ψ'(new.t) = J_r⁻¹(ψ_1) W_new (the right Jacobian of SO(3)'s exponential:
     p' = ½ p ⊗ W with p = p_old ⊗ exp(ψ) gives W = J_r(ψ) ψ'); the velocities X by cubic
-    Hermite with their rates Ẋ; n, m, Ẋ, a and the load rate linear. The interpolant's
+    Hermite with their rates Ẋ; n and m by the parabola through ``before`` (the level
+    before ``old``, where no restart came between; linear without it), so that the
+    twist they carry (κ = K⁻¹ Rᵀ m) is interpolated to the same order as the ends'
+    angles (a rod twisted at a rising rate: |Lk − Tw| at the outputs 3.5e-3 turns with
+    m linear, docs/numerics.md § 9); Ẋ, a and the load rate linear. The interpolant's
     error is O(h³) against the scheme's O(h²) global error."""
     h = new.t - old.t
     s = (t - old.t) / h
     Y = (1.0 - s) * old.Y + s * new.Y
+    if before is not None and before.t < old.t:
+        # Lagrange through (before, old, new) for n and m
+        t0, t1, t2 = before.t, old.t, new.t
+        l0 = (t - t1) * (t - t2) / ((t0 - t1) * (t0 - t2))
+        l1 = (t - t0) * (t - t2) / ((t1 - t0) * (t1 - t2))
+        l2 = (t - t0) * (t - t1) / ((t2 - t0) * (t2 - t1))
+        Y[:, 7:13] = l0 * before.Y[:, 7:13] + l1 * old.Y[:, 7:13] + l2 * new.Y[:, 7:13]
     Y[:, 0:3] = hermite(s, h, old.Y[:, 0:3], old.X[:, 0:3], new.Y[:, 0:3], new.X[:, 0:3])
     psi1 = _rotation_vector(old.Y[:, 3:7], new.Y[:, 3:7])
     psi = hermite(s, h, 0.0 * psi1, old.X[:, 3:6], psi1, _inverse_right_jacobian(

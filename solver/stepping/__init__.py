@@ -777,6 +777,11 @@ class DisplacementErrorControl(PIController):
         self.C = error_constant(rho_inf)
         #: the largest displacement of each group at an accepted level
         self.peak = np.zeros(len(self.GROUPS))
+        #: the next step's size (s) and the start's (r (N+1, 3), p (N+1, 4)) the sizes
+        #: count from: the run's (:meth:`solver.centreline_run.CentrelineRun.
+        #: step_adaptive`)
+        self.h_next = math.nan
+        self.origin = None
 
     def estimate(self, h: float, a_old: np.ndarray, a_new: np.ndarray) -> np.ndarray:
         """The local error (N+1, 6) of a step of h (s) whose algebraic accelerations at
