@@ -1277,7 +1277,8 @@ def _path_rhs(t, y, a, w_a, dw, v_a, dv):
                          w0 * wx + yq * wz - z * wy,
                          w0 * wy + z * wx - x * wz,
                          w0 * wz + x * wy - yq * wx])
-    R = np.array([[w0 * w0 + x * x - yq * yq - z * z, 2 * (x * yq - w0 * z), 2 * (x * z + w0 * yq)],
-                  [2 * (x * yq + w0 * z), w0 * w0 - x * x + yq * yq - z * z, 2 * (yq * z - w0 * x)],
-                  [2 * (x * z - w0 * yq), 2 * (yq * z + w0 * x), w0 * w0 - x * x - yq * yq + z * z]])
+    ww, xx, yy, zz = w0 * w0, x * x, yq * yq, z * z
+    R = np.array([[ww + xx - yy - zz, 2 * (x * yq - w0 * z), 2 * (x * z + w0 * yq)],
+                  [2 * (x * yq + w0 * z), ww - xx + yy - zz, 2 * (yq * z - w0 * x)],
+                  [2 * (x * z - w0 * yq), 2 * (yq * z + w0 * x), ww - xx - yy + zz]])
     return np.concatenate([dq, R @ np.array([vx, vy, vz])])

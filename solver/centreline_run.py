@@ -613,8 +613,8 @@ def interpolated_level(old, new, t: float, before=None):
     """The level at t (s) between two levels ``old`` and ``new``
     (:class:`solver.centreline.CentrelineState`) of one step: the dense output of
     error-controlled steps (Hairer, Nørsett & Wanner I, § II.6). Positions r by cubic
-    Hermite interpolation with their rates ṙ; each frame p_old ⊗ exp(ψ(t)), ψ the cubic Hermite interpolant of the rotation vector from p_old with
-    ψ(old.t) = 0, ψ'(old.t) = W_old, ψ(new.t) = ψ_1 (the step's turn) and
+    Hermite interpolation with their rates ṙ; each frame p_old ⊗ exp(ψ(t)), ψ the cubic
+    Hermite interpolant of the rotation vector from p_old with ψ(old.t) = 0, ψ'(old.t) = W_old, ψ(new.t) = ψ_1 (the step's turn) and
     ψ'(new.t) = J_r⁻¹(ψ_1) W_new (the right Jacobian of SO(3)'s exponential:
     p' = ½ p ⊗ W with p = p_old ⊗ exp(ψ) gives W = J_r(ψ) ψ'); the velocities X by cubic
     Hermite with their rates Ẋ; n and m by the parabola through ``before`` (the level
@@ -652,7 +652,7 @@ def _inverse_right_jacobian(psi, w):
     Lie theory for state estimation in robotics*, arXiv:1812.01537, 2018; the
     coefficient → 1/12 as θ → 0)."""
     th = np.linalg.norm(psi, axis=-1, keepdims=True)
-    small = th < 1e-4
+    small = th < 1e-2                  # the series to θ²: 7e-13 off at 1e-2
     ths = np.where(small, 1.0, th)
     c = np.where(small, 1.0 / 12.0 + th ** 2 / 720.0,
                  1.0 / ths ** 2 - (1.0 + np.cos(ths)) / (2.0 * ths * np.sin(ths)))
