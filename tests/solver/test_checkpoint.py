@@ -73,11 +73,13 @@ def old_layout(ck) -> bytes:
     return data
 
 
-def test_resume_of_an_error_controlled_run():
+@pytest.mark.parametrize("formulation", ["goyal", "centreline"])
+def test_resume_of_an_error_controlled_run(formulation):
     case = make_case(n_segments=12, dt=0.002, t_end=0.3, start=clamped_end(), end=free_end(),
                      forces=[{"value": [0.0, 2.0, 0.0], "start": 0.0}])
     spec = case.model_dump(mode="json")
     spec["numerics"]["tolerance"] = {"relative": 1e-3, "absolute": 1e-6}
+    spec["numerics"]["formulation"] = formulation
     spec["output"]["interval"] = 0.05
     case = type(case).model_validate(spec)
     full, data = run_with_checkpoint_at(case, 0.12)
