@@ -48,7 +48,8 @@ import numpy as np
 
 from . import statics as st
 from .balance import CentrelineBalance
-from .centreline import CentrelineError, CentrelineRod, StepFailure, box_centreline
+from .centreline import (CentrelineError, CentrelineRod, CentrelineState, StepFailure,
+                         box_centreline)
 from .stepping import (DisplacementErrorControl, breakpoints, floored_step, hermite,
                        landing_step)
 from .stepping.control import SolverDivergence
@@ -143,7 +144,7 @@ class CentrelineRun:
                 rod.props.s)
             ctl.h_next = case.numerics.dt
             ctl.origin = (self.level.Y[:, 0:3].copy(), self.level.Y[:, 3:7].copy())
-            ctl.push(*self._moved(self.level))
+            ctl.push(ctl.sizes(*self._moved(self.level)))
         if start is None and (case.initial.twist_rate != 0.0
                               or case.initial.centreline is not None):
             # a twisted or curved start: Lk counts from the untwisted straight rod
@@ -247,8 +248,7 @@ class CentrelineRun:
                 raise SolverDivergence(
                     f"the impact at the breakpoint t = {t_b:.6g} s did not converge: "
                     f"{exc.reason}", self.state.t, 0, math.inf, "solver_diverged") from exc
-            refusals = self.control.refusals
-            refusals["restart"] = refusals.get("restart", 0) + 1
+            self._refused("restart")
         self._publish()
 
     def _restart(self, level, impact: bool):
@@ -298,7 +298,7 @@ class CentrelineRun:
         scaled update). Raises :class:`SolverDivergence` when every cut fails."""
         num = self.case.numerics
         total_its = 0
-        st, refusals = self.state, self.control.refusals
+        st = self.state
         h_full = t_target - st.t
         cuts = min(self._cut_level, num.max_dt_cuts)
         h = h_full / num.dt_cut_factor ** cuts
@@ -358,9 +358,12 @@ class CentrelineRun:
     def _count_refusal(self, exc: StepFailure) -> None:
         """Count a refused attempt under its reason's key (crossing, turn, energy,
         newton) in ``control.refusals``."""
-        key = ("crossing" if exc.reason.startswith("strands") else
-               "turn" if exc.reason.startswith("a node turned") else
-               "energy" if exc.reason.startswith(self.ENERGY_REFUSAL) else "newton")
+        self._refused("crossing" if exc.reason.startswith("strands") else
+                      "turn" if exc.reason.startswith("a node turned") else
+                      "energy" if exc.reason.startswith(self.ENERGY_REFUSAL) else "newton")
+
+    def _refused(self, key: str) -> None:
+        """Count one refused attempt under ``key`` in ``control.refusals``."""
         refusals = self.control.refusals
         refusals[key] = refusals.get(key, 0) + 1
 
@@ -425,8 +428,7 @@ class CentrelineRun:
         :class:`SolverDivergence` where that takes more than ``numerics.max_dt_cuts``
         cuts of the nominal step h_full (s)."""
         num, guard = self.case.numerics, self.control.guard
-        refusals = self.control.refusals
-        refusals["growth"] = refusals.get("growth", 0) + 1
+        self._refused("growth")
         cap = guard.cap() * (1.0 + 1e-9)
         while h > cap and cuts <= num.max_dt_cuts:
             h /= num.dt_cut_factor
@@ -519,24 +521,22 @@ class CentrelineRun:
                 h_next, why = h_try / num.dt_cut_factor, exc.reason
             else:
                 if attempt is None:
-                    refusals = self.control.refusals
-                    refusals["growth"] = refusals.get("growth", 0) + 1
+                    self._refused("growth")
                     h_next, why = min(0.5 * h_try, guard.cap()), "growth"
                 else:
                     new = attempt[0]
                     total += attempt[1]
-                    sizes = self._moved(new)
-                    ratio = ctl.ratio(ctl.estimate(h_try, self.level.a, new.a), *sizes)
+                    sizes = ctl.sizes(*self._moved(new))
+                    ratio = ctl.ratio(ctl.estimate(h_try, self.level.a, new.a), sizes)
                     if ratio <= 1.0:
-                        ctl.push(*sizes)
+                        ctl.push(sizes)
                         h_new = ctl.accepted(h_try, ratio)
                         # a step shortened to land on a stop does not shrink the next one
                         ctl.h_next = max(h_new, h) if h_try < h else h_new
                         self._accept(*attempt, h_try, landed)
                         self.last_iterations = total
                         return total, self.last_residual
-                    refusals = self.control.refusals
-                    refusals["error"] = refusals.get("error", 0) + 1
+                    self._refused("error")
                     h_next, refused = ctl.rejected(h_try, ratio, refused), (h_try, ratio)
                     why = f"local error {ratio:.3g} × numerics.tolerance"
             h = floored_step(h_next, h_try, h_min)
@@ -640,8 +640,6 @@ def interpolated_level(old, new, t: float, before=None):
     Y[:, 3:7] = st._qmul(old.Y[:, 3:7], _quaternion_exp(psi))
     lin = lambda a, b: (1.0 - s) * a + s * b                              # noqa: E731
     X = hermite(s, h, old.X, old.Xd, new.X, new.Xd)
-    from .centreline import CentrelineState
-
     return CentrelineState(float(t), Y, X, lin(old.Xd, new.Xd), lin(old.a, new.a),
                            lin(old.load_rate, new.load_rate))
 

@@ -41,8 +41,8 @@ keeps what the growth guard has learnt; a step itself is tried by
 * **Local error of the centreline scheme** (:class:`DisplacementErrorControl`): its
   positions and frames are unknowns, so the estimate is the displacements' own,
   C(ρ∞)·h²·(a_{n+1} − a_n) from generalized-α's algebraic accelerations (the Newmark
-  estimator of Zienkiewicz & Xie with generalized-α's constant), no predictor, no
-  step doubling and no displacement weight.
+  estimator of Zienkiewicz & Xie with generalized-α's constant), no predictor and no
+  step doubling; the displacement weight on the frames' turns only.
 * **PI controller**: h_{n+1} = h_n·0.9·(1/e_n)^{0.3/k}·(e_{n−1}/e_n)^{0.4/k}, k = 3
   (Gustafsson, ACM TOMS 17 (1991) 533-554; Söderlind, ACM TOMS 29 (2003) 1-26), with
   the elementary controller h_n·(θ/e_n)^{1/k} (θ its steady ratio 0.9¹⁰) while the
@@ -761,7 +761,8 @@ class DisplacementErrorControl(PIController):
     measured as they are. Accept when the largest ratio is ≤ 1.
 
     Parameters: relative, absolute (dimensionless), length L (m), rho_inf, s (N+1,)
-    the node arclengths (m) of the weight.
+    the node arclengths (m) of the weight. Raises ArithmeticError where the weight's
+    factorisation fails (it cannot for increasing s).
     """
 
     #: (start, stop) columns of the groups in the estimate and the displacements
@@ -804,15 +805,13 @@ class DisplacementErrorControl(PIController):
         out[:, 3:6] = self.smooth(x[:, 3:6])
         return out
 
-    def ratio(self, error: np.ndarray, moved: np.ndarray, held) -> float:
+    def ratio(self, error: np.ndarray, sizes: np.ndarray) -> float:
         """The error ratio (estimate / tolerance) of a step's local error ``error``
-        (N+1, 6), :meth:`estimate`, with the new level's ``moved`` and ``held``
-        (:meth:`sizes`)."""
-        scale = self.atol * self.units + self.rtol * np.maximum(self.peak,
-                                                                self.sizes(moved, held))
+        (N+1, 6), :meth:`estimate`, with the new level's ``sizes`` (3,) (:meth:`sizes`)."""
+        scale = self.atol * self.units + self.rtol * np.maximum(self.peak, sizes)
         rms = np.sqrt(np.mean(_group_sq(self._weighted(error), self.GROUPS), axis=0))
         return float(np.max(rms / scale))
 
-    def push(self, moved: np.ndarray, held) -> None:
-        """Record an accepted level's sizes (:meth:`sizes`) in the peaks."""
-        self.peak = np.maximum(self.peak, self.sizes(moved, held))
+    def push(self, sizes: np.ndarray) -> None:
+        """Record an accepted level's ``sizes`` (3,) (:meth:`sizes`) in the peaks."""
+        self.peak = np.maximum(self.peak, sizes)

@@ -118,17 +118,17 @@ def test_a_twist_error_is_measured_against_the_twist_the_rod_holds():
     moved = np.zeros((21, 6))
     error = np.zeros((21, 6))
     error[:, 5] = 5e-3
-    assert ctl.ratio(error, moved, np.array([0.0, 10.0])) == pytest.approx(0.5, rel=1e-3)
-    assert ctl.ratio(error, moved, np.array([0.0, 0.1])) == pytest.approx(50.0, rel=1e-2)
+    assert ctl.ratio(error, ctl.sizes(moved, np.array([0.0, 10.0]))) == pytest.approx(0.5, rel=1e-3)
+    assert ctl.ratio(error, ctl.sizes(moved, np.array([0.0, 0.1]))) == pytest.approx(50.0, rel=1e-2)
     moved[:, 0] = 1e-5
     error[:] = 0.0
     error[:, 0] = 1e-6
-    assert ctl.ratio(error, moved, np.zeros(2)) == pytest.approx(1e-6 / (1e-6 + 1e-8))
-    ctl.push(moved, np.array([0.0, 10.0]))
+    assert ctl.ratio(error, ctl.sizes(moved, np.zeros(2))) == pytest.approx(1e-6 / (1e-6 + 1e-8))
+    ctl.push(ctl.sizes(moved, np.array([0.0, 10.0])))
     error[:] = 0.0
     error[:, 5] = 5e-3
     # the peak stays once the twist is released
-    assert ctl.ratio(error, 0.0 * moved, np.zeros(2)) == pytest.approx(0.5, rel=1e-3)
+    assert ctl.ratio(error, ctl.sizes(0.0 * moved, np.zeros(2))) == pytest.approx(0.5, rel=1e-3)
 
 
 def test_dense_output_keeps_the_linking_number_identity():
