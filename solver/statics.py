@@ -121,6 +121,14 @@ def _rot(p):
     ], axis=-2)
 
 
+def _a3(p):
+    """The tangent a3 = R(p) e3 (..., 3) of a unit quaternion (..., 4): the third column
+    of :func:`_rot`, the same arithmetic, without the other two."""
+    w, x, y, z = p[..., 0], p[..., 1], p[..., 2], p[..., 3]
+    return np.stack([2 * (x * z + w * y), 2 * (y * z - w * x), w * w - x * x - y * y + z * z],
+                    axis=-1)
+
+
 def quat_axis_angle(axis, angle) -> np.ndarray:
     """Unit quaternion (4,) of a rotation by ``angle`` (rad) about ``axis`` (3,)."""
     a = np.asarray(axis, float)
@@ -423,9 +431,8 @@ def without_pair_loads(prob: StaticProblem) -> StaticProblem:
 
 def band_jacobian(Y: np.ndarray, prob: StaticProblem) -> np.ndarray:
     """∂G/∂Y in LAPACK band storage (2 KL + KU + 1, 13(N+1)) (:mod:`solver.static_band`),
-    exact to rounding: the cells by the compiled per-cell complex step, the 13 end rows by
-    the complex step of :func:`_end_rows` (13 evaluations: the start rows depend on node 0
-    only and the end rows on node N only, so one step perturbs both ends). The same
+    exact to rounding: the cells by the compiled per-cell complex step, the 13 end rows
+    exactly (:func:`_end_jacobian`; they are linear but for |p_0|² − 1). The same
     matrix as :func:`jacobian`; of a closed rod, the part inside the band (the join's
     rows on the columns of nodes 0 and N lie outside it: :func:`join_coupling`). Raises
     :class:`StaticsError` where the problem has self-contact, a seabed or
@@ -448,15 +455,41 @@ def band_jacobian(Y: np.ndarray, prob: StaticProblem) -> np.ndarray:
             col = NV * N + c
             ab[diag + end_rows - col, col] = J[N_START:, NV + c]
         return ab
-    ends = np.empty((2, NV), dtype=complex)
+    start, end = _end_jacobian(Y, prob)
     for c in range(NV):
-        ends[0], ends[1] = Y[0], Y[-1]
-        ends[:, c] += 1j * _EPS
-        start, end = _end_rows(ends, prob)
-        ab[diag + start_rows - c, c] = start.imag / _EPS
+        ab[diag + start_rows - c, c] = start[:, c]
         col = NV * N + c
-        ab[diag + end_rows - col, col] = end.imag / _EPS
+        ab[diag + end_rows - col, col] = end[:, c]
     return ab
+
+
+def _end_jacobian(Y: np.ndarray, prob: StaticProblem):
+    """∂(the 7 start rows)/∂(node 0's 13 unknowns) (7, 13) and ∂(the 6 end rows)/∂(node
+    N's) (6, 13) of :func:`_end_rows` for an open rod, exact: a translation row is
+    e_jᵀ on r (held) or on n (loaded); a held frame's rows are p_0 − q (the identity on
+    p_0) at s = 0 and vec(q̄ ⊗ p_N) at s = L (the rows 1-3 of q̄'s left product matrix,
+    the Hamilton product being linear in p_N); a free frame's are m (the identity on
+    m) and |p_0|² − 1 (2 p_0ᵀ). Y (N+1, 13) real."""
+    st, en = prob.start, prob.end
+    start = np.zeros((N_START, NV))
+    rows = np.arange(3)
+    E = st.axes.T
+    start[rows[st.held][:, None], np.arange(0, 3)] = E[st.held]
+    start[rows[~st.held][:, None], np.arange(7, 10)] = E[~st.held]
+    if st.rotation_held:
+        start[3:7, 3:7] = np.eye(4)
+    else:
+        start[3:6, 10:13] = np.eye(3)
+        start[6, 3:7] = 2.0 * Y[0, 3:7]
+    end = np.zeros((N_END, NV))
+    E = en.axes.T
+    end[rows[en.held][:, None], np.arange(0, 3)] = E[en.held]
+    end[rows[~en.held][:, None], np.arange(7, 10)] = E[~en.held]
+    if en.rotation_held:
+        end[3:6, 3:7] = _qmul(_qconj(en.quaternion)[None, :], np.eye(4))[:, 1:].T
+    else:
+        end[3:6, 10:13] = np.eye(3)
+    return start, end
 
 
 def _join_jacobian(Y: np.ndarray, prob: StaticProblem) -> np.ndarray:
@@ -529,7 +562,7 @@ def _contact_evaluation(Y, prob):
     r = np.ascontiguousarray(np.real(Y[:, 0:3]), dtype=float)
     if not np.all(np.isfinite(r)):
         raise StaticsError("contact: non-finite positions")
-    a3 = np.ascontiguousarray(_rot(np.real(Y[:, 3:7]))[:, :, 2], dtype=float)
+    a3 = np.ascontiguousarray(_a3(np.real(Y[:, 3:7])), dtype=float)
     cand = c.search(r, a3)
     if cand is None:
         return None
