@@ -79,7 +79,7 @@ def _pair(name, spec, answer, **numerics):
 
 @contextlib.contextmanager
 def _without_chords():
-    kept = B.CentrelineBalance.chord_work
+    kept = B.CentrelineBalance.__dict__["chord_work"]      # the staticmethod itself
     B.CentrelineBalance.chord_work = staticmethod(lambda Y0, Y1: 0.0)
     try:
         yield

@@ -44,7 +44,9 @@ def test_jacobian_matches_central_differences():
 
 def _random_problems(rng):
     """Problems whose end rows take every form: clamped, free, a held rotation with
-    sliding translation, a non-uniform stiffness and a distributed load."""
+    sliding translation, a non-uniform stiffness and a distributed load, and ends whose
+    translation axes are turned, some held and some loaded, one frame held at a turned
+    quaternion, the other free."""
     free = st.uniform(1.0, 6, (1.0, 2.0, 0.7), st.clamp([0, 0, 0], [1, 0, 0, 0]),
                       st.free_end([0.3, -0.2, 0.1]), load=(0.1, 0.0, -0.5))
     twisted = st.uniform(1.0, 9, (1.0, 1.0, 0.7), st.clamp([0, 0, 0], [1, 0, 0, 0]),
@@ -54,7 +56,16 @@ def _random_problems(rng):
                               stiffness=rng.uniform(0.5, 2.0, (6, 3)),
                               load=rng.standard_normal((6, 3)), start=free.start,
                               end=free.end)
-    return free, twisted, uneven
+    axes = np.linalg.qr(rng.standard_normal((3, 3)))[0]
+    turned = st.quat_axis_angle(rng.standard_normal(3), 1.1)
+    skew = st.uniform(1.0, 5, (1.0, 1.5, 0.7),
+                      st.EndSpec(axes=axes, held=np.array([True, False, True]),
+                                 position=rng.standard_normal(3),
+                                 force=rng.standard_normal(3), rotation_held=False,
+                                 quaternion=np.array([1.0, 0, 0, 0])),
+                      st.clamp([0.2, 0.1, 1.0], turned, 1.1, axes=axes.T,
+                               held=(False, True, False), force=(0.1, 0.2, -0.3)))
+    return free, twisted, uneven, skew
 
 
 def test_band_jacobian_and_compiled_residual_are_the_sparse_ones():
