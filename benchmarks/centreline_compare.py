@@ -17,7 +17,9 @@ Sections (``--only`` picks some):
   scheme (the seed's scheme needs the contact the case has): how far towards 4.5 s it runs
   on 160/320/640 segments at Δt 0.05/0.025/0.0125 s, on 160 at 0.025 and 320 at 0.05 (Δs
   and Δt apart), and on 160 at 0.025 s with the friction coefficients 1 % higher; when
-  the MBR is crossed; the largest distance between these centrelines and the finest
+  the MBR is crossed; how far the held end strays from its path, the bottom's reaction
+  at its node and the largest over the last ``NEAR_END`` of the cable (N) beside the
+  cable's submerged weight there; the largest distance between these centrelines and the finest
   grid's (and between the two frictions) at 1.1 ... 3 s; and the largest speed of the
   cable resting on the bottom in its first 0.15 s at Δt 0.0125 s, ρ∞ 0.5 and 0,
   frictionless (the sea floor's chatter).
@@ -197,6 +199,8 @@ def section_seed(seed_end: float, repeat: int):
 
 
 SNAP_TIMES = (1.1, 1.25, 1.5, 2.0, 3.0)
+#: the length at the held end (m) over which the hockle rows sum the bottom's reaction
+NEAR_END = 0.1
 
 
 def _hockle_run(n, dt, t_end, rho_inf=None, friction=True, friction_scale=1.0):
@@ -205,7 +209,10 @@ def _hockle_run(n, dt, t_end, rho_inf=None, friction=True, friction_scale=1.0):
     reached, the largest node speed on the way (m/s), the first time the smallest bend
     radius is below the case's MBR (s, None: never), the reason it stopped or None, the
     run's Newton refusals, {t: the centreline (161, 3) m at the 160-segment grid's nodes}
-    at SNAP_TIMES)."""
+    at SNAP_TIMES, (the largest distance of the held end from its prescribed position (m),
+    the largest bottom reaction at the held end's node (N/m), the largest reaction over
+    the last NEAR_END of the cable (N), the time of that, the cable's submerged weight
+    (N/m)), over the steps)."""
     from solver.centreline_run import CentrelineRun
     from solver.kinematics import min_bend_radius
     from solver.stepping.control import SolverDivergence
@@ -224,6 +231,13 @@ def _hockle_run(n, dt, t_end, rho_inf=None, friction=True, friction_scale=1.0):
     case = Case.model_validate(spec)
     run = CentrelineRun(case)
     fastest, reason, crossed, snaps = 0.0, None, None, {}
+    near = run.props.s >= case.rod.length - NEAR_END - 1e-12
+    # the trapezoid's weights of the last NEAR_END (its first node a half cell)
+    w = np.where(near, run.props.quad_weights, 0.0)
+    w[np.argmax(near)] = 0.5 * case.rod.length / n
+    weight = ((case.rod.density - case.fluid.density) * np.pi * case.rod.diameter ** 2 / 4
+              * float(np.linalg.norm(case.gravity)))          # submerged, N/m
+    ends = [0.0, 0.0, 0.0, math.nan, weight]
     for k in range(1, int(round(t_end / dt)) + 1):
         try:
             run.advance(k * dt)
@@ -231,6 +245,12 @@ def _hockle_run(n, dt, t_end, rho_inf=None, friction=True, friction_scale=1.0):
             reason = str(exc)
             break
         fastest = max(fastest, float(np.abs(run.level.X[:, 0:3]).max()))
+        normal = run.seabed_loads()[0][:, 2]
+        held = run.rod.problem(run.state.t).end.position
+        ends[0] = max(ends[0], float(np.abs(run.level.Y[-1, 0:3] - held).max()))
+        ends[1] = max(ends[1], abs(float(normal[-1])))
+        if float(w @ normal) > ends[2]:
+            ends[2], ends[3] = float(w @ normal), run.state.t
         radius, _ = min_bend_radius(run.state.Y[:, 9:12], run.props.s)
         if crossed is None and radius < case.rod.minimum_bend_radius:
             crossed = run.state.t
@@ -238,7 +258,7 @@ def _hockle_run(n, dt, t_end, rho_inf=None, friction=True, friction_scale=1.0):
             if abs(run.state.t - ts) < 1e-9:
                 snaps[ts] = run.level.Y[:: n // 160, 0:3].copy()
     return (run.state.t, fastest, crossed, reason, sum(run.control.refusals.values()),
-            snaps)
+            snaps, ends)
 
 
 def section_hockle():
@@ -248,12 +268,16 @@ def section_hockle():
     snaps = {}
     for n, dt, mu in grids:
         t0 = time.perf_counter()
-        t, _, crossed, reason, refused, snaps[n, dt, mu] = _hockle_run(
+        t, _, crossed, reason, refused, snaps[n, dt, mu], ends = _hockle_run(
             n, dt, 4.5, friction_scale=mu)
         when = "never" if crossed is None else f"at {crossed:.4g} s"
         print(f"  {n} segments, dt {dt:g} s, friction x {mu:g}, to 4.5 s: reached "
               f"t = {t:.4g} s, MBR crossed {when}, {refused} Newton refusals, "
-              f"wall {time.perf_counter() - t0:.1f} s; {reason or 'completed'}")
+              f"wall {time.perf_counter() - t0:.1f} s; {reason or 'completed'}; held end "
+              f"off its path by at most {ends[0]:.2g} m, its node's bottom reaction at "
+              f"most {ends[1]:.3g} N/m, the last {NEAR_END:g} m's at most {ends[2]:.3g} N "
+              f"(at {ends[3]:.3g} s; the cable's submerged weight there "
+              f"{NEAR_END * ends[4]:.3g} N)")
     print("  largest distance between centrelines (mm) at t = "
           + ", ".join(f"{t:g}" for t in SNAP_TIMES) + " s:")
     pairs = [((n, dt, mu), (640, 0.0125, 1.0)) for n, dt, mu in grids[:2] + grids[3:5]]
@@ -264,7 +288,8 @@ def section_hockle():
         print(f"    {a[0]}/{a[1]:g}/x{a[2]:g} - {b[0]}/{b[1]:g}/x{b[2]:g}: "
               + " ".join(f"{x:.3g}" for x in got))
     for rho in (0.5, 0.0):
-        t, fastest, _, reason, _, _ = _hockle_run(160, 0.0125, 0.15, rho, friction=False)
+        t, fastest, _, reason, _, _, _ = _hockle_run(160, 0.0125, 0.15, rho,
+                                                     friction=False)
         print(f"  160 segments, dt 0.0125 s, rho_inf {rho:g}, no friction, resting "
               f"0-0.15 s: largest speed {fastest:.3g} m/s, reached t = {t:.4g} s"
               + (f" ({reason})" if reason else ""))
