@@ -760,13 +760,13 @@ class CentrelineRod:
         where they do not (a full Newton step; the Jacobian is exact). Converged when the
         update scaled by :meth:`solver.statics.StaticProblem.scales` (n and m by their
         largest value at the start instead, where larger) is below TOLERANCE in r, p and
-        m and below N_TOLERANCE (or ``tolerance`` where larger) in n, or below FLOOR and no longer contracting (rounding's floor: the step's matrix
-        grows as 1/(β Δt²), and so does the rounding of its solve), or when an update no
-        longer halves from a residual below its rounding level (:meth:`_factor`) in the
-        rows' scales (an inextensible rod between held ends: its tension is rounding's
-        noise at 1e-5 of B/L², the residual at 1e-10 of it). Raises
-        :class:`StepFailure` without convergence in MAX_ITERATIONS, on a singular
-        Jacobian or a non-finite update."""
+        m and below N_TOLERANCE (or ``tolerance`` where larger) in n, or below FLOOR and
+        no longer contracting (rounding's floor: the step's matrix grows as 1/(β Δt²),
+        and so does the rounding of its solve), or when an update no longer halves from a
+        residual below its rounding level (:meth:`_factor`) in the rows' scales (an
+        inextensible rod between held ends: its tension is rounding's noise at 1e-5 of
+        B/L², the residual at 1e-10 of it). Raises :class:`StepFailure` without
+        convergence in MAX_ITERATIONS, on a singular Jacobian or a non-finite update."""
         scale = self._update_scales(Y, prob)
         weights = 1.0 / st._row_scales(prob)
         tol = self.TOLERANCE if tolerance is None else tolerance

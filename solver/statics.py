@@ -472,24 +472,29 @@ def _end_jacobian(Y: np.ndarray, prob: StaticProblem):
     m) and |p_0|² − 1 (2 p_0ᵀ). Y (N+1, 13) real."""
     st, en = prob.start, prob.end
     start = np.zeros((N_START, NV))
-    rows = np.arange(3)
-    E = st.axes.T
-    start[rows[st.held][:, None], np.arange(0, 3)] = E[st.held]
-    start[rows[~st.held][:, None], np.arange(7, 10)] = E[~st.held]
+    _translation_jacobian(st, start)
     if st.rotation_held:
         start[3:7, 3:7] = np.eye(4)
     else:
         start[3:6, 10:13] = np.eye(3)
         start[6, 3:7] = 2.0 * Y[0, 3:7]
     end = np.zeros((N_END, NV))
-    E = en.axes.T
-    end[rows[en.held][:, None], np.arange(0, 3)] = E[en.held]
-    end[rows[~en.held][:, None], np.arange(7, 10)] = E[~en.held]
+    _translation_jacobian(en, end)
     if en.rotation_held:
         end[3:6, 3:7] = _qmul(_qconj(en.quaternion)[None, :], np.eye(4))[:, 1:].T
     else:
         end[3:6, 10:13] = np.eye(3)
     return start, end
+
+
+def _translation_jacobian(spec: EndSpec, out: np.ndarray) -> None:
+    """Writes the derivative of an end's 3 translation rows (:func:`_end_rows`: e_jᵀ(r −
+    position) where component j is held, e_jᵀ(n ± force) where loaded) by its node's 13
+    unknowns into out[0:3] (out (≥ 3, 13), zeros there): e_jᵀ on the r or the n columns."""
+    rows = np.arange(3)
+    E = spec.axes.T
+    out[rows[spec.held][:, None], np.arange(0, 3)] = E[spec.held]
+    out[rows[~spec.held][:, None], np.arange(7, 10)] = E[~spec.held]
 
 
 def _join_jacobian(Y: np.ndarray, prob: StaticProblem) -> np.ndarray:
